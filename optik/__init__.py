@@ -1,0 +1,44 @@
+"""optik: kinematics by constrained optimization.
+
+Every mechanism becomes one CasADi model (:class:`Mechanism`) with joint limits and
+loop-closure constraints; optik solves IK with limits, FK of parallel mechanisms in every
+assembly mode and differential IK, and compares every solver against closed forms.
+"""
+
+from optik import catalog, closed_form, spatial
+from optik.errors import (
+    InvalidArgumentError,
+    LimitsError,
+    ModelError,
+    NonFiniteError,
+    OptikError,
+    ProblemFileError,
+    ShapeError,
+    SolverUnavailableError,
+    UnknownFrameError,
+)
+from optik.mechanism import Joint, Mechanism, dh_chain, planar_chain
+from optik.targets import Pose2D, Position
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "InvalidArgumentError",
+    "Joint",
+    "LimitsError",
+    "Mechanism",
+    "ModelError",
+    "NonFiniteError",
+    "OptikError",
+    "Pose2D",
+    "Position",
+    "ProblemFileError",
+    "ShapeError",
+    "SolverUnavailableError",
+    "UnknownFrameError",
+    "catalog",
+    "closed_form",
+    "dh_chain",
+    "planar_chain",
+    "spatial",
+]

@@ -1,0 +1,21 @@
+"""Named mechanisms with sensible default dimensions.
+
+Every constructor returns an :class:`optik.Mechanism` whose ``kind`` names its entry here, so
+that :mod:`optik.closed_form` can find the analytic solvers of that mechanism.
+"""
+
+from optik.catalog.closed_chains import doggy, five_bar, planar_3rpr, slider_crank, stewart_gough
+from optik.catalog.serial import planar_2r, planar_3r, pp_arm, rp_arm, seed_6r_arm
+
+__all__ = [
+    "doggy",
+    "five_bar",
+    "planar_2r",
+    "planar_3r",
+    "planar_3rpr",
+    "pp_arm",
+    "rp_arm",
+    "seed_6r_arm",
+    "slider_crank",
+    "stewart_gough",
+]

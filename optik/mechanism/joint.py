@@ -1,0 +1,154 @@
+"""Joints: the motion one body may have relative to another.
+
+A joint connects a ``parent`` body to a ``child`` body. Its pose is
+
+``T_child = T_parent @ origin @ motion(q) @ inv(child_offset)``
+
+where ``origin`` places the joint frame in the parent body (as in URDF), ``motion(q)`` is the
+joint's own motion and ``child_offset`` places the same joint frame in the child body (identity
+for joints of a serial chain, where the child body frame *is* the joint frame).
+
+Joint types and their coordinates (``dof`` = connectivity ``f`` in Gruebler-Kutzbach):
+
+===========  ===  ==============================================================
+type         dof  motion(q)
+===========  ===  ==============================================================
+revolute     1    ``Rot(axis, q)`` (Rodrigues)
+prismatic    1    ``Trans(q * axis)``
+fixed        0    identity
+universal    2    ``Rot(axis, q0) Rot(axis2, q1)``
+spherical    3    ``exp([q]x)``: q is a rotation vector (one chart covering SO(3))
+===========  ===  ==============================================================
+
+When a joint closes a loop (a *cut* joint) it has no coordinates; instead it contributes
+loop-closure equations (see :mod:`optik.mechanism.closure`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from optik import spatial
+from optik.errors import InvalidArgumentError, LimitsError
+
+JOINT_DOF = {"revolute": 1, "prismatic": 1, "fixed": 0, "universal": 2, "spherical": 3}
+"""Connectivity of each joint type."""
+
+_DEFAULT_LIMIT = {"revolute": np.pi, "prismatic": 1.0, "universal": np.pi, "spherical": np.pi}
+
+
+def _unit(v: Any, name: str) -> np.ndarray:
+    a = np.asarray(v, dtype=float).reshape(-1)
+    if a.shape != (3,) or not np.all(np.isfinite(a)) or np.linalg.norm(a) < 1e-12:
+        raise InvalidArgumentError(name, f"expected a finite non-zero 3-vector, got {v!r}")
+    return a / np.linalg.norm(a)
+
+
+def axis_rotation(axis: np.ndarray, angle: Any) -> Any:
+    """Rotation by ``angle`` about the unit ``axis``: ``exp([axis]x angle)``.
+
+    Uses the closed form ``I + sin(a) K + (1 - cos(a)) K^2`` with ``K = [axis]x``; the
+    elementary rotations are used for coordinate axes so that symbolic expressions stay small.
+    """
+    for i, fn in enumerate((spatial.rot_x, spatial.rot_y, spatial.rot_z)):
+        e = np.zeros(3)
+        e[i] = 1.0
+        if np.allclose(axis, e):
+            return fn(angle)
+        if np.allclose(axis, -e):
+            return fn(-angle)
+    k = spatial.hat(axis)
+    if spatial.is_symbolic(angle):
+        return ca.DM.eye(3) + ca.sin(angle) * ca.DM(k) + (1 - ca.cos(angle)) * ca.DM(k @ k)
+    a = np.asarray(angle, dtype=float)[..., None, None]
+    return np.eye(3) + np.sin(a) * k + (1 - np.cos(a)) * (k @ k)
+
+
+@dataclass(frozen=True)
+class Joint:
+    """One joint between two named bodies.
+
+    Args:
+        name: unique joint name; coordinates are named after it.
+        type: ``"revolute"``, ``"prismatic"``, ``"fixed"``, ``"universal"`` or ``"spherical"``.
+        parent: parent body name.
+        child: child body name.
+        origin: 4x4 pose of the joint frame in the parent body frame.
+        axis: joint axis in the joint frame (revolute, prismatic; first axis of a universal).
+        axis2: second axis of a universal joint (in the frame after the first rotation).
+        lower: lower limit(s), one per coordinate (default -pi for angles, -1 m for slides).
+        upper: upper limit(s), one per coordinate.
+        actuated: whether the joint's coordinates are driven (inputs of FK).
+        child_offset: 4x4 pose of the joint frame in the child body frame.
+        cut: force this joint to close a loop (no coordinates, closure equations instead).
+    """
+
+    name: str
+    type: str
+    parent: str
+    child: str
+    origin: np.ndarray = field(default_factory=lambda: np.eye(4))
+    axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    axis2: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, 0.0]))
+    lower: tuple[float, ...] | None = None
+    upper: tuple[float, ...] | None = None
+    actuated: bool = True
+    child_offset: np.ndarray = field(default_factory=lambda: np.eye(4))
+    cut: bool = False
+
+    def __post_init__(self) -> None:
+        if self.type not in JOINT_DOF:
+            raise InvalidArgumentError(
+                "type", f"joint {self.name!r}: unknown type {self.type!r}; use one of {sorted(JOINT_DOF)}"
+            )
+        if not self.name:
+            raise InvalidArgumentError("name", "joint name must be a non-empty string")
+        for key in ("origin", "child_offset"):
+            t = np.asarray(getattr(self, key), dtype=float)
+            if t.shape != (4, 4) or not np.all(np.isfinite(t)):
+                raise InvalidArgumentError(key, f"joint {self.name!r}: expected a finite 4x4 transform")
+            object.__setattr__(self, key, t)
+        object.__setattr__(self, "axis", _unit(self.axis, f"axis (joint {self.name!r})"))
+        object.__setattr__(self, "axis2", _unit(self.axis2, f"axis2 (joint {self.name!r})"))
+        n = self.dof
+        default = _DEFAULT_LIMIT.get(self.type, 0.0)
+        lo = (-default,) * n if self.lower is None else tuple(np.atleast_1d(self.lower).astype(float))
+        hi = (default,) * n if self.upper is None else tuple(np.atleast_1d(self.upper).astype(float))
+        if len(lo) != n or len(hi) != n:
+            raise LimitsError(
+                "lower/upper", f"joint {self.name!r} has {n} coordinate(s), got {len(lo)}/{len(hi)} limits"
+            )
+        for a, b in zip(lo, hi, strict=True):
+            if np.isnan(a) or np.isnan(b) or a > b:
+                raise LimitsError("lower/upper", f"joint {self.name!r}: need lower <= upper, got {a} > {b}")
+        object.__setattr__(self, "lower", lo)
+        object.__setattr__(self, "upper", hi)
+
+    @property
+    def dof(self) -> int:
+        """Connectivity (number of coordinates when the joint is in the spanning tree)."""
+        return JOINT_DOF[self.type]
+
+    def coordinate_names(self) -> tuple[str, ...]:
+        """Names of the joint's coordinates: the joint name, or ``name[i]`` for several."""
+        if self.dof == 1:
+            return (self.name,)
+        return tuple(f"{self.name}[{i}]" for i in range(self.dof))
+
+    def motion(self, q: Any) -> Any:
+        """The joint's relative motion ``motion(q)`` as a 4x4 transform (numpy or CasADi)."""
+        if self.type == "fixed":
+            return np.eye(4)
+        if self.type == "revolute":
+            return spatial.transform(axis_rotation(self.axis, q[0]))
+        if self.type == "prismatic":
+            symbolic = spatial.is_symbolic(q[0])
+            return spatial.transform(position=ca.DM(self.axis) * q[0] if symbolic else q[0] * self.axis)
+        if self.type == "universal":
+            r, r2 = axis_rotation(self.axis, q[0]), axis_rotation(self.axis2, q[1])
+            return spatial.transform(spatial.matmul(r, r2))
+        return spatial.transform(spatial.so3_exp(q))

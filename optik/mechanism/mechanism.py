@@ -1,0 +1,420 @@
+"""The :class:`Mechanism`: one symbolic CasADi model of any linkage.
+
+A mechanism is a set of bodies connected by :class:`~optik.mechanism.joint.Joint` objects. A
+spanning tree (see :mod:`optik.mechanism.topology`) gives every body a pose ``T_body(q)`` as a
+CasADi ``SX`` expression in the coordinates ``q`` of the tree joints; each cut joint gives
+loop-closure equations ``c(q) = 0``. Named frames are fixed offsets on bodies. From these
+expressions the mechanism compiles, once and lazily, CasADi functions for forward kinematics,
+the geometric Jacobian and the closure residual.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from functools import cached_property
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from optik import spatial
+from optik.checks import as_batch, as_rng, as_vector
+from optik.errors import InvalidArgumentError, ModelError, UnknownFrameError
+from optik.mechanism.joint import Joint
+from optik.mechanism.topology import analyse, gruebler_kutzbach
+
+TASK_ROWS: dict[str, tuple[int, ...]] = {
+    "pose": (0, 1, 2, 3, 4, 5),
+    "position": (0, 1, 2),
+    "orientation": (3, 4, 5),
+    "pose2d": (0, 1, 5),
+    "position2d": (0, 1),
+}
+"""Rows of the 6-row geometric Jacobian ``[v; w]`` that each task space uses."""
+
+
+def _is_planar_transform(t: np.ndarray) -> bool:
+    return bool(
+        abs(t[2, 3]) < 1e-12 and np.allclose(t[2, :3], [0, 0, 1]) and np.allclose(t[:3, 2], [0, 0, 1])
+    )
+
+
+def _joint_is_planar(j: Joint) -> bool:
+    if j.type == "fixed":
+        ok_axis = True
+    elif j.type == "revolute":
+        ok_axis = np.allclose(np.abs(j.axis), [0, 0, 1])
+    elif j.type == "prismatic":
+        ok_axis = abs(j.axis[2]) < 1e-12
+    else:
+        return False
+    return ok_axis and _is_planar_transform(j.origin) and _is_planar_transform(j.child_offset)
+
+
+def _perpendiculars(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    helper = np.eye(3)[int(np.argmin(np.abs(a)))]
+    u1 = np.cross(a, helper)
+    u1 /= np.linalg.norm(u1)
+    return u1, np.cross(a, u1)
+
+
+class Mechanism:
+    """A kinematic model: joints, limits, loop closures and named frames.
+
+    Args:
+        joints: the joints; tree joints get coordinates in this order.
+        base: name of the fixed body.
+        frames: extra named frames ``{name: (body, 4x4 offset)}``; every body is a frame too.
+        ee: name of the end-effector frame (default: child body of the last joint).
+        name: a label for printing.
+        task: default task space for Jacobian measures: ``"pose"``, ``"position"``,
+            ``"pose2d"``, ``"position2d"`` (default: ``"pose2d"`` for planar mechanisms,
+            ``"pose"`` otherwise).
+
+    Raises:
+        ModelError: inconsistent topology (see :func:`optik.mechanism.topology.analyse`).
+        UnknownFrameError: ``ee`` or a frame's body does not exist.
+    """
+
+    def __init__(
+        self,
+        joints: Sequence[Joint],
+        base: str = "base",
+        frames: Mapping[str, tuple[str, Any]] | None = None,
+        ee: str | None = None,
+        name: str = "mechanism",
+        task: str | None = None,
+    ) -> None:
+        if not joints:
+            raise ModelError("a mechanism needs at least one joint")
+        self.joints: tuple[Joint, ...] = tuple(joints)
+        self.base = base
+        self.name = name
+        self.topology = analyse(self.joints, base)
+        self.planar = all(_joint_is_planar(j) for j in self.joints)
+        self.frames: dict[str, tuple[str, np.ndarray]] = {b: (b, np.eye(4)) for b in self.topology.bodies}
+        for fname, (body, offset) in (frames or {}).items():
+            if body not in self.frames:
+                raise UnknownFrameError("frames", f"frame {fname!r} is on unknown body {body!r}")
+            off = np.asarray(offset, dtype=float)
+            if off.shape != (4, 4):
+                raise InvalidArgumentError("frames", f"frame {fname!r}: offset must be 4x4")
+            self.frames[fname] = (body, off)
+        self.ee = self.joints[-1].child if ee is None else ee
+        if self.ee not in self.frames:
+            raise UnknownFrameError("ee", f"unknown end-effector frame {self.ee!r}; known: {sorted(self.frames)}")
+        if task is not None and task not in TASK_ROWS:
+            raise InvalidArgumentError("task", f"unknown task {task!r}; use one of {sorted(TASK_ROWS)}")
+        self.task = task or ("pose2d" if self.planar else "pose")
+        self._slices: dict[int, slice] = {}
+        names: list[str] = []
+        lower: list[float] = []
+        upper: list[float] = []
+        actuated: list[bool] = []
+        for i in self.topology.tree:
+            j = self.joints[i]
+            self._slices[i] = slice(len(names), len(names) + j.dof)
+            names += j.coordinate_names()
+            lower += j.lower
+            upper += j.upper
+            actuated += [j.actuated] * j.dof
+        self.coordinate_names: tuple[str, ...] = tuple(names)
+        self.lower = np.array(lower, dtype=float)
+        self.upper = np.array(upper, dtype=float)
+        self.actuated: tuple[bool, ...] = tuple(actuated)
+        self.params: dict[str, Any] = {}
+        """Catalog parameters (link lengths, base points, ...) the mechanism was built from."""
+        self.kind: str | None = None
+        """Catalog key (e.g. ``"planar_3r"``) under which :mod:`optik.closed_form` finds this
+        mechanism's analytic solvers; None for mechanisms built by hand."""
+        self._fk_funs: dict[str, ca.Function] = {}
+        self._jac_funs: dict[str, ca.Function] = {}
+
+    # ------------------------------------------------------------------ structure
+    @property
+    def n_q(self) -> int:
+        """Number of coordinates (tree joints' coordinates)."""
+        return len(self.coordinate_names)
+
+    @property
+    def n_closure(self) -> int:
+        """Number of loop-closure equations."""
+        return int(self.closure_expr.shape[0])
+
+    @property
+    def is_closed(self) -> bool:
+        """True when the mechanism has at least one loop."""
+        return bool(self.topology.cuts)
+
+    @property
+    def actuated_indices(self) -> np.ndarray:
+        """Indices of the actuated coordinates."""
+        return np.flatnonzero(self.actuated)
+
+    @property
+    def passive_indices(self) -> np.ndarray:
+        """Indices of the passive coordinates."""
+        return np.flatnonzero(~np.asarray(self.actuated, dtype=bool))
+
+    @property
+    def revolute_mask(self) -> np.ndarray:
+        """True for angular coordinates (revolute, universal, spherical joints)."""
+        mask: list[bool] = []
+        for i in self.topology.tree:
+            j = self.joints[i]
+            mask += [j.type != "prismatic"] * j.dof
+        return np.array(mask, dtype=bool)
+
+    def mobility(self) -> int:
+        """Degrees of freedom by Gruebler-Kutzbach from the topology (not from the geometry)."""
+        return gruebler_kutzbach(len(self.topology.bodies) - 1, self.joints, self.planar)
+
+    def __repr__(self) -> str:
+        kind = "planar" if self.planar else "spatial"
+        return (
+            f"Mechanism({self.name!r}, {kind}, n_q={self.n_q}, closures={self.n_closure}, "
+            f"mobility={self.mobility()}, ee={self.ee!r})"
+        )
+
+    # ------------------------------------------------------------------ symbolic model
+    @cached_property
+    def q_sym(self) -> ca.SX:
+        """The coordinate vector as a CasADi ``SX`` symbol (``n_q`` x 1)."""
+        return ca.SX.sym("q", self.n_q)
+
+    @cached_property
+    def body_transforms(self) -> dict[str, ca.SX]:
+        """``{body: T_body(q)}`` as ``SX`` 4x4 expressions in :attr:`q_sym`."""
+        q = self.q_sym
+        poses: dict[str, Any] = {self.base: ca.SX.eye(4)}
+        for edge in self.topology.order:
+            j = self.joints[edge.joint]
+            m = j.motion(q[self._slices[edge.joint]])
+            if edge.reversed:
+                poses[j.parent] = ca.mtimes(
+                    [poses[j.child], j.child_offset, spatial.inv_transform(ca.SX(m)), np.linalg.inv(j.origin)]
+                )
+            else:
+                poses[j.child] = ca.mtimes([poses[j.parent], j.origin, m, np.linalg.inv(j.child_offset)])
+        return poses
+
+    def frame_expr(self, frame: str | None = None) -> ca.SX:
+        """``T_frame(q)`` as an ``SX`` expression.
+
+        Raises:
+            UnknownFrameError: the frame does not exist.
+        """
+        body, offset = self._frame(frame)
+        return ca.mtimes(self.body_transforms[body], offset)
+
+    @cached_property
+    def closure_expr(self) -> ca.SX:
+        """Loop-closure residual ``c(q)`` (cut-joint method) as an ``SX`` column.
+
+        For a cut joint with parent-side frame ``A = T_parent origin`` and child-side frame
+        ``B = T_child child_offset``: the origins coincide, ``p_B - p_A = 0`` (x and y only for
+        planar mechanisms); a spatial revolute joint adds ``(R_A u_k) . (R_B a) = 0`` for the two
+        unit vectors ``u_k`` normal to its axis ``a``; a universal joint adds
+        ``(R_A a_1) . (R_B a_2) = 0``.
+        """
+        rows: list[Any] = []
+        poses = self.body_transforms
+        for i in self.topology.cuts:
+            j = self.joints[i]
+            a = ca.mtimes(poses[j.parent], j.origin)
+            b = ca.mtimes(poses[j.child], j.child_offset)
+            dp = b[:3, 3] - a[:3, 3]
+            rows.append(dp[:2] if self.planar else dp)
+            if self.planar or j.type == "spherical":
+                continue
+            ra, rb = a[:3, :3], b[:3, :3]
+            if j.type == "revolute":
+                for u in _perpendiculars(j.axis):
+                    rows.append(ca.dot(ca.mtimes(ra, u), ca.mtimes(rb, j.axis)))
+            elif j.type == "universal":
+                rows.append(ca.dot(ca.mtimes(ra, j.axis), ca.mtimes(rb, j.axis2)))
+        return ca.vertcat(*rows) if rows else ca.SX(0, 1)
+
+    def jacobian_expr(self, frame: str | None = None) -> ca.SX:
+        """Geometric Jacobian ``[dp/dq; w]`` (6 x n, base frame) as an ``SX`` expression.
+
+        Column ``k`` has the linear part ``dp/dq_k`` and the angular part
+        ``vee(dR/dq_k R^T)``, valid for every joint type.
+        """
+        t = self.frame_expr(frame)
+        q = self.q_sym
+        r, p = t[:3, :3], t[:3, 3]
+        jl = ca.jacobian(p, q)
+        dr = ca.jacobian(ca.vec(r), q)
+        cols = [spatial.vee(ca.mtimes(ca.reshape(dr[:, k], 3, 3), r.T)) for k in range(self.n_q)]
+        return ca.vertcat(jl, ca.horzcat(*cols))
+
+    def _frame(self, frame: str | None) -> tuple[str, np.ndarray]:
+        name = self.ee if frame is None else frame
+        if name not in self.frames:
+            raise UnknownFrameError("frame", f"unknown frame {name!r}; known: {sorted(self.frames)}")
+        return self.frames[name]
+
+    # ------------------------------------------------------------------ compiled functions
+    def fk_function(self, frame: str | None = None) -> ca.Function:
+        """Compiled ``q -> T_frame(q)`` (built once per frame)."""
+        key = self.ee if frame is None else frame
+        if key not in self._fk_funs:
+            self._fk_funs[key] = ca.Function(f"fk_{key}", [self.q_sym], [self.frame_expr(key)])
+        return self._fk_funs[key]
+
+    def jacobian_function(self, frame: str | None = None) -> ca.Function:
+        """Compiled ``q -> J(q)`` (6 x n geometric Jacobian, built once per frame)."""
+        key = self.ee if frame is None else frame
+        if key not in self._jac_funs:
+            self._jac_funs[key] = ca.Function(f"jac_{key}", [self.q_sym], [self.jacobian_expr(key)])
+        return self._jac_funs[key]
+
+    @cached_property
+    def closure_function(self) -> ca.Function:
+        """Compiled ``q -> (c(q), dc/dq)``."""
+        c = self.closure_expr
+        return ca.Function("closure", [self.q_sym], [c, ca.jacobian(c, self.q_sym)])
+
+    # ------------------------------------------------------------------ numerical API
+    def check_q(self, q: Any, name: str = "q") -> np.ndarray:
+        """``q`` as a finite float vector of length :attr:`n_q` (else :class:`OptikError`)."""
+        return as_vector(q, name, self.n_q)
+
+    def fk(self, q: Any, frame: str | None = None) -> np.ndarray:
+        """Pose of a frame: 4x4 homogeneous transform (``(N, 4, 4)`` for ``q`` of shape ``(N, n)``).
+
+        Args:
+            q: coordinates, shape ``(n_q,)`` or ``(N, n_q)``.
+            frame: frame name (default: the end effector).
+        """
+        qb, single = as_batch(q, "q", self.n_q)
+        f = self.fk_function(frame)
+        out = np.asarray(f(qb.T)).reshape(4, len(qb), 4).transpose(1, 0, 2) if len(qb) > 1 else (
+            np.asarray(f(qb[0]))[None]
+        )
+        return out[0] if single else out
+
+    def jacobian(self, q: Any, frame: str | None = None) -> np.ndarray:
+        """Geometric Jacobian ``[v; w] = J(q) qdot`` (6 x n, base frame, at the frame origin)."""
+        return np.asarray(self.jacobian_function(frame)(self.check_q(q)))
+
+    def closure(self, q: Any) -> np.ndarray:
+        """Loop-closure residual vector (empty for open chains)."""
+        if not self.is_closed:
+            self.check_q(q)
+            return np.zeros(0)
+        return np.asarray(self.closure_function(self.check_q(q))[0]).reshape(-1)
+
+    def closure_jacobian(self, q: Any) -> np.ndarray:
+        """``dc/dq`` (``n_closure`` x ``n_q``)."""
+        if not self.is_closed:
+            return np.zeros((0, self.n_q))
+        return np.asarray(self.closure_function(self.check_q(q))[1])
+
+    def task_jacobian(self, q: Any, frame: str | None = None, task: str | None = None) -> np.ndarray:
+        """Rows of the geometric Jacobian for a task space (default :attr:`task`)."""
+        rows = TASK_ROWS[self._task(task)]
+        return self.jacobian(q, frame)[list(rows)]
+
+    def _task(self, task: str | None) -> str:
+        t = self.task if task is None else task
+        if t not in TASK_ROWS:
+            raise InvalidArgumentError("task", f"unknown task {t!r}; use one of {sorted(TASK_ROWS)}")
+        return t
+
+    def manipulability(self, q: Any, frame: str | None = None, task: str | None = None) -> float:
+        """Yoshikawa's measure ``sqrt(det(J J^T))`` = product of singular values of the task Jacobian."""
+        s = np.linalg.svd(self.task_jacobian(q, frame, task), compute_uv=False)
+        return float(np.prod(s))
+
+    def condition_number(self, q: Any, frame: str | None = None, task: str | None = None) -> float:
+        """``sigma_max / sigma_min`` of the task Jacobian (``inf`` at a singularity)."""
+        s = np.linalg.svd(self.task_jacobian(q, frame, task), compute_uv=False)
+        return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+
+    def jacobian_determinant(self, q: Any, frame: str | None = None, task: str | None = None) -> float:
+        """``det J`` of a square task Jacobian.
+
+        Raises:
+            InvalidArgumentError: the task Jacobian is not square.
+        """
+        j = self.task_jacobian(q, frame, task)
+        if j.shape[0] != j.shape[1]:
+            raise InvalidArgumentError("task", f"Jacobian is {j.shape[0]}x{j.shape[1]}, not square")
+        return float(np.linalg.det(j))
+
+    def joint_torques(self, q: Any, wrench: Any, frame: str | None = None, task: str | None = None) -> np.ndarray:
+        """Statics ``tau = J^T F``: joint efforts that balance a wrench at the frame.
+
+        ``F`` is ``[force; moment]`` in the base frame restricted to the task rows (e.g.
+        ``[f_x, f_y, m_z]`` for ``"pose2d"``). By virtual work ``tau . qdot = F . xdot``.
+        """
+        j = self.task_jacobian(q, frame, task)
+        f = as_vector(wrench, "wrench", j.shape[0])
+        return j.T @ f
+
+    # ------------------------------------------------------------------ sampling and limits
+    def mid_q(self) -> np.ndarray:
+        """The mid-limit configuration ``(lower + upper) / 2``."""
+        return 0.5 * (self.lower + self.upper)
+
+    def random_q(self, n: int | None = None, seed: int | np.random.Generator | None = None) -> np.ndarray:
+        """Coordinates drawn uniformly within limits (loop closures *not* enforced).
+
+        Args:
+            n: number of samples (None: one vector).
+            seed: seed or Generator.
+        """
+        rng = as_rng(seed)
+        shape = (self.n_q,) if n is None else (n, self.n_q)
+        return rng.uniform(self.lower, self.upper, size=shape)
+
+    def within_limits(self, q: Any, tol: float = 0.0) -> bool:
+        """True when ``lower - tol <= q <= upper + tol`` for every coordinate."""
+        qq = self.check_q(q)
+        return bool(np.all(qq >= self.lower - tol) and np.all(qq <= self.upper + tol))
+
+    def clip(self, q: Any) -> np.ndarray:
+        """``q`` clipped into the limits."""
+        return np.clip(self.check_q(q), self.lower, self.upper)
+
+    def wrap(self, q: Any) -> np.ndarray:
+        """Angles shifted by multiples of 2 pi into ``(-pi, pi]``, or into the limits when the
+        limits allow a shifted value there (the shift nearest the wrapped value is used)."""
+        qq = np.array(self.check_q(q), dtype=float)
+        ang = self.revolute_mask
+        w = qq.copy()
+        w[ang] = spatial.wrap_angle(qq[ang])
+        for k in np.flatnonzero(ang):
+            if self.lower[k] <= w[k] <= self.upper[k]:
+                continue
+            for shift in (2 * np.pi, -2 * np.pi, 4 * np.pi, -4 * np.pi):
+                if self.lower[k] <= w[k] + shift <= self.upper[k]:
+                    w[k] += shift
+                    break
+        return w
+
+    def with_limits(self, lower: Any = None, upper: Any = None) -> Mechanism:
+        """A copy with new coordinate limits (same joints, frames and end effector).
+
+        Raises:
+            LimitsError: lower > upper or NaN.
+        """
+        lo = self.lower if lower is None else as_vector(lower, "lower", self.n_q)
+        hi = self.upper if upper is None else as_vector(upper, "upper", self.n_q)
+        joints = list(self.joints)
+        for i, sl in self._slices.items():
+            j = joints[i]
+            joints[i] = Joint(
+                j.name, j.type, j.parent, j.child, j.origin, j.axis, j.axis2,
+                tuple(lo[sl]), tuple(hi[sl]), j.actuated, j.child_offset, j.cut,
+            )
+        return self._rebuild(joints)
+
+    def _rebuild(self, joints: Sequence[Joint]) -> Mechanism:
+        extra = {k: v for k, v in self.frames.items() if k not in self.topology.bodies}
+        m = Mechanism(joints, self.base, extra, self.ee, self.name, self.task)
+        m.kind = self.kind
+        m.params = dict(self.params)
+        return m

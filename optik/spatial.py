@@ -1,0 +1,457 @@
+"""Spatial math on numpy arrays and CasADi symbols alike.
+
+Every function here accepts either numpy values (scalars or arrays; arrays broadcast, so a batch
+of ``N`` angles gives ``N`` matrices of shape ``(N, 3, 3)``) or CasADi ``SX``/``MX``/``DM``
+expressions (scalars; the result is a CasADi matrix). One implementation serves both so that the
+symbolic models and the numerical references cannot drift apart.
+
+Conventions:
+
+* ``rot_x``, ``rot_y``, ``rot_z`` are the elementary rotations
+  ``Rot(z, a) = [[c, -s, 0], [s, c, 0], [0, 0, 1]]`` (and their cyclic analogues).
+* Homogeneous transforms are 4x4 ``[[R, p], [0, 0, 0, 1]]``.
+* RPY is the seed's ``Rot(z, yaw) Rot(y, pitch) Rot(x, roll)`` (the seed names the angles
+  ``phi_z, phi_y, phi_x``); it is also URDF's ``rpy``.
+* ZYZ Euler angles are ``Rot(z, phi) Rot(y, theta) Rot(z, psi)`` with the seed's ranges
+  ``-pi < phi <= pi``, ``0 <= theta <= pi``, ``-pi <= psi < pi``.
+* Rotation vectors (``so3_log``/``so3_exp``) are axis times angle, angle in ``[0, pi]``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+__all__ = [
+    "angle_between",
+    "hat",
+    "inv_transform",
+    "is_symbolic",
+    "matmul",
+    "pose_error",
+    "rot_x",
+    "rot_y",
+    "rot_z",
+    "rotation_angle",
+    "rotation_of",
+    "rpy_to_rot",
+    "rot_to_rpy",
+    "rot_to_rpy_all",
+    "rot_to_zyz",
+    "rot_to_zyz_all",
+    "so3_exp",
+    "so3_log",
+    "transform",
+    "translation",
+    "translation_of",
+    "vee",
+    "wrap_angle",
+    "zyz_to_rot",
+    "planar_pose",
+    "planar_pose_of",
+]
+
+_SYMBOLIC = (ca.SX, ca.MX)
+
+
+def is_symbolic(*values: Any) -> bool:
+    """True if any value is a CasADi ``SX`` or ``MX`` expression."""
+    return any(isinstance(v, _SYMBOLIC) for v in values)
+
+
+class _Num:
+    """numpy flavour of the few primitives the formulas need."""
+
+    sin = staticmethod(np.sin)
+    cos = staticmethod(np.cos)
+    sqrt = staticmethod(np.sqrt)
+    atan2 = staticmethod(np.arctan2)
+    fabs = staticmethod(np.abs)
+
+    @staticmethod
+    def mat(rows: list[list[Any]]) -> np.ndarray:
+        flat = np.broadcast_arrays(*[np.asarray(e, dtype=float) for r in rows for e in r])
+        n_cols = len(rows[0])
+        stacked = [np.stack(flat[i * n_cols : (i + 1) * n_cols], axis=-1) for i in range(len(rows))]
+        return np.stack(stacked, axis=-2)
+
+    @staticmethod
+    def where(cond: Any, a: Any, b: Any) -> Any:
+        return np.where(cond, a, b)
+
+
+class _Sym:
+    """CasADi flavour of the same primitives."""
+
+    sin = staticmethod(ca.sin)
+    cos = staticmethod(ca.cos)
+    sqrt = staticmethod(ca.sqrt)
+    atan2 = staticmethod(ca.atan2)
+    fabs = staticmethod(ca.fabs)
+
+    @staticmethod
+    def mat(rows: list[list[Any]]) -> Any:
+        return ca.vertcat(*[ca.horzcat(*r) for r in rows])
+
+    @staticmethod
+    def where(cond: Any, a: Any, b: Any) -> Any:
+        return ca.if_else(cond, a, b)
+
+
+def _ops(*values: Any) -> type[_Num] | type[_Sym]:
+    return _Sym if is_symbolic(*values) or any(isinstance(v, ca.DM) for v in values) else _Num
+
+
+def _el(m: Any, i: int, j: int) -> Any:
+    """Element (i, j) of a matrix or of every matrix in a batch."""
+    return m[i, j] if not isinstance(m, np.ndarray) else m[..., i, j]
+
+
+def matmul(a: Any, b: Any) -> Any:
+    """Matrix product of numpy arrays (batched) or CasADi matrices."""
+    if isinstance(a, np.ndarray) and isinstance(b, np.ndarray):
+        return a @ b
+    return ca.mtimes(a, b)
+
+
+def _transpose(m: Any) -> Any:
+    return np.swapaxes(m, -1, -2) if isinstance(m, np.ndarray) else m.T
+
+
+def wrap_angle(a: Any) -> Any:
+    """Wrap angles to ``(-pi, pi]``.
+
+    Args:
+        a: angle(s) in radians (numpy or CasADi).
+
+    Returns:
+        ``a - 2 pi k`` in ``(-pi, pi]``.
+    """
+    if is_symbolic(a):
+        return ca.atan2(ca.sin(a), ca.cos(a))
+    w = np.mod(np.asarray(a, dtype=float) + np.pi, 2.0 * np.pi) - np.pi
+    return np.where(w <= -np.pi, w + 2.0 * np.pi, w) if np.ndim(w) else (
+        float(w + 2.0 * np.pi) if w <= -np.pi else float(w)
+    )
+
+
+def rot_x(a: Any) -> Any:
+    """``Rot(x, a) = [[1, 0, 0], [0, c, -s], [0, s, c]]``."""
+    o = _ops(a)
+    c, s = o.cos(a), o.sin(a)
+    return o.mat([[1 + 0 * c, 0 * c, 0 * c], [0 * c, c, -s], [0 * c, s, c]])
+
+
+def rot_y(a: Any) -> Any:
+    """``Rot(y, a) = [[c, 0, s], [0, 1, 0], [-s, 0, c]]``."""
+    o = _ops(a)
+    c, s = o.cos(a), o.sin(a)
+    return o.mat([[c, 0 * c, s], [0 * c, 1 + 0 * c, 0 * c], [-s, 0 * c, c]])
+
+
+def rot_z(a: Any) -> Any:
+    """``Rot(z, a) = [[c, -s, 0], [s, c, 0], [0, 0, 1]]``."""
+    o = _ops(a)
+    c, s = o.cos(a), o.sin(a)
+    return o.mat([[c, -s, 0 * c], [s, c, 0 * c], [0 * c, 0 * c, 1 + 0 * c]])
+
+
+def hat(w: Any) -> Any:
+    """Skew-symmetric matrix ``[w]x`` with ``[w]x v = w x v``.
+
+    Args:
+        w: 3-vector (numpy, shape ``(..., 3)``, or CasADi 3x1).
+    """
+    if isinstance(w, (ca.SX, ca.MX, ca.DM)):
+        return ca.vertcat(
+            ca.horzcat(0, -w[2], w[1]), ca.horzcat(w[2], 0, -w[0]), ca.horzcat(-w[1], w[0], 0)
+        )
+    w = np.asarray(w, dtype=float)
+    z = np.zeros_like(w[..., 0])
+    return _Num.mat([[z, -w[..., 2], w[..., 1]], [w[..., 2], z, -w[..., 0]], [-w[..., 1], w[..., 0], z]])
+
+
+def vee(m: Any) -> Any:
+    """Inverse of :func:`hat` applied to the skew part: ``vee(M) = [M32, M13, M21]``.
+
+    For a general matrix this returns the vee of ``M`` read off its lower/upper entries; callers
+    pass skew matrices (or ``(M - M^T) / 2``).
+    """
+    if isinstance(m, np.ndarray):
+        return np.stack([m[..., 2, 1], m[..., 0, 2], m[..., 1, 0]], axis=-1)
+    return ca.vertcat(m[2, 1], m[0, 2], m[1, 0])
+
+
+def translation(x: Any = 0.0, y: Any = 0.0, z: Any = 0.0) -> Any:
+    """Homogeneous transform of a pure translation ``Trans(x, y, z)``."""
+    o = _ops(x, y, z)
+    if o is _Sym:
+        return o.mat([[1, 0, 0, x], [0, 1, 0, y], [0, 0, 1, z], [0, 0, 0, 1]])
+    x, y, z = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (x, y, z)))
+    zero, one = np.zeros_like(x), np.ones_like(x)
+    return o.mat(
+        [[one, zero, zero, x], [zero, one, zero, y], [zero, zero, one, z], [zero, zero, zero, one]]
+    )
+
+
+def transform(rotation: Any = None, position: Any = None) -> Any:
+    """Homogeneous transform ``[[R, p], [0, 1]]``.
+
+    Args:
+        rotation: 3x3 rotation (identity when None). numpy batches ``(..., 3, 3)`` allowed.
+        position: 3-vector (zero when None). numpy batches ``(..., 3)`` allowed.
+    """
+    symbolic = isinstance(rotation, (ca.SX, ca.MX, ca.DM)) or isinstance(
+        position, (ca.SX, ca.MX, ca.DM)
+    )
+    if symbolic:
+        r = ca.DM.eye(3) if rotation is None else rotation
+        p = ca.DM.zeros(3, 1) if position is None else ca.reshape(position, 3, 1)
+        return ca.vertcat(ca.horzcat(r, p), ca.DM([[0, 0, 0, 1]]))
+    r = np.eye(3) if rotation is None else np.asarray(rotation, dtype=float)
+    p = np.zeros(3) if position is None else np.asarray(position, dtype=float)
+    batch = np.broadcast_shapes(r.shape[:-2], p.shape[:-1])
+    t = np.zeros((*batch, 4, 4))
+    t[..., :3, :3] = r
+    t[..., :3, 3] = p
+    t[..., 3, 3] = 1.0
+    return t
+
+
+def rotation_of(t: Any) -> Any:
+    """Rotation block of a homogeneous transform."""
+    return t[..., :3, :3] if isinstance(t, np.ndarray) else t[:3, :3]
+
+
+def translation_of(t: Any) -> Any:
+    """Translation column of a homogeneous transform."""
+    return t[..., :3, 3] if isinstance(t, np.ndarray) else t[:3, 3]
+
+
+def inv_transform(t: Any) -> Any:
+    """Inverse of a homogeneous transform: ``[[R^T, -R^T p], [0, 1]]``."""
+    r, p = rotation_of(t), translation_of(t)
+    rt = _transpose(r)
+    if isinstance(t, np.ndarray):
+        return transform(rt, -np.einsum("...ij,...j->...i", rt, p))
+    return transform(rt, -ca.mtimes(rt, p))
+
+
+def rpy_to_rot(roll: Any, pitch: Any, yaw: Any) -> Any:
+    """``Rot(z, yaw) Rot(y, pitch) Rot(x, roll)`` (seed 001: ``phi_x, phi_y, phi_z``)."""
+    return matmul(matmul(rot_z(yaw), rot_y(pitch)), rot_x(roll))
+
+
+def rot_to_rpy(r: Any) -> Any:
+    """RPY angles ``(roll, pitch, yaw)`` of a rotation, by the seed's atan2 formulas.
+
+    With ``R = [n o a]``:
+
+    * ``yaw = atan2(n_y, n_x)``,
+    * ``pitch = atan2(-n_z, n_x cos(yaw) + n_y sin(yaw))`` in ``[-pi/2, pi/2]``,
+    * ``roll = atan2(a_x sin(yaw) - a_y cos(yaw), o_y cos(yaw) - o_x sin(yaw))``.
+
+    At gimbal lock (``n_x = n_y = 0``, pitch = +-pi/2) only ``roll -+ yaw`` is defined; the
+    answer then takes ``yaw = 0`` (``atan2(0, 0) = 0``) and puts the whole rotation about the
+    vertical into ``roll``.
+
+    Returns:
+        numpy: array ``(..., 3)``; CasADi: 3x1 expression.
+    """
+    o = _ops(r)
+    nx, ny, nz = _el(r, 0, 0), _el(r, 1, 0), _el(r, 2, 0)
+    ox, oy = _el(r, 0, 1), _el(r, 1, 1)
+    ax, ay = _el(r, 0, 2), _el(r, 1, 2)
+    if o is _Num:
+        # exact zero at gimbal lock so that atan2(0, 0) = 0 picks the documented branch
+        tiny = np.hypot(nx, ny) < 1e-12
+        nx, ny = np.where(tiny, 0.0, nx), np.where(tiny, 0.0, ny)
+    yaw = o.atan2(ny, nx)
+    cz, sz = o.cos(yaw), o.sin(yaw)
+    pitch = o.atan2(-nz, nx * cz + ny * sz)
+    roll = o.atan2(ax * sz - ay * cz, oy * cz - ox * sz)
+    if o is _Num:
+        return np.stack(np.broadcast_arrays(roll, pitch, yaw), axis=-1)
+    return ca.vertcat(roll, pitch, yaw)
+
+
+def rot_to_rpy_all(r: np.ndarray) -> list[np.ndarray]:
+    """Both RPY triples of a rotation (numpy, one matrix).
+
+    Besides ``(roll, pitch, yaw)`` from :func:`rot_to_rpy`, the triple
+    ``(roll + pi, pi - pitch, yaw + pi)`` (wrapped) gives the same matrix. At gimbal lock the
+    two coincide up to the undetermined ``roll -+ yaw`` split and only one is returned.
+    """
+    first = np.asarray(rot_to_rpy(np.asarray(r, dtype=float)))
+    roll, pitch, yaw = first
+    if abs(abs(pitch) - np.pi / 2) < 1e-9:
+        return [first]
+    second = np.array([wrap_angle(roll + np.pi), wrap_angle(np.pi - pitch), wrap_angle(yaw + np.pi)])
+    return [first, second]
+
+
+def zyz_to_rot(phi: Any, theta: Any, psi: Any) -> Any:
+    """``Rot(z, phi) Rot(y, theta) Rot(z, psi)``."""
+    return matmul(matmul(rot_z(phi), rot_y(theta)), rot_z(psi))
+
+
+def rot_to_zyz(r: Any) -> Any:
+    """ZYZ Euler angles ``(phi, theta, psi)`` in the seed's ranges.
+
+    ``theta = atan2(sqrt(r13^2 + r23^2), r33)`` in ``[0, pi]``, ``phi = atan2(r23, r13)``,
+    ``psi = atan2(r32, -r31)``. At gimbal lock (``theta`` = 0 or pi) only ``phi +- psi`` is
+    defined; the answer takes ``phi = 0`` and ``psi = atan2(r21, r11)`` (theta = 0) or
+    ``psi = atan2(r21, -r11)`` (theta = pi), with ``psi`` in the seed's half-open range
+    ``-pi <= psi < pi``.
+
+    Returns:
+        numpy: array ``(..., 3)``; CasADi: 3x1 expression.
+    """
+    o = _ops(r)
+    r11, r21, r31 = _el(r, 0, 0), _el(r, 1, 0), _el(r, 2, 0)
+    r13, r23, r33 = _el(r, 0, 2), _el(r, 1, 2), _el(r, 2, 2)
+    r32 = _el(r, 2, 1)
+    st = o.sqrt(r13 * r13 + r23 * r23)
+    theta = o.atan2(st, r33)
+    lock = st < 1e-12
+    phi = o.where(lock, 0.0 * st, o.atan2(r23, r13))
+    # at theta = 0: R = Rz(phi + psi); at theta = pi: R = Rz(phi) Ry(pi) Rz(psi) -> r21 = sin(psi - phi)
+    psi_lock = o.atan2(r21, o.where(r33 > 0, r11, -r11))
+    psi = o.where(lock, psi_lock, o.atan2(r32, -r31))
+    if o is _Num:
+        psi = np.where(psi >= np.pi, psi - 2.0 * np.pi, psi)
+        return np.stack(np.broadcast_arrays(phi, theta, psi), axis=-1)
+    psi = ca.if_else(psi >= np.pi, psi - 2.0 * np.pi, psi)
+    return ca.vertcat(phi, theta, psi)
+
+
+def rot_to_zyz_all(r: np.ndarray) -> list[np.ndarray]:
+    """Both ZYZ triples of a rotation (numpy, one matrix).
+
+    The first lies in the seed's ranges; the second is ``(phi + pi, -theta, psi + pi)`` (angles
+    wrapped), which has ``theta < 0``. At gimbal lock only the first is returned.
+    """
+    first = np.asarray(rot_to_zyz(np.asarray(r, dtype=float)))
+    phi, theta, psi = first
+    if theta < 1e-9 or theta > np.pi - 1e-9:
+        return [first]
+    return [first, np.array([wrap_angle(phi + np.pi), -theta, wrap_angle(psi + np.pi)])]
+
+
+def so3_exp(w: Any) -> Any:
+    """Rodrigues' formula ``exp([w]x) = I + sin(t)/t [w]x + (1 - cos(t))/t^2 [w]x^2``, ``t = |w|``.
+
+    Near ``t = 0`` the Taylor expansions of the two coefficients are used.
+    """
+    if isinstance(w, (ca.SX, ca.MX, ca.DM)):
+        t2 = ca.dot(w, w)
+        t = ca.sqrt(t2 + 1e-300)
+        small = t2 < 1e-8
+        a = ca.if_else(small, 1 - t2 / 6, ca.sin(t) / t)
+        b = ca.if_else(small, 0.5 - t2 / 24, (1 - ca.cos(t)) / (t2 + 1e-300))
+        k = hat(w)
+        return ca.DM.eye(3) + a * k + b * ca.mtimes(k, k)
+    w = np.asarray(w, dtype=float)
+    t2 = np.sum(w * w, axis=-1)
+    t = np.sqrt(t2)
+    small = t2 < 1e-8
+    safe_t = np.where(small, 1.0, t)
+    a = np.where(small, 1 - t2 / 6, np.sin(safe_t) / safe_t)
+    b = np.where(small, 0.5 - t2 / 24, (1 - np.cos(safe_t)) / (safe_t * safe_t))
+    k = hat(w)
+    return np.eye(3) + a[..., None, None] * k + b[..., None, None] * (k @ k)
+
+
+def rotation_angle(r: Any) -> Any:
+    """Geodesic angle of a rotation in ``[0, pi]``: ``atan2(|vee(R - R^T)| / 2, (tr R - 1) / 2)``.
+
+    The atan2 form is accurate at both ends (unlike ``acos`` of the trace).
+    """
+    o = _ops(r)
+    tr = _el(r, 0, 0) + _el(r, 1, 1) + _el(r, 2, 2)
+    sx = _el(r, 2, 1) - _el(r, 1, 2)
+    sy = _el(r, 0, 2) - _el(r, 2, 0)
+    sz = _el(r, 1, 0) - _el(r, 0, 1)
+    return o.atan2(0.5 * o.sqrt(sx * sx + sy * sy + sz * sz), 0.5 * (tr - 1.0))
+
+
+def angle_between(r_a: Any, r_b: Any) -> Any:
+    """Geodesic distance ``angle(R_a^T R_b)`` between two rotations, in ``[0, pi]``."""
+    return rotation_angle(matmul(_transpose(r_a), r_b))
+
+
+def so3_log(r: Any) -> Any:
+    """Rotation vector ``w`` (axis times angle, angle in ``[0, pi]``) with ``exp([w]x) = R``.
+
+    Uses the angle from :func:`rotation_angle` and the axis from the skew part when the angle is
+    below ``pi - 1e-3``; closer to a half-turn the axis is read from the symmetric part
+    ``(R + I) / 2 = a a^T`` (largest diagonal column), whose sign is fixed by the skew part.
+    """
+    theta = rotation_angle(r)
+    if isinstance(r, np.ndarray):
+        r = np.asarray(r, dtype=float)
+        s = vee(r - np.swapaxes(r, -1, -2)) / 2.0
+        sin_t = np.sin(theta)
+        small = theta < 1e-6
+        coef = np.where(small, 0.5 * (1 + theta**2 / 6), theta / (2 * np.where(small, 1, sin_t)))
+        w = 2 * coef[..., None] * s
+        near_pi = theta > np.pi - 1e-3
+        if np.any(near_pi):
+            b = (r + np.eye(3)) / 2.0
+            diag = np.stack([b[..., 0, 0], b[..., 1, 1], b[..., 2, 2]], axis=-1)
+            k = np.argmax(diag, axis=-1)
+            idx = np.broadcast_to(k[..., None, None], (*b.shape[:-1], 1))
+            col = np.take_along_axis(b, idx, axis=-1)[..., 0]
+            axis = col / np.linalg.norm(col, axis=-1, keepdims=True)
+            sign = np.where(np.sum(axis * s, axis=-1) < 0, -1.0, 1.0)
+            w = np.where(near_pi[..., None], (sign * theta)[..., None] * axis, w)
+        return w
+    s = vee(r - r.T) / 2
+    sin_t = ca.sin(theta)
+    coef = ca.if_else(theta < 1e-6, 0.5 * (1 + theta**2 / 6), theta / (2 * sin_t + 1e-300))
+    w_regular = 2 * coef * s
+    b = (r + ca.DM.eye(3)) / 2
+    cols = [b[:, i] / ca.sqrt(b[i, i] + 1e-300) for i in range(3)]
+    col = ca.if_else(
+        b[0, 0] >= ca.fmax(b[1, 1], b[2, 2]), cols[0], ca.if_else(b[1, 1] >= b[2, 2], cols[1], cols[2])
+    )
+    sign = ca.if_else(ca.dot(col, s) < 0, -1, 1)
+    w_pi = sign * theta * col
+    return ca.if_else(theta > np.pi - 1e-3, w_pi, w_regular)
+
+
+def pose_error(t: Any, t_target: Any) -> Any:
+    """Pose error ``[p - p*; log(R R*^T)]`` of ``t`` against ``t_target``, in the base frame.
+
+    The rotational part is the rotation vector that takes the target orientation to the current
+    one, expressed in the base frame; its norm is the geodesic angle. This is the error whose
+    time derivative is the base-frame geometric twist ``J(q) qdot``.
+
+    Returns:
+        numpy ``(..., 6)`` or a CasADi 6x1 expression.
+    """
+    r, rt = rotation_of(t), rotation_of(t_target)
+    dp = translation_of(t) - translation_of(t_target)
+    w = so3_log(matmul(r, _transpose(rt)))
+    if isinstance(dp, np.ndarray) and isinstance(w, np.ndarray):
+        return np.concatenate([dp, w], axis=-1)
+    return ca.vertcat(ca.reshape(dp, 3, 1), w)
+
+
+def planar_pose(x: Any, y: Any, phi: Any) -> Any:
+    """Homogeneous transform of a planar pose: ``Trans(x, y, 0) Rot(z, phi)``."""
+    o = _ops(x, y, phi)
+    if o is _Sym:
+        return transform(rot_z(phi), ca.vertcat(x, y, 0))
+    return transform(rot_z(phi), np.stack(np.broadcast_arrays(x, y, np.zeros_like(np.asarray(phi, float))), -1))
+
+
+def planar_pose_of(t: Any) -> Any:
+    """``(x, y, phi)`` of a transform of the x-y plane; ``phi = atan2(R21, R11)``."""
+    o = _ops(t)
+    phi = o.atan2(_el(t, 1, 0), _el(t, 0, 0))
+    if o is _Num:
+        return np.stack(np.broadcast_arrays(_el(t, 0, 3), _el(t, 1, 3), phi), axis=-1)
+    return ca.vertcat(t[0, 3], t[1, 3], phi)

@@ -1,0 +1,73 @@
+"""Target types for IK: planar poses and positions (a 4x4 transform is the full pose)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from optik import spatial
+from optik.checks import as_transform, as_vector
+
+
+@dataclass(frozen=True)
+class Pose2D:
+    """A pose in the x-y plane: position ``(x, y)`` and heading ``phi`` (radians, about z).
+
+    Its transform is ``Trans(x, y, 0) Rot(z, phi)``.
+    """
+
+    x: float
+    y: float
+    phi: float
+
+    def __post_init__(self) -> None:
+        v = as_vector([self.x, self.y, self.phi], "Pose2D", 3)
+        object.__setattr__(self, "x", float(v[0]))
+        object.__setattr__(self, "y", float(v[1]))
+        object.__setattr__(self, "phi", float(v[2]))
+
+    def as_array(self) -> np.ndarray:
+        """``[x, y, phi]``."""
+        return np.array([self.x, self.y, self.phi])
+
+    def as_transform(self) -> np.ndarray:
+        """The 4x4 transform ``Trans(x, y, 0) Rot(z, phi)``."""
+        return spatial.planar_pose(self.x, self.y, self.phi)
+
+
+@dataclass(frozen=True)
+class Position:
+    """A position-only target (3-vector; for planar mechanisms z is 0)."""
+
+    xyz: tuple[float, float, float]
+
+    def __init__(self, xyz: Any, y: float | None = None, z: float | None = None) -> None:
+        if y is not None:
+            xyz = [xyz, y, 0.0 if z is None else z]
+        v = as_vector(xyz, "Position", None)
+        if v.shape[0] == 2:
+            v = np.append(v, 0.0)
+        if v.shape[0] != 3:
+            v = as_vector(v, "Position", 3)
+        object.__setattr__(self, "xyz", (float(v[0]), float(v[1]), float(v[2])))
+
+    def as_array(self) -> np.ndarray:
+        """``[x, y, z]``."""
+        return np.array(self.xyz)
+
+    def as_transform(self) -> np.ndarray:
+        """A transform with this translation and identity rotation."""
+        return spatial.translation(*self.xyz)
+
+
+Target = np.ndarray | Pose2D | Position
+"""Anything :func:`optik.solve_ik` accepts as a target."""
+
+
+def target_transform(target: Any, name: str = "target") -> np.ndarray:
+    """The 4x4 transform of a target (validated)."""
+    if isinstance(target, (Pose2D, Position)):
+        return target.as_transform()
+    return as_transform(target, name)

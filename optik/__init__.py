@@ -18,11 +18,14 @@ from optik.errors import (
     UnknownFrameError,
 )
 from optik.mechanism import Joint, Mechanism, dh_chain, planar_chain
+from optik.results import FKResult, IKResult
 from optik.targets import Pose2D, Position
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "FKResult",
+    "IKResult",
     "InvalidArgumentError",
     "Joint",
     "LimitsError",

@@ -1,0 +1,66 @@
+"""Result records of the solvers (kept in the problems layer so every solver shares them)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class IKResult:
+    """Outcome of one inverse-kinematics solve.
+
+    Attributes:
+        q: the best coordinates found (the closest solution when ``success`` is False).
+        success: every tolerance met: position, orientation, closure, limits.
+        position_error: Euclidean position error of the task frame (m).
+        orientation_error: geodesic orientation error (rad); 0 for position-only tasks.
+        closure_error: max-norm of the loop-closure residual (0 for open chains).
+        limits_ok: ``lower <= q <= upper`` holds exactly.
+        iterations: solver iterations (summed over restarts).
+        solve_time: wall time of the call (s), failures included.
+        method: the method that produced ``q`` (``"lm"``, ``"nlp"``, ``"closed_form"``, ...).
+        status: short machine-readable status (``"solved"``, ``"unreachable"``, ``"time_limit"``...).
+        message: human-readable explanation, in particular why a solve failed.
+        restarts: number of restarts used.
+    """
+
+    q: np.ndarray
+    success: bool
+    position_error: float
+    orientation_error: float
+    closure_error: float
+    limits_ok: bool
+    iterations: int
+    solve_time: float
+    method: str
+    status: str
+    message: str = ""
+    restarts: int = 0
+    extra: dict = field(default_factory=dict)
+
+
+@dataclass
+class FKResult:
+    """Outcome of one forward-kinematics solve of a (possibly closed) mechanism.
+
+    Attributes:
+        pose: 4x4 pose of the end-effector frame.
+        q: all coordinates, passive included.
+        success: the closure residual is within tolerance and the limits hold.
+        residual: max-norm of the loop-closure residual.
+        solve_time: wall time (s).
+        condition_number: condition number of the closure Jacobian with respect to the passive
+            coordinates (large near a singularity of the assembly).
+        message: explanation, in particular why a solve failed.
+    """
+
+    pose: np.ndarray
+    q: np.ndarray
+    success: bool
+    residual: float
+    solve_time: float
+    condition_number: float = float("nan")
+    message: str = ""
+    extra: dict = field(default_factory=dict)

@@ -19,6 +19,7 @@ from optik.errors import (
 )
 from optik.mechanism import Joint, Mechanism, dh_chain, planar_chain
 from optik.results import FKResult, IKResult
+from optik.solvers import Tolerances, solve_ik
 from optik.targets import Pose2D, Position
 
 __version__ = "0.1.0"
@@ -38,10 +39,12 @@ __all__ = [
     "ProblemFileError",
     "ShapeError",
     "SolverUnavailableError",
+    "Tolerances",
     "UnknownFrameError",
     "catalog",
     "closed_form",
     "dh_chain",
     "planar_chain",
+    "solve_ik",
     "spatial",
 ]

@@ -30,17 +30,19 @@ __all__ = [
     "inv_transform",
     "is_symbolic",
     "matmul",
+    "planar_pose",
+    "planar_pose_of",
     "pose_error",
+    "rot_to_rpy",
+    "rot_to_rpy_all",
+    "rot_to_zyz",
+    "rot_to_zyz_all",
     "rot_x",
     "rot_y",
     "rot_z",
     "rotation_angle",
     "rotation_of",
     "rpy_to_rot",
-    "rot_to_rpy",
-    "rot_to_rpy_all",
-    "rot_to_zyz",
-    "rot_to_zyz_all",
     "so3_exp",
     "so3_log",
     "transform",
@@ -49,8 +51,6 @@ __all__ = [
     "vee",
     "wrap_angle",
     "zyz_to_rot",
-    "planar_pose",
-    "planar_pose_of",
 ]
 
 _SYMBOLIC = (ca.SX, ca.MX)
@@ -132,8 +132,10 @@ def wrap_angle(a: Any) -> Any:
     if is_symbolic(a):
         return ca.atan2(ca.sin(a), ca.cos(a))
     w = np.mod(np.asarray(a, dtype=float) + np.pi, 2.0 * np.pi) - np.pi
-    return np.where(w <= -np.pi, w + 2.0 * np.pi, w) if np.ndim(w) else (
-        float(w + 2.0 * np.pi) if w <= -np.pi else float(w)
+    return (
+        np.where(w <= -np.pi, w + 2.0 * np.pi, w)
+        if np.ndim(w)
+        else (float(w + 2.0 * np.pi) if w <= -np.pi else float(w))
     )
 
 
@@ -165,9 +167,7 @@ def hat(w: Any) -> Any:
         w: 3-vector (numpy, shape ``(..., 3)``, or CasADi 3x1).
     """
     if isinstance(w, (ca.SX, ca.MX, ca.DM)):
-        return ca.vertcat(
-            ca.horzcat(0, -w[2], w[1]), ca.horzcat(w[2], 0, -w[0]), ca.horzcat(-w[1], w[0], 0)
-        )
+        return ca.vertcat(ca.horzcat(0, -w[2], w[1]), ca.horzcat(w[2], 0, -w[0]), ca.horzcat(-w[1], w[0], 0))
     w = np.asarray(w, dtype=float)
     z = np.zeros_like(w[..., 0])
     return _Num.mat([[z, -w[..., 2], w[..., 1]], [w[..., 2], z, -w[..., 0]], [-w[..., 1], w[..., 0], z]])
@@ -191,9 +191,7 @@ def translation(x: Any = 0.0, y: Any = 0.0, z: Any = 0.0) -> Any:
         return o.mat([[1, 0, 0, x], [0, 1, 0, y], [0, 0, 1, z], [0, 0, 0, 1]])
     x, y, z = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (x, y, z)))
     zero, one = np.zeros_like(x), np.ones_like(x)
-    return o.mat(
-        [[one, zero, zero, x], [zero, one, zero, y], [zero, zero, one, z], [zero, zero, zero, one]]
-    )
+    return o.mat([[one, zero, zero, x], [zero, one, zero, y], [zero, zero, one, z], [zero, zero, zero, one]])
 
 
 def transform(rotation: Any = None, position: Any = None) -> Any:
@@ -203,9 +201,7 @@ def transform(rotation: Any = None, position: Any = None) -> Any:
         rotation: 3x3 rotation (identity when None). numpy batches ``(..., 3, 3)`` allowed.
         position: 3-vector (zero when None). numpy batches ``(..., 3)`` allowed.
     """
-    symbolic = isinstance(rotation, (ca.SX, ca.MX, ca.DM)) or isinstance(
-        position, (ca.SX, ca.MX, ca.DM)
-    )
+    symbolic = isinstance(rotation, (ca.SX, ca.MX, ca.DM)) or isinstance(position, (ca.SX, ca.MX, ca.DM))
     if symbolic:
         r = ca.DM.eye(3) if rotation is None else rotation
         p = ca.DM.zeros(3, 1) if position is None else ca.reshape(position, 3, 1)
@@ -445,7 +441,9 @@ def planar_pose(x: Any, y: Any, phi: Any) -> Any:
     o = _ops(x, y, phi)
     if o is _Sym:
         return transform(rot_z(phi), ca.vertcat(x, y, 0))
-    return transform(rot_z(phi), np.stack(np.broadcast_arrays(x, y, np.zeros_like(np.asarray(phi, float))), -1))
+    return transform(
+        rot_z(phi), np.stack(np.broadcast_arrays(x, y, np.zeros_like(np.asarray(phi, float))), -1)
+    )
 
 
 def planar_pose_of(t: Any) -> Any:

@@ -57,12 +57,13 @@ def five_bar(
     joints = [
         Joint("theta1", "revolute", "base", "proximal1", _at(b[0]), lower=lo[0], upper=hi[0]),
         Joint("theta2", "revolute", "base", "proximal2", _at(b[1]), lower=lo[1], upper=hi[1]),
-        Joint("psi1", "revolute", "proximal1", "distal1", _at((l1, 0)), lower=lo[2], upper=hi[2],
-              actuated=False),
-        Joint("psi2", "revolute", "proximal2", "distal2", _at((l2, 0)), lower=lo[3], upper=hi[3],
-              actuated=False),
-        Joint("P", "revolute", "distal1", "distal2", _at((l3, 0)), actuated=False,
-              child_offset=_at((l4, 0))),
+        Joint(
+            "psi1", "revolute", "proximal1", "distal1", _at((l1, 0)), lower=lo[2], upper=hi[2], actuated=False
+        ),
+        Joint(
+            "psi2", "revolute", "proximal2", "distal2", _at((l2, 0)), lower=lo[3], upper=hi[3], actuated=False
+        ),
+        Joint("P", "revolute", "distal1", "distal2", _at((l3, 0)), actuated=False, child_offset=_at((l4, 0))),
     ]
     m = Mechanism(joints, "base", {"tool": ("distal1", _at((t, 0)))}, "tool", "five_bar", "position2d")
     return _tag(m, "five_bar", base=b, lengths=(l1, l2, l3, l4), tool=t)
@@ -95,12 +96,22 @@ def doggy(
     joints = [
         Joint("theta1", "revolute", "base", "shin1", _at(f[0]), lower=lo[0], upper=hi[0]),
         Joint("theta2", "revolute", "shin1", "thigh1", _at((lg[0, 0], 0)), lower=lo[1], upper=hi[1]),
-        Joint("hipA", "revolute", "thigh1", "body", _at((lg[0, 1], 0)), lower=lo[2], upper=hi[2],
-              actuated=False, child_offset=_at(h[0])),
+        Joint(
+            "hipA",
+            "revolute",
+            "thigh1",
+            "body",
+            _at((lg[0, 1], 0)),
+            lower=lo[2],
+            upper=hi[2],
+            actuated=False,
+            child_offset=_at(h[0]),
+        ),
         Joint("theta3", "revolute", "base", "shin2", _at(f[1]), lower=lo[3], upper=hi[3]),
         Joint("theta4", "revolute", "shin2", "thigh2", _at((lg[1, 0], 0)), lower=lo[4], upper=hi[4]),
-        Joint("hipC", "revolute", "thigh2", "body", _at((lg[1, 1], 0)), actuated=False,
-              child_offset=_at(h[1])),
+        Joint(
+            "hipC", "revolute", "thigh2", "body", _at((lg[1, 1], 0)), actuated=False, child_offset=_at(h[1])
+        ),
     ]
     m = Mechanism(joints, "base", None, "body", "doggy", "pose2d")
     return _tag(m, "doggy", feet=f, hips=h, legs=lg)
@@ -127,8 +138,17 @@ def slider_crank(
     joints = [
         Joint("theta", "revolute", "base", "crank", lower=lo[0], upper=hi[0]),
         Joint("phi", "revolute", "crank", "rod", _at((r, 0)), lower=lo[1], upper=hi[1], actuated=False),
-        Joint("x", "prismatic", "base", "piston", _at((0, e)), axis=[1, 0, 0], lower=lo[2], upper=hi[2],
-              actuated=False),
+        Joint(
+            "x",
+            "prismatic",
+            "base",
+            "piston",
+            _at((0, e)),
+            axis=[1, 0, 0],
+            lower=lo[2],
+            upper=hi[2],
+            actuated=False,
+        ),
         Joint("pin", "revolute", "rod", "piston", _at((l, 0)), actuated=False),
     ]
     m = Mechanism(joints, "base", None, "piston", "slider_crank", "position2d")
@@ -162,10 +182,18 @@ def planar_3rpr(
     for i in range(3):
         joints += [
             Joint(f"theta{i + 1}", "revolute", "base", f"cylinder{i + 1}", _at(b[i]), actuated=False),
-            Joint(f"rho{i + 1}", "prismatic", f"cylinder{i + 1}", f"rod{i + 1}", axis=[1, 0, 0],
-                  lower=lo, upper=hi),
-            Joint(f"pin{i + 1}", "revolute", f"rod{i + 1}", "platform", actuated=False,
-                  child_offset=_at(p[i])),
+            Joint(
+                f"rho{i + 1}",
+                "prismatic",
+                f"cylinder{i + 1}",
+                f"rod{i + 1}",
+                axis=[1, 0, 0],
+                lower=lo,
+                upper=hi,
+            ),
+            Joint(
+                f"pin{i + 1}", "revolute", f"rod{i + 1}", "platform", actuated=False, child_offset=_at(p[i])
+            ),
         ]
     m = Mechanism(joints, "base", None, "platform", "planar_3rpr", "pose2d")
     return _tag(m, "planar_3rpr", base=b, platform=p, leg_limits=(lo, hi))
@@ -204,12 +232,33 @@ def stewart_gough(
     joints: list[Joint] = []
     for i in range(6):
         joints += [
-            Joint(f"u{i + 1}", "universal", "base", f"cylinder{i + 1}", spatial.translation(*b[i]),
-                  axis=[1, 0, 0], axis2=[0, 1, 0], actuated=False),
-            Joint(f"rho{i + 1}", "prismatic", f"cylinder{i + 1}", f"rod{i + 1}", axis=[0, 0, 1],
-                  lower=lo, upper=hi),
-            Joint(f"s{i + 1}", "spherical", f"rod{i + 1}", "platform", actuated=False,
-                  child_offset=spatial.translation(*p[i])),
+            Joint(
+                f"u{i + 1}",
+                "universal",
+                "base",
+                f"cylinder{i + 1}",
+                spatial.translation(*b[i]),
+                axis=[1, 0, 0],
+                axis2=[0, 1, 0],
+                actuated=False,
+            ),
+            Joint(
+                f"rho{i + 1}",
+                "prismatic",
+                f"cylinder{i + 1}",
+                f"rod{i + 1}",
+                axis=[0, 0, 1],
+                lower=lo,
+                upper=hi,
+            ),
+            Joint(
+                f"s{i + 1}",
+                "spherical",
+                f"rod{i + 1}",
+                "platform",
+                actuated=False,
+                child_offset=spatial.translation(*p[i]),
+            ),
         ]
     m = Mechanism(joints, "base", None, "platform", "stewart_gough", "pose")
     return _tag(m, "stewart_gough", base=b, platform=p, leg_limits=(lo, hi))

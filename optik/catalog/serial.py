@@ -93,7 +93,13 @@ def seed_6r_arm(
         p   = (c1 rho, s1 rho, s234 d4 + s23 d3 + s2 d2),  rho = c234 d4 + c23 d3 + c2 d2
     """
     ds = _positive((d2, d3, d4), "d2/d3/d4", 3)
-    rows = [(0.0, SEED_6R_ALPHAS[0]), (ds[0], 0.0), (ds[1], 0.0), (ds[2], SEED_6R_ALPHAS[3]),
-            (0.0, SEED_6R_ALPHAS[4]), (0.0, 0.0)]
+    rows = [
+        (0.0, SEED_6R_ALPHAS[0]),
+        (ds[0], 0.0),
+        (ds[1], 0.0),
+        (ds[2], SEED_6R_ALPHAS[3]),
+        (0.0, SEED_6R_ALPHAS[4]),
+        (0.0, 0.0),
+    ]
     m = dh_chain(rows, "seed", lower=lower, upper=upper, name="seed_6r_arm", task="pose")
     return _tag(m, "seed_6r_arm", d2=ds[0], d3=ds[1], d4=ds[2])

@@ -111,12 +111,16 @@ def dh_chain(
         ``frame1..frameN`` (the DH frames, i.e. after each whole A-matrix) and ``ee``.
     """
     if convention not in CONVENTIONS:
-        raise InvalidArgumentError("convention", f"unknown DH convention {convention!r}; use one of {CONVENTIONS}")
+        raise InvalidArgumentError(
+            "convention", f"unknown DH convention {convention!r}; use one of {CONVENTIONS}"
+        )
     rows = [as_vector(r, f"params[{i}]") for i, r in enumerate(params)]
     width = {"seed": 2, "standard": 3, "modified": 3}[convention]
     for i, r in enumerate(rows):
         if r.shape[0] != width:
-            raise InvalidArgumentError(f"params[{i}]", f"{convention} DH rows have {width} values, got {r.shape[0]}")
+            raise InvalidArgumentError(
+                f"params[{i}]", f"{convention} DH rows have {width} values, got {r.shape[0]}"
+            )
     n = len(rows)
     types = (types or "R" * n).upper()
     if len(types) != n or set(types) - {"R", "P"}:
@@ -131,19 +135,29 @@ def dh_chain(
         axis = [1.0, 0.0, 0.0] if convention == "seed" and types[i] == "P" else [0.0, 0.0, 1.0]
         if convention == "modified":
             a_prev, alpha_prev, d = r
-            origin = pending @ spatial.transform(spatial.rot_x(alpha_prev)) @ spatial.translation(a_prev, 0.0, d)
+            origin = (
+                pending @ spatial.transform(spatial.rot_x(alpha_prev)) @ spatial.translation(a_prev, 0.0, d)
+            )
             after = np.eye(4)
         elif convention == "seed":
             d, alpha = r
-            origin, after = pending, spatial.translation(d, 0.0, 0.0) @ spatial.transform(spatial.rot_x(alpha))
+            origin, after = (
+                pending,
+                spatial.translation(d, 0.0, 0.0) @ spatial.transform(spatial.rot_x(alpha)),
+            )
         else:
             d, a, alpha = r
             origin, after = pending, spatial.translation(a, 0.0, d) @ spatial.transform(spatial.rot_x(alpha))
         joints.append(
             Joint(
-                f"q{i + 1}", "prismatic" if types[i] == "P" else "revolute", prev, body,
-                origin=origin, axis=axis,
-                lower=None if lo is None else lo[i], upper=None if hi is None else hi[i],
+                f"q{i + 1}",
+                "prismatic" if types[i] == "P" else "revolute",
+                prev,
+                body,
+                origin=origin,
+                axis=axis,
+                lower=None if lo is None else lo[i],
+                upper=None if hi is None else hi[i],
             )
         )
         frames[f"frame{i + 1}"] = (body, after)

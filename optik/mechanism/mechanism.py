@@ -102,7 +102,9 @@ class Mechanism:
             self.frames[fname] = (body, off)
         self.ee = self.joints[-1].child if ee is None else ee
         if self.ee not in self.frames:
-            raise UnknownFrameError("ee", f"unknown end-effector frame {self.ee!r}; known: {sorted(self.frames)}")
+            raise UnknownFrameError(
+                "ee", f"unknown end-effector frame {self.ee!r}; known: {sorted(self.frames)}"
+            )
         if task is not None and task not in TASK_ROWS:
             raise InvalidArgumentError("task", f"unknown task {task!r}; use one of {sorted(TASK_ROWS)}")
         self.task = task or ("pose2d" if self.planar else "pose")
@@ -290,8 +292,10 @@ class Mechanism:
         """
         qb, single = as_batch(q, "q", self.n_q)
         f = self.fk_function(frame)
-        out = np.asarray(f(qb.T)).reshape(4, len(qb), 4).transpose(1, 0, 2) if len(qb) > 1 else (
-            np.asarray(f(qb[0]))[None]
+        out = (
+            np.asarray(f(qb.T)).reshape(4, len(qb), 4).transpose(1, 0, 2)
+            if len(qb) > 1
+            else (np.asarray(f(qb[0]))[None])
         )
         return out[0] if single else out
 
@@ -344,7 +348,9 @@ class Mechanism:
             raise InvalidArgumentError("task", f"Jacobian is {j.shape[0]}x{j.shape[1]}, not square")
         return float(np.linalg.det(j))
 
-    def joint_torques(self, q: Any, wrench: Any, frame: str | None = None, task: str | None = None) -> np.ndarray:
+    def joint_torques(
+        self, q: Any, wrench: Any, frame: str | None = None, task: str | None = None
+    ) -> np.ndarray:
         """Statics ``tau = J^T F``: joint efforts that balance a wrench at the frame.
 
         ``F`` is ``[force; moment]`` in the base frame restricted to the task rows (e.g.
@@ -407,8 +413,18 @@ class Mechanism:
         for i, sl in self._slices.items():
             j = joints[i]
             joints[i] = Joint(
-                j.name, j.type, j.parent, j.child, j.origin, j.axis, j.axis2,
-                tuple(lo[sl]), tuple(hi[sl]), j.actuated, j.child_offset, j.cut,
+                j.name,
+                j.type,
+                j.parent,
+                j.child,
+                j.origin,
+                j.axis,
+                j.axis2,
+                tuple(lo[sl]),
+                tuple(hi[sl]),
+                j.actuated,
+                j.child_offset,
+                j.cut,
             )
         return self._rebuild(joints)
 

@@ -1,0 +1,6 @@
+"""IK solvers behind one ``solve_ik``; methods register themselves in :mod:`optik.solvers.base`."""
+
+from optik.solvers.api import pick_method, solve_ik
+from optik.solvers.base import IKRequest, Tolerances, methods, register_method
+
+__all__ = ["IKRequest", "Tolerances", "methods", "pick_method", "register_method", "solve_ik"]

@@ -1,0 +1,69 @@
+"""``solve_ik``: one entry point in front of every registered IK method."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from optik.errors import SolverUnavailableError
+from optik.mechanism import Mechanism
+from optik.results import IKResult
+from optik.solvers.base import Tolerances, get_method, make_request, methods
+
+DEFAULT_ORDER = ("closed_form", "lm", "nlp")
+"""Preference of ``method=None``: the first registered method that applies."""
+
+
+def pick_method(m: Mechanism, task: str) -> str:
+    """The best available method for a mechanism and task (see :data:`DEFAULT_ORDER`)."""
+    known = methods()
+    for name in DEFAULT_ORDER:
+        if name in known and known[name].applies(m, task):
+            return name
+    raise SolverUnavailableError(f"no IK method applies to {m.name!r} with task {task!r}")
+
+
+def solve_ik(
+    m: Mechanism,
+    target: Any,
+    q0: Any = None,
+    method: str | None = None,
+    *,
+    task: str | None = None,
+    frame: str | None = None,
+    time_limit: float | None = None,
+    tol: float | Tolerances | None = None,
+    seed: int | np.random.Generator | None = None,
+    **options: Any,
+) -> IKResult:
+    """Inverse kinematics with joint limits (and loop closures for closed chains).
+
+    Args:
+        m: the mechanism.
+        target: 4x4 transform, :class:`~optik.Pose2D` or :class:`~optik.Position`.
+        q0: start configuration (default: mid-limit).
+        method: ``"closed_form"``, ``"lm"``, ``"nlp"``, ``"dls"``, ``"qp"``; None picks the best
+            available (closed form where the catalog has one, else ``"lm"``).
+        task: task space (default from the target type and the mechanism).
+        frame: task frame (default: the end effector).
+        time_limit: wall-time budget in seconds (default 0.1).
+        tol: tolerances (float: position and orientation) or :class:`Tolerances`.
+        seed: seed or Generator for restarts.
+        **options: method-specific options (see each method's documentation).
+
+    Returns:
+        An :class:`~optik.IKResult`; unreachable targets give ``success=False`` with the closest
+        configuration found and a message.
+
+    Raises:
+        OptikError: malformed input (named argument), unknown or inapplicable method.
+    """
+    request = make_request(m, target, q0, task, frame, time_limit, tol, seed, options)
+    name = pick_method(m, request.task) if method is None else method
+    info = get_method(name)
+    if not info.applies(m, request.task):
+        raise SolverUnavailableError(
+            f"method {name!r} does not apply to {m.name!r} with task {request.task!r}"
+        )
+    return info.solve(request)

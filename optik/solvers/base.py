@@ -1,0 +1,268 @@
+"""What every IK method shares: the request, tolerances, result evaluation and a method registry.
+
+A method is a function ``solve(request) -> IKResult`` registered under a name with
+:func:`register_method`. :func:`optik.solve_ik` validates the user's input once, builds an
+:class:`IKRequest` and dispatches to the method. Methods registered from layers below the
+solvers (e.g. :mod:`optik.diffik`, which registers ``"dls"`` and ``"qp"``) plug in the same way,
+so the import direction stays one way.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from optik import spatial
+from optik.checks import as_rng, as_vector
+from optik.errors import InvalidArgumentError, SolverUnavailableError
+from optik.mechanism import TASK_ROWS, Mechanism
+from optik.results import IKResult
+from optik.targets import Pose2D, Position, target_transform
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """Success tolerances (DESIGN.md defaults).
+
+    Attributes:
+        position: max position error (m).
+        orientation: max orientation error (rad).
+        closure: max loop-closure residual (max-norm).
+    """
+
+    position: float = 1e-6
+    orientation: float = 1e-6
+    closure: float = 1e-9
+
+    @classmethod
+    def from_arg(cls, tol: float | Tolerances | None) -> Tolerances:
+        """``None`` -> defaults; a float sets position and orientation tolerances."""
+        if tol is None:
+            return cls()
+        if isinstance(tol, Tolerances):
+            return tol
+        t = float(as_vector(tol, "tol", 1)[0])
+        if t <= 0:
+            raise InvalidArgumentError("tol", f"must be > 0, got {t}")
+        return cls(position=t, orientation=t)
+
+
+@dataclass
+class IKRequest:
+    """A validated IK request, as methods receive it.
+
+    Attributes:
+        mechanism: the model.
+        target: 4x4 target transform of ``frame``.
+        task: task space: ``"pose"``, ``"position"``, ``"orientation"``, ``"pose2d"``, ``"position2d"``.
+        frame: task frame name (None: end effector).
+        q0: start configuration (mid-limit when the user gave none).
+        time_limit: wall-time budget (s); every method must return within it (plus one iteration).
+        tol: success tolerances.
+        rng: random generator for restarts.
+        options: method-specific options.
+        start: ``time.perf_counter()`` when the request was made.
+    """
+
+    mechanism: Mechanism
+    target: np.ndarray
+    task: str
+    frame: str | None
+    q0: np.ndarray
+    time_limit: float
+    tol: Tolerances
+    rng: np.random.Generator
+    options: dict[str, Any] = field(default_factory=dict)
+    start: float = field(default_factory=time.perf_counter)
+
+    def elapsed(self) -> float:
+        """Seconds since the request was made."""
+        return time.perf_counter() - self.start
+
+    def remaining(self) -> float:
+        """Seconds left of the time limit."""
+        return self.time_limit - self.elapsed()
+
+
+@dataclass(frozen=True)
+class Errors:
+    """Errors of a configuration against a request."""
+
+    position: float
+    orientation: float
+    closure: float
+    limits_ok: bool
+
+    def ok(self, tol: Tolerances) -> bool:
+        """All tolerances met and limits satisfied exactly."""
+        return (
+            self.position <= tol.position
+            and self.orientation <= tol.orientation
+            and self.closure <= tol.closure
+            and self.limits_ok
+        )
+
+
+def task_errors(task: str, pose: np.ndarray, target: np.ndarray) -> tuple[float, float]:
+    """Position and orientation error of ``pose`` against ``target`` in a task space.
+
+    ``pose``/``position``: Euclidean distance of the origins; ``pose2d``/``position2d``: of their
+    x-y coordinates. ``pose``/``orientation``: geodesic angle ``angle(R^T R*)``; ``pose2d``:
+    ``|wrap(phi - phi*)|`` of the headings about z.
+    """
+    dp = pose[:3, 3] - target[:3, 3]
+    pos = float(np.linalg.norm(dp[:2] if task in ("pose2d", "position2d") else dp))
+    if task in ("position", "position2d"):
+        return pos, 0.0
+    if task == "orientation":
+        pos = 0.0
+    if task == "pose2d":
+        phi = np.arctan2(pose[1, 0], pose[0, 0]) - np.arctan2(target[1, 0], target[0, 0])
+        return pos, float(abs(spatial.wrap_angle(phi)))
+    return pos, float(spatial.angle_between(pose[:3, :3], target[:3, :3]))
+
+
+def evaluate(m: Mechanism, q: np.ndarray, target: np.ndarray, task: str, frame: str | None) -> Errors:
+    """Position, orientation and closure errors of ``q``, and whether it is within limits."""
+    pos, ori = task_errors(task, m.fk(q, frame), target)
+    closure = float(np.max(np.abs(m.closure(q)))) if m.is_closed else 0.0
+    limits_ok = bool(np.all(q >= m.lower) and np.all(q <= m.upper))
+    return Errors(pos, ori, closure, limits_ok)
+
+
+def make_result(
+    request: IKRequest,
+    q: np.ndarray,
+    method: str,
+    iterations: int,
+    restarts: int = 0,
+    status: str | None = None,
+    message: str = "",
+) -> IKResult:
+    """An :class:`IKResult` for ``q``: errors evaluated here, success judged by the tolerances.
+
+    ``q`` is clipped into the limits first (a method must never report a violating answer);
+    the status defaults to ``"solved"`` or ``"not_converged"``.
+    """
+    m = request.mechanism
+    qq = np.clip(m.wrap(q), m.lower, m.upper)
+    err = evaluate(m, qq, request.target, request.task, request.frame)
+    success = err.ok(request.tol)
+    if status is None:
+        status = "solved" if success else "not_converged"
+    if not success and not message:
+        message = (
+            f"tolerances not met within the time limit ({request.time_limit:g} s): position error "
+            f"{err.position:.3g} m, orientation error {err.orientation:.3g} rad, closure "
+            f"{err.closure:.3g}; the target may be unreachable within the joint limits"
+        )
+    return IKResult(
+        q=qq,
+        success=success,
+        position_error=err.position,
+        orientation_error=err.orientation,
+        closure_error=err.closure,
+        limits_ok=err.limits_ok,
+        iterations=iterations,
+        solve_time=request.elapsed(),
+        method=method,
+        status=status,
+        message=message,
+        restarts=restarts,
+    )
+
+
+IKMethod = Callable[[IKRequest], IKResult]
+
+
+@dataclass(frozen=True)
+class MethodInfo:
+    """A registered method: its solve function and a predicate saying whether it applies."""
+
+    name: str
+    solve: IKMethod
+    applies: Callable[[Mechanism, str], bool]
+    description: str
+
+
+_METHODS: dict[str, MethodInfo] = {}
+
+
+def register_method(
+    name: str,
+    solve: IKMethod,
+    applies: Callable[[Mechanism, str], bool] = lambda m, task: True,
+    description: str = "",
+) -> None:
+    """Register an IK method under ``name`` (replacing a previous registration)."""
+    _METHODS[name] = MethodInfo(name, solve, applies, description)
+
+
+def methods() -> dict[str, MethodInfo]:
+    """The registered methods by name."""
+    return dict(_METHODS)
+
+
+def get_method(name: str) -> MethodInfo:
+    """The method registered under ``name``.
+
+    Raises:
+        SolverUnavailableError: unknown name (the message lists the known ones).
+    """
+    if name not in _METHODS:
+        raise SolverUnavailableError(f"unknown IK method {name!r}; available: {sorted(_METHODS)}")
+    return _METHODS[name]
+
+
+def default_task(m: Mechanism, target: Any) -> str:
+    """Task implied by the target type: :class:`Pose2D` -> ``pose2d``; :class:`Position` ->
+    ``position2d`` (planar) or ``position``; a 4x4 transform -> the mechanism's own task."""
+    if isinstance(target, Pose2D):
+        return "pose2d"
+    if isinstance(target, Position):
+        return "position2d" if m.planar else "position"
+    return m.task
+
+
+def make_request(
+    m: Mechanism,
+    target: Any,
+    q0: Any = None,
+    task: str | None = None,
+    frame: str | None = None,
+    time_limit: float | None = None,
+    tol: float | Tolerances | None = None,
+    seed: int | np.random.Generator | None = None,
+    options: dict[str, Any] | None = None,
+) -> IKRequest:
+    """Validate user input and build an :class:`IKRequest`.
+
+    Raises:
+        OptikError subclasses naming the bad argument (target, q0, task, frame, time_limit, tol).
+    """
+    start = time.perf_counter()
+    t = target_transform(target)
+    tk = default_task(m, target) if task is None else task
+    if tk not in TASK_ROWS:
+        raise InvalidArgumentError("task", f"unknown task {tk!r}; use one of {sorted(TASK_ROWS)}")
+    m._frame(frame)  # raises UnknownFrameError naming the frame
+    q_start = m.mid_q() if q0 is None else m.check_q(q0, "q0")
+    limit = 0.1 if time_limit is None else float(as_vector(time_limit, "time_limit", 1)[0])
+    if limit <= 0:
+        raise InvalidArgumentError("time_limit", f"must be > 0 seconds, got {limit}")
+    return IKRequest(
+        mechanism=m,
+        target=t,
+        task=tk,
+        frame=frame,
+        q0=q_start,
+        time_limit=limit,
+        tol=Tolerances.from_arg(tol),
+        rng=as_rng(seed),
+        options=dict(options or {}),
+        start=start,
+    )

@@ -4,12 +4,16 @@ Every constructor returns an :class:`optik.Mechanism` whose ``kind`` names its e
 that :mod:`optik.closed_form` can find the analytic solvers of that mechanism.
 """
 
+from optik.catalog.arms import URDF_CHAINS, iiwa14, panda, urdf_path
 from optik.catalog.closed_chains import doggy, five_bar, planar_3rpr, slider_crank, stewart_gough
 from optik.catalog.serial import planar_2r, planar_3r, pp_arm, rp_arm, seed_6r_arm
 
 __all__ = [
+    "URDF_CHAINS",
     "doggy",
     "five_bar",
+    "iiwa14",
+    "panda",
     "planar_2r",
     "planar_3r",
     "planar_3rpr",
@@ -18,4 +22,5 @@ __all__ = [
     "seed_6r_arm",
     "slider_crank",
     "stewart_gough",
+    "urdf_path",
 ]

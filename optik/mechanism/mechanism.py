@@ -10,6 +10,7 @@ the geometric Jacobian and the closure residual.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping, Sequence
 from functools import cached_property
 from typing import Any
@@ -131,6 +132,18 @@ class Mechanism:
         mechanism's analytic solvers; None for mechanisms built by hand."""
         self._fk_funs: dict[str, ca.Function] = {}
         self._jac_funs: dict[str, ca.Function] = {}
+
+    @classmethod
+    def from_urdf(cls, source: str | os.PathLike[str], base_link: str, tip_link: str) -> Mechanism:
+        """The serial chain of a URDF robot from ``base_link`` to ``tip_link``.
+
+        ``source`` is a URDF file path or the XML text. Coordinates are named after the URDF
+        joints and ``ee`` is ``tip_link``; see :func:`optik.urdf.load_urdf` for what is supported
+        and what is raised.
+        """
+        from optik.urdf import load_urdf  # optik.urdf builds on this module: import lazily
+
+        return load_urdf(source, base_link, tip_link)
 
     # ------------------------------------------------------------------ structure
     @property

@@ -1,0 +1,434 @@
+"""Matplotlib figures of mechanisms: one configuration, all branches, the reachable workspace.
+
+Geometry comes from the mechanism's own CasADi model. For every joint ``j`` between a parent and
+a child body the two sides of the joint are
+
+``A_j(q) = T_parent(q) origin_j``  and  ``B_j(q) = T_child(q) child_offset_j``
+
+(see :mod:`optik.mechanism.joint`). For a revolute, universal or spherical tree joint their
+origins coincide; for a prismatic joint ``B_j = A_j Trans(q_j axis_j)``, so the segment
+``A_j -> B_j`` is the slide; for a cut joint they coincide exactly when the loop is closed. One
+CasADi function ``q -> (p_A, p_B, T_ee)`` is compiled once per mechanism. A body is drawn as the
+polyline through the joint locations it carries (a filled polygon when they span an area, e.g.
+a platform); joints are markers (actuated filled, passive hollow), the ground as hatching, the
+end-effector frame as a small x-y(-z) triad. Planar mechanisms are drawn in 2-D, spatial ones
+in 3-D.
+
+No ``pyplot`` state is used: figures are :class:`matplotlib.figure.Figure` objects, saved with
+:func:`save_figure` (temporary file + ``os.replace``, so a reader never sees half a PNG).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+import weakref
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import casadi as ca
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from optik import closed_form
+from optik.checks import as_rng
+from optik.errors import InvalidArgumentError, SolverUnavailableError
+from optik.mechanism import Mechanism
+
+__all__ = ["draw", "draw_branches", "save_figure", "workspace", "write_atomic"]
+
+_MARKERS = {"revolute": "o", "prismatic": "s", "universal": "D", "spherical": "o"}
+_TRIAD_COLORS = ("tab:red", "tab:green", "tab:blue")
+_GEOMETRY: weakref.WeakKeyDictionary[Mechanism, ca.Function] = weakref.WeakKeyDictionary()
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """Drawable geometry of one configuration.
+
+    Attributes:
+        parent_side: ``(n_joints, 3)`` origins of ``A_j`` (joint frame on the parent body).
+        child_side: ``(n_joints, 3)`` origins of ``B_j`` (joint frame on the child body).
+        ee: 4x4 pose of the end-effector frame.
+    """
+
+    parent_side: np.ndarray
+    child_side: np.ndarray
+    ee: np.ndarray
+
+    def points(self) -> np.ndarray:
+        """All points (for axis limits)."""
+        return np.vstack([self.parent_side, self.child_side, self.ee[None, :3, 3]])
+
+
+def _geometry_function(m: Mechanism) -> ca.Function:
+    """``q -> (p_A (3 x J), p_B (3 x J), T_ee)``, compiled once per mechanism."""
+    f = _GEOMETRY.get(m)
+    if f is None:
+        poses = m.body_transforms
+        a_cols = [ca.mtimes(poses[j.parent], ca.DM(j.origin))[:3, 3] for j in m.joints]
+        b_cols = [ca.mtimes(poses[j.child], ca.DM(j.child_offset))[:3, 3] for j in m.joints]
+        outputs = [ca.horzcat(*a_cols), ca.horzcat(*b_cols), m.frame_expr()]
+        f = ca.Function("plot_geometry", [m.q_sym], outputs)
+        _GEOMETRY[m] = f
+    return f
+
+
+def geometry(m: Mechanism, q: Any) -> Geometry:
+    """Joint locations and end-effector pose of ``m`` at ``q``.
+
+    Raises:
+        ShapeError, NonFiniteError: ``q`` is not a finite vector of ``m.n_q`` values.
+    """
+    a, b, t = _geometry_function(m)(m.check_q(q))
+    return Geometry(np.asarray(a).T, np.asarray(b).T, np.asarray(t))
+
+
+def _body_points(m: Mechanism, g: Geometry, body: str) -> list[np.ndarray]:
+    """Joint locations carried by ``body``, and the end effector when it sits on a bar-like body
+    (on a plate, e.g. a platform, the end-effector triad marks it instead)."""
+    pts = []
+    for k, j in enumerate(m.joints):
+        if j.parent == body:
+            pts.append(g.parent_side[k])
+        if j.child == body:
+            pts.append(g.child_side[k])
+    distinct: list[np.ndarray] = []
+    for p in pts:
+        if all(np.linalg.norm(p - d) > 1e-9 for d in distinct):
+            distinct.append(p)
+    if m.frames[m.ee][0] == body and not _outline(distinct)[1]:  # a tool point on a bar, not a plate
+        distinct.append(g.ee[:3, 3])
+    return distinct
+
+
+def _outline(pts: list[np.ndarray]) -> tuple[np.ndarray, bool]:
+    """Points ordered along their principal direction (collinear) or by angle (a polygon).
+
+    Returns the ordered ``(k, 3)`` points and whether they enclose an area.
+    """
+    p = np.array(pts)
+    if len(p) < 3:
+        return p, False
+    c = p.mean(axis=0)
+    _, s, vt = np.linalg.svd(p - c)
+    if s[1] <= 1e-9 * max(s[0], 1e-12):
+        return p[np.argsort((p - c) @ vt[0])], False
+    u, v = (p - c) @ vt[0], (p - c) @ vt[1]
+    return p[np.argsort(np.arctan2(v, u))], True
+
+
+def _extent(points: np.ndarray) -> float:
+    span = np.ptp(points, axis=0)
+    return float(max(np.max(span), 1e-3))
+
+
+def _plot_line(ax: Axes, pts: np.ndarray, planar: bool, **kw: Any) -> None:
+    if planar:
+        ax.plot(pts[:, 0], pts[:, 1], **kw)
+    else:
+        ax.plot(pts[:, 0], pts[:, 1], pts[:, 2], **kw)
+
+
+def _ground(ax: Axes, p: np.ndarray, size: float, planar: bool, color: str) -> None:
+    """Hatching under a ground point: a short bar and four diagonal strokes below it."""
+    down = np.array([0.0, -1.0, 0.0]) if planar else np.array([0.0, 0.0, -1.0])
+    side = np.array([1.0, 0.0, 0.0])
+    base = p + 0.6 * size * down
+    _plot_line(ax, np.array([base - size * side, base + size * side]), planar, color=color, lw=1.2)
+    for s in np.linspace(-0.8, 0.8, 4):
+        start = base + s * size * side
+        _plot_line(ax, np.array([start, start + 0.5 * size * (down - side)]), planar, color=color, lw=0.8)
+
+
+def _render(ax: Axes, m: Mechanism, g: Geometry, style: dict[str, Any]) -> None:
+    planar = m.planar
+    color = style.get("color", "tab:blue")
+    lw = style.get("linewidth", 2.5)
+    alpha = style.get("alpha", 1.0)
+    ms = style.get("marker_size", 7.0)
+    size = style.get("scale", 0.04 * _extent(g.points()))
+    first = True
+    for body in m.topology.bodies:
+        pts = _body_points(m, g, body)
+        if body == m.base:
+            if style.get("ground", True):
+                for p in pts:
+                    _ground(ax, p, size, planar, "0.3")
+            if len(pts) >= 2:
+                outline, area = _outline(pts)
+                ring = np.vstack([outline, outline[:1]]) if area else outline
+                _plot_line(ax, ring, planar, color="0.5", lw=1.0, alpha=alpha)
+            continue
+        if len(pts) < 2:
+            continue
+        outline, area = _outline(pts)
+        kw: dict[str, Any] = {"color": color, "lw": lw, "alpha": alpha, "solid_capstyle": "round"}
+        if first and style.get("label"):
+            kw["label"] = style["label"]
+            first = False
+        if area:
+            closed = np.vstack([outline, outline[:1]])
+            _plot_line(ax, closed, planar, **kw)
+            if planar:
+                ax.fill(outline[:, 0], outline[:, 1], color=color, alpha=0.15 * alpha)
+        else:
+            _plot_line(ax, outline, planar, **kw)
+    for k, j in enumerate(m.joints):
+        if j.type == "fixed":
+            continue
+        a, b = g.parent_side[k], g.child_side[k]
+        gap = float(np.linalg.norm(b - a))
+        if j.type == "prismatic":
+            _plot_line(ax, np.array([a, b]), planar, color=color, lw=1.6 * lw, alpha=0.6 * alpha)
+            at = 0.5 * (a + b)
+        else:
+            at = a
+            if gap > 1e-6:  # an open cut joint: the loop is not closed at this q
+                _plot_line(ax, np.array([a, b]), planar, color="tab:red", lw=1.0, ls="--")
+        face = color if j.actuated else "white"
+        size_j = ms * (1.3 if j.type == "spherical" else 1.0)
+        coords = at[:2] if planar else at
+        ax.plot(
+            *[[c] for c in coords],
+            marker=_MARKERS[j.type],
+            ms=size_j,
+            mfc=face,
+            mec=color,
+            mew=1.5,
+            alpha=alpha,
+            ls="none",
+            zorder=3,
+        )
+    if style.get("triad", True):
+        t = g.ee
+        n_axes = 2 if planar else 3
+        for i in range(n_axes):
+            tip = t[:3, 3] + 2.5 * size * t[:3, i]
+            _plot_line(ax, np.array([t[:3, 3], tip]), planar, color=_TRIAD_COLORS[i], lw=1.5, alpha=alpha)
+
+
+def _set_limits(ax: Axes, points: np.ndarray, planar: bool) -> None:
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    c = 0.5 * (lo + hi)
+    half = 0.5 * _extent(points) * 1.25
+    ax.set_xlim(c[0] - half, c[0] + half)
+    ax.set_ylim(c[1] - half, c[1] + half)
+    if planar:
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+    else:
+        ax.set_zlim(c[2] - half, c[2] + half)
+        ax.set_box_aspect((1, 1, 1))
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.set_zlabel("z [m]")
+
+
+def _new_axes(fig: Figure, m: Mechanism, *grid: int) -> Axes:
+    return fig.add_subplot(*grid) if m.planar else fig.add_subplot(*grid, projection="3d")
+
+
+def _limit_points(m: Mechanism, g: Geometry) -> np.ndarray:
+    """Points that fix the axis limits: the geometry plus the ground hatching below it."""
+    pts = g.points()
+    down = np.array([0.0, -1.0, 0.0]) if m.planar else np.array([0.0, 0.0, -1.0])
+    return np.vstack([pts, pts.min(axis=0) + 0.1 * _extent(pts) * down])
+
+
+def draw(m: Mechanism, q: Any, ax: Axes | None = None, **style: Any) -> Axes:
+    """Draw a mechanism in configuration ``q``.
+
+    Args:
+        m: the mechanism (planar ones are drawn in the x-y plane, spatial ones in 3-D).
+        q: coordinates, ``m.n_q`` values (passive ones included).
+        ax: axes to draw into (a 3-D axes for spatial mechanisms); None creates a new figure.
+        **style: ``color``, ``linewidth``, ``alpha``, ``marker_size``, ``scale`` (size of the
+            triad and hatching, default 4 % of the drawing), ``label``, ``triad`` (draw the
+            end-effector frame, default True), ``ground`` (draw hatching, default True).
+
+    Returns:
+        The axes drawn into. When ``ax`` is None the axis limits are set around the mechanism
+        with equal scales.
+
+    Raises:
+        ShapeError, NonFiniteError: bad ``q``.
+        InvalidArgumentError: ``ax`` is 2-D for a spatial mechanism.
+    """
+    g = geometry(m, q)
+    if ax is None:
+        ax = _new_axes(Figure(figsize=(5, 5), layout="constrained"), m, 1, 1, 1)
+        _set_limits(ax, _limit_points(m, g), m.planar)
+    elif not m.planar and ax.name != "3d":
+        raise InvalidArgumentError("ax", f"{m.name!r} is spatial: pass a 3-D axes (projection='3d')")
+    _render(ax, m, g, style)
+    return ax
+
+
+def draw_branches(m: Mechanism, qs: Sequence[Any], title: str | None = None, **style: Any) -> Figure:
+    """One subplot per branch (IK) or assembly mode (FK), on common axis limits.
+
+    Args:
+        m: the mechanism.
+        qs: one coordinate vector per branch (an empty list gives a figure saying so).
+        title: figure title (default: the mechanism's name and the number of branches).
+        **style: passed to :func:`draw`.
+
+    Returns:
+        A figure with ``len(qs)`` axes (one axes with a note when ``qs`` is empty).
+    """
+    geoms = [geometry(m, q) for q in qs]
+    n = len(geoms)
+    cols = min(max(n, 1), 4)
+    rows = max(1, math.ceil(n / cols))
+    fig = Figure(figsize=(3.6 * cols, 3.6 * rows + 0.4), layout="constrained")
+    fig.suptitle(title or f"{m.name}: {n} branch{'es' if n != 1 else ''}")
+    if not geoms:
+        ax = fig.add_subplot(1, 1, 1)
+        ax.text(0.5, 0.5, "no configuration (unreachable or not assemblable)", ha="center", va="center")
+        ax.set_axis_off()
+        return fig
+    pts = np.vstack([_limit_points(m, g) for g in geoms])
+    for i, g in enumerate(geoms):
+        ax = _new_axes(fig, m, rows, cols, i + 1)
+        _render(ax, m, g, style)
+        _set_limits(ax, pts, m.planar)
+        ax.set_title(f"branch {i + 1}", fontsize=10)
+    return fig
+
+
+def _assemble(m: Mechanism, actuated: np.ndarray) -> list[np.ndarray]:
+    """Every assembly mode (closed form) or one (``optik.solve_fk``) for actuated values."""
+    if closed_form.has_fk(m):
+        return closed_form.fk(m, actuated)
+    import optik
+
+    solve_fk = getattr(optik, "solve_fk", None)
+    if solve_fk is None:
+        raise SolverUnavailableError(
+            f"{m.name!r} is a closed chain without a closed-form FK and optik.solve_fk is not available"
+        )
+    res = solve_fk(m, actuated)
+    return [np.asarray(res.q)] if res.success else []
+
+
+def workspace_points(
+    m: Mechanism, n: int = 2000, seed: int | np.random.Generator | None = 0
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """Sampled reachable end-effector positions.
+
+    Open chains: ``q ~ U(lower, upper)``, point ``p_ee(q)``. Closed chains: the actuated
+    coordinates ``a ~ U(lower_a, upper_a)`` are assembled (closed-form FK: every assembly mode
+    within limits; else :func:`optik.solve_fk`) and the non-assemblable samples are dropped.
+
+    Returns:
+        ``(points (k, 3), mode (k,) assembly-mode index, samples drawn)``.
+    """
+    if not isinstance(n, (int, np.integer)) or n < 1:
+        raise InvalidArgumentError("n", f"expected a positive integer, got {n!r}")
+    rng = as_rng(seed)
+    if not m.is_closed:
+        qs = m.random_q(int(n), rng)
+        pts = m.fk(qs)[:, :3, 3] if n > 1 else m.fk(qs[0])[None, :3, 3]
+        return pts, np.zeros(len(pts), dtype=int), int(n)
+    idx = m.actuated_indices
+    samples = rng.uniform(m.lower[idx], m.upper[idx], size=(int(n), len(idx)))
+    qs, modes = [], []
+    for a in samples:
+        for k, q in enumerate(_assemble(m, a)):
+            qs.append(q)
+            modes.append(k)
+    if not qs:
+        return np.zeros((0, 3)), np.zeros(0, dtype=int), int(n)
+    return np.asarray(m.fk(np.array(qs)))[..., :3, 3].reshape(-1, 3), np.array(modes), int(n)
+
+
+def workspace(m: Mechanism, n: int = 2000, seed: int | np.random.Generator | None = 0) -> Figure:
+    """Scatter plot of sampled reachable end-effector positions within the joint limits.
+
+    See :func:`workspace_points` for the sampling. Points are coloured by assembly mode; the
+    mechanism is drawn in the mid-limit configuration of open chains, or in the first assembled
+    sample of closed chains.
+
+    Args:
+        m: the mechanism.
+        n: number of samples.
+        seed: seed or Generator.
+
+    Returns:
+        A figure with one axes (2-D for planar mechanisms, 3-D otherwise).
+
+    Raises:
+        SolverUnavailableError: a closed chain has neither a closed-form FK nor ``optik.solve_fk``.
+    """
+    pts, modes, drawn = workspace_points(m, n, seed)
+    fig = Figure(figsize=(5.5, 5.5), layout="constrained")
+    ax = _new_axes(fig, m, 1, 1, 1)
+    what = "samples assemble" if m.is_closed else "samples"
+    ax.set_title(f"workspace of {m.name}: {len(pts)} points from {drawn} {what}", fontsize=10)
+    cmap = "tab10"
+    if len(pts):
+        if m.planar:
+            ax.scatter(pts[:, 0], pts[:, 1], s=2, c=modes, cmap=cmap, vmin=0, vmax=9, alpha=0.5)
+        else:
+            ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=2, c=modes, cmap=cmap, vmin=0, vmax=9, alpha=0.5)
+    q_show = m.mid_q() if not m.is_closed else _first_assembly(m)
+    lim = pts
+    if q_show is not None:
+        g = geometry(m, q_show)
+        _render(ax, m, g, {"color": "0.2", "alpha": 0.8})
+        lim = np.vstack([pts, _limit_points(m, g)])
+    if len(lim):
+        _set_limits(ax, lim, m.planar)
+    return fig
+
+
+def _first_assembly(m: Mechanism) -> np.ndarray | None:
+    """An assembled configuration near the middle of the actuated limits (None if none found)."""
+    idx = m.actuated_indices
+    mid = 0.5 * (m.lower[idx] + m.upper[idx])
+    rng = np.random.default_rng(0)
+    for scale in (0.0, 0.1, 0.3, 0.6):
+        for _ in range(5):
+            a = mid + scale * (m.upper[idx] - m.lower[idx]) * rng.uniform(-0.5, 0.5, len(idx))
+            qs = _assemble(m, a)
+            if qs:
+                return qs[0]
+    return None
+
+
+def write_atomic(path: str | os.PathLike[str], write: Callable[[str], None]) -> Path:
+    """Write a file atomically: ``write(tmp)`` into a temporary file next to ``path``, then
+    ``os.replace(tmp, path)``; the temporary file is removed when ``write`` fails.
+
+    Args:
+        path: destination; its directory is created when missing.
+        write: called with the temporary file's path; must create that file.
+
+    Returns:
+        The destination path.
+    """
+    dest = Path(path)
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=dest.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, dest)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return dest
+
+
+def save_figure(fig: Figure, path: str | os.PathLike[str], dpi: int = 110) -> Path:
+    """Save a figure atomically; the format follows the extension of ``path`` (e.g. ``.png``)."""
+    fmt = Path(path).suffix.lstrip(".").lower()
+    if not fmt:
+        raise InvalidArgumentError("path", f"needs an extension such as .png, got {str(path)!r}")
+    return write_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=dpi))

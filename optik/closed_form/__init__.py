@@ -6,5 +6,21 @@ reachability mask.
 """
 
 from optik.closed_form.registry import fk, has_fk, has_ik, ik, register
+from optik.closed_form.serial import ik_planar_2r, ik_planar_3r, ik_pp, ik_rp, ik_seed_6r
+from optik.spatial import rot_to_rpy_all as rpy_all
+from optik.spatial import rot_to_zyz_all as zyz_all
 
-__all__ = ["fk", "has_fk", "has_ik", "ik", "register"]
+__all__ = [
+    "fk",
+    "has_fk",
+    "has_ik",
+    "ik",
+    "ik_planar_2r",
+    "ik_planar_3r",
+    "ik_pp",
+    "ik_rp",
+    "ik_seed_6r",
+    "register",
+    "rpy_all",
+    "zyz_all",
+]

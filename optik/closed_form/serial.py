@@ -1,0 +1,387 @@
+"""Closed-form inverse kinematics of the serial catalog arms, vectorized over many targets.
+
+Every function takes arrays of targets (anything that broadcasts; ``N`` targets after flattening)
+and returns ``(q, ok)``: ``q`` of shape ``(N, B, n)`` with one row per branch and ``ok`` of shape
+``(N, B)``, True where that branch reaches the target. Where ``ok`` is False the row is all
+zeros (finite, never NaN). Angles are wrapped to ``[-pi, pi]``.
+
+Mathematics (seed ``000``/``001`` notation):
+
+* **Two links** ``l1, l2`` reaching ``(x, y)`` (planar 2R, the first two joints of the 3R arm,
+  the shoulder-elbow pair of the 6R arm). Squaring and adding ``x = l1 c1 + l2 c12`` and
+  ``y = l1 s1 + l2 s12`` gives ``P cos(theta1) + Q sin(theta1) + R = 0`` with ``P = -2 l1 x``,
+  ``Q = -2 l1 y``, ``R = x^2 + y^2 + l1^2 - l2^2``, or equivalently the law of cosines
+  ``c2 = (x^2 + y^2 - l1^2 - l2^2) / (2 l1 l2)``. With ``s2 = sigma sqrt(1 - c2^2)``:
+  ``theta2 = atan2(s2, c2)`` and ``theta1 = atan2(y, x) - atan2(l2 s2, l1 + l2 c2)``.
+  Branch 0 is ``sigma = +1`` (``theta2`` in ``[0, pi]``), branch 1 is ``sigma = -1``. The
+  target is reachable when ``|c2| <= 1``; a cosine outside ``[-1, 1]`` by at most
+  :data:`COS_TOL` (rounding at the workspace boundary) is clipped, anything beyond is
+  unreachable.
+* **Planar 3R** (seed 000): the wrist point ``x' = x - l3 cos(phi)``, ``y' = y - l3 sin(phi)``
+  is a two-link problem, then ``theta3 = phi - theta1 - theta2`` (the seed prints
+  ``phi - theta1 + theta2``, a typo that fails the FK round trip).
+* **R-P** (seed 001, theta-r): ``(theta, r) = (atan2(y, x), sqrt(x^2 + y^2))`` and
+  ``(theta + pi, -r)``; **P-P**: ``(q1, q2) = (x, y)``.
+* **Seed 6R arm**: see :func:`ik_seed_6r`.
+
+Exactly degenerate targets have a defined representative: a two-link target at the origin with
+``l1 = l2`` gives ``theta1 = 0``, ``theta2 = pi`` (``atan2(0, 0) = 0``); the R-P target at the
+origin gives ``theta = 0`` (and ``pi``) with ``r = 0``; the 6R singularities are described in
+:func:`ik_seed_6r`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from optik.checks import as_vector
+from optik.closed_form.registry import register
+from optik.errors import InvalidArgumentError, NonFiniteError, ShapeError
+from optik.mechanism import Mechanism
+from optik.spatial import planar_pose_of, wrap_angle
+
+__all__ = [
+    "COS_TOL",
+    "SINGULAR_TOL",
+    "ik_planar_2r",
+    "ik_planar_3r",
+    "ik_pp",
+    "ik_rp",
+    "ik_seed_6r",
+]
+
+COS_TOL = 1e-12
+"""How far a law-of-cosines argument may leave ``[-1, 1]`` and still count as reachable."""
+
+SINGULAR_TOL = 1e-12
+"""Below this (relative to the arm's size for distances) a 6R singularity is treated as exact."""
+
+_TWO_PI = 2.0 * np.pi
+_INV_TWO_PI = 1.0 / _TWO_PI
+_SAME_BRANCH = 1e-4
+
+
+def _lengths(values: Any, name: str, n: int) -> tuple[float, ...]:
+    ls = as_vector(values, name, n)
+    if np.any(ls <= 0):
+        raise InvalidArgumentError(name, f"lengths must be > 0, got {tuple(ls)}")
+    return tuple(float(v) for v in ls)
+
+
+def _flat(**named: Any) -> list[np.ndarray]:
+    """Finite float64 arrays, broadcast together and flattened to 1-D (a scalar gives N = 1)."""
+    arrays = []
+    for name, value in named.items():
+        try:
+            a = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise InvalidArgumentError(name, f"expected numbers, got {value!r}") from exc
+        if not np.all(np.isfinite(a)):
+            raise NonFiniteError(name, "contains NaN or infinity")
+        arrays.append(a)
+    try:
+        shape = np.broadcast_shapes(*(a.shape for a in arrays))
+    except ValueError as exc:
+        shapes = {k: np.shape(v) for k, v in named.items()}
+        raise ShapeError("/".join(named), f"shapes do not broadcast: {shapes}") from exc
+    return [np.broadcast_to(a, shape).reshape(-1) for a in arrays]
+
+
+def _wrap(a: np.ndarray) -> None:
+    """Wrap angles to ``[-pi, pi]`` in place: ``a -= 2 pi round(a / (2 pi))``."""
+    k = a * _INV_TWO_PI
+    np.round(k, out=k)
+    k *= _TWO_PI
+    a -= k
+
+
+def _two_link(l1: float, l2: float, x: np.ndarray, y: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """Both two-link solutions into ``out[..., b, 0]`` (theta1) and ``out[..., b, 1]`` (theta2).
+
+    Args:
+        l1, l2: link lengths.
+        x, y: target of the second link's tip, any shape ``S``.
+        out: array of shape ``S + (2, k)``, ``k >= 2``; branch ``b`` is ``sigma = 1 - 2 b``.
+
+    Returns:
+        Reachability mask of shape ``S`` (``|c2| <= 1 + COS_TOL``).
+    """
+    c2 = x * x
+    c2 += y * y
+    c2 -= l1 * l1 + l2 * l2
+    c2 *= 1.0 / (2.0 * l1 * l2)
+    ok = np.abs(c2) <= 1.0 + COS_TOL
+    np.clip(c2, -1.0, 1.0, out=c2)
+    s2 = c2 * c2
+    np.subtract(1.0, s2, out=s2)
+    np.sqrt(s2, out=s2)
+    np.arctan2(s2, c2, out=out[..., 0, 1])
+    np.negative(out[..., 0, 1], out=out[..., 1, 1])
+    beta = np.arctan2(y, x)
+    s2 *= l2
+    c2 *= l2
+    c2 += l1
+    delta = np.arctan2(s2, c2, out=s2)
+    np.subtract(beta, delta, out=out[..., 0, 0])
+    np.add(beta, delta, out=out[..., 1, 0])
+    _wrap(out[..., 0])
+    return ok
+
+
+def _finish(q: np.ndarray, ok: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Zero the rows of unreachable branches (``q`` is finite by construction)."""
+    q *= ok[..., None]
+    return q, ok
+
+
+def ik_planar_2r(lengths: Any, x: Any, y: Any) -> tuple[np.ndarray, np.ndarray]:
+    """All IK branches of the planar 2R arm ``x = l1 c1 + l2 c12``, ``y = l1 s1 + l2 s12``.
+
+    Args:
+        lengths: ``(l1, l2)``, both > 0.
+        x, y: target coordinates (arrays broadcast; ``N`` targets after flattening).
+
+    Returns:
+        ``q`` of shape ``(N, 2, 2)``: branch 0 has ``theta2 >= 0`` (seed's ``sigma = +1``),
+        branch 1 ``theta2 <= 0``; ``ok`` of shape ``(N, 2)``, False where
+        ``sqrt(x^2 + y^2)`` is outside ``[|l1 - l2|, l1 + l2]``.
+
+    Raises:
+        InvalidArgumentError: a length is not > 0 (argument ``lengths``).
+        NonFiniteError: NaN or infinity in ``x`` or ``y``.
+        ShapeError: ``x`` and ``y`` do not broadcast.
+    """
+    l1, l2 = _lengths(lengths, "lengths", 2)
+    xs, ys = _flat(x=x, y=y)
+    q = np.empty((xs.shape[0], 2, 2))
+    ok = _two_link(l1, l2, xs, ys, q)
+    return _finish(q, np.repeat(ok[:, None], 2, axis=1))
+
+
+def ik_planar_3r(lengths: Any, x: Any, y: Any, phi: Any) -> tuple[np.ndarray, np.ndarray]:
+    """All IK branches of the planar 3R arm (seed 000, equations (9)-(11), typo corrected).
+
+    ``x' = x - l3 cos(phi)``, ``y' = y - l3 sin(phi)`` is a two-link target for ``l1, l2``;
+    ``theta3 = phi - theta1 - theta2``.
+
+    Args:
+        lengths: ``(l1, l2, l3)``, all > 0.
+        x, y, phi: target pose (arrays broadcast; ``N`` targets after flattening).
+
+    Returns:
+        ``q`` of shape ``(N, 2, 3)`` (branch 0: ``theta2 >= 0``, branch 1: ``theta2 <= 0``) and
+        ``ok`` of shape ``(N, 2)``.
+
+    Raises:
+        InvalidArgumentError: a length is not > 0 (argument ``lengths``).
+        NonFiniteError: NaN or infinity in ``x``, ``y`` or ``phi``.
+        ShapeError: the arrays do not broadcast.
+    """
+    l1, l2, l3 = _lengths(lengths, "lengths", 3)
+    xs, ys, phis = _flat(x=x, y=y, phi=phi)
+    xw = np.cos(phis)
+    xw *= -l3
+    xw += xs
+    yw = np.sin(phis)
+    yw *= -l3
+    yw += ys
+    q = np.empty((xs.shape[0], 2, 3))
+    ok = _two_link(l1, l2, xw, yw, q)
+    for b in range(2):
+        t3 = q[:, b, 2]
+        np.subtract(phis, q[:, b, 0], out=t3)
+        t3 -= q[:, b, 1]
+    _wrap(q[..., 2])
+    return _finish(q, np.repeat(ok[:, None], 2, axis=1))
+
+
+def ik_rp(x: Any, y: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Both IK branches of the R-P (theta-r) arm ``x = r cos(theta)``, ``y = r sin(theta)``.
+
+    Returns:
+        ``q`` of shape ``(N, 2, 2)``: ``(atan2(y, x), sqrt(x^2 + y^2))`` and
+        ``(atan2(y, x) + pi, -sqrt(x^2 + y^2))`` (wrapped); ``ok`` all True (every point of the
+        plane is reached; stroke limits are applied by :func:`optik.closed_form.ik`).
+
+    Raises:
+        NonFiniteError: NaN or infinity in ``x`` or ``y``.
+        ShapeError: ``x`` and ``y`` do not broadcast.
+    """
+    xs, ys = _flat(x=x, y=y)
+    q = np.empty((xs.shape[0], 2, 2))
+    np.arctan2(ys, xs, out=q[:, 0, 0])
+    np.hypot(xs, ys, out=q[:, 0, 1])
+    np.add(q[:, 0, 0], np.pi, out=q[:, 1, 0])
+    _wrap(q[:, 1, 0])
+    np.negative(q[:, 0, 1], out=q[:, 1, 1])
+    return q, np.ones((xs.shape[0], 2), dtype=bool)
+
+
+def ik_pp(x: Any, y: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The single IK branch of the Cartesian P-P arm: ``(q1, q2) = (x, y)``.
+
+    Returns:
+        ``q`` of shape ``(N, 1, 2)`` and ``ok`` of shape ``(N, 1)`` (all True).
+
+    Raises:
+        NonFiniteError: NaN or infinity in ``x`` or ``y``.
+        ShapeError: ``x`` and ``y`` do not broadcast.
+    """
+    xs, ys = _flat(x=x, y=y)
+    q = np.stack([xs, ys], axis=-1)[:, None, :]
+    return q, np.ones((xs.shape[0], 1), dtype=bool)
+
+
+def _transforms(value: Any, name: str) -> np.ndarray:
+    t = np.asarray(value, dtype=np.float64)
+    if t.ndim == 2:
+        t = t[None]
+    if t.ndim != 3 or t.shape[1:] != (4, 4):
+        raise ShapeError(name, f"expected shape (4, 4) or (N, 4, 4), got {np.shape(value)}")
+    if not np.all(np.isfinite(t)):
+        raise NonFiniteError(name, "contains NaN or infinity")
+    return t
+
+
+def _safe_ratio(num: np.ndarray, den: np.ndarray, default: float) -> np.ndarray:
+    """``num / den`` where ``den != 0``, else ``default``."""
+    out = np.full(np.broadcast_shapes(num.shape, den.shape), default)
+    return np.divide(num, den, out=out, where=den != 0)
+
+
+def ik_seed_6r(d2: float, d3: float, d4: float, t: Any) -> tuple[np.ndarray, np.ndarray]:
+    """All IK branches of the seed's 6-joint arm (seed 001), FK-verified derivation.
+
+    ``A_n = Rot(z, theta_n) Trans(x, d_n) Rot(x, alpha_n)`` with ``d = (0, d2, d3, d4, 0, 0)``
+    and ``alpha = (90, 0, 0, -90, 90, 0)`` degrees, so that ``p = (c1 rho, s1 rho, z)`` with
+    ``rho = c234 d4 + c23 d3 + c2 d2``, ``z = s234 d4 + s23 d3 + s2 d2``, and the rotation is
+    ``R = Rot(z, theta1) Rot(x, 90) Rot(z, theta234) Rot(x, -90) Rot(z, theta5) Rot(x, 90) Rot(z, theta6)``.
+    With ``R = [n o a]``:
+
+    1. shoulder: ``theta1 = atan2(p_y, p_x)`` or that plus ``pi`` (``rho`` changes sign);
+    2. wrist: ``c234 s5 = a_x c1 + a_y s1 =: u`` and ``s234 s5 = a_z``, so
+       ``theta234 = atan2(sigma a_z, sigma u)`` for ``sigma = +-1`` (the sign of ``s5``);
+    3. elbow: the point ``(p_x c1 + p_y s1 - d4 c234, p_z - d4 s234)`` is a two-link target for
+       ``d2, d3`` giving ``theta2, theta3`` (both elbow signs), ``theta4 = theta234 - theta2 - theta3``;
+    4. ``M = R_04^T R = Rot(z, theta5) Rot(x, 90) Rot(z, theta6)`` gives
+       ``theta5 = atan2(c234 u + s234 a_z, a_x s1 - a_y c1)`` and
+       ``theta6 = atan2(c234 n_z - s234 (n_x c1 + n_y s1), c234 o_z - s234 (o_x c1 + o_y s1))``.
+
+    Singular targets (infinitely many solutions) get a defined representative that still
+    satisfies FK whenever the target is reachable at all:
+
+    * wrist (``u = a_z = 0``, i.e. ``s5 = 0``): only ``theta234 +- theta6`` is fixed by ``R``;
+      ``theta234 = atan2(z, rho') + sigma acos(k)`` is chosen so that the wrist centre lies at
+      distance ``max(d2, d3)`` from the shoulder (the middle of the elbow's annulus), with
+      ``k = (r^2 + d4^2 - max(d2, d3)^2) / (2 r d4)`` clipped to ``[-1, 1]``, ``r = |(rho', z)|``;
+    * shoulder (``p_x = p_y = 0``): ``theta1`` is free; it is chosen as
+      ``atan2(a_y, a_x) + acos(...)`` so that ``s234`` puts the wrist centre, as above, as close
+      to distance ``max(d2, d3)`` as the orientation allows (and ``theta1 = atan2(a_y, a_x)``
+      when ``p_z = 0``, where every ``theta1`` is equivalent).
+
+    A distance below :data:`SINGULAR_TOL` (times ``d2 + d3 + d4``; unitless for ``s5``) counts
+    as singular, so the representative's FK error is below that tolerance.
+
+    Args:
+        d2, d3, d4: link lengths along x (> 0).
+        t: target transform(s) of the end effector, shape ``(4, 4)`` or ``(N, 4, 4)`` with
+            proper rotation blocks.
+
+    Returns:
+        ``q`` of shape ``(N, 8, 6)``, branch index ``4 i_shoulder + 2 i_wrist + i_elbow``
+        (index 0 = ``theta1 = atan2(p_y, p_x)``, ``s5 >= 0``, ``theta3 >= 0``), and ``ok`` of
+        shape ``(N, 8)``.
+
+    Raises:
+        InvalidArgumentError: a length is not > 0 (argument ``d2/d3/d4``).
+        ShapeError / NonFiniteError: bad ``t``.
+    """
+    d2, d3, d4 = _lengths((d2, d3, d4), "d2/d3/d4", 3)
+    tt = _transforms(t, "t")
+    n_t = tt.shape[0]
+    nx, ny, nz = tt[:, 0, 0], tt[:, 1, 0], tt[:, 2, 0]
+    ox, oy, oz = tt[:, 0, 1], tt[:, 1, 1], tt[:, 2, 1]
+    ax, ay, az = tt[:, 0, 2], tt[:, 1, 2], tt[:, 2, 2]
+    px, py, pz = tt[:, 0, 3], tt[:, 1, 3], tt[:, 2, 3]
+    mid = max(d2, d3)
+    scale = SINGULAR_TOL * (d2 + d3 + d4)
+
+    # 1. shoulder, with the representative of the shoulder singularity
+    alpha = np.arctan2(ay, ax)
+    h = np.hypot(ax, ay)
+    s_star = np.clip(_safe_ratio(pz * pz + d4 * d4 - mid * mid, 2.0 * d4 * pz, 0.0), -1.0, 1.0)
+    ratio = _safe_ratio(np.abs(az) * np.sqrt(1.0 - s_star * s_star), np.abs(s_star) * h, np.inf)
+    th1_singular = alpha + np.arccos(np.minimum(ratio, 1.0))
+    th1_base = np.where(np.hypot(px, py) <= scale, th1_singular, np.arctan2(py, px))
+    q = np.zeros((n_t, 2, 2, 2, 6))
+    th1 = np.stack([th1_base, th1_base + np.pi], axis=1)
+    _wrap(th1)
+    q[..., 0] = th1[:, :, None, None]
+    c1, s1 = np.cos(th1), np.sin(th1)
+
+    # 2. wrist, with the representative of the wrist singularity
+    u = ax[:, None] * c1 + ay[:, None] * s1
+    az2 = np.broadcast_to(az[:, None], u.shape)
+    rho = px[:, None] * c1 + py[:, None] * s1
+    sigma = np.array([1.0, -1.0])
+    th234 = np.arctan2(sigma * az2[..., None], sigma * u[..., None])
+    r = np.hypot(rho, pz[:, None])
+    k = np.clip(_safe_ratio(r * r + d4 * d4 - mid * mid, 2.0 * d4 * r, 1.0), -1.0, 1.0)
+    th234_singular = np.arctan2(pz[:, None], rho)[..., None] + sigma * np.arccos(k)[..., None]
+    th234 = np.where((np.hypot(u, az2) <= SINGULAR_TOL)[..., None], th234_singular, th234)
+    c234, s234 = np.cos(th234), np.sin(th234)
+
+    # 3. elbow
+    ok = _two_link(d2, d3, rho[..., None] - d4 * c234, pz[:, None, None] - d4 * s234, q[..., 1:3])
+    np.subtract(th234[..., None], q[..., 1], out=q[..., 3])
+    q[..., 3] -= q[..., 2]
+    _wrap(q[..., 3])
+
+    # 4. wrist angles from M = R_04^T R
+    c1e, s1e = c1[..., None], s1[..., None]
+    nr = nx[:, None, None] * c1e + ny[:, None, None] * s1e
+    orr = ox[:, None, None] * c1e + oy[:, None, None] * s1e
+    c5 = ax[:, None, None] * s1e - ay[:, None, None] * c1e
+    q[..., 4] = np.arctan2(c234 * u[..., None] + s234 * az[:, None, None], c5)[..., None]
+    s6 = c234 * nz[:, None, None] - s234 * nr
+    q[..., 5] = np.arctan2(s6, c234 * oz[:, None, None] - s234 * orr)[..., None]
+    return _finish(q.reshape(n_t, 8, 6), np.repeat(ok[..., None], 2, axis=-1).reshape(n_t, 8))
+
+
+# ---------------------------------------------------------------------------- registry adapters
+def _distinct(m: Mechanism, q: np.ndarray, ok: np.ndarray) -> list[np.ndarray]:
+    """The reachable branches of one target, without repeats (DESIGN: same branch when every
+    coordinate differs by < 1e-4, angles modulo 2 pi)."""
+    ang = m.revolute_mask
+    out: list[np.ndarray] = []
+    for b in np.flatnonzero(ok[0]):
+        cand = q[0, b].copy()
+        diffs = [cand - prev for prev in out]
+        for d in diffs:
+            d[ang] = wrap_angle(d[ang])
+        if all(np.max(np.abs(d)) >= _SAME_BRANCH for d in diffs):
+            out.append(cand)
+    return out
+
+
+def _planar_adapter(solve: Callable[[Mechanism, float, float, float], tuple[np.ndarray, np.ndarray]]):
+    """IK adapter ``(m, T) -> list[q]`` from a vectorized planar solver taking ``(m, x, y, phi)``."""
+
+    def adapter(m: Mechanism, t: np.ndarray) -> list[np.ndarray]:
+        x, y, phi = planar_pose_of(t)
+        return _distinct(m, *solve(m, x, y, phi))
+
+    return adapter
+
+
+register("planar_2r", ik=_planar_adapter(lambda m, x, y, phi: ik_planar_2r(m.params["lengths"], x, y)))
+register("planar_3r", ik=_planar_adapter(lambda m, x, y, phi: ik_planar_3r(m.params["lengths"], x, y, phi)))
+register("rp_arm", ik=_planar_adapter(lambda m, x, y, phi: ik_rp(x, y)))
+register("pp_arm", ik=_planar_adapter(lambda m, x, y, phi: ik_pp(x, y)))
+register(
+    "seed_6r_arm",
+    ik=lambda m, t: _distinct(m, *ik_seed_6r(m.params["d2"], m.params["d3"], m.params["d4"], t)),
+)

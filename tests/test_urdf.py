@@ -1,0 +1,341 @@
+"""URDF import (optik.urdf), Mechanism.from_urdf, and the Panda / iiwa14 catalog arms vs their URDFs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+
+import optik
+from optik.catalog import URDF_CHAINS, iiwa14, panda, urdf_path
+from optik.errors import InvalidArgumentError, ModelError, OptikError, UnknownFrameError
+from optik.urdf import load_urdf
+
+
+def _joint(name, kind, parent, child, xyz=None, rpy=None, axis=None, limit=None, extra=""):
+    origin = ""
+    if xyz is not None or rpy is not None:
+        attrs = "".join(f' {k}="{v}"' for k, v in (("xyz", xyz), ("rpy", rpy)) if v is not None)
+        origin = f"<origin{attrs}/>"
+    ax = "" if axis is None else f'<axis xyz="{axis}"/>'
+    lim = "" if limit is None else f'<limit lower="{limit[0]}" upper="{limit[1]}" effort="1" velocity="1"/>'
+    return (
+        f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
+        f"{origin}{ax}{lim}{extra}</joint>"
+    )
+
+
+def _robot(*joints: str, links: tuple[str, ...] = ()) -> str:
+    names = set(links)
+    for j in joints:
+        for tag in ("parent", "child"):
+            names.add(j.split(f'<{tag} link="')[1].split('"')[0])
+    body = "".join(f'<link name="{n}"/>' for n in sorted(names)) + "".join(joints)
+    return f'<?xml version="1.0"?>\n<robot name="test">{body}</robot>'
+
+
+def _origin_ref(xyz, rpy) -> np.ndarray:
+    """URDF origin by an independent route: scipy's extrinsic x-y-z Euler angles = Rz Ry Rx."""
+    t = np.eye(4)
+    t[:3, :3] = Rotation.from_euler("xyz", rpy).as_matrix()
+    t[:3, 3] = xyz
+    return t
+
+
+def _rot_ref(axis, q) -> np.ndarray:
+    t = np.eye(4)
+    t[:3, :3] = Rotation.from_rotvec(np.asarray(axis, float) / np.linalg.norm(axis) * q).as_matrix()
+    return t
+
+
+def _trans_ref(axis, q) -> np.ndarray:
+    t = np.eye(4)
+    t[:3, 3] = np.asarray(axis, float) / np.linalg.norm(axis) * q
+    return t
+
+
+# A chain with every supported joint type, fixed joints before, between and after moving
+# joints, and a branch (with a floating joint) off the base-tip path.
+MIXED = _robot(
+    _joint("mount", "fixed", "world", "base", xyz="0 0 0.5", rpy="0 0 1.0"),
+    _joint(
+        "j1", "revolute", "base", "l1", xyz="0.1 0.2 0.3", rpy="0.3 -0.2 0.7", axis="0 0 1", limit=(-1, 2)
+    ),
+    _joint("bracket", "fixed", "l1", "l1b", xyz="0.4 0 0", rpy="1.5707963267948966 0 0"),
+    _joint("j2", "continuous", "l1b", "l2", xyz="0 0.1 0", axis="1 1 0"),
+    _joint("j3", "prismatic", "l2", "l3", rpy="0 0.5 0", axis="0 0 2", limit=(0.0, 0.4)),
+    _joint("adapter", "fixed", "l3", "plate", rpy="0 0 0.4"),
+    _joint("tool", "fixed", "plate", "tcp", xyz="0 0 0.05", rpy="0.2 0 0"),
+    _joint("flying", "floating", "l1", "drone"),
+    _joint("side", "revolute", "base", "arm2", axis="0 1 0", limit=(-1, 1)),
+)
+
+
+def _mixed_ref(q) -> np.ndarray:
+    return (
+        _origin_ref((0, 0, 0.5), (0, 0, 1.0))
+        @ _origin_ref((0.1, 0.2, 0.3), (0.3, -0.2, 0.7))
+        @ _rot_ref((0, 0, 1), q[0])
+        @ _origin_ref((0.4, 0, 0), (np.pi / 2, 0, 0))
+        @ _origin_ref((0, 0.1, 0), (0, 0, 0))
+        @ _rot_ref((1, 1, 0), q[1])
+        @ _origin_ref((0, 0, 0), (0, 0.5, 0))
+        @ _trans_ref((0, 0, 1), q[2])
+        @ _origin_ref((0, 0, 0), (0, 0, 0.4))
+        @ _origin_ref((0, 0, 0.05), (0.2, 0, 0))
+    )
+
+
+# ------------------------------------------------------------------ parsing
+
+
+def test_mixed_chain_structure_and_limits():
+    m = load_urdf(MIXED, "world", "tcp")
+    assert m.coordinate_names == ("j1", "j2", "j3")
+    assert [j.type for j in m.joints] == ["revolute", "revolute", "prismatic"]
+    assert m.base == "world" and m.ee == "tcp" and m.name == "test" and m.task == "pose"
+    # fixed joints folded: no body for the links they lead to, but a frame for each
+    assert set(m.topology.bodies) == {"world", "l1", "l2", "l3"}
+    assert {"base", "l1b", "plate", "tcp"} <= set(m.frames)
+    np.testing.assert_array_equal(m.lower, [-1.0, -np.pi, 0.0])
+    np.testing.assert_array_equal(m.upper, [2.0, np.pi, 0.4])
+    np.testing.assert_allclose(m.joints[1].axis, np.array([1, 1, 0]) / np.sqrt(2), atol=1e-15)
+    np.testing.assert_allclose(m.joints[2].axis, [0, 0, 1], atol=1e-15)
+    assert m.revolute_mask.tolist() == [True, True, False]
+
+
+def test_mixed_chain_fk_matches_independent_product():
+    m = load_urdf(MIXED, "world", "tcp")
+    rng = np.random.default_rng(1)
+    for q in m.random_q(20, seed=rng):
+        np.testing.assert_allclose(m.fk(q), _mixed_ref(q), atol=1e-12)
+    q = m.random_q(seed=2)
+    # the folded fixed-joint links are frames with the right poses
+    np.testing.assert_allclose(m.fk(q, frame="base"), _origin_ref((0, 0, 0.5), (0, 0, 1.0)), atol=1e-12)
+    l1b = (
+        _origin_ref((0, 0, 0.5), (0, 0, 1.0))
+        @ _origin_ref((0.1, 0.2, 0.3), (0.3, -0.2, 0.7))
+        @ _rot_ref((0, 0, 1), q[0])
+        @ _origin_ref((0.4, 0, 0), (np.pi / 2, 0, 0))
+    )
+    np.testing.assert_allclose(m.fk(q, frame="l1b"), l1b, atol=1e-12)
+
+
+def test_sub_chain_and_branch_selection():
+    m = load_urdf(MIXED, "l1", "l3")
+    assert m.coordinate_names == ("j2", "j3") and m.base == "l1"
+    other = load_urdf(MIXED, "world", "arm2")
+    assert other.coordinate_names == ("side",)
+
+
+def test_defaults_origin_and_axis():
+    m = load_urdf(_robot(_joint("j", "revolute", "a", "b", limit=(-1, 1))), "a", "b")
+    np.testing.assert_array_equal(m.joints[0].origin, np.eye(4))
+    np.testing.assert_array_equal(m.joints[0].axis, [1.0, 0.0, 0.0])  # URDF default axis
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    xyz=st.lists(st.floats(-2, 2), min_size=3, max_size=3),
+    rpy=st.lists(st.floats(-np.pi, np.pi), min_size=3, max_size=3),
+    axis=st.lists(st.floats(-1, 1), min_size=3, max_size=3).filter(lambda a: np.linalg.norm(a) > 0.1),
+    q=st.floats(-3, 3),
+    prismatic=st.booleans(),
+)
+def test_one_joint_fk_property(xyz, rpy, axis, q, prismatic):
+    kind = "prismatic" if prismatic else "revolute"
+    text = _robot(
+        _joint(
+            "j",
+            kind,
+            "a",
+            "b",
+            xyz=" ".join(repr(v) for v in xyz),
+            rpy=" ".join(repr(v) for v in rpy),
+            axis=" ".join(repr(v) for v in axis),
+            limit=(-3, 3),
+        )
+    )
+    m = load_urdf(text, "a", "b")
+    motion = _trans_ref(axis, q) if prismatic else _rot_ref(axis, q)
+    np.testing.assert_allclose(m.fk([q]), _origin_ref(xyz, rpy) @ motion, atol=1e-12)
+
+
+def test_from_urdf_accepts_path_str_and_text(tmp_path):
+    f = tmp_path / "r.urdf"
+    f.write_text(MIXED, encoding="utf-8")
+    q = np.array([0.3, -1.2, 0.1])
+    for src in (f, str(f), MIXED):
+        m = optik.Mechanism.from_urdf(src, "world", "tcp")
+        np.testing.assert_allclose(m.fk(q), _mixed_ref(q), atol=1e-12)
+    assert optik.Mechanism.from_urdf(f, "world", "tcp").params["urdf"] == str(f)
+
+
+# ------------------------------------------------------------------ errors
+
+
+def _raises(exc, text, match, base="a", tip="b"):
+    with pytest.raises(exc, match=match) as info:
+        load_urdf(text, base, tip)
+    assert isinstance(info.value, OptikError)
+    return info.value
+
+
+def test_doctype_and_entity_rejected():
+    laughs = (
+        '<?xml version="1.0"?><!DOCTYPE robot [<!ENTITY lol "lol"><!ENTITY lol2 "&lol;&lol;&lol;">]>'
+        '<robot name="&lol2;"><link name="a"/><link name="b"/></robot>'
+    )
+    _raises(ModelError, laughs, r"<string>.*DOCTYPE")
+    external = '<!ENTITY xxe SYSTEM "file:///etc/passwd"><robot name="x"/>'
+    _raises(ModelError, external, "ENTITY")
+    lower_case = '<!doctype robot><robot name="x"/>'
+    _raises(ModelError, lower_case, "DOCTYPE")
+
+
+def test_errors_name_the_file_and_joint(tmp_path):
+    f = tmp_path / "bad.urdf"
+    f.write_text(
+        _robot(_joint("elbow", "revolute", "a", "b", xyz="0 0 abc", limit=(-1, 1))), encoding="utf-8"
+    )
+    with pytest.raises(ModelError) as info:
+        optik.Mechanism.from_urdf(f, "a", "b")
+    assert str(f) in str(info.value) and "'elbow'" in str(info.value) and "xyz" in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("joint", "match"),
+    [
+        (_joint("j", "revolute", "a", "b", xyz="0 0", limit=(-1, 1)), r"'j' <origin xyz>.*3 numbers"),
+        (_joint("j", "revolute", "a", "b", rpy="0 nan 0", limit=(-1, 1)), r"'j' <origin rpy>.*finite"),
+        (_joint("j", "revolute", "a", "b", axis="0 0 0", limit=(-1, 1)), r"'j'.*non-zero"),
+        (_joint("j", "revolute", "a", "b", limit=("x", 1)), r"'j' <limit lower>"),
+        (_joint("j", "revolute", "a", "b", limit=(1, -1)), r"'j'.*lower 1.0 > upper -1.0"),
+        (_joint("j", "revolute", "a", "b"), r"'j'.*needs <limit"),
+        (_joint("j", "prismatic", "a", "b"), r"'j'.*prismatic joint needs <limit"),
+        (_joint("j", "floating", "a", "b"), r"'j'.*'floating' is not supported"),
+        (_joint("j", "planar", "a", "b"), r"'j'.*'planar' is not supported"),
+        (_joint("j", "ball", "a", "b"), r"'j'.*'ball' is unknown"),
+        (_joint("j", "fixed", "a", "b"), r"no moving joint between 'a' and 'b'"),
+        (
+            _joint("j", "revolute", "a", "b", limit=(-1, 1), extra='<mimic joint="k"/>'),
+            r"'j' has <mimic>",
+        ),
+    ],
+)
+def test_malformed_joints(joint, match):
+    _raises(ModelError, _robot(joint), r"<string>: .*" + match)
+
+
+def test_unknown_links_and_tip_not_below_base():
+    text = _robot(
+        _joint("j1", "revolute", "a", "b", limit=(-1, 1)),
+        _joint("j2", "revolute", "a", "c", limit=(-1, 1)),
+    )
+    err = _raises(UnknownFrameError, text, "no link 'nope'", base="nope")
+    assert err.argument == "base_link"
+    assert _raises(UnknownFrameError, text, "no link 'z'", tip="z").argument == "tip_link"
+    _raises(ModelError, text, "'a' is not downstream of base_link 'b'", base="b", tip="a")
+    _raises(ModelError, text, "'c' is not downstream of base_link 'b'", base="b", tip="c")
+
+
+def test_malformed_documents(tmp_path):
+    _raises(ModelError, "<robot><link name='a'/>", "malformed XML")
+    _raises(ModelError, "<model name='x'/>", "expected <robot>")
+    two_parents = _robot(
+        _joint("j1", "revolute", "a", "b", limit=(-1, 1)),
+        _joint("j2", "revolute", "c", "b", limit=(-1, 1)),
+    )
+    _raises(ModelError, two_parents, "child of two joints")
+    dangling = (
+        "<robot name='r'><link name='a'/><link name='b'/>" + _joint("j", "fixed", "a", "zz") + "</robot>"
+    )
+    _raises(ModelError, dangling, "unknown link 'zz'")
+    with pytest.raises(InvalidArgumentError, match="no URDF file"):
+        load_urdf(tmp_path / "missing.urdf", "a", "b")
+    with pytest.raises(InvalidArgumentError, match="source"):
+        load_urdf(42, "a", "b")  # type: ignore[arg-type]
+
+
+# ------------------------------------------------------------------ shipped robots
+
+
+ARMS = [("panda", panda), ("iiwa14", iiwa14)]
+
+
+def test_urdf_path():
+    for name, _ in ARMS:
+        p = urdf_path(name)
+        assert isinstance(p, Path) and p.is_file() and p.parent.name == "urdf"
+    with pytest.raises(InvalidArgumentError, match="available"):
+        urdf_path("ur5")
+
+
+@pytest.mark.parametrize(("name", "ctor"), ARMS)
+def test_catalog_matches_urdf(name, ctor):
+    m = ctor()
+    u = optik.Mechanism.from_urdf(urdf_path(name), *URDF_CHAINS[name])
+    assert m.kind == name and m.task == "pose" and m.n_q == u.n_q == 7
+    assert u.ee == URDF_CHAINS[name][1]
+    np.testing.assert_array_equal(m.lower, u.lower)
+    np.testing.assert_array_equal(m.upper, u.upper)
+    q = m.random_q(200, seed=np.random.default_rng(7))
+    np.testing.assert_allclose(m.fk(q), u.fk(q), rtol=0, atol=1e-12)
+    assert m.params["velocity_limits"].shape == (7,)
+
+
+def test_published_dimensions():
+    p = panda()
+    t0 = p.fk(np.zeros(7))
+    np.testing.assert_allclose(t0[:3, 3], [0.088, 0.0, 0.333 + 0.316 + 0.384 - 0.107], atol=1e-12)
+    np.testing.assert_allclose(t0[:3, :3], np.diag([1.0, -1.0, -1.0]), atol=1e-12)
+    k = iiwa14()
+    np.testing.assert_allclose(k.fk(np.zeros(7)), optik.spatial.translation(0, 0, 1.306), atol=1e-12)
+    np.testing.assert_allclose(k.upper, np.deg2rad([170, 120, 170, 120, 170, 120, 175]), atol=1e-15)
+    np.testing.assert_allclose(p.params["velocity_limits"], [2.175] * 4 + [2.61] * 3)
+    np.testing.assert_allclose(np.rad2deg(k.params["velocity_limits"]), [85, 85, 100, 75, 130, 135, 135])
+
+
+@pytest.mark.peers
+@pytest.mark.parametrize(("name", "ctor"), ARMS)
+def test_pinocchio_loads_the_same_robot(name, ctor):
+    pin = pytest.importorskip("pinocchio")
+    model = pin.buildModelFromUrdf(str(urdf_path(name)))
+    data = model.createData()
+    frame = model.getFrameId(URDF_CHAINS[name][1])
+    m = ctor()
+    np.testing.assert_allclose(model.lowerPositionLimit, m.lower)
+    np.testing.assert_allclose(model.upperPositionLimit, m.upper)
+    np.testing.assert_allclose(model.velocityLimit, m.params["velocity_limits"], rtol=1e-15)
+    for q in m.random_q(50, seed=np.random.default_rng(3)):
+        pin.framesForwardKinematics(model, data, q)
+        np.testing.assert_allclose(data.oMf[frame].homogeneous, m.fk(q), rtol=0, atol=1e-12)
+
+
+def _fd_jacobian(m, q, h=1e-6):
+    """Central differences: ``dp/dq`` and ``vee(dR/dq R^T)``."""
+    t = m.fk(q)
+    cols = []
+    for k in range(m.n_q):
+        e = np.zeros(m.n_q)
+        e[k] = h
+        tp, tm = m.fk(q + e), m.fk(q - e)
+        dp = (tp[:3, 3] - tm[:3, 3]) / (2 * h)
+        w = optik.spatial.vee((tp[:3, :3] - tm[:3, :3]) / (2 * h) @ t[:3, :3].T)
+        cols.append(np.concatenate([dp, w]))
+    return np.array(cols).T
+
+
+@pytest.mark.parametrize("source", ["catalog", "urdf"])
+def test_panda_jacobian_vs_finite_differences(source):
+    m = (
+        panda()
+        if source == "catalog"
+        else optik.Mechanism.from_urdf(urdf_path("panda"), *URDF_CHAINS["panda"])
+    )
+    for q in m.random_q(10, seed=np.random.default_rng(11)):
+        np.testing.assert_allclose(m.jacobian(q), _fd_jacobian(m, q), atol=1e-8)

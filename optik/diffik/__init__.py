@@ -1,0 +1,44 @@
+"""Differential inverse kinematics: tasks, limits, one step by QP / DLS / pseudo-inverse /
+strict priority, path tracking, and iterated differential IK as the ``"dls"`` and ``"qp"``
+methods of :func:`optik.solve_ik` (registered on import).
+"""
+
+from optik.diffik.base import Limit, Task
+from optik.diffik.limits import AccelerationLimit, ClosureConstraint, ConfigurationLimit, VelocityLimit
+from optik.diffik.linalg import damped_pinv
+from optik.diffik.problem import DiffIKProblem, build_qp
+from optik.diffik.qp import default_solver, solve_qp
+from optik.diffik.step import METHODS, StepResult, step
+from optik.diffik.tasks import (
+    FrameTask,
+    JointLimitTask,
+    ManipulabilityTask,
+    OrientationTask,
+    Pose2DTask,
+    PositionTask,
+    PostureTask,
+)
+
+__all__ = [
+    "METHODS",
+    "AccelerationLimit",
+    "ClosureConstraint",
+    "ConfigurationLimit",
+    "DiffIKProblem",
+    "FrameTask",
+    "JointLimitTask",
+    "Limit",
+    "ManipulabilityTask",
+    "OrientationTask",
+    "Pose2DTask",
+    "PositionTask",
+    "PostureTask",
+    "StepResult",
+    "Task",
+    "VelocityLimit",
+    "build_qp",
+    "damped_pinv",
+    "default_solver",
+    "solve_qp",
+    "step",
+]

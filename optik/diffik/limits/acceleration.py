@@ -1,0 +1,44 @@
+"""Joint acceleration limits (need the previous velocity)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from optik.checks import as_vector
+from optik.diffik.base import BIG, Limit
+from optik.errors import InvalidArgumentError
+from optik.mechanism import Mechanism
+
+
+class AccelerationLimit(Limit):
+    """``|v - v_prev| <= a_max dt``, i.e. ``(v_prev - a_max dt) dt <= dq <= (v_prev + a_max dt) dt``.
+
+    ``v_prev`` is the previous step's velocity (``step(..., v_prev=...)``; zero when not given,
+    :func:`optik.diffik.track` passes it). This limit ranks after the position limits: when
+    braking within ``a_max`` cannot stop a joint before its position limit, the position limit
+    wins (see :class:`~optik.diffik.Limit`).
+
+    Args:
+        a_max: maximum acceleration per coordinate (scalar or ``n_q`` values, ``> 0``).
+    """
+
+    rank = 2
+
+    def __init__(self, a_max: Any) -> None:
+        a = np.asarray(a_max, dtype=float).reshape(-1)
+        if a.size == 0 or np.any(np.isnan(a)) or np.any(a <= 0):
+            raise InvalidArgumentError("a_max", f"accelerations must be > 0, got {a}")
+        self.a_max = a
+
+    def key(self) -> tuple:
+        return ("acceleration",)
+
+    def parameters(self, m: Mechanism) -> np.ndarray:
+        a = np.broadcast_to(self.a_max, (m.n_q,)) if self.a_max.size == 1 else self.a_max
+        return as_vector(np.minimum(a, BIG), "a_max", m.n_q)
+
+    def bounds(self, m: Mechanism, q: ca.SX, p: ca.SX, dt: ca.SX, v_prev: ca.SX) -> tuple[ca.SX, ca.SX]:
+        return (v_prev - p * dt) * dt, (v_prev + p * dt) * dt

@@ -1,0 +1,182 @@
+"""Pseudo-inverse methods of differential IK: ``pinv``, ``dls`` (fixed or adaptive damping,
+joint weights, null-space projection of secondary tasks) and the strict ``priority`` hierarchy.
+
+All work on a :class:`~optik.diffik.problem.DiffIKProblem`: the stacked weighted task rows ask
+``W J dq = -alpha W e``; loop closures ``J_c dq = -gain c`` form an extra top level solved
+exactly. Limits are enforced by *saturation in the null space* (SNS): when the solution leaves
+``[lb, ub]``, the most violating coordinate is fixed at its bound and the remaining coordinates
+solve the hierarchy again (higher levels keep priority), until every bound holds.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from optik.checks import as_vector
+from optik.diffik.problem import DiffIKProblem
+from optik.errors import InvalidArgumentError
+
+Level = tuple[np.ndarray, np.ndarray]
+"""A hierarchy level: rows ``J`` and the target ``t`` of ``J dq = t``."""
+
+PinvFn = Callable[[np.ndarray], np.ndarray]
+
+RCOND = 1e-10
+"""Singular values below ``RCOND * sigma_max`` count as zero in the exact pseudo-inverse."""
+
+
+def damped_pinv(jac: np.ndarray, damping: float = 0.0, threshold: float = 0.0) -> np.ndarray:
+    """Damped pseudo-inverse ``J# = V diag(s_i / (s_i^2 + lambda^2)) U^T``.
+
+    * ``threshold == 0``: fixed damping ``lambda = damping`` (``0``: the Moore-Penrose inverse with
+      singular values below ``RCOND * s_max`` dropped);
+    * ``threshold > 0``: adaptive (singular-value based) damping
+      ``lambda^2 = damping^2 (1 - (s_min / threshold)^2)`` when ``s_min < threshold`` else 0:
+      exact away from singularities, damped ``lambda -> damping`` at one. Joint velocities stay
+      below ``|t| / (2 lambda)`` along singular directions.
+
+    Args:
+        jac: ``m x n`` matrix.
+        damping: ``lambda`` (fixed) or ``lambda_max`` (adaptive), ``>= 0``.
+        threshold: singular-value threshold ``epsilon`` of the adaptive scheme (0: fixed).
+    """
+    if jac.shape[0] == 0 or jac.shape[1] == 0:
+        return np.zeros((jac.shape[1], jac.shape[0]))
+    u, s, vt = np.linalg.svd(jac, full_matrices=False)
+    lam2 = damping**2
+    if threshold > 0:
+        s_min = s[-1] if jac.shape[0] <= jac.shape[1] else 0.0
+        lam2 = damping**2 * (1 - (s_min / threshold) ** 2) if s_min < threshold else 0.0
+    if lam2 > 0:
+        inv = s / (s**2 + lam2)
+    else:
+        keep = s > RCOND * max(s[0], 1e-300)
+        inv = np.where(keep, 1.0 / np.where(keep, s, 1.0), 0.0)
+    return (vt.T * inv) @ u.T
+
+
+def exact_pinv(jac: np.ndarray) -> np.ndarray:
+    """Moore-Penrose pseudo-inverse (truncated at ``RCOND``)."""
+    return damped_pinv(jac)
+
+
+def solve_levels(levels: list[Level], n: int, pinv: PinvFn, project_last: bool = False) -> np.ndarray:
+    """Solve a hierarchy ``J_1 dq = t_1 >> J_2 dq = t_2 >> ...`` without bounds.
+
+    Recursive task priority (Siciliano and Slotine): ``dq_k = dq_{k-1} + (J_k N_{k-1})# (t_k -
+    J_k dq_{k-1})``, ``N_k = N_{k-1} - (J_k N_{k-1})^+ (J_k N_{k-1})`` with ``N_0 = I``; the
+    projector uses the exact pseudo-inverse, the step ``pinv``. With ``project_last`` the last level
+    is solved on its own and projected, ``dq += N (J_last# t_last)`` (the classic gradient
+    projection of a secondary task: it never disturbs the levels above, but it is not compensated
+    for their motion).
+    """
+    dq = np.zeros(n)
+    proj = np.eye(n)
+    for k, (jac, t) in enumerate(levels):
+        if jac.shape[0] == 0:
+            continue
+        if project_last and k == len(levels) - 1:
+            return dq + proj @ (pinv(jac) @ t)
+        jn = jac @ proj
+        dq = dq + pinv(jn) @ (t - jac @ dq)
+        proj = proj - exact_pinv(jn) @ jn
+    return dq
+
+
+def saturate(
+    levels: list[Level],
+    lb: np.ndarray,
+    ub: np.ndarray,
+    solve: Callable[[list[Level], int], np.ndarray],
+    tol: float = 1e-12,
+) -> tuple[np.ndarray, int]:
+    """Saturation in the null space: solve, fix the worst bound violation, re-solve.
+
+    Returns:
+        ``dq`` within ``[lb, ub]`` and the number of saturated coordinates.
+    """
+    n = lb.shape[0]
+    fixed = np.zeros(n, dtype=bool)
+    dq_fixed = np.zeros(n)
+    dq = np.zeros(n)
+    for _ in range(n + 1):
+        free = ~fixed
+        reduced = [(jac[:, free], t - jac[:, fixed] @ dq_fixed[fixed]) for jac, t in levels]
+        dq = dq_fixed.copy()
+        dq[free] = solve(reduced, int(free.sum())) if free.any() else 0.0
+        over = np.maximum(dq - ub, lb - dq)
+        over[fixed] = -np.inf
+        k = int(np.argmax(over))
+        if over[k] <= tol:
+            break
+        fixed[k] = True
+        dq_fixed[k] = np.clip(dq[k], lb[k], ub[k])
+    return np.clip(dq, lb, ub), int(fixed.sum())
+
+
+def _weighted(
+    problem: DiffIKProblem, levels: list[Level], joint_weights: Any
+) -> tuple[list[Level], np.ndarray, np.ndarray, np.ndarray]:
+    """Change of variables ``dq = M^{-1/2} y`` for the weighted pseudo-inverse
+    ``J#_M = M^-1 J^T (J M^-1 J^T)^-1`` (minimises ``dq^T M dq`` among exact solutions)."""
+    n = problem.n
+    if joint_weights is None:
+        return levels, problem.lb, problem.ub, np.ones(n)
+    w = as_vector(joint_weights, "joint_weights", n)
+    if np.any(w <= 0):
+        raise InvalidArgumentError("joint_weights", f"must be > 0, got {w}")
+    s = 1.0 / np.sqrt(w)
+    return [(jac * s, t) for jac, t in levels], problem.lb / s, problem.ub / s, s
+
+
+def _levels(problem: DiffIKProblem, split: str) -> list[Level]:
+    """Closure level, then the task levels: every priority (``"all"``) or priority 0 and all the
+    others stacked (``"two"``)."""
+    jac, t = problem.jacobian, problem.target
+    rows = problem.levels()
+    if split == "two" and len(rows) > 2:
+        rows = [rows[0], np.concatenate(rows[1:])]
+    return [(problem.A, problem.b)] + [(jac[r], t[r]) for r in rows]
+
+
+def solve_pseudo_inverse(
+    problem: DiffIKProblem,
+    damping: float = 0.0,
+    threshold: float = 0.0,
+    hierarchy: str = "projection",
+    joint_weights: Any = None,
+) -> tuple[np.ndarray, int]:
+    """``dq`` by (damped) pseudo-inverses with saturation of the bounds.
+
+    Args:
+        problem: the step's problem.
+        damping, threshold: see :func:`damped_pinv` (applied to every task level; the closure level
+            is always exact).
+        hierarchy: ``"projection"``: priority-0 tasks primary, the others projected into their null
+            space (:func:`solve_levels` with ``project_last``); ``"strict"``: every priority value
+            a level of the recursive hierarchy.
+        joint_weights: positive weight per coordinate ``M = diag(w)`` (weighted pseudo-inverse).
+
+    Returns:
+        ``(dq, number of saturated coordinates)``.
+    """
+    levels = _levels(problem, "two" if hierarchy == "projection" else "all")
+    levels, lb, ub, scale = _weighted(problem, levels, joint_weights)
+
+    def pinv(jac: np.ndarray) -> np.ndarray:
+        return damped_pinv(jac, damping, threshold)
+
+    def solve(lv: list[Level], n: int) -> np.ndarray:
+        closure = solve_levels(lv[:1], n, exact_pinv)
+        rest = [(jac, t - jac @ closure) for jac, t in lv[1:]]
+        proj = np.eye(n) - exact_pinv(lv[0][0]) @ lv[0][0] if lv[0][0].shape[0] else np.eye(n)
+        inner = solve_levels(
+            [(jac @ proj, t) for jac, t in rest], n, pinv, hierarchy == "projection" and len(rest) > 1
+        )
+        return closure + proj @ inner
+
+    y, n_sat = saturate(levels, lb, ub, solve)
+    return y * scale, n_sat

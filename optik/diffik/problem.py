@@ -1,0 +1,287 @@
+"""``build_qp``: the quadratic program of one differential-IK step, as an inspectable object.
+
+With the step ``dq = v dt`` (Pink's convention; ``v`` is returned), tasks ``k`` with error
+``e_k``, Jacobian ``J_k``, costs ``W_k = diag(cost_k)``, gain ``alpha_k`` and LM damping
+``lambda_k``, limits giving ``lb <= dq <= ub`` and, for closed chains, the closure ``c(q)``::
+
+    minimise    1/2 dq^T H dq + c^T dq
+    H = sum_k (W_k J_k)^T (W_k J_k) + mu I,   mu = damping + sum_k lambda_k ||alpha_k W_k e_k||^2
+    c = sum_k (W_k J_k)^T (alpha_k W_k e_k)
+    subject to  lb <= dq <= ub,   J_c dq = -gain_c c(q)
+
+which is ``1/2 sum_k ||W_k (J_k dq + alpha_k e_k)||^2 + mu/2 ||dq||^2`` up to a constant. Every
+term is one compiled CasADi function per mechanism and task structure (see
+:mod:`optik.diffik._codegen`): a new target or cost changes only parameter values.
+"""
+
+from __future__ import annotations
+
+import weakref
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from optik.checks import as_vector
+from optik.diffik._codegen import CompiledFunction
+from optik.diffik.base import Limit, Task, intersect, positive
+from optik.diffik.limits import ClosureConstraint, ConfigurationLimit, VelocityLimit
+from optik.errors import InvalidArgumentError
+from optik.mechanism import Mechanism
+
+
+@dataclass
+class DiffIKProblem:
+    """The QP of one step and the task data the other methods use (all numpy).
+
+    Attributes:
+        H, c: QP objective ``1/2 dq^T H dq + c^T dq`` (``n x n``, ``n``).
+        lb, ub: bounds on ``dq`` from the limits (already intersected).
+        A, b: equality ``A dq = b`` (loop closures; ``0 x n`` for open chains).
+        jacobian: stacked weighted task Jacobians ``W J`` (rows of all tasks).
+        target: stacked weighted task targets ``-alpha W e`` (so the task rows ask
+            ``jacobian @ dq = target``).
+        errors: stacked raw task errors ``e``.
+        closure: closure residual ``c(q)``.
+        mu: total Tikhonov + LM damping in ``H``.
+        slices: rows of each task in the stacked arrays.
+        priorities: priority of each task.
+        q: the configuration; dt: the time step.
+    """
+
+    H: np.ndarray
+    c: np.ndarray
+    lb: np.ndarray
+    ub: np.ndarray
+    A: np.ndarray
+    b: np.ndarray
+    jacobian: np.ndarray
+    target: np.ndarray
+    errors: np.ndarray
+    closure: np.ndarray
+    mu: float
+    slices: list[slice]
+    priorities: list[int]
+    q: np.ndarray
+    dt: float
+    cache: Any = field(default=None, repr=False)
+
+    @property
+    def n(self) -> int:
+        """Number of coordinates."""
+        return int(self.q.shape[0])
+
+    def task_errors(self) -> list[np.ndarray]:
+        """Raw error vector of each task, in task order."""
+        return [self.errors[s] for s in self.slices]
+
+    def levels(self) -> list[np.ndarray]:
+        """Row indices of each priority level (highest priority first)."""
+        rows = []
+        for level in sorted(set(self.priorities)):
+            idx = [
+                np.arange(s.start, s.stop)
+                for s, p in zip(self.slices, self.priorities, strict=True)
+                if p == level
+            ]
+            rows.append(np.concatenate(idx))
+        return rows
+
+    def objective(self, dq: np.ndarray) -> float:
+        """``1/2 dq^T H dq + c^T dq``."""
+        return float(0.5 * dq @ self.H @ dq + self.c @ dq)
+
+
+class StackFunction:
+    """Compiled evaluation of every task, limit and closure term of one task structure.
+
+    Inputs ``(q, p, dt, v_prev)``; ``p`` concatenates, per task, its parameters, costs, gain and
+    LM damping, then each limit's parameters, then the Tikhonov damping.
+    """
+
+    def __init__(
+        self, m: Mechanism, tasks: Sequence[Task], limits: Sequence[Limit], closure: ClosureConstraint | None
+    ) -> None:
+        n = m.n_q
+        q = m.q_sym
+        dt = ca.SX.sym("dt")
+        v_prev = ca.SX.sym("v_prev", n)
+        pieces: list[ca.SX] = []
+        rows_j, rows_t, rows_e = [], [], []
+        mu = ca.SX(0)
+        for k, task in enumerate(tasks):
+            pt = ca.SX.sym(f"p{k}", task.n_parameters(m))
+            w = ca.SX.sym(f"w{k}", task.dim)
+            gain = ca.SX.sym(f"g{k}")
+            lm = ca.SX.sym(f"lm{k}")
+            pieces += [pt, w, gain, lm]
+            e, jac = task.expressions(m, q, pt)
+            target = -gain * w * e
+            rows_j.append(ca.diag(w) @ jac)
+            rows_t.append(target)
+            rows_e.append(e)
+            mu = mu + lm * ca.dot(target, target)
+        lb: Any = ca.SX.zeros(n) - 1e20
+        ub: Any = ca.SX.zeros(n) + 1e20
+        for i, limit in enumerate(limits):
+            pl = ca.SX.sym(f"l{i}", limit.parameters(m).shape[0])
+            pieces.append(pl)
+            lo, hi = limit.bounds(m, q, pl, dt, v_prev)
+            lb, ub = intersect(lb, ub, lo, hi)
+        damping = ca.SX.sym("damping")
+        pieces.append(damping)
+        mu = mu + damping
+        jw = ca.vertcat(*rows_j)
+        tw = ca.vertcat(*rows_t)
+        hess = ca.mtimes(jw.T, jw) + mu * ca.SX.eye(n)
+        lin = -ca.mtimes(jw.T, tw)
+        if closure is not None and m.is_closed:
+            cres, jc, bc = closure.expressions(m, q)
+        else:
+            cres, jc, bc = ca.SX(0, 1), ca.SX(0, n), ca.SX(0, 1)
+        p = ca.vertcat(*pieces)
+        outs = [hess, lin, lb, ub, jc, bc, jw, tw, ca.vertcat(*rows_e), cres, mu]
+        f = ca.Function("diffik_stack", [q, p, dt, v_prev], outs)
+        self.function = CompiledFunction(f)
+        self.n_closure = int(jc.shape[0])
+        self.dims = [t.dim for t in tasks]
+        self.backends: dict[str, Any] = {}
+        """QP backend objects that keep state between steps (OSQP workspace, cvxpy problem)."""
+
+    def __call__(
+        self, q: np.ndarray, p: list[np.ndarray], dt: float, v_prev: np.ndarray
+    ) -> tuple[np.ndarray, ...]:
+        """Evaluate at ``q`` with the parameter pieces ``p`` (concatenated here, in one copy)."""
+        return self.function.call_flat(np.concatenate([q, *p, np.array([dt]), v_prev]))
+
+
+_STACKS: weakref.WeakKeyDictionary[Mechanism, dict[tuple, StackFunction]] = weakref.WeakKeyDictionary()
+
+
+def normalize_limits(m: Mechanism, limits: Sequence[Limit] | None) -> list[Limit]:
+    """The limits of a step, sorted by rank, with a :class:`ConfigurationLimit` always present.
+
+    ``None`` means the mechanism's velocity limits (when ``m.params`` has them) and its position
+    limits.
+    """
+    if limits is None:  # cached: the default limits' parameters are computed once
+        if m not in _DEFAULT_LIMITS:
+            found = [VelocityLimit.of(m)] if "velocity_limits" in m.params else []
+            _DEFAULT_LIMITS[m] = [*found, ConfigurationLimit()]
+        return _DEFAULT_LIMITS[m]
+    else:
+        chosen = list(limits)
+        for lim in chosen:
+            if not isinstance(lim, Limit):
+                raise InvalidArgumentError("limits", f"expected Limit objects, got {type(lim).__name__}")
+    if not any(isinstance(lim, ConfigurationLimit) for lim in chosen):
+        chosen.append(ConfigurationLimit())
+    return sorted(chosen, key=lambda lim: lim.rank)
+
+
+_ZEROS: dict[int, np.ndarray] = {}
+_DEFAULT_LIMITS: weakref.WeakKeyDictionary[Mechanism, list[Limit]] = weakref.WeakKeyDictionary()
+
+
+def _positive_float(value: Any, name: str, strict: bool = False) -> float:
+    """``value`` as a float ``>= 0`` (``> 0`` when ``strict``), else an error naming ``name``."""
+    if isinstance(value, (float, int)) and np.isfinite(value) and (value > 0 or (value == 0 and not strict)):
+        return float(value)
+    v = positive(value, name)
+    if strict and v == 0:
+        raise InvalidArgumentError(name, "must be > 0")
+    return v
+
+
+def _check_tasks(tasks: Sequence[Task]) -> list[Task]:
+    if isinstance(tasks, Task):
+        tasks = [tasks]
+    out = list(tasks)
+    if not out:
+        raise InvalidArgumentError("tasks", "need at least one task")
+    for t in out:
+        if not isinstance(t, Task):
+            raise InvalidArgumentError("tasks", f"expected Task objects, got {type(t).__name__}")
+    return out
+
+
+def stack_function(
+    m: Mechanism, tasks: Sequence[Task], limits: Sequence[Limit], closure_gain: float
+) -> StackFunction:
+    """The compiled :class:`StackFunction` of a task structure (built once, then cached)."""
+    key = (tuple(t.key() for t in tasks), tuple(lim.key() for lim in limits), closure_gain)
+    per_m = _STACKS.setdefault(m, {})
+    if key not in per_m:
+        per_m[key] = StackFunction(m, tasks, limits, ClosureConstraint(closure_gain))
+    return per_m[key]
+
+
+def build_qp(
+    m: Mechanism,
+    q: Any,
+    tasks: Sequence[Task] | Task,
+    dt: float,
+    limits: Sequence[Limit] | None = None,
+    *,
+    v_prev: Any = None,
+    damping: float = 1e-12,
+    closure_gain: float = 1.0,
+) -> DiffIKProblem:
+    """The QP of one differential-IK step at ``q`` (see the module docstring for the formulas).
+
+    Args:
+        m: the mechanism.
+        q: current coordinates (may lie outside the limits; the bounds then lead back in).
+        tasks: the tasks (a single task is accepted).
+        dt: time step (s), ``> 0``.
+        limits: limits on the step (default: the mechanism's velocity limits if known, and its
+            position limits; a :class:`ConfigurationLimit` is always added).
+        v_prev: previous joint velocity for :class:`AccelerationLimit` (default zero).
+        damping: Tikhonov regularisation ``mu`` (``>= 0``).
+        closure_gain: gain of the loop-closure constraint (closed chains).
+
+    Returns:
+        The :class:`DiffIKProblem`.
+
+    Raises:
+        OptikError subclasses naming the argument (q, tasks, dt, limits, v_prev, damping, a
+        task's target or frame).
+    """
+    qq = np.asarray(q, dtype=float)
+    if qq.shape != (m.n_q,) or not np.isfinite(qq).all():
+        qq = m.check_q(q)  # raises the error naming q
+    task_list = _check_tasks(tasks)
+    step = _positive_float(dt, "dt", strict=True)
+    lims = normalize_limits(m, limits)
+    vp = _ZEROS.setdefault(m.n_q, np.zeros(m.n_q)) if v_prev is None else as_vector(v_prev, "v_prev", m.n_q)
+    stack = stack_function(m, task_list, lims, _positive_float(closure_gain, "closure_gain"))
+    parts: list[np.ndarray] = []
+    for t in task_list:
+        parts += [t.parameters(m), t.cost, np.array([t.gain, t.lm_damping])]
+    parts += [lim.parameters(m) for lim in lims]
+    parts.append(np.array([_positive_float(damping, "damping")]))
+    h, c, lb, ub, a, b, jw, tw, e, cres, mu = stack(qq, parts, step, vp)
+    slices, start = [], 0
+    for d in stack.dims:
+        slices.append(slice(start, start + d))
+        start += d
+    return DiffIKProblem(
+        H=h.reshape(m.n_q, m.n_q),
+        c=c,
+        lb=lb,
+        ub=ub,
+        A=a.reshape(stack.n_closure, m.n_q),
+        b=b,
+        jacobian=jw.reshape(start, m.n_q),
+        target=tw,
+        errors=e,
+        closure=cres,
+        mu=float(mu[0]),
+        slices=slices,
+        priorities=[t.priority for t in task_list],
+        q=qq,
+        dt=step,
+        cache=stack,
+    )

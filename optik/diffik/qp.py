@@ -1,0 +1,160 @@
+"""QP backends for one differential-IK step.
+
+* ``"daqp"``: DAQP's dual active-set solver called directly on the dense ``H`` (``n`` is small,
+  so dense is fastest); bounds as simple bounds, closures as equality rows.
+* ``"osqp"``: OSQP with the sparsity pattern set up once per task structure and updated in place
+  (``update(Px, q, l, u, Ax)``), warm-started from the previous step's solution.
+* ``"cvxpy"``: the same QP written with cvxpy parameters (built once, DPP), for cross-checks.
+* any other name: the backend of that name through ``qpsolvers.solve_problem``.
+
+Every backend returns a :class:`QPOutcome`; none raises on an infeasible or failed solve.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from optik.diffik.problem import DiffIKProblem
+from optik.errors import SolverUnavailableError
+
+
+@dataclass
+class QPOutcome:
+    """What a backend returns.
+
+    Attributes:
+        dq: the solution (None when the backend found none).
+        status: ``"optimal"``, ``"infeasible"`` or ``"failed"``.
+        detail: backend status text.
+    """
+
+    dq: np.ndarray | None
+    status: str
+    detail: str
+
+
+def default_solver() -> str:
+    """The default backend: ``"daqp"`` when installed (fastest in ``benchmarks/bench_diffik.py``),
+    else ``"osqp"``."""
+    return "daqp" if importlib.util.find_spec("daqp") is not None else "osqp"
+
+
+def _require(module: str, solver: str) -> Any:
+    if importlib.util.find_spec(module) is None:
+        raise SolverUnavailableError(
+            f"QP solver {solver!r} needs the {module!r} package: pip install {module}"
+        )
+    return importlib.import_module(module)
+
+
+_SENSE: dict[int, np.ndarray] = {}
+
+
+def solve_daqp(problem: DiffIKProblem, **settings: Any) -> QPOutcome:
+    """DAQP on the dense problem (``settings`` are DAQP settings, e.g. ``primal_tol``)."""
+    daqp = _require("daqp", "daqp")
+    n, m_eq = problem.n, problem.A.shape[0]
+    if m_eq:
+        upper = np.concatenate([problem.ub, problem.b])
+        lower = np.concatenate([problem.lb, problem.b])
+        sense = np.zeros(n + m_eq, dtype=np.int32)
+        sense[n:] = 5
+    else:
+        upper, lower, sense = problem.ub, problem.lb, _SENSE.setdefault(n, np.zeros(n, dtype=np.int32))
+    x, _, flag, _ = daqp.solve(problem.H, problem.c, problem.A, upper, lower, sense, **settings)
+    if flag in (1, 2):
+        return QPOutcome(np.asarray(x, dtype=float), "optimal", f"daqp exitflag {flag}")
+    return QPOutcome(None, "infeasible" if flag == -1 else "failed", f"daqp exitflag {flag}")
+
+
+class OsqpWorkspace:
+    """An OSQP workspace for one problem structure, set up once and updated in place."""
+
+    def __init__(self, problem: DiffIKProblem, settings: dict[str, Any]) -> None:
+        osqp = _require("osqp", "osqp")
+        n, m_eq = problem.n, problem.A.shape[0]
+        self._triu = np.triu_indices(n)
+        order = np.lexsort((self._triu[0], self._triu[1]))  # CSC order: by column, then row
+        self._p_rows, self._p_cols = self._triu[0][order], self._triu[1][order]
+        p = sp.csc_matrix((np.ones(len(order)), (self._p_rows, self._p_cols)), shape=(n, n))
+        a_dense = np.vstack([np.eye(n), np.ones((m_eq, n))])
+        a = sp.csc_matrix(a_dense)
+        rows, cols = np.nonzero(a_dense.T)  # CSC order of the pattern (column-major)
+        self._a_rows, self._a_cols = cols, rows
+        opts = {"verbose": False, "warm_starting": True, "eps_abs": 1e-7, "eps_rel": 1e-7, "polishing": False}
+        opts.update(settings)
+        self.solver = osqp.OSQP()
+        self.solver.setup(p, np.zeros(n), a, -np.ones(n + m_eq), np.ones(n + m_eq), **opts)
+        self.n = n
+
+    def solve(self, problem: DiffIKProblem) -> QPOutcome:
+        n = self.n
+        a_full = np.vstack([np.eye(n), problem.A])
+        self.solver.update(
+            Px=problem.H[self._p_rows, self._p_cols],
+            Ax=a_full[self._a_rows, self._a_cols],
+            q=problem.c,
+            l=np.concatenate([problem.lb, problem.b]),
+            u=np.concatenate([problem.ub, problem.b]),
+        )
+        res = self.solver.solve()
+        status = str(res.info.status)
+        if status in ("solved", "solved inaccurate"):
+            return QPOutcome(np.asarray(res.x, dtype=float), "optimal", f"osqp {status}")
+        return QPOutcome(None, "infeasible" if "infeasible" in status else "failed", f"osqp {status}")
+
+
+def solve_osqp(problem: DiffIKProblem, **settings: Any) -> QPOutcome:
+    """OSQP with a persistent workspace per task structure (``settings``: OSQP settings)."""
+    key = ("osqp", tuple(sorted(settings.items())))
+    ws = problem.cache.backends.get(key) if problem.cache is not None else None
+    if ws is None:
+        ws = OsqpWorkspace(problem, settings)
+        if problem.cache is not None:
+            problem.cache.backends[key] = ws
+    return ws.solve(problem)
+
+
+def solve_qpsolvers(problem: DiffIKProblem, solver: str, **settings: Any) -> QPOutcome:
+    """Any backend of ``qpsolvers`` by name."""
+    qpsolvers = _require("qpsolvers", solver)
+    if solver not in qpsolvers.available_solvers:
+        raise SolverUnavailableError(
+            f"QP solver {solver!r} is not installed; available: {sorted(qpsolvers.available_solvers)} "
+            f"(pip install qpsolvers[{solver}])"
+        )
+    has_eq = problem.A.shape[0] > 0
+    qp = qpsolvers.Problem(
+        problem.H,
+        problem.c,
+        A=problem.A if has_eq else None,
+        b=problem.b if has_eq else None,
+        lb=problem.lb,
+        ub=problem.ub,
+    )
+    try:
+        sol = qpsolvers.solve_problem(qp, solver=solver, **settings)
+    except Exception as exc:  # backend-specific failures become a status, not a crash
+        return QPOutcome(None, "failed", f"{solver}: {exc}")
+    if sol.found and sol.x is not None:
+        return QPOutcome(np.asarray(sol.x, dtype=float), "optimal", f"{solver} found")
+    return QPOutcome(None, "infeasible", f"{solver} found no solution")
+
+
+def solve_qp(problem: DiffIKProblem, solver: str | None = None, **settings: Any) -> QPOutcome:
+    """Solve the step's QP with a backend by name (None: :func:`default_solver`)."""
+    name = default_solver() if solver is None else solver
+    if name == "daqp":
+        return solve_daqp(problem, **settings)
+    if name == "osqp":
+        return solve_osqp(problem, **settings)
+    if name == "cvxpy":
+        from optik.diffik.cvx import solve_cvxpy
+
+        return solve_cvxpy(problem, **settings)
+    return solve_qpsolvers(problem, name, **settings)

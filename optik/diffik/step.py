@@ -1,0 +1,177 @@
+"""``step``: one differential-IK step by QP, damped least squares, pseudo-inverse or a strict
+priority hierarchy, with a result that says what happened."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from optik.diffik.base import Limit, Task
+from optik.diffik.linalg import solve_pseudo_inverse
+from optik.diffik.problem import DiffIKProblem, build_qp
+from optik.diffik.qp import default_solver, solve_qp
+from optik.errors import InvalidArgumentError
+from optik.mechanism import Mechanism
+
+METHODS = ("qp", "dls", "pinv", "priority")
+"""Methods of :func:`step`."""
+
+DLS_DAMPING = 0.05
+"""Default ``lambda_max`` of ``method="dls"``."""
+DLS_THRESHOLD = 0.05
+"""Default singular-value threshold of the adaptive damping of ``method="dls"``."""
+PRIORITY_DAMPING = 0.01
+"""Default ``lambda_max`` (adaptive, threshold equal) of ``method="priority"``."""
+
+
+@dataclass
+class StepResult:
+    """Outcome of one step.
+
+    Attributes:
+        v: joint velocity ``dq / dt``.
+        q: next configuration ``q + v dt``, within the limits (or, starting outside, no farther
+            out than before).
+        status: ``"ok"``; ``"saturated"`` (pseudo-inverse methods that fixed coordinates at their
+            bounds); ``"qp_infeasible_fallback"`` / ``"qp_failed_fallback"`` (the QP had no
+            solution and the DLS answer within the bounds was used).
+        method: the method used; solver: the QP backend (None for the others).
+        task_errors: norm of each task's error at the current ``q``, in task order.
+        closure_error: max-norm of the loop-closure residual at the current ``q``.
+        solve_time: wall time of the step (s).
+        message: what went wrong, if anything.
+        problem: the :class:`~optik.diffik.DiffIKProblem` that was solved.
+    """
+
+    v: np.ndarray
+    q: np.ndarray
+    status: str
+    method: str
+    solver: str | None
+    task_errors: list[float]
+    closure_error: float
+    solve_time: float
+    message: str = ""
+    problem: DiffIKProblem | None = field(default=None, repr=False)
+
+    @property
+    def ok(self) -> bool:
+        """True unless the QP failed and a fallback was used."""
+        return not self.status.startswith("qp_")
+
+
+def integrate(m: Mechanism, q: np.ndarray, v: np.ndarray, dt: float) -> np.ndarray:
+    """``q + v dt`` clipped to ``[min(lower, q), max(upper, q)]``: rounding and solver tolerance
+    never take a coordinate out of its limits, nor farther out when it started outside."""
+    return np.clip(q + v * dt, np.minimum(m.lower, q), np.maximum(m.upper, q))
+
+
+def _dls(problem: DiffIKProblem, method: str, options: dict[str, Any]) -> tuple[np.ndarray, int]:
+    if method == "pinv":
+        kw = {"damping": 0.0, "threshold": 0.0, "hierarchy": "projection"}
+    elif method == "priority":
+        kw = {"damping": PRIORITY_DAMPING, "threshold": PRIORITY_DAMPING, "hierarchy": "strict"}
+    else:
+        kw = {"damping": DLS_DAMPING, "threshold": DLS_THRESHOLD, "hierarchy": "projection"}
+    unknown = set(options) - {"damping", "threshold", "joint_weights"}
+    if unknown:
+        raise InvalidArgumentError("options", f"unknown options for method {method!r}: {sorted(unknown)}")
+    kw.update(options)
+    if method == "dls" and options.get("adaptive") is False:
+        kw["threshold"] = 0.0
+    return solve_pseudo_inverse(problem, **kw)
+
+
+def step(
+    m: Mechanism,
+    q: Any,
+    tasks: Sequence[Task] | Task,
+    dt: float,
+    method: str = "qp",
+    solver: str | None = None,
+    limits: Sequence[Limit] | None = None,
+    *,
+    v_prev: Any = None,
+    damping: float | None = None,
+    closure_gain: float = 1.0,
+    **options: Any,
+) -> StepResult:
+    """One differential-IK step: the joint velocity that best achieves the tasks within the limits.
+
+    Methods (formulas in ``docs/solvers/diffik.md``):
+
+    * ``"qp"``: the QP of :func:`build_qp` (tasks weighted by cost; limits and closures exact) by
+      ``solver`` (None: :func:`~optik.diffik.qp.default_solver`; ``"osqp"``, ``"daqp"``,
+      ``"cvxpy"`` or any qpsolvers backend). An infeasible or failed QP falls back to the DLS
+      answer within the bounds, with status ``"qp_infeasible_fallback"``/``"qp_failed_fallback"``.
+    * ``"dls"``: damped least squares ``J^T (J J^T + lambda^2 I)^-1`` with adaptive damping
+      (options ``damping`` = ``lambda_max``, ``threshold``; ``adaptive=False`` for fixed
+      ``lambda = damping``; ``joint_weights`` for a weighted inverse). Tasks of priority > 0 are
+      projected into the null space of the priority-0 tasks.
+    * ``"pinv"``: the Moore-Penrose pseudo-inverse (no damping), same projection.
+    * ``"priority"``: strict recursive hierarchy over all priority values, the top level exact
+      unless singular (adaptive damping ``0.01``).
+
+    The pseudo-inverse methods keep the bounds by saturation in the null space. Loop closures of
+    closed chains are always kept (top level / equality constraint).
+
+    Args:
+        m: the mechanism.
+        q: current coordinates.
+        tasks: the tasks.
+        dt: time step (s).
+        method: ``"qp"``, ``"dls"``, ``"pinv"`` or ``"priority"``.
+        solver: QP backend (``method="qp"`` only).
+        limits: see :func:`build_qp`.
+        v_prev: previous velocity (acceleration limits).
+        damping: QP Tikhonov weight (default 1e-12) or DLS ``lambda`` (see above).
+        closure_gain: gain of the loop-closure constraint.
+        **options: method options (``threshold``, ``adaptive``, ``joint_weights`` for the
+            pseudo-inverse methods; backend settings for ``"qp"``).
+
+    Returns:
+        A :class:`StepResult`.
+
+    Raises:
+        OptikError subclasses naming the argument for malformed input or an unknown method.
+    """
+    start = time.perf_counter()
+    if method not in METHODS:
+        raise InvalidArgumentError("method", f"unknown method {method!r}; use one of {METHODS}")
+    qp_damping = 1e-12 if damping is None or method != "qp" else damping
+    problem = build_qp(m, q, tasks, dt, limits, v_prev=v_prev, damping=qp_damping, closure_gain=closure_gain)
+    status, message, used = "ok", "", None
+    if method == "qp":
+        used = default_solver() if solver is None else solver
+        out = solve_qp(problem, used, **options)
+        if out.dq is not None:
+            dq = np.clip(out.dq, problem.lb, problem.ub)
+        else:
+            dq, _ = _dls(problem, "dls", {})
+            status = f"qp_{out.status}_fallback"
+            message = f"QP {out.status} ({out.detail}); used the DLS step within the bounds"
+    else:
+        if damping is not None:
+            options = {**options, "damping": damping}
+        dq, n_sat = _dls(problem, method, options)
+        if n_sat:
+            status, message = "saturated", f"{n_sat} coordinate(s) held at a bound"
+    v = dq / problem.dt
+    errors = [float(np.linalg.norm(e)) for e in problem.task_errors()]
+    closure = float(np.max(np.abs(problem.closure))) if problem.closure.size else 0.0
+    return StepResult(
+        v=v,
+        q=integrate(m, problem.q, v, problem.dt),
+        status=status,
+        method=method,
+        solver=used,
+        task_errors=errors,
+        closure_error=closure,
+        solve_time=time.perf_counter() - start,
+        message=message,
+        problem=problem,
+    )

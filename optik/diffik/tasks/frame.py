@@ -1,0 +1,43 @@
+"""Full-pose task of a frame."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from optik.diffik.base import positive
+from optik.diffik.tasks.frame_rows import FrameRowsTask
+
+
+class FrameTask(FrameRowsTask):
+    """Drive a frame to a target pose: ``e = [p - p*; log(R R*^T)]`` (6 rows, base frame).
+
+    Args:
+        frame: frame name (None: the end effector).
+        target: 4x4 transform (or :class:`~optik.Pose2D`); may be set later with
+            :meth:`set_target`.
+        position_cost: weight of the three position rows (per metre).
+        orientation_cost: weight of the three rotation rows (per radian).
+        gain: fraction of the error removed per step, in ``(0, 1]``.
+        lm_damping: Levenberg-Marquardt damping (see :class:`~optik.diffik.Task`).
+        priority: hierarchy level (0 highest).
+
+    The Jacobian is ``[J_v; J_l^{-1}(e_w) J_w]``: the geometric Jacobian with the exact
+    derivative of the rotation vector.
+    """
+
+    rows = (0, 1, 2, 3, 4, 5)
+    kind = "frame"
+
+    def __init__(
+        self,
+        frame: str | None = None,
+        target: Any = None,
+        position_cost: float = 1.0,
+        orientation_cost: float = 1.0,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+        priority: int = 0,
+    ) -> None:
+        pc = positive(position_cost, "position_cost")
+        oc = positive(orientation_cost, "orientation_cost")
+        super().__init__(frame, target, [pc, pc, pc, oc, oc, oc], gain, lm_damping, priority)

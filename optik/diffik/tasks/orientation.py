@@ -1,0 +1,42 @@
+"""Orientation task of a frame."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from optik import spatial
+from optik.checks import as_transform
+from optik.diffik.tasks.frame_rows import FrameRowsTask
+
+
+class OrientationTask(FrameRowsTask):
+    """Drive the orientation of a frame to a target: ``e = log(R R*^T)`` (3 rows, base frame).
+
+    Args:
+        frame: frame name (None: the end effector).
+        target: 3x3 rotation or 4x4 transform (its rotation is used).
+        cost: weight of each rotation row (per radian).
+        gain, lm_damping, priority: see :class:`~optik.diffik.Task`.
+    """
+
+    rows = (3, 4, 5)
+    kind = "orientation"
+
+    def __init__(
+        self,
+        frame: str | None = None,
+        target: Any = None,
+        cost: Any = 1.0,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+        priority: int = 0,
+    ) -> None:
+        super().__init__(frame, target, cost, gain, lm_damping, priority)
+
+    def to_transform(self, target: Any) -> np.ndarray:
+        arr = np.asarray(target, dtype=float)
+        if arr.shape == (3, 3):
+            return as_transform(spatial.transform(arr), "target")
+        return as_transform(spatial.transform(as_transform(arr, "target")[:3, :3]), "target")

@@ -154,7 +154,7 @@ def _chain(src: _Source, root: ET.Element, base_link: str, tip_link: str) -> lis
     for arg, link in (("base_link", base_link), ("tip_link", tip_link)):
         if link not in link_set:
             raise UnknownFrameError(arg, f"{src.label}: no link {link!r}; links: {sorted(link_set)}")
-    parent_joint: dict[str, tuple[ET.Element, str, str]] = {}
+    parent_joint: dict[str, tuple[ET.Element, str]] = {}
     seen: set[str] = set()
     for el in root.findall("joint"):
         name = el.get("name")
@@ -173,7 +173,7 @@ def _chain(src: _Source, root: ET.Element, base_link: str, tip_link: str) -> lis
                 f"{src.label}: link {child!r} is the child of two joints "
                 f"({parent_joint[child][0].get('name')!r} and {name!r}); URDF needs a tree"
             )
-        parent_joint[child] = (el, parent, child)
+        parent_joint[child] = (el, parent)
     path: list[tuple[ET.Element, str]] = []
     link = tip_link
     while link != base_link:
@@ -181,7 +181,7 @@ def _chain(src: _Source, root: ET.Element, base_link: str, tip_link: str) -> lis
             raise ModelError(
                 f"{src.label}: tip_link {tip_link!r} is not downstream of base_link {base_link!r}"
             )
-        el, parent, _ = parent_joint[link]
+        el, parent = parent_joint[link]
         path.append((el, link))
         link = parent
     path.reverse()

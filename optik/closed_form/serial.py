@@ -252,6 +252,31 @@ def _safe_ratio(num: np.ndarray, den: np.ndarray, default: float) -> np.ndarray:
     return np.divide(num, den, out=out, where=den != 0)
 
 
+def _reachable_wrist(
+    th234: np.ndarray, s5_abs: np.ndarray, beta: np.ndarray, r: np.ndarray, d: tuple[float, float, float]
+) -> np.ndarray:
+    """Move ``theta234`` into the range where the elbow reaches the wrist centre, when that costs
+    at most :data:`SINGULAR_TOL` of orientation.
+
+    The wrist centre ``w = (rho', z) - d4 (c234, s234)`` has ``|w|^2 = r^2 + d4^2 - 2 r d4 cos(psi)``
+    with ``psi = theta234 - beta``, ``beta = atan2(z, rho')``; the elbow reaches it when
+    ``|d2 - d3| <= |w| <= d2 + d3``, an interval of ``|psi|``. Changing ``theta234`` by ``delta``
+    changes the end-effector orientation by ``|s5 sin(delta)|`` (the approach vector tilts about
+    the joint-5 axis), so near the wrist singularity, where rounding in ``R`` makes ``theta234``
+    ill-conditioned (error ``~ eps / |s5|``), a target at the edge of the workspace is still
+    reached with an FK error below the tolerance.
+    """
+    d2, d3, d4 = d
+    lo = np.arccos(np.clip(_safe_ratio(r * r + d4 * d4 - (d2 - d3) ** 2, 2.0 * d4 * r, 1.0), -1.0, 1.0))
+    hi = np.arccos(np.clip(_safe_ratio(r * r + d4 * d4 - (d2 + d3) ** 2, 2.0 * d4 * r, 1.0), -1.0, 1.0))
+    psi = th234 - beta
+    _wrap(psi)
+    inside = np.clip(np.abs(psi), lo, hi)
+    moved = beta + np.where(psi >= 0.0, inside, -inside)
+    cheap = (lo <= hi) & (s5_abs * np.abs(np.sin(moved - th234)) <= SINGULAR_TOL)
+    return np.where(cheap, moved, th234)
+
+
 def ik_seed_6r(d2: float, d3: float, d4: float, t: Any) -> tuple[np.ndarray, np.ndarray]:
     """All IK branches of the seed's 6-joint arm (seed 001), FK-verified derivation.
 
@@ -330,8 +355,11 @@ def ik_seed_6r(d2: float, d3: float, d4: float, t: Any) -> tuple[np.ndarray, np.
     th234 = np.arctan2(sigma * az2[..., None], sigma * u[..., None])
     r = np.hypot(rho, pz[:, None])
     k = np.clip(_safe_ratio(r * r + d4 * d4 - mid * mid, 2.0 * d4 * r, 1.0), -1.0, 1.0)
-    th234_singular = np.arctan2(pz[:, None], rho)[..., None] + sigma * np.arccos(k)[..., None]
-    th234 = np.where((np.hypot(u, az2) <= SINGULAR_TOL)[..., None], th234_singular, th234)
+    beta = np.arctan2(pz[:, None], rho)[..., None]
+    th234_singular = beta + sigma * np.arccos(k)[..., None]
+    s5_abs = np.hypot(u, az2)[..., None]
+    th234 = np.where(s5_abs <= SINGULAR_TOL, th234_singular, th234)
+    th234 = _reachable_wrist(th234, s5_abs, beta, r[..., None], (d2, d3, d4))
     c234, s234 = np.cos(th234), np.sin(th234)
 
     # 3. elbow

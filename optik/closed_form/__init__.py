@@ -5,6 +5,7 @@
 reachability mask.
 """
 
+from optik.closed_form import parallel
 from optik.closed_form.registry import fk, has_fk, has_ik, ik, register
 from optik.closed_form.serial import ik_planar_2r, ik_planar_3r, ik_pp, ik_rp, ik_seed_6r
 from optik.spatial import rot_to_rpy_all as rpy_all
@@ -20,6 +21,7 @@ __all__ = [
     "ik_pp",
     "ik_rp",
     "ik_seed_6r",
+    "parallel",
     "register",
     "rpy_all",
     "zyz_all",

@@ -5,7 +5,7 @@ loop-closure constraints; optik solves IK with limits, FK of parallel mechanisms
 assembly mode and differential IK, and compares every solver against closed forms.
 """
 
-from optik import catalog, closed_form, spatial
+from optik import catalog, closed_form, diffik, spatial  # diffik registers the "dls" and "qp" IK methods
 from optik.errors import (
     InvalidArgumentError,
     LimitsError,
@@ -44,6 +44,7 @@ __all__ = [
     "catalog",
     "closed_form",
     "dh_chain",
+    "diffik",
     "planar_chain",
     "solve_ik",
     "spatial",

@@ -3,9 +3,11 @@ strict priority, path tracking, and iterated differential IK as the ``"dls"`` an
 methods of :func:`optik.solve_ik` (registered on import).
 """
 
+from optik.diffik import ik as _ik
 from optik.diffik.base import Limit, Task
 from optik.diffik.limits import AccelerationLimit, ClosureConstraint, ConfigurationLimit, VelocityLimit
 from optik.diffik.linalg import damped_pinv
+from optik.diffik.paths import circle_path, line_path, polyline_path
 from optik.diffik.problem import DiffIKProblem, build_qp
 from optik.diffik.qp import default_solver, solve_qp
 from optik.diffik.step import METHODS, StepResult, step
@@ -18,6 +20,7 @@ from optik.diffik.tasks import (
     PositionTask,
     PostureTask,
 )
+from optik.diffik.track import TrackResult, track, tracking_task
 
 __all__ = [
     "METHODS",
@@ -35,10 +38,18 @@ __all__ = [
     "PostureTask",
     "StepResult",
     "Task",
+    "TrackResult",
     "VelocityLimit",
     "build_qp",
+    "circle_path",
     "damped_pinv",
     "default_solver",
+    "line_path",
+    "polyline_path",
     "solve_qp",
     "step",
+    "track",
+    "tracking_task",
 ]
+
+_ik.register()

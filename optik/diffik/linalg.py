@@ -86,35 +86,64 @@ def solve_levels(levels: list[Level], n: int, pinv: PinvFn, project_last: bool =
     return dq
 
 
+def _max_scale(base: np.ndarray, direction: np.ndarray, lb: np.ndarray, ub: np.ndarray, tol: float) -> float:
+    """Largest ``s`` in ``[0, 1]`` with ``lb <= base + s direction <= ub`` (-1 if ``base`` violates)."""
+    if np.any(base < lb - tol) or np.any(base > ub + tol):
+        return -1.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        up = np.where(direction > 0, (ub - base) / direction, np.inf)
+        down = np.where(direction < 0, (lb - base) / direction, np.inf)
+    return float(np.clip(min(1.0, up.min(), down.min()), 0.0, 1.0))
+
+
 def saturate(
     levels: list[Level],
     lb: np.ndarray,
     ub: np.ndarray,
     solve: Callable[[list[Level], int], np.ndarray],
     tol: float = 1e-12,
-) -> tuple[np.ndarray, int]:
-    """Saturation in the null space: solve, fix the worst bound violation, re-solve.
+) -> tuple[np.ndarray, int, float]:
+    """Saturation in the null space with task scaling (after Flacco, De Luca and Khatib).
+
+    Repeat: solve the hierarchy with the saturated coordinates fixed at their bounds; if every bound
+    holds, done; else record the largest scale ``s`` of the task targets (level 0, the closures,
+    unscaled) for which the solution fits the bounds, and fix the most violating coordinate at its
+    bound. If no set of saturated coordinates achieves the full targets, the candidate with the
+    largest scale is returned: the motion keeps the tasks' direction at a reduced speed.
 
     Returns:
-        ``dq`` within ``[lb, ub]`` and the number of saturated coordinates.
+        ``dq`` within ``[lb, ub]``, the number of saturated coordinates and the task scale
+        (1 when the targets are met in full).
     """
     n = lb.shape[0]
     fixed = np.zeros(n, dtype=bool)
     dq_fixed = np.zeros(n)
-    dq = np.zeros(n)
+    best: tuple[float, np.ndarray, int] = (-1.0, np.clip(np.zeros(n), lb, ub), 0)
     for _ in range(n + 1):
         free = ~fixed
-        reduced = [(jac[:, free], t - jac[:, fixed] @ dq_fixed[fixed]) for jac, t in levels]
+        n_free = int(free.sum())
+        shift = [jac[:, fixed] @ dq_fixed[fixed] for jac, _ in levels]
+        full = [(jac[:, free], t - d) for (jac, t), d in zip(levels, shift, strict=True)]
         dq = dq_fixed.copy()
-        dq[free] = solve(reduced, int(free.sum())) if free.any() else 0.0
+        if n_free:
+            dq[free] = solve(full, n_free)
         over = np.maximum(dq - ub, lb - dq)
         over[fixed] = -np.inf
         k = int(np.argmax(over))
         if over[k] <= tol:
-            break
+            return np.clip(dq, lb, ub), int(fixed.sum()), 1.0
+        zero = [(jac, t if i == 0 else np.zeros_like(t)) for i, (jac, t) in enumerate(levels)]
+        dq0 = dq_fixed.copy()
+        if n_free:
+            reduced = [(jac[:, free], t - d) for (jac, t), d in zip(zero, shift, strict=True)]
+            dq0[free] = solve(reduced, n_free)
+        scale = _max_scale(dq0, dq - dq0, lb, ub, tol)
+        if scale > best[0]:
+            best = (scale, np.clip(dq0 + scale * (dq - dq0), lb, ub), int(fixed.sum()))
         fixed[k] = True
         dq_fixed[k] = np.clip(dq[k], lb[k], ub[k])
-    return np.clip(dq, lb, ub), int(fixed.sum())
+    scale, dq, n_fixed = best
+    return dq, n_fixed, max(scale, 0.0)
 
 
 def _weighted(
@@ -148,7 +177,7 @@ def solve_pseudo_inverse(
     threshold: float = 0.0,
     hierarchy: str = "projection",
     joint_weights: Any = None,
-) -> tuple[np.ndarray, int]:
+) -> tuple[np.ndarray, int, float]:
     """``dq`` by (damped) pseudo-inverses with saturation of the bounds.
 
     Args:
@@ -161,7 +190,7 @@ def solve_pseudo_inverse(
         joint_weights: positive weight per coordinate ``M = diag(w)`` (weighted pseudo-inverse).
 
     Returns:
-        ``(dq, number of saturated coordinates)``.
+        ``(dq, number of saturated coordinates, task scale)`` (see :func:`saturate`).
     """
     levels = _levels(problem, "two" if hierarchy == "projection" else "all")
     levels, lb, ub, scale = _weighted(problem, levels, joint_weights)
@@ -178,5 +207,5 @@ def solve_pseudo_inverse(
         )
         return closure + proj @ inner
 
-    y, n_sat = saturate(levels, lb, ub, solve)
-    return y * scale, n_sat
+    y, n_sat, task_scale = saturate(levels, lb, ub, solve)
+    return y * scale, n_sat, task_scale

@@ -36,9 +36,10 @@ class StepResult:
         v: joint velocity ``dq / dt``.
         q: next configuration ``q + v dt``, within the limits (or, starting outside, no farther
             out than before).
-        status: ``"ok"``; ``"saturated"`` (pseudo-inverse methods that fixed coordinates at their
-            bounds); ``"qp_infeasible_fallback"`` / ``"qp_failed_fallback"`` (the QP had no
-            solution and the DLS answer within the bounds was used).
+        status: ``"ok"``; ``"saturated"`` (pseudo-inverse methods that held coordinates at
+            their bounds or scaled the task velocity down to fit them);
+            ``"qp_infeasible_fallback"`` / ``"qp_failed_fallback"`` (the QP had no solution and
+            the DLS answer within the bounds was used).
         method: the method used; solver: the QP backend (None for the others).
         task_errors: norm of each task's error at the current ``q``, in task order.
         closure_error: max-norm of the loop-closure residual at the current ``q``.
@@ -70,18 +71,18 @@ def integrate(m: Mechanism, q: np.ndarray, v: np.ndarray, dt: float) -> np.ndarr
     return np.clip(q + v * dt, np.minimum(m.lower, q), np.maximum(m.upper, q))
 
 
-def _dls(problem: DiffIKProblem, method: str, options: dict[str, Any]) -> tuple[np.ndarray, int]:
+def _dls(problem: DiffIKProblem, method: str, options: dict[str, Any]) -> tuple[np.ndarray, int, float]:
     if method == "pinv":
         kw = {"damping": 0.0, "threshold": 0.0, "hierarchy": "projection"}
     elif method == "priority":
         kw = {"damping": PRIORITY_DAMPING, "threshold": PRIORITY_DAMPING, "hierarchy": "strict"}
     else:
         kw = {"damping": DLS_DAMPING, "threshold": DLS_THRESHOLD, "hierarchy": "projection"}
-    unknown = set(options) - {"damping", "threshold", "joint_weights"}
+    unknown = set(options) - {"damping", "threshold", "joint_weights", "adaptive"}
     if unknown:
         raise InvalidArgumentError("options", f"unknown options for method {method!r}: {sorted(unknown)}")
-    kw.update(options)
-    if method == "dls" and options.get("adaptive") is False:
+    kw.update({k: v for k, v in options.items() if k != "adaptive"})
+    if options.get("adaptive") is False:
         kw["threshold"] = 0.0
     return solve_pseudo_inverse(problem, **kw)
 
@@ -151,15 +152,16 @@ def step(
         if out.dq is not None:
             dq = np.clip(out.dq, problem.lb, problem.ub)
         else:
-            dq, _ = _dls(problem, "dls", {})
+            dq, _, _ = _dls(problem, "dls", {})
             status = f"qp_{out.status}_fallback"
             message = f"QP {out.status} ({out.detail}); used the DLS step within the bounds"
     else:
         if damping is not None:
             options = {**options, "damping": damping}
-        dq, n_sat = _dls(problem, method, options)
-        if n_sat:
-            status, message = "saturated", f"{n_sat} coordinate(s) held at a bound"
+        dq, n_sat, scale = _dls(problem, method, options)
+        if n_sat or scale < 1.0:
+            status = "saturated"
+            message = f"{n_sat} coordinate(s) held at a bound, task velocity scaled by {scale:.3g}"
     v = dq / problem.dt
     errors = [float(np.linalg.norm(e)) for e in problem.task_errors()]
     closure = float(np.max(np.abs(problem.closure))) if problem.closure.size else 0.0

@@ -1,0 +1,115 @@
+"""Iterated differential IK as position IK: the ``"dls"`` and ``"qp"`` methods of
+:func:`optik.solve_ik`.
+
+From ``q0``, repeat ``q <- q + dq`` with the step of :func:`optik.diffik.step` at ``dt = 1`` and gain
+1 (a Gauss-Newton step on the task error; with adaptive damping the DLS step is the exact
+Newton step away from singularities, so convergence is quadratic near a regular solution), inside
+the joint limits (:class:`ConfigurationLimit`) and, for closed chains, with the loop closures
+as the top level / equality constraint. The error is checked before each step; after
+``stall_iterations`` steps without a 1 % improvement, or ``max_iterations`` steps from one
+start, the method restarts from a random configuration within the limits (``request.rng``).
+It returns within the request's time limit (plus one step) with the best configuration found.
+
+Options (``solve_ik(..., method="dls", max_iterations=..., ...)``): ``max_iterations`` (per
+start, default 100), ``stall_iterations`` (default 10), ``damping`` and ``threshold`` (DLS) or
+``solver`` (QP backend).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from optik.diffik.limits import ConfigurationLimit
+from optik.diffik.step import step
+from optik.diffik.track import tracking_task
+from optik.errors import InvalidArgumentError
+from optik.mechanism import Mechanism
+from optik.results import IKResult
+from optik.solvers.base import IKRequest, make_result, register_method
+
+_OPTIONS = {"max_iterations", "stall_iterations", "damping", "threshold", "solver"}
+
+
+def _int_option(options: dict, name: str, default: int) -> int:
+    value = options.get(name, default)
+    if int(value) != value or value < 1:
+        raise InvalidArgumentError(name, f"must be a positive integer, got {value!r}")
+    return int(value)
+
+
+def _errors_of(rows: tuple[int, ...], e: np.ndarray) -> tuple[float, float]:
+    """Position and orientation error from the frame task's error rows (``e`` of the rows ``rows``
+    of the 6-row pose error)."""
+    pos = [i for i, r in enumerate(rows) if r < 3]
+    ori = [i for i, r in enumerate(rows) if r >= 3]
+    return float(np.linalg.norm(e[pos])) if pos else 0.0, float(np.linalg.norm(e[ori])) if ori else 0.0
+
+
+def iterate(request: IKRequest, method: str) -> IKResult:
+    """Iterated differential IK for one request (see the module docstring)."""
+    m: Mechanism = request.mechanism
+    opts = dict(request.options)
+    unknown = set(opts) - _OPTIONS
+    if unknown:
+        raise InvalidArgumentError("options", f"unknown options for method {method!r}: {sorted(unknown)}")
+    max_iter = _int_option(opts, "max_iterations", 100)
+    stall = _int_option(opts, "stall_iterations", 10)
+    step_opts = {k: opts[k] for k in ("damping", "threshold") if k in opts and method == "dls"}
+    solver = opts.get("solver") if method == "qp" else None
+    task = tracking_task(m, request.task, request.frame)
+    task.set_target(request.target)
+    limits = [ConfigurationLimit()]
+    tol = request.tol
+    q = request.q0.copy()
+    best_q, best_err = q.copy(), np.inf
+    iterations = restarts = since_start = since_better = 0
+    last_err = np.inf
+    while True:
+        res = step(m, q, [task], 1.0, "qp" if method == "qp" else "dls", solver, limits, **step_opts)
+        e = res.problem.errors
+        pos, ori = _errors_of(task.rows, e)
+        inside = bool(np.all(q >= m.lower) and np.all(q <= m.upper))
+        err = max(pos / tol.position, ori / tol.orientation, res.closure_error / tol.closure)
+        if inside and err < best_err:
+            best_q, best_err = q.copy(), err
+        if inside and err <= 1.0:
+            return make_result(request, q, method, iterations, restarts)
+        if request.remaining() <= 0:
+            return make_result(
+                request, best_q, method, iterations, restarts, status="time_limit" if best_err > 1 else None
+            )
+        since_better = 0 if err < 0.99 * last_err else since_better + 1
+        last_err = min(last_err, err)
+        if since_better >= stall or since_start >= max_iter:
+            q = m.random_q(seed=request.rng)
+            restarts += 1
+            since_start = since_better = 0
+            last_err = np.inf
+            continue
+        q = res.q
+        iterations += 1
+        since_start += 1
+
+
+def solve_dls(request: IKRequest) -> IKResult:
+    """``method="dls"``: iterated damped least squares (adaptive damping)."""
+    return iterate(request, "dls")
+
+
+def solve_qp(request: IKRequest) -> IKResult:
+    """``method="qp"``: iterated QP steps (default backend, see :func:`optik.diffik.default_solver`)."""
+    return iterate(request, "qp")
+
+
+def register() -> None:
+    """Register ``"dls"`` and ``"qp"`` with :func:`optik.solvers.base.register_method`."""
+    register_method(
+        "dls",
+        solve_dls,
+        description="iterated differential IK, damped least squares with adaptive damping and restarts",
+    )
+    register_method(
+        "qp",
+        solve_qp,
+        description="iterated differential IK, one QP per step (joint limits as bounds) with restarts",
+    )

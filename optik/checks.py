@@ -48,6 +48,10 @@ def as_batch(value: Any, name: str, size: int) -> tuple[np.ndarray, bool]:
     return a, single
 
 
+_LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
+_EYE3 = np.eye(3)
+
+
 def as_transform(value: Any, name: str) -> np.ndarray:
     """A finite 4x4 homogeneous transform with an orthonormal rotation block.
 
@@ -61,10 +65,11 @@ def as_transform(value: Any, name: str) -> np.ndarray:
         raise ShapeError(name, f"expected a 4x4 transform, got shape {t.shape}")
     if not np.all(np.isfinite(t)):
         raise NonFiniteError(name, "contains NaN or infinity")
-    if not np.allclose(t[3], [0, 0, 0, 1], atol=1e-9):
+    # np.allclose semantics (|a - b| <= atol + 1e-5 |b|) without its overhead: this runs per IK call
+    if not np.all(np.abs(t[3] - _LAST_ROW) <= 1e-9 + 1e-5 * _LAST_ROW):
         raise InvalidArgumentError(name, f"last row must be [0, 0, 0, 1], got {t[3]}")
     r = t[:3, :3]
-    if not np.allclose(r.T @ r, np.eye(3), atol=1e-6) or np.linalg.det(r) < 0:
+    if not np.all(np.abs(r.T @ r - _EYE3) <= 1e-6 + 1e-5 * _EYE3) or np.linalg.det(r) < 0:
         raise InvalidArgumentError(name, "rotation block is not a proper rotation (R^T R != I or det < 0)")
     return t
 

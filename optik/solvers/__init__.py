@@ -1,5 +1,7 @@
 """IK solvers behind one ``solve_ik``; methods register themselves in :mod:`optik.solvers.base`."""
 
+from optik.solvers import lm as _lm  # noqa: F401  (registers "lm")
+from optik.solvers import nlp as _nlp  # noqa: F401  (registers "nlp")
 from optik.solvers.api import pick_method, solve_ik
 from optik.solvers.base import IKRequest, Tolerances, methods, register_method
 

@@ -1,0 +1,306 @@
+"""IK problems: one CasADi NLP per (mechanism, task, frame, options), built once, targets as parameters.
+
+For a mechanism with coordinates ``q``, a task frame with pose ``T(q) = [[R, p], [0, 1]]`` and a
+target ``T* = [[R*, p*], [0, 1]]``, the *task residual* ``r(q; T*)`` is, per task space:
+
+=============  ==========================================================================
+task           residual rows
+=============  ==========================================================================
+pose           ``p - p*`` (3) and ``vec(R - R*) / sqrt(2)`` (9)
+position       ``p - p*`` (3)
+orientation    ``vec(R - R*) / sqrt(2)`` (9)
+pose2d         ``(x - x*, y - y*)`` and ``(cos phi - cos phi*, sin phi - sin phi*)``
+position2d     ``(x - x*, y - y*)``
+=============  ==========================================================================
+
+The orientation rows satisfy ``|vec(R - R*)|^2 / 2 = 2 (1 - cos theta) = (2 sin(theta / 2))^2``
+with ``theta`` the geodesic angle between ``R`` and ``R*``: their squared norm is a function of
+``theta`` alone that is increasing on ``[0, pi]``, so its only stationary points over SO(3) are the
+minimum ``theta = 0`` and the maximum ``theta = pi``. (The common ``vee(R R*^T - R* R^T)`` error
+vanishes at ``theta = pi`` too and would create a spurious stationary point there.) The planar
+heading rows are the same construction in SO(2): their norm is ``2 sin(|phi - phi*| / 2)``. So
+for both, ``theta = 2 asin(|r_o| / 2)`` recovers the angle error (:func:`angle_from_residual`).
+
+The NLP (:class:`IKProblem`) is::
+
+    minimize_q   1/2 (w_p^2 |r_p|^2 + w_o^2 |r_o|^2)               task error
+               + 1/2 w_post |q - q_ref|^2                          posture (resolves redundancy)
+               - w_manip log(det(J J^T) + eps)                     manipulability (optional)
+               + 1/2 w_lim sum(((q - q_mid) / (q_max - q_min))^2)  distance to limits (optional)
+    subject to  q_min <= q <= q_max                                joint limits (bounds)
+                c(q) = 0                                           loop closures (closed chains)
+
+with the target, the weights and ``q_ref`` as NLP parameters: a new target or weight never
+rebuilds anything. :func:`build_ik_problem` returns the problem, cached per mechanism, task,
+frame and secondary-objective selection.
+"""
+
+from __future__ import annotations
+
+import weakref
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from optik import spatial
+from optik.checks import as_vector
+from optik.errors import InvalidArgumentError
+from optik.mechanism import TASK_ROWS, Mechanism
+
+__all__ = [
+    "SECONDARY_OBJECTIVES",
+    "IKProblem",
+    "angle_from_residual",
+    "build_ik_problem",
+    "target_parameters",
+]
+
+SECONDARY_OBJECTIVES = ("posture", "manipulability", "limits")
+"""Secondary objectives the NLP can include (posture is always present, weight 0 disables it)."""
+
+_MANIP_EPS = 1e-9
+
+
+def angle_from_residual(norm: Any) -> Any:
+    """Angle ``theta = 2 asin(|r_o| / 2)`` from the norm of an orientation residual block."""
+    return 2.0 * np.arcsin(np.minimum(1.0, np.asarray(norm) / 2.0))
+
+
+def target_parameters(target: np.ndarray) -> np.ndarray:
+    """The 12 target parameters ``[vec(R*) (column-major); p*]`` of a 4x4 transform."""
+    t = np.asarray(target, dtype=float)
+    return np.concatenate([t[:3, :3].reshape(-1, order="F"), t[:3, 3]])
+
+
+def _task_blocks(task: str, t: ca.SX, target: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """Position and orientation residual blocks of a task (either may be empty)."""
+    r_star = ca.reshape(target[:9], 3, 3)
+    p_star = target[9:12]
+    p, r = t[:3, 3], t[:3, :3]
+    empty = ca.SX(0, 1)
+    if task == "pose":
+        return p - p_star, ca.vec(r - r_star) / np.sqrt(2.0)
+    if task == "position":
+        return p - p_star, empty
+    if task == "orientation":
+        return empty, ca.vec(r - r_star) / np.sqrt(2.0)
+    if task == "pose2d":
+        heading = ca.vertcat(r[0, 0] - r_star[0, 0], r[1, 0] - r_star[1, 0])
+        return p[:2] - p_star[:2], heading
+    return p[:2] - p_star[:2], empty
+
+
+@dataclass(frozen=True)
+class IKProblem:
+    """An inspectable IK problem (see the module docstring for the formulation).
+
+    Attributes:
+        mechanism: the model.
+        task: task space (a key of :data:`optik.mechanism.TASK_ROWS`).
+        frame: task frame (None: end effector).
+        secondary: the secondary objectives included besides posture.
+        q: decision variables (``SX``, ``n_q`` x 1).
+        target: target parameters ``[vec(R*); p*]`` (``SX``, 12 x 1).
+        weights: task weights ``[w_p, w_o]`` (``SX``, 2 x 1).
+        q_ref: reference posture (``SX``, ``n_q`` x 1).
+        secondary_weights: ``[w_post, w_manip, w_lim]`` (``SX``, 3 x 1).
+        position_residual: ``r_p(q; target)`` (unweighted).
+        orientation_residual: ``r_o(q; target)`` (unweighted).
+        closure: loop-closure residual ``c(q)`` (equality constraints).
+        objective: the NLP objective ``f``.
+        lower: lower bounds of ``q``.
+        upper: upper bounds of ``q``.
+    """
+
+    mechanism: Mechanism
+    task: str
+    frame: str | None
+    secondary: tuple[str, ...]
+    q: ca.SX
+    target: ca.SX
+    weights: ca.SX
+    q_ref: ca.SX
+    secondary_weights: ca.SX
+    position_residual: ca.SX
+    orientation_residual: ca.SX
+    closure: ca.SX
+    objective: ca.SX
+    lower: np.ndarray
+    upper: np.ndarray
+
+    @property
+    def parameters(self) -> ca.SX:
+        """All NLP parameters stacked: ``[target; weights; q_ref; secondary_weights]``."""
+        return ca.vertcat(self.target, self.weights, self.q_ref, self.secondary_weights)
+
+    @property
+    def n_position_rows(self) -> int:
+        """Rows of the position residual block."""
+        return int(self.position_residual.shape[0])
+
+    @property
+    def n_orientation_rows(self) -> int:
+        """Rows of the orientation residual block."""
+        return int(self.orientation_residual.shape[0])
+
+    def nlp(self) -> dict[str, ca.SX]:
+        """The NLP as CasADi's ``nlpsol`` expects it: ``{"x", "p", "f", "g"}``."""
+        return {"x": self.q, "p": self.parameters, "f": self.objective, "g": self.closure}
+
+    def parameter_values(
+        self,
+        target: np.ndarray,
+        weights: Any = (1.0, 1.0),
+        q_ref: Any = None,
+        posture: float = 1e-9,
+        manipulability: float = 0.0,
+        limits: float = 0.0,
+    ) -> np.ndarray:
+        """Numerical parameter vector for :attr:`parameters`.
+
+        Args:
+            target: 4x4 target transform.
+            weights: task weights ``(w_p, w_o)``.
+            q_ref: reference posture (default: mid-limit).
+            posture: weight of ``1/2 |q - q_ref|^2``.
+            manipulability: weight of ``-log(det(J J^T))`` (needs ``"manipulability"`` in
+                :attr:`secondary`).
+            limits: weight of the distance-to-limits term (needs ``"limits"`` in :attr:`secondary`).
+
+        Raises:
+            InvalidArgumentError: negative weights, or a weight for an objective not built in.
+        """
+        w = as_vector(weights, "weights", 2)
+        sec = as_vector([posture, manipulability, limits], "secondary weights", 3)
+        if np.any(w < 0) or np.any(sec < 0):
+            raise InvalidArgumentError("weights", f"weights must be >= 0, got {w} and {sec}")
+        for name, value in (("manipulability", sec[1]), ("limits", sec[2])):
+            if value > 0 and name not in self.secondary:
+                raise InvalidArgumentError(
+                    name, f"the problem was built without the {name!r} objective (secondary={self.secondary})"
+                )
+        m = self.mechanism
+        ref = m.mid_q() if q_ref is None else m.check_q(q_ref, "q_ref")
+        return np.concatenate([target_parameters(target), w, ref, sec])
+
+    def error_expressions(self) -> tuple[ca.SX, ca.SX, ca.SX]:
+        """Position error, orientation error and max-norm of the closure residual, symbolically.
+
+        The definitions of the success check (:func:`optik.solvers.base.task_errors`), computed
+        from the frame pose directly (not from the residual): the Euclidean distance of the
+        origins (x-y only for planar tasks), the geodesic angle
+        ``atan2(|vee(M - M^T)| / 2, (tr M - 1) / 2)`` of ``M = R*^T R`` for ``pose`` and
+        ``orientation``, ``|wrap(phi - phi*)|`` for ``pose2d``, and 0 where a task has no such part.
+        """
+        t = self.mechanism.frame_expr(self.frame)
+        r_star = ca.reshape(self.target[:9], 3, 3)
+        dp = t[:3, 3] - self.target[9:12]
+        zero = ca.SX.zeros(1, 1)
+        planar = self.task in ("pose2d", "position2d")
+        pos = zero if self.task == "orientation" else ca.norm_2(dp[:2] if planar else dp)
+        if self.task in ("pose", "orientation"):
+            ori = spatial.angle_between(r_star, t[:3, :3])
+        elif self.task == "pose2d":
+            dphi = ca.atan2(t[1, 0], t[0, 0]) - ca.atan2(r_star[1, 0], r_star[0, 0])
+            ori = ca.fabs(spatial.wrap_angle(dphi))
+        else:
+            ori = zero
+        c = self.closure
+        clo = ca.mmax(ca.fabs(c)) if c.shape[0] else zero
+        return pos, ori, clo
+
+    def residual_function(self, closure_weight: float | None = None) -> ca.Function:
+        """``(q, target, weights) -> (e, de/dq)`` with ``e = [w_p r_p; w_o r_o; w_c c]``.
+
+        ``closure_weight`` ``w_c`` weighs the loop-closure rows (None: no closure rows).
+        """
+        e = self.weighted_residual(closure_weight)
+        return ca.Function(
+            "ik_residual",
+            [self.q, self.target, self.weights],
+            [e, ca.jacobian(e, self.q)],
+            ["q", "target", "weights"],
+            ["e", "J"],
+        )
+
+    def weighted_residual(self, closure_weight: float | None = None) -> ca.SX:
+        """``[w_p r_p; w_o r_o; w_c c]`` (closure rows only when ``closure_weight`` is given)."""
+        rows = [self.weights[0] * self.position_residual, self.weights[1] * self.orientation_residual]
+        if closure_weight is not None:
+            rows.append(closure_weight * self.closure)
+        return ca.vertcat(*rows)
+
+
+_CACHE: weakref.WeakKeyDictionary[Mechanism, dict[tuple, IKProblem]] = weakref.WeakKeyDictionary()
+
+
+def build_ik_problem(
+    m: Mechanism,
+    task: str | None = None,
+    frame: str | None = None,
+    secondary: tuple[str, ...] = (),
+) -> IKProblem:
+    """The IK problem of a mechanism for a task space and frame (built once, then cached).
+
+    Args:
+        m: the mechanism.
+        task: task space (default ``m.task``).
+        frame: task frame (default: the end effector).
+        secondary: extra objectives from ``("manipulability", "limits")``; posture
+            regularization is always part of the objective (its weight is a parameter).
+
+    Raises:
+        InvalidArgumentError: unknown task or secondary objective.
+        UnknownFrameError: unknown frame.
+    """
+    tk = m.task if task is None else task
+    if tk not in TASK_ROWS:
+        raise InvalidArgumentError("task", f"unknown task {tk!r}; use one of {sorted(TASK_ROWS)}")
+    extra = tuple(sorted(set(secondary) - {"posture"}))
+    for s in extra:
+        if s not in SECONDARY_OBJECTIVES:
+            raise InvalidArgumentError(
+                "secondary", f"unknown secondary objective {s!r}; use some of {SECONDARY_OBJECTIVES}"
+            )
+    m._frame(frame)
+    key = (tk, frame, extra)
+    per_mechanism = _CACHE.setdefault(m, {})
+    if key not in per_mechanism:
+        per_mechanism[key] = _build(m, tk, frame, extra)
+    return per_mechanism[key]
+
+
+def _build(m: Mechanism, task: str, frame: str | None, secondary: tuple[str, ...]) -> IKProblem:
+    q = m.q_sym
+    target = ca.SX.sym("target", 12)
+    weights = ca.SX.sym("weights", 2)
+    q_ref = ca.SX.sym("q_ref", m.n_q)
+    sec = ca.SX.sym("secondary_weights", 3)
+    r_p, r_o = _task_blocks(task, m.frame_expr(frame), target)
+    f = 0.5 * (weights[0] ** 2 * ca.sumsqr(r_p) + weights[1] ** 2 * ca.sumsqr(r_o))
+    f += 0.5 * sec[0] * ca.sumsqr(q - q_ref)
+    if "manipulability" in secondary:
+        jt = m.jacobian_expr(frame)[list(TASK_ROWS[task]), :]
+        f -= sec[1] * ca.log(ca.det(ca.mtimes(jt, jt.T)) + _MANIP_EPS)
+    if "limits" in secondary:
+        span = np.maximum(m.upper - m.lower, 1e-12)
+        f += 0.5 * sec[2] * ca.sumsqr((q - m.mid_q()) / span)
+    return IKProblem(
+        mechanism=m,
+        task=task,
+        frame=frame,
+        secondary=secondary,
+        q=q,
+        target=target,
+        weights=weights,
+        q_ref=q_ref,
+        secondary_weights=sec,
+        position_residual=r_p,
+        orientation_residual=r_o,
+        closure=m.closure_expr,
+        objective=f,
+        lower=m.lower.copy(),
+        upper=m.upper.copy(),
+    )

@@ -1,0 +1,51 @@
+"""Compiled evaluation of the success check (position, orientation and closure errors).
+
+:func:`optik.solvers.base.evaluate` computes the errors through CasADi's Python interface
+(about 0.1 ms per call); the methods that iterate in compiled code call this compiled twin of the
+same definitions (:meth:`optik.problem.IKProblem.error_expressions`) instead, both to stop their
+iterations and to check their final answer in :func:`~optik.solvers.base.make_result`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from functools import lru_cache
+
+import casadi as ca
+import numpy as np
+
+from optik.mechanism import Mechanism
+from optik.problem import IKProblem, build_ik_problem, target_parameters
+from optik.solvers.native import NativeFunction, native_functions
+
+ErrorFn = Callable[[np.ndarray], tuple[float, float, float]]
+"""``q -> (position error, orientation error, closure error)``."""
+
+
+def error_function(problem: IKProblem) -> ca.Function:
+    """``(q, target) -> (position error, orientation error, closure error)`` of the success check
+    (:meth:`IKProblem.error_expressions`), as a CasADi function."""
+    outs = [ca.densify(v) for v in problem.error_expressions()]
+    return ca.Function("optik_ik_errors", [problem.q, problem.target], outs)
+
+
+@lru_cache(maxsize=64)
+def _native_errors(m: Mechanism, task: str, frame: str | None, compile: bool | str) -> NativeFunction:
+    return native_functions([error_function(build_ik_problem(m, task, frame))], compile)[0]
+
+
+def errors_against(
+    m: Mechanism, task: str, frame: str | None, target: np.ndarray, compile: bool | str = "auto"
+) -> ErrorFn:
+    """A fast ``q -> (position, orientation, closure)`` error function for one target (the
+    compiled function is shared per mechanism, task and frame; not thread-safe)."""
+    fn = _native_errors(m, task, frame, compile)
+    params = target_parameters(target)
+
+    def errors(q: np.ndarray) -> tuple[float, float, float]:
+        fn.inputs[0][:] = q
+        fn.inputs[1][:] = params
+        pos, ori, clo = fn()
+        return float(pos[0]), float(ori[0]), float(clo[0])
+
+    return errors

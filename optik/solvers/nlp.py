@@ -1,0 +1,245 @@
+"""Method ``"nlp"``: the IK NLP of :mod:`optik.problem` solved by CasADi ``nlpsol``, multi-start.
+
+The NLP (built once per mechanism, task, frame and secondary objectives; the target, weights and
+reference posture are parameters) is::
+
+    minimize_q  1/2 (w_p^2 |r_p|^2 + w_o^2 |r_o|^2) + 1/2 w_post |q - q_ref|^2 (+ secondary terms)
+    subject to  q_min <= q <= q_max,  c(q) = 0
+
+solved by IPOPT (default) or CasADi's ``sqpmethod`` (option ``solver="sqpmethod"``, QP solver
+``qrqp``). An iteration callback checks, after every iteration, the success tolerances on the
+iterate (compiled error function) and the time limit: the solve stops at the first iterate that
+meets the tolerances (``stop_at_tolerance=True``, the default) or when the time is up. Without
+early stopping IPOPT runs to its own convergence (tolerance ``ipopt_tol``), which lets a larger
+posture or secondary weight shape the answer. The first start is ``q0`` (warm start); later
+starts are drawn uniformly within the limits from the request's seeded generator, until success
+or the time limit. The answer is the best iterate seen (largest ratio error / tolerance smallest).
+
+Options (``solve_ik(..., method="nlp", **options)``):
+
+* ``solver`` ("ipopt"): ``"ipopt"`` or ``"sqpmethod"``.
+* ``max_iter`` (50): iterations per start.
+* ``weights`` ((1, 1)): task weights ``(w_p, w_o)``.
+* ``q_ref`` (mid-limit): reference posture.
+* ``posture`` (1e-8): weight ``w_post`` of the posture regularization.
+* ``manipulability`` (0): weight of ``-log det(J J^T)`` (adds that objective to the NLP).
+* ``limits`` (0): weight of the distance-to-limits term (adds that objective to the NLP).
+* ``stop_at_tolerance`` (True): stop each start at the first iterate that meets the tolerances.
+* ``ipopt_tol`` (1e-12): IPOPT's own convergence tolerance.
+* ``solver_options`` ({}): extra ``nlpsol`` options, e.g. ``{"ipopt.mu_init": 1e-3}``.
+* ``max_restarts`` (None): cap on restarts (None: until success or the time limit).
+* ``compile`` ("auto"): compile the error check to C (see :mod:`optik.solvers.native`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from optik.errors import InvalidArgumentError
+from optik.mechanism import Mechanism
+from optik.problem import IKProblem, build_ik_problem
+from optik.results import IKResult
+from optik.solvers.base import IKRequest, make_result, method_options, register_method, start_points
+from optik.solvers.evaluation import ErrorFn, errors_against
+
+DEFAULTS: dict[str, Any] = {
+    "solver": "ipopt",
+    "max_iter": 50,
+    "weights": (1.0, 1.0),
+    "q_ref": None,
+    "posture": 1e-8,
+    "manipulability": 0.0,
+    "limits": 0.0,
+    "stop_at_tolerance": True,
+    "ipopt_tol": 1e-12,
+    "solver_options": {},
+    "max_restarts": None,
+    "compile": "auto",
+}
+"""Default options of ``"nlp"``."""
+
+SOLVERS = ("ipopt", "sqpmethod")
+
+
+class _Monitor(ca.Callback):
+    """Iteration callback: records the best iterate and asks the solver to stop at tolerance
+    (when enabled) or at the deadline."""
+
+    def __init__(self, n_x: int, n_g: int) -> None:
+        ca.Callback.__init__(self)
+        self.n_x, self.n_g = n_x, n_g
+        self.errors: ErrorFn | None = None
+        self.goal = (0.0, 0.0, 0.0)
+        self.stop_at_tolerance = True
+        self.deadline = np.inf
+        self.reset()
+        self.construct("optik_nlp_monitor", {})
+
+    def reset(self) -> None:
+        self.best_x: np.ndarray | None = None
+        self.best_score = np.inf
+        self.reached = False
+        self.iterations = 0
+
+    def get_n_in(self) -> int:
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self) -> int:
+        return 1
+
+    def get_name_in(self, i: int) -> str:
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i: int) -> str:
+        return "stop"
+
+    def get_sparsity_in(self, i: int) -> ca.Sparsity:
+        name = ca.nlpsol_out(i)
+        if name == "f":
+            return ca.Sparsity.scalar()
+        if name in ("x", "lam_x"):
+            return ca.Sparsity.dense(self.n_x)
+        if name in ("g", "lam_g"):
+            return ca.Sparsity.dense(self.n_g)
+        return ca.Sparsity(0, 0)
+
+    def eval(self, arg: list[Any]) -> list[int]:
+        self.iterations += 1
+        x = np.asarray(arg[0], dtype=float).reshape(-1)
+        errs = self.errors(x)
+        score = max(e / g for e, g in zip(errs, self.goal, strict=True))
+        if score < self.best_score:
+            self.best_x, self.best_score = x, score
+        self.reached = self.reached or score <= 1.0
+        return [int((self.reached and self.stop_at_tolerance) or time.perf_counter() >= self.deadline)]
+
+
+@dataclass(frozen=True)
+class _Solver:
+    problem: IKProblem
+    solver: ca.Function
+    monitor: _Monitor
+
+
+def _solver_options(
+    solver: str, max_iter: int, ipopt_tol: float, extra: dict[str, Any], monitor: _Monitor
+) -> dict[str, Any]:
+    common = {"print_time": False, "iteration_callback": monitor, "error_on_fail": False, **extra}
+    if solver == "ipopt":
+        return {
+            **common,
+            "ipopt.print_level": 0,
+            "ipopt.sb": "yes",
+            "ipopt.max_iter": max_iter,
+            "ipopt.tol": ipopt_tol,
+            "ipopt.acceptable_iter": 0,
+            "ipopt.mu_strategy": "adaptive",
+            **extra,
+        }
+    return {
+        **common,
+        "qpsol": "qrqp",
+        "qpsol_options": {
+            "print_iter": False,
+            "print_header": False,
+            "print_info": False,
+            "error_on_fail": False,
+        },
+        "print_header": False,
+        "print_iteration": False,
+        "print_status": False,
+        "max_iter": max_iter,
+        "tol_pr": 1e-14,
+        "tol_du": 1e-14,
+        **extra,
+    }
+
+
+@lru_cache(maxsize=32)
+def nlp_solver(
+    m: Mechanism,
+    task: str,
+    frame: str | None,
+    secondary: tuple[str, ...],
+    solver: str = "ipopt",
+    max_iter: int = 50,
+    ipopt_tol: float = 1e-12,
+    extra: tuple[tuple[str, Any], ...] = (),
+) -> _Solver:
+    """The ``nlpsol`` instance of an IK problem (built once per argument combination; ``extra``
+    holds additional ``nlpsol`` options as sorted ``(key, value)`` pairs)."""
+    problem = build_ik_problem(m, task, frame, secondary)
+    monitor = _Monitor(m.n_q, m.n_closure)
+    options = _solver_options(solver, max_iter, ipopt_tol, dict(extra), monitor)
+    fn = ca.nlpsol("optik_ik", solver, problem.nlp(), options)
+    return _Solver(problem, fn, monitor)
+
+
+def solve_nlp(request: IKRequest) -> IKResult:
+    """Solve an IK request with ``nlpsol``, multi-start (see the module docstring)."""
+    opts = method_options(request, DEFAULTS)
+    if opts["solver"] not in SOLVERS:
+        raise InvalidArgumentError("solver", f"unknown NLP solver {opts['solver']!r}; use one of {SOLVERS}")
+    m, tol = request.mechanism, request.tol
+    secondary = tuple(name for name in ("manipulability", "limits") if float(opts[name]) > 0)
+    extra = opts["solver_options"]
+    if not isinstance(extra, dict):
+        raise InvalidArgumentError("solver_options", f"expected a dict, got {extra!r}")
+    s = nlp_solver(
+        m,
+        request.task,
+        request.frame,
+        secondary,
+        opts["solver"],
+        int(opts["max_iter"]),
+        float(opts["ipopt_tol"]),
+        tuple(sorted(extra.items())),
+    )
+    params = s.problem.parameter_values(
+        request.target,
+        opts["weights"],
+        opts["q_ref"],
+        float(opts["posture"]),
+        float(opts["manipulability"]),
+        float(opts["limits"]),
+    )
+    errors = errors_against(m, request.task, request.frame, request.target, opts["compile"])
+    mon = s.monitor
+    mon.errors = errors
+    mon.goal = (tol.position, tol.orientation, tol.closure)
+    mon.stop_at_tolerance = bool(opts["stop_at_tolerance"])
+    mon.deadline = request.start + request.time_limit
+    zeros = np.zeros(m.n_closure)
+    best_q, best_score = request.q0.copy(), np.inf
+    iterations, restarts = 0, -1
+    starts = start_points(request)
+    max_restarts = opts["max_restarts"]
+    while True:
+        restarts += 1
+        mon.reset()
+        sol = s.solver(x0=next(starts), p=params, lbx=m.lower, ubx=m.upper, lbg=zeros, ubg=zeros)
+        iterations += mon.iterations
+        x = np.asarray(sol["x"], dtype=float).reshape(-1)
+        final = max(e / g for e, g in zip(errors(np.clip(x, m.lower, m.upper)), mon.goal, strict=True))
+        q, score = (x, final) if final <= mon.best_score else (mon.best_x, mon.best_score)
+        if score < best_score:
+            best_q, best_score = q, score
+        if best_score <= 1.0:
+            return make_result(request, best_q, "nlp", iterations, restarts, errors=errors)
+        if time.perf_counter() >= mon.deadline:
+            return make_result(request, best_q, "nlp", iterations, restarts, "time_limit", errors=errors)
+        if max_restarts is not None and restarts >= int(max_restarts):
+            return make_result(request, best_q, "nlp", iterations, restarts, "max_restarts", errors=errors)
+
+
+register_method(
+    "nlp",
+    solve_nlp,
+    description="CasADi nlpsol (IPOPT or sqpmethod) on the IK NLP, multi-start until the time limit",
+)

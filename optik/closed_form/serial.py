@@ -13,10 +13,12 @@ Mathematics (seed ``000``/``001`` notation):
   ``Q = -2 l1 y``, ``R = x^2 + y^2 + l1^2 - l2^2``, or equivalently the law of cosines
   ``c2 = (x^2 + y^2 - l1^2 - l2^2) / (2 l1 l2)``. With ``s2 = sigma sqrt(1 - c2^2)``:
   ``theta2 = atan2(s2, c2)`` and ``theta1 = atan2(y, x) - atan2(l2 s2, l1 + l2 c2)``.
-  Branch 0 is ``sigma = +1`` (``theta2`` in ``[0, pi]``), branch 1 is ``sigma = -1``. The
-  target is reachable when ``|c2| <= 1``; a cosine outside ``[-1, 1]`` by at most
-  :data:`COS_TOL` (rounding at the workspace boundary) is clipped, anything beyond is
-  unreachable.
+  Branch 0 is ``sigma = +1`` (``theta2`` in ``[0, pi]``), branch 1 is ``sigma = -1``. For
+  precision at both edges of the annulus, ``1 + c2 = (r^2 - (l1 - l2)^2) / (2 l1 l2)`` and
+  ``1 - c2 = ((l1 + l2)^2 - r^2) / (2 l1 l2)`` are formed directly and
+  ``s2 = sqrt((1 - c2)(1 + c2))``. The target is reachable when both are ``>= 0``; one that is
+  negative by at most :data:`COS_TOL` (rounding at the workspace boundary) is clipped to 0,
+  anything beyond is unreachable.
 * **Planar 3R** (seed 000): the wrist point ``x' = x - l3 cos(phi)``, ``y' = y - l3 sin(phi)``
   is a two-link problem, then ``theta3 = phi - theta1 - theta2`` (the seed prints
   ``phi - theta1 + theta2``, a typo that fails the FK round trip).
@@ -107,24 +109,32 @@ def _two_link(l1: float, l2: float, x: np.ndarray, y: np.ndarray, out: np.ndarra
         out: array of shape ``S + (2, k)``, ``k >= 2``; branch ``b`` is ``sigma = 1 - 2 b``.
 
     Returns:
-        Reachability mask of shape ``S`` (``|c2| <= 1 + COS_TOL``).
+        Reachability mask of shape ``S`` (``1 + c2`` and ``1 - c2`` both ``>= -COS_TOL``).
     """
-    c2 = x * x
-    c2 += y * y
-    c2 -= l1 * l1 + l2 * l2
-    c2 *= 1.0 / (2.0 * l1 * l2)
-    ok = np.abs(c2) <= 1.0 + COS_TOL
-    np.clip(c2, -1.0, 1.0, out=c2)
-    s2 = c2 * c2
-    np.subtract(1.0, s2, out=s2)
+    r2 = x * x
+    r2 += y * y
+    inv = 1.0 / (2.0 * l1 * l2)
+    # 1 + c2 and 1 - c2 straight from the distances, so that s2 keeps full precision at both
+    # boundaries of the annulus (also for l1 = l2 near the base, where c2 -> -1)
+    one_plus = r2 - (l1 - l2) ** 2
+    one_plus *= inv
+    one_minus = np.subtract((l1 + l2) ** 2, r2)
+    one_minus *= inv
+    ok = (one_plus >= -COS_TOL) & (one_minus >= -COS_TOL)
+    np.maximum(one_plus, 0.0, out=one_plus)
+    np.maximum(one_minus, 0.0, out=one_minus)
+    s2 = one_minus * one_plus
     np.sqrt(s2, out=s2)
+    c2 = np.subtract(one_plus, one_minus, out=one_minus)
+    c2 *= 0.5
     np.arctan2(s2, c2, out=out[..., 0, 1])
     np.negative(out[..., 0, 1], out=out[..., 1, 1])
     beta = np.arctan2(y, x)
+    # atan2(l2 s2, l1 + l2 c2) with l1 + l2 c2 = (l1 - l2) + l2 (1 + c2)
     s2 *= l2
-    c2 *= l2
-    c2 += l1
-    delta = np.arctan2(s2, c2, out=s2)
+    one_plus *= l2
+    one_plus += l1 - l2
+    delta = np.arctan2(s2, one_plus, out=s2)
     np.subtract(beta, delta, out=out[..., 0, 0])
     np.add(beta, delta, out=out[..., 1, 0])
     _wrap(out[..., 0])

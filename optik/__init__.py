@@ -20,6 +20,7 @@ from optik.errors import (
 from optik.mechanism import Joint, Mechanism, dh_chain, planar_chain
 from optik.results import FKResult, IKResult
 from optik.solvers import Tolerances, solve_ik
+from optik.solvers.fk import solve_fk, solve_fk_all
 from optik.targets import Pose2D, Position
 
 __version__ = "0.1.0"
@@ -46,6 +47,8 @@ __all__ = [
     "dh_chain",
     "diffik",
     "planar_chain",
+    "solve_fk",
+    "solve_fk_all",
     "solve_ik",
     "spatial",
 ]

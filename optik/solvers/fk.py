@@ -1,0 +1,388 @@
+"""Forward kinematics of closed chains: one assembly mode (:func:`solve_fk`) or all (:func:`solve_fk_all`).
+
+With the actuated coordinates ``a`` fixed, the passive coordinates ``x`` solve the loop closure
+``c(x; a) = 0`` (``m.closure``). There may be more equations than unknowns (the doggy with four
+leg angles: 2 closure equations, 1 passive angle) or as many (five-bar, 3-RPR, Stewart-Gough);
+the solver is Levenberg-Marquardt on ``min |c(x; a)|^2``,
+
+``(J^T J + mu diag(J^T J) + mu_0 I) dx = -J^T c``,  ``J = dc/dx``,
+
+which is Newton's method when ``J`` is square and well conditioned and least squares otherwise;
+success means ``max |c| <= tol`` *and* every coordinate within its limits (angles shifted by
+2 pi into the limits first). The closure and its passive Jacobian are one CasADi function per
+mechanism, built on first use and cached.
+
+*Tracking.* When ``q0`` closes its loops, :func:`solve_fk` moves the actuated coordinates from
+``q0``'s values to ``a`` along a straight line in steps (halved whenever Newton needs more than a
+few iterations or a passive coordinate jumps), so it returns the assembly mode reached
+continuously from ``q0``: the one "nearest" ``q0``. When ``q0`` does not close (or is None)
+Newton starts from ``q0`` directly.
+
+*All modes.* :func:`solve_fk_all` uses the registered closed form when the mechanism has one
+(:mod:`optik.closed_form.parallel`: five-bar, slider-crank, 3-RPR, doggy, Stewart-Gough by
+homotopy continuation) and otherwise a seeded multi-start: random passive coordinates within
+the limits, Levenberg-Marquardt, de-duplication by the branch rule (coordinates differ by
+``< 1e-4``, angles modulo 2 pi), stopping after ``patience`` consecutive starts that found no new
+mode (or at the time limit).
+
+*Outcomes.* Inputs that cannot assemble give ``success=False`` with the least-squares
+configuration, its residual and a message. Every result reports the condition number of ``J``
+at the answer; above ``singular_condition`` the message flags a (near) singularity of the
+assembly, where two modes merge.
+"""
+
+from __future__ import annotations
+
+import time
+import weakref
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from optik import closed_form, spatial
+from optik.checks import as_rng, as_vector
+from optik.errors import InvalidArgumentError
+from optik.mechanism import Mechanism
+from optik.results import FKResult
+from optik.solvers.base import Tolerances
+
+DEFAULT_TIME_LIMIT = 1.0
+"""Default wall-time budget of :func:`solve_fk` and of the multi-start in :func:`solve_fk_all` (s)."""
+
+SINGULAR_CONDITION = 1e6
+"""Condition number of ``dc/dx`` above which a result is flagged as near a singularity."""
+
+BRANCH_TOL = 1e-4
+"""Two configurations are the same assembly mode when every coordinate differs by less (DESIGN.md)."""
+
+
+@dataclass(frozen=True)
+class _Compiled:
+    """Per-mechanism data of the FK solvers (built once)."""
+
+    closure: ca.Function  # q -> (c, dc/dx)
+    act: np.ndarray
+    pas: np.ndarray
+
+
+_CACHE: weakref.WeakKeyDictionary[Mechanism, _Compiled] = weakref.WeakKeyDictionary()
+
+
+def _compiled(m: Mechanism) -> _Compiled:
+    if m not in _CACHE:
+        q = m.q_sym
+        pas = m.passive_indices
+        c = m.closure_expr
+        jac = ca.jacobian(c, q[[int(i) for i in pas]]) if len(pas) else ca.SX(c.shape[0], 0)
+        f = ca.Function(f"fk_closure_{m.name}", [q], [c, jac])
+        _CACHE[m] = _Compiled(f, m.actuated_indices, pas)
+    return _CACHE[m]
+
+
+def same_mode(m: Mechanism, q1: np.ndarray, q2: np.ndarray, tol: float = BRANCH_TOL) -> bool:
+    """Branch rule of DESIGN.md: every coordinate differs by ``< tol`` (angles modulo 2 pi)."""
+    d = np.asarray(q1, dtype=float) - np.asarray(q2, dtype=float)
+    ang = m.revolute_mask
+    d[ang] = spatial.wrap_angle(d[ang])
+    return bool(np.max(np.abs(d), initial=0.0) < tol)
+
+
+@dataclass
+class _Solve:
+    """Outcome of one Levenberg-Marquardt run."""
+
+    q: np.ndarray
+    residual: float
+    iterations: int
+
+
+def _evaluate(cm: _Compiled, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    c, jac = cm.closure(q)
+    return np.asarray(c).reshape(-1), np.asarray(jac)
+
+
+def _levenberg_marquardt(cm: _Compiled, q: np.ndarray, tol: float, max_iter: int, deadline: float) -> _Solve:
+    """Minimize ``|c(x)|^2`` over the passive ``x`` from ``q`` (actuated entries kept)."""
+    q = q.copy()
+    c, jac = _evaluate(cm, q)
+    cost = float(c @ c)
+    mu = 1e-8
+    it = 0
+    while it < max_iter and np.max(np.abs(c), initial=0.0) > tol and time.perf_counter() < deadline:
+        it += 1
+        jtj = jac.T @ jac
+        g = jac.T @ c
+        scale = np.diag(jtj) + 1e-12 * (1 + np.max(np.diag(jtj), initial=0.0))
+        improved = False
+        while not improved and mu < 1e12:
+            try:
+                dx = np.linalg.solve(jtj + mu * np.diag(scale), -g)
+            except np.linalg.LinAlgError:
+                mu *= 10
+                continue
+            trial = q.copy()
+            trial[cm.pas] += dx
+            c_t, jac_t = _evaluate(cm, trial)
+            cost_t = float(c_t @ c_t)
+            if np.isfinite(cost_t) and cost_t < cost:
+                q, c, jac, cost = trial, c_t, jac_t, cost_t
+                mu = max(mu / 10, 1e-12)
+                improved = True
+            else:
+                mu *= 10
+        if not improved:
+            break
+    return _Solve(q, float(np.max(np.abs(c), initial=0.0)), it)
+
+
+def _condition(cm: _Compiled, q: np.ndarray) -> float:
+    _, jac = _evaluate(cm, q)
+    if jac.size == 0:
+        return 1.0
+    s = np.linalg.svd(jac, compute_uv=False)
+    return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+
+
+def _closure_tol(tol: float | Tolerances | None) -> float:
+    if tol is None:
+        return Tolerances().closure
+    if isinstance(tol, Tolerances):
+        return tol.closure
+    t = float(as_vector(tol, "tol", 1)[0])
+    if t <= 0:
+        raise InvalidArgumentError("tol", f"must be > 0, got {t}")
+    return t
+
+
+def _positive(value: float, name: str) -> float:
+    v = float(as_vector(value, name, 1)[0])
+    if v <= 0:
+        raise InvalidArgumentError(name, f"must be > 0, got {v}")
+    return v
+
+
+def _result(
+    m: Mechanism,
+    cm: _Compiled,
+    q: np.ndarray,
+    residual: float,
+    tol: float,
+    start: float,
+    singular_condition: float,
+    note: str = "",
+    **extra: Any,
+) -> FKResult:
+    """An :class:`FKResult` for ``q``: success, limits, condition number and the message."""
+    qq = m.wrap(q)
+    cond = _condition(cm, qq)
+    closed = residual <= tol
+    inside = m.within_limits(qq)
+    messages = [note] if note else []
+    if not closed:
+        messages.append(
+            f"the actuated values cannot assemble (or no assembly was found): least-squares closure "
+            f"residual {residual:.3g} > tol {tol:.3g}"
+        )
+    elif not inside:
+        bad = [
+            n
+            for n, v, lo, hi in zip(m.coordinate_names, qq, m.lower, m.upper, strict=True)
+            if not lo <= v <= hi
+        ]
+        messages.append(f"the assembly violates the joint limits of {bad}")
+    singular = cond > singular_condition
+    if singular:
+        messages.append(
+            f"near a singularity: condition number {cond:.3g} of the closure Jacobian with respect "
+            "to the passive coordinates"
+        )
+    return FKResult(
+        pose=m.fk(qq),
+        q=qq,
+        success=bool(closed and inside),
+        residual=float(residual),
+        solve_time=time.perf_counter() - start,
+        condition_number=cond,
+        message="; ".join(messages),
+        extra={"singular": singular, **extra},
+    )
+
+
+def _check_inputs(m: Mechanism, actuated: Any) -> np.ndarray:
+    if not m.is_closed:
+        raise InvalidArgumentError("m", f"mechanism {m.name!r} has no loop closure; use m.fk(q)")
+    return as_vector(actuated, "actuated", len(m.actuated_indices))
+
+
+def _continuation(
+    cm: _Compiled, q0: np.ndarray, a: np.ndarray, tol: float, deadline: float, max_jump: float
+) -> _Solve | None:
+    """Move the actuated values of a closed ``q0`` to ``a`` in steps, Newton at each step.
+
+    A step is accepted when Newton converges within 6 iterations and no passive coordinate
+    moves by more than ``max_jump``; otherwise it is halved. Returns None when the step falls
+    below ``1e-6`` of the way (a singularity or a non-assemblable stretch lies on the line).
+    """
+    a0 = q0[cm.act].copy()
+    q, s, ds, total = q0.copy(), 0.0, 1.0, 0
+    while s < 1.0:
+        if time.perf_counter() > deadline or ds < 1e-6:
+            return None
+        s_try = min(1.0, s + ds)
+        trial = q.copy()
+        trial[cm.act] = a0 + s_try * (a - a0)
+        sol = _levenberg_marquardt(cm, trial, tol, 6, deadline)
+        total += sol.iterations
+        if sol.residual <= tol and np.max(np.abs(sol.q[cm.pas] - q[cm.pas]), initial=0.0) <= max_jump:
+            q, s = sol.q, s_try
+            ds *= 2
+        else:
+            ds /= 2
+    return _Solve(q, float(np.max(np.abs(_evaluate(cm, q)[0]), initial=0.0)), total)
+
+
+def solve_fk(
+    m: Mechanism,
+    actuated: Any,
+    q0: Any = None,
+    *,
+    time_limit: float = DEFAULT_TIME_LIMIT,
+    tol: float | Tolerances | None = None,
+    seed: int | np.random.Generator | None = None,
+    max_iter: int = 50,
+    max_jump: float = 0.5,
+    singular_condition: float = SINGULAR_CONDITION,
+) -> FKResult:
+    """Forward kinematics: the assembly mode of a closed chain for given actuated coordinates.
+
+    Args:
+        m: a mechanism with loop closures.
+        actuated: values of the actuated coordinates, in the order of ``m.actuated_indices``.
+        q0: start / reference configuration (default: mid-limit). When it closes its loops the
+            answer is the assembly mode reached continuously from it (see module docstring).
+        time_limit: wall-time budget (s), restarts included.
+        tol: closure tolerance (max-norm; a float or :class:`~optik.Tolerances`, default 1e-9).
+        seed: seed or Generator of the random restarts used when the first attempt fails.
+        max_iter: Levenberg-Marquardt iterations per attempt.
+        max_jump: largest change of a passive coordinate in one continuation step.
+        singular_condition: condition number above which the result is flagged as singular.
+
+    Returns:
+        :class:`~optik.FKResult`; non-assemblable inputs give ``success=False``, the least-squares
+        configuration, its ``residual`` and a message.
+
+    Raises:
+        OptikError: malformed input (named argument), or a mechanism without loops.
+    """
+    start = time.perf_counter()
+    a = _check_inputs(m, actuated)
+    limit = _positive(time_limit, "time_limit")
+    tol_c = _closure_tol(tol)
+    deadline = start + limit
+    cm = _compiled(m)
+    q_start = m.mid_q() if q0 is None else m.check_q(q0, "q0").copy()
+    best: _Solve | None = None
+    note = ""
+    if q0 is not None and np.max(np.abs(m.closure(q_start)), initial=0.0) <= 1e-6:
+        best = _continuation(cm, q_start, a, tol_c, deadline, max_jump)
+        note = "" if best is not None else "continuation from q0 stopped (singularity on the way?)"
+    if best is None or best.residual > tol_c:
+        trial = q_start.copy()
+        trial[cm.act] = a
+        sol = _levenberg_marquardt(cm, trial, tol_c, max_iter, deadline)
+        best = sol if best is None or sol.residual < best.residual else best
+    rng = as_rng(seed)
+    restarts = 0
+    while best.residual > tol_c and time.perf_counter() < deadline:
+        restarts += 1
+        trial = m.random_q(seed=rng)
+        trial[cm.act] = a
+        sol = _levenberg_marquardt(cm, trial, tol_c, max_iter, deadline)
+        if sol.residual < best.residual:
+            best = sol
+    if restarts and best.residual <= tol_c:
+        note = f"found after {restarts} random restart(s): not necessarily the mode nearest q0"
+    return _result(m, cm, best.q, best.residual, tol_c, start, singular_condition, note, restarts=restarts)
+
+
+def solve_fk_all(
+    m: Mechanism,
+    actuated: Any,
+    *,
+    method: str | None = None,
+    time_limit: float = DEFAULT_TIME_LIMIT,
+    tol: float | Tolerances | None = None,
+    seed: int | np.random.Generator | None = None,
+    patience: int = 30,
+    max_iter: int = 50,
+    singular_condition: float = SINGULAR_CONDITION,
+) -> list[FKResult]:
+    """Every real assembly mode for given actuated coordinates.
+
+    Args:
+        m: a mechanism with loop closures.
+        actuated: values of the actuated coordinates, in the order of ``m.actuated_indices``.
+        method: ``"closed_form"`` (needs a registered closed form), ``"numeric"`` (multi-start), or
+            None: the closed form when registered, else numeric.
+        time_limit: wall-time budget of the multi-start (s).
+        tol: closure tolerance (max-norm, default 1e-9).
+        seed: seed or Generator of the multi-start.
+        patience: the multi-start stops after this many consecutive starts without a new mode.
+        max_iter: Levenberg-Marquardt iterations per start.
+        singular_condition: condition number above which a mode is flagged as singular.
+
+    Returns:
+        One successful :class:`~optik.FKResult` per distinct mode within the limits; ``[]`` when
+        the inputs cannot assemble (use :func:`solve_fk` for the least-squares residual).
+
+    Raises:
+        OptikError: malformed input, unknown method, or ``"closed_form"`` without a closed form.
+    """
+    start = time.perf_counter()
+    a = _check_inputs(m, actuated)
+    tol_c = _closure_tol(tol)
+    limit = _positive(time_limit, "time_limit")
+    if method not in (None, "closed_form", "numeric"):
+        raise InvalidArgumentError("method", f"unknown FK method {method!r}; use 'closed_form' or 'numeric'")
+    cm = _compiled(m)
+    use_closed = method == "closed_form" or (method is None and closed_form.has_fk(m))
+    found: list[np.ndarray] = []
+    if use_closed:
+        for q in closed_form.fk(m, a):
+            c = np.max(np.abs(m.closure(q)), initial=0.0)
+            if c > tol_c:  # polish a closed form that lost digits (e.g. near a singularity)
+                q = _levenberg_marquardt(cm, q, tol_c, max_iter, start + limit).q
+            if not any(same_mode(m, q, f) for f in found):
+                found.append(q)
+        label = "closed_form"
+    else:
+        rng = as_rng(seed)
+        idle = 0
+        while idle < patience and time.perf_counter() - start < limit:
+            trial = m.random_q(seed=rng)
+            trial[cm.act] = a
+            sol = _levenberg_marquardt(cm, trial, tol_c, max_iter, start + limit)
+            q = m.wrap(sol.q)
+            if sol.residual <= tol_c and m.within_limits(q) and not any(same_mode(m, q, f) for f in found):
+                found.append(q)
+                idle = 0
+            else:
+                idle += 1
+        label = "numeric"
+    results = []
+    for q in found:
+        res = _result(
+            m,
+            cm,
+            q,
+            float(np.max(np.abs(m.closure(q)), initial=0.0)),
+            tol_c,
+            start,
+            singular_condition,
+            method=label,
+        )
+        if res.success:
+            results.append(res)
+    return results

@@ -22,21 +22,23 @@ from optik.errors import InvalidArgumentError
 Level = tuple[np.ndarray, np.ndarray]
 """A hierarchy level: rows ``J`` and the target ``t`` of ``J dq = t``."""
 
-PinvFn = Callable[[np.ndarray], np.ndarray]
-
 RCOND = 1e-10
 """Singular values below ``RCOND * sigma_max`` count as zero in the exact pseudo-inverse."""
 
 
-def damped_pinv(jac: np.ndarray, damping: float = 0.0, threshold: float = 0.0) -> np.ndarray:
-    """Damped pseudo-inverse ``J# = V diag(s_i / (s_i^2 + lambda^2)) U^T``.
+def pinv_pair(jac: np.ndarray, damping: float = 0.0, threshold: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Damped and exact pseudo-inverses of ``J`` from one SVD ``J = U diag(s) V^T``.
 
-    * ``threshold == 0``: fixed damping ``lambda = damping`` (``0``: the Moore-Penrose inverse with
-      singular values below ``RCOND * s_max`` dropped);
+    The damped one is ``J# = V diag(s_i / (s_i^2 + lambda^2)) U^T`` with
+
+    * ``threshold == 0``: fixed damping ``lambda = damping``;
     * ``threshold > 0``: adaptive (singular-value based) damping
       ``lambda^2 = damping^2 (1 - (s_min / threshold)^2)`` when ``s_min < threshold`` else 0:
-      exact away from singularities, damped ``lambda -> damping`` at one. Joint velocities stay
-      below ``|t| / (2 lambda)`` along singular directions.
+      exact away from singularities, damped with ``lambda -> damping`` at one, where joint
+      velocities stay below ``|t| / (2 lambda)`` along singular directions.
+
+    The exact one is the Moore-Penrose inverse with singular values below ``RCOND * s_max``
+    dropped (it defines the null-space projectors).
 
     Args:
         jac: ``m x n`` matrix.
@@ -44,45 +46,52 @@ def damped_pinv(jac: np.ndarray, damping: float = 0.0, threshold: float = 0.0) -
         threshold: singular-value threshold ``epsilon`` of the adaptive scheme (0: fixed).
     """
     if jac.shape[0] == 0 or jac.shape[1] == 0:
-        return np.zeros((jac.shape[1], jac.shape[0]))
+        zero = np.zeros((jac.shape[1], jac.shape[0]))
+        return zero, zero
     u, s, vt = np.linalg.svd(jac, full_matrices=False)
+    keep = s > RCOND * max(s[0], 1e-300)
+    exact_inv = np.where(keep, 1.0 / np.where(keep, s, 1.0), 0.0)
     lam2 = damping**2
     if threshold > 0:
         s_min = s[-1] if jac.shape[0] <= jac.shape[1] else 0.0
         lam2 = damping**2 * (1 - (s_min / threshold) ** 2) if s_min < threshold else 0.0
-    if lam2 > 0:
-        inv = s / (s**2 + lam2)
-    else:
-        keep = s > RCOND * max(s[0], 1e-300)
-        inv = np.where(keep, 1.0 / np.where(keep, s, 1.0), 0.0)
-    return (vt.T * inv) @ u.T
+    damped_inv = s / (s**2 + lam2) if lam2 > 0 else exact_inv
+    vt_t = vt.T
+    return (vt_t * damped_inv) @ u.T, (vt_t * exact_inv) @ u.T
 
 
-def exact_pinv(jac: np.ndarray) -> np.ndarray:
-    """Moore-Penrose pseudo-inverse (truncated at ``RCOND``)."""
-    return damped_pinv(jac)
+def damped_pinv(jac: np.ndarray, damping: float = 0.0, threshold: float = 0.0) -> np.ndarray:
+    """The damped pseudo-inverse of :func:`pinv_pair` (``damping = 0``: Moore-Penrose)."""
+    return pinv_pair(jac, damping, threshold)[0]
 
 
-def solve_levels(levels: list[Level], n: int, pinv: PinvFn, project_last: bool = False) -> np.ndarray:
+def solve_levels(
+    levels: list[Level], n: int, damping: float = 0.0, threshold: float = 0.0, project_last: bool = False
+) -> np.ndarray:
     """Solve a hierarchy ``J_1 dq = t_1 >> J_2 dq = t_2 >> ...`` without bounds.
 
     Recursive task priority (Siciliano and Slotine): ``dq_k = dq_{k-1} + (J_k N_{k-1})# (t_k -
-    J_k dq_{k-1})``, ``N_k = N_{k-1} - (J_k N_{k-1})^+ (J_k N_{k-1})`` with ``N_0 = I``; the
-    projector uses the exact pseudo-inverse, the step ``pinv``. With ``project_last`` the last level
-    is solved on its own and projected, ``dq += N (J_last# t_last)`` (the classic gradient
-    projection of a secondary task: it never disturbs the levels above, but it is not compensated
-    for their motion).
+    J_k dq_{k-1})``, ``N_k = N_{k-1} - (J_k N_{k-1})^+ (J_k N_{k-1})`` with ``N_0 = I``; ``#`` is the
+    damped inverse of :func:`pinv_pair` for every level but the first, which is exact (the
+    closures), ``^+`` the exact one. With ``project_last`` the last level is solved on its own and
+    projected, ``dq += N (J_last# t_last)`` (the classic gradient projection of a secondary task: it
+    never disturbs the levels above, but it is not compensated for their motion).
     """
     dq = np.zeros(n)
-    proj = np.eye(n)
+    proj: np.ndarray | None = None
     for k, (jac, t) in enumerate(levels):
         if jac.shape[0] == 0:
             continue
-        if project_last and k == len(levels) - 1:
-            return dq + proj @ (pinv(jac) @ t)
-        jn = jac @ proj
-        dq = dq + pinv(jn) @ (t - jac @ dq)
-        proj = proj - exact_pinv(jn) @ jn
+        lam, eps = (0.0, 0.0) if k == 0 else (damping, threshold)
+        if project_last and k == len(levels) - 1 and k > 0:
+            inv, _ = pinv_pair(jac, lam, eps)
+            step = inv @ t
+            return dq + (step if proj is None else proj @ step)
+        jn = jac if proj is None else jac @ proj
+        inv, exact = pinv_pair(jn, lam, eps)
+        dq = dq + inv @ (t - jac @ dq)
+        if k < len(levels) - 1:
+            proj = (np.eye(n) if proj is None else proj) - exact @ jn
     return dq
 
 
@@ -109,7 +118,10 @@ def saturate(
     holds, done; else record the largest scale ``s`` of the task targets (level 0, the closures,
     unscaled) for which the solution fits the bounds, and fix the most violating coordinate at its
     bound. If no set of saturated coordinates achieves the full targets, the candidate with the
-    largest scale is returned: the motion keeps the tasks' direction at a reduced speed.
+    largest scale is returned: the motion keeps the tasks' direction at a reduced speed. Candidates
+    that break level 0 (saturation leaving too few coordinates for the closures) are discarded;
+    when none is left, the first (unsaturated) solution scaled into the bounds is returned, so that
+    the closures still make progress.
 
     Returns:
         ``dq`` within ``[lb, ub]``, the number of saturated coordinates and the task scale
@@ -119,6 +131,15 @@ def saturate(
     fixed = np.zeros(n, dtype=bool)
     dq_fixed = np.zeros(n)
     best: tuple[float, np.ndarray, int] = (-1.0, np.clip(np.zeros(n), lb, ub), 0)
+    top_jac, top_t = levels[0]
+    top_tol = 1e-9 + 1e-6 * (float(np.max(np.abs(top_t))) if top_t.size else 0.0)
+
+    first: np.ndarray | None = None
+
+    def top_ok(dq: np.ndarray) -> bool:
+        """Level 0 (the closures) still met: saturating coordinates must not break the loops."""
+        return not top_t.size or float(np.max(np.abs(top_jac @ dq - top_t))) <= top_tol
+
     for _ in range(n + 1):
         free = ~fixed
         n_free = int(free.sum())
@@ -127,22 +148,31 @@ def saturate(
         dq = dq_fixed.copy()
         if n_free:
             dq[free] = solve(full, n_free)
+        if first is None:
+            first = dq
         over = np.maximum(dq - ub, lb - dq)
         over[fixed] = -np.inf
         k = int(np.argmax(over))
-        if over[k] <= tol:
+        if over[k] <= tol and top_ok(dq):
             return np.clip(dq, lb, ub), int(fixed.sum()), 1.0
         zero = [(jac, t if i == 0 else np.zeros_like(t)) for i, (jac, t) in enumerate(levels)]
         dq0 = dq_fixed.copy()
-        if n_free:
+        if n_free and (fixed.any() or levels[0][0].shape[0]):
             reduced = [(jac[:, free], t - d) for (jac, t), d in zip(zero, shift, strict=True)]
             dq0[free] = solve(reduced, n_free)
         scale = _max_scale(dq0, dq - dq0, lb, ub, tol)
-        if scale > best[0]:
-            best = (scale, np.clip(dq0 + scale * (dq - dq0), lb, ub), int(fixed.sum()))
+        candidate = np.clip(dq0 + scale * (dq - dq0), lb, ub)
+        if scale > best[0] and top_ok(candidate):
+            best = (scale, candidate, int(fixed.sum()))
+        if over[k] <= tol:  # within the bounds but level 0 broken: no further saturation helps
+            break
         fixed[k] = True
         dq_fixed[k] = np.clip(dq[k], lb[k], ub[k])
     scale, dq, n_fixed = best
+    if scale < 0 and first is not None:  # no candidate keeps level 0: scale the whole first solution
+        zero = np.zeros(n)
+        s_all = _max_scale(zero, first, lb, ub, tol)
+        return np.clip(max(s_all, 0.0) * first if s_all >= 0 else first, lb, ub), 0, max(s_all, 0.0)
     return dq, n_fixed, max(scale, 0.0)
 
 
@@ -182,7 +212,7 @@ def solve_pseudo_inverse(
 
     Args:
         problem: the step's problem.
-        damping, threshold: see :func:`damped_pinv` (applied to every task level; the closure level
+        damping, threshold: see :func:`pinv_pair` (applied to every task level; the closure level
             is always exact).
         hierarchy: ``"projection"``: priority-0 tasks primary, the others projected into their null
             space (:func:`solve_levels` with ``project_last``); ``"strict"``: every priority value
@@ -194,18 +224,10 @@ def solve_pseudo_inverse(
     """
     levels = _levels(problem, "two" if hierarchy == "projection" else "all")
     levels, lb, ub, scale = _weighted(problem, levels, joint_weights)
-
-    def pinv(jac: np.ndarray) -> np.ndarray:
-        return damped_pinv(jac, damping, threshold)
+    project = hierarchy == "projection" and len(levels) > 2
 
     def solve(lv: list[Level], n: int) -> np.ndarray:
-        closure = solve_levels(lv[:1], n, exact_pinv)
-        rest = [(jac, t - jac @ closure) for jac, t in lv[1:]]
-        proj = np.eye(n) - exact_pinv(lv[0][0]) @ lv[0][0] if lv[0][0].shape[0] else np.eye(n)
-        inner = solve_levels(
-            [(jac @ proj, t) for jac, t in rest], n, pinv, hierarchy == "projection" and len(rest) > 1
-        )
-        return closure + proj @ inner
+        return solve_levels(lv, n, damping, threshold, project)
 
     y, n_sat, task_scale = saturate(levels, lb, ub, solve)
     return y * scale, n_sat, task_scale

@@ -102,7 +102,7 @@ class OsqpWorkspace:
             l=np.concatenate([problem.lb, problem.b]),
             u=np.concatenate([problem.ub, problem.b]),
         )
-        res = self.solver.solve()
+        res = self.solver.solve(raise_error=False)
         status = str(res.info.status)
         if status in ("solved", "solved inaccurate"):
             return QPOutcome(np.asarray(res.x, dtype=float), "optimal", f"osqp {status}")

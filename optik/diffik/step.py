@@ -35,7 +35,8 @@ class StepResult:
     Attributes:
         v: joint velocity ``dq / dt``.
         q: next configuration ``q + v dt``, within the limits (or, starting outside, no farther
-            out than before).
+            out than before); closed chains are projected back onto their closures (see
+            :func:`integrate`).
         status: ``"ok"``; ``"saturated"`` (pseudo-inverse methods that held coordinates at
             their bounds or scaled the task velocity down to fit them);
             ``"qp_infeasible_fallback"`` / ``"qp_failed_fallback"`` (the QP had no solution and
@@ -65,10 +66,29 @@ class StepResult:
         return not self.status.startswith("qp_")
 
 
+CLOSURE_TOL = 1e-12
+"""Closure residual (max-norm) to which :func:`integrate` projects closed chains."""
+
+
 def integrate(m: Mechanism, q: np.ndarray, v: np.ndarray, dt: float) -> np.ndarray:
     """``q + v dt`` clipped to ``[min(lower, q), max(upper, q)]``: rounding and solver tolerance
-    never take a coordinate out of its limits, nor farther out when it started outside."""
-    return np.clip(q + v * dt, np.minimum(m.lower, q), np.maximum(m.upper, q))
+    never take a coordinate out of its limits, nor farther out when it started outside.
+
+    For closed chains the step keeps ``J_c dq = -c`` only to first order; the new configuration is
+    projected back onto ``c(q) = 0`` by up to 3 Gauss-Newton corrections
+    ``q <- q - J_c^+ c(q)`` (minimum norm, second order in the step), each clipped the same way.
+    """
+    lo, hi = np.minimum(m.lower, q), np.maximum(m.upper, q)
+    q_next = np.clip(q + v * dt, lo, hi)
+    if m.is_closed:
+        f = m.closure_function
+        for _ in range(3):
+            c, jc = f(q_next)
+            c = np.asarray(c, dtype=float).reshape(-1)
+            if np.max(np.abs(c)) <= CLOSURE_TOL:
+                break
+            q_next = np.clip(q_next - np.linalg.pinv(np.asarray(jc, dtype=float)) @ c, lo, hi)
+    return q_next
 
 
 def _dls(problem: DiffIKProblem, method: str, options: dict[str, Any]) -> tuple[np.ndarray, int, float]:

@@ -16,7 +16,8 @@ Supported, per joint on the path:
 
 ``<origin xyz rpy>`` places the joint frame in the parent link: ``T = Trans(xyz) R`` with
 URDF's ``R = Rot(z, yaw) Rot(y, pitch) Rot(x, roll)`` = :func:`optik.spatial.rpy_to_rot`.
-``<axis xyz>`` (default ``1 0 0``) is normalized. ``floating`` and ``planar`` joints and
+``<axis xyz>`` (default ``1 0 0``) is normalized. ``<limit velocity>`` values, when every moving
+joint has a positive one, are kept in ``m.params["velocity_limits"]``. ``floating`` and ``planar`` joints and
 ``<mimic>`` joints on the path are rejected with :class:`~optik.errors.ModelError`.
 
 Safety: the text is parsed with :mod:`xml.etree.ElementTree` only after a check that rejects any
@@ -137,6 +138,16 @@ def _limits(src: _Source, joint: ET.Element, kind: str, where: str) -> tuple[flo
     return float(lo), float(hi)
 
 
+def _velocity(src: _Source, joint: ET.Element, where: str) -> float | None:
+    """``<limit velocity>`` when given and positive, else None (zero often means "unspecified")."""
+    el = joint.find("limit")
+    text = None if el is None else el.get("velocity")
+    if text is None:
+        return None
+    v = float(_floats(src, f"{where} <limit velocity>", text, 1, (0.0,))[0])
+    return v if v > 0 else None
+
+
 def _link_of(src: _Source, joint: ET.Element, tag: str, where: str) -> str:
     el = joint.find(tag)
     name = None if el is None else el.get("link")
@@ -205,7 +216,9 @@ def load_urdf(source: str | os.PathLike[str], base_link: str, tip_link: str) -> 
     Returns:
         Mechanism named after the ``<robot name>``, with task ``"pose"``, coordinates named after
         the URDF joints, limits from ``<limit>`` (``[-pi, pi]`` for continuous joints) and the
-        parsed chain in ``m.params`` (``"urdf"``: source label, ``"base_link"``, ``"tip_link"``).
+        parsed chain in ``m.params`` (``"urdf"``: source label, ``"base_link"``, ``"tip_link"``,
+        and ``"velocity_limits"``, rad/s or m/s per coordinate, when every moving joint on the
+        path has a positive ``<limit velocity>``).
 
     Raises:
         InvalidArgumentError: ``source`` is neither an existing file nor XML text.
@@ -219,6 +232,7 @@ def load_urdf(source: str | os.PathLike[str], base_link: str, tip_link: str) -> 
     root = _parse_xml(src)
     path = _chain(src, root, base_link, tip_link)
     joints: list[Joint] = []
+    velocities: list[float | None] = []
     frames: dict[str, tuple[str, np.ndarray]] = {}
     body, pending = base_link, np.eye(4)
     for el, child in path:
@@ -238,6 +252,7 @@ def load_urdf(source: str | os.PathLike[str], base_link: str, tip_link: str) -> 
         if el.find("mimic") is not None:
             raise ModelError(f"{src.label}: {where} has <mimic>; coupled joints are not supported")
         lo, hi = _limits(src, el, kind, where)
+        velocities.append(_velocity(src, el, where))
         joints.append(
             Joint(
                 name,
@@ -255,4 +270,6 @@ def load_urdf(source: str | os.PathLike[str], base_link: str, tip_link: str) -> 
         raise ModelError(f"{src.label}: no moving joint between {base_link!r} and {tip_link!r}")
     m = Mechanism(joints, base_link, frames, tip_link, root.get("name") or "urdf", task="pose")
     m.params = {"urdf": src.label, "base_link": base_link, "tip_link": tip_link}
+    if all(v is not None for v in velocities):
+        m.params["velocity_limits"] = np.array(velocities, dtype=float)
     return m

@@ -136,6 +136,9 @@ def test_defaults_origin_and_axis():
     m = load_urdf(_robot(_joint("j", "revolute", "a", "b", limit=(-1, 1))), "a", "b")
     np.testing.assert_array_equal(m.joints[0].origin, np.eye(4))
     np.testing.assert_array_equal(m.joints[0].axis, [1.0, 0.0, 0.0])  # URDF default axis
+    np.testing.assert_array_equal(m.params["velocity_limits"], [1.0])
+    # a continuous joint without <limit velocity> leaves the chain without velocity limits
+    assert "velocity_limits" not in load_urdf(MIXED, "world", "tcp").params
 
 
 @settings(max_examples=25, deadline=None)
@@ -215,6 +218,10 @@ def test_errors_name_the_file_and_joint(tmp_path):
         (_joint("j", "revolute", "a", "b", axis="0 0 0", limit=(-1, 1)), r"'j'.*non-zero"),
         (_joint("j", "revolute", "a", "b", limit=("x", 1)), r"'j' <limit lower>"),
         (_joint("j", "revolute", "a", "b", limit=(1, -1)), r"'j'.*lower 1.0 > upper -1.0"),
+        (
+            _joint("j", "revolute", "a", "b", extra='<limit lower="0" upper="1" velocity="fast"/>'),
+            r"'j' <limit velocity>",
+        ),
         (_joint("j", "revolute", "a", "b"), r"'j'.*needs <limit"),
         (_joint("j", "prismatic", "a", "b"), r"'j'.*prismatic joint needs <limit"),
         (_joint("j", "floating", "a", "b"), r"'j'.*'floating' is not supported"),
@@ -285,7 +292,7 @@ def test_catalog_matches_urdf(name, ctor):
     np.testing.assert_array_equal(m.upper, u.upper)
     q = m.random_q(200, seed=np.random.default_rng(7))
     np.testing.assert_allclose(m.fk(q), u.fk(q), rtol=0, atol=1e-12)
-    assert m.params["velocity_limits"].shape == (7,)
+    np.testing.assert_allclose(m.params["velocity_limits"], u.params["velocity_limits"], rtol=1e-15)
 
 
 def test_published_dimensions():
@@ -314,6 +321,20 @@ def test_pinocchio_loads_the_same_robot(name, ctor):
     for q in m.random_q(50, seed=np.random.default_rng(3)):
         pin.framesForwardKinematics(model, data, q)
         np.testing.assert_allclose(data.oMf[frame].homogeneous, m.fk(q), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize(("name", "ctor"), ARMS)
+def test_bad_input_raises_optik_errors(name, ctor):
+    for m in (ctor(), optik.Mechanism.from_urdf(urdf_path(name), *URDF_CHAINS[name])):
+        q = m.mid_q()
+        with pytest.raises(optik.NonFiniteError, match="q"):
+            m.fk(np.where(np.arange(7) == 2, np.nan, q))
+        with pytest.raises(optik.NonFiniteError, match="q"):
+            m.jacobian(np.where(np.arange(7) == 0, np.inf, q))
+        with pytest.raises(optik.ShapeError, match="q"):
+            m.fk(q[:6])
+        with pytest.raises(UnknownFrameError, match="no_such_link"):
+            m.fk(q, frame="no_such_link")
 
 
 def _fd_jacobian(m, q, h=1e-6):

@@ -18,8 +18,9 @@ from optik.errors import (
     UnknownFrameError,
 )
 from optik.mechanism import Joint, Mechanism, dh_chain, planar_chain
+from optik.problem import IKProblem, build_ik_problem
 from optik.results import FKResult, IKResult
-from optik.solvers import Tolerances, solve_ik
+from optik.solvers import Tolerances, solve_ik, solve_ik_all
 from optik.solvers.fk import solve_fk, solve_fk_all
 from optik.targets import Pose2D, Position
 
@@ -27,6 +28,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "FKResult",
+    "IKProblem",
     "IKResult",
     "InvalidArgumentError",
     "Joint",
@@ -42,6 +44,7 @@ __all__ = [
     "SolverUnavailableError",
     "Tolerances",
     "UnknownFrameError",
+    "build_ik_problem",
     "catalog",
     "closed_form",
     "dh_chain",
@@ -50,5 +53,6 @@ __all__ = [
     "solve_fk",
     "solve_fk_all",
     "solve_ik",
+    "solve_ik_all",
     "spatial",
 ]

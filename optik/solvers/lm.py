@@ -139,8 +139,10 @@ def solve_lm(request: IKRequest) -> IKResult:
     opts = method_options(request, DEFAULTS)
     m, tol = request.mechanism, request.tol
     block = int(opts["block"])
+    setup = time.perf_counter()
     fn = _native_block(m, request.task, request.frame, float(opts["closure_weight"]), block, opts["compile"])
     errors = errors_against(m, request.task, request.frame, request.target, opts["compile"])
+    request.exclude_setup(setup)
     ins = fn.inputs
     ins[2][:] = target_parameters(request.target)
     ins[3][:] = opts["weights"]

@@ -34,10 +34,10 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from optik import closed_form
 from optik.checks import as_rng
-from optik.errors import InvalidArgumentError, SolverUnavailableError
+from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
+from optik.problems import assemble
 
 __all__ = ["draw", "draw_branches", "save_figure", "workspace", "write_atomic"]
 
@@ -302,29 +302,16 @@ def draw_branches(m: Mechanism, qs: Sequence[Any], title: str | None = None, **s
     return fig
 
 
-def _assemble(m: Mechanism, actuated: np.ndarray) -> list[np.ndarray]:
-    """Every assembly mode (closed form) or one (``optik.solve_fk``) for actuated values."""
-    if closed_form.has_fk(m):
-        return closed_form.fk(m, actuated)
-    import optik
-
-    solve_fk = getattr(optik, "solve_fk", None)
-    if solve_fk is None:
-        raise SolverUnavailableError(
-            f"{m.name!r} is a closed chain without a closed-form FK and optik.solve_fk is not available"
-        )
-    res = solve_fk(m, actuated)
-    return [np.asarray(res.q)] if res.success else []
-
-
 def workspace_points(
     m: Mechanism, n: int = 2000, seed: int | np.random.Generator | None = 0
 ) -> tuple[np.ndarray, np.ndarray, int]:
     """Sampled reachable end-effector positions.
 
     Open chains: ``q ~ U(lower, upper)``, point ``p_ee(q)``. Closed chains: the actuated
-    coordinates ``a ~ U(lower_a, upper_a)`` are assembled (closed-form FK: every assembly mode
-    within limits; else :func:`optik.solve_fk`) and the non-assemblable samples are dropped.
+    coordinates ``a ~ U(lower_a, upper_a)`` are assembled and the non-assemblable samples are
+    dropped. Planar closed chains use the closed-form FK (every assembly mode within limits);
+    spatial ones the numerical :func:`optik.solve_fk` (one mode per sample from the mid-limit
+    start), since the closed-form FK of a 6-6 platform costs about a second per sample.
 
     Returns:
         ``(points (k, 3), mode (k,) assembly-mode index, samples drawn)``.
@@ -340,7 +327,7 @@ def workspace_points(
     samples = rng.uniform(m.lower[idx], m.upper[idx], size=(int(n), len(idx)))
     qs, modes = [], []
     for a in samples:
-        for k, q in enumerate(_assemble(m, a)):
+        for k, q in enumerate(assemble(m, a, numerical=not m.planar)):
             qs.append(q)
             modes.append(k)
     if not qs:
@@ -396,7 +383,7 @@ def _first_assembly(m: Mechanism) -> np.ndarray | None:
     for scale in (0.0, 0.1, 0.3, 0.6):
         for _ in range(5):
             a = mid + scale * (m.upper[idx] - m.lower[idx]) * rng.uniform(-0.5, 0.5, len(idx))
-            qs = _assemble(m, a)
+            qs = assemble(m, a, numerical=not m.planar)
             if qs:
                 return qs[0]
     return None

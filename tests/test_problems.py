@@ -1,0 +1,149 @@
+"""Tests of optik.problems: schema validation with named errors, shipped files, target sampling."""
+
+from __future__ import annotations
+
+import textwrap
+
+import numpy as np
+import pytest
+
+from optik import problems
+from optik.errors import InvalidArgumentError, ProblemFileError, SolverUnavailableError
+
+MINIMAL = """
+[problem]
+description = "test"
+
+[mechanism]
+constructor = "planar_3r"
+[mechanism.params]
+lengths = [1.0, 0.8, 0.5]
+"""
+
+
+def write(tmp_path, text, name="p.toml"):
+    path = tmp_path / name
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+def test_minimal_file_gets_the_design_defaults(tmp_path):
+    p = problems.load_problem(write(tmp_path, MINIMAL, "mine.toml"))
+    assert p.name == "mine" and p.default
+    assert (p.tolerances.position, p.tolerances.orientation, p.tolerances.closure) == (1e-6, 1e-6, 1e-9)
+    assert p.methods is None and p.peers == ()
+    assert p.mechanism().params["lengths"] == (1.0, 0.8, 0.5)
+    assert p.mechanism_task == "pose2d"
+
+
+@pytest.mark.parametrize(
+    ("extra", "key", "what"),
+    [
+        ("[targets]\nn = 0\n", "targets.n", "integer >= 1"),
+        ("[targets]\nn = 2.5\n", "targets.n", "integer"),
+        ("[targets]\nsampling = 'random'\n", "targets.sampling", "expected one of"),
+        ("[tolerances]\nposition = -1.0\n", "tolerances.position", "> 0"),
+        ("[tolerances]\nposition = 'tight'\n", "tolerances.position", "number"),
+        ("[solvers]\npeers = ['moveit']\n", "solvers.peers", "moveit"),
+        ("[solvers]\ntime_limit = true\n", "solvers.time_limit", "number"),
+        ("[solvers]\nspeed = 3\n", "solvers.speed", "unknown key"),
+        ("[limits]\nlower = []\n", "limits.lower", "non-empty array"),
+        ("[extras]\nx = 1\n", "[extras]", "unknown table"),
+    ],
+)
+def test_schema_errors_name_file_and_key(tmp_path, extra, key, what):
+    path = write(tmp_path, MINIMAL + extra)
+    with pytest.raises(ProblemFileError) as info:
+        problems.load_problem(path)
+    msg = str(info.value)
+    assert msg.startswith(str(path)), msg
+    assert key in msg and what in msg, msg
+
+
+@pytest.mark.parametrize(
+    ("text", "key"),
+    [
+        ("[problem]\ndescription = 'x'\n", r"\[mechanism\]: missing required table"),
+        ("[problem]\n[mechanism]\nconstructor = 'planar_2r'\n", "problem.description: missing required key"),
+        (MINIMAL.replace('"planar_3r"', '"hexapod"'), "mechanism.constructor"),
+        (MINIMAL.replace("lengths =", "widths ="), "mechanism.params.widths"),
+        ("[problem\n", "invalid TOML"),
+    ],
+)
+def test_structural_errors(tmp_path, text, key):
+    path = write(tmp_path, text)
+    with pytest.raises(ProblemFileError, match=key) as info:
+        problems.load_problem(path)
+    assert str(path) in str(info.value)
+
+
+def test_constructor_and_limit_errors_surface_when_building(tmp_path):
+    bad_len = problems.load_problem(write(tmp_path, MINIMAL.replace("[1.0, 0.8, 0.5]", "[1.0, -0.8, 0.5]")))
+    with pytest.raises(ProblemFileError, match=r"mechanism\.params\.lengths"):
+        bad_len.mechanism()
+    short = problems.load_problem(write(tmp_path, MINIMAL + "[limits]\nlower = [0.0, 0.0]\n", "s.toml"))
+    with pytest.raises(ProblemFileError, match=r"limits\.lower: expected 3 values"):
+        short.mechanism()
+    crossed = problems.load_problem(
+        write(tmp_path, MINIMAL + "[limits]\nlower = [1.0, 0.0, 0.0]\nupper = [0.0, 1.0, 1.0]\n", "c.toml")
+    )
+    with pytest.raises(ProblemFileError, match="limits"):
+        crossed.mechanism()
+
+
+def test_sampling_mode_must_fit_the_chain(tmp_path):
+    p = problems.load_problem(write(tmp_path, MINIMAL + "[targets]\nsampling = 'actuated'\n"))
+    with pytest.raises(ProblemFileError, match=r"targets\.sampling"):
+        p.sample_targets(3)
+
+
+def test_missing_file_and_unknown_problem(tmp_path):
+    with pytest.raises(ProblemFileError, match="cannot read"):
+        problems.load_problem(tmp_path / "nope.toml")
+    with pytest.raises(InvalidArgumentError, match="unknown problem 'nope'"):
+        problems.find_problem("nope")
+    with pytest.raises(InvalidArgumentError, match="problems"):
+        problems.list_problems(tmp_path / "absent")
+
+
+SHIPPED = sorted(p.stem for p in problems.PROBLEM_DIR.glob("*.toml"))
+
+
+def test_every_mechanism_of_the_issue_has_a_problem_file():
+    wanted = {
+        "planar_2r", "planar_3r", "rp_arm", "pp_arm", "seed_6r_arm", "five_bar", "doggy",
+        "slider_crank", "planar_3rpr", "stewart_gough", "panda", "iiwa14",
+    }
+    assert wanted <= set(SHIPPED)
+    assert {p.name for p in problems.default_problems()} >= wanted
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_shipped_problem_targets(name):
+    p = problems.find_problem(name)
+    m = p.mechanism()
+    try:
+        t = p.sample_targets(6, seed=1)
+    except SolverUnavailableError as exc:
+        pytest.skip(f"sampling {name} needs a solver that is not registered: {exc}")
+    assert len(t) >= 1 and t.q.shape[1] == m.n_q
+    assert np.all(t.q >= m.lower) and np.all(t.q <= m.upper)
+    for q, pose in zip(t.q, t.poses, strict=True):
+        np.testing.assert_allclose(m.fk(q), pose, atol=1e-12)
+        if m.is_closed:
+            assert np.max(np.abs(m.closure(q))) <= p.tolerances.closure
+    again = p.sample_targets(6, seed=1)
+    np.testing.assert_array_equal(t.q, again.q)
+    if p.urdf:
+        chain = p.urdf_chain()
+        assert chain is not None and chain[0].is_file()
+
+
+def test_joint_sampling_is_uniform_within_limits():
+    p = problems.find_problem("planar_2r")
+    t = p.sample_targets(400, seed=0)
+    m = p.mechanism()
+    assert t.sampling == "joint" and t.draws == 400
+    # uniform on [-pi, pi]: mean near 0, std near pi / sqrt(3)
+    assert np.all(np.abs(t.q.mean(axis=0)) < 0.3)
+    np.testing.assert_allclose(t.q.std(axis=0), (m.upper - m.lower) / np.sqrt(12), rtol=0.1)

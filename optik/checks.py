@@ -26,7 +26,7 @@ def as_vector(value: Any, name: str, size: int | None = None) -> np.ndarray:
         raise ShapeError(name, f"expected a vector, got an array of shape {a.shape}")
     if size is not None and a.shape[0] != size:
         raise ShapeError(name, f"expected {size} values, got {a.shape[0]}")
-    if not np.all(np.isfinite(a)):
+    if not np.isfinite(a).all():
         raise NonFiniteError(name, f"contains NaN or infinity: {a}")
     return a
 
@@ -63,13 +63,13 @@ def as_transform(value: Any, name: str) -> np.ndarray:
     t = np.asarray(value, dtype=float)
     if t.shape != (4, 4):
         raise ShapeError(name, f"expected a 4x4 transform, got shape {t.shape}")
-    if not np.all(np.isfinite(t)):
+    if not np.isfinite(t).all():
         raise NonFiniteError(name, "contains NaN or infinity")
     # np.allclose semantics (|a - b| <= atol + 1e-5 |b|) without its overhead: this runs per IK call
-    if not np.all(np.abs(t[3] - _LAST_ROW) <= 1e-9 + 1e-5 * _LAST_ROW):
+    if not (np.abs(t[3] - _LAST_ROW) <= 1e-9 + 1e-5 * _LAST_ROW).all():
         raise InvalidArgumentError(name, f"last row must be [0, 0, 0, 1], got {t[3]}")
     r = t[:3, :3]
-    if not np.all(np.abs(r.T @ r - _EYE3) <= 1e-6 + 1e-5 * _EYE3) or np.linalg.det(r) < 0:
+    if not (np.abs(r.T @ r - _EYE3) <= 1e-6 + 1e-5 * _EYE3).all() or np.linalg.det(r) < 0:
         raise InvalidArgumentError(name, "rotation block is not a proper rotation (R^T R != I or det < 0)")
     return t
 

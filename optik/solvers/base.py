@@ -183,12 +183,15 @@ def make_result(
             wrapped and clipped ``q``. Default: :func:`evaluate`.
     """
     m = request.mechanism
-    qq = np.clip(m.wrap(q), m.lower, m.upper)
+    q = np.asarray(q, dtype=float)
+    # already wrapped and within limits: m.wrap would return q itself
+    wrapped = (q >= m.lower).all() and (q <= m.upper).all() and (np.abs(q) < np.pi).all()
+    qq = q.copy() if wrapped else np.clip(m.wrap(q), m.lower, m.upper)
     if errors is None:
         err = evaluate(m, qq, request.target, request.task, request.frame)
     else:
         pos, ori, clo = errors(qq)
-        limits_ok = bool(np.all(qq >= m.lower) and np.all(qq <= m.upper))
+        limits_ok = bool((qq >= m.lower).all() and (qq <= m.upper).all())
         err = Errors(float(pos), float(ori), float(clo), limits_ok)
     success = err.ok(request.tol)
     if status is None:

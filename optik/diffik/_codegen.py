@@ -28,39 +28,47 @@ _LIBS: dict[str, ctypes.CDLL] = {}
 
 
 def cache_dir() -> Path:
-    """Directory of the compiled libraries: ``$OPTIK_CACHE_DIR`` or ``~/.cache/optik/codegen``."""
+    """Directory of the compiled libraries: ``$OPTIK_CACHE_DIR`` or ``~/.cache/optik/codegen``.
+
+    Set ``OPTIK_NO_CODEGEN=1`` to skip compilation (CasADi's own evaluation is used)."""
     root = os.environ.get("OPTIK_CACHE_DIR")
     return Path(root) if root else Path.home() / ".cache" / "optik" / "codegen"
 
 
 def _compile(source: str, name: str) -> ctypes.CDLL | None:
     """Compile C ``source`` into a cached shared library; None when no compiler works."""
-    digest = hashlib.sha1(source.encode()).hexdigest()[:16]
-    if digest in _LIBS:
-        return _LIBS[digest]
     cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
     if os.environ.get("OPTIK_NO_CODEGEN") or cc is None:
         return None
+    digest = hashlib.sha1(source.encode()).hexdigest()[:16]
+    if digest in _LIBS:
+        return _LIBS[digest]
     folder = cache_dir()
     lib_path = folder / f"{name}_{digest}.so"
-    if not lib_path.exists():
-        folder.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(dir=folder) as tmp:
-            src = Path(tmp) / f"{name}.c"
-            src.write_text(source)
-            out = Path(tmp) / f"{name}.so"
-            proc = subprocess.run(
-                [cc, "-O1", "-fPIC", "-shared", "-o", str(out), str(src), "-lm"],
-                capture_output=True,
-                text=True,
-                check=False,
-            )
-            if proc.returncode != 0:
-                return None
-            os.replace(out, lib_path)  # atomic: parallel processes may race here
-    lib = ctypes.CDLL(str(lib_path))
+    try:
+        if not lib_path.exists():
+            _build(cc, source, name, folder, lib_path)
+        lib = ctypes.CDLL(str(lib_path))
+    except (OSError, subprocess.SubprocessError):  # unwritable cache, broken compiler: fall back
+        return None
     _LIBS[digest] = lib
     return lib
+
+
+def _build(cc: str, source: str, name: str, folder: Path, lib_path: Path) -> None:
+    """Compile ``source`` into ``lib_path`` (atomically: parallel processes may race here)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=folder) as tmp:
+        src = Path(tmp) / f"{name}.c"
+        src.write_text(source)
+        out = Path(tmp) / f"{name}.so"
+        subprocess.run(
+            [cc, "-O1", "-fPIC", "-shared", "-o", str(out), str(src), "-lm"],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        os.replace(out, lib_path)
 
 
 class CompiledFunction:

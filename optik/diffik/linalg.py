@@ -115,22 +115,24 @@ def saturate(
     """Saturation in the null space with task scaling (after Flacco, De Luca and Khatib).
 
     Repeat: solve the hierarchy with the saturated coordinates fixed at their bounds; if every bound
-    holds, done; else record the largest scale ``s`` of the task targets (level 0, the closures,
-    unscaled) for which the solution fits the bounds, and fix the most violating coordinate at its
-    bound. If no set of saturated coordinates achieves the full targets, the candidate with the
-    largest scale is returned: the motion keeps the tasks' direction at a reduced speed. Candidates
+    holds, done; else record the largest scale ``s`` of the targets of the lowest levels for which
+    the solution fits the bounds (only the last level scaled if that suffices, else the last two,
+    ...; level 0, the closures, is never scaled), and fix the most violating coordinate at its
+    bound. If no set of saturated coordinates achieves the full targets, the candidate that scales
+    the fewest levels, then the least, is returned: the motion keeps the tasks' direction at a
+    reduced speed and the higher levels exact as long as they fit. Candidates
     that break level 0 (saturation leaving too few coordinates for the closures) are discarded;
     when none is left, the first (unsaturated) solution scaled into the bounds is returned, so that
     the closures still make progress.
 
     Returns:
-        ``dq`` within ``[lb, ub]``, the number of saturated coordinates and the task scale
-        (1 when the targets are met in full).
+        ``dq`` within ``[lb, ub]``, the number of saturated coordinates and the scale of the
+        scaled levels (1 when the targets are met in full).
     """
     n = lb.shape[0]
     fixed = np.zeros(n, dtype=bool)
     dq_fixed = np.zeros(n)
-    best: tuple[float, np.ndarray, int] = (-1.0, np.clip(np.zeros(n), lb, ub), 0)
+    best: tuple[int, float, np.ndarray, int] = (0, -1.0, np.clip(np.zeros(n), lb, ub), 0)
     top_jac, top_t = levels[0]
     top_tol = 1e-9 + 1e-6 * (float(np.max(np.abs(top_t))) if top_t.size else 0.0)
 
@@ -155,20 +157,23 @@ def saturate(
         k = int(np.argmax(over))
         if over[k] <= tol and top_ok(dq):
             return np.clip(dq, lb, ub), int(fixed.sum()), 1.0
-        zero = [(jac, t if i == 0 else np.zeros_like(t)) for i, (jac, t) in enumerate(levels)]
-        dq0 = dq_fixed.copy()
-        if n_free and (fixed.any() or levels[0][0].shape[0]):
-            reduced = [(jac[:, free], t - d) for (jac, t), d in zip(zero, shift, strict=True)]
-            dq0[free] = solve(reduced, n_free)
-        scale = _max_scale(dq0, dq - dq0, lb, ub, tol)
-        candidate = np.clip(dq0 + scale * (dq - dq0), lb, ub)
-        if scale > best[0] and top_ok(candidate):
-            best = (scale, candidate, int(fixed.sum()))
+        for j in range(len(levels) - 1, 0, -1):  # scale as few (lowest) levels as possible
+            zero = [(jac, t if i < j else np.zeros_like(t)) for i, (jac, t) in enumerate(levels)]
+            dq0 = dq_fixed.copy()
+            if n_free:
+                reduced = [(jac[:, free], t - d) for (jac, t), d in zip(zero, shift, strict=True)]
+                dq0[free] = solve(reduced, n_free)
+            scale = _max_scale(dq0, dq - dq0, lb, ub, tol)
+            candidate = np.clip(dq0 + scale * (dq - dq0), lb, ub)
+            if scale >= 0 and top_ok(candidate):
+                if (j, scale) > best[:2]:
+                    best = (j, scale, candidate, int(fixed.sum()))
+                break
         if over[k] <= tol:  # within the bounds but level 0 broken: no further saturation helps
             break
         fixed[k] = True
         dq_fixed[k] = np.clip(dq[k], lb[k], ub[k])
-    scale, dq, n_fixed = best
+    _, scale, dq, n_fixed = best
     if scale < 0 and first is not None:  # no candidate keeps level 0: scale the whole first solution
         zero = np.zeros(n)
         s_all = _max_scale(zero, first, lb, ub, tol)

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import time
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import casadi as ca
@@ -51,20 +51,37 @@ from optik.solvers.base import Tolerances
 DEFAULT_TIME_LIMIT = 1.0
 """Default wall-time budget of :func:`solve_fk` and of the multi-start in :func:`solve_fk_all` (s)."""
 
-SINGULAR_CONDITION = 1e6
+SINGULAR_CONDITION = 1e4
 """Condition number of ``dc/dx`` above which a result is flagged as near a singularity."""
 
 BRANCH_TOL = 1e-4
 """Two configurations are the same assembly mode when every coordinate differs by less (DESIGN.md)."""
 
 
-@dataclass(frozen=True)
+BATCH = 16
+"""Starts solved together (one mapped CasADi call per iteration) by the multi-start."""
+
+
+@dataclass
 class _Compiled:
     """Per-mechanism data of the FK solvers (built once)."""
 
     closure: ca.Function  # q -> (c, dc/dx)
     act: np.ndarray
     pas: np.ndarray
+    mapped: dict[int, ca.Function] = field(default_factory=dict)
+
+    def evaluate(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Closure ``c`` (``(N, m)``) and passive Jacobian (``(N, m, p)``) at the rows of ``qs``."""
+        n = len(qs)
+        if n == 1:
+            c, jac = self.closure(qs[0])
+            return np.asarray(c).reshape(1, -1), np.asarray(jac)[None]
+        if n not in self.mapped:
+            self.mapped[n] = self.closure.map(n)
+        c, jac = self.mapped[n](qs.T)
+        rows, cols = self.closure.size1_out(1), self.closure.size2_out(1)
+        return np.asarray(c).T, np.asarray(jac).reshape(rows, n, cols).transpose(1, 0, 2)
 
 
 _CACHE: weakref.WeakKeyDictionary[Mechanism, _Compiled] = weakref.WeakKeyDictionary()
@@ -91,54 +108,57 @@ def same_mode(m: Mechanism, q1: np.ndarray, q2: np.ndarray, tol: float = BRANCH_
 
 @dataclass
 class _Solve:
-    """Outcome of one Levenberg-Marquardt run."""
+    """Outcome of Levenberg-Marquardt runs on a batch of starts."""
 
-    q: np.ndarray
-    residual: float
+    q: np.ndarray  # (N, n_q)
+    residual: np.ndarray  # (N,) max-norm of the closure
     iterations: int
 
 
-def _evaluate(cm: _Compiled, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    c, jac = cm.closure(q)
-    return np.asarray(c).reshape(-1), np.asarray(jac)
+def _levenberg_marquardt(cm: _Compiled, qs: np.ndarray, tol: float, max_iter: int, deadline: float) -> _Solve:
+    """Minimize ``|c(x)|^2`` over the passive ``x`` from each row of ``qs`` (actuated kept).
 
-
-def _levenberg_marquardt(cm: _Compiled, q: np.ndarray, tol: float, max_iter: int, deadline: float) -> _Solve:
-    """Minimize ``|c(x)|^2`` over the passive ``x`` from ``q`` (actuated entries kept)."""
-    q = q.copy()
-    c, jac = _evaluate(cm, q)
-    cost = float(c @ c)
-    mu = 1e-8
+    All rows advance together; each keeps its own damping ``mu`` (divided by 10 after a step
+    that lowers the cost, multiplied by 10 otherwise). A row stops when ``max |c| <= tol / 1000``
+    (the answer is judged against ``tol``; the margin buys digits near singularities, where the
+    residual is quadratic in the error) or when its damping exceeds ``1e12`` (a least-squares
+    minimum: the inputs may not assemble).
+    """
+    q = np.array(qs, dtype=float, ndmin=2)
+    c, jac = cm.evaluate(q)
+    cost = np.sum(c * c, axis=1)
+    mu = np.full(len(q), 1e-8)
+    aim = tol * 1e-3
+    active = np.max(np.abs(c), axis=1, initial=0.0) > aim
     it = 0
-    while it < max_iter and np.max(np.abs(c), initial=0.0) > tol and time.perf_counter() < deadline:
+    while it < max_iter and np.any(active) and time.perf_counter() < deadline:
         it += 1
-        jtj = jac.T @ jac
-        g = jac.T @ c
-        scale = np.diag(jtj) + 1e-12 * (1 + np.max(np.diag(jtj), initial=0.0))
-        improved = False
-        while not improved and mu < 1e12:
-            try:
-                dx = np.linalg.solve(jtj + mu * np.diag(scale), -g)
-            except np.linalg.LinAlgError:
-                mu *= 10
-                continue
-            trial = q.copy()
-            trial[cm.pas] += dx
-            c_t, jac_t = _evaluate(cm, trial)
-            cost_t = float(c_t @ c_t)
-            if np.isfinite(cost_t) and cost_t < cost:
-                q, c, jac, cost = trial, c_t, jac_t, cost_t
-                mu = max(mu / 10, 1e-12)
-                improved = True
-            else:
-                mu *= 10
-        if not improved:
-            break
-    return _Solve(q, float(np.max(np.abs(c), initial=0.0)), it)
+        idx = np.flatnonzero(active)
+        jt = np.swapaxes(jac[idx], 1, 2)
+        jtj = jt @ jac[idx]
+        g = np.einsum("nij,nj->ni", jt, c[idx])
+        diag = np.diagonal(jtj, axis1=1, axis2=2)
+        scale = diag + 1e-12 * (1 + np.max(diag, axis=1, keepdims=True, initial=0.0))
+        lhs = jtj + mu[idx, None, None] * (scale[:, :, None] * np.eye(jtj.shape[1]))
+        try:
+            dx = np.linalg.solve(lhs, -g[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            dx = np.stack([np.linalg.lstsq(a, -b, rcond=None)[0] for a, b in zip(lhs, g, strict=True)])
+        trial = q[idx].copy()
+        trial[:, cm.pas] += dx
+        c_t, jac_t = cm.evaluate(trial)
+        cost_t = np.sum(c_t * c_t, axis=1)
+        better = np.isfinite(cost_t) & (cost_t < cost[idx])
+        up = idx[better]
+        q[up], c[up], jac[up], cost[up] = trial[better], c_t[better], jac_t[better], cost_t[better]
+        mu[up] = np.maximum(mu[up] / 10, 1e-12)
+        mu[idx[~better]] *= 10
+        active = (np.max(np.abs(c), axis=1, initial=0.0) > aim) & (mu < 1e12)
+    return _Solve(q, np.max(np.abs(c), axis=1, initial=0.0), it)
 
 
 def _condition(cm: _Compiled, q: np.ndarray) -> float:
-    _, jac = _evaluate(cm, q)
+    jac = cm.evaluate(q[None])[1][0]
     if jac.size == 0:
         return 1.0
     s = np.linalg.svd(jac, compute_uv=False)
@@ -227,6 +247,7 @@ def _continuation(
     """
     a0 = q0[cm.act].copy()
     q, s, ds, total = q0.copy(), 0.0, 1.0, 0
+    residual = np.zeros(1)
     while s < 1.0:
         if time.perf_counter() > deadline or ds < 1e-6:
             return None
@@ -235,12 +256,12 @@ def _continuation(
         trial[cm.act] = a0 + s_try * (a - a0)
         sol = _levenberg_marquardt(cm, trial, tol, 6, deadline)
         total += sol.iterations
-        if sol.residual <= tol and np.max(np.abs(sol.q[cm.pas] - q[cm.pas]), initial=0.0) <= max_jump:
-            q, s = sol.q, s_try
+        if sol.residual[0] <= tol and np.max(np.abs(sol.q[0, cm.pas] - q[cm.pas]), initial=0.0) <= max_jump:
+            q, s, residual = sol.q[0], s_try, sol.residual
             ds *= 2
         else:
             ds /= 2
-    return _Solve(q, float(np.max(np.abs(_evaluate(cm, q)[0]), initial=0.0)), total)
+    return _Solve(q[None], residual, total)
 
 
 def solve_fk(
@@ -288,23 +309,25 @@ def solve_fk(
     if q0 is not None and np.max(np.abs(m.closure(q_start)), initial=0.0) <= 1e-6:
         best = _continuation(cm, q_start, a, tol_c, deadline, max_jump)
         note = "" if best is not None else "continuation from q0 stopped (singularity on the way?)"
-    if best is None or best.residual > tol_c:
+    if best is None or best.residual[0] > tol_c:
         trial = q_start.copy()
         trial[cm.act] = a
         sol = _levenberg_marquardt(cm, trial, tol_c, max_iter, deadline)
-        best = sol if best is None or sol.residual < best.residual else best
+        best = sol if best is None or sol.residual[0] < best.residual[0] else best
     rng = as_rng(seed)
     restarts = 0
-    while best.residual > tol_c and time.perf_counter() < deadline:
+    while best.residual[0] > tol_c and time.perf_counter() < deadline:
         restarts += 1
         trial = m.random_q(seed=rng)
         trial[cm.act] = a
         sol = _levenberg_marquardt(cm, trial, tol_c, max_iter, deadline)
-        if sol.residual < best.residual:
+        if sol.residual[0] < best.residual[0]:
             best = sol
-    if restarts and best.residual <= tol_c:
+    if restarts and best.residual[0] <= tol_c:
         note = f"found after {restarts} random restart(s): not necessarily the mode nearest q0"
-    return _result(m, cm, best.q, best.residual, tol_c, start, singular_condition, note, restarts=restarts)
+    return _result(
+        m, cm, best.q[0], float(best.residual[0]), tol_c, start, singular_condition, note, restarts=restarts
+    )
 
 
 def solve_fk_all(
@@ -315,7 +338,7 @@ def solve_fk_all(
     time_limit: float = DEFAULT_TIME_LIMIT,
     tol: float | Tolerances | None = None,
     seed: int | np.random.Generator | None = None,
-    patience: int = 30,
+    patience: int = 64,
     max_iter: int = 50,
     singular_condition: float = SINGULAR_CONDITION,
 ) -> list[FKResult]:
@@ -353,7 +376,7 @@ def solve_fk_all(
         for q in closed_form.fk(m, a):
             c = np.max(np.abs(m.closure(q)), initial=0.0)
             if c > tol_c:  # polish a closed form that lost digits (e.g. near a singularity)
-                q = _levenberg_marquardt(cm, q, tol_c, max_iter, start + limit).q
+                q = _levenberg_marquardt(cm, q, tol_c, max_iter, start + limit).q[0]
             if not any(same_mode(m, q, f) for f in found):
                 found.append(q)
         label = "closed_form"
@@ -361,15 +384,16 @@ def solve_fk_all(
         rng = as_rng(seed)
         idle = 0
         while idle < patience and time.perf_counter() - start < limit:
-            trial = m.random_q(seed=rng)
-            trial[cm.act] = a
-            sol = _levenberg_marquardt(cm, trial, tol_c, max_iter, start + limit)
-            q = m.wrap(sol.q)
-            if sol.residual <= tol_c and m.within_limits(q) and not any(same_mode(m, q, f) for f in found):
-                found.append(q)
-                idle = 0
-            else:
-                idle += 1
+            trials = m.random_q(BATCH, seed=rng)
+            trials[:, cm.act] = a
+            sol = _levenberg_marquardt(cm, trials, tol_c, max_iter, start + limit)
+            for q_raw, res in zip(sol.q, sol.residual, strict=True):
+                q = m.wrap(q_raw)
+                if res <= tol_c and m.within_limits(q) and not any(same_mode(m, q, f) for f in found):
+                    found.append(q)
+                    idle = 0
+                else:
+                    idle += 1
         label = "numeric"
     results = []
     for q in found:

@@ -1,0 +1,172 @@
+"""Numerical forward kinematics of closed chains (optik.solve_fk, optik.solve_fk_all)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+import optik
+from optik import closed_form as cf
+from optik.solvers import fk as fk_mod
+from optik.solvers.fk import same_mode
+
+
+def _stewart_target(rng: np.random.Generator) -> np.ndarray:
+    t = np.eye(4)
+    t[:3, :3] = optik.spatial.rpy_to_rot(*rng.uniform(-0.3, 0.3, 3))
+    t[:3, 3] = np.array([0.0, 0.0, 1.0]) + rng.uniform(-0.15, 0.15, 3)
+    return t
+
+
+def _targets(name: str, rng: np.random.Generator, n: int) -> list:
+    """Random reachable targets of each catalog closed chain."""
+    makers = {
+        "five_bar": lambda: optik.Position(rng.uniform(-0.2, 1.2), rng.uniform(0.9, 1.7)),
+        "doggy": lambda: optik.Pose2D(rng.uniform(-0.3, 0.3), rng.uniform(0.55, 1.0), rng.uniform(-0.5, 0.5)),
+        "slider_crank": lambda: optik.Position(rng.uniform(-1.2, -0.8), 0.0),
+        "planar_3rpr": lambda: optik.Pose2D(
+            rng.uniform(0.6, 1.4), rng.uniform(0.4, 1.1), rng.uniform(-np.pi, np.pi)
+        ),
+        "stewart_gough": lambda: _stewart_target(rng),
+    }
+    return [makers[name]() for _ in range(n)]
+
+
+CHAINS = ["five_bar", "doggy", "slider_crank", "planar_3rpr", "stewart_gough"]
+
+
+@pytest.mark.parametrize("name", CHAINS)
+def test_round_trip_pose_ik_fk_all_contains_the_configuration(name):
+    m = getattr(optik.catalog, name)()
+    rng = np.random.default_rng(4)
+    n = 2 if name == "stewart_gough" else 8
+    checked = 0
+    for target in _targets(name, rng, n):
+        for q in cf.ik(m, target):
+            a = q[m.actuated_indices]
+            modes = optik.solve_fk_all(m, a)
+            assert any(same_mode(m, r.q, q) for r in modes)
+            assert all(r.success and r.residual <= 1e-9 for r in modes)
+            one = optik.solve_fk(m, a, q0=q)
+            assert one.success and same_mode(m, one.q, q)
+            assert np.allclose(one.pose, m.fk(q), atol=1e-9)
+            checked += 1
+            if name == "stewart_gough":
+                break
+    assert checked >= n
+
+
+@pytest.mark.parametrize("name", ["five_bar", "slider_crank", "planar_3rpr"])
+def test_numeric_multistart_matches_closed_form(name):
+    m = getattr(optik.catalog, name)()
+    rng = np.random.default_rng(9)
+    for target in _targets(name, rng, 4):
+        q = cf.ik(m, target)[0]
+        a = q[m.actuated_indices]
+        exact = optik.solve_fk_all(m, a, method="closed_form")
+        numeric = optik.solve_fk_all(m, a, method="numeric", seed=1)
+        assert len(numeric) == len(exact) >= 1
+        for r in exact:
+            best = min(np.max(np.abs(optik.spatial.wrap_angle(r.q - s.q))) for s in numeric)
+            assert best < 1e-9
+
+
+def test_five_bar_two_assembly_modes_and_four_working_modes_numerically():
+    m = optik.catalog.five_bar()
+    branches = cf.ik(m, optik.Position(0.5, 1.4))
+    assert len(branches) == 4
+    for q in branches:
+        modes = optik.solve_fk_all(m, q[:2], method="numeric", seed=3)
+        assert len(modes) == 2
+        assert any(np.max(np.abs(optik.spatial.wrap_angle(r.q - q))) < 1e-9 for r in modes)
+
+
+def test_tracking_follows_the_assembly_mode_of_q0():
+    """Step the actuators of each five-bar mode: the answer is the same mode moved a little."""
+    m = optik.catalog.five_bar()
+    q_start = cf.ik(m, optik.Position(0.5, 1.4))
+    for q0 in q_start:
+        a1 = q0[:2] + np.array([0.15, -0.1])
+        res = optik.solve_fk(m, a1, q0=q0)
+        modes = cf.fk(m, a1)
+        nearest = min(modes, key=lambda q: np.linalg.norm(optik.spatial.wrap_angle(q - q0)))
+        assert res.success and same_mode(m, res.q, nearest)
+
+
+def test_doggy_fk_from_four_leg_angles_is_least_squares_with_residual_check():
+    m = optik.catalog.doggy()
+    pose = optik.Pose2D(0.1, 0.8, 0.2)
+    for q in cf.ik(m, pose):
+        a = q[m.actuated_indices]
+        res = optik.solve_fk(m, a)
+        assert res.success
+        assert np.allclose(res.pose, pose.as_transform(), atol=1e-9)
+        bad = optik.solve_fk(m, a + np.array([0.05, 0.0, 0.0, 0.0]), time_limit=0.2)
+        assert not bad.success
+        assert bad.residual > 1e-3
+        assert "cannot assemble" in bad.message
+
+
+def test_non_assemblable_inputs_fail_with_residual_and_message():
+    m = optik.catalog.planar_3rpr()
+    res = optik.solve_fk(m, [0.3, 0.3, 2.5], time_limit=0.2)
+    assert not res.success and res.residual > 1e-3 and "cannot assemble" in res.message
+    assert optik.solve_fk_all(m, [0.3, 0.3, 2.5]) == []
+    assert optik.solve_fk_all(m, [0.3, 0.3, 2.5], method="numeric", time_limit=0.3) == []
+
+
+def test_time_limit_is_honoured():
+    m = optik.catalog.stewart_gough()
+    start = time.perf_counter()
+    res = optik.solve_fk(m, [0.5, 0.5, 0.5, 0.5, 0.5, 2.5], time_limit=0.1)
+    assert time.perf_counter() - start < 0.5
+    assert not res.success
+
+
+def test_near_singular_assembly_is_flagged():
+    """Distal links almost stretched: the two assembly modes nearly merge."""
+    m = optik.catalog.five_bar(base=((0.0, 0.0), (0.4, 0.0)), lengths=(1.0, 1.0, 1.2, 1.2))
+    res = optik.solve_fk(m, [np.pi, 2e-5])  # |B1 B2| = l3 + l4 - 1e-10
+    assert res.success
+    assert res.condition_number > fk_mod.SINGULAR_CONDITION
+    assert res.extra["singular"] and "singularity" in res.message
+    regular = optik.solve_fk(m, [2.0, 1.0])
+    assert regular.success and not regular.extra["singular"] and regular.condition_number < 100
+
+
+def test_stewart_numeric_tracking_from_a_nearby_posture():
+    m = optik.catalog.stewart_gough()
+    rng = np.random.default_rng(8)
+    target = _stewart_target(rng)
+    q0 = cf.ik(m, target)[0]
+    moved = target.copy()
+    moved[:3, 3] += [0.05, -0.03, 0.04]
+    q1 = cf.ik(m, moved)[0]
+    res = optik.solve_fk(m, q1[m.actuated_indices], q0=q0)
+    assert res.success and np.allclose(res.pose, moved, atol=1e-8)
+
+
+def test_invalid_inputs_raise_named_errors():
+    m = optik.catalog.five_bar()
+    with pytest.raises(optik.ShapeError, match="actuated"):
+        optik.solve_fk(m, [0.1, 0.2, 0.3])
+    with pytest.raises(optik.NonFiniteError, match="actuated"):
+        optik.solve_fk(m, [np.nan, 0.2])
+    with pytest.raises(optik.InvalidArgumentError, match="time_limit"):
+        optik.solve_fk(m, [0.1, 0.2], time_limit=0.0)
+    with pytest.raises(optik.InvalidArgumentError, match="method"):
+        optik.solve_fk_all(m, [0.1, 0.2], method="magic")
+    with pytest.raises(optik.ShapeError, match="q0"):
+        optik.solve_fk(m, [0.1, 0.2], q0=[0.0])
+    with pytest.raises(optik.InvalidArgumentError, match="m"):
+        optik.solve_fk(optik.catalog.planar_2r(), [0.1, 0.2])
+    with pytest.raises(optik.SolverUnavailableError):
+        optik.solve_fk_all(optik.Mechanism(m.joints, name="hand_built"), [0.1, 0.2], method="closed_form")
+
+
+def test_compiled_functions_are_cached_per_mechanism():
+    m = optik.catalog.slider_crank()
+    assert fk_mod._compiled(m) is fk_mod._compiled(m)
+    assert fk_mod._compiled(m) is not fk_mod._compiled(optik.catalog.slider_crank())

@@ -1,0 +1,41 @@
+"""Thin adapters for the peer IK libraries the benchmark compares optik against.
+
+:func:`load_peer` returns a ready :class:`~optik.bench.peers.base.Peer` for a problem, or
+raises :class:`~optik.bench.peers.base.PeerUnavailable` with the reason (package missing, no
+URDF, different joint count), which the benchmark reports as a note instead of crashing.
+"""
+
+from __future__ import annotations
+
+from optik.bench.peers.base import Peer, PeerUnavailable
+from optik.bench.peers.ikpy_peer import IKPy
+from optik.bench.peers.pink_peer import Pink
+from optik.bench.peers.tracik_peer import TracIK
+from optik.problems import PEERS, Problem
+
+ADAPTERS: dict[str, type[Peer]] = {"trac_ik": TracIK, "pink": Pink, "ikpy": IKPy}
+"""Adapter class per peer name (the names of :data:`optik.problems.PEERS`)."""
+
+__all__ = ["ADAPTERS", "IKPy", "Peer", "PeerUnavailable", "Pink", "TracIK", "load_peer"]
+
+
+def load_peer(name: str, problem: Problem) -> Peer:
+    """The peer ``name`` bound to the problem's URDF chain.
+
+    Raises:
+        PeerUnavailable: unknown peer, package not installed, no shipped URDF, a task other than
+            the full pose, or a URDF chain whose FK differs from the mechanism's.
+    """
+    if name not in ADAPTERS:
+        raise PeerUnavailable(f"unknown peer {name!r}; known peers: {list(PEERS)}")
+    chain = problem.urdf_chain()
+    if chain is None:
+        raise PeerUnavailable(f"{name}: problem {problem.name!r} has no shipped URDF for the peers")
+    if problem.mechanism_task != "pose":
+        raise PeerUnavailable(
+            f"{name}: peers solve full poses, the problem's task is {problem.mechanism_task!r}"
+        )
+    urdf, base, tip = chain
+    peer = ADAPTERS[name](problem.mechanism(), urdf, base, tip)
+    peer.check_fk()
+    return peer

@@ -1,0 +1,91 @@
+"""What every peer adapter shares: the interface, the unavailability error, the URDF chain check.
+
+A peer is a third-party IK library run on the same targets as optik's methods. An adapter loads
+the problem's URDF once (:func:`load`), then answers ``solve(q0, target, time_limit, tol)`` with
+the best configuration it found; the harness times the call and judges success with optik's own
+evaluation (the same tolerances and exact joint limits for every solver).
+"""
+
+from __future__ import annotations
+
+import importlib
+from abc import ABC, abstractmethod
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+
+from optik.errors import SolverUnavailableError
+from optik.mechanism import Mechanism
+from optik.solvers import Tolerances
+
+
+class PeerUnavailable(SolverUnavailableError):
+    """A peer cannot run here: its package is missing, or the problem has no usable URDF."""
+
+
+class Peer(ABC):
+    """One peer IK library bound to one URDF chain.
+
+    Args:
+        mechanism: optik's model of the same chain (joint order and limits are checked
+            against the URDF's).
+        urdf: path of the URDF file.
+        base_link, tip_link: the chain's ends in the URDF.
+    """
+
+    name: str = "peer"
+    package: str = ""
+    """Import name of the library (the pip name is in the class docstring)."""
+
+    def __init__(self, mechanism: Mechanism, urdf: Path, base_link: str, tip_link: str) -> None:
+        self.mechanism = mechanism
+        self.urdf = Path(urdf)
+        self.base_link = base_link
+        self.tip_link = tip_link
+
+    @classmethod
+    def import_package(cls) -> ModuleType:
+        """The peer's module.
+
+        Raises:
+            PeerUnavailable: it is not installed (the message says how to install it).
+        """
+        try:
+            return importlib.import_module(cls.package)
+        except ImportError as exc:
+            raise PeerUnavailable(
+                f"{cls.name}: package {cls.package!r} is not installed ({exc}); "
+                "install the peers with: pip install -e '.[peers]'"
+            ) from None
+
+    def check_joints(self, n: int) -> None:
+        """Raise :class:`PeerUnavailable` when the peer's chain has ``n != mechanism.n_q`` joints."""
+        if n != self.mechanism.n_q:
+            raise PeerUnavailable(
+                f"{self.name}: the URDF chain {self.base_link} -> {self.tip_link} has {n} joints, "
+                f"the mechanism {self.mechanism.name!r} has {self.mechanism.n_q}"
+            )
+
+    def check_fk(self, samples: int = 3, tol: float = 1e-6) -> None:
+        """Compare the peer's FK with the mechanism's at random joint vectors (seeded).
+
+        Raises:
+            PeerUnavailable: the poses differ by more than ``tol`` (wrong chain or joint order).
+        """
+        m = self.mechanism
+        for q in m.random_q(samples, seed=0):
+            gap = float(np.max(np.abs(self.fk(q) - m.fk(q))))
+            if gap > tol:
+                raise PeerUnavailable(
+                    f"{self.name}: FK of the URDF chain {self.base_link} -> {self.tip_link} differs from "
+                    f"{m.name!r} by {gap:.2g}; not the same chain"
+                )
+
+    @abstractmethod
+    def fk(self, q: np.ndarray) -> np.ndarray:
+        """4x4 pose of the tip link according to the peer."""
+
+    @abstractmethod
+    def solve(self, q0: np.ndarray, target: np.ndarray, time_limit: float, tol: Tolerances) -> np.ndarray:
+        """Best joint vector found for the 4x4 ``target`` of the tip link, starting at ``q0``."""

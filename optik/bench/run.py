@@ -1,0 +1,96 @@
+"""``optik bench`` as a function: pick problems and solvers, run, print tables, write the files."""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import TextIO
+
+from optik.bench.harness import ProblemRun, known_solvers, run_problems
+from optik.bench.progress import Progress
+from optik.bench.report import format_table, machine_info, write_outputs
+from optik.errors import InvalidArgumentError
+from optik.problems import Problem, default_problems, find_problem
+
+__all__ = ["BenchOutcome", "run_bench", "select_problems"]
+
+
+@dataclass(frozen=True)
+class BenchOutcome:
+    """What :func:`run_bench` did: the problem results and the files it wrote."""
+
+    runs: list[ProblemRun]
+    files: list[Path]
+    elapsed: float
+
+
+def select_problems(names: Sequence[str] | None, directory: str | Path | None = None) -> list[Problem]:
+    """The named problems (names or ``.toml`` paths), or the default set when ``names`` is empty."""
+    if not names:
+        return default_problems(directory)
+    return [find_problem(n, directory) for n in names]
+
+
+def run_bench(
+    problems: Sequence[str] | None = None,
+    solvers: Sequence[str] | None = None,
+    n: int | None = None,
+    quick: bool = False,
+    out: str | Path = "bench-results",
+    time_limit: float | None = None,
+    problem_dir: str | Path | None = None,
+    stream: TextIO | None = None,
+    progress: bool = True,
+    command: str = "optik bench",
+) -> BenchOutcome:
+    """Run the benchmark and write JSON, CSV, Markdown and PNG charts into ``out``.
+
+    Args:
+        problems: problem names or files (default: every problem with ``default = true``).
+        solvers: restrict to these method / peer names (default: all that apply).
+        n: targets per problem (default: the file's ``n``, or ``quick_n`` with ``quick``).
+        quick: the quick settings of every file (fewer targets, shorter time limits).
+        out: output directory.
+        time_limit: seconds per IK call (default: from the files).
+        problem_dir: where named problems are looked up (default: the repository's ``problems/``).
+        stream: where tables go (default stdout); the progress bar goes to stderr.
+        progress: show the progress bar.
+        command: the command line, recorded in the report.
+
+    Raises:
+        InvalidArgumentError: unknown problem or solver name, bad ``n`` or ``time_limit``.
+        ProblemFileError: an invalid problem file.
+    """
+    if n is not None and (isinstance(n, bool) or not isinstance(n, int) or n < 1):
+        raise InvalidArgumentError("n", f"expected a positive integer, got {n!r}")
+    if time_limit is not None and not time_limit > 0:
+        raise InvalidArgumentError("time_limit", f"must be > 0 seconds, got {time_limit}")
+    known = known_solvers()
+    unknown = [s for s in solvers or () if s not in known]
+    if unknown:
+        raise InvalidArgumentError("solvers", f"unknown solver(s) {unknown}; known: {known}")
+    chosen = select_problems(problems, problem_dir)
+    sink = sys.stdout if stream is None else stream
+    bar = Progress(len(chosen)) if progress else None
+    start = time.perf_counter()
+
+    def show(run: ProblemRun) -> None:
+        sink.write(format_table(run) + "\n\n")
+        sink.flush()
+
+    runs = run_problems(chosen, quick, n, time_limit, solvers, bar, on_done=show)
+    elapsed = time.perf_counter() - start
+    meta = {
+        "command": command,
+        "date": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "quick": quick,
+        "elapsed_s": elapsed,
+        "machine": machine_info(),
+    }
+    files = write_outputs(runs, out, meta)
+    sink.write(f"{len(runs)} problems in {elapsed:.1f} s; wrote {', '.join(str(f) for f in files)}\n")
+    return BenchOutcome(runs, files, elapsed)

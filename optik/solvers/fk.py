@@ -12,11 +12,13 @@ success means ``max |c| <= tol`` *and* every coordinate within its limits (angle
 2 pi into the limits first). The closure and its passive Jacobian are one CasADi function per
 mechanism, built on first use and cached.
 
-*Tracking.* When ``q0`` closes its loops, :func:`solve_fk` moves the actuated coordinates from
-``q0``'s values to ``a`` along a straight line in steps (halved whenever Newton needs more than a
-few iterations or a passive coordinate jumps), so it returns the assembly mode reached
-continuously from ``q0``: the one "nearest" ``q0``. When ``q0`` does not close (or is None)
-Newton starts from ``q0`` directly.
+*Tracking.* When ``q0`` closes its loops and the closure is square (as many equations as
+passive coordinates, so every actuator value on the way has a mode to follow),
+:func:`solve_fk` moves the actuated coordinates from ``q0``'s values to ``a`` along a straight
+line in steps (halved whenever Newton needs more than a few iterations or a passive coordinate
+jumps), so it returns the assembly mode reached continuously from ``q0``: the one "nearest"
+``q0``. Otherwise Levenberg-Marquardt starts from ``q0`` (mid-limit when None) directly; if it
+fails, seeded random restarts follow until the time limit.
 
 *All modes.* :func:`solve_fk_all` uses the registered closed form when the mechanism has one
 (:mod:`optik.closed_form.parallel`: five-bar, slider-crank, 3-RPR, doggy, Stewart-Gough by
@@ -306,7 +308,8 @@ def solve_fk(
     q_start = m.mid_q() if q0 is None else m.check_q(q0, "q0").copy()
     best: _Solve | None = None
     note = ""
-    if q0 is not None and np.max(np.abs(m.closure(q_start)), initial=0.0) <= 1e-6:
+    square = m.n_closure == len(cm.pas)
+    if square and q0 is not None and np.max(np.abs(m.closure(q_start)), initial=0.0) <= 1e-6:
         best = _continuation(cm, q_start, a, tol_c, deadline, max_jump)
         note = "" if best is not None else "continuation from q0 stopped (singularity on the way?)"
     if best is None or best.residual[0] > tol_c:

@@ -318,8 +318,10 @@ def rot_to_zyz(r: Any) -> Any:
     psi = o.where(lock, psi_lock, o.atan2(r32, -r31))
     if o is _Num:
         psi = np.where(psi >= np.pi, psi - 2.0 * np.pi, psi)
+        phi = np.where(phi <= -np.pi, phi + 2.0 * np.pi, phi)
         return np.stack(np.broadcast_arrays(phi, theta, psi), axis=-1)
     psi = ca.if_else(psi >= np.pi, psi - 2.0 * np.pi, psi)
+    phi = ca.if_else(phi <= -np.pi, phi + 2.0 * np.pi, phi)
     return ca.vertcat(phi, theta, psi)
 
 
@@ -383,7 +385,8 @@ def so3_log(r: Any) -> Any:
 
     Uses the angle from :func:`rotation_angle` and the axis from the skew part when the angle is
     below ``pi - 1e-3``; closer to a half-turn the axis is read from the symmetric part
-    ``(R + I) / 2 = a a^T`` (largest diagonal column), whose sign is fixed by the skew part.
+    ``(R + R^T) / 2 - cos(t) I = (1 - cos(t)) a a^T`` (largest diagonal column), whose sign is
+    fixed by the skew part.
     """
     theta = rotation_angle(r)
     if isinstance(r, np.ndarray):
@@ -395,7 +398,8 @@ def so3_log(r: Any) -> Any:
         w = 2 * coef[..., None] * s
         near_pi = theta > np.pi - 1e-3
         if np.any(near_pi):
-            b = (r + np.eye(3)) / 2.0
+            # symmetric part: (R + R^T) / 2 - cos(t) I = (1 - cos(t)) a a^T (no skew leak-through)
+            b = (r + np.swapaxes(r, -1, -2)) / 2.0 - np.cos(theta)[..., None, None] * np.eye(3)
             diag = np.stack([b[..., 0, 0], b[..., 1, 1], b[..., 2, 2]], axis=-1)
             k = np.argmax(diag, axis=-1)
             idx = np.broadcast_to(k[..., None, None], (*b.shape[:-1], 1))
@@ -408,7 +412,7 @@ def so3_log(r: Any) -> Any:
     sin_t = ca.sin(theta)
     coef = ca.if_else(theta < 1e-6, 0.5 * (1 + theta**2 / 6), theta / (2 * sin_t + 1e-300))
     w_regular = 2 * coef * s
-    b = (r + ca.DM.eye(3)) / 2
+    b = ((r + r.T) / 2 - ca.cos(theta) * ca.DM.eye(3)) / (1 - ca.cos(theta) + 1e-300)  # = a a^T
     cols = [b[:, i] / ca.sqrt(b[i, i] + 1e-300) for i in range(3)]
     col = ca.if_else(
         b[0, 0] >= ca.fmax(b[1, 1], b[2, 2]), cols[0], ca.if_else(b[1, 1] >= b[2, 2], cols[1], cols[2])

@@ -150,7 +150,7 @@ def _render(ax: Axes, m: Mechanism, g: Geometry, style: dict[str, Any]) -> None:
     color = style.get("color", "tab:blue")
     lw = style.get("linewidth", 2.5)
     alpha = style.get("alpha", 1.0)
-    ms = style.get("marker_size", 7.0)
+    ms = style.get("marker_size", 7.0 if planar else 5.0)
     size = style.get("scale", 0.04 * _extent(g.points()))
     first = True
     for body in m.topology.bodies:
@@ -270,13 +270,16 @@ def draw(m: Mechanism, q: Any, ax: Axes | None = None, **style: Any) -> Axes:
     return ax
 
 
-def draw_branches(m: Mechanism, qs: Sequence[Any], title: str | None = None, **style: Any) -> Figure:
+def draw_branches(
+    m: Mechanism, qs: Sequence[Any], title: str | None = None, label: str = "branch", **style: Any
+) -> Figure:
     """One subplot per branch (IK) or assembly mode (FK), on common axis limits.
 
     Args:
         m: the mechanism.
         qs: one coordinate vector per branch (an empty list gives a figure saying so).
         title: figure title (default: the mechanism's name and the number of branches).
+        label: subplot titles are ``f"{label} {i}"`` (e.g. ``"assembly mode"``).
         **style: passed to :func:`draw`.
 
     Returns:
@@ -298,7 +301,7 @@ def draw_branches(m: Mechanism, qs: Sequence[Any], title: str | None = None, **s
         ax = _new_axes(fig, m, rows, cols, i + 1)
         _render(ax, m, g, style)
         _set_limits(ax, pts, m.planar)
-        ax.set_title(f"branch {i + 1}", fontsize=10)
+        ax.set_title(f"{label} {i + 1}", fontsize=10)
     return fig
 
 
@@ -363,7 +366,7 @@ def workspace(m: Mechanism, n: int = 2000, seed: int | np.random.Generator | Non
         if m.planar:
             ax.scatter(pts[:, 0], pts[:, 1], s=2, c=modes, cmap=cmap, vmin=0, vmax=9, alpha=0.5)
         else:
-            ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=2, c=modes, cmap=cmap, vmin=0, vmax=9, alpha=0.5)
+            ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=6, c=modes, cmap=cmap, vmin=0, vmax=9, alpha=0.6)
     q_show = m.mid_q() if not m.is_closed else _first_assembly(m)
     lim = pts
     if q_show is not None:

@@ -40,7 +40,7 @@ def run_bench(
     solvers: Sequence[str] | None = None,
     n: int | None = None,
     quick: bool = False,
-    out: str | Path = "bench-results",
+    out: str | Path = "bench-out",
     time_limit: float | None = None,
     problem_dir: str | Path | None = None,
     stream: TextIO | None = None,

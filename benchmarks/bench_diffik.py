@@ -44,6 +44,7 @@ class Row:
     converged: int = 0
     violations: int = 0
     steps_to_goal: list[int] = field(default_factory=list)
+    setup: float = 0.0
 
 
 def _errors(m: optik.Mechanism, q: np.ndarray, goal: np.ndarray) -> tuple[float, float]:
@@ -61,8 +62,12 @@ def run(
     steps: int,
     tol: float,
 ) -> Row:
-    """Run one solver on every goal from the mid-limit posture."""
+    """Run one solver on every goal from the mid-limit posture (after one untimed warm-up step that
+    builds what is built once: optik's compiled task stack, OSQP's workspace)."""
     row = Row(name)
+    t0 = time.perf_counter()
+    make(m.mid_q(), goals[0])()
+    row.setup = time.perf_counter() - t0
     for goal in goals:
         do_step = make(m.mid_q(), goal)
         for k in range(steps):
@@ -131,7 +136,7 @@ def _stats(row: Row, n_goals: int, ref: float | None) -> str:
     return (
         f"| {row.name:<24} | {np.median(t):9.1f} | {np.mean(t):9.1f} | {np.percentile(t, 95):9.1f} "
         f"| {ratio} | "
-        f"{row.converged:3d}/{n_goals:<3d} | {steps} | {row.violations:5d} |"
+        f"{row.converged:3d}/{n_goals:<3d} | {steps} | {row.violations:5d} | {row.setup * 1e3:8.1f} |"
     )
 
 
@@ -188,14 +193,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         ref = float(np.median(rows[2].times) * 1e6)
     print(
         f"\nPanda, {args.goals} goals, dt = {args.dt} s, <= {args.steps} steps, tol {args.tol:g} m/rad; "
-        f"step times in us; ratio = median / median of Pink's fastest\n"
+        f"step times in us; ratio = median / median of Pink's fastest; conv. = goals converged; steps = mean "
+        f"steps to converge; viol. = visited configurations outside the joint limits; "
+        f"setup = first (untimed) step\n"
     )
     print(
         "| solver                   |    median |      mean |       p95 |  ratio "
-        "| conv.   | steps   | viol. |"
+        "| conv.   | steps   | viol. | setup ms |"
     )
     print(
-        "|--------------------------|-----------|-----------|-----------|--------|---------|---------|-------|"
+        "|--------------------------|-----------|-----------|-----------|--------|---------|---------|-------|----------|"
     )
     for row in rows:
         print(_stats(row, args.goals, ref))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import casadi as ca
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -18,11 +19,15 @@ PLANAR_3R = optik.catalog.planar_3r()
 
 
 def _fd_jacobian(task: diffik.Task, m: optik.Mechanism, q: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    """Central differences of the task error (one CasADi function, evaluated 2 n times)."""
+    p = task.parameters(m)
+    ps = ca.SX.sym("p", p.shape[0])
+    error = ca.Function("e", [m.q_sym, ps], [task.expressions(m, m.q_sym, ps)[0]])
     cols = []
     for k in range(m.n_q):
         d = np.zeros(m.n_q)
         d[k] = h
-        cols.append((task.compute(m, q + d)[0] - task.compute(m, q - d)[0]) / (2 * h))
+        cols.append((np.asarray(error(q + d, p)) - np.asarray(error(q - d, p))).ravel() / (2 * h))
     return np.stack(cols, axis=1)
 
 
@@ -99,6 +104,20 @@ def test_adaptive_damping_is_exact_away_from_singularities() -> None:
     np.testing.assert_allclose(jac @ damped, np.eye(2), atol=1e-12)
     fixed, _ = pinv_pair(jac, damping=0.05)
     assert not np.allclose(fixed, exact)
+
+
+def test_joint_weights_shift_motion_to_light_joints_and_fixed_damping_damps() -> None:
+    q = np.array([0.3, -0.4, 0.2, -1.8, 0.1, 1.6, 0.4])
+    task = diffik.PositionTask(target=PANDA.fk(q)[:3, 3] + [0.01, 0.0, 0.0])
+    free = [diffik.ConfigurationLimit()]
+    plain = diffik.step(PANDA, q, [task], 1.0, "pinv", limits=free)
+    heavy = diffik.step(PANDA, q, [task], 1.0, "pinv", limits=free, joint_weights=[100, 1, 1, 1, 1, 1, 1])
+    p = heavy.problem
+    np.testing.assert_allclose(p.jacobian @ heavy.v, p.target, atol=1e-10)  # still exact
+    assert abs(heavy.v[0]) < 0.2 * abs(plain.v[0])
+    fixed = diffik.step(PANDA, q, [task], 1.0, "dls", limits=free, damping=0.5, adaptive=False)
+    assert np.linalg.norm(fixed.v) < np.linalg.norm(plain.v)
+    assert np.linalg.norm(p.jacobian @ fixed.v - p.target) > 1e-4  # damped: not exact
 
 
 def test_priority_top_level_exact_and_lower_level_in_null_space() -> None:
@@ -200,9 +219,15 @@ def test_acceleration_limit_bounds_velocity_change() -> None:
     assert np.all(np.abs(res.v - v_prev) <= 5.0 * 0.01 + 1e-9)
 
 
+def _assembled_five_bar(m: optik.Mechanism) -> np.ndarray:
+    res = optik.solve_ik(m, optik.Position(0.5, 1.5), q0=[2.0, 1.2, -1.0, 1.0], method="qp", time_limit=2.0)
+    assert res.success, res.message
+    return res.q
+
+
 def test_infeasible_qp_falls_back_with_status() -> None:
     m = optik.catalog.five_bar()
-    q = optik.solve_ik(m, optik.Position(0.5, 1.5), q0=[2.0, 1.2, -1.0, 1.0]).q
+    q = _assembled_five_bar(m)
     broken = q + np.array([0.0, 0.0, 0.05, 0.0])  # loop open by ~5 cm
     task = diffik.PositionTask(target=optik.Position(0.5, 1.5), axes="xy")
     for solver in ("daqp", "osqp"):
@@ -215,7 +240,7 @@ def test_infeasible_qp_falls_back_with_status() -> None:
 
 def test_closed_chain_step_keeps_the_loop_closed() -> None:
     m = optik.catalog.five_bar()
-    q = optik.solve_ik(m, optik.Position(0.5, 1.5), q0=[2.0, 1.2, -1.0, 1.0]).q
+    q = _assembled_five_bar(m)
     task = diffik.PositionTask(target=optik.Position(0.51, 1.49), axes="xy")
     for method in diffik.METHODS:
         res = diffik.step(m, q, [task], 0.01, method)
@@ -261,8 +286,6 @@ def test_task_without_target_and_unknown_frame_raise() -> None:
 
 
 def test_compiled_and_casadi_evaluation_agree(monkeypatch: pytest.MonkeyPatch) -> None:
-    import casadi as ca
-
     from optik.diffik._codegen import CompiledFunction
 
     x = ca.SX.sym("x", 3)

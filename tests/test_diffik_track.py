@@ -74,7 +74,7 @@ def test_dls_passes_the_2r_elbow_singularity_without_velocity_blow_up() -> None:
 
 def test_five_bar_driven_along_a_circle_keeps_the_loop_closed() -> None:
     m = optik.catalog.five_bar()
-    q0 = optik.solve_ik(m, optik.Position(0.5, 1.5), q0=[2.0, 1.2, -1.0, 1.0]).q
+    q0 = _start(m, optik.Position(0.5, 1.5), np.array([2.0, 1.2, -1.0, 1.0]))
     path = diffik.circle_path([0.5, 1.4, 0.0], 0.1, 120, start_angle=np.pi / 2)
     for method in ("qp", "dls"):
         res = diffik.track(m, q0, path, 0.01, method)
@@ -94,6 +94,16 @@ def test_self_motion_of_a_7dof_arm_keeps_the_end_effector_fixed() -> None:
     res = diffik.track(m, q0, path, 0.01, "priority", tasks=[elbow])
     assert res.position_error.max() < 2e-4 and res.orientation_error.max() < 2e-4  # second order in the step
     assert res.position_error[-1] < 1e-8 and res.q[-1][2] - q0[2] > 0.9
+    assert res.within_limits
+
+
+def test_doggy_body_driven_along_a_circle_keeps_both_legs_closed() -> None:
+    m = optik.catalog.doggy()
+    q0 = _start(m, optik.Pose2D(0.0, 0.8, 0.0), np.array([1.2, 0.8, -2.0, 1.9, -0.8]))
+    path = diffik.circle_path([0.0, 0.75, 0.0], 0.05, 100, start_angle=np.pi / 2)  # heading 0
+    res = diffik.track(m, q0, path, 0.01, "qp")
+    assert res.closure_error.max() < 1e-11
+    assert res.position_error.max() < 1e-4 and res.orientation_error.max() < 1e-4
     assert res.within_limits
 
 

@@ -18,7 +18,7 @@ passive coordinates, so every actuator value on the way has a mode to follow),
 line in steps (halved whenever Newton needs more than a few iterations or a passive coordinate
 jumps), so it returns the assembly mode reached continuously from ``q0``: the one "nearest"
 ``q0``. Otherwise Levenberg-Marquardt starts from ``q0`` (mid-limit when None) directly; if it
-fails, seeded random restarts follow until the time limit.
+fails, up to ``max_restarts`` seeded random restarts follow (within the time limit).
 
 *All modes.* :func:`solve_fk_all` uses the registered closed form when the mechanism has one
 (:mod:`optik.closed_form.parallel`: five-bar, slider-crank, 3-RPR, doggy, Stewart-Gough by
@@ -276,6 +276,7 @@ def solve_fk(
     seed: int | np.random.Generator | None = None,
     max_iter: int = 50,
     max_jump: float = 0.5,
+    max_restarts: int = 20,
     singular_condition: float = SINGULAR_CONDITION,
 ) -> FKResult:
     """Forward kinematics: the assembly mode of a closed chain for given actuated coordinates.
@@ -290,6 +291,7 @@ def solve_fk(
         seed: seed or Generator of the random restarts used when the first attempt fails.
         max_iter: Levenberg-Marquardt iterations per attempt.
         max_jump: largest change of a passive coordinate in one continuation step.
+        max_restarts: random restarts after a failed first attempt (fewer if time runs out).
         singular_condition: condition number above which the result is flagged as singular.
 
     Returns:
@@ -319,7 +321,7 @@ def solve_fk(
         best = sol if best is None or sol.residual[0] < best.residual[0] else best
     rng = as_rng(seed)
     restarts = 0
-    while best.residual[0] > tol_c and time.perf_counter() < deadline:
+    while best.residual[0] > tol_c and restarts < max_restarts and time.perf_counter() < deadline:
         restarts += 1
         trial = m.random_q(seed=rng)
         trial[cm.act] = a

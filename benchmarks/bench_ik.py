@@ -11,12 +11,13 @@ included. Success is judged for every solver by the same check: position error a
 orientation error <= ``--tol`` and joint limits satisfied exactly (TRAC-IK's own success flag,
 on its twist error, is shown next to it). The NLP method runs with its own budget
 ``--nlp-time-limit`` (one IPOPT solve from the mid-limit seed takes longer than 5 ms here), on
-the first ``--n-nlp`` targets. The methods run interleaved per target so that load changes on
-a shared machine hit all of them alike; the table reports success rate, mean / median / p95
-time and the ratio of each mean time to TRAC-IK's.
+the first ``--n-nlp`` targets, with IPOPT (``nlp``) and with ``sqpmethod`` (``nlp-sqp``). The
+methods run interleaved per target so that load changes on a shared machine hit all of them
+alike; the table reports success rate, mean / median / p95 time and the ratio of each mean time
+to TRAC-IK's.
 
 Run: ``python benchmarks/bench_ik.py [--n 10000] [--time-limit 0.005] [--tol 1e-5]
-[--methods lm,nlp,tracik] [--n-nlp 1000] [--nlp-time-limit 0.1]``.
+[--methods lm,nlp,nlp-sqp,tracik] [--n-nlp 1000] [--nlp-time-limit 0.1]``.
 """
 
 from __future__ import annotations
@@ -52,23 +53,25 @@ class Record:
 
     def row(self, reference_mean: float | None) -> str:
         t = np.asarray(self.times) * 1e3
-        ratio = f"{t.mean() / reference_mean:8.2f}" if reference_mean else "       -"
+        ratio = f"{t.mean() / reference_mean:.3f}" if reference_mean else "-"
         return (
-            f"| {self.name:<18} | {len(t):6d} | {100 * np.mean(self.success):7.2f} | "
-            f"{100 * np.mean(self.own_success):7.2f} | {t.mean():7.3f} | {np.median(t):7.3f} | "
-            f"{np.percentile(t, 95):7.3f} | {ratio} |"
+            f"| {self.name} | {len(t)} | {100 * np.mean(self.success):.2f} | "
+            f"{100 * np.mean(self.own_success):.2f} | {t.mean():.3f} | {np.median(t):.3f} | "
+            f"{np.percentile(t, 95):.3f} | {ratio} |"
         )
 
 
 HEADER = (
-    "| solver             |      n | succ. % | own % | mean ms | median ms | p95 ms | mean / TRAC-IK |\n"
-    "|--------------------|-------:|--------:|------:|--------:|----------:|-------:|---------------:|"
+    "| solver | n | success % | own success % | mean ms | median ms | p95 ms | mean / TRAC-IK mean |\n"
+    "|---|--:|--:|--:|--:|--:|--:|--:|"
 )
 
 
-def _optik_solver(m: optik.Mechanism, method: str, q0: np.ndarray, limit: float, tol: float) -> Solver:
+def _optik_solver(
+    m: optik.Mechanism, method: str, q0: np.ndarray, limit: float, tol: float, **options: object
+) -> Solver:
     def solve(target: np.ndarray) -> tuple[np.ndarray | None, bool]:
-        res = optik.solve_ik(m, target, q0, method=method, time_limit=limit, tol=tol)
+        res = optik.solve_ik(m, target, q0, method=method, time_limit=limit, tol=tol, **options)
         return res.q, res.success
 
     return solve
@@ -90,7 +93,7 @@ def run(
     n: int = 10000,
     time_limit: float = 0.005,
     tol: float = 1e-5,
-    methods: Sequence[str] = ("lm", "nlp", "tracik"),
+    methods: Sequence[str] = ("lm", "nlp", "nlp-sqp", "tracik"),
     n_nlp: int = 1000,
     nlp_time_limit: float = 0.1,
     seed: int = 0,
@@ -105,9 +108,11 @@ def run(
     for name in methods:
         if name == "tracik":
             solvers["TRAC-IK (Speed)"] = (_tracik_solver(path, base, tip, q0, time_limit, tol), n)
-        elif name == "nlp":
-            label = f"optik nlp ({nlp_time_limit * 1e3:g} ms)"
-            solvers[label] = (_optik_solver(m, "nlp", q0, nlp_time_limit, tol), min(n, n_nlp))
+        elif name in ("nlp", "nlp-sqp"):
+            solver = "ipopt" if name == "nlp" else "sqpmethod"
+            label = f"optik nlp {solver} ({nlp_time_limit * 1e3:g} ms)"
+            nlp = _optik_solver(m, "nlp", q0, nlp_time_limit, tol, solver=solver)
+            solvers[label] = (nlp, min(n, n_nlp))
         else:
             solvers[f"optik {name}"] = (_optik_solver(m, name, q0, time_limit, tol), n)
     for solve, _ in solvers.values():  # build and compile once, outside the timings
@@ -133,7 +138,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--n", type=int, default=10000, help="number of targets")
     p.add_argument("--time-limit", type=float, default=0.005, help="time limit per call (s)")
     p.add_argument("--tol", type=float, default=1e-5, help="position / orientation tolerance")
-    p.add_argument("--methods", default="lm,nlp,tracik", help="comma list of lm, nlp, tracik, dls, qp")
+    p.add_argument(
+        "--methods",
+        default="lm,nlp,nlp-sqp,tracik",
+        help="comma list of lm, nlp (IPOPT), nlp-sqp (sqpmethod), tracik, and any registered method",
+    )
     p.add_argument("--n-nlp", type=int, default=1000, help="targets for the (slower) nlp method")
     p.add_argument("--nlp-time-limit", type=float, default=0.1, help="time limit of nlp calls (s)")
     p.add_argument("--seed", type=int, default=0)

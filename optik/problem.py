@@ -109,6 +109,7 @@ class IKProblem:
         position_residual: ``r_p(q; target)`` (unweighted).
         orientation_residual: ``r_o(q; target)`` (unweighted).
         closure: loop-closure residual ``c(q)`` (equality constraints).
+        secondary_objective: the manipulability and distance-to-limits terms of ``f``.
         objective: the NLP objective ``f``.
         lower: lower bounds of ``q``.
         upper: upper bounds of ``q``.
@@ -126,6 +127,7 @@ class IKProblem:
     position_residual: ca.SX
     orientation_residual: ca.SX
     closure: ca.SX
+    secondary_objective: ca.SX
     objective: ca.SX
     lower: np.ndarray
     upper: np.ndarray
@@ -184,6 +186,25 @@ class IKProblem:
         m = self.mechanism
         ref = m.mid_q() if q_ref is None else m.check_q(q_ref, "q_ref")
         return np.concatenate([target_parameters(target), w, ref, sec])
+
+    def lagrangian_hessian(self, lam_f: ca.SX, lam_g: ca.SX) -> ca.SX:
+        """Gauss-Newton Hessian of the Lagrangian ``lam_f f + lam_g^T c``.
+
+        ``lam_f (J_w^T J_w + w_post I + hess(secondary terms)) + sum_i lam_g,i hess(c_i)``, with
+        ``J_w`` the Jacobian of the weighted task residual ``[w_p r_p; w_o r_o]``: the task part
+        drops the residual-curvature terms ``sum_k r_k hess(r_k)``, which vanish at a reached
+        target, so it is positive semidefinite and the solver needs no inertia correction there
+        (the step is then Gauss-Newton's, as in ``"lm"``).
+        """
+        q = self.q
+        jw = ca.jacobian(self.weighted_residual(), q)
+        h = ca.mtimes(jw.T, jw) + self.secondary_weights[0] * ca.SX.eye(q.shape[0])
+        if self.secondary:
+            h += ca.hessian(self.secondary_objective, q)[0]
+        h = lam_f * h
+        if self.closure.shape[0]:
+            h += ca.hessian(ca.dot(lam_g, self.closure), q)[0]
+        return h
 
     def error_expressions(self) -> tuple[ca.SX, ca.SX, ca.SX]:
         """Position error, orientation error and max-norm of the closure residual, symbolically.
@@ -281,12 +302,13 @@ def _build(m: Mechanism, task: str, frame: str | None, secondary: tuple[str, ...
     r_p, r_o = _task_blocks(task, m.frame_expr(frame), target)
     f = 0.5 * (weights[0] ** 2 * ca.sumsqr(r_p) + weights[1] ** 2 * ca.sumsqr(r_o))
     f += 0.5 * sec[0] * ca.sumsqr(q - q_ref)
+    f_sec = ca.SX(0)
     if "manipulability" in secondary:
         jt = m.jacobian_expr(frame)[list(TASK_ROWS[task]), :]
-        f -= sec[1] * ca.log(ca.det(ca.mtimes(jt, jt.T)) + _MANIP_EPS)
+        f_sec -= sec[1] * ca.log(ca.det(ca.mtimes(jt, jt.T)) + _MANIP_EPS)
     if "limits" in secondary:
         span = np.maximum(m.upper - m.lower, 1e-12)
-        f += 0.5 * sec[2] * ca.sumsqr((q - m.mid_q()) / span)
+        f_sec += 0.5 * sec[2] * ca.sumsqr((q - m.mid_q()) / span)
     return IKProblem(
         mechanism=m,
         task=task,
@@ -300,7 +322,8 @@ def _build(m: Mechanism, task: str, frame: str | None, secondary: tuple[str, ...
         position_residual=r_p,
         orientation_residual=r_o,
         closure=m.closure_expr,
-        objective=f,
+        secondary_objective=f_sec,
+        objective=f + f_sec,
         lower=m.lower.copy(),
         upper=m.upper.copy(),
     )

@@ -7,7 +7,7 @@ reference posture are parameters) is::
     subject to  q_min <= q <= q_max,  c(q) = 0
 
 solved by IPOPT (default) or CasADi's ``sqpmethod`` (option ``solver="sqpmethod"``, QP solver
-``qrqp``). An iteration callback checks, after every iteration, the success tolerances on the
+qpOASES). An iteration callback checks, after every iteration, the success tolerances on the
 iterate (compiled error function) and the time limit: the solve stops at the first iterate that
 meets the tolerances (``stop_at_tolerance=True``, the default) or when the time is up. Without
 early stopping IPOPT runs to its own convergence (tolerance ``ipopt_tol``), which lets a larger
@@ -30,15 +30,19 @@ Options (``solve_ik(..., method="nlp", **options)``):
 * ``stop_at_tolerance`` (True): stop each start at the first iterate that meets the tolerances.
 * ``ipopt_tol`` (1e-12): IPOPT's own convergence tolerance.
 * ``solver_options`` ({}): extra ``nlpsol`` options, e.g. ``{"ipopt.mu_init": 1e-3}``.
+* ``hessian`` (None): Hessian of the Lagrangian given to the solver, ``"gauss-newton"``
+  (:meth:`IKProblem.lagrangian_hessian`, positive semidefinite task part) or ``"exact"``
+  (CasADi's automatic second derivatives); None picks ``"exact"`` for IPOPT (fewer iterations
+  on the Panda) and ``"gauss-newton"`` for ``sqpmethod`` (its QPs need a convex Hessian).
 * ``max_restarts`` (None): cap on restarts (None: until success or the time limit).
 * ``compile`` ("auto"): compile the error check to C (see :mod:`optik.solvers.native`).
 """
 
 from __future__ import annotations
 
+import atexit
 import time
 from dataclasses import dataclass
-from functools import lru_cache
 from typing import Any
 
 import casadi as ca
@@ -62,12 +66,14 @@ DEFAULTS: dict[str, Any] = {
     "stop_at_tolerance": True,
     "ipopt_tol": 1e-12,
     "solver_options": {},
+    "hessian": None,
     "max_restarts": None,
     "compile": "auto",
 }
 """Default options of ``"nlp"``."""
 
 SOLVERS = ("ipopt", "sqpmethod")
+HESSIANS = ("gauss-newton", "exact")
 _POLISH_BELOW = 1e4
 """A start that ends within this factor of the tolerances but not within them (the posture and
 secondary terms bias the optimum slightly off the target) is polished by a second solve from its
@@ -78,9 +84,9 @@ class _Monitor(ca.Callback):
     """Iteration callback: records the best iterate and asks the solver to stop at tolerance
     (when enabled) or at the deadline."""
 
-    def __init__(self, n_x: int, n_g: int) -> None:
+    def __init__(self, n_x: int, n_g: int, n_p: int) -> None:
         ca.Callback.__init__(self)
-        self.n_x, self.n_g = n_x, n_g
+        self.n_x, self.n_g, self.n_p = n_x, n_g, n_p
         self.errors: ErrorFn | None = None
         self.goal = (0.0, 0.0, 0.0)
         self.stop_at_tolerance = True
@@ -114,11 +120,11 @@ class _Monitor(ca.Callback):
             return ca.Sparsity.dense(self.n_x)
         if name in ("g", "lam_g"):
             return ca.Sparsity.dense(self.n_g)
-        return ca.Sparsity(0, 0)
+        return ca.Sparsity.dense(self.n_p)  # lam_p: the solver writes all of it
 
     def eval(self, arg: list[Any]) -> list[int]:
         self.iterations += 1
-        x = np.asarray(arg[0], dtype=float).reshape(-1)
+        x = np.array(arg[0], dtype=float).reshape(-1)  # a copy: arg dies with the call
         errs = self.errors(x)
         score = max(e / g for e, g in zip(errs, self.goal, strict=True))
         if score < self.best_score:
@@ -151,13 +157,9 @@ def _solver_options(
         }
     return {
         **common,
-        "qpsol": "qrqp",
-        "qpsol_options": {
-            "print_iter": False,
-            "print_header": False,
-            "print_info": False,
-            "error_on_fail": False,
-        },
+        # qpOASES: qrqp corrupts memory with a user-supplied Hessian (CasADi 3.8.2)
+        "qpsol": "qpoases",
+        "qpsol_options": {"printLevel": "none", "error_on_fail": False},
         "print_header": False,
         "print_iteration": False,
         "print_status": False,
@@ -168,7 +170,29 @@ def _solver_options(
     }
 
 
-@lru_cache(maxsize=32)
+def _hessian_function(problem: IKProblem, upper: bool) -> ca.Function:
+    """``hess_lag`` option of ``nlpsol``: :meth:`IKProblem.lagrangian_hessian` (upper triangle
+    for IPOPT, full for ``sqpmethod``)."""
+    lam_f = ca.SX.sym("lam_f")
+    lam_g = ca.SX.sym("lam_g", problem.closure.shape[0])
+    h = problem.lagrangian_hessian(lam_f, lam_g)
+    return ca.Function(
+        "nlp_hess_l",
+        [problem.q, problem.parameters, lam_f, lam_g],
+        [ca.triu(h) if upper else ca.densify(h)],
+        ["x", "p", "lam_f", "lam_g"],
+        ["triu_hess_gamma_x_x" if upper else "hess_gamma_x_x"],
+    )
+
+
+_SOLVERS: dict[tuple, _Solver] = {}
+
+
+# Free the solvers before their Python iteration callbacks at interpreter exit (CasADi may
+# otherwise call into an already destroyed callback while tearing a solver down).
+atexit.register(_SOLVERS.clear)
+
+
 def nlp_solver(
     m: Mechanism,
     task: str,
@@ -177,15 +201,22 @@ def nlp_solver(
     solver: str = "ipopt",
     max_iter: int = 50,
     ipopt_tol: float = 1e-12,
-    extra: tuple[tuple[str, Any], ...] = (),
+    extra: dict[str, Any] | None = None,
+    hessian: str = "exact",
 ) -> _Solver:
-    """The ``nlpsol`` instance of an IK problem (built once per argument combination; ``extra``
-    holds additional ``nlpsol`` options as sorted ``(key, value)`` pairs)."""
-    problem = build_ik_problem(m, task, frame, secondary)
-    monitor = _Monitor(m.n_q, m.n_closure)
-    options = _solver_options(solver, max_iter, ipopt_tol, dict(extra), monitor)
-    fn = ca.nlpsol("optik_ik", solver, problem.nlp(), options)
-    return _Solver(problem, fn, monitor)
+    """The ``nlpsol`` instance of an IK problem, built once per argument combination (``extra``:
+    additional ``nlpsol`` options, part of the cache key through their ``repr``)."""
+    extra = dict(extra or {})
+    key = (m, task, frame, secondary, solver, max_iter, ipopt_tol, repr(sorted(extra.items())), hessian)
+    if key not in _SOLVERS:
+        problem = build_ik_problem(m, task, frame, secondary)
+        monitor = _Monitor(m.n_q, m.n_closure, problem.parameters.shape[0])
+        options = _solver_options(solver, max_iter, ipopt_tol, extra, monitor)
+        if hessian == "gauss-newton":
+            options["hess_lag"] = _hessian_function(problem, upper=solver == "ipopt")
+        fn = ca.nlpsol("optik_ik", solver, problem.nlp(), options)
+        _SOLVERS[key] = _Solver(problem, fn, monitor)
+    return _SOLVERS[key]
 
 
 def solve_nlp(request: IKRequest) -> IKResult:
@@ -193,6 +224,9 @@ def solve_nlp(request: IKRequest) -> IKResult:
     opts = method_options(request, DEFAULTS)
     if opts["solver"] not in SOLVERS:
         raise InvalidArgumentError("solver", f"unknown NLP solver {opts['solver']!r}; use one of {SOLVERS}")
+    hessian = opts["hessian"] or ("exact" if opts["solver"] == "ipopt" else "gauss-newton")
+    if hessian not in HESSIANS:
+        raise InvalidArgumentError("hessian", f"unknown Hessian {hessian!r}; use one of {HESSIANS}")
     m, tol = request.mechanism, request.tol
     secondary = tuple(name for name in ("manipulability", "limits") if float(opts[name]) > 0)
     setup = time.perf_counter()
@@ -207,7 +241,8 @@ def solve_nlp(request: IKRequest) -> IKResult:
         opts["solver"],
         int(opts["max_iter"]),
         float(opts["ipopt_tol"]),
-        tuple(sorted(extra.items())),
+        extra,
+        hessian,
     )
     params = s.problem.parameter_values(
         request.target,
@@ -237,7 +272,7 @@ def solve_nlp(request: IKRequest) -> IKResult:
         mon.reset()
         sol = s.solver(x0=x0, p=p, lbx=m.lower, ubx=m.upper, lbg=zeros, ubg=zeros)
         iterations += mon.iterations
-        x = np.asarray(sol["x"], dtype=float).reshape(-1)
+        x = np.array(sol["x"], dtype=float).reshape(-1)
         final = max(e / g for e, g in zip(errors(np.clip(x, m.lower, m.upper)), mon.goal, strict=True))
         return (x, final) if final <= mon.best_score else (mon.best_x, mon.best_score)
 

@@ -12,7 +12,8 @@ pinocchio's on this URDF) after at most ``--steps`` steps. Joint-limit violation
 visited configuration are counted for every solver.
 
 Pink's fastest installed solver is picked the way a new user would: each installed qpsolvers
-backend runs the first goal and the fastest median step wins.
+backend runs the first goal and the fastest median step wins. The solvers then run interleaved,
+goal by goal.
 
 Run: ``python benchmarks/bench_diffik.py [--goals 20] [--steps 300] [--dt 0.01]``.
 """
@@ -55,33 +56,35 @@ def _errors(m: optik.Mechanism, q: np.ndarray, goal: np.ndarray) -> tuple[float,
 
 
 def run(
-    name: str,
-    make: Stepper,
+    configs: Sequence[tuple[str, Stepper]],
     m: optik.Mechanism,
     goals: Sequence[np.ndarray],
     steps: int,
     tol: float,
-) -> Row:
-    """Run one solver on every goal from the mid-limit posture (after one untimed warm-up step that
-    builds what is built once: optik's compiled task stack, OSQP's workspace)."""
-    row = Row(name)
-    t0 = time.perf_counter()
-    make(m.mid_q(), goals[0])()
-    row.setup = time.perf_counter() - t0
+) -> list[Row]:
+    """Run every solver on every goal from the mid-limit posture, interleaved goal by goal (load
+    changes of a shared machine hit all solvers alike), after one untimed warm-up step per solver
+    that builds what is built once (optik's compiled task stack, OSQP's workspace)."""
+    rows = [Row(name) for name, _ in configs]
+    for row, (_, make) in zip(rows, configs, strict=True):
+        t0 = time.perf_counter()
+        make(m.mid_q(), goals[0])()
+        row.setup = time.perf_counter() - t0
     for goal in goals:
-        do_step = make(m.mid_q(), goal)
-        for k in range(steps):
-            t0 = time.perf_counter()
-            q = do_step()
-            row.times.append(time.perf_counter() - t0)
-            if np.any(q < m.lower) or np.any(q > m.upper):
-                row.violations += 1
-            pos, ori = _errors(m, q, goal)
-            if pos <= tol and ori <= tol:
-                row.converged += 1
-                row.steps_to_goal.append(k + 1)
-                break
-    return row
+        for row, (_, make) in zip(rows, configs, strict=True):
+            do_step = make(m.mid_q(), goal)
+            for k in range(steps):
+                t0 = time.perf_counter()
+                q = do_step()
+                row.times.append(time.perf_counter() - t0)
+                if np.any(q < m.lower) or np.any(q > m.upper):
+                    row.violations += 1
+                pos, ori = _errors(m, q, goal)
+                if pos <= tol and ori <= tol:
+                    row.converged += 1
+                    row.steps_to_goal.append(k + 1)
+                    break
+    return rows
 
 
 def optik_stepper(m: optik.Mechanism, dt: float, solver: str | None) -> Stepper:
@@ -177,9 +180,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             if qpsolvers is not None:
                 trial = {}
                 for name in sorted(qpsolvers.available_solvers):
-                    row = run(
-                        name, pink_stepper(urdf, tip, args.dt, name), m, goals[:1], args.steps, args.tol
-                    )
+                    config = (name, pink_stepper(urdf, tip, args.dt, name))
+                    (row,) = run([config], m, goals[:1], args.steps, args.tol)
                     trial[name] = float(np.median(row.times))
                     print(f"Pink + {name}: first goal, median step {trial[name] * 1e6:.1f} us")
                 pink_best = min(trial, key=trial.get)
@@ -187,7 +189,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 if pink_best != "osqp" and "osqp" in trial:
                     configs.append(("Pink + osqp", pink_stepper(urdf, tip, args.dt, "osqp")))
 
-    rows = [run(name, make, m, goals, args.steps, args.tol) for name, make in configs]
+    rows = run(configs, m, goals, args.steps, args.tol)
     ref = None
     if pink_best is not None:
         ref = float(np.median(rows[2].times) * 1e6)

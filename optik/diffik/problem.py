@@ -16,6 +16,7 @@ term is one compiled CasADi function per mechanism and task structure (see
 
 from __future__ import annotations
 
+import itertools
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -147,6 +148,9 @@ class StackFunction:
         self.function = CompiledFunction(f)
         self.n_closure = int(jc.shape[0])
         self.dims = [t.dim for t in tasks]
+        bounds = np.cumsum([0, *self.dims])
+        self.slices = [slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
+        self.starts = bounds[:-1]
         self.backends: dict[str, Any] = {}
         """QP backend objects that keep state between steps (OSQP workspace, cvxpy problem)."""
 
@@ -167,10 +171,11 @@ def normalize_limits(m: Mechanism, limits: Sequence[Limit] | None) -> list[Limit
     limits.
     """
     if limits is None:  # cached: the default limits' parameters are computed once
-        if m not in _DEFAULT_LIMITS:
+        cached = _DEFAULT_LIMITS.get(m)
+        if cached is None:
             found = [VelocityLimit.of(m)] if "velocity_limits" in m.params else []
-            _DEFAULT_LIMITS[m] = [*found, ConfigurationLimit()]
-        return _DEFAULT_LIMITS[m]
+            cached = _DEFAULT_LIMITS[m] = [*found, ConfigurationLimit()]
+        return cached
     else:
         chosen = list(limits)
         for lim in chosen:
@@ -212,10 +217,13 @@ def stack_function(
 ) -> StackFunction:
     """The compiled :class:`StackFunction` of a task structure (built once, then cached)."""
     key = (tuple(t.key() for t in tasks), tuple(lim.key() for lim in limits), closure_gain)
-    per_m = _STACKS.setdefault(m, {})
-    if key not in per_m:
-        per_m[key] = StackFunction(m, tasks, limits, ClosureConstraint(closure_gain))
-    return per_m[key]
+    per_m = _STACKS.get(m)
+    if per_m is None:
+        per_m = _STACKS[m] = {}
+    stack = per_m.get(key)
+    if stack is None:
+        stack = per_m[key] = StackFunction(m, tasks, limits, ClosureConstraint(closure_gain))
+    return stack
 
 
 def build_qp(
@@ -263,10 +271,7 @@ def build_qp(
     parts += [lim.parameters(m) for lim in lims]
     parts.append(np.array([_positive_float(damping, "damping")]))
     h, c, lb, ub, a, b, jw, tw, e, cres, mu = stack(qq, parts, step, vp)
-    slices, start = [], 0
-    for d in stack.dims:
-        slices.append(slice(start, start + d))
-        start += d
+    rows = jw.shape[0]
     return DiffIKProblem(
         H=h.reshape(m.n_q, m.n_q),
         c=c,
@@ -274,12 +279,12 @@ def build_qp(
         ub=ub,
         A=a.reshape(stack.n_closure, m.n_q),
         b=b,
-        jacobian=jw.reshape(start, m.n_q),
+        jacobian=jw.reshape(rows, m.n_q),
         target=tw,
         errors=e,
         closure=cres,
         mu=float(mu[0]),
-        slices=slices,
+        slices=stack.slices,
         priorities=[t.priority for t in task_list],
         q=qq,
         dt=step,

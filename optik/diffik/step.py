@@ -183,7 +183,7 @@ def step(
             status = "saturated"
             message = f"{n_sat} coordinate(s) held at a bound, task velocity scaled by {scale:.3g}"
     v = dq / problem.dt
-    errors = [float(np.linalg.norm(e)) for e in problem.task_errors()]
+    errors = np.sqrt(np.add.reduceat(problem.errors**2, problem.cache.starts)).tolist()
     closure = float(np.max(np.abs(problem.closure))) if problem.closure.size else 0.0
     return StepResult(
         v=v,

@@ -71,6 +71,7 @@ class _Compiled:
     closure: ca.Function  # q -> (c, dc/dx)
     act: np.ndarray
     pas: np.ndarray
+    act_angular: np.ndarray  # mask over act: revolute-type actuated coordinates
     mapped: dict[int, ca.Function] = field(default_factory=dict)
 
     def evaluate(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -96,7 +97,7 @@ def _compiled(m: Mechanism) -> _Compiled:
         c = m.closure_expr
         jac = ca.jacobian(c, q[[int(i) for i in pas]]) if len(pas) else ca.SX(c.shape[0], 0)
         f = ca.Function(f"fk_closure_{m.name}", [q], [c, jac])
-        _CACHE[m] = _Compiled(f, m.actuated_indices, pas)
+        _CACHE[m] = _Compiled(f, m.actuated_indices, pas, m.revolute_mask[m.actuated_indices])
     return _CACHE[m]
 
 
@@ -241,13 +242,16 @@ def _check_inputs(m: Mechanism, actuated: Any) -> np.ndarray:
 def _continuation(
     cm: _Compiled, q0: np.ndarray, a: np.ndarray, tol: float, deadline: float, max_jump: float
 ) -> _Solve | None:
-    """Move the actuated values of a closed ``q0`` to ``a`` in steps, Newton at each step.
+    """Move the actuated values of a closed ``q0`` to ``a`` in steps, Newton at each step
+    (angles the short way round).
 
     A step is accepted when Newton converges within 6 iterations and no passive coordinate
     moves by more than ``max_jump``; otherwise it is halved. Returns None when the step falls
     below ``1e-6`` of the way (a singularity or a non-assemblable stretch lies on the line).
     """
     a0 = q0[cm.act].copy()
+    step = a - a0
+    step[cm.act_angular] = spatial.wrap_angle(step[cm.act_angular])  # the short way round
     q, s, ds, total = q0.copy(), 0.0, 1.0, 0
     residual = np.zeros(1)
     while s < 1.0:
@@ -255,7 +259,7 @@ def _continuation(
             return None
         s_try = min(1.0, s + ds)
         trial = q.copy()
-        trial[cm.act] = a0 + s_try * (a - a0)
+        trial[cm.act] = a0 + s_try * step
         sol = _levenberg_marquardt(cm, trial, tol, 6, deadline)
         total += sol.iterations
         if sol.residual[0] <= tol and np.max(np.abs(sol.q[0, cm.pas] - q[cm.pas]), initial=0.0) <= max_jump:
@@ -263,6 +267,7 @@ def _continuation(
             ds *= 2
         else:
             ds /= 2
+    q[cm.act] = a  # equal to the tracked values up to multiples of 2 pi
     return _Solve(q[None], residual, total)
 
 

@@ -48,16 +48,13 @@ from optik.checks import as_rng, as_vector
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 from optik.results import FKResult
-from optik.solvers.base import Tolerances
+from optik.solvers.base import BRANCH_TOL, Tolerances, joint_distance
 
 DEFAULT_TIME_LIMIT = 1.0
 """Default wall-time budget of :func:`solve_fk` and of the multi-start in :func:`solve_fk_all` (s)."""
 
 SINGULAR_CONDITION = 1e4
 """Condition number of ``dc/dx`` above which a result is flagged as near a singularity."""
-
-BRANCH_TOL = 1e-4
-"""Two configurations are the same assembly mode when every coordinate differs by less (DESIGN.md)."""
 
 
 BATCH = 16
@@ -103,10 +100,7 @@ def _compiled(m: Mechanism) -> _Compiled:
 
 def same_mode(m: Mechanism, q1: np.ndarray, q2: np.ndarray, tol: float = BRANCH_TOL) -> bool:
     """Branch rule of DESIGN.md: every coordinate differs by ``< tol`` (angles modulo 2 pi)."""
-    d = np.asarray(q1, dtype=float) - np.asarray(q2, dtype=float)
-    ang = m.revolute_mask
-    d[ang] = spatial.wrap_angle(d[ang])
-    return bool(np.max(np.abs(d), initial=0.0) < tol)
+    return joint_distance(m, q1, q2) < tol
 
 
 @dataclass

@@ -160,7 +160,8 @@ def saturate(
         for j in range(len(levels) - 1, 0, -1):  # scale as few (lowest) levels as possible
             zero = [(jac, t if i < j else np.zeros_like(t)) for i, (jac, t) in enumerate(levels)]
             dq0 = dq_fixed.copy()
-            if n_free:
+            trivial = not fixed.any() and not any(np.any(t) for _, t in zero)  # solution is 0
+            if n_free and not trivial:
                 reduced = [(jac[:, free], t - d) for (jac, t), d in zip(zero, shift, strict=True)]
                 dq0[free] = solve(reduced, n_free)
             scale = _max_scale(dq0, dq - dq0, lb, ub, tol)

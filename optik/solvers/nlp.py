@@ -28,6 +28,10 @@ Options (``solve_ik(..., method="nlp", **options)``):
 * ``manipulability`` (0): weight of ``-log det(J J^T)`` (adds that objective to the NLP).
 * ``limits`` (0): weight of the distance-to-limits term (adds that objective to the NLP).
 * ``stop_at_tolerance`` (True): stop each start at the first iterate that meets the tolerances.
+* ``stall`` (None): abandon a start when its best error ratio (error / tolerance, the largest
+  of position, orientation, closure) did not drop below ``stall`` times its value 5 iterations
+  earlier; 1 disables it; None picks 0.7 for ``sqpmethod`` and 1 for IPOPT (whose barrier
+  iterations can progress slowly before they converge fast).
 * ``ipopt_tol`` (1e-12): IPOPT's own convergence tolerance.
 * ``solver_options`` ({}): extra ``nlpsol`` options, e.g. ``{"ipopt.mu_init": 1e-3}``.
 * ``hessian`` (None): Hessian of the Lagrangian given to the solver, ``"gauss-newton"``
@@ -41,7 +45,11 @@ Options (``solve_ik(..., method="nlp", **options)``):
 from __future__ import annotations
 
 import atexit
+import os
+import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
@@ -64,6 +72,7 @@ DEFAULTS: dict[str, Any] = {
     "manipulability": 0.0,
     "limits": 0.0,
     "stop_at_tolerance": True,
+    "stall": None,
     "ipopt_tol": 1e-12,
     "solver_options": {},
     "hessian": None,
@@ -73,6 +82,7 @@ DEFAULTS: dict[str, Any] = {
 """Default options of ``"nlp"``."""
 
 SOLVERS = ("ipopt", "sqpmethod")
+_STALL_WINDOW = 5
 HESSIANS = ("gauss-newton", "exact")
 _POLISH_BELOW = 1e4
 """A start that ends within this factor of the tolerances but not within them (the posture and
@@ -90,6 +100,7 @@ class _Monitor(ca.Callback):
         self.errors: ErrorFn | None = None
         self.goal = (0.0, 0.0, 0.0)
         self.stop_at_tolerance = True
+        self.stall = 1.0
         self.deadline = np.inf
         self.reset()
         self.construct("optik_nlp_monitor", {})
@@ -98,7 +109,9 @@ class _Monitor(ca.Callback):
         self.best_x: np.ndarray | None = None
         self.best_score = np.inf
         self.reached = False
+        self.stalled = False
         self.iterations = 0
+        self.history: list[float] = []
 
     def get_n_in(self) -> int:
         return ca.nlpsol_n_out()
@@ -130,7 +143,11 @@ class _Monitor(ca.Callback):
         if score < self.best_score:
             self.best_x, self.best_score = x, score
         self.reached = self.reached or score <= 1.0
-        return [int((self.reached and self.stop_at_tolerance) or time.perf_counter() >= self.deadline)]
+        self.history.append(self.best_score)
+        if len(self.history) > _STALL_WINDOW:
+            self.stalled = self.best_score > self.stall * self.history[-1 - _STALL_WINDOW]
+        stop = (self.reached and self.stop_at_tolerance) or (self.stalled and not self.reached)
+        return [int(stop or time.perf_counter() >= self.deadline)]
 
 
 @dataclass(frozen=True)
@@ -188,6 +205,20 @@ def _hessian_function(problem: IKProblem, upper: bool) -> ca.Function:
 _SOLVERS: dict[tuple, _Solver] = {}
 
 
+@contextmanager
+def _silenced_stdout() -> Iterator[None]:
+    """Redirect the process's file descriptor 1 (C-level output) to the null device."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 1)
+            yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
 # Free the solvers before their Python iteration callbacks at interpreter exit (CasADi may
 # otherwise call into an already destroyed callback while tearing a solver down).
 atexit.register(_SOLVERS.clear)
@@ -214,7 +245,8 @@ def nlp_solver(
         options = _solver_options(solver, max_iter, ipopt_tol, extra, monitor)
         if hessian == "gauss-newton":
             options["hess_lag"] = _hessian_function(problem, upper=solver == "ipopt")
-        fn = ca.nlpsol("optik_ik", solver, problem.nlp(), options)
+        with _silenced_stdout():  # qpOASES prints a licence banner on construction
+            fn = ca.nlpsol("optik_ik", solver, problem.nlp(), options)
         _SOLVERS[key] = _Solver(problem, fn, monitor)
     return _SOLVERS[key]
 
@@ -258,6 +290,7 @@ def solve_nlp(request: IKRequest) -> IKResult:
     mon.errors = errors
     mon.goal = (tol.position, tol.orientation, tol.closure)
     mon.stop_at_tolerance = bool(opts["stop_at_tolerance"])
+    mon.stall = float(opts["stall"] or (1.0 if opts["solver"] == "ipopt" else 0.7))
     mon.deadline = request.start + request.time_limit
     zeros = np.zeros(m.n_closure)
     best_q, best_score = request.q0.copy(), np.inf

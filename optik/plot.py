@@ -392,6 +392,12 @@ def _first_assembly(m: Mechanism) -> np.ndarray | None:
     return None
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def write_atomic(path: str | os.PathLike[str], write: Callable[[str], None]) -> Path:
     """Write a file atomically: ``write(tmp)`` into a temporary file next to ``path``, then
     ``os.replace(tmp, path)``; the temporary file is removed when ``write`` fails.
@@ -409,6 +415,7 @@ def write_atomic(path: str | os.PathLike[str], write: Callable[[str], None]) -> 
     os.close(fd)
     try:
         write(tmp)
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600 files; use the usual mode
         os.replace(tmp, dest)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

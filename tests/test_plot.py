@@ -109,6 +109,7 @@ def test_save_is_atomic_and_cleans_up(tmp_path):
     target = tmp_path / "sub" / "x.txt"
     plot.write_atomic(target, lambda tmp: Path(tmp).write_text("hello"))
     assert target.read_text() == "hello"
+    assert target.stat().st_mode & 0o644 == 0o644  # readable by others, like a normal file
 
     def boom(tmp):
         Path(tmp).write_text("partial")

@@ -174,6 +174,9 @@ def test_qpsolvers_backend_by_name_and_missing_backend() -> None:
     np.testing.assert_allclose(a.v, b.v, atol=1e-5)
     with pytest.raises(optik.SolverUnavailableError, match="not installed"):
         diffik.step(PANDA, q, tasks, 0.01, "qp", "no_such_solver")
+    for solver in ("daqp", "osqp"):
+        with pytest.raises(optik.InvalidArgumentError, match="options"):
+            diffik.step(PANDA, q, tasks, 0.01, "qp", solver, no_such_setting=1)
 
 
 def test_qp_equals_dls_when_no_limit_is_active() -> None:

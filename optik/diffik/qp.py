@@ -8,19 +8,21 @@
 * any other name: the backend of that name through ``qpsolvers.solve_problem``.
 
 Every backend returns a :class:`QPOutcome`; none raises on an infeasible or failed solve.
+Unknown settings raise :class:`~optik.errors.InvalidArgumentError` (``"options"``) for DAQP and
+OSQP; cvxpy and the qpsolvers backends report them as a failed solve (status and message).
 """
 
 from __future__ import annotations
 
+import importlib
 import importlib.util
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
 
 from optik.diffik.problem import DiffIKProblem
-from optik.errors import SolverUnavailableError
+from optik.errors import InvalidArgumentError, SolverUnavailableError
 
 
 @dataclass
@@ -66,7 +68,10 @@ def solve_daqp(problem: DiffIKProblem, **settings: Any) -> QPOutcome:
         sense[n:] = 5
     else:
         upper, lower, sense = problem.ub, problem.lb, _SENSE.setdefault(n, np.zeros(n, dtype=np.int32))
-    x, _, flag, _ = daqp.solve(problem.H, problem.c, problem.A, upper, lower, sense, **settings)
+    try:
+        x, _, flag, _ = daqp.solve(problem.H, problem.c, problem.A, upper, lower, sense, **settings)
+    except TypeError as exc:
+        raise InvalidArgumentError("options", f"daqp: {exc}") from exc
     if flag in (1, 2):
         return QPOutcome(np.asarray(x, dtype=float), "optimal", f"daqp exitflag {flag}")
     return QPOutcome(None, "infeasible" if flag == -1 else "failed", f"daqp exitflag {flag}")
@@ -77,6 +82,7 @@ class OsqpWorkspace:
 
     def __init__(self, problem: DiffIKProblem, settings: dict[str, Any]) -> None:
         osqp = _require("osqp", "osqp")
+        sp = importlib.import_module("scipy.sparse")  # imported on first use: it is slow to import
         n, m_eq = problem.n, problem.A.shape[0]
         self._triu = np.triu_indices(n)
         order = np.lexsort((self._triu[0], self._triu[1]))  # CSC order: by column, then row
@@ -89,7 +95,10 @@ class OsqpWorkspace:
         opts = {"verbose": False, "warm_starting": True, "eps_abs": 1e-7, "eps_rel": 1e-7, "polishing": False}
         opts.update(settings)
         self.solver = osqp.OSQP()
-        self.solver.setup(p, np.zeros(n), a, -np.ones(n + m_eq), np.ones(n + m_eq), **opts)
+        try:
+            self.solver.setup(p, np.zeros(n), a, -np.ones(n + m_eq), np.ones(n + m_eq), **opts)
+        except ValueError as exc:
+            raise InvalidArgumentError("options", f"osqp: {exc}") from exc
         self.n = n
 
     def solve(self, problem: DiffIKProblem) -> QPOutcome:

@@ -254,8 +254,8 @@ def build_qp(
         The :class:`DiffIKProblem`.
 
     Raises:
-        OptikError subclasses naming the argument (q, tasks, dt, limits, v_prev, damping, a
-        task's target or frame).
+        OptikError: a subclass naming the bad argument (q, tasks, dt, limits, v_prev, damping, a
+            task's target or frame).
     """
     qq = np.asarray(q, dtype=float)
     if qq.shape != (m.n_q,) or not np.isfinite(qq).all():

@@ -158,7 +158,7 @@ def step(
         A :class:`StepResult`.
 
     Raises:
-        OptikError subclasses naming the argument for malformed input or an unknown method.
+        OptikError: a subclass naming the argument, for malformed input or an unknown method.
     """
     start = time.perf_counter()
     if method not in METHODS:

@@ -41,7 +41,7 @@ CHAINS = ["five_bar", "doggy", "slider_crank", "planar_3rpr", "stewart_gough"]
 def test_round_trip_pose_ik_fk_all_contains_the_configuration(name):
     m = getattr(optik.catalog, name)()
     rng = np.random.default_rng(4)
-    n = 2 if name == "stewart_gough" else 8
+    n = 1 if name == "stewart_gough" else 8
     checked = 0
     for target in _targets(name, rng, n):
         for q in cf.ik(m, target):

@@ -40,7 +40,7 @@ angles = st.floats(-np.pi, np.pi, allow_nan=False)
     ],
     ids=["five_bar", "seed_coaxial_tool"],
 )
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=40, deadline=None)
 @given(th1=angles, th2=angles)
 def test_five_bar_fk_modes_close_and_ik_recovers_them(m, th1, th2):
     modes = cf.fk(m, [th1, th2], respect_limits=False)
@@ -78,8 +78,8 @@ def test_five_bar_out_of_reach_and_apart_circles():
 
 
 # ----------------------------------------------------------------------------- doggy
-@settings(max_examples=40, deadline=None)
-@given(x=st.floats(-0.3, 0.3), y=st.floats(0.55, 1.0), phi=st.floats(-0.5, 0.5))
+@settings(max_examples=25, deadline=None)
+@given(x=st.floats(-0.3, 0.3), y=st.floats(0.55, 0.9), phi=st.floats(-0.3, 0.3))
 def test_doggy_ik_four_combinations_and_fk_recovers_pose(x, y, phi):
     m = optik.catalog.doggy()
     pose = optik.Pose2D(x, y, phi)
@@ -102,7 +102,7 @@ def test_doggy_inconsistent_leg_angles_do_not_assemble():
 
 
 # ----------------------------------------------------------------------------- slider-crank
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=30, deadline=None)
 @given(theta=angles, offset=st.floats(-0.2, 0.2))
 def test_slider_crank_two_modes_round_trip(theta, offset):
     m = optik.catalog.slider_crank(crank=0.3, rod=1.0, offset=offset)
@@ -133,7 +133,7 @@ def test_3rpr_fk_finds_every_real_root_of_a_dense_scan():
     change of the polynomial on a dense grid of headings is left without a mode."""
     rng = np.random.default_rng(7)
     counts = []
-    for _ in range(300):
+    for _ in range(200):
         b, p, rho, x = _rpr_sample(rng)
         poses = par.planar_3rpr_poses(b, p, rho)
         counts.append(len(poses))
@@ -215,15 +215,14 @@ def test_stewart_quadrics_vanish_at_a_posture():
 
 def test_stewart_general_geometry_all_forty_and_pose_found():
     rng = np.random.default_rng(5)
-    for _ in range(2):
-        b, p = rng.normal(size=(6, 3)), 0.6 * rng.normal(size=(6, 3))
-        r, t = _random_pose(rng)
-        rho = np.linalg.norm(p @ r.T + t - b, axis=1)
-        fk = par.stewart_poses(b, p, rho, seed=1)
-        assert fk.complete and fk.complex_solutions == 40
-        assert any(np.allclose(r2, r, atol=1e-9) and np.allclose(t2, t, atol=1e-9) for r2, t2 in fk.poses)
-        for r2, t2 in fk.poses:
-            assert np.allclose(np.linalg.norm(p @ r2.T + t2 - b, axis=1), rho, atol=1e-9)
+    b, p = rng.normal(size=(6, 3)), 0.6 * rng.normal(size=(6, 3))
+    r, t = _random_pose(rng)
+    rho = np.linalg.norm(p @ r.T + t - b, axis=1)
+    fk = par.stewart_poses(b, p, rho, seed=1)
+    assert fk.complete and fk.complex_solutions == 40
+    assert any(np.allclose(r2, r, atol=1e-9) and np.allclose(t2, t, atol=1e-9) for r2, t2 in fk.poses)
+    for r2, t2 in fk.poses:
+        assert np.allclose(np.linalg.norm(p @ r2.T + t2 - b, axis=1), rho, atol=1e-9)
 
 
 def test_stewart_catalog_round_trip_with_half_turn():

@@ -25,7 +25,7 @@ CATALOG = [getattr(optik.catalog, name) for name in MECHANISMS if hasattr(optik.
 
 
 @pytest.mark.parametrize("build", CATALOG, ids=lambda f: f.__name__)
-def test_draw_and_branches_for_every_catalog_mechanism(build, tmp_path):
+def test_draw_and_branches_for_every_catalog_mechanism(build):
     m = build()
     rng = np.random.default_rng(3)
     ax = plot.draw(m, m.mid_q())
@@ -35,7 +35,12 @@ def test_draw_and_branches_for_every_catalog_mechanism(build, tmp_path):
     fig = plot.draw_branches(m, qs, title="three")
     assert len(fig.axes) == 3
     assert all(a.name == ax.name for a in fig.axes)
-    out = plot.save_figure(fig, tmp_path / "fig.png")
+
+
+@pytest.mark.parametrize("name", ["five_bar", "stewart_gough"])
+def test_saved_figures_are_pngs(name, tmp_path):
+    m = getattr(optik.catalog, name)()
+    out = plot.save_figure(plot.draw_branches(m, [m.mid_q()]), tmp_path / "fig.png")
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 

@@ -84,7 +84,7 @@ def native_functions(functions: list[ca.Function], compile: bool | str = "auto")
     Args:
         functions: functions with dense column inputs and outputs.
         compile: ``True`` compile (raise when impossible), ``False`` use CasADi's evaluator,
-            ``"auto"`` compile when a C compiler exists.
+            ``"auto"`` compile when a C compiler exists and works, else use the evaluator.
 
     Raises:
         InvalidArgumentError: bad ``compile`` value or non-dense inputs/outputs.
@@ -92,8 +92,14 @@ def native_functions(functions: list[ca.Function], compile: bool | str = "auto")
     """
     if compile not in (True, False, "auto"):
         raise InvalidArgumentError("compile", f"expected True, False or 'auto', got {compile!r}")
-    use = compile is True or (compile == "auto" and compiler() is not None)
-    lib = _compile(functions) if use else None
+    lib = None
+    if compile is True:
+        lib = _compile(functions)
+    elif compile == "auto" and compiler() is not None:
+        try:
+            lib = _compile(functions)
+        except (SolverUnavailableError, OSError):  # broken toolchain or unwritable cache: interpret
+            lib = None
     return [NativeFunction(f, lib) for f in functions]
 
 

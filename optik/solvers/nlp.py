@@ -85,9 +85,10 @@ SOLVERS = ("ipopt", "sqpmethod")
 _STALL_WINDOW = 5
 HESSIANS = ("gauss-newton", "exact")
 _POLISH_BELOW = 1e4
-"""A start that ends within this factor of the tolerances but not within them (the posture and
-secondary terms bias the optimum slightly off the target) is polished by a second solve from its
-answer with those weights set to 0: the same NLP, other parameter values."""
+"""A start that converges within this factor of the tolerances but not within them (the posture
+and secondary terms bias the optimum slightly off the target) is polished by a second solve from
+its answer with those weights set to 0: the same NLP, other parameter values. Stalled starts are
+not polished: they restart."""
 
 
 class _Monitor(ca.Callback):
@@ -137,7 +138,7 @@ class _Monitor(ca.Callback):
 
     def eval(self, arg: list[Any]) -> list[int]:
         self.iterations += 1
-        x = np.array(arg[0], dtype=float).reshape(-1)  # a copy: arg dies with the call
+        x = np.array(arg[0].nonzeros())  # a copy (arg dies with the call); x is dense
         errs = self.errors(x)
         score = max(e / g for e, g in zip(errs, self.goal, strict=True))
         if score < self.best_score:
@@ -312,7 +313,7 @@ def solve_nlp(request: IKRequest) -> IKResult:
     while True:
         restarts += 1
         q, score = run(next(starts), params)
-        if 1.0 < score < _POLISH_BELOW and time.perf_counter() < mon.deadline:
+        if 1.0 < score < _POLISH_BELOW and not mon.stalled and time.perf_counter() < mon.deadline:
             q, score = min((q, score), run(q, unbiased), key=lambda qs: qs[1])
         if score < best_score:
             best_q, best_score = q, score

@@ -107,6 +107,34 @@ def test_doggy_body_driven_along_a_circle_keeps_both_legs_closed() -> None:
     assert res.within_limits
 
 
+@pytest.mark.parametrize(
+    ("secondary", "first_joint", "improved"),
+    [
+        (
+            lambda m: diffik.ManipulabilityTask(7, space="position", gain=0.5, priority=1),
+            0.3,
+            lambda m, q0, q1: (
+                m.manipulability(q1, None, "position") > 1.05 * m.manipulability(q0, None, "position")
+            ),
+        ),
+        (
+            lambda m: diffik.JointLimitTask(7, cost=1.0, gain=0.1, priority=1),
+            2.8473,  # 0.05 rad from the limit
+            lambda m, q0, q1: m.upper[0] - q1[0] > 0.5 + (m.upper[0] - q0[0]),
+        ),
+    ],
+    ids=["manipulability", "joint_limit"],
+)
+def test_secondary_objectives_improve_while_the_flange_holds(secondary, first_joint, improved) -> None:
+    m = optik.catalog.panda()
+    q0 = np.array([first_joint, -0.3, 0.4, -2.0, 0.2, 1.8, 0.8])
+    path = np.repeat(m.fk(q0)[None], 100, axis=0)
+    res = diffik.track(m, q0, path, 0.01, "priority", tasks=[secondary(m)])
+    assert res.position_error.max() < 5e-4 and res.orientation_error.max() < 5e-4  # second order
+    assert improved(m, q0, res.q[-1])
+    assert res.within_limits
+
+
 def test_track_from_slightly_outside_the_limits_recovers() -> None:
     m = optik.catalog.panda()
     q0 = np.array([0.0, -0.3, 0.0, -2.0, 0.0, 1.8, 0.8])

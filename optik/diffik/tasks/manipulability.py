@@ -1,4 +1,4 @@
-"""Manipulability task: move away from singular configurations."""
+"""Manipulability task: move away from singular configurations by gradient ascent."""
 
 from __future__ import annotations
 
@@ -7,63 +7,62 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from optik.checks import as_vector
-from optik.diffik.base import Task, positive
+from optik.diffik.base import Task
 from optik.errors import InvalidArgumentError
 from optik.mechanism import TASK_ROWS, Mechanism
 
 
 class ManipulabilityTask(Task):
-    """Raise Yoshikawa's manipulability ``w(q) = sqrt(det(J_t J_t^T))`` towards a target value.
+    """Climb Yoshikawa's manipulability ``w(q) = sqrt(det(J_t J_t^T))`` by gradient ascent.
 
-    ``J_t`` is the geometric Jacobian of ``frame`` restricted to the rows of ``space``. The scalar
-    error is ``e = w(q) - w*`` with ``J = grad w`` (symbolic), so a step asks for
-    ``grad w . dq = -alpha (w - w*)``: ``w`` grows while below ``w*``. As a low-priority task of
-    a redundant arm it moves the arm's self-motion away from singularities.
+    ``J_t`` is the geometric Jacobian of ``frame`` restricted to the rows of ``space``. The task
+    asks for the joint step ``dq = alpha grad w(q)`` (the gradient projection method of Liegeois
+    and Yoshikawa): its error is ``e = -grad w(q)`` with ``J = I`` (the Jacobian of the step with
+    the gradient frozen at the current ``q``). The requested step vanishes at a maximum of ``w``
+    and never blows up, unlike driving the scalar ``w`` to a target. As a low-priority task (or
+    with a low cost) of a redundant arm it moves the self-motion away from singularities.
 
     Args:
+        n_q: number of coordinates of the mechanism it will be used with.
         frame: frame name (None: the end effector).
-        target: the manipulability ``w*`` to reach (``> 0``).
-        space: task space of ``J_t``: ``"pose"``, ``"position"``, ``"pose2d"``, ``"position2d"``.
-        cost, gain, lm_damping, priority: see :class:`~optik.diffik.Task`.
+        space: task space of ``J_t``: ``"pose"``, ``"position"``, ``"orientation"``, ``"pose2d"``,
+            ``"position2d"``.
+        cost: weight per coordinate (scalar or ``n_q`` values).
+        gain: ascent step ``alpha`` (rad per unit of ``grad w``), in ``(0, 1]``.
+        lm_damping, priority: see :class:`~optik.diffik.Task`.
     """
-
-    dim = 1
 
     def __init__(
         self,
+        n_q: int,
         frame: str | None = None,
-        target: float = 1.0,
         space: str = "position",
-        cost: Any = 1e-2,
-        gain: float = 1.0,
+        cost: Any = 1.0,
+        gain: float = 0.05,
         lm_damping: float = 0.0,
         priority: int = 0,
     ) -> None:
+        if int(n_q) != n_q or n_q < 1:
+            raise InvalidArgumentError("n_q", f"must be a positive integer, got {n_q!r}")
         if space not in TASK_ROWS:
             raise InvalidArgumentError(
                 "space", f"unknown task space {space!r}; use one of {sorted(TASK_ROWS)}"
             )
+        self.dim = int(n_q)
         super().__init__(cost, gain, lm_damping, priority)
         self.frame = frame
         self.space = space
-        self.set_target(target)
-
-    def set_target(self, target: float) -> None:
-        """Set ``w*`` (``> 0``)."""
-        t = positive(target, "target")
-        if t <= 0:
-            raise InvalidArgumentError("target", "must be > 0")
-        self.target = t
 
     def key(self) -> tuple:
-        return ("manipulability", self.frame, self.space)
+        return ("manipulability", self.dim, self.frame, self.space)
 
     def parameters(self, m: Mechanism) -> np.ndarray:
-        m._frame(self.frame)
-        return as_vector(self.target, "target", 1)
+        if self.dim != m.n_q:
+            raise InvalidArgumentError("n_q", f"task built for {self.dim} coordinates, mechanism has {m.n_q}")
+        m._frame(self.frame)  # raises UnknownFrameError naming the frame
+        return np.zeros(0)
 
     def expressions(self, m: Mechanism, q: ca.SX, p: ca.SX) -> tuple[ca.SX, ca.SX]:
         jt = m.jacobian_expr(self.frame)[list(TASK_ROWS[self.space]), :]
-        w = ca.sqrt(ca.fmax(ca.det(ca.mtimes(jt, jt.T)), 1e-12))
-        return w - p[0], ca.jacobian(w, q)
+        w = ca.sqrt(ca.fmax(ca.det(ca.mtimes(jt, jt.T)), 1e-24))
+        return -ca.jacobian(w, q).T, ca.SX.eye(m.n_q)

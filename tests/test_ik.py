@@ -193,6 +193,10 @@ def test_nlp_secondary_objectives_run() -> None:
         ({"method": "magic"}, optik.SolverUnavailableError),
         ({"method": "lm", "bogus_option": 1}, optik.InvalidArgumentError),
         ({"method": "nlp", "solver": "snopt"}, optik.InvalidArgumentError),
+        ({"method": "lm", "block": 0}, optik.InvalidArgumentError),
+        ({"method": "lm", "weights": (1.0,)}, optik.ShapeError),
+        ({"method": "nlp", "weights": (-1.0, 1.0)}, optik.InvalidArgumentError),
+        ({"method": "nlp", "hessian": "bfgs"}, optik.InvalidArgumentError),
         ({"seed": "x"}, optik.InvalidArgumentError),
     ],
 )

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +26,7 @@ ROOT = Path(__file__).resolve().parents[2]
 def _bench_module():  # the benchmark script is not a package module: load it by path
     spec = importlib.util.spec_from_file_location("bench_ik", ROOT / "benchmarks" / "bench_ik.py")
     module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up there
     spec.loader.exec_module(module)
     return module
 

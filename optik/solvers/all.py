@@ -22,8 +22,7 @@ from typing import Any
 import numpy as np
 
 from optik import closed_form as analytic
-from optik.checks import as_vector
-from optik.errors import InvalidArgumentError, SolverUnavailableError
+from optik.errors import SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.results import IKResult
 from optik.solvers.api import solve_ik
@@ -34,18 +33,12 @@ from optik.solvers.base import (
     joint_distance,
     make_request,
     make_result,
+    positive_int,
 )
 from optik.solvers.closed import closed_form_applies
 
 NUMERIC_ORDER = ("lm", "nlp")
 """Numerical methods ``solve_ik_all`` may use, in order of preference."""
-
-
-def _positive_int(value: Any, name: str) -> int:
-    v = float(as_vector(value, name, 1)[0])
-    if v < 1 or v != int(v):
-        raise InvalidArgumentError(name, f"expected a positive integer, got {value!r}")
-    return int(v)
 
 
 def solve_ik_all(
@@ -91,8 +84,8 @@ def solve_ik_all(
         OptikError: malformed input (named argument), unknown or inapplicable method.
     """
     request = make_request(m, target, q0, task, frame, time_limit, tol, seed, options)
-    patience = _positive_int(patience, "patience")
-    max_solutions = _positive_int(max_solutions, "max_solutions")
+    patience = positive_int(patience, "patience")
+    max_solutions = positive_int(max_solutions, "max_solutions")
     found: list[IKResult] = []
     if closed_form and closed_form_applies(m, request.task):
         for q in analytic.ik(m, request.target, respect_limits=True):

@@ -232,6 +232,14 @@ def joint_distance(m: Mechanism, qa: np.ndarray, qb: np.ndarray) -> float:
     return float(np.max(np.abs(d))) if d.size else 0.0
 
 
+def positive_int(value: Any, name: str) -> int:
+    """``value`` as an integer >= 1 (else :class:`InvalidArgumentError` naming ``name``)."""
+    v = float(as_vector(value, name, 1)[0])
+    if v < 1 or v != int(v):
+        raise InvalidArgumentError(name, f"expected a positive integer, got {value!r}")
+    return int(v)
+
+
 def method_options(request: IKRequest, defaults: dict[str, Any]) -> dict[str, Any]:
     """The request's options merged over a method's ``defaults``.
 

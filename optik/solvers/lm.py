@@ -44,10 +44,19 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from optik.checks import as_vector
+from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 from optik.problem import IKProblem, build_ik_problem, target_parameters
 from optik.results import IKResult
-from optik.solvers.base import IKRequest, make_result, method_options, register_method, start_points
+from optik.solvers.base import (
+    IKRequest,
+    make_result,
+    method_options,
+    positive_int,
+    register_method,
+    start_points,
+)
 from optik.solvers.evaluation import error_function, errors_against
 from optik.solvers.native import NativeFunction, native_functions
 
@@ -138,18 +147,21 @@ def solve_lm(request: IKRequest) -> IKResult:
     """Solve an IK request by bounded LM with random restarts (see the module docstring)."""
     opts = method_options(request, DEFAULTS)
     m, tol = request.mechanism, request.tol
-    block = int(opts["block"])
+    block = positive_int(opts["block"], "block")
+    max_blocks = max(1, positive_int(opts["max_iter"], "max_iter") // block)
+    weights = as_vector(opts["weights"], "weights", 2)
+    if np.any(weights < 0):
+        raise InvalidArgumentError("weights", f"must be >= 0, got {weights}")
     setup = time.perf_counter()
     fn = _native_block(m, request.task, request.frame, float(opts["closure_weight"]), block, opts["compile"])
     errors = errors_against(m, request.task, request.frame, request.target, opts["compile"])
     request.exclude_setup(setup)
     ins = fn.inputs
     ins[2][:] = target_parameters(request.target)
-    ins[3][:] = opts["weights"]
+    ins[3][:] = weights
     ins[4][:] = m.mid_q() if opts["q_ref"] is None else m.check_q(opts["q_ref"], "q_ref")
     ins[5][0] = float(opts["posture_gain"])
     deadline = request.start + request.time_limit
-    max_blocks = max(1, int(opts["max_iter"]) // block)
     max_restarts = opts["max_restarts"]
     best_q, best_cost = request.q0.copy(), np.inf
     iterations, restarts = 0, -1

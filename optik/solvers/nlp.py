@@ -60,7 +60,14 @@ from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 from optik.problem import IKProblem, build_ik_problem
 from optik.results import IKResult
-from optik.solvers.base import IKRequest, make_result, method_options, register_method, start_points
+from optik.solvers.base import (
+    IKRequest,
+    make_result,
+    method_options,
+    positive_int,
+    register_method,
+    start_points,
+)
 from optik.solvers.evaluation import ErrorFn, errors_against
 
 DEFAULTS: dict[str, Any] = {
@@ -272,7 +279,7 @@ def solve_nlp(request: IKRequest) -> IKResult:
         request.frame,
         secondary,
         opts["solver"],
-        int(opts["max_iter"]),
+        positive_int(opts["max_iter"], "max_iter"),
         float(opts["ipopt_tol"]),
         extra,
         hessian,

@@ -204,9 +204,10 @@ def test_planar_jacobian_singular_exactly_at_sin_theta2_zero(name, data):
     if abs(l1 * l2 * np.sin(q[1])) < 1e-12:
         assert smallest < 1e-12
     else:
-        # |det| = prod(sigma) <= smallest * largest^(n - 1): the smallest singular value is bounded below
+        # |det| = prod(sigma) <= smallest * largest^(n - 1): the smallest singular value is bounded
+        # below (the SVD gives it to an absolute ~ eps * largest, hence the 1e-14 slack)
         largest = np.linalg.svd(j, compute_uv=False)[0]
-        assert smallest >= abs(l1 * l2 * np.sin(q[1])) / largest ** (m.n_q - 1) * (1 - 1e-9)
+        assert smallest >= abs(l1 * l2 * np.sin(q[1])) / largest ** (m.n_q - 1) - 1e-14
     q_sing = q.copy()
     q_sing[1] = data.draw(st.sampled_from([0.0, np.pi, -np.pi]))
     assert abs(m.jacobian_determinant(q_sing)) < 1e-12

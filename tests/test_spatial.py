@@ -84,7 +84,7 @@ def test_wrap_angle_boundaries_and_arrays():
 
 
 # ---------------------------------------------------------------------------- RPY and ZYZ
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=150, deadline=None)
 @given(r=rotations())
 def test_rpy_round_trip_in_seed_ranges(r):
     roll, pitch, yaw = spatial.rot_to_rpy(r)
@@ -116,7 +116,7 @@ def test_rpy_gimbal_lock(pitch):
     np.testing.assert_allclose(spatial.rpy_to_rot(*only), r, atol=1e-12)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=150, deadline=None)
 @given(r=rotations())
 def test_zyz_round_trip_in_seed_ranges(r):
     phi, theta, psi = spatial.rot_to_zyz(r)
@@ -144,7 +144,7 @@ def test_zyz_psi_half_open_range():
 
 
 # ---------------------------------------------------------------------------- so(3)
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=200, deadline=None)
 @given(r=rotations())
 def test_so3_log_exp_round_trip(r):
     w = spatial.so3_log(r)

@@ -352,6 +352,10 @@ def ik_seed_6r(d2: float, d3: float, d4: float, t: Any) -> tuple[np.ndarray, np.
       to distance ``max(d2, d3)`` as the orientation allows (and ``theta1 = atan2(a_y, a_x)``
       when ``p_z = 0``, where every ``theta1`` is equivalent).
 
+    * wrist singular and the wrist centre near the waist axis: ``theta1`` is taken from the
+      orientation, ``atan2(c5 a_x, -c5 a_y)``, when it agrees with the position to within the
+      tolerance below (a short ``rho`` determines ``theta1`` poorly, the locked wrist exactly).
+
     A distance below :data:`SINGULAR_TOL` (times ``d2 + d3 + d4``; unitless for ``s5``) counts
     as singular, so the representative's FK error is below that tolerance.
 
@@ -392,6 +396,12 @@ def _seed_6r_block(
     ratio = _safe_ratio(np.abs(az) * np.sqrt(1.0 - s_star * s_star), np.abs(s_star) * h, np.inf)
     th1_singular = alpha + np.arccos(np.minimum(ratio, 1.0))
     th1_base = np.where(np.hypot(px, py) <= scale, th1_singular, np.arctan2(py, px))
+    # at a wrist singularity a = c5 (s1, -c1, 0) fixes theta1 better than a short rho does
+    c5_sign = np.where(ax * np.sin(th1_base) - ay * np.cos(th1_base) >= 0.0, 1.0, -1.0)
+    th1_orient = np.arctan2(c5_sign * ax, -c5_sign * ay)
+    c1o, s1o = np.cos(th1_orient), np.sin(th1_orient)
+    locked = (np.hypot(ax * c1o + ay * s1o, az) <= SINGULAR_TOL) & (np.abs(py * c1o - px * s1o) <= scale)
+    th1_base = np.where(locked, th1_orient, th1_base)
     q = q_out.reshape(n_t, 2, 2, 2, 6)
     th1 = np.stack([th1_base, th1_base + np.pi], axis=1)
     _wrap(th1)

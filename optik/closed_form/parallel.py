@@ -23,6 +23,10 @@ from optik.closed_form import homotopy
 from optik.closed_form.registry import register
 from optik.mechanism import Mechanism
 
+QUADRATIC_STOP = 1e-9
+"""Newton polishing stops after a step below this (relative): with quadratic convergence the
+error left after a step of size ``d`` is ``O(d^2)``, at the level of rounding."""
+
 CIRCLE_TOL = 1e-12
 """Relative tolerance under which a circle/circle or law-of-cosines discriminant counts as zero."""
 
@@ -81,6 +85,14 @@ def circle_intersections(c1: np.ndarray, r1: float, c2: np.ndarray, r2: float) -
     h = np.sqrt(h2)
     perp = np.array([-u[1], u[0]])
     return [base + h * perp, base - h * perp]
+
+
+def _newton_step(jac: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """``J^{-1} f``, or the least-squares step when ``J`` is singular."""
+    try:
+        return np.linalg.solve(jac, f)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(jac, f, rcond=None)[0]
 
 
 def _planar_pose(t: np.ndarray) -> tuple[np.ndarray, float]:
@@ -259,9 +271,11 @@ def _rpr_candidates(b: np.ndarray, p: np.ndarray, rho: np.ndarray, phi: float) -
     d, e = p[1:] - p[0], b[1:] - b[0]
     w = d @ _rot2(phi).T - e
     k = rho[1:] ** 2 - rho[0] ** 2 - np.sum(w * w, axis=1)
-    sv = np.linalg.svd(w, compute_uv=False)
-    if sv[-1] > 1e-9 * max(sv[0], 1e-300):
-        return [b[0] + np.linalg.solve(2 * w, k)]
+    det = w[0, 0] * w[1, 1] - w[0, 1] * w[1, 0]
+    if abs(det) > 1e-9 * max(float(np.sum(w * w)), 1e-300):  # Cramer's rule on 2 W u = k
+        return [
+            b[0] + np.array([w[1, 1] * k[0] - w[0, 1] * k[1], w[0, 0] * k[1] - w[1, 0] * k[0]]) / (2 * det)
+        ]
     i = int(np.argmax(np.linalg.norm(w, axis=1)))
     n = w[i] / np.linalg.norm(w[i])
     dist = k[i] / (2 * np.linalg.norm(w[i]))
@@ -281,9 +295,9 @@ def polish_planar_3rpr(
     """
     for _ in range(iters):
         f, jac = _rpr_residual(b, p, rho, x)
-        step = np.linalg.lstsq(jac, f, rcond=None)[0]
+        step = _newton_step(jac, f)
         x = x - step
-        if np.max(np.abs(step)) < 1e-15 * (1 + np.max(np.abs(x))):
+        if np.max(np.abs(step)) < QUADRATIC_STOP * (1 + np.max(np.abs(x))):
             break
     v = x[:2] + p @ _rot2(x[2]).T - b
     return x, float(np.max(np.abs(np.linalg.norm(v, axis=1) - rho)))
@@ -400,10 +414,10 @@ def polish_stewart(
     """
     for _ in range(iters):
         f, jac = _sg_residual(b, p, rho, r, t)
-        step = np.linalg.lstsq(jac, f, rcond=None)[0]
+        step = _newton_step(jac, f)
         t = t - step[:3]
         r = spatial.so3_exp(-step[3:]) @ r
-        if np.max(np.abs(step)) < 1e-15 * (1 + np.max(np.abs(t))):
+        if np.max(np.abs(step)) < QUADRATIC_STOP * (1 + np.max(np.abs(t))):
             break
     v = p @ r.T + t - b
     return r, t, float(np.max(np.abs(np.linalg.norm(v, axis=1) - rho)))

@@ -154,12 +154,14 @@ def _levenberg_marquardt(cm: _Compiled, qs: np.ndarray, tol: float, max_iter: in
     return _Solve(q, np.max(np.abs(c), axis=1, initial=0.0), it)
 
 
-def _condition(cm: _Compiled, q: np.ndarray) -> float:
-    jac = cm.evaluate(q[None])[1][0]
-    if jac.size == 0:
-        return 1.0
-    s = np.linalg.svd(jac, compute_uv=False)
-    return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+def _residual_and_condition(cm: _Compiled, q: np.ndarray) -> tuple[float, float]:
+    """Max-norm of the closure and condition number of ``dc/dx`` at ``q`` (one evaluation)."""
+    c, jac = cm.evaluate(q[None])
+    residual = float(np.max(np.abs(c[0]), initial=0.0))
+    if jac[0].size == 0:
+        return residual, 1.0
+    s = np.linalg.svd(jac[0], compute_uv=False)
+    return residual, float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
 
 
 def _closure_tol(tol: float | Tolerances | None) -> float:
@@ -184,16 +186,15 @@ def _result(
     m: Mechanism,
     cm: _Compiled,
     q: np.ndarray,
-    residual: float,
     tol: float,
     start: float,
     singular_condition: float,
     note: str = "",
     **extra: Any,
 ) -> FKResult:
-    """An :class:`FKResult` for ``q``: success, limits, condition number and the message."""
+    """An :class:`FKResult` for ``q``: residual, success, limits, condition number, message."""
     qq = m.wrap(q)
-    cond = _condition(cm, qq)
+    residual, cond = _residual_and_condition(cm, qq)
     closed = residual <= tol
     inside = m.within_limits(qq)
     messages = [note] if note else []
@@ -329,9 +330,7 @@ def solve_fk(
             best = sol
     if restarts and best.residual[0] <= tol_c:
         note = f"found after {restarts} random restart(s): not necessarily the mode nearest q0"
-    return _result(
-        m, cm, best.q[0], float(best.residual[0]), tol_c, start, singular_condition, note, restarts=restarts
-    )
+    return _result(m, cm, best.q[0], tol_c, start, singular_condition, note, restarts=restarts)
 
 
 def solve_fk_all(
@@ -377,10 +376,9 @@ def solve_fk_all(
     use_closed = method == "closed_form" or (method is None and closed_form.has_fk(m))
     found: list[np.ndarray] = []
     if use_closed:
-        for q in closed_form.fk(m, a):
-            c = np.max(np.abs(m.closure(q)), initial=0.0)
-            if c > tol_c:  # polish a closed form that lost digits (e.g. near a singularity)
-                q = _levenberg_marquardt(cm, q, tol_c, max_iter, start + limit).q[0]
+        for q_exact in closed_form.fk(m, a):
+            # a no-op (one evaluation) unless the closed form lost digits, e.g. near a singularity
+            q = _levenberg_marquardt(cm, q_exact, tol_c, max_iter, start + limit).q[0]
             if not any(same_mode(m, q, f) for f in found):
                 found.append(q)
         label = "closed_form"
@@ -401,16 +399,7 @@ def solve_fk_all(
         label = "numeric"
     results = []
     for q in found:
-        res = _result(
-            m,
-            cm,
-            q,
-            float(np.max(np.abs(m.closure(q)), initial=0.0)),
-            tol_c,
-            start,
-            singular_condition,
-            method=label,
-        )
+        res = _result(m, cm, q, tol_c, start, singular_condition, method=label)
         if res.success:
             results.append(res)
     return results

@@ -181,6 +181,9 @@ def test_qp_backends_agree_with_cvxpy(seed: int) -> None:
     for name, res in results.items():
         assert res.status == "ok", name
         np.testing.assert_allclose(res.v, results["cvxpy"].v, atol=2e-4, err_msg=name)
+    # the exact active-set answer is optimal: no other backend's (feasible) answer does better
+    best = p.objective(results["daqp"].v * 0.01)
+    assert all(best <= p.objective(res.v * 0.01) + 1e-9 for res in results.values())
 
 
 def test_qpsolvers_backend_by_name_and_missing_backend() -> None:

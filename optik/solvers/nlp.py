@@ -89,8 +89,8 @@ DEFAULTS: dict[str, Any] = {
 """Default options of ``"nlp"``."""
 
 SOLVERS = ("ipopt", "sqpmethod")
-_STALL_WINDOW = 5
 HESSIANS = ("gauss-newton", "exact")
+_STALL_WINDOW = 5
 _POLISH_BELOW = 1e4
 """A start that converges within this factor of the tolerances but not within them (the posture
 and secondary terms bias the optimum slightly off the target) is polished by a second solve from
@@ -306,7 +306,8 @@ def solve_nlp(request: IKRequest) -> IKResult:
     starts = start_points(request)
     max_restarts = opts["max_restarts"]
     unbiased = params.copy()
-    unbiased[s.problem.parameters.shape[0] - 3 :] = 0.0  # secondary weights (posture last three)
+    unbiased[-3:] = 0.0  # the parameters end with the posture and secondary weights
+    polish = bool(np.any(params[-3:] > 0))
 
     def run(x0: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, float]:
         nonlocal iterations
@@ -320,7 +321,7 @@ def solve_nlp(request: IKRequest) -> IKResult:
     while True:
         restarts += 1
         q, score = run(next(starts), params)
-        if 1.0 < score < _POLISH_BELOW and not mon.stalled and time.perf_counter() < mon.deadline:
+        if polish and 1.0 < score < _POLISH_BELOW and not mon.stalled and time.perf_counter() < mon.deadline:
             q, score = min((q, score), run(q, unbiased), key=lambda qs: qs[1])
         if score < best_score:
             best_q, best_score = q, score

@@ -320,3 +320,18 @@ def test_compiled_and_casadi_evaluation_agree(monkeypatch: pytest.MonkeyPatch) -
     for a, b in zip(compiled(value), fallback(value), strict=True):
         np.testing.assert_allclose(a, b, atol=1e-14)
     np.testing.assert_allclose(fallback(value)[1], np.outer(value, value))
+
+
+def test_benchmark_script_runs(capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_diffik.py"
+    spec = importlib.util.spec_from_file_location("bench_diffik", path)
+    bench = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, "bench_diffik", bench)  # dataclasses look their module up
+    spec.loader.exec_module(bench)
+    assert bench.main(["--goals", "2", "--steps", "5", "--no-pink"]) == 0
+    out = capsys.readouterr().out
+    assert "| optik qp (default: " in out and "| optik qp osqp" in out

@@ -94,16 +94,13 @@ def _fmt_q(m: Mechanism, q: np.ndarray) -> str:
     return "  ".join(f"{n}={v:+.6f}" for n, v in zip(m.coordinate_names, q, strict=True))
 
 
-def _pose_text(m: Mechanism, t: np.ndarray) -> str:
+def _pose_text(m: Mechanism, t: np.ndarray, digits: int = 6) -> str:
+    """``x y phi`` (planar) or ``x y z roll pitch yaw`` of a transform, for printing."""
     if m.planar:
-        x, y, phi = spatial.planar_pose_of(t)
-        return f"x={x:+.6f}  y={y:+.6f}  phi={phi:+.6f} rad"
-    roll, pitch, yaw = spatial.rot_to_rpy(t[:3, :3])
-    p = t[:3, 3]
-    return (
-        f"x={p[0]:+.6f}  y={p[1]:+.6f}  z={p[2]:+.6f}  "
-        f"roll={roll:+.6f}  pitch={pitch:+.6f}  yaw={yaw:+.6f} rad"
-    )
+        names, values = ("x", "y", "phi"), spatial.planar_pose_of(t)
+    else:
+        names, values = ("x", "y", "z", "roll", "pitch", "yaw"), [*t[:3, 3], *spatial.rot_to_rpy(t[:3, :3])]
+    return "  ".join(f"{n}={float(v):+.{digits}f}" for n, v in zip(names, values, strict=True))
 
 
 def _save(fig: Figure, path: Path) -> Path:
@@ -183,7 +180,7 @@ def _cmd_solve(args: argparse.Namespace) -> int:
             ]
     except OptikError as exc:
         raise _usage(exc) from None
-    print(f"{problem.name}: IK of {_pose_text(m, target)} (task {task})")
+    print(f"{problem.name}: IK of {_pose_text(m, target)} (task {task}, angles in rad)")
     for i, r in enumerate(results, 1):
         print(
             f"[{i}] {r.method}: success={r.success}  time={1e3 * r.solve_time:.3f} ms  "
@@ -270,7 +267,8 @@ def _cmd_plot(args: argparse.Namespace) -> int:
         written.append(_save(ax.figure, out_dir / f"{name}_config.png"))
     if "branches" in modes and target is not None:
         sols = [r.q for r in optik.solve_ik_all(m, target, task=task, tol=problem.tolerances) if r.success]
-        title = f"{name}: {len(sols)} IK branch{'es' if len(sols) != 1 else ''} of {_pose_text(m, target)}"
+        what = f"{len(sols)} IK branch{'es' if len(sols) != 1 else ''}"
+        title = f"{name}: {what} of {_pose_text(m, target, 3)}"
         written.append(_save(draw_branches(m, sols, title=title), out_dir / f"{name}_branches.png"))
     if "assembly" in modes and m.is_closed and q_show is not None:
         actuated = q_show[m.actuated_indices]

@@ -26,6 +26,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+CORRECTOR_ITERATIONS = 3
+"""Newton corrections per step (the last update must be at rounding level for acceptance)."""
+
 JUMP_GUARD = 1e-3
 """Largest accepted corrector displacement relative to ``1 + |z|`` (guards against path jumping)."""
 
@@ -74,25 +77,35 @@ class _Homotopy:
         d = gamma * self.g - self.f  # dH/dt as quadrics
         self.d_flat = d.reshape(-1, d.shape[-1])
 
+    def _jacobian_rows(self, z: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """The patched Jacobian ``[2 M(t) z; a^T]`` (``(P, n, n)``); rows ``< k`` hold ``2 M(t) z``."""
+        p, n = z.shape
+        k = n - 1
+        jac = np.empty((p, n, n), dtype=complex)
+        jac[:, :k] = (z @ self.f_flat.T).reshape(p, k, n)
+        jac[:, :k] *= (1 - t)[:, None, None]
+        gt = self.gamma * t
+        rows = np.arange(k)
+        jac[:, rows, rows + 1] += gt[:, None] * z[:, 1:]  # G_j z: +z_{j+1} in column j+1
+        jac[:, :k, 0] -= gt[:, None] * z[:, :1]  # and -z_0 in column 0
+        jac[:, :k] *= 2
+        jac[:, k] = self.patch
+        return jac
+
     def value_and_jacobian(self, z: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Patched system ``[H; a^T z - 1]`` and its Jacobian ``[2 M(t) z; a^T]``."""
-        fz = (z @ self.f_flat.T).reshape(len(z), *self.f.shape[:2])
-        gz = np.zeros_like(fz)
-        k = fz.shape[1]
-        gz[:, np.arange(k), np.arange(1, k + 1)] = z[:, 1:]
-        gz[:, :, 0] = -z[:, :1]
-        mz = (1 - t)[:, None, None] * fz + (self.gamma * t)[:, None, None] * gz
-        h = np.einsum("pki,pi->pk", mz, z)
-        val = np.concatenate([h, (z @ self.patch - 1)[:, None]], axis=1)
-        jac = np.concatenate([2 * mz, np.broadcast_to(self.patch, (len(z), 1, z.shape[1]))], axis=1)
+        jac = self._jacobian_rows(z, t)
+        val = 0.5 * (jac @ z[:, :, None])[:, :, 0]  # z^T M z = (M z) . z
+        val[:, -1] = z @ self.patch - 1
         return val, jac
 
     def tangent(self, z: np.ndarray, t: np.ndarray) -> np.ndarray:
         """``dz/dt = -J^{-1} [dH/dt; 0]``."""
-        _, jac = self.value_and_jacobian(z, t)
-        dz = (z @ self.d_flat.T).reshape(len(z), -1, z.shape[1])
-        ht = np.einsum("pki,pi->pk", dz, z)
-        rhs = np.concatenate([ht, np.zeros((len(z), 1))], axis=1)
+        jac = self._jacobian_rows(z, t)
+        p, n = z.shape
+        dz = (z @ self.d_flat.T).reshape(p, n - 1, n)
+        rhs = np.zeros((p, n), dtype=complex)
+        rhs[:, :-1] = (dz @ z[:, :, None])[:, :, 0]
         return -_solve(jac, rhs)
 
 
@@ -173,7 +186,7 @@ def track(
         k3 = hom.tangent(za - 0.5 * step[:, None] * k2, ta - 0.5 * step)
         k4 = hom.tangent(za - step[:, None] * k3, t_new)
         zp = za - (step / 6)[:, None] * (k1 + 2 * k2 + 2 * k3 + k4)
-        zc, last = _newton(hom, zp, t_new, 3)
+        zc, last = _newton(hom, zp, t_new, CORRECTOR_ITERATIONS)
         scale = 1 + np.linalg.norm(zc, axis=1)
         ok = np.isfinite(last) & (last <= tol * scale) & np.all(np.isfinite(zc), axis=1)
         ok &= np.linalg.norm(zc - zp, axis=1) <= JUMP_GUARD * scale

@@ -17,6 +17,7 @@ closed-form branch (max-norm joint distance, angles modulo 2 pi): the *closed-fo
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
@@ -35,7 +36,16 @@ from optik.problems import PEERS, Problem, TargetSet
 from optik.solvers import methods
 from optik.solvers.base import BRANCH_TOL, evaluate, joint_distance
 
-__all__ = ["Call", "Contender", "ProblemRun", "SolverRun", "known_solvers", "run_problem", "run_problems"]
+__all__ = [
+    "Call",
+    "Contender",
+    "ProblemRun",
+    "SolverRun",
+    "contenders",
+    "known_solvers",
+    "run_problem",
+    "run_problems",
+]
 
 
 @dataclass(frozen=True)
@@ -130,7 +140,8 @@ class ProblemRun:
 
 @dataclass
 class Contender:
-    """A named solve function ``(q0, target) -> (q, status)`` of one method or peer."""
+    """A named solve function ``(q0, target) -> (q, status)`` of one method or peer (an empty
+    status is filled in from optik's evaluation: ``"solved"`` or ``"not_converged"``)."""
 
     name: str
     kind: str
@@ -143,7 +154,7 @@ def known_solvers() -> list[str]:
 
 
 def _method_contender(m: Mechanism, name: str, task: str, problem: Problem, time_limit: float) -> Contender:
-    counter = iter(range(1 << 62))
+    counter = itertools.count()  # a fresh restart seed per call, the same sequence in every run
 
     def solve(q0: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, str]:
         res = optik.solve_ik(
@@ -165,7 +176,7 @@ def _peer_contender(name: str, problem: Problem, time_limit: float) -> Contender
     peer = load_peer(name, problem)
 
     def solve(q0: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, str]:
-        return peer.solve(q0, target, time_limit, problem.tolerances), "returned"
+        return peer.solve(q0, target, time_limit, problem.tolerances), ""
 
     return Contender(name, "peer", solve)
 
@@ -273,17 +284,18 @@ def run_problem(
         for c, run in zip(ready, runs, strict=True):
             elapsed, q, status = _call(c, q0, target)
             err = evaluate(m, q, target, task, None)
+            ok = err.ok(problem.tolerances)
             run.calls.append(
                 Call(
                     time=elapsed,
-                    success=err.ok(problem.tolerances),
+                    success=ok,
                     position_error=err.position,
                     orientation_error=err.orientation,
                     closure_error=err.closure,
                     limits_ok=err.limits_ok,
                     cf_distance=min((joint_distance(m, q, b) for b in cf), default=float("nan")),
                     ref_distance=joint_distance(m, q, ref),
-                    status=status,
+                    status=status or ("solved" if ok else "not_converged"),
                 )
             )
             if progress is not None:

@@ -329,7 +329,7 @@ def make_request(
     """Validate user input and build an :class:`IKRequest`.
 
     Raises:
-        OptikError subclasses naming the bad argument (target, q0, task, frame, time_limit, tol).
+        OptikError: a subclass naming the bad argument (target, q0, task, frame, time_limit, tol, seed).
     """
     start = time.perf_counter()
     t = target_transform(target)

@@ -1,8 +1,9 @@
 """The documentation site builds in strict mode, and its Python examples run.
 
 Every fenced block opened with ```` ```python ```` in a page of ``docs/`` is executed, the blocks
-of one page in order in one namespace, from a temporary working directory; a block whose fence
-carries ``no-run`` (```` ```python no-run ````) is only shown.
+of one page in order in one namespace, from a temporary working directory. A block fenced as
+```` ```{.python .no-run} ```` (the attribute syntax of pymdownx.superfences, still highlighted
+as Python) is only shown, e.g. for signatures.
 """
 
 from __future__ import annotations
@@ -17,7 +18,10 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
-FENCE = re.compile(r"^```python(?P<info>[^\n]*)\n(?P<code>.*?)^```\s*$", re.MULTILINE | re.DOTALL)
+FENCE = re.compile(
+    r"^```(?P<info>python[^\n]*|\{[^}\n]*\.python\b[^}\n]*\})\n(?P<code>.*?)^```\s*$",
+    re.MULTILINE | re.DOTALL,
+)
 
 
 def runnable_blocks(text: str) -> list[str]:
@@ -29,8 +33,11 @@ PAGES = sorted(p for p in DOCS.rglob("*.md") if runnable_blocks(p.read_text(enco
 
 
 def test_fence_parser():
-    text = "x\n```python\na = 1\n```\n```python no-run\nboom()\n```\n```bash\nls\n```\n"
-    assert runnable_blocks(text) == ["a = 1\n"]
+    text = (
+        "x\n```python\na = 1\n```\n```{.python .no-run}\nboom()\n```\n"
+        "```bash\nls\n```\n```{.python}\nb = 2\n```\n"
+    )
+    assert runnable_blocks(text) == ["a = 1\n", "b = 2\n"]
 
 
 def test_strict_build(tmp_path):

@@ -250,3 +250,22 @@ def test_stewart_unreachable_leg_lengths_give_no_posture():
     keep leg 6 shorter than 3.7: a 5 m leg cannot assemble."""
     m = optik.catalog.stewart_gough()
     assert cf.fk(m, [0.5, 0.5, 0.5, 0.5, 0.5, 5.0]) == []
+
+
+@pytest.mark.parametrize(
+    ("name", "target"),
+    [
+        ("five_bar", optik.Position(0.5, 1.4)),
+        ("doggy", optik.Pose2D(0.1, 0.8, 0.2)),
+        ("slider_crank", optik.Position(1.0, 0.0)),
+    ],
+)
+def test_numeric_ik_finds_every_closed_form_branch(name, target):
+    """Numerical multi-start IK (closure as constraints, closed form switched off) finds the
+    4 / 4 / 2 closed-form branches to 1e-9."""
+    m = getattr(optik.catalog, name)()
+    exact = cf.ik(m, target)
+    numeric = optik.solve_ik_all(m, target, closed_form=False, tol=1e-12, time_limit=3.0, seed=0)
+    assert len(numeric) == len(exact) == {"five_bar": 4, "doggy": 4, "slider_crank": 2}[name]
+    for q in exact:
+        assert min(np.max(np.abs(optik.spatial.wrap_angle(r.q - q))) for r in numeric) < 1e-9

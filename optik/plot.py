@@ -39,7 +39,16 @@ from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 from optik.problems import assemble
 
-__all__ = ["draw", "draw_branches", "save_figure", "workspace", "write_atomic"]
+__all__ = [
+    "Geometry",
+    "draw",
+    "draw_branches",
+    "geometry",
+    "save_figure",
+    "workspace",
+    "workspace_points",
+    "write_atomic",
+]
 
 _MARKERS = {"revolute": "o", "prismatic": "s", "universal": "D", "spherical": "o"}
 _TRIAD_COLORS = ("tab:red", "tab:green", "tab:blue")

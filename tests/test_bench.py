@@ -149,3 +149,29 @@ def test_progress_bar_on_a_plain_stream():
     bar.finish()
     line = stream.getvalue()
     assert line.startswith("[1/2] five_bar") and "100%" in line and "4/4" in line and line.endswith("\n")
+
+
+@pytest.mark.parametrize(("peer", "package"), [("trac_ik", "pytracik"), ("pink", "pink"), ("ikpy", "ikpy")])
+def test_each_peer_matches_the_model_and_solves(peer, package):
+    pytest.importorskip(package)
+    from optik.bench.peers import load_peer
+    from optik.solvers.base import evaluate
+
+    p = problems.find_problem("iiwa14")
+    m = p.mechanism()
+    adapter = load_peer(peer, p)  # checks the peer's FK against the mechanism's
+    t = p.sample_targets(2, seed=5)
+    for q_ref, target in zip(t.q, t.poses, strict=True):
+        q0 = np.clip(q_ref + 0.05, m.lower, m.upper)  # a nearby start: every peer must converge
+        q = adapter.solve(q0, target, 0.5, p.tolerances)
+        assert evaluate(m, q, target, "pose", None).ok(p.tolerances)
+
+
+def test_peer_with_a_different_chain_is_unavailable(tmp_path):
+    pytest.importorskip("pytracik")
+    from optik.bench.peers import PeerUnavailable, load_peer
+
+    path = tmp_path / "mix.toml"
+    path.write_text('[problem]\ndescription = "x"\n[mechanism]\nconstructor = "iiwa14"\nurdf = "panda"\n')
+    with pytest.raises(PeerUnavailable, match="differs"):
+        load_peer("trac_ik", problems.load_problem(path))

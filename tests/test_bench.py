@@ -175,3 +175,12 @@ def test_peer_with_a_different_chain_is_unavailable(tmp_path):
     path.write_text('[problem]\ndescription = "x"\n[mechanism]\nconstructor = "iiwa14"\nurdf = "panda"\n')
     with pytest.raises(PeerUnavailable, match="differs"):
         load_peer("trac_ik", problems.load_problem(path))
+
+
+def test_missing_peer_package_is_a_clean_note(monkeypatch):
+    from optik.bench.peers import ADAPTERS
+
+    monkeypatch.setattr(ADAPTERS["ikpy"], "package", "no_such_ikpy_module")
+    res = run_problem(problems.find_problem("panda"), n=2, time_limit=0.02, only=["ikpy", "lm"])
+    assert [r.name for r in res.runs] == ["lm"]
+    assert any("no_such_ikpy_module" in n and "pip install" in n for n in res.notes), res.notes

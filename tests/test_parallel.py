@@ -269,3 +269,18 @@ def test_numeric_ik_finds_every_closed_form_branch(name, target):
     assert len(numeric) == len(exact) == {"five_bar": 4, "doggy": 4, "slider_crank": 2}[name]
     for q in exact:
         assert min(np.max(np.abs(optik.spatial.wrap_angle(r.q - q))) for r in numeric) < 1e-9
+
+
+def test_3rpr_congruent_platform_continuum_gives_representatives():
+    """Platform congruent to the base with equal legs: at phi = 0 every translation on a circle
+    assembles (a quadruple root of F whose cluster centre is found); the isolated modes at
+    phi = +-pi/2 are returned as well, and every returned pose meets the legs."""
+    b = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    rho = np.ones(3)
+    poses = par.planar_3rpr_poses(b, b.copy(), rho)
+    headings = np.array([x[2] for x in poses])
+    assert np.sum(np.abs(headings) < 1e-9) == par.CONTINUUM_SAMPLES
+    assert np.sum(np.abs(np.abs(headings) - np.pi / 2) < 1e-9) == 2
+    for x in poses:
+        legs = np.linalg.norm(x[:2] + b @ par._rot2(x[2]).T - b, axis=1)
+        assert np.allclose(legs, rho, atol=1e-9)

@@ -27,6 +27,9 @@ QUADRATIC_STOP = 1e-9
 """Newton polishing stops after a step below this (relative): with quadratic convergence the
 error left after a step of size ``d`` is ``O(d^2)``, at the level of rounding."""
 
+CONTINUUM_SAMPLES = 12
+"""Representatives returned where the assembly modes form a continuum (architecture singularity)."""
+
 CIRCLE_TOL = 1e-12
 """Relative tolerance under which a circle/circle or law-of-cosines discriminant counts as zero."""
 
@@ -249,6 +252,12 @@ def rpr_polynomial(b: np.ndarray, p: np.ndarray, rho: np.ndarray) -> np.ndarray:
     is the degree-6 polynomial in ``z = e^{i phi}``. The coefficients are read off exactly from
     16 samples by the FFT.
     """
+    return _rpr_coefficients(b, p, rho)[0]
+
+
+def _rpr_coefficients(b: np.ndarray, p: np.ndarray, rho: np.ndarray) -> tuple[np.ndarray, float]:
+    """:func:`rpr_polynomial` and the magnitude ``max(|N|^2 + rho_1^2 D^2)`` of its two terms
+    over the samples (to tell an identically vanishing ``F`` from a small one)."""
     phis = 2 * np.pi * np.arange(16) / 16
     d, e = p[1:] - p[0], b[1:] - b[0]
     c, s = np.cos(phis), np.sin(phis)
@@ -261,22 +270,45 @@ def rpr_polynomial(b: np.ndarray, p: np.ndarray, rho: np.ndarray) -> np.ndarray:
     nx = w[:, 1, 1] * k[:, 0] - w[:, 0, 1] * k[:, 1]
     ny = -w[:, 1, 0] * k[:, 0] + w[:, 0, 0] * k[:, 1]
     f = nx * nx + ny * ny - rho[0] ** 2 * (2 * det) ** 2
+    magnitude = float(np.max(nx * nx + ny * ny + rho[0] ** 2 * (2 * det) ** 2))
     coef = np.fft.fft(f) / 16  # coef[k % 16] multiplies e^{i k phi}
-    return np.array([coef[k % 16] for k in range(-3, 4)])
+    return np.array([coef[k % 16] for k in range(-3, 4)]), magnitude
+
+
+def _cluster_means(roots: np.ndarray, radius: float = 1e-3) -> np.ndarray:
+    """Centroids of clusters of roots closer than ``radius``: a root of multiplicity ``k``
+    splits by ``O(eps^(1/k))`` under rounding, but the centroid of the cluster stays accurate."""
+    means = []
+    for z in roots:
+        near = roots[np.abs(roots - z) < radius]
+        if len(near) > 1:
+            mean = near.mean()
+            if not any(abs(mean - w) < 1e-12 for w in means):
+                means.append(mean)
+    return np.array(means, dtype=complex)
 
 
 def _rpr_candidates(b: np.ndarray, p: np.ndarray, rho: np.ndarray, phi: float) -> list[np.ndarray]:
-    """Platform positions ``P_1`` for a heading: Cramer's rule, or (when ``W`` is singular) the
-    line ``2 w . u = k`` of the stronger row intersected with the circle ``|u| = rho_1``."""
+    """Platform positions ``P_1`` for a heading: Cramer's rule; when ``W`` is singular the line
+    ``2 w . u = k`` of the stronger row intersected with the circle ``|u| = rho_1``; when
+    ``W = 0``, representatives of the circle."""
     d, e = p[1:] - p[0], b[1:] - b[0]
     w = d @ _rot2(phi).T - e
     k = rho[1:] ** 2 - rho[0] ** 2 - np.sum(w * w, axis=1)
+    i = int(np.argmax(np.linalg.norm(w, axis=1)))
+    if np.linalg.norm(w[i]) <= 1e-12 * (1 + np.max(np.abs(e))):
+        # W = 0: the platform is a translate of the base (congruent triangles at this heading);
+        # every u on the circle |u| = rho_1 assembles when k = 0: representatives of the continuum
+        if np.max(np.abs(k)) > 1e-9 * max(rho[0] ** 2, 1.0):
+            return []
+        return [
+            b[0] + rho[0] * _dir(a) for a in np.linspace(-np.pi, np.pi, CONTINUUM_SAMPLES, endpoint=False)
+        ]
     det = w[0, 0] * w[1, 1] - w[0, 1] * w[1, 0]
     if abs(det) > 1e-9 * max(float(np.sum(w * w)), 1e-300):  # Cramer's rule on 2 W u = k
         return [
             b[0] + np.array([w[1, 1] * k[0] - w[0, 1] * k[1], w[0, 0] * k[1] - w[1, 0] * k[0]]) / (2 * det)
         ]
-    i = int(np.argmax(np.linalg.norm(w, axis=1)))
     n = w[i] / np.linalg.norm(w[i])
     dist = k[i] / (2 * np.linalg.norm(w[i]))
     h2 = rho[0] ** 2 - dist**2
@@ -295,6 +327,8 @@ def polish_planar_3rpr(
     """
     for _ in range(iters):
         f, jac = _rpr_residual(b, p, rho, x)
+        if np.max(np.abs(f)) <= 1e-15 * (1 + np.max(rho) ** 2):
+            break  # already exact (also keeps points of a continuum, where J is singular)
         step = _newton_step(jac, f)
         x = x - step
         if np.max(np.abs(step)) < QUADRATIC_STOP * (1 + np.max(np.abs(x))):
@@ -308,17 +342,26 @@ def planar_3rpr_poses(b: np.ndarray, p: np.ndarray, rho: np.ndarray, tol: float 
 
     Roots of :func:`rpr_polynomial` in ``z = e^{i phi}`` near the unit circle give candidate
     headings (a double root may split off the circle by ``O(sqrt(eps))``, hence the loose
-    filter); each candidate is polished by Newton on the leg equations, kept when every leg
+    filter; the centroids of root clusters are tried as well, see :func:`_cluster_means`); each
+    candidate is polished by Newton on the leg equations, kept when every leg
     length is met to ``tol`` and de-duplicated. Leading/trailing coefficients that vanish only
     remove roots at ``z = 0`` or infinity, which are never real headings.
+
+    Architecture singularities, where the modes form a continuum, give
+    :data:`CONTINUUM_SAMPLES` representatives of it: ``F`` vanishing identically (every heading
+    a root), or ``W = 0`` at a root (platform congruent to the base: every ``P_1`` on the circle
+    ``|P_1 - b_1| = rho_1``).
     """
-    coef = rpr_polynomial(b, p, rho)
+    coef, magnitude = _rpr_coefficients(b, p, rho)
     scale = np.max(np.abs(coef))
-    if scale == 0:
-        return []
-    nz = np.flatnonzero(np.abs(coef) > 1e-13 * scale)
-    trimmed = coef[nz[0] : nz[-1] + 1]
-    roots = np.roots(trimmed[::-1]) if len(trimmed) > 1 else np.zeros(0)
+    if scale <= 1e-12 * magnitude:
+        # F vanishes identically (architecture singularity): every heading is a root
+        roots = np.exp(1j * np.linspace(-np.pi, np.pi, CONTINUUM_SAMPLES, endpoint=False))
+    else:
+        nz = np.flatnonzero(np.abs(coef) > 1e-13 * scale)
+        trimmed = coef[nz[0] : nz[-1] + 1]
+        roots = np.roots(trimmed[::-1]) if len(trimmed) > 1 else np.zeros(0)
+        roots = np.concatenate([roots, _cluster_means(roots)])
     size = float(np.max(np.abs(b)) + np.max(np.abs(p)) + np.max(rho))
     poses: list[np.ndarray] = []
     for z in roots:
@@ -414,6 +457,8 @@ def polish_stewart(
     """
     for _ in range(iters):
         f, jac = _sg_residual(b, p, rho, r, t)
+        if np.max(np.abs(f)) <= 1e-15 * (1 + np.max(rho) ** 2):
+            break
         step = _newton_step(jac, f)
         t = t - step[:3]
         r = spatial.so3_exp(-step[3:]) @ r

@@ -58,11 +58,11 @@ RAW = {
 """The vectorized solver of each kind, called on one target (every branch, no merging)."""
 
 
-def check_round_trip(m, q, recover=True):
+def check_round_trip(m, q, recover=True, strict=True):
     """FK -> closed form -> every branch reaches the target and q itself is among the branches.
 
-    The vectorized solver must return q to 1e-6; ``closed_form.ik`` merges branches closer than
-    DESIGN's same-branch distance 1e-4, so there q is found to 1e-4.
+    The vectorized solver must return q to 1e-6 (``strict``); ``closed_form.ik`` merges branches
+    closer than DESIGN's same-branch distance 1e-4, so there q is found to 1e-4.
     """
     t = m.fk(q)
     branches = closed_form.ik(m, t, respect_limits=False)
@@ -75,7 +75,7 @@ def check_round_trip(m, q, recover=True):
             assert joint_distance(m, branches[i], branches[j]) >= 1e-4
     if recover:
         raw, ok = RAW[m.kind](m, t)
-        assert np.min(np.where(ok[0], joint_distance(m, raw[0], q), np.inf)) < SAME_Q
+        assert np.min(np.where(ok[0], joint_distance(m, raw[0], q), np.inf)) < (SAME_Q if strict else 1e-4)
         assert min(joint_distance(m, b, q) for b in branches) < 1e-4
     return branches
 
@@ -128,7 +128,9 @@ def test_seed_6r_round_trip(dims, data):
     # puts the wrist centre on the shoulder (d2 = d3, theta3 = pi), q is one of infinitely many
     elbow_reach = abs(dims[0] + dims[1] * np.exp(1j * q[2]))
     regular = abs(np.sin(q[4])) > 1e-6 and np.hypot(p[0], p[1]) > 1e-6 and elbow_reach > 1e-6
-    check_round_trip(m, q, recover=regular)
+    # a stretched or folded elbow angle is the square root of a rounding-level cosine, which the
+    # wrist's conditioning (1 / |s5|) amplifies: there q is recovered to the same-branch 1e-4
+    check_round_trip(m, q, recover=regular, strict=abs(np.sin(q[2])) > 1e-3)
 
 
 # ---------------------------------------------------------------------------- thousands of targets

@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from optik.checks import as_vector
+from optik.catalog.serial import _positive
 from optik.closed_form.registry import register
 from optik.errors import InvalidArgumentError, NonFiniteError, ShapeError
 from optik.mechanism import Mechanism
@@ -69,16 +69,10 @@ SINGULAR_TOL = 1e-12
 _TWO_PI = 2.0 * np.pi
 _INV_TWO_PI = 1.0 / _TWO_PI
 _SAME_BRANCH = 1e-4
+"""DESIGN's same-branch distance (the solvers layer, above this one, has it as ``BRANCH_TOL``)."""
 
 BLOCK = 2048
 """Targets per block in the vectorized kernels."""
-
-
-def _lengths(values: Any, name: str, n: int) -> tuple[float, ...]:
-    ls = as_vector(values, name, n)
-    if np.any(ls <= 0):
-        raise InvalidArgumentError(name, f"lengths must be > 0, got {tuple(ls)}")
-    return tuple(float(v) for v in ls)
 
 
 def _flat(**named: Any) -> list[np.ndarray]:
@@ -216,7 +210,7 @@ def ik_planar_2r(lengths: Any, x: Any, y: Any) -> tuple[np.ndarray, np.ndarray]:
         NonFiniteError: NaN or infinity in ``x`` or ``y``.
         ShapeError: ``x`` and ``y`` do not broadcast.
     """
-    l1, l2 = _lengths(lengths, "lengths", 2)
+    l1, l2 = _positive(lengths, "lengths", 2)
     return _blocked(partial(_planar_2r_block, l1, l2), _flat(x=x, y=y), 2, 2)
 
 
@@ -239,7 +233,7 @@ def ik_planar_3r(lengths: Any, x: Any, y: Any, phi: Any) -> tuple[np.ndarray, np
         NonFiniteError: NaN or infinity in ``x``, ``y`` or ``phi``.
         ShapeError: the arrays do not broadcast.
     """
-    l1, l2, l3 = _lengths(lengths, "lengths", 3)
+    l1, l2, l3 = _positive(lengths, "lengths", 3)
     return _blocked(partial(_planar_3r_block, l1, l2, l3), _flat(x=x, y=y, phi=phi), 2, 3)
 
 
@@ -373,7 +367,7 @@ def ik_seed_6r(d2: float, d3: float, d4: float, t: Any) -> tuple[np.ndarray, np.
         InvalidArgumentError: a length is not > 0 (argument ``d2/d3/d4``).
         ShapeError / NonFiniteError: bad ``t``.
     """
-    d2, d3, d4 = _lengths((d2, d3, d4), "d2/d3/d4", 3)
+    d2, d3, d4 = _positive((d2, d3, d4), "d2/d3/d4", 3)
     return _blocked(partial(_seed_6r_block, d2, d3, d4), [_transforms(t, "t")], 8, 6)
 
 

@@ -284,3 +284,21 @@ def test_3rpr_congruent_platform_continuum_gives_representatives():
     for x in poses:
         legs = np.linalg.norm(x[:2] + b @ par._rot2(x[2]).T - b, axis=1)
         assert np.allclose(legs, rho, atol=1e-9)
+
+
+def test_homotopy_tracks_every_solution_of_two_circles():
+    """x^2 + y^2 = w^2 and (x - w)^2 + y^2 = w^2 in P^2: Bezout 4 = the two real intersections
+    (1/2, +-sqrt(3)/2) plus the two circular points (1, +-i, 0) at infinity, all nonsingular."""
+    from optik.closed_form import homotopy
+
+    f1 = np.diag([-1.0, 1.0, 1.0])
+    f2 = np.array([[0.0, -1.0, 0.0], [-1.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    res = homotopy.track(np.array([f1, f2]), np.random.default_rng(0))
+    assert res.converged.all() and np.all(res.residual < 1e-12)
+    z = homotopy.refine(np.array([f1, f2]), res.z)
+    finite = z[np.abs(z[:, 0]) > 1e-6 * np.linalg.norm(z, axis=1)]
+    points = sorted((finite[:, 1:] / finite[:, :1]).real.tolist(), key=lambda v: v[1])
+    assert np.allclose(points, [[0.5, -np.sqrt(3) / 2], [0.5, np.sqrt(3) / 2]], atol=1e-12)
+    at_infinity = z[np.abs(z[:, 0]) <= 1e-6 * np.linalg.norm(z, axis=1)]
+    assert len(at_infinity) == 2
+    assert np.allclose(np.abs(at_infinity[:, 2] / at_infinity[:, 1]), 1.0)

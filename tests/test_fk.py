@@ -170,3 +170,14 @@ def test_compiled_functions_are_cached_per_mechanism():
     m = optik.catalog.slider_crank()
     assert fk_mod._compiled(m) is fk_mod._compiled(m)
     assert fk_mod._compiled(m) is not fk_mod._compiled(optik.catalog.slider_crank())
+
+
+def test_hand_built_mechanism_uses_the_numeric_multistart():
+    """No catalog kind, a name that is no identifier: the multi-start finds both modes."""
+    m0 = optik.catalog.five_bar()
+    m = optik.Mechanism(m0.joints, frames={"tool": ("distal1", np.eye(4))}, ee="tool", name="my five-bar")
+    modes = optik.solve_fk_all(m, [1.2, 0.6], seed=0)
+    exact = cf.fk(m0, [1.2, 0.6])
+    assert len(modes) == len(exact) == 2
+    assert all(any(same_mode(m, r.q, q) for r in modes) for q in exact)
+    assert all(r.extra["method"] == "numeric" for r in modes)

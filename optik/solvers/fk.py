@@ -93,7 +93,7 @@ def _compiled(m: Mechanism) -> _Compiled:
         pas = m.passive_indices
         c = m.closure_expr
         jac = ca.jacobian(c, q[[int(i) for i in pas]]) if len(pas) else ca.SX(c.shape[0], 0)
-        f = ca.Function(f"fk_closure_{m.name}", [q], [c, jac])
+        f = ca.Function("fk_closure", [q], [c, jac])
         _CACHE[m] = _Compiled(f, m.actuated_indices, pas, m.revolute_mask[m.actuated_indices])
     return _CACHE[m]
 

@@ -8,7 +8,8 @@ Thread pools are pinned to 1 before numpy is imported (the machine has 2 cores).
    against the numerical multi-start (``method="numeric"``) on the same leg lengths: recall (the
    drawn pose is among the modes), mean number of modes, mean / median / p95 time, ratio.
    Random geometries are used as well as the catalog default (which only ever has 2 or 4
-   real modes), so that 6-mode cases occur.
+   real modes), so that 6-mode cases occur; each new mechanism is solved once untimed first
+   (building its CasADi functions is set-up, not solving).
 2. Stewart-Gough, all real postures by homotopy continuation: random general 6-6 geometries and
    the catalog geometry (planar hexagons); time per call, histogram of real postures, complex
    solutions found (40 for a general 6-6), recall of the drawn pose. A heavier check repeats
@@ -65,6 +66,7 @@ def bench_3rpr(n: int, rng: np.random.Generator) -> None:
             pose = optik.Pose2D(*rng.uniform([0.6, 0.4, -np.pi], [1.4, 1.1, np.pi]))
         qs = closed_form.ik(m, pose)
         if qs:
+            optik.solve_fk_all(m, qs[0][m.actuated_indices])  # untimed: builds the CasADi functions
             cases.append((m, qs[0]))
     base_mean = None
     for label, kwargs in (("closed form (degree 6)", {}), ("numeric multi-start", {"method": "numeric"})):

@@ -17,7 +17,7 @@ alike; the table reports success rate, mean / median / p95 time and the ratio of
 to TRAC-IK's.
 
 Run: ``python benchmarks/bench_ik.py [--n 10000] [--time-limit 0.005] [--tol 1e-5]
-[--methods lm,nlp,nlp-sqp,tracik] [--n-nlp 1000] [--nlp-time-limit 0.1]``.
+[--methods lm,nlp,nlp-sqp,tracik] [--n-nlp 1000] [--nlp-time-limit 0.3]``.
 """
 
 from __future__ import annotations
@@ -95,7 +95,7 @@ def run(
     tol: float = 1e-5,
     methods: Sequence[str] = ("lm", "nlp", "nlp-sqp", "tracik"),
     n_nlp: int = 1000,
-    nlp_time_limit: float = 0.1,
+    nlp_time_limit: float = 0.3,
     seed: int = 0,
 ) -> dict[str, Record]:
     """Run the benchmark and return the records by solver label."""
@@ -144,7 +144,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="comma list of lm, nlp (IPOPT), nlp-sqp (sqpmethod), tracik, and any registered method",
     )
     p.add_argument("--n-nlp", type=int, default=1000, help="targets for the (slower) nlp method")
-    p.add_argument("--nlp-time-limit", type=float, default=0.1, help="time limit of nlp calls (s)")
+    p.add_argument("--nlp-time-limit", type=float, default=0.3, help="time limit of nlp calls (s)")
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args(argv)
     methods = [s.strip() for s in args.methods.split(",") if s.strip()]

@@ -187,18 +187,20 @@ class IKProblem:
         ref = m.mid_q() if q_ref is None else m.check_q(q_ref, "q_ref")
         return np.concatenate([target_parameters(target), w, ref, sec])
 
-    def lagrangian_hessian(self, lam_f: ca.SX, lam_g: ca.SX) -> ca.SX:
+    def lagrangian_hessian(self, lam_f: ca.SX, lam_g: ca.SX, damping: float = 0.0) -> ca.SX:
         """Gauss-Newton Hessian of the Lagrangian ``lam_f f + lam_g^T c``.
 
-        ``lam_f (J_w^T J_w + w_post I + hess(secondary terms)) + sum_i lam_g,i hess(c_i)``, with
+        ``lam_f (J_w^T J_w + (w_post + damping) I + hess(secondary terms)) + sum_i lam_g,i
+        hess(c_i)``, with
         ``J_w`` the Jacobian of the weighted task residual ``[w_p r_p; w_o r_o]``: the task part
         drops the residual-curvature terms ``sum_k r_k hess(r_k)``, which vanish at a reached
         target, so it is positive semidefinite and the solver needs no inertia correction there
-        (the step is then Gauss-Newton's, as in ``"lm"``).
+        (the step is then Gauss-Newton's, as in ``"lm"``). ``damping`` adds a Levenberg term: it
+        changes the steps (shorter along near-singular directions), not the solutions.
         """
         q = self.q
         jw = ca.jacobian(self.weighted_residual(), q)
-        h = ca.mtimes(jw.T, jw) + self.secondary_weights[0] * ca.SX.eye(q.shape[0])
+        h = ca.mtimes(jw.T, jw) + (self.secondary_weights[0] + damping) * ca.SX.eye(q.shape[0])
         if self.secondary:
             h += ca.hessian(self.secondary_objective, q)[0]
         h = lam_f * h

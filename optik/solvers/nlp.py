@@ -36,8 +36,11 @@ Options (``solve_ik(..., method="nlp", **options)``):
 * ``solver_options`` ({}): extra ``nlpsol`` options, e.g. ``{"ipopt.mu_init": 1e-3}``.
 * ``hessian`` (None): Hessian of the Lagrangian given to the solver, ``"gauss-newton"``
   (:meth:`IKProblem.lagrangian_hessian`, positive semidefinite task part) or ``"exact"``
-  (CasADi's automatic second derivatives); None picks ``"exact"`` for IPOPT (fewer iterations
-  on the Panda) and ``"gauss-newton"`` for ``sqpmethod`` (its QPs need a convex Hessian).
+  (CasADi's automatic second derivatives); None picks ``"gauss-newton"`` for ``sqpmethod``
+  (its QPs need a convex Hessian) and ``"exact"`` for IPOPT (which then converges to tight
+  tolerances, 1e-9 and below, where the damped Gauss-Newton steps slow down).
+* ``damping`` (1e-6): Levenberg term added to the Gauss-Newton Hessian (steps only, not the
+  solution): without it ``sqpmethod`` stalls near singular configurations.
 * ``max_restarts`` (None): cap on restarts (None: until success or the time limit).
 * ``compile`` ("auto"): compile the error check to C (see :mod:`optik.solvers.native`).
 """
@@ -83,6 +86,7 @@ DEFAULTS: dict[str, Any] = {
     "ipopt_tol": 1e-12,
     "solver_options": {},
     "hessian": None,
+    "damping": 1e-6,
     "max_restarts": None,
     "compile": "auto",
 }
@@ -91,11 +95,11 @@ DEFAULTS: dict[str, Any] = {
 SOLVERS = ("ipopt", "sqpmethod")
 HESSIANS = ("gauss-newton", "exact")
 _STALL_WINDOW = 5
-_POLISH_BELOW = 1e4
-"""A start that converges within this factor of the tolerances but not within them (the posture
-and secondary terms bias the optimum slightly off the target) is polished by a second solve from
-its answer with those weights set to 0: the same NLP, other parameter values. Stalled starts are
-not polished: they restart."""
+_POLISH_BELOW = 1e-3
+"""A start whose position and orientation errors end below this (m, rad) but not within the
+tolerances (the posture and secondary terms bias the optimum slightly off the target, most near
+singular configurations) is polished by a second solve from its answer with those weights set
+to 0: the same NLP, other parameter values. Starts further off restart."""
 
 
 class _Monitor(ca.Callback):
@@ -195,12 +199,12 @@ def _solver_options(
     }
 
 
-def _hessian_function(problem: IKProblem, upper: bool) -> ca.Function:
+def _hessian_function(problem: IKProblem, upper: bool, damping: float) -> ca.Function:
     """``hess_lag`` option of ``nlpsol``: :meth:`IKProblem.lagrangian_hessian` (upper triangle
     for IPOPT, full for ``sqpmethod``)."""
     lam_f = ca.SX.sym("lam_f")
     lam_g = ca.SX.sym("lam_g", problem.closure.shape[0])
-    h = problem.lagrangian_hessian(lam_f, lam_g)
+    h = problem.lagrangian_hessian(lam_f, lam_g, damping)
     return ca.Function(
         "nlp_hess_l",
         [problem.q, problem.parameters, lam_f, lam_g],
@@ -242,17 +246,19 @@ def nlp_solver(
     ipopt_tol: float = 1e-12,
     extra: dict[str, Any] | None = None,
     hessian: str = "exact",
+    damping: float = 0.0,
 ) -> _Solver:
     """The ``nlpsol`` instance of an IK problem, built once per argument combination (``extra``:
     additional ``nlpsol`` options, part of the cache key through their ``repr``)."""
     extra = dict(extra or {})
-    key = (m, task, frame, secondary, solver, max_iter, ipopt_tol, repr(sorted(extra.items())), hessian)
+    options_key = repr(sorted(extra.items()))
+    key = (m, task, frame, secondary, solver, max_iter, ipopt_tol, options_key, hessian, damping)
     if key not in _SOLVERS:
         problem = build_ik_problem(m, task, frame, secondary)
         monitor = _Monitor(m.n_q, m.n_closure, problem.parameters.shape[0])
         options = _solver_options(solver, max_iter, ipopt_tol, extra, monitor)
         if hessian == "gauss-newton":
-            options["hess_lag"] = _hessian_function(problem, upper=solver == "ipopt")
+            options["hess_lag"] = _hessian_function(problem, solver == "ipopt", damping)
         with _silenced_stdout():  # qpOASES prints a licence banner on construction
             fn = ca.nlpsol("optik_ik", solver, problem.nlp(), options)
         _SOLVERS[key] = _Solver(problem, fn, monitor)
@@ -283,6 +289,7 @@ def solve_nlp(request: IKRequest) -> IKResult:
         float(opts["ipopt_tol"]),
         extra,
         hessian,
+        float(opts["damping"]),
     )
     params = s.problem.parameter_values(
         request.target,
@@ -321,7 +328,8 @@ def solve_nlp(request: IKRequest) -> IKResult:
     while True:
         restarts += 1
         q, score = run(next(starts), params)
-        if polish and 1.0 < score < _POLISH_BELOW and not mon.stalled and time.perf_counter() < mon.deadline:
+        near = max(errors(np.clip(q, m.lower, m.upper))[:2]) < _POLISH_BELOW
+        if polish and score > 1.0 and near and time.perf_counter() < mon.deadline:
             q, score = min((q, score), run(q, unbiased), key=lambda qs: qs[1])
         if score < best_score:
             best_q, best_score = q, score

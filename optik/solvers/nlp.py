@@ -34,11 +34,10 @@ Options (``solve_ik(..., method="nlp", **options)``):
   iterations can progress slowly before they converge fast).
 * ``ipopt_tol`` (1e-12): IPOPT's own convergence tolerance.
 * ``solver_options`` ({}): extra ``nlpsol`` options, e.g. ``{"ipopt.mu_init": 1e-3}``.
-* ``hessian`` (None): Hessian of the Lagrangian given to the solver, ``"gauss-newton"``
-  (:meth:`IKProblem.lagrangian_hessian`, positive semidefinite task part) or ``"exact"``
-  (CasADi's automatic second derivatives); None picks ``"gauss-newton"`` for ``sqpmethod``
-  (its QPs need a convex Hessian) and ``"exact"`` for IPOPT (which then converges to tight
-  tolerances, 1e-9 and below, where the damped Gauss-Newton steps slow down).
+* ``hessian`` ("gauss-newton"): Hessian of the Lagrangian given to the solver,
+  ``"gauss-newton"`` (:meth:`IKProblem.lagrangian_hessian`, positive semidefinite task part;
+  ``sqpmethod`` needs it for convex QPs, IPOPT needs fewer iterations and restarts with it on
+  the Panda) or ``"exact"`` (CasADi's automatic second derivatives).
 * ``damping`` (1e-6): Levenberg term added to the Gauss-Newton Hessian (steps only, not the
   solution): without it ``sqpmethod`` stalls near singular configurations.
 * ``max_restarts`` (None): cap on restarts (None: until success or the time limit).
@@ -85,7 +84,7 @@ DEFAULTS: dict[str, Any] = {
     "stall": None,
     "ipopt_tol": 1e-12,
     "solver_options": {},
-    "hessian": None,
+    "hessian": "gauss-newton",
     "damping": 1e-6,
     "max_restarts": None,
     "compile": "auto",
@@ -270,7 +269,7 @@ def solve_nlp(request: IKRequest) -> IKResult:
     opts = method_options(request, DEFAULTS)
     if opts["solver"] not in SOLVERS:
         raise InvalidArgumentError("solver", f"unknown NLP solver {opts['solver']!r}; use one of {SOLVERS}")
-    hessian = opts["hessian"] or ("exact" if opts["solver"] == "ipopt" else "gauss-newton")
+    hessian = opts["hessian"]
     if hessian not in HESSIANS:
         raise InvalidArgumentError("hessian", f"unknown Hessian {hessian!r}; use one of {HESSIANS}")
     m, tol = request.mechanism, request.tol

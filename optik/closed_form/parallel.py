@@ -13,6 +13,7 @@ Stewart-Gough IK 1, FK every real posture (at most 40) by homotopy continuation.
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -632,8 +633,19 @@ def stewart_poses(
 
 
 def stewart_gough_fk(m: Mechanism, actuated: np.ndarray) -> list[np.ndarray]:
-    """Stewart-Gough FK: every real posture (:func:`stewart_poses`) as a full ``q``."""
+    """Stewart-Gough FK: every real posture (:func:`stewart_poses`) as a full ``q``.
+
+    Warns (``RuntimeWarning``) when the homotopy could not certify completeness within its
+    time limit, so that a possibly missing posture never goes unnoticed.
+    """
     fk = stewart_poses(m.params["base"], m.params["platform"], np.asarray(actuated, dtype=float))
+    if not fk.complete:
+        warnings.warn(
+            f"Stewart-Gough FK: completeness not certified after {fk.rounds} homotopy round(s) "
+            f"({fk.complex_solutions} complex solutions found); a real posture may be missing",
+            RuntimeWarning,
+            stacklevel=2,
+        )
     return [_stewart_q(m, r, t) for r, t in fk.poses]
 
 

@@ -302,3 +302,15 @@ def test_homotopy_tracks_every_solution_of_two_circles():
     at_infinity = z[np.abs(z[:, 0]) <= 1e-6 * np.linalg.norm(z, axis=1)]
     assert len(at_infinity) == 2
     assert np.allclose(np.abs(at_infinity[:, 2] / at_infinity[:, 1]), 1.0)
+
+
+def test_stewart_incomplete_search_is_flagged_and_warned(monkeypatch):
+    m = optik.catalog.stewart_gough()
+    target = optik.spatial.transform(np.eye(3), np.array([0.0, 0.0, 1.0]))
+    legs = cf.ik(m, target)[0][m.actuated_indices]
+    hurried = par.stewart_poses(m.params["base"], m.params["platform"], legs, time_limit=0.02)
+    assert not hurried.complete
+    full = par.stewart_poses
+    monkeypatch.setattr(par, "stewart_poses", lambda b, p, rho: full(b, p, rho, time_limit=0.02))
+    with pytest.warns(RuntimeWarning, match="not certified"):
+        par.stewart_gough_fk(m, legs)

@@ -47,6 +47,9 @@ Options (``solve_ik(..., method="nlp", **options)``):
 from __future__ import annotations
 
 import atexit
+import contextlib
+import ctypes
+import io
 import os
 import sys
 import time
@@ -214,18 +217,22 @@ def _hessian_function(problem: IKProblem, upper: bool, damping: float) -> ca.Fun
 
 
 _SOLVERS: dict[tuple, _Solver] = {}
+_LIBC = ctypes.CDLL(None)
 
 
 @contextmanager
 def _silenced_stdout() -> Iterator[None]:
-    """Redirect the process's file descriptor 1 (C-level output) to the null device."""
+    """Discard standard output: Python's ``sys.stdout`` (CasADi routes its plugins' printing
+    there) and the process's file descriptor 1 (C-level output; C stdio buffers are flushed
+    before it is restored, so that nothing printed meanwhile leaks later)."""
     sys.stdout.flush()
     saved = os.dup(1)
     try:
-        with open(os.devnull, "wb") as null:
+        with open(os.devnull, "wb") as null, contextlib.redirect_stdout(io.StringIO()):
             os.dup2(null.fileno(), 1)
             yield
     finally:
+        _LIBC.fflush(None)
         os.dup2(saved, 1)
         os.close(saved)
 

@@ -215,7 +215,8 @@ def stewart_gough(
 ) -> Mechanism:
     """Stewart-Gough platform, general 6-6 geometry (seed 004, Figure 7).
 
-    Leg ``i`` is U-P-S: a universal joint at ``base[i]`` (passive, axes x then y), an actuated
+    Leg ``i`` is U-P-S: a universal joint at ``base[i]`` (passive, axes x then y, each within
+    +-pi/2 so that a leg pointing up from the base has exactly one pair of angles), an actuated
     prismatic joint of length ``rho_i`` along the leg, a spherical joint at ``platform[i]``
     (platform frame). Leg ``i`` joins ``base[i]`` and ``R @ platform[i] + t``. The end effector is
     the platform frame.
@@ -229,6 +230,7 @@ def stewart_gough(
     lo, hi = (float(v) for v in as_vector(leg_limits, "leg_limits", 2))
     if not 0 <= lo < hi:
         raise InvalidArgumentError("leg_limits", f"need 0 <= min < max, got {leg_limits}")
+    half = np.pi / 2  # legs leave the base upwards: one universal-joint solution per leg direction
     joints: list[Joint] = []
     for i in range(6):
         joints += [
@@ -240,6 +242,8 @@ def stewart_gough(
                 spatial.translation(*b[i]),
                 axis=[1, 0, 0],
                 axis2=[0, 1, 0],
+                lower=(-half, -half),
+                upper=(half, half),
                 actuated=False,
             ),
             Joint(

@@ -173,12 +173,18 @@ class Mechanism:
 
     @property
     def revolute_mask(self) -> np.ndarray:
-        """True for angular coordinates (revolute, universal, spherical joints)."""
+        """True for scalar angle coordinates (revolute and universal joints), which are equal
+        modulo 2 pi. Spherical coordinates are rotation vectors, not angles (see :meth:`wrap`)."""
         mask: list[bool] = []
         for i in self.topology.tree:
             j = self.joints[i]
-            mask += [j.type != "prismatic"] * j.dof
+            mask += [j.type in ("revolute", "universal")] * j.dof
         return np.array(mask, dtype=bool)
+
+    @property
+    def spherical_slices(self) -> tuple[slice, ...]:
+        """Coordinate slices of the spherical joints of the tree (rotation vectors)."""
+        return tuple(self._slices[i] for i in self.topology.tree if self.joints[i].type == "spherical")
 
     def mobility(self) -> int:
         """Degrees of freedom by Gruebler-Kutzbach from the topology (not from the geometry)."""
@@ -399,12 +405,23 @@ class Mechanism:
         return np.clip(self.check_q(q), self.lower, self.upper)
 
     def wrap(self, q: Any) -> np.ndarray:
-        """Angles shifted by multiples of 2 pi into ``(-pi, pi]``, or into the limits when the
-        limits allow a shifted value there (the shift nearest the wrapped value is used)."""
+        """Canonical coordinates of the same configuration.
+
+        Angles are shifted by multiples of 2 pi into ``(-pi, pi]``, or into the limits when the
+        limits allow a shifted value there. A spherical joint's rotation vector ``w`` with
+        ``|w| > pi`` is replaced by ``w (1 - 2 pi / |w|)``, the same rotation with angle
+        ``2 pi - |w| < pi`` about the opposite axis, so that every rotation has one coordinate
+        vector (up to the sign at exactly a half-turn).
+        """
         qq = np.array(self.check_q(q), dtype=float)
         ang = self.revolute_mask
         w = qq.copy()
         w[ang] = spatial.wrap_angle(qq[ang])
+        for sl in self.spherical_slices:
+            norm = float(np.linalg.norm(w[sl]))
+            while norm > np.pi:
+                w[sl] *= 1.0 - 2.0 * np.pi / norm
+                norm = float(np.linalg.norm(w[sl]))
         for k in np.flatnonzero(ang):
             if self.lower[k] <= w[k] <= self.upper[k]:
                 continue

@@ -307,21 +307,6 @@ def test_task_without_target_and_unknown_frame_raise() -> None:
         diffik.FrameTask(gain=2.0)
 
 
-def test_compiled_and_casadi_evaluation_agree(monkeypatch: pytest.MonkeyPatch) -> None:
-    from optik.diffik._codegen import CompiledFunction
-
-    x = ca.SX.sym("x", 3)
-    f = ca.Function("diffik_test_fun", [x], [ca.vertcat(ca.sin(x[0]) * x[1], x[2] ** 2), ca.mtimes(x, x.T)])
-    compiled = CompiledFunction(f)
-    monkeypatch.setenv("OPTIK_NO_CODEGEN", "1")
-    fallback = CompiledFunction(f)
-    assert not fallback.compiled
-    value = np.array([0.3, -1.2, 2.0])
-    for a, b in zip(compiled(value), fallback(value), strict=True):
-        np.testing.assert_allclose(a, b, atol=1e-14)
-    np.testing.assert_allclose(fallback(value)[1], np.outer(value, value))
-
-
 def test_benchmark_script_runs(capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
     import importlib.util
     import sys

@@ -13,7 +13,6 @@ from optik import spatial
 from optik.problem import angle_from_residual, build_ik_problem, target_parameters
 from optik.solvers.base import evaluate
 from optik.solvers.evaluation import errors_against
-from optik.solvers.native import NativeFunction, native_functions
 
 ARMS = {
     "planar_2r": optik.catalog.planar_2r(),
@@ -121,19 +120,3 @@ def test_bad_problem_arguments_raise() -> None:
         p.parameter_values(np.eye(4), weights=(-1.0, 1.0))
     with pytest.raises(optik.InvalidArgumentError):
         p.parameter_values(np.eye(4), manipulability=1.0)  # not built with that objective
-
-
-def test_native_function_compiled_and_interpreted_agree() -> None:
-    x = ca.SX.sym("x", 3)
-    f = ca.Function("optik_test_native", [x], [ca.sin(x) * x[0], ca.sumsqr(x)])
-    compiled = native_functions([f], True)[0]
-    interpreted = native_functions([f], False)[0]
-    assert compiled.compiled and not interpreted.compiled
-    for fn in (compiled, interpreted):
-        fn.inputs[0][:] = [0.3, -1.2, 2.0]
-    for a, b in zip(compiled(), interpreted(), strict=True):
-        np.testing.assert_allclose(a, b, atol=1e-15)
-    with pytest.raises(optik.InvalidArgumentError):
-        NativeFunction(ca.Function("m", [x], [ca.mtimes(x, x.T)]))
-    with pytest.raises(optik.InvalidArgumentError):
-        native_functions([f], "sometimes")

@@ -1,11 +1,10 @@
 """Compiled CasADi functions for the differential-IK hot path.
 
 A CasADi ``Function`` called from Python costs tens of microseconds per call (argument
-conversion to ``DM`` and back), more than a whole QP step should take. :func:`compile_function`
-generates C code for a function (``Function.generate``), compiles it once with the system C
-compiler into a shared library cached on disk (keyed by a hash of the source) and calls it through
-``ctypes`` on preallocated numpy buffers. Without a C compiler it falls back to calling the CasADi
-function itself (same numbers, slower).
+conversion to ``DM`` and back), more than a whole QP step should take. :class:`CompiledFunction`
+flattens a function to one input and one output vector, compiles it through :mod:`optik.native`
+(generated C, cached on disk, called through ``ctypes`` on preallocated numpy buffers) and falls
+back to calling the CasADi function itself without a C compiler (same numbers, slower).
 
 Every input and output is dense and column-major (CasADi's storage), so a ``p x q`` output is
 returned as a numpy array of shape ``(p, q)``; vectors are returned 1-D.
@@ -13,62 +12,10 @@ returned as a numpy array of shape ``(p, q)``; vectors are returned 1-D.
 
 from __future__ import annotations
 
-import ctypes
-import hashlib
-import os
-import shutil
-import subprocess
-import tempfile
-from pathlib import Path
-
 import casadi as ca
 import numpy as np
 
-_LIBS: dict[str, ctypes.CDLL] = {}
-
-
-def cache_dir() -> Path:
-    """Directory of the compiled libraries: ``$OPTIK_CACHE_DIR`` or ``~/.cache/optik/codegen``.
-
-    Set ``OPTIK_NO_CODEGEN=1`` to skip compilation (CasADi's own evaluation is used)."""
-    root = os.environ.get("OPTIK_CACHE_DIR")
-    return Path(root) if root else Path.home() / ".cache" / "optik" / "codegen"
-
-
-def _compile(source: str, name: str) -> ctypes.CDLL | None:
-    """Compile C ``source`` into a cached shared library; None when no compiler works."""
-    cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
-    if os.environ.get("OPTIK_NO_CODEGEN") or cc is None:
-        return None
-    digest = hashlib.sha1(source.encode()).hexdigest()[:16]
-    if digest in _LIBS:
-        return _LIBS[digest]
-    folder = cache_dir()
-    lib_path = folder / f"{name}_{digest}.so"
-    try:
-        if not lib_path.exists():
-            _build(cc, source, name, folder, lib_path)
-        lib = ctypes.CDLL(str(lib_path))
-    except (OSError, subprocess.SubprocessError):  # unwritable cache, broken compiler: fall back
-        return None
-    _LIBS[digest] = lib
-    return lib
-
-
-def _build(cc: str, source: str, name: str, folder: Path, lib_path: Path) -> None:
-    """Compile ``source`` into ``lib_path`` (atomically: parallel processes may race here)."""
-    folder.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=folder) as tmp:
-        src = Path(tmp) / f"{name}.c"
-        src.write_text(source)
-        out = Path(tmp) / f"{name}.so"
-        subprocess.run(
-            [cc, "-O1", "-fPIC", "-shared", "-o", str(out), str(src), "-lm"],
-            capture_output=True,
-            text=True,
-            check=True,
-        )
-        os.replace(out, lib_path)
+from optik.native import CCall, library
 
 
 class CompiledFunction:
@@ -104,38 +51,17 @@ class CompiledFunction:
         for r, c in self._out_shapes:
             self._bounds.append((start, start + r * c, r, c))
             start += r * c
-        lib = _compile(self._source(self._flat), f.name())
-        self.compiled = lib is not None
         self._in = np.zeros(x.shape[0])
         self._out = np.zeros(start)
-        if lib is None:
-            return
-        self._fun = getattr(lib, f.name())
-        self._fun.restype = ctypes.c_int
-        n_arg, n_res = self._flat.sz_arg(), self._flat.sz_res()
-        self._arg = (ctypes.c_void_p * n_arg)(self._in.ctypes.data, *[None] * (n_arg - 1))
-        self._res = (ctypes.c_void_p * n_res)(self._out.ctypes.data, *[None] * (n_res - 1))
-        self._iw = np.zeros(max(self._flat.sz_iw(), 1), dtype=np.int64)
-        self._w = np.zeros(max(self._flat.sz_w(), 1))
-        self._args = (
-            self._arg,
-            self._res,
-            ctypes.c_void_p(self._iw.ctypes.data),
-            ctypes.c_void_p(self._w.ctypes.data),
-            ctypes.c_int(0),
-        )
-
-    @staticmethod
-    def _source(f: ca.Function) -> str:
-        gen = ca.CodeGenerator(f"{f.name()}.c", {"with_header": False, "casadi_int": "long long int"})
-        gen.add(f)
-        return gen.dump()
+        lib = library([self._flat])
+        self.compiled = lib is not None
+        self._call = CCall(lib, f.name(), [self._in], [self._out]) if lib is not None else None
 
     def call_flat(self, x: np.ndarray) -> tuple[np.ndarray, ...]:
         """Evaluate on the concatenated (column-major) inputs."""
-        if self.compiled:
+        if self._call is not None:
             self._in[:] = x
-            self._fun(*self._args)
+            self._call()
             out = self._out.copy()
         else:
             out = np.asarray(self._flat(x), dtype=float).reshape(-1)

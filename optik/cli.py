@@ -1,10 +1,12 @@
-"""The ``optik`` command: ``bench``, ``solve``, ``fk`` and ``plot`` on the problem files.
+"""The ``optik`` command: ``bench``, ``solve``, ``fk`` and ``plot`` on the problem files, and
+``benchmark`` for the focused benchmark scripts of the repository's ``benchmarks/`` folder.
 
-Every subcommand takes a problem name (a file of ``problems/``) or the path of a ``.toml``
-problem file, and has ``--help``. Bad arguments give a one-line message naming the argument and
-exit code 2; unreachable targets and non-assemblable inputs are normal outcomes (exit code 1
-when nothing was solved). The benchmark logic lives in :mod:`optik.bench`; the CLI does not
-import the repository's ``benchmarks/`` scripts.
+Every problem subcommand takes a problem name (a file of ``problems/``) or the path of a
+``.toml`` problem file, and has ``--help``. Bad arguments give a one-line message naming the
+argument and exit code 2; unreachable targets and non-assemblable inputs are normal outcomes
+(exit code 1 when nothing was solved). The problem-set benchmark lives in :mod:`optik.bench`;
+``optik benchmark NAME`` loads ``benchmarks/bench_NAME.py`` of a source checkout and calls its
+``main(argv)``.
 
 Target and joint values are given as numbers, per task space of the problem:
 
@@ -23,6 +25,7 @@ pose           ``x y z roll pitch yaw`` (RPY: ``Rot(z, yaw) Rot(y, pitch) Rot(x,
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import shlex
 import sys
 from collections.abc import Sequence
@@ -42,6 +45,8 @@ from optik.problems import Problem, find_problem
 __all__ = ["build_parser", "main", "parse_target"]
 
 PLOT_MODES = ("config", "branches", "assembly", "workspace", "all")
+BENCHMARK_DIR = Path(__file__).resolve().parent.parent / "benchmarks"
+"""The focused benchmark scripts ``bench_*.py`` (present in a source checkout)."""
 
 
 class UsageError(Exception):
@@ -285,6 +290,26 @@ def _cmd_plot(args: argparse.Namespace) -> int:
     return 0 if written else 1
 
 
+def benchmark_scripts() -> dict[str, Path]:
+    """``{name: path}`` of the scripts ``benchmarks/bench_<name>.py`` next to the package."""
+    return {p.stem.removeprefix("bench_"): p for p in sorted(BENCHMARK_DIR.glob("bench_*.py"))}
+
+
+def _cmd_benchmark(args: argparse.Namespace) -> int:
+    scripts = benchmark_scripts()
+    if not scripts:
+        raise UsageError("NAME", f"no benchmark scripts in {BENCHMARK_DIR} (they ship with a source checkout)")
+    if args.name not in scripts:
+        raise UsageError("NAME", f"unknown benchmark {args.name!r}; available: {', '.join(scripts)}")
+    spec = importlib.util.spec_from_file_location(f"optik_benchmark_{args.name}", scripts[args.name])
+    if spec is None or spec.loader is None:  # pragma: no cover - a .py path always has a loader
+        raise UsageError("NAME", f"cannot load {scripts[args.name]}")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses and pickling look the module up there
+    spec.loader.exec_module(module)
+    return int(module.main(list(args.args)) or 0)
+
+
 # ---------------------------------------------------------------------------- parser
 class _Parser(argparse.ArgumentParser):
     """argparse with the one-line error format ``optik <cmd>: error: ...`` and exit code 2."""
@@ -432,6 +457,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the sampling (default: %(default)s)")
     p.add_argument("--out", default="plots", metavar="DIR", help="output directory (default: %(default)s)")
     p.set_defaults(func=_cmd_plot)
+
+    k = sub.add_parser(
+        "benchmark",
+        help="run a focused benchmark script of benchmarks/ (ik, diffik, closed_form, parallel_fk)",
+        description=(
+            "Run benchmarks/bench_NAME.py of a source checkout with the remaining arguments, e.g. "
+            "'optik benchmark ik --n 1000' (Panda: lm / nlp against TRAC-IK) or 'optik benchmark diffik' "
+            "(QP step against Pink). 'optik benchmark NAME --help' shows a script's own options."
+        ),
+    )
+    k.add_argument("name", metavar="NAME", help="benchmark name: the NAME of benchmarks/bench_NAME.py")
+    k.add_argument("args", nargs=argparse.REMAINDER, help="arguments passed to the script")
+    k.set_defaults(func=_cmd_benchmark)
     return parser
 
 

@@ -10,7 +10,7 @@ import pytest
 from optik import spatial
 from optik.cli import UsageError, build_parser, main, parse_target
 
-SUBCOMMANDS = ("bench", "solve", "fk", "plot")
+SUBCOMMANDS = ("bench", "solve", "fk", "plot", "benchmark")
 
 
 @pytest.mark.parametrize("argv", [["--help"], *[[c, "--help"] for c in SUBCOMMANDS]])
@@ -36,6 +36,7 @@ def test_help_everywhere(argv, capsys):
         (["plot", "planar_2r", "--mode", "assembly"], "--mode"),
         (["plot", "planar_2r", "--mode", "sideways"], "--mode"),
         (["launch"], "COMMAND"),
+        (["benchmark", "no_such_benchmark"], "NAME"),
     ],
 )
 def test_bad_arguments_exit_2_with_one_line(argv, argument, capsys):
@@ -103,3 +104,10 @@ def test_parse_target_conventions():
 def test_parser_lists_the_subcommands():
     text = build_parser().format_help()
     assert all(c in text for c in SUBCOMMANDS)
+
+
+def test_benchmark_runs_a_script_of_benchmarks_folder(capsys):
+    argv = ["benchmark", "parallel_fk", "--n-rpr", "2", "--n-sg", "1", "--heavy", "1", "--n-fk", "2"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "planar_3rpr" in out and "stewart_gough" in out

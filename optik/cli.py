@@ -298,7 +298,7 @@ def benchmark_scripts() -> dict[str, Path]:
 def _cmd_benchmark(args: argparse.Namespace) -> int:
     scripts = benchmark_scripts()
     if not scripts:
-        raise UsageError("NAME", f"no benchmark scripts in {BENCHMARK_DIR} (they ship with a source checkout)")
+        raise UsageError("NAME", f"no benchmark scripts in {BENCHMARK_DIR} (a source checkout has them)")
     if args.name not in scripts:
         raise UsageError("NAME", f"unknown benchmark {args.name!r}; available: {', '.join(scripts)}")
     spec = importlib.util.spec_from_file_location(f"optik_benchmark_{args.name}", scripts[args.name])

@@ -2,13 +2,10 @@
 
 from __future__ import annotations
 
-from typing import Any
-
-from optik.diffik.base import positive
-from optik.diffik.tasks.frame_rows import FrameRowsTask
+from optik.diffik.tasks.frame_rows import PoseRowsTask
 
 
-class FrameTask(FrameRowsTask):
+class FrameTask(PoseRowsTask):
     """Drive a frame to a target pose: ``e = [p - p*; log(R R*^T)]`` (6 rows, base frame).
 
     Args:
@@ -27,17 +24,3 @@ class FrameTask(FrameRowsTask):
 
     rows = (0, 1, 2, 3, 4, 5)
     kind = "frame"
-
-    def __init__(
-        self,
-        frame: str | None = None,
-        target: Any = None,
-        position_cost: float = 1.0,
-        orientation_cost: float = 1.0,
-        gain: float = 1.0,
-        lm_damping: float = 0.0,
-        priority: int = 0,
-    ) -> None:
-        pc = positive(position_cost, "position_cost")
-        oc = positive(orientation_cost, "orientation_cost")
-        super().__init__(frame, target, [pc, pc, pc, oc, oc, oc], gain, lm_damping, priority)

@@ -7,7 +7,7 @@ from typing import Any, ClassVar
 import casadi as ca
 import numpy as np
 
-from optik.diffik.base import Task, frame_error_expr
+from optik.diffik.base import Task, frame_error_expr, positive
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 from optik.targets import target_transform
@@ -24,7 +24,13 @@ class FrameRowsTask(Task):
     kind: ClassVar[str] = "frame"
 
     def __init__(
-        self, frame: str | None, target: Any, cost: Any, gain: float, lm_damping: float, priority: int
+        self,
+        frame: str | None = None,
+        target: Any = None,
+        cost: Any = 1.0,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+        priority: int = 0,
     ) -> None:
         self.dim = len(self.rows)
         super().__init__(cost, gain, lm_damping, priority)
@@ -57,3 +63,22 @@ class FrameRowsTask(Task):
         e, jac = frame_error_expr(m, self.frame, ca.reshape(p, 4, 4))
         rows = list(self.rows)
         return e[rows], jac[rows, :]
+
+
+class PoseRowsTask(FrameRowsTask):
+    """Frame rows weighted by two costs: ``position_cost`` on rows 0-2, ``orientation_cost`` on 3-5."""
+
+    def __init__(
+        self,
+        frame: str | None = None,
+        target: Any = None,
+        position_cost: float = 1.0,
+        orientation_cost: float = 1.0,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+        priority: int = 0,
+    ) -> None:
+        pc = positive(position_cost, "position_cost")
+        oc = positive(orientation_cost, "orientation_cost")
+        cost = [pc if row < 3 else oc for row in self.rows]
+        super().__init__(frame, target, cost, gain, lm_damping, priority)

@@ -24,17 +24,6 @@ class OrientationTask(FrameRowsTask):
     rows = (3, 4, 5)
     kind = "orientation"
 
-    def __init__(
-        self,
-        frame: str | None = None,
-        target: Any = None,
-        cost: Any = 1.0,
-        gain: float = 1.0,
-        lm_damping: float = 0.0,
-        priority: int = 0,
-    ) -> None:
-        super().__init__(frame, target, cost, gain, lm_damping, priority)
-
     def to_transform(self, target: Any) -> np.ndarray:
         arr = np.asarray(target, dtype=float)
         if arr.shape == (3, 3):

@@ -7,12 +7,11 @@ from typing import Any
 import numpy as np
 
 from optik.checks import as_vector
-from optik.diffik.base import positive
-from optik.diffik.tasks.frame_rows import FrameRowsTask
+from optik.diffik.tasks.frame_rows import PoseRowsTask
 from optik.targets import Pose2D, target_transform
 
 
-class Pose2DTask(FrameRowsTask):
+class Pose2DTask(PoseRowsTask):
     """Drive a frame of a planar mechanism to ``(x, y, phi)``: ``e = [x - x*, y - y*, wrap(phi - phi*)]``.
 
     The heading row is the z component of ``log(R R*^T)``, which for rotations about z is the
@@ -27,20 +26,6 @@ class Pose2DTask(FrameRowsTask):
 
     rows = (0, 1, 5)
     kind = "pose2d"
-
-    def __init__(
-        self,
-        frame: str | None = None,
-        target: Any = None,
-        position_cost: float = 1.0,
-        orientation_cost: float = 1.0,
-        gain: float = 1.0,
-        lm_damping: float = 0.0,
-        priority: int = 0,
-    ) -> None:
-        pc = positive(position_cost, "position_cost")
-        oc = positive(orientation_cost, "orientation_cost")
-        super().__init__(frame, target, [pc, pc, oc], gain, lm_damping, priority)
 
     def to_transform(self, target: Any) -> np.ndarray:
         if isinstance(target, Pose2D):

@@ -15,6 +15,7 @@ Task convention (the one of Pink/mink): the step ``dq = v dt`` minimises
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from typing import Any
 
 import casadi as ca
@@ -164,6 +165,30 @@ class Limit(ABC):
     @abstractmethod
     def bounds(self, m: Mechanism, q: ca.SX, p: ca.SX, dt: ca.SX, v_prev: ca.SX) -> tuple[ca.SX, ca.SX]:
         """Symbolic bounds ``(lb, ub)`` on ``dq`` (each ``n_q``)."""
+
+    _cached: tuple[Mechanism, np.ndarray] | None = None
+
+    def _parameters_of(self, m: Mechanism, build: Callable[[], np.ndarray]) -> np.ndarray:
+        """``build()``, computed once per mechanism (:meth:`parameters` runs at every step)."""
+        if self._cached is None or self._cached[0] is not m:
+            self._cached = (m, build())
+        return self._cached[1]
+
+
+def rate_limits(value: Any, name: str, what: str) -> np.ndarray:
+    """Per-coordinate maxima (scalar or one per coordinate), each ``> 0`` (``inf`` allowed)."""
+    v = np.asarray(value, dtype=float).reshape(-1)
+    if v.size == 0 or np.any(np.isnan(v)) or np.any(v <= 0):
+        raise InvalidArgumentError(name, f"{what} must be > 0, got {v}")
+    return v
+
+
+def per_coordinate(values: np.ndarray, name: str, m: Mechanism) -> np.ndarray:
+    """``values`` (from :func:`rate_limits`) broadcast to ``m.n_q`` and capped at :data:`BIG`."""
+    v = np.broadcast_to(values, (m.n_q,)) if values.size == 1 else values
+    if v.shape[0] != m.n_q:
+        raise InvalidArgumentError(name, f"expected {m.n_q} values, got {v.shape[0]}")
+    return as_vector(np.minimum(v, BIG), name, m.n_q)
 
 
 def intersect(lb0: Any, ub0: Any, lb1: Any, ub1: Any) -> tuple[Any, Any]:

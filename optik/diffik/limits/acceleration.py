@@ -7,9 +7,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from optik.checks import as_vector
-from optik.diffik.base import BIG, Limit
-from optik.errors import InvalidArgumentError
+from optik.diffik.base import Limit, per_coordinate, rate_limits
 from optik.mechanism import Mechanism
 
 
@@ -28,17 +26,13 @@ class AccelerationLimit(Limit):
     rank = 2
 
     def __init__(self, a_max: Any) -> None:
-        a = np.asarray(a_max, dtype=float).reshape(-1)
-        if a.size == 0 or np.any(np.isnan(a)) or np.any(a <= 0):
-            raise InvalidArgumentError("a_max", f"accelerations must be > 0, got {a}")
-        self.a_max = a
+        self.a_max = rate_limits(a_max, "a_max", "accelerations")
 
     def key(self) -> tuple:
         return ("acceleration",)
 
     def parameters(self, m: Mechanism) -> np.ndarray:
-        a = np.broadcast_to(self.a_max, (m.n_q,)) if self.a_max.size == 1 else self.a_max
-        return as_vector(np.minimum(a, BIG), "a_max", m.n_q)
+        return self._parameters_of(m, lambda: per_coordinate(self.a_max, "a_max", m))
 
     def bounds(self, m: Mechanism, q: ca.SX, p: ca.SX, dt: ca.SX, v_prev: ca.SX) -> tuple[ca.SX, ca.SX]:
         return (v_prev - p * dt) * dt, (v_prev + p * dt) * dt

@@ -30,16 +30,14 @@ class ConfigurationLimit(Limit):
         if not 0 < gain <= 1:
             raise InvalidArgumentError("gain", f"must be in (0, 1], got {gain}")
         self.gain = float(gain)
-        self._cached: tuple[Mechanism, np.ndarray] | None = None
 
     def key(self) -> tuple:
         return ("configuration",)
 
     def parameters(self, m: Mechanism) -> np.ndarray:
-        if self._cached is None or self._cached[0] is not m:
-            values = np.concatenate([np.clip(m.lower, -BIG, BIG), np.clip(m.upper, -BIG, BIG), [self.gain]])
-            self._cached = (m, values)
-        return self._cached[1]
+        return self._parameters_of(
+            m, lambda: np.concatenate([np.clip(m.lower, -BIG, BIG), np.clip(m.upper, -BIG, BIG), [self.gain]])
+        )
 
     def bounds(self, m: Mechanism, q: ca.SX, p: ca.SX, dt: ca.SX, v_prev: ca.SX) -> tuple[ca.SX, ca.SX]:
         n = m.n_q

@@ -7,8 +7,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from optik.checks import as_vector
-from optik.diffik.base import BIG, Limit
+from optik.diffik.base import Limit, per_coordinate, rate_limits
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 
@@ -23,11 +22,7 @@ class VelocityLimit(Limit):
     rank = 0
 
     def __init__(self, v_max: Any) -> None:
-        v = np.asarray(v_max, dtype=float).reshape(-1)
-        if v.size == 0 or np.any(np.isnan(v)) or np.any(v <= 0):
-            raise InvalidArgumentError("v_max", f"speeds must be > 0, got {v}")
-        self.v_max = v
-        self._cached: tuple[Mechanism, np.ndarray] | None = None
+        self.v_max = rate_limits(v_max, "v_max", "speeds")
 
     @classmethod
     def of(cls, m: Mechanism) -> VelocityLimit:
@@ -44,13 +39,7 @@ class VelocityLimit(Limit):
         return ("velocity",)
 
     def parameters(self, m: Mechanism) -> np.ndarray:
-        if self._cached is not None and self._cached[0] is m:
-            return self._cached[1]
-        v = np.broadcast_to(self.v_max, (m.n_q,)) if self.v_max.size == 1 else self.v_max
-        if v.shape[0] != m.n_q:
-            raise InvalidArgumentError("v_max", f"expected {m.n_q} values, got {v.shape[0]}")
-        self._cached = (m, as_vector(np.minimum(v, BIG), "v_max", m.n_q))
-        return self._cached[1]
+        return self._parameters_of(m, lambda: per_coordinate(self.v_max, "v_max", m))
 
     def bounds(self, m: Mechanism, q: ca.SX, p: ca.SX, dt: ca.SX, v_prev: ca.SX) -> tuple[ca.SX, ca.SX]:
         return -p * dt, p * dt

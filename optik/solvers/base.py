@@ -20,7 +20,7 @@ import numpy as np
 from optik import spatial
 from optik.checks import as_rng, as_vector
 from optik.errors import InvalidArgumentError, SolverUnavailableError
-from optik.mechanism import TASK_ROWS, Mechanism
+from optik.mechanism import Mechanism
 from optik.results import IKResult
 from optik.targets import Pose2D, Position, target_transform
 
@@ -263,6 +263,16 @@ def start_points(request: IKRequest) -> Iterator[np.ndarray]:
         yield request.rng.uniform(m.lower, m.upper)
 
 
+def restart_stop(deadline: float, restarts: int, max_restarts: int | None) -> str | None:
+    """Why a multi-start loop stops after a failed start (``"time_limit"`` or ``"max_restarts"``),
+    or None to start again."""
+    if time.perf_counter() >= deadline:
+        return "time_limit"
+    if max_restarts is not None and restarts >= int(max_restarts):
+        return "max_restarts"
+    return None
+
+
 IKMethod = Callable[[IKRequest], IKResult]
 
 
@@ -333,9 +343,7 @@ def make_request(
     """
     start = time.perf_counter()
     t = target_transform(target)
-    tk = default_task(m, target) if task is None else task
-    if tk not in TASK_ROWS:
-        raise InvalidArgumentError("task", f"unknown task {tk!r}; use one of {sorted(TASK_ROWS)}")
+    tk = m._task(default_task(m, target) if task is None else task)  # raises on an unknown task
     m._frame(frame)  # raises UnknownFrameError naming the frame
     q_start = m.mid_q() if q0 is None else m.check_q(q0, "q0")
     if seed is not None and not isinstance(seed, (int, np.integer, np.random.Generator)):

@@ -55,6 +55,7 @@ from optik.solvers.base import (
     method_options,
     positive_int,
     register_method,
+    restart_stop,
     start_points,
 )
 from optik.solvers.evaluation import error_function, errors_against
@@ -188,10 +189,9 @@ def solve_lm(request: IKRequest) -> IKResult:
             previous = c
             ins[0][:] = q
             ins[1][0] = mu[0]
-        if time.perf_counter() >= deadline:
-            return make_result(request, best_q, "lm", iterations, restarts, "time_limit", errors=errors)
-        if max_restarts is not None and restarts >= int(max_restarts):
-            return make_result(request, best_q, "lm", iterations, restarts, "max_restarts", errors=errors)
+        stop = restart_stop(deadline, restarts, max_restarts)
+        if stop is not None:
+            return make_result(request, best_q, "lm", iterations, restarts, stop, errors=errors)
 
 
 register_method(

@@ -71,6 +71,7 @@ from optik.solvers.base import (
     method_options,
     positive_int,
     register_method,
+    restart_stop,
     start_points,
 )
 from optik.solvers.evaluation import ErrorFn, errors_against
@@ -341,10 +342,9 @@ def solve_nlp(request: IKRequest) -> IKResult:
             best_q, best_score = q, score
         if best_score <= 1.0:
             return make_result(request, best_q, "nlp", iterations, restarts, errors=errors)
-        if time.perf_counter() >= mon.deadline:
-            return make_result(request, best_q, "nlp", iterations, restarts, "time_limit", errors=errors)
-        if max_restarts is not None and restarts >= int(max_restarts):
-            return make_result(request, best_q, "nlp", iterations, restarts, "max_restarts", errors=errors)
+        stop = restart_stop(mon.deadline, restarts, max_restarts)
+        if stop is not None:
+            return make_result(request, best_q, "nlp", iterations, restarts, stop, errors=errors)
 
 
 register_method(

@@ -278,9 +278,7 @@ def build_ik_problem(
         InvalidArgumentError: unknown task or secondary objective.
         UnknownFrameError: unknown frame.
     """
-    tk = m.task if task is None else task
-    if tk not in TASK_ROWS:
-        raise InvalidArgumentError("task", f"unknown task {tk!r}; use one of {sorted(TASK_ROWS)}")
+    tk = m._task(task)  # raises on an unknown task
     extra = tuple(sorted(set(secondary) - {"posture"}))
     for s in extra:
         if s not in SECONDARY_OBJECTIVES:

@@ -22,14 +22,12 @@ from typing import Any
 import numpy as np
 
 from optik import closed_form as analytic
-from optik.errors import SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.results import IKResult
-from optik.solvers.api import solve_ik
+from optik.solvers.api import pick_method, solve_ik
 from optik.solvers.base import (
     BRANCH_TOL,
     Tolerances,
-    get_method,
     joint_distance,
     make_request,
     make_result,
@@ -92,11 +90,7 @@ def solve_ik_all(
             res = make_result(request, q, "closed_form", 0)
             if res.success and not _known(m, res.q, found):
                 found.append(res)
-    name = method or next(
-        (n for n in NUMERIC_ORDER if get_method(n).applies(m, request.task)), None
-    )
-    if name is None:
-        raise SolverUnavailableError(f"no numerical IK method applies to {m.name!r} ({request.task!r})")
+    name = method or pick_method(m, request.task, NUMERIC_ORDER)
     misses = 0
     deadline = request.start + request.time_limit
     rng = request.rng

@@ -15,10 +15,10 @@ DEFAULT_ORDER = ("closed_form", "lm", "nlp")
 """Preference of ``method=None``: the first registered method that applies."""
 
 
-def pick_method(m: Mechanism, task: str) -> str:
-    """The best available method for a mechanism and task (see :data:`DEFAULT_ORDER`)."""
+def pick_method(m: Mechanism, task: str, order: tuple[str, ...] = DEFAULT_ORDER) -> str:
+    """The first method of ``order`` that is registered and applies to a mechanism and task."""
     known = methods()
-    for name in DEFAULT_ORDER:
+    for name in order:
         if name in known and known[name].applies(m, task):
             return name
     raise SolverUnavailableError(f"no IK method applies to {m.name!r} with task {task!r}")

@@ -1,9 +1,9 @@
 """The documentation site builds in strict mode, and its Python examples run.
 
-Every fenced block opened with ```` ```python ```` in a page of ``docs/`` is executed, the blocks
-of one page in order in one namespace, from a temporary working directory. A block fenced as
-```` ```{.python .no-run} ```` (the attribute syntax of pymdownx.superfences, still highlighted
-as Python) is only shown, e.g. for signatures.
+Every fenced block opened with ```` ```python ```` in a page of ``docs/`` and in README.md is
+executed, the blocks of one page in order in one namespace, from a temporary working directory.
+A block fenced as ```` ```{.python .no-run} ```` (the attribute syntax of pymdownx.superfences,
+still highlighted as Python) is only shown, e.g. for signatures.
 """
 
 from __future__ import annotations
@@ -29,7 +29,9 @@ def runnable_blocks(text: str) -> list[str]:
     return [m["code"] for m in FENCE.finditer(text) if "no-run" not in m["info"]]
 
 
-PAGES = sorted(p for p in DOCS.rglob("*.md") if runnable_blocks(p.read_text(encoding="utf-8")))
+PAGES = sorted(
+    p for p in [ROOT / "README.md", *DOCS.rglob("*.md")] if runnable_blocks(p.read_text(encoding="utf-8"))
+)
 
 
 def test_fence_parser():
@@ -57,7 +59,7 @@ def test_strict_build(tmp_path):
     assert (tmp_path / "site" / "reference" / "plot" / "index.html").is_file()
 
 
-@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(DOCS)))
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
 def test_examples_run(page, tmp_path, monkeypatch):
     import matplotlib
 
@@ -66,6 +68,6 @@ def test_examples_run(page, tmp_path, monkeypatch):
     namespace: dict[str, object] = {"__name__": "__docs__"}
     for i, code in enumerate(runnable_blocks(page.read_text(encoding="utf-8")), 1):
         try:
-            exec(compile(code, f"{page.relative_to(DOCS)} (block {i})", "exec"), namespace)
+            exec(compile(code, f"{page.relative_to(ROOT)} (block {i})", "exec"), namespace)
         except Exception as exc:
-            pytest.fail(f"{page.relative_to(DOCS)}, python block {i} raised {type(exc).__name__}: {exc}")
+            pytest.fail(f"{page.relative_to(ROOT)}, python block {i} raised {type(exc).__name__}: {exc}")

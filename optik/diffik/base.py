@@ -112,6 +112,11 @@ class Task(ABC):
             raise InvalidArgumentError("priority", f"must be an integer >= 0, got {priority!r}")
         self.priority = int(priority)
 
+    def _check_coordinates(self, m: Mechanism) -> None:
+        """Raise unless the task (one row per coordinate, built for ``n_q``) fits ``m``."""
+        if self.dim != m.n_q:
+            raise InvalidArgumentError("n_q", f"task built for {self.dim} coordinates, mechanism has {m.n_q}")
+
     @abstractmethod
     def key(self) -> tuple:
         """Structure of the task (class, frame, rows...): tasks with equal keys share compiled code."""

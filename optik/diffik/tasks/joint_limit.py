@@ -10,6 +10,7 @@ import numpy as np
 from optik.diffik.base import Task
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
+from optik.solvers.base import positive_int
 
 
 class JointLimitTask(Task):
@@ -36,11 +37,9 @@ class JointLimitTask(Task):
         lm_damping: float = 0.0,
         priority: int = 0,
     ) -> None:
-        if int(n_q) != n_q or n_q < 1:
-            raise InvalidArgumentError("n_q", f"must be a positive integer, got {n_q!r}")
         if int(exponent) != exponent or exponent < 1 or exponent % 2 == 0:
             raise InvalidArgumentError("exponent", f"must be an odd integer >= 1, got {exponent!r}")
-        self.dim = int(n_q)
+        self.dim = positive_int(n_q, "n_q")
         self.exponent = int(exponent)
         super().__init__(cost, gain, lm_damping, priority)
 
@@ -48,8 +47,7 @@ class JointLimitTask(Task):
         return ("joint_limit", self.dim, self.exponent)
 
     def parameters(self, m: Mechanism) -> np.ndarray:
-        if self.dim != m.n_q:
-            raise InvalidArgumentError("n_q", f"task built for {self.dim} coordinates, mechanism has {m.n_q}")
+        self._check_coordinates(m)
         finite = np.isfinite(m.lower) & np.isfinite(m.upper) & (m.upper > m.lower)
         mid = np.where(finite, 0.5 * (m.lower + m.upper), 0.0)
         inv_half = np.where(finite, 2.0 / np.where(finite, m.upper - m.lower, 1.0), 0.0)

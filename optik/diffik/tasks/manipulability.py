@@ -10,6 +10,7 @@ import numpy as np
 from optik.diffik.base import Task
 from optik.errors import InvalidArgumentError
 from optik.mechanism import TASK_ROWS, Mechanism
+from optik.solvers.base import positive_int
 
 
 class ManipulabilityTask(Task):
@@ -42,13 +43,11 @@ class ManipulabilityTask(Task):
         lm_damping: float = 0.0,
         priority: int = 0,
     ) -> None:
-        if int(n_q) != n_q or n_q < 1:
-            raise InvalidArgumentError("n_q", f"must be a positive integer, got {n_q!r}")
         if space not in TASK_ROWS:
             raise InvalidArgumentError(
                 "space", f"unknown task space {space!r}; use one of {sorted(TASK_ROWS)}"
             )
-        self.dim = int(n_q)
+        self.dim = positive_int(n_q, "n_q")
         super().__init__(cost, gain, lm_damping, priority)
         self.frame = frame
         self.space = space
@@ -57,8 +56,7 @@ class ManipulabilityTask(Task):
         return ("manipulability", self.dim, self.frame, self.space)
 
     def parameters(self, m: Mechanism) -> np.ndarray:
-        if self.dim != m.n_q:
-            raise InvalidArgumentError("n_q", f"task built for {self.dim} coordinates, mechanism has {m.n_q}")
+        self._check_coordinates(m)
         m._frame(self.frame)  # raises UnknownFrameError naming the frame
         return np.zeros(0)
 

@@ -175,7 +175,7 @@ class _Solver:
 def _solver_options(
     solver: str, max_iter: int, ipopt_tol: float, extra: dict[str, Any], monitor: _Monitor
 ) -> dict[str, Any]:
-    common = {"print_time": False, "iteration_callback": monitor, "error_on_fail": False, **extra}
+    common = {"print_time": False, "iteration_callback": monitor, "error_on_fail": False}
     if solver == "ipopt":
         return {
             **common,
@@ -252,11 +252,12 @@ def nlp_solver(
     max_iter: int = 50,
     ipopt_tol: float = 1e-12,
     extra: dict[str, Any] | None = None,
-    hessian: str = "exact",
-    damping: float = 0.0,
+    hessian: str = "gauss-newton",
+    damping: float = 1e-6,
 ) -> _Solver:
-    """The ``nlpsol`` instance of an IK problem, built once per argument combination (``extra``:
-    additional ``nlpsol`` options, part of the cache key through their ``repr``)."""
+    """The ``nlpsol`` instance of an IK problem, built once per argument combination (defaults
+    as in :data:`DEFAULTS`; ``extra``: additional ``nlpsol`` options, applied last, part of the
+    cache key through their ``repr``)."""
     extra = dict(extra or {})
     options_key = repr(sorted(extra.items()))
     key = (m, task, frame, secondary, solver, max_iter, ipopt_tol, options_key, hessian, damping)

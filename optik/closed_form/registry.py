@@ -5,11 +5,18 @@ kind, an IK solver ``ik(m, T) -> list[q]`` (``T`` a 4x4 target) and/or an FK sol
 ``fk(m, actuated) -> list[q]`` returning full coordinate vectors, one per branch / assembly
 mode (an empty list when unreachable or not assemblable). The functions here add validation,
 the 2 pi shift of angles into the limits and the optional filtering by joint limits.
+
+The shift and the limit filter (:func:`wrap_rows`, :func:`within_limits`) work on the few
+branches of one target as plain floats, with the same arithmetic as :meth:`Mechanism.wrap` and
+:meth:`Mechanism.within_limits`; :func:`branches` is the unvalidated core that
+:mod:`optik.solvers.closed` calls with an already validated target.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import math
+import weakref
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -19,8 +26,8 @@ from optik.errors import SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.targets import target_transform
 
-IKSolver = Callable[[Mechanism, np.ndarray], list[np.ndarray]]
-FKSolver = Callable[[Mechanism, np.ndarray], list[np.ndarray]]
+IKSolver = Callable[[Mechanism, np.ndarray], Sequence[Sequence[float]]]
+FKSolver = Callable[[Mechanism, np.ndarray], Sequence[Sequence[float]]]
 
 _IK: dict[str, IKSolver] = {}
 _FK: dict[str, FKSolver] = {}
@@ -44,14 +51,81 @@ def has_fk(m: Mechanism) -> bool:
     return m.kind in _FK
 
 
-def _finish(m: Mechanism, qs: list[np.ndarray], respect_limits: bool) -> list[np.ndarray]:
-    out = []
-    for q in qs:
-        w = m.wrap(q)
-        if respect_limits and not m.within_limits(w):
-            continue
-        out.append(w)
+_ANGLES: weakref.WeakKeyDictionary[Mechanism, tuple[bool, ...] | None] = weakref.WeakKeyDictionary()
+
+_TWO_PI = 2.0 * np.pi
+_SHIFTS = (2 * np.pi, -2 * np.pi, 4 * np.pi, -4 * np.pi)
+"""The shifts :meth:`Mechanism.wrap` tries, in its order."""
+
+
+def angle_mask(m: Mechanism) -> tuple[bool, ...] | None:
+    """``m.revolute_mask`` as a tuple, or None when ``m`` has spherical joints (their rotation
+    vectors are wrapped by :meth:`Mechanism.wrap` only).
+
+    Cached per mechanism: the joints and topology of a :class:`Mechanism` never change (limits
+    may; they are read on every call)."""
+    try:
+        return _ANGLES[m]
+    except KeyError:
+        mask = None if m.spherical_slices else tuple(bool(v) for v in m.revolute_mask)
+        _ANGLES[m] = mask
+        return mask
+
+
+def wrap_angle_one(a: float) -> float:
+    """:func:`optik.spatial.wrap_angle` of one float (to ``(-pi, pi]``, same arithmetic)."""
+    w = (a + np.pi) % _TWO_PI - np.pi
+    return w + _TWO_PI if w <= -np.pi else w
+
+
+def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]]:
+    """:meth:`Mechanism.wrap` of every row (branches of one target: a few short rows).
+
+    Plain floats: for a handful of branches this is several times cheaper than numpy calls on
+    tiny arrays. Same arithmetic as ``m.wrap`` (angles to ``(-pi, pi]``, then the first of the
+    shifts ``2 pi, -2 pi, 4 pi, -4 pi`` that lands within the limits of a coordinate outside
+    them); falls back to ``m.wrap`` for spherical joints, rows of the wrong length and
+    non-finite rows (which ``m.wrap`` rejects with its own error)."""
+    mask = angle_mask(m)
+    out = [[float(v) for v in row] for row in rows]
+    if mask is None or any(len(row) != len(mask) or not all(map(math.isfinite, row)) for row in out):
+        return [m.wrap(row).tolist() for row in rows]
+    lo, hi = m.lower.tolist(), m.upper.tolist()
+    angles = [k for k, a in enumerate(mask) if a]
+    pi, two_pi = np.pi, _TWO_PI
+    for row in out:
+        for k in angles:
+            w = (row[k] + pi) % two_pi - pi  # wrap_angle_one, inlined
+            if w <= -pi:
+                w += two_pi
+            if not lo[k] <= w <= hi[k]:
+                for shift in _SHIFTS:
+                    if lo[k] <= w + shift <= hi[k]:
+                        w += shift
+                        break
+            row[k] = w
     return out
+
+
+def within_limits(m: Mechanism, row: Sequence[float]) -> bool:
+    """``lower <= q <= upper`` for every coordinate (:meth:`Mechanism.within_limits`)."""
+    return all(lo <= v <= hi for v, lo, hi in zip(row, m.lower.tolist(), m.upper.tolist(), strict=True))
+
+
+def branches(m: Mechanism, t: np.ndarray) -> list[list[float]]:
+    """All closed-form IK branches for a validated 4x4 target ``t``, wrapped by
+    :func:`wrap_rows`, without the limit filter (``[]`` when unreachable).
+
+    Raises:
+        SolverUnavailableError: no closed form is registered for ``m.kind``.
+    """
+    if m.kind not in _IK:
+        raise SolverUnavailableError(f"no closed-form IK for mechanism {m.name!r} (kind {m.kind!r})")
+    return wrap_rows(m, _IK[m.kind](m, t))
+
+
+def _finish(m: Mechanism, rows: list[list[float]], respect_limits: bool) -> list[np.ndarray]:
+    return [np.array(row) for row in rows if not respect_limits or within_limits(m, row)]
 
 
 def ik(m: Mechanism, target: Any, respect_limits: bool = True) -> list[np.ndarray]:
@@ -71,7 +145,7 @@ def ik(m: Mechanism, target: Any, respect_limits: bool = True) -> list[np.ndarra
     """
     if m.kind not in _IK:
         raise SolverUnavailableError(f"no closed-form IK for mechanism {m.name!r} (kind {m.kind!r})")
-    return _finish(m, _IK[m.kind](m, target_transform(target)), respect_limits)
+    return _finish(m, branches(m, target_transform(target)), respect_limits)
 
 
 def fk(m: Mechanism, actuated: Any, respect_limits: bool = True) -> list[np.ndarray]:
@@ -86,4 +160,4 @@ def fk(m: Mechanism, actuated: Any, respect_limits: bool = True) -> list[np.ndar
     if m.kind not in _FK:
         raise SolverUnavailableError(f"no closed-form FK for mechanism {m.name!r} (kind {m.kind!r})")
     a = as_vector(actuated, "actuated", len(m.actuated_indices))
-    return _finish(m, _FK[m.kind](m, a), respect_limits)
+    return _finish(m, wrap_rows(m, _FK[m.kind](m, a)), respect_limits)

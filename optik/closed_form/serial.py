@@ -28,7 +28,9 @@ Mathematics (seed ``000``/``001`` notation):
 
 The kernels run over blocks of :data:`BLOCK` targets so that temporaries stay in cache
 (``benchmarks/bench_closed_form.py``: the 3R arm solves several million targets per second on
-one core).
+one core). :func:`optik.closed_form.ik` solves one target at a time; it calls scalar twins of
+the kernels (``_*_one``, plain ``math`` on floats, the same operations in the same order),
+since a numpy call on a one-element array costs about as much as the whole scalar solve.
 
 Exactly degenerate targets have a defined representative: a two-link target at the origin with
 ``l1 = l2`` gives ``theta1 = 0``, ``theta2 = pi`` (``atan2(0, 0) = 0``); the R-P target at the
@@ -38,6 +40,7 @@ origin gives ``theta = 0`` (and ``pi``) with ``r = 0``; the 6R singularities are
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from functools import partial
 from typing import Any
@@ -45,10 +48,9 @@ from typing import Any
 import numpy as np
 
 from optik.catalog.serial import _positive
-from optik.closed_form.registry import register
+from optik.closed_form.registry import angle_mask, register, wrap_angle_one
 from optik.errors import InvalidArgumentError, NonFiniteError, ShapeError
 from optik.mechanism import Mechanism
-from optik.spatial import planar_pose_of, wrap_angle
 
 __all__ = [
     "COS_TOL",
@@ -141,6 +143,43 @@ def _two_link(l1: float, l2: float, x: np.ndarray, y: np.ndarray, out: np.ndarra
     np.add(beta, delta, out=out[..., 1, 0])
     _wrap(out[..., 0])
     return ok
+
+
+def _wrap_one(a: float) -> float:
+    """:func:`_wrap` of one float."""
+    return a - round(a * _INV_TWO_PI) * _TWO_PI
+
+
+def _two_link_one(l1: float, l2: float, x: float, y: float) -> tuple[bool, float, float, float]:
+    """:func:`_two_link` for one target: ``(ok, theta1 branch 0, theta1 branch 1, theta2 branch 0)``
+    (branch 1 has ``-theta2``)."""
+    r2 = x * x + y * y
+    inv = 1.0 / (2.0 * l1 * l2)
+    one_plus = (r2 - (l1 - l2) ** 2) * inv
+    one_minus = ((l1 + l2) ** 2 - r2) * inv
+    ok = one_plus >= -COS_TOL and one_minus >= -COS_TOL
+    one_plus = max(one_plus, 0.0)
+    one_minus = max(one_minus, 0.0)
+    s2 = math.sqrt(one_minus * one_plus)
+    c2 = (one_plus - one_minus) * 0.5
+    th2 = math.atan2(s2, c2)
+    beta = math.atan2(y, x)
+    delta = math.atan2(s2 * l2, one_plus * l2 + (l1 - l2))
+    return ok, _wrap_one(beta - delta), _wrap_one(beta + delta), th2
+
+
+def _planar_2r_one(l1: float, l2: float, x: float, y: float) -> list[list[float]]:
+    """The reachable branches of :func:`ik_planar_2r` for one target, in branch order."""
+    ok, t1a, t1b, t2 = _two_link_one(l1, l2, x, y)
+    return [[t1a, t2], [t1b, -t2]] if ok else []
+
+
+def _planar_3r_one(l1: float, l2: float, l3: float, x: float, y: float, phi: float) -> list[list[float]]:
+    """The reachable branches of :func:`ik_planar_3r` for one target, in branch order."""
+    ok, t1a, t1b, t2 = _two_link_one(l1, l2, math.cos(phi) * -l3 + x, math.sin(phi) * -l3 + y)
+    if not ok:
+        return []
+    return [[t1a, t2, _wrap_one(phi - t1a - t2)], [t1b, -t2, _wrap_one(phi - t1b + t2)]]
 
 
 def _blocked(
@@ -434,37 +473,144 @@ def _seed_6r_block(
     ok_out.reshape(n_t, 2, 2, 2)[:] = ok[..., None]
 
 
-# ---------------------------------------------------------------------------- registry adapters
-def _distinct(m: Mechanism, q: np.ndarray, ok: np.ndarray) -> list[np.ndarray]:
-    """The reachable branches of one target, without repeats (DESIGN: same branch when every
-    coordinate differs by < 1e-4, angles modulo 2 pi)."""
-    ang = m.revolute_mask
-    out: list[np.ndarray] = []
-    for b in np.flatnonzero(ok[0]):
-        cand = q[0, b].copy()
-        diffs = [cand - prev for prev in out]
-        for d in diffs:
-            d[ang] = wrap_angle(d[ang])
-        if all(np.max(np.abs(d)) >= _SAME_BRANCH for d in diffs):
-            out.append(cand)
+def _safe_one(num: float, den: float, default: float) -> float:
+    """:func:`_safe_ratio` of floats."""
+    return num / den if den != 0 else default
+
+
+def _clip_one(a: float, lo: float, hi: float) -> float:
+    """``np.clip`` of a float (``hi`` wins when ``lo > hi``)."""
+    return min(max(a, lo), hi)
+
+
+def _reachable_wrist_one(
+    th234: float, s5_abs: float, beta: float, r: float, d: tuple[float, float, float]
+) -> float:
+    """:func:`_reachable_wrist` for one candidate."""
+    d2, d3, d4 = d
+    lo = math.acos(_clip_one(_safe_one(r * r + d4 * d4 - (d2 - d3) ** 2, 2.0 * d4 * r, 1.0), -1.0, 1.0))
+    hi = math.acos(_clip_one(_safe_one(r * r + d4 * d4 - (d2 + d3) ** 2, 2.0 * d4 * r, 1.0), -1.0, 1.0))
+    psi = _wrap_one(th234 - beta)
+    inside = _clip_one(abs(psi), lo, hi)
+    moved = beta + (inside if psi >= 0.0 else -inside)
+    cheap = lo <= hi and s5_abs * abs(math.sin(moved - th234)) <= SINGULAR_TOL
+    return moved if cheap else th234
+
+
+def _seed_6r_one(d2: float, d3: float, d4: float, t: np.ndarray) -> list[list[float]]:
+    """The reachable branches of :func:`ik_seed_6r` for one target, in branch order: the same
+    steps as :func:`_seed_6r_block` on floats."""
+    (nx, ox, ax, px), (ny, oy, ay, py), (nz, oz, az, pz) = t[:3].tolist()
+    mid = max(d2, d3)
+    scale = SINGULAR_TOL * (d2 + d3 + d4)
+
+    # 1. shoulder, with the representative of the shoulder singularity
+    if math.hypot(px, py) <= scale:
+        h = math.hypot(ax, ay)
+        s_star = _clip_one(_safe_one(pz * pz + d4 * d4 - mid * mid, 2.0 * d4 * pz, 0.0), -1.0, 1.0)
+        ratio = _safe_one(abs(az) * math.sqrt(1.0 - s_star * s_star), abs(s_star) * h, math.inf)
+        th1_base = math.atan2(ay, ax) + math.acos(min(ratio, 1.0))
+    else:
+        th1_base = math.atan2(py, px)
+    c5_sign = 1.0 if ax * math.sin(th1_base) - ay * math.cos(th1_base) >= 0.0 else -1.0
+    th1_orient = math.atan2(c5_sign * ax, -c5_sign * ay)
+    c1o, s1o = math.cos(th1_orient), math.sin(th1_orient)
+    if math.hypot(ax * c1o + ay * s1o, az) <= SINGULAR_TOL and abs(py * c1o - px * s1o) <= scale:
+        th1_base = th1_orient
+    out: list[list[float]] = []
+    for th1 in (_wrap_one(th1_base), _wrap_one(th1_base + np.pi)):
+        c1, s1 = math.cos(th1), math.sin(th1)
+        # 2. wrist, with the representative of the wrist singularity
+        u = ax * c1 + ay * s1
+        rho = px * c1 + py * s1
+        r = math.hypot(rho, pz)
+        beta = math.atan2(pz, rho)
+        s5_abs = math.hypot(u, az)
+        if s5_abs <= SINGULAR_TOL:
+            k = _clip_one(_safe_one(r * r + d4 * d4 - mid * mid, 2.0 * d4 * r, 1.0), -1.0, 1.0)
+            acos_k = math.acos(k)
+        c5 = ax * s1 - ay * c1
+        nr = nx * c1 + ny * s1
+        orr = ox * c1 + oy * s1
+        for sigma in (1.0, -1.0):
+            singular = s5_abs <= SINGULAR_TOL
+            th234 = beta + sigma * acos_k if singular else math.atan2(sigma * az, sigma * u)
+            th234 = _reachable_wrist_one(th234, s5_abs, beta, r, (d2, d3, d4))
+            c234, s234 = math.cos(th234), math.sin(th234)
+            # 3. elbow
+            ok, t2a, t2b, t3 = _two_link_one(d2, d3, rho - d4 * c234, pz - d4 * s234)
+            if not ok:
+                continue
+            # 4. wrist angles from M = R_04^T R
+            th5 = math.atan2(c234 * u + s234 * az, c5)
+            th6 = math.atan2(c234 * nz - s234 * nr, c234 * oz - s234 * orr)
+            out.append([th1, t2a, t3, _wrap_one(th234 - t2a - t3), th5, th6])
+            out.append([th1, t2b, -t3, _wrap_one(th234 - t2b + t3), th5, th6])
     return out
 
 
-def _planar_adapter(solve: Callable[[Mechanism, float, float, float], tuple[np.ndarray, np.ndarray]]):
-    """IK adapter ``(m, T) -> list[q]`` from a vectorized planar solver taking ``(m, x, y, phi)``."""
+# ---------------------------------------------------------------------------- registry adapters
+def _distinct_rows(m: Mechanism, rows: list[list[float]]) -> list[list[float]]:
+    """The reachable branches of one target (rows, in branch order) without repeats of an
+    earlier kept one (DESIGN: same branch when every coordinate differs by < 1e-4, angles
+    modulo 2 pi)."""
+    if len(rows) <= 1:
+        return rows
+    mask = angle_mask(m)
+    if mask is None:
+        mask = tuple(bool(v) for v in m.revolute_mask)
+    kept: list[list[float]] = []
+    for cand in rows:
+        if all(_far(cand, prev, mask) for prev in kept):
+            kept.append(cand)
+    return kept
 
-    def adapter(m: Mechanism, t: np.ndarray) -> list[np.ndarray]:
-        x, y, phi = planar_pose_of(t)
-        return _distinct(m, *solve(m, x, y, phi))
+
+def _far(a: list[float], b: list[float], mask: tuple[bool, ...]) -> bool:
+    """Some coordinate differs by at least the same-branch distance (angles modulo 2 pi).
+
+    Wrapping changes an angle difference below 3 rad by rounding only (< 1e-15), so only
+    differences near the threshold or above 3 rad need the exact wrap."""
+    for x, y, angle in zip(a, b, mask, strict=True):
+        d = abs(x - y)
+        if not angle:
+            if d >= _SAME_BRANCH:
+                return True
+        elif d >= 0.999 * _SAME_BRANCH and (
+            1.001 * _SAME_BRANCH < d <= 3.0 or abs(wrap_angle_one(x - y)) >= _SAME_BRANCH
+        ):
+            return True
+    return False
+
+
+def _planar_one(m: Mechanism, t: np.ndarray) -> tuple[float, float, float]:
+    """``(x, y, phi)`` of a validated planar target (:func:`optik.spatial.planar_pose_of`)."""
+    return float(t[0, 3]), float(t[1, 3]), math.atan2(t[1, 0], t[0, 0])
+
+
+def _rp_one(x: float, y: float) -> list[list[float]]:
+    """The branches of :func:`ik_rp` for one target."""
+    th = math.atan2(y, x)
+    r = math.hypot(x, y)
+    return [[th, r], [_wrap_one(th + np.pi), -r]]
+
+
+def _adapter(solve: Callable[..., list[list[float]]], *names: str):
+    """IK adapter ``(m, T) -> rows`` from a scalar solver ``solve(*params, x, y, phi)``
+    (``names``: the ``m.params`` entries passed first, link lengths unpacked)."""
+
+    def adapter(m: Mechanism, t: np.ndarray) -> list[list[float]]:
+        params = [v for name in names for v in np.atleast_1d(m.params[name]).tolist()]
+        return _distinct_rows(m, solve(*params, *_planar_one(m, t)))
 
     return adapter
 
 
-register("planar_2r", ik=_planar_adapter(lambda m, x, y, phi: ik_planar_2r(m.params["lengths"], x, y)))
-register("planar_3r", ik=_planar_adapter(lambda m, x, y, phi: ik_planar_3r(m.params["lengths"], x, y, phi)))
-register("rp_arm", ik=_planar_adapter(lambda m, x, y, phi: ik_rp(x, y)))
-register("pp_arm", ik=_planar_adapter(lambda m, x, y, phi: ik_pp(x, y)))
+register("planar_2r", ik=_adapter(lambda l1, l2, x, y, phi: _planar_2r_one(l1, l2, x, y), "lengths"))
+register("planar_3r", ik=_adapter(_planar_3r_one, "lengths"))
+register("rp_arm", ik=_adapter(lambda x, y, phi: _rp_one(x, y)))
+register("pp_arm", ik=_adapter(lambda x, y, phi: [[x, y]]))
 register(
     "seed_6r_arm",
-    ik=lambda m, t: _distinct(m, *ik_seed_6r(m.params["d2"], m.params["d3"], m.params["d4"], t)),
+    ik=lambda m, t: _distinct_rows(m, _seed_6r_one(m.params["d2"], m.params["d3"], m.params["d4"], t)),
 )

@@ -6,16 +6,34 @@ nearest the start ``q0`` (max-norm, angles modulo 2 pi). It applies when the mec
 kind has a registered closed form and the task is the mechanism's own task space. No branch
 within the limits gives ``success=False`` with a message that says whether the target is out of
 reach or only out of the limits (then the nearest branch, clipped into the limits, is returned).
+
+The request's target is validated once by :func:`optik.solve_ik`; this method goes straight to
+the branches (:func:`optik.closed_form.registry.branches`, computed once for both cases) and
+evaluates the answer with the mechanism's compiled FK / closure functions.
 """
 
 from __future__ import annotations
 
+import threading
+import weakref
+from collections.abc import Callable
+
+import casadi as ca
 import numpy as np
 
 from optik import closed_form
+from optik.closed_form import registry
 from optik.mechanism import Mechanism
 from optik.results import IKResult
-from optik.solvers.base import IKRequest, joint_distance, make_result, method_options, register_method
+from optik.solvers.base import (
+    IKRequest,
+    evaluate,
+    joint_distance,
+    make_result,
+    method_options,
+    register_method,
+    task_errors,
+)
 
 
 def closed_form_applies(m: Mechanism, task: str) -> bool:
@@ -28,23 +46,105 @@ def nearest(m: Mechanism, qs: list[np.ndarray], q0: np.ndarray) -> np.ndarray:
     return min(qs, key=lambda q: joint_distance(m, q, q0))
 
 
+def _nearest_row(m: Mechanism, rows: list[list[float]], q0: np.ndarray) -> np.ndarray:
+    """:func:`nearest` over rows of floats (the first of equally near ones), as an array."""
+    if len(rows) > 1:
+        mask = registry.angle_mask(m)
+        if mask is None:
+            return nearest(m, [np.array(r) for r in rows], q0)
+        start = q0.tolist()
+        pi, two_pi = np.pi, 2.0 * np.pi
+
+        def distance(row: list[float]) -> float:
+            worst = 0.0
+            for a, b, ang in zip(row, start, mask, strict=True):
+                d = a - b
+                if ang:  # registry.wrap_angle_one, inlined
+                    d = (d + pi) % two_pi - pi
+                    if d <= -pi:
+                        d += two_pi
+                worst = max(worst, abs(d))
+            return worst
+
+        rows = [min(rows, key=distance)]
+    return np.array(rows[0])
+
+
+class _Evaluator:
+    """FK of one frame and the closure residual of a mechanism, evaluated by CasADi on
+    preallocated buffers (``Function.buffer``: about 1 us per call instead of about 40 us per
+    call through CasADi's Python interface). The same expressions as ``m.fk`` / ``m.closure``.
+    Guarded by a lock: a concurrent caller that finds it busy falls back to ``evaluate``."""
+
+    def __init__(self, m: Mechanism, frame: str | None) -> None:
+        outs = [ca.densify(m.frame_expr(frame))]
+        if m.is_closed:
+            outs.append(ca.densify(m.closure_expr))
+        f = ca.Function("closed_form_check", [m.q_sym], outs)
+        self.q = np.zeros(m.n_q)
+        self.pose = np.zeros(16)  # column-major 4x4
+        self.closure = np.zeros(m.n_closure) if m.is_closed else None
+        self.buffer, self.call = f.buffer()
+        self.buffer.set_arg(0, memoryview(self.q))
+        self.buffer.set_res(0, memoryview(self.pose))
+        if self.closure is not None:
+            self.buffer.set_res(1, memoryview(self.closure))
+        self.lock = threading.Lock()
+
+
+_EVALUATORS: weakref.WeakKeyDictionary[Mechanism, dict[str | None, _Evaluator]] = weakref.WeakKeyDictionary()
+
+
+def _evaluator(m: Mechanism, frame: str | None) -> _Evaluator:
+    per_frame = _EVALUATORS.setdefault(m, {})
+    if frame not in per_frame:
+        per_frame[frame] = _Evaluator(m, frame)
+    return per_frame[frame]
+
+
+def _compiled_errors(request: IKRequest) -> Callable[[np.ndarray], tuple[float, float, float]]:
+    """``q -> (position, orientation, closure)`` errors exactly as
+    :func:`optik.solvers.base.evaluate` computes them, with the FK and closure residual from
+    :class:`_Evaluator` (``q`` is the validated, clipped answer: no re-validation)."""
+    m, task, target = request.mechanism, request.task, request.target
+    ev = _evaluator(m, request.frame)
+
+    def errors(q: np.ndarray) -> tuple[float, float, float]:
+        if not ev.lock.acquire(blocking=False):
+            e = evaluate(m, q, target, task, request.frame)
+            return e.position, e.orientation, e.closure
+        try:
+            ev.q[:] = q
+            ev.call()
+            pose = ev.pose.reshape(4, 4, order="F").copy()
+            clo = float(np.max(np.abs(ev.closure))) if ev.closure is not None else 0.0
+        finally:
+            ev.lock.release()
+        pos, ori = task_errors(task, pose, target)
+        return pos, ori, clo
+
+    return errors
+
+
 def solve_closed_form(request: IKRequest) -> IKResult:
     """All closed-form branches, then the one within limits nearest ``q0`` (no options)."""
     method_options(request, {})
     m = request.mechanism
-    inside = closed_form.ik(m, request.target, respect_limits=True)
+    every = registry.branches(m, request.target)
+    errors = _compiled_errors(request)
+    inside = [row for row in every if registry.within_limits(m, row)]
     if inside:
-        return make_result(request, nearest(m, inside, request.q0), "closed_form", 0)
-    every = closed_form.ik(m, request.target, respect_limits=False)
+        return make_result(request, _nearest_row(m, inside, request.q0), "closed_form", 0, errors=errors)
     if every:
         return make_result(
             request,
-            nearest(m, every, request.q0),
+            _nearest_row(m, every, request.q0),
             "closed_form",
             0,
             status="outside_limits",
             message=f"the target is reachable by {len(every)} closed-form branch(es), none within the "
             "joint limits; returned the branch nearest q0 clipped into the limits",
+            errors=errors,
         )
     return make_result(
         request,
@@ -53,6 +153,7 @@ def solve_closed_form(request: IKRequest) -> IKResult:
         0,
         status="unreachable",
         message="the target is out of reach: the closed form has no real solution; returned q0",
+        errors=errors,
     )
 
 

@@ -12,6 +12,7 @@ Stewart-Gough IK 1, FK every real posture (at most 40) by homotopy continuation.
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
 from collections.abc import Mapping
@@ -72,6 +73,27 @@ def two_link_ik(origin: np.ndarray, a: float, b: float, point: np.ndarray) -> li
     return [(_angle(d) - float(np.arctan2(b * np.sin(p), a + b * np.cos(p))), p) for p in psis]
 
 
+def _two_link_one(
+    ox: float, oy: float, a: float, b: float, px: float, py: float
+) -> list[tuple[float, float]]:
+    """:func:`two_link_ik` on floats (one target: cheaper than numpy on 2-vectors)."""
+    dx, dy = px - ox, py - oy
+    c = (dx * dx + dy * dy - a * a - b * b) / (2 * a * b)
+    if abs(c) > 1 + CIRCLE_TOL:
+        return []
+    c = min(max(c, -1.0), 1.0)
+    psis = [math.acos(c)]
+    if 1 - abs(c) > CIRCLE_TOL:
+        psis.append(-psis[0])
+    angle = math.atan2(dy, dx)
+    return [(angle - math.atan2(b * math.sin(p), a + b * math.cos(p)), p) for p in psis]
+
+
+def _row(m: Mechanism, values: Mapping[str, float]) -> np.ndarray:
+    """:func:`_assemble` of floats."""
+    return np.array([values[name] for name in m.coordinate_names])
+
+
 def circle_intersections(c1: np.ndarray, r1: float, c2: np.ndarray, r2: float) -> list[np.ndarray]:
     """Intersection points of two circles (two, one when tangent, none when apart or concentric)."""
     d_vec = np.asarray(c2, dtype=float) - c1
@@ -111,14 +133,15 @@ def five_bar_ik(m: Mechanism, target: np.ndarray) -> list[np.ndarray]:
     ``P = B1 + l3 u(theta1 + psi1)``; chain 2 is a 2R chain (``l2``, ``l4``) from ``A2`` to ``P``
     (2 solutions).
     """
-    b = m.params["base"]
+    (a1x, a1y), (a2x, a2y) = m.params["base"].tolist()
     l1, l2, l3, l4 = m.params["lengths"]
     tool = m.params["tool"]
     out = []
-    for th1, psi1 in two_link_ik(b[0], l1, tool, target[:2, 3]):
-        p = b[0] + l1 * _dir(th1) + l3 * _dir(th1 + psi1)
-        for th2, psi2 in two_link_ik(b[1], l2, l4, p):
-            out.append(_assemble(m, {"theta1": th1, "theta2": th2, "psi1": psi1, "psi2": psi2}))
+    for th1, psi1 in _two_link_one(a1x, a1y, l1, tool, float(target[0, 3]), float(target[1, 3])):
+        px = a1x + l1 * math.cos(th1) + l3 * math.cos(th1 + psi1)
+        py = a1y + l1 * math.sin(th1) + l3 * math.sin(th1 + psi1)
+        for th2, psi2 in _two_link_one(a2x, a2y, l2, l4, px, py):
+            out.append(_row(m, {"theta1": th1, "theta2": th2, "psi1": psi1, "psi2": psi2}))
     return out
 
 
@@ -144,14 +167,16 @@ def _leg_end(foot: np.ndarray, legs: np.ndarray, th_a: float, th_b: float) -> np
 def doggy_ik(m: Mechanism, target: np.ndarray) -> list[np.ndarray]:
     """Doggy IK from the body pose ``(xB, yB, phiB)``: hips ``A = B + R h_A``, ``C = B + R h_C``,
     then each leg is a 2R chain from its foot to its hip: 2 x 2 = 4 leg combinations."""
-    f, h, lg = m.params["feet"], m.params["hips"], m.params["legs"]
-    pb, phi = _planar_pose(target)
-    r = _rot2(phi)
+    f, h, lg = m.params["feet"].tolist(), m.params["hips"].tolist(), m.params["legs"].tolist()
+    bx, by = float(target[0, 3]), float(target[1, 3])
+    phi = math.atan2(target[1, 0], target[0, 0])
+    c, s = math.cos(phi), math.sin(phi)
+    hips = [(bx + (c * hx - s * hy), by + (s * hx + c * hy)) for hx, hy in h]
     out = []
-    for th1, th2 in two_link_ik(f[0], lg[0, 0], lg[0, 1], pb + r @ h[0]):
-        for th3, th4 in two_link_ik(f[1], lg[1, 0], lg[1, 1], pb + r @ h[1]):
+    for th1, th2 in _two_link_one(*f[0], lg[0][0], lg[0][1], *hips[0]):
+        for th3, th4 in _two_link_one(*f[1], lg[1][0], lg[1][1], *hips[1]):
             values = {"theta1": th1, "theta2": th2, "hipA": phi - th1 - th2, "theta3": th3, "theta4": th4}
-            out.append(_assemble(m, values))
+            out.append(_row(m, values))
     return out
 
 

@@ -87,7 +87,7 @@ def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]
     them); falls back to ``m.wrap`` for spherical joints, rows of the wrong length and
     non-finite rows (which ``m.wrap`` rejects with its own error)."""
     mask = angle_mask(m)
-    out = [[float(v) for v in row] for row in rows]
+    out = [row.tolist() if isinstance(row, np.ndarray) else [float(v) for v in row] for row in rows]
     if mask is None or any(len(row) != len(mask) or not all(map(math.isfinite, row)) for row in out):
         return [m.wrap(row).tolist() for row in rows]
     lo, hi = m.lower.tolist(), m.upper.tolist()

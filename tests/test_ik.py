@@ -158,6 +158,36 @@ def test_nlp_sqpmethod_is_selectable() -> None:
     assert res.success, res.message
 
 
+def test_nlp_monitor_stops_at_tolerance_through_the_buffer_callback() -> None:
+    from optik.solvers.nlp import _Monitor
+
+    mon = _Monitor(2, 0, 1)
+    mon.errors = lambda x: (abs(float(x[0])), 0.0, 0.0)
+    mon.goal = (1e-3, 1.0, 1.0)
+    args = [np.array([0.5, 0.0]), 0.0, np.zeros(0), np.zeros(2), np.zeros(0), np.zeros(1)]
+    assert float(mon(*args)) == 0.0
+    args[0] = np.array([1e-4, 0.0])
+    assert float(mon(*args)) == 1.0
+    assert mon.reached and mon.best_score == pytest.approx(0.1)
+
+
+def test_nlp_default_stall_rules() -> None:
+    from optik.solvers.nlp import _default_stall
+
+    assert _default_stall("sqpmethod", False, True) == (0.7, 0.7)
+    assert _default_stall("ipopt", False, True) == (0.8, 0.8)
+    assert _default_stall("ipopt", True, True) == (1.0, 0.8)  # closed chains: near the target only
+    assert _default_stall("ipopt", False, False) == (1.0, 1.0)  # IPOPT's optimum asked for
+
+
+def test_nlp_ipopt_redundant_arm_reaches_tight_tolerance() -> None:
+    m = optik.catalog.panda()
+    rng = np.random.default_rng(3)
+    for q in m.random_q(5, seed=rng):
+        res = optik.solve_ik(m, m.fk(q), method="nlp", tol=1e-6, time_limit=1.0, seed=1)
+        assert res.success, res.message
+
+
 def test_posture_resolves_redundancy() -> None:
     m = _arm("planar_3r")  # redundant for the position2d task
     target = optik.Position(1.2, 0.6)

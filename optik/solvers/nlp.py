@@ -14,9 +14,10 @@ early stopping IPOPT runs to its own convergence (tolerance ``ipopt_tol``), whic
 posture or secondary weight shape the answer. Those terms bias the optimum slightly off the
 target; a start that ends close to but not within the tolerances is polished by a second solve
 from its answer with the posture and secondary weights set to 0 (same NLP, new parameter
-values). The first start is ``q0`` (warm start); later
-starts are drawn uniformly within the limits from the request's seeded generator, until success
-or the time limit. The answer is the best iterate seen (largest ratio error / tolerance smallest).
+values; for IPOPT with a small initial barrier parameter, :data:`_IPOPT_POLISH`). The first
+start is ``q0`` (warm start); later starts are drawn uniformly within the limits from the
+request's seeded generator, until success or the time limit. The answer is the best iterate
+seen (largest ratio error / tolerance smallest).
 
 Options (``solve_ik(..., method="nlp", **options)``):
 
@@ -30,8 +31,10 @@ Options (``solve_ik(..., method="nlp", **options)``):
 * ``stop_at_tolerance`` (True): stop each start at the first iterate that meets the tolerances.
 * ``stall`` (None): abandon a start when its best error ratio (error / tolerance, the largest
   of position, orientation, closure) did not drop below ``stall`` times its value 5 iterations
-  earlier; 1 disables it; None picks 0.7 for ``sqpmethod`` and 1 for IPOPT (whose barrier
-  iterations can progress slowly before they converge fast).
+  earlier (a start that stalls near the target is then polished, see above); 1 disables it.
+  None picks 0.7 for ``sqpmethod``; 0.8 for IPOPT on open chains; on closed chains 0.8 only
+  once the task errors are below 1e-3 (further off, IPOPT's restoration of the loop closures
+  progresses slowly before it converges fast); 1 for IPOPT with ``stop_at_tolerance=False``.
 * ``ipopt_tol`` (1e-12): IPOPT's own convergence tolerance.
 * ``solver_options`` ({}): extra ``nlpsol`` options, e.g. ``{"ipopt.mu_init": 1e-3}``.
 * ``hessian`` ("gauss-newton"): Hessian of the Lagrangian given to the solver,
@@ -103,6 +106,23 @@ _POLISH_BELOW = 1e-3
 tolerances (the posture and secondary terms bias the optimum slightly off the target, most near
 singular configurations) is polished by a second solve from its answer with those weights set
 to 0: the same NLP, other parameter values. Starts further off restart."""
+_IPOPT_STALL = 0.8
+"""Default ``stall`` of IPOPT (see the module docstring)."""
+_IPOPT_POLISH = {
+    "ipopt.mu_strategy": "monotone",
+    "ipopt.mu_init": 1e-9,
+    "ipopt.bound_push": 1e-9,
+    "ipopt.bound_frac": 1e-9,
+}
+"""IPOPT options of the polish solve, which starts next to the solution: with the default
+``mu_init`` (0.1) the barrier term outweighs the task error (< 1e-6 there), and IPOPT first
+moves the iterate away towards the centre of the limits before it comes back."""
+_IPOPT_CLOSED = {
+    "ipopt.mu_strategy": "monotone",
+    "ipopt.mu_init": 1e-3,
+}
+"""IPOPT options for closed chains (loop closures as equality constraints): more five-bar
+targets within the quick-bench budget than the adaptive barrier update (see docs/solvers/nlp.md)."""
 
 
 class _Monitor(ca.Callback):
@@ -116,6 +136,7 @@ class _Monitor(ca.Callback):
         self.goal = (0.0, 0.0, 0.0)
         self.stop_at_tolerance = True
         self.stall = 1.0
+        self.stall_near = 1.0
         self.deadline = np.inf
         self.reset()
         self.construct("optik_nlp_monitor", {})
@@ -125,6 +146,7 @@ class _Monitor(ca.Callback):
         self.best_score = np.inf
         self.reached = False
         self.stalled = False
+        self.best_near = False
         self.iterations = 0
         self.history: list[float] = []
 
@@ -150,19 +172,35 @@ class _Monitor(ca.Callback):
             return ca.Sparsity.dense(self.n_g)
         return ca.Sparsity.dense(self.n_p)  # lam_p: the solver writes all of it
 
+    def has_eval_buffer(self) -> bool:
+        return True
+
+    def eval_buffer(self, arg: list[memoryview], res: list[memoryview]) -> int:
+        """The callback through CasADi's buffer protocol: the iterate as a view of the solver's
+        memory, no ``DM`` conversions (half the cost of an IPOPT iteration on the Panda with
+        :meth:`eval`)."""
+        x = np.frombuffer(arg[0], dtype=float).copy()  # a copy: the buffer dies with the call
+        np.frombuffer(res[0], dtype=float)[0] = float(self.check(x))
+        return 0
+
     def eval(self, arg: list[Any]) -> list[int]:
+        return [int(self.check(np.array(arg[0].nonzeros())))]
+
+    def check(self, x: np.ndarray) -> bool:
+        """Record the iterate ``x``; whether to stop the solver."""
         self.iterations += 1
-        x = np.array(arg[0].nonzeros())  # a copy (arg dies with the call); x is dense
         errs = self.errors(x)
         score = max(e / g for e, g in zip(errs, self.goal, strict=True))
         if score < self.best_score:
             self.best_x, self.best_score = x, score
+            self.best_near = max(errs[0], errs[1]) < _POLISH_BELOW
         self.reached = self.reached or score <= 1.0
         self.history.append(self.best_score)
         if len(self.history) > _STALL_WINDOW:
-            self.stalled = self.best_score > self.stall * self.history[-1 - _STALL_WINDOW]
+            factor = self.stall_near if self.best_near else self.stall
+            self.stalled = self.best_score > factor * self.history[-1 - _STALL_WINDOW]
         stop = (self.reached and self.stop_at_tolerance) or (self.stalled and not self.reached)
-        return [int(stop or time.perf_counter() >= self.deadline)]
+        return stop or time.perf_counter() >= self.deadline
 
 
 @dataclass(frozen=True)
@@ -173,7 +211,12 @@ class _Solver:
 
 
 def _solver_options(
-    solver: str, max_iter: int, ipopt_tol: float, extra: dict[str, Any], monitor: _Monitor
+    solver: str,
+    max_iter: int,
+    ipopt_tol: float,
+    extra: dict[str, Any],
+    monitor: _Monitor,
+    closed: bool = False,
 ) -> dict[str, Any]:
     common = {"print_time": False, "iteration_callback": monitor, "error_on_fail": False}
     if solver == "ipopt":
@@ -185,6 +228,7 @@ def _solver_options(
             "ipopt.tol": ipopt_tol,
             "ipopt.acceptable_iter": 0,
             "ipopt.mu_strategy": "adaptive",
+            **(_IPOPT_CLOSED if closed else {}),
             **extra,
         }
     return {
@@ -264,13 +308,22 @@ def nlp_solver(
     if key not in _SOLVERS:
         problem = build_ik_problem(m, task, frame, secondary)
         monitor = _Monitor(m.n_q, m.n_closure, problem.parameters.shape[0])
-        options = _solver_options(solver, max_iter, ipopt_tol, extra, monitor)
+        options = _solver_options(solver, max_iter, ipopt_tol, extra, monitor, m.n_closure > 0)
         if hessian == "gauss-newton":
             options["hess_lag"] = _hessian_function(problem, solver == "ipopt", damping)
         with _silenced_stdout():  # qpOASES prints a licence banner on construction
             fn = ca.nlpsol("optik_ik", solver, problem.nlp(), options)
         _SOLVERS[key] = _Solver(problem, fn, monitor)
     return _SOLVERS[key]
+
+
+def _default_stall(solver: str, closed: bool, stop_at_tolerance: bool) -> tuple[float, float]:
+    """Default ``stall`` factors (far from the target, near it): see the module docstring."""
+    if solver == "sqpmethod":
+        return 0.7, 0.7
+    if not stop_at_tolerance:  # the answer is IPOPT's optimum, not the first iterate in tolerance
+        return 1.0, 1.0
+    return (1.0 if closed else _IPOPT_STALL), _IPOPT_STALL
 
 
 def solve_nlp(request: IKRequest) -> IKResult:
@@ -287,18 +340,32 @@ def solve_nlp(request: IKRequest) -> IKResult:
     extra = opts["solver_options"]
     if not isinstance(extra, dict):
         raise InvalidArgumentError("solver_options", f"expected a dict, got {extra!r}")
+    args = (positive_int(opts["max_iter"], "max_iter"), float(opts["ipopt_tol"]))
     s = nlp_solver(
         m,
         request.task,
         request.frame,
         secondary,
         opts["solver"],
-        positive_int(opts["max_iter"], "max_iter"),
-        float(opts["ipopt_tol"]),
+        *args,
         extra,
         hessian,
         float(opts["damping"]),
     )
+    polisher = s
+    if opts["solver"] == "ipopt":  # polish from a point near the solution: a small barrier parameter
+        polish_extra = {**_IPOPT_POLISH, **extra}
+        polisher = nlp_solver(
+            m,
+            request.task,
+            request.frame,
+            secondary,
+            "ipopt",
+            *args,
+            polish_extra,
+            hessian,
+            float(opts["damping"]),
+        )
     params = s.problem.parameter_values(
         request.target,
         opts["weights"],
@@ -309,12 +376,16 @@ def solve_nlp(request: IKRequest) -> IKResult:
     )
     errors = errors_against(m, request.task, request.frame, request.target, opts["compile"])
     request.exclude_setup(setup)
-    mon = s.monitor
-    mon.errors = errors
-    mon.goal = (tol.position, tol.orientation, tol.closure)
-    mon.stop_at_tolerance = bool(opts["stop_at_tolerance"])
-    mon.stall = float(opts["stall"] or (1.0 if opts["solver"] == "ipopt" else 0.7))
-    mon.deadline = request.start + request.time_limit
+    stall, stall_near = _default_stall(opts["solver"], m.n_closure > 0, bool(opts["stop_at_tolerance"]))
+    if opts["stall"] is not None:
+        stall = stall_near = float(opts["stall"])
+    for mon in (s.monitor, polisher.monitor):
+        mon.errors = errors
+        mon.goal = (tol.position, tol.orientation, tol.closure)
+        mon.stop_at_tolerance = bool(opts["stop_at_tolerance"])
+        mon.stall, mon.stall_near = stall, stall_near
+        mon.deadline = request.start + request.time_limit
+    deadline = mon.deadline
     zeros = np.zeros(m.n_closure)
     best_q, best_score = request.q0.copy(), np.inf
     iterations, restarts = 0, -1
@@ -324,8 +395,9 @@ def solve_nlp(request: IKRequest) -> IKResult:
     unbiased[-3:] = 0.0  # the parameters end with the posture and secondary weights
     polish = bool(np.any(params[-3:] > 0))
 
-    def run(x0: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, float]:
+    def run(s: _Solver, x0: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, float]:
         nonlocal iterations
+        mon = s.monitor
         mon.reset()
         sol = s.solver(x0=x0, p=p, lbx=m.lower, ubx=m.upper, lbg=zeros, ubg=zeros)
         iterations += mon.iterations
@@ -335,15 +407,15 @@ def solve_nlp(request: IKRequest) -> IKResult:
 
     while True:
         restarts += 1
-        q, score = run(next(starts), params)
+        q, score = run(s, next(starts), params)
         near = max(errors(np.clip(q, m.lower, m.upper))[:2]) < _POLISH_BELOW
-        if polish and score > 1.0 and near and time.perf_counter() < mon.deadline:
-            q, score = min((q, score), run(q, unbiased), key=lambda qs: qs[1])
+        if polish and score > 1.0 and near and time.perf_counter() < deadline:
+            q, score = min((q, score), run(polisher, q, unbiased), key=lambda qs: qs[1])
         if score < best_score:
             best_q, best_score = q, score
         if best_score <= 1.0:
             return make_result(request, best_q, "nlp", iterations, restarts, errors=errors)
-        stop = restart_stop(mon.deadline, restarts, max_restarts)
+        stop = restart_stop(deadline, restarts, max_restarts)
         if stop is not None:
             return make_result(request, best_q, "nlp", iterations, restarts, stop, errors=errors)
 

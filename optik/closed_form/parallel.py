@@ -246,9 +246,20 @@ def _rpr_q(m: Mechanism, pos: np.ndarray, phi: float) -> np.ndarray:
 
 
 def planar_3rpr_ik(m: Mechanism, target: np.ndarray) -> list[np.ndarray]:
-    """3-RPR IK (one branch): ``rho_i = |t + R(phi) p_i - b_i|``, leg angles by atan2."""
-    pos, phi = _planar_pose(target)
-    return [_rpr_q(m, pos, phi)]
+    """3-RPR IK (one branch): ``rho_i = |t + R(phi) p_i - b_i|``, leg angles by atan2
+    (:func:`_rpr_q` on floats)."""
+    tx, ty = float(target[0, 3]), float(target[1, 3])
+    phi = math.atan2(target[1, 0], target[0, 0])
+    c, s = math.cos(phi), math.sin(phi)
+    values = {}
+    for i, ((bx, by), (px, py)) in enumerate(
+        zip(m.params["base"].tolist(), m.params["platform"].tolist(), strict=True)
+    ):
+        lx, ly = tx + (px * c - py * s) - bx, ty + (px * s + py * c) - by
+        values[f"theta{i + 1}"] = math.atan2(ly, lx)
+        values[f"rho{i + 1}"] = math.sqrt(lx * lx + ly * ly)
+    values["pin1"] = phi - values["theta1"]
+    return [_row(m, values)]
 
 
 def _rpr_residual(b: np.ndarray, p: np.ndarray, rho: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, ...]:

@@ -107,9 +107,10 @@ def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]
     return out
 
 
-def within_limits(m: Mechanism, row: Sequence[float]) -> bool:
-    """``lower <= q <= upper`` for every coordinate (:meth:`Mechanism.within_limits`)."""
-    return all(lo <= v <= hi for v, lo, hi in zip(row, m.lower.tolist(), m.upper.tolist(), strict=True))
+def within_limits(m: Mechanism, rows: list[list[float]]) -> list[list[float]]:
+    """The rows with ``lower <= q <= upper`` in every coordinate (:meth:`Mechanism.within_limits`)."""
+    lo, hi = m.lower.tolist(), m.upper.tolist()
+    return [row for row in rows if all(a <= v <= b for v, a, b in zip(row, lo, hi, strict=True))]
 
 
 def branches(m: Mechanism, t: np.ndarray) -> list[list[float]]:
@@ -125,7 +126,7 @@ def branches(m: Mechanism, t: np.ndarray) -> list[list[float]]:
 
 
 def _finish(m: Mechanism, rows: list[list[float]], respect_limits: bool) -> list[np.ndarray]:
-    return [np.array(row) for row in rows if not respect_limits or within_limits(m, row)]
+    return [np.array(row) for row in (within_limits(m, rows) if respect_limits else rows)]
 
 
 def ik(m: Mechanism, target: Any, respect_limits: bool = True) -> list[np.ndarray]:

@@ -597,10 +597,10 @@ def _rp_one(x: float, y: float) -> list[list[float]]:
 
 def _adapter(solve: Callable[..., list[list[float]]], *names: str):
     """IK adapter ``(m, T) -> rows`` from a scalar solver ``solve(*params, x, y, phi)``
-    (``names``: the ``m.params`` entries passed first, link lengths unpacked)."""
+    (``names``: the ``m.params`` sequences, e.g. link lengths, passed first, unpacked)."""
 
     def adapter(m: Mechanism, t: np.ndarray) -> list[list[float]]:
-        params = [v for name in names for v in np.atleast_1d(m.params[name]).tolist()]
+        params = [v for name in names for v in m.params[name]]
         return _distinct_rows(m, solve(*params, *_planar_one(m, t)))
 
     return adapter

@@ -132,7 +132,7 @@ def solve_closed_form(request: IKRequest) -> IKResult:
     m = request.mechanism
     every = registry.branches(m, request.target)
     errors = _compiled_errors(request)
-    inside = [row for row in every if registry.within_limits(m, row)]
+    inside = registry.within_limits(m, every)
     if inside:
         return make_result(request, _nearest_row(m, inside, request.q0), "closed_form", 0, errors=errors)
     if every:

@@ -173,8 +173,9 @@ def doggy_ik(m: Mechanism, target: np.ndarray) -> list[np.ndarray]:
     c, s = math.cos(phi), math.sin(phi)
     hips = [(bx + (c * hx - s * hy), by + (s * hx + c * hy)) for hx, hy in h]
     out = []
+    leg2 = _two_link_one(*f[1], lg[1][0], lg[1][1], *hips[1])
     for th1, th2 in _two_link_one(*f[0], lg[0][0], lg[0][1], *hips[0]):
-        for th3, th4 in _two_link_one(*f[1], lg[1][0], lg[1][1], *hips[1]):
+        for th3, th4 in leg2:
             values = {"theta1": th1, "theta2": th2, "hipA": phi - th1 - th2, "theta3": th3, "theta4": th4}
             out.append(_row(m, values))
     return out

@@ -88,7 +88,8 @@ def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]
     non-finite rows (which ``m.wrap`` rejects with its own error)."""
     mask = angle_mask(m)
     out = [row.tolist() if isinstance(row, np.ndarray) else [float(v) for v in row] for row in rows]
-    if mask is None or any(len(row) != len(mask) or not all(map(math.isfinite, row)) for row in out):
+    # a non-finite sum flags NaN / infinity (and, harmlessly, overflow: m.wrap then decides)
+    if mask is None or any(len(row) != len(mask) or not math.isfinite(sum(row)) for row in out):
         return [m.wrap(row).tolist() for row in rows]
     lo, hi = m.lower.tolist(), m.upper.tolist()
     angles = [k for k, a in enumerate(mask) if a]

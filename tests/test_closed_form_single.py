@@ -111,6 +111,16 @@ def test_wrap_rows_equals_mechanism_wrap():
     assert registry.within_limits(mm, got) == [w.tolist() for w in want if mm.within_limits(w)]
 
 
+def test_wrap_rows_equals_mechanism_wrap_with_spherical_joints():
+    rng = np.random.default_rng(5)
+    m = catalog.stewart_gough()
+    rows = rng.uniform(m.lower, m.upper, size=(100, m.n_q))
+    for sl in m.spherical_slices:
+        rows[:, sl] *= rng.uniform(0.5, 4.0, size=(100, 1))  # rotation angles above pi too
+    got = registry.wrap_rows(m, rows)
+    np.testing.assert_array_equal(np.array(got), np.array([m.wrap(r) for r in rows]))
+
+
 MECHANISMS = [
     catalog.planar_2r,
     catalog.planar_3r,
@@ -120,6 +130,8 @@ MECHANISMS = [
     catalog.five_bar,
     catalog.doggy,
     catalog.planar_3rpr,
+    catalog.slider_crank,
+    catalog.stewart_gough,
 ]
 
 

@@ -525,17 +525,18 @@ def _stewart_q(m: Mechanism, r: np.ndarray, t: np.ndarray) -> np.ndarray:
     half-turns included, has coordinates).
     """
     b, p = m.params["base"], m.params["platform"]
-    v = p @ r.T + t - b
     values: dict[str, float] = {}
     r_u1 = np.eye(3)
-    for i in range(6):
-        rho = float(np.linalg.norm(v[i]))
-        n = v[i] / rho
-        c = float(np.arcsin(np.clip(n[0], -1.0, 1.0)))
-        a = float(np.arctan2(-n[1], n[2])) if np.hypot(n[1], n[2]) > 1e-15 else 0.0
+    # per leg on floats (six legs: numpy on 3-vectors costs more than the arithmetic)
+    for i, (vx, vy, vz) in enumerate((p @ r.T + t - b).tolist()):
+        rho = math.sqrt(vx * vx + vy * vy + vz * vz)
+        nx, ny, nz = vx / rho, vy / rho, vz / rho
+        c = math.asin(min(max(nx, -1.0), 1.0))
+        a = math.atan2(-ny, nz) if math.hypot(ny, nz) > 1e-15 else 0.0
         values[f"u{i + 1}[0]"], values[f"u{i + 1}[1]"], values[f"rho{i + 1}"] = a, c, rho
-        if i == 0:
-            r_u1 = spatial.rot_x(a) @ spatial.rot_y(c)
+        if i == 0:  # Rot(x, a) Rot(y, c)
+            ca, sa, cc, sc = math.cos(a), math.sin(a), math.cos(c), math.sin(c)
+            r_u1 = np.array([[cc, 0.0, sc], [sa * sc, ca, -sa * cc], [-ca * sc, sa, ca * cc]])
     s1 = spatial.so3_log(r_u1.T @ r)
     for k in range(3):
         values[f"s1[{k}]"] = float(s1[k])

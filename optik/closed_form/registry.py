@@ -51,25 +51,29 @@ def has_fk(m: Mechanism) -> bool:
     return m.kind in _FK
 
 
-_ANGLES: weakref.WeakKeyDictionary[Mechanism, tuple[bool, ...] | None] = weakref.WeakKeyDictionary()
+_COORDS: weakref.WeakKeyDictionary[Mechanism, tuple[tuple[bool, ...], tuple[slice, ...]]] = (
+    weakref.WeakKeyDictionary()
+)
 
 _TWO_PI = 2.0 * np.pi
 _SHIFTS = (2 * np.pi, -2 * np.pi, 4 * np.pi, -4 * np.pi)
 """The shifts :meth:`Mechanism.wrap` tries, in its order."""
 
 
-def angle_mask(m: Mechanism) -> tuple[bool, ...] | None:
-    """``m.revolute_mask`` as a tuple, or None when ``m`` has spherical joints (their rotation
-    vectors are wrapped by :meth:`Mechanism.wrap` only).
-
-    Cached per mechanism: the joints and topology of a :class:`Mechanism` never change (limits
-    may; they are read on every call)."""
+def _coordinates(m: Mechanism) -> tuple[tuple[bool, ...], tuple[slice, ...]]:
+    """``(m.revolute_mask as a tuple, m.spherical_slices)``, cached per mechanism: the joints
+    and topology of a :class:`Mechanism` never change (limits may; they are read on every call)."""
     try:
-        return _ANGLES[m]
+        return _COORDS[m]
     except KeyError:
-        mask = None if m.spherical_slices else tuple(bool(v) for v in m.revolute_mask)
-        _ANGLES[m] = mask
-        return mask
+        coords = (tuple(bool(v) for v in m.revolute_mask), m.spherical_slices)
+        _COORDS[m] = coords
+        return coords
+
+
+def angle_mask(m: Mechanism) -> tuple[bool, ...]:
+    """``m.revolute_mask`` as a tuple (cached): the coordinates compared modulo 2 pi."""
+    return _coordinates(m)[0]
 
 
 def wrap_angle_one(a: float) -> float:
@@ -84,13 +88,19 @@ def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]
     Plain floats: for a handful of branches this is several times cheaper than numpy calls on
     tiny arrays. Same arithmetic as ``m.wrap`` (angles to ``(-pi, pi]``, then the first of the
     shifts ``2 pi, -2 pi, 4 pi, -4 pi`` that lands within the limits of a coordinate outside
-    them); falls back to ``m.wrap`` for spherical joints, rows of the wrong length and
-    non-finite rows (which ``m.wrap`` rejects with its own error)."""
-    mask = angle_mask(m)
+    them; rotation vectors of spherical joints as ``m.wrap`` does); falls back to ``m.wrap`` for
+    rows of the wrong length and non-finite rows (which ``m.wrap`` rejects with its own error)."""
+    mask, spherical = _coordinates(m)
     out = [row.tolist() if isinstance(row, np.ndarray) else [float(v) for v in row] for row in rows]
     # a non-finite sum flags NaN / infinity (and, harmlessly, overflow: m.wrap then decides)
-    if mask is None or any(len(row) != len(mask) or not math.isfinite(sum(row)) for row in out):
+    if any(len(row) != len(mask) or not math.isfinite(sum(row)) for row in out):
         return [m.wrap(row).tolist() for row in rows]
+    for row in out:
+        for sl in spherical:  # rotation vectors: angle above pi -> 2 pi - angle, opposite axis
+            norm = float(np.linalg.norm(row[sl]))
+            while norm > np.pi:
+                row[sl] = [v * (1.0 - 2.0 * np.pi / norm) for v in row[sl]]
+                norm = float(np.linalg.norm(row[sl]))
     lo, hi = m.lower.tolist(), m.upper.tolist()
     angles = [k for k, a in enumerate(mask) if a]
     pi, two_pi = np.pi, _TWO_PI

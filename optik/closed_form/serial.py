@@ -557,8 +557,6 @@ def _distinct_rows(m: Mechanism, rows: list[list[float]]) -> list[list[float]]:
     if len(rows) <= 1:
         return rows
     mask = angle_mask(m)
-    if mask is None:
-        mask = tuple(bool(v) for v in m.revolute_mask)
     kept: list[list[float]] = []
     for cand in rows:
         if all(_far(cand, prev, mask) for prev in kept):

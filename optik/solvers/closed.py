@@ -50,8 +50,6 @@ def _nearest_row(m: Mechanism, rows: list[list[float]], q0: np.ndarray) -> np.nd
     """:func:`nearest` over rows of floats (the first of equally near ones), as an array."""
     if len(rows) > 1:
         mask = registry.angle_mask(m)
-        if mask is None:
-            return nearest(m, [np.array(r) for r in rows], q0)
         start = q0.tolist()
         pi, two_pi = np.pi, 2.0 * np.pi
 

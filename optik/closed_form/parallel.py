@@ -89,9 +89,9 @@ def _two_link_one(
     return [(angle - math.atan2(b * math.sin(p), a + b * math.cos(p)), p) for p in psis]
 
 
-def _row(m: Mechanism, values: Mapping[str, float]) -> np.ndarray:
-    """:func:`_assemble` of floats."""
-    return np.array([values[name] for name in m.coordinate_names])
+def _row(m: Mechanism, values: Mapping[str, float]) -> list[float]:
+    """:func:`_assemble` as a list of floats (what the registry works on)."""
+    return [values[name] for name in m.coordinate_names]
 
 
 def circle_intersections(c1: np.ndarray, r1: float, c2: np.ndarray, r2: float) -> list[np.ndarray]:
@@ -133,6 +133,11 @@ def five_bar_ik(m: Mechanism, target: np.ndarray) -> list[np.ndarray]:
     ``P = B1 + l3 u(theta1 + psi1)``; chain 2 is a 2R chain (``l2``, ``l4``) from ``A2`` to ``P``
     (2 solutions).
     """
+    return [np.array(row) for row in _five_bar_rows(m, target)]
+
+
+def _five_bar_rows(m: Mechanism, target: np.ndarray) -> list[list[float]]:
+    """:func:`five_bar_ik` as lists of floats (registered: the registry works on floats)."""
     (a1x, a1y), (a2x, a2y) = m.params["base"].tolist()
     l1, l2, l3, l4 = m.params["lengths"]
     tool = m.params["tool"]
@@ -167,6 +172,11 @@ def _leg_end(foot: np.ndarray, legs: np.ndarray, th_a: float, th_b: float) -> np
 def doggy_ik(m: Mechanism, target: np.ndarray) -> list[np.ndarray]:
     """Doggy IK from the body pose ``(xB, yB, phiB)``: hips ``A = B + R h_A``, ``C = B + R h_C``,
     then each leg is a 2R chain from its foot to its hip: 2 x 2 = 4 leg combinations."""
+    return [np.array(row) for row in _doggy_rows(m, target)]
+
+
+def _doggy_rows(m: Mechanism, target: np.ndarray) -> list[list[float]]:
+    """:func:`doggy_ik` as lists of floats (registered: the registry works on floats)."""
     f, h, lg = m.params["feet"].tolist(), m.params["hips"].tolist(), m.params["legs"].tolist()
     bx, by = float(target[0, 3]), float(target[1, 3])
     phi = math.atan2(target[1, 0], target[0, 0])
@@ -249,6 +259,11 @@ def _rpr_q(m: Mechanism, pos: np.ndarray, phi: float) -> np.ndarray:
 def planar_3rpr_ik(m: Mechanism, target: np.ndarray) -> list[np.ndarray]:
     """3-RPR IK (one branch): ``rho_i = |t + R(phi) p_i - b_i|``, leg angles by atan2
     (:func:`_rpr_q` on floats)."""
+    return [np.array(row) for row in _planar_3rpr_rows(m, target)]
+
+
+def _planar_3rpr_rows(m: Mechanism, target: np.ndarray) -> list[list[float]]:
+    """:func:`planar_3rpr_ik` as lists of floats (registered: the registry works on floats)."""
     tx, ty = float(target[0, 3]), float(target[1, 3])
     phi = math.atan2(target[1, 0], target[0, 0])
     c, s = math.cos(phi), math.sin(phi)
@@ -537,10 +552,23 @@ def _stewart_q(m: Mechanism, r: np.ndarray, t: np.ndarray) -> np.ndarray:
         if i == 0:  # Rot(x, a) Rot(y, c)
             ca, sa, cc, sc = math.cos(a), math.sin(a), math.cos(c), math.sin(c)
             r_u1 = np.array([[cc, 0.0, sc], [sa * sc, ca, -sa * cc], [-ca * sc, sa, ca * cc]])
-    s1 = spatial.so3_log(r_u1.T @ r)
+    s1 = _so3_log_one((r_u1.T @ r).tolist())
     for k in range(3):
         values[f"s1[{k}]"] = float(s1[k])
     return _assemble(m, values)
+
+
+def _so3_log_one(r: list[list[float]]) -> list[float]:
+    """:func:`optik.spatial.so3_log` of one rotation on floats (the same formulas; within 1e-3
+    of a half-turn, where the axis comes from the symmetric part, it calls ``so3_log``)."""
+    sx, sy, sz = r[2][1] - r[1][2], r[0][2] - r[2][0], r[1][0] - r[0][1]
+    theta = math.atan2(
+        0.5 * math.sqrt(sx * sx + sy * sy + sz * sz), 0.5 * (r[0][0] + r[1][1] + r[2][2] - 1.0)
+    )
+    if theta > np.pi - 1e-3:
+        return spatial.so3_log(np.array(r)).tolist()
+    coef = 0.5 * (1 + theta**2 / 6) if theta < 1e-6 else theta / (2 * math.sin(theta))
+    return [2 * coef * (v / 2.0) for v in (sx, sy, sz)]
 
 
 def stewart_gough_ik(m: Mechanism, target: np.ndarray) -> list[np.ndarray]:
@@ -687,8 +715,8 @@ def stewart_gough_fk(m: Mechanism, actuated: np.ndarray) -> list[np.ndarray]:
     return [_stewart_q(m, r, t) for r, t in fk.poses]
 
 
-register("five_bar", ik=five_bar_ik, fk=five_bar_fk)
-register("doggy", ik=doggy_ik, fk=doggy_fk)
+register("five_bar", ik=_five_bar_rows, fk=five_bar_fk)
+register("doggy", ik=_doggy_rows, fk=doggy_fk)
 register("slider_crank", ik=slider_crank_ik, fk=slider_crank_fk)
-register("planar_3rpr", ik=planar_3rpr_ik, fk=planar_3rpr_fk)
+register("planar_3rpr", ik=_planar_3rpr_rows, fk=planar_3rpr_fk)
 register("stewart_gough", ik=stewart_gough_ik, fk=stewart_gough_fk)

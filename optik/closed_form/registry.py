@@ -51,22 +51,23 @@ def has_fk(m: Mechanism) -> bool:
     return m.kind in _FK
 
 
-_COORDS: weakref.WeakKeyDictionary[Mechanism, tuple[tuple[bool, ...], tuple[slice, ...]]] = (
-    weakref.WeakKeyDictionary()
-)
+_Coordinates = tuple[tuple[bool, ...], tuple[slice, ...], tuple[int, ...]]
+_COORDS: weakref.WeakKeyDictionary[Mechanism, _Coordinates] = weakref.WeakKeyDictionary()
 
 _TWO_PI = 2.0 * np.pi
 _SHIFTS = (2 * np.pi, -2 * np.pi, 4 * np.pi, -4 * np.pi)
 """The shifts :meth:`Mechanism.wrap` tries, in its order."""
 
 
-def _coordinates(m: Mechanism) -> tuple[tuple[bool, ...], tuple[slice, ...]]:
-    """``(m.revolute_mask as a tuple, m.spherical_slices)``, cached per mechanism: the joints
-    and topology of a :class:`Mechanism` never change (limits may; they are read on every call)."""
+def _coordinates(m: Mechanism) -> _Coordinates:
+    """``(m.revolute_mask as a tuple, m.spherical_slices, angle indices)``, cached per mechanism:
+    the joints and topology of a :class:`Mechanism` never change (limits may; they are read on
+    every call)."""
     try:
         return _COORDS[m]
     except KeyError:
-        coords = (tuple(bool(v) for v in m.revolute_mask), m.spherical_slices)
+        mask = tuple(bool(v) for v in m.revolute_mask)
+        coords = (mask, m.spherical_slices, tuple(k for k, a in enumerate(mask) if a))
         _COORDS[m] = coords
         return coords
 
@@ -90,7 +91,7 @@ def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]
     shifts ``2 pi, -2 pi, 4 pi, -4 pi`` that lands within the limits of a coordinate outside
     them; rotation vectors of spherical joints as ``m.wrap`` does); falls back to ``m.wrap`` for
     rows of the wrong length and non-finite rows (which ``m.wrap`` rejects with its own error)."""
-    mask, spherical = _coordinates(m)
+    mask, spherical, angles = _coordinates(m)
     out = [row.tolist() if isinstance(row, np.ndarray) else [float(v) for v in row] for row in rows]
     # a non-finite sum flags NaN / infinity (and, harmlessly, overflow: m.wrap then decides)
     if any(len(row) != len(mask) or not math.isfinite(sum(row)) for row in out):
@@ -102,7 +103,6 @@ def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]
                 row[sl] = [v * (1.0 - 2.0 * np.pi / norm) for v in row[sl]]
                 norm = float(np.linalg.norm(row[sl]))
     lo, hi = m.lower.tolist(), m.upper.tolist()
-    angles = [k for k, a in enumerate(mask) if a]
     pi, two_pi = np.pi, _TWO_PI
     for row in out:
         for k in angles:

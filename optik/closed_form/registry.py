@@ -121,7 +121,8 @@ def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]
 def within_limits(m: Mechanism, rows: list[list[float]]) -> list[list[float]]:
     """The rows with ``lower <= q <= upper`` in every coordinate (:meth:`Mechanism.within_limits`)."""
     lo, hi = m.lower.tolist(), m.upper.tolist()
-    return [row for row in rows if all(a <= v <= b for v, a, b in zip(row, lo, hi, strict=True))]
+    n = range(len(lo))
+    return [row for row in rows if len(row) == len(lo) and all([lo[k] <= row[k] <= hi[k] for k in n])]
 
 
 def branches(m: Mechanism, t: np.ndarray) -> list[list[float]]:

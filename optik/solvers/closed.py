@@ -61,7 +61,10 @@ def _nearest_row(m: Mechanism, rows: list[list[float]], q0: np.ndarray) -> np.nd
                     d = (d + pi) % two_pi - pi
                     if d <= -pi:
                         d += two_pi
-                worst = max(worst, abs(d))
+                if d < 0.0:
+                    d = -d
+                if d > worst:
+                    worst = d
             return worst
 
         rows = [min(rows, key=distance)]

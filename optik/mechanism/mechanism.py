@@ -171,7 +171,7 @@ class Mechanism:
         """Indices of the passive coordinates."""
         return np.flatnonzero(~np.asarray(self.actuated, dtype=bool))
 
-    @property
+    @cached_property
     def revolute_mask(self) -> np.ndarray:
         """True for scalar angle coordinates (revolute and universal joints), which are equal
         modulo 2 pi. Spherical coordinates are rotation vectors, not angles (see :meth:`wrap`)."""
@@ -179,9 +179,11 @@ class Mechanism:
         for i in self.topology.tree:
             j = self.joints[i]
             mask += [j.type in ("revolute", "universal")] * j.dof
-        return np.array(mask, dtype=bool)
+        out = np.array(mask, dtype=bool)
+        out.flags.writeable = False  # cached and shared: read-only
+        return out
 
-    @property
+    @cached_property
     def spherical_slices(self) -> tuple[slice, ...]:
         """Coordinate slices of the spherical joints of the tree (rotation vectors)."""
         return tuple(self._slices[i] for i in self.topology.tree if self.joints[i].type == "spherical")

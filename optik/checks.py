@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -16,10 +17,17 @@ def as_vector(value: Any, name: str, size: int | None = None) -> np.ndarray:
         ShapeError: not one-dimensional, or not of ``size`` entries.
         NonFiniteError: contains NaN or infinity.
     """
-    try:
-        a = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InvalidArgumentError(name, f"expected numbers, got {value!r}") from exc
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.ndim == 1:
+        # fast path (per IK call): no conversion; a finite sum implies finite entries (a sum of
+        # plain floats overflows to inf silently, then the exact check below decides)
+        if (size is None or value.shape[0] == size) and math.isfinite(sum(value.tolist())):
+            return value
+        a = value
+    else:
+        try:
+            a = np.asarray(value, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InvalidArgumentError(name, f"expected numbers, got {value!r}") from exc
     if a.ndim == 0:
         a = a.reshape(1)
     if a.ndim != 1:
@@ -48,8 +56,8 @@ def as_batch(value: Any, name: str, size: int) -> tuple[np.ndarray, bool]:
     return a, single
 
 
-_LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
-_EYE3 = np.eye(3)
+_ORTHO_DIAG = 1e-6 + 1e-5
+_ORTHO_OFF = 1e-6
 
 
 def as_transform(value: Any, name: str) -> np.ndarray:
@@ -63,13 +71,26 @@ def as_transform(value: Any, name: str) -> np.ndarray:
     t = np.asarray(value, dtype=float)
     if t.shape != (4, 4):
         raise ShapeError(name, f"expected a 4x4 transform, got shape {t.shape}")
-    if not np.isfinite(t).all():
+    rows = t.tolist()
+    # a finite sum of plain floats implies finite entries (overflow: the exact check decides)
+    total = sum(rows[0]) + sum(rows[1]) + sum(rows[2]) + sum(rows[3])
+    if not math.isfinite(total) and not np.isfinite(t).all():
         raise NonFiniteError(name, "contains NaN or infinity")
-    # np.allclose semantics (|a - b| <= atol + 1e-5 |b|) without its overhead: this runs per IK call
-    if not (np.abs(t[3] - _LAST_ROW) <= 1e-9 + 1e-5 * _LAST_ROW).all():
+    # np.allclose semantics (|a - b| <= atol + 1e-5 |b|) on plain floats: this runs per IK call
+    (r00, r01, r02, _), (r10, r11, r12, _), (r20, r21, r22, _), (a, b, c, d) = rows
+    if not (abs(a) <= 1e-9 and abs(b) <= 1e-9 and abs(c) <= 1e-9 and abs(d - 1.0) <= 1e-9 + 1e-5):
         raise InvalidArgumentError(name, f"last row must be [0, 0, 0, 1], got {t[3]}")
-    r = t[:3, :3]
-    if not (np.abs(r.T @ r - _EYE3) <= 1e-6 + 1e-5 * _EYE3).all() or np.linalg.det(r) < 0:
+    # R^T R = I entry by entry (column dot products), then det R = c0 . (c1 x c2) >= 0
+    if not (
+        abs(r00 * r00 + r10 * r10 + r20 * r20 - 1.0) <= _ORTHO_DIAG
+        and abs(r01 * r01 + r11 * r11 + r21 * r21 - 1.0) <= _ORTHO_DIAG
+        and abs(r02 * r02 + r12 * r12 + r22 * r22 - 1.0) <= _ORTHO_DIAG
+        and abs(r00 * r01 + r10 * r11 + r20 * r21) <= _ORTHO_OFF
+        and abs(r00 * r02 + r10 * r12 + r20 * r22) <= _ORTHO_OFF
+        and abs(r01 * r02 + r11 * r12 + r21 * r22) <= _ORTHO_OFF
+        and r00 * (r11 * r22 - r21 * r12) - r10 * (r01 * r22 - r21 * r02) + r20 * (r01 * r12 - r11 * r02)
+        >= 0.0
+    ):
         raise InvalidArgumentError(name, "rotation block is not a proper rotation (R^T R != I or det < 0)")
     return t
 

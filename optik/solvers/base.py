@@ -9,6 +9,7 @@ so the import direction stays one way.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -43,7 +44,7 @@ class Tolerances:
     def from_arg(cls, tol: float | Tolerances | None) -> Tolerances:
         """``None`` -> defaults; a float sets position and orientation tolerances."""
         if tol is None:
-            return cls()
+            return _DEFAULT_TOL if cls is Tolerances else cls()
         if isinstance(tol, Tolerances):
             return tol
         t = float(as_vector(tol, "tol", 1)[0])
@@ -51,6 +52,8 @@ class Tolerances:
             raise InvalidArgumentError("tol", f"must be > 0, got {t}")
         return cls(position=t, orientation=t)
 
+
+_DEFAULT_TOL = Tolerances()  # frozen: one shared instance for the common ``tol=None``
 
 SETUP_THRESHOLD = 1e-3
 """Seconds above which a method's setup counts as a first-time build (see
@@ -142,23 +145,44 @@ def task_errors(task: str, pose: np.ndarray, target: np.ndarray) -> tuple[float,
     x-y coordinates. ``pose``/``orientation``: geodesic angle ``angle(R^T R*)``; ``pose2d``:
     ``|wrap(phi - phi*)|`` of the headings about z.
     """
-    dp = pose[:3, 3] - target[:3, 3]
-    pos = float(np.linalg.norm(dp[:2] if task in ("pose2d", "position2d") else dp))
+    # plain floats on the 4x4s (numpy per-call overhead dominates at this size)
+    (a00, a01, a02, ax), (a10, a11, a12, ay), (a20, a21, a22, az), _ = pose.tolist()
+    (b00, b01, b02, bx), (b10, b11, b12, by), (b20, b21, b22, bz), _ = target.tolist()
+    planar = task in ("pose2d", "position2d")
+    pos = math.hypot(ax - bx, ay - by) if planar else math.hypot(ax - bx, ay - by, az - bz)
     if task in ("position", "position2d"):
         return pos, 0.0
     if task == "orientation":
         pos = 0.0
     if task == "pose2d":
-        phi = np.arctan2(pose[1, 0], pose[0, 0]) - np.arctan2(target[1, 0], target[0, 0])
-        return pos, float(abs(spatial.wrap_angle(phi)))
-    return pos, float(spatial.angle_between(pose[:3, :3], target[:3, :3]))
+        phi = math.atan2(a10, a00) - math.atan2(b10, b00)
+        return pos, abs(_wrap_angle(phi))
+    # angle(R_a^T R_b): trace and skew part of M = R_a^T R_b, M_ij = col_i(R_a) . col_j(R_b)
+    tr = (
+        (a00 * b00 + a10 * b10 + a20 * b20)
+        + (a01 * b01 + a11 * b11 + a21 * b21)
+        + (a02 * b02 + a12 * b12 + a22 * b22)
+    )
+    sx = (a02 * b01 + a12 * b11 + a22 * b21) - (a01 * b02 + a11 * b12 + a21 * b22)
+    sy = (a00 * b02 + a10 * b12 + a20 * b22) - (a02 * b00 + a12 * b10 + a22 * b20)
+    sz = (a01 * b00 + a11 * b10 + a21 * b20) - (a00 * b01 + a10 * b11 + a20 * b21)
+    return pos, math.atan2(0.5 * math.sqrt(sx * sx + sy * sy + sz * sz), 0.5 * (tr - 1.0))
+
+
+_TWO_PI = 2.0 * math.pi
+
+
+def _wrap_angle(a: float) -> float:
+    """:func:`optik.spatial.wrap_angle` of one float: into ``(-pi, pi]``."""
+    w = (a + math.pi) % _TWO_PI - math.pi
+    return w + _TWO_PI if w <= -math.pi else w
 
 
 def evaluate(m: Mechanism, q: np.ndarray, target: np.ndarray, task: str, frame: str | None) -> Errors:
     """Position, orientation and closure errors of ``q``, and whether it is within limits."""
     pos, ori = task_errors(task, m.fk(q, frame), target)
     closure = float(np.max(np.abs(m.closure(q)))) if m.is_closed else 0.0
-    limits_ok = bool(np.all(q >= m.lower) and np.all(q <= m.upper))
+    limits_ok = bool((q >= m.lower).all() and (q <= m.upper).all())
     return Errors(pos, ori, closure, limits_ok)
 
 
@@ -183,16 +207,29 @@ def make_result(
             wrapped and clipped ``q``. Default: :func:`evaluate`.
     """
     m = request.mechanism
-    q = np.asarray(q, dtype=float)
+    if type(q) is not np.ndarray or q.dtype != np.float64:
+        q = np.asarray(q, dtype=float)
+    lower, upper = m.lower, m.upper
     # already wrapped and within limits: m.wrap would return q itself
-    wrapped = (q >= m.lower).all() and (q <= m.upper).all() and (np.abs(q) < np.pi).all()
-    qq = q.copy() if wrapped else np.clip(m.wrap(q), m.lower, m.upper)
+    inside = bool((q >= lower).all() and (q <= upper).all())
+    if inside and (np.abs(q) < np.pi).all():
+        qq = q.copy()
+    else:
+        qq = np.clip(m.wrap(q), lower, upper)
+        # clipped into the limits unless NaN slipped through (then the check fails)
+        inside = bool((qq >= lower).all() and (qq <= upper).all())
     if errors is None:
-        err = evaluate(m, qq, request.target, request.task, request.frame)
+        if qq.shape == (m.n_q,) and math.isfinite(sum(qq.tolist())):
+            # qq is a finite float vector of n_q entries: FK without re-validating it
+            pose = np.asarray(m.fk_function(request.frame)(qq))
+            pos, ori = task_errors(request.task, pose, request.target)
+            clo = float(np.max(np.abs(m.closure(qq)))) if m.is_closed else 0.0
+            err = Errors(pos, ori, clo, inside)
+        else:
+            err = evaluate(m, qq, request.target, request.task, request.frame)
     else:
         pos, ori, clo = errors(qq)
-        limits_ok = bool((qq >= m.lower).all() and (qq <= m.upper).all())
-        err = Errors(float(pos), float(ori), float(clo), limits_ok)
+        err = Errors(float(pos), float(ori), float(clo), inside)
     success = err.ok(request.tol)
     if status is None:
         status = "solved" if success else "not_converged"
@@ -348,7 +385,12 @@ def make_request(
     q_start = m.mid_q() if q0 is None else m.check_q(q0, "q0")
     if seed is not None and not isinstance(seed, (int, np.integer, np.random.Generator)):
         raise InvalidArgumentError("seed", f"expected an int or numpy Generator, got {seed!r}")
-    limit = 0.1 if time_limit is None else float(as_vector(time_limit, "time_limit", 1)[0])
+    if time_limit is None:
+        limit = 0.1
+    elif type(time_limit) is float and math.isfinite(time_limit):
+        limit = time_limit
+    else:
+        limit = float(as_vector(time_limit, "time_limit", 1)[0])
     if limit <= 0:
         raise InvalidArgumentError("time_limit", f"must be > 0 seconds, got {limit}")
     return IKRequest(

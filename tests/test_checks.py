@@ -1,0 +1,215 @@
+"""Input validation (optik.checks) and the IK request / result bookkeeping (solvers.base).
+
+The fast plain-float paths must raise the same errors, naming the same arguments, as the numpy
+formulations they replace, and compute the same errors.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import optik
+from optik import spatial
+from optik.checks import as_transform, as_vector
+from optik.solvers.base import Tolerances, make_request, make_result, task_errors
+
+
+def _rot(seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    q = q * np.sign(np.diag(r))
+    return q if np.linalg.det(q) > 0 else -q
+
+
+def _transform(seed: int) -> np.ndarray:
+    t = np.eye(4)
+    t[:3, :3] = _rot(seed)
+    t[:3, 3] = np.random.default_rng(seed + 100).normal(size=3)
+    return t
+
+
+def _reference_valid(t: np.ndarray) -> bool:
+    """The numpy formulation of as_transform's rotation / last-row checks."""
+    r = t[:3, :3]
+    return bool(
+        np.allclose(t[3], [0.0, 0.0, 0.0, 1.0], atol=1e-9)
+        and np.allclose(r.T @ r, np.eye(3), atol=1e-6)
+        and np.linalg.det(r) >= 0
+    )
+
+
+def test_as_transform_accepts_rotations_and_returns_the_array() -> None:
+    for seed in range(20):
+        t = _transform(seed)
+        assert as_transform(t, "target") is t
+    out = as_transform(np.eye(4).tolist(), "target")
+    assert isinstance(out, np.ndarray) and out.dtype == float
+    np.testing.assert_array_equal(out, np.eye(4))
+
+
+@pytest.mark.parametrize(
+    ("value", "error"),
+    [
+        (np.eye(3), optik.ShapeError),
+        (np.eye(4)[:3], optik.ShapeError),
+        (np.zeros((2, 4, 4)), optik.ShapeError),
+        (np.full((4, 4), np.nan), optik.NonFiniteError),
+        (np.where(np.eye(4) > 0, np.inf, 0.0), optik.NonFiniteError),
+        ([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0.5, 1]], optik.InvalidArgumentError),
+        ([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 2]], optik.InvalidArgumentError),
+        (np.diag([1.0, 1.0, -1.0, 1.0]), optik.InvalidArgumentError),  # reflection, det -1
+        (np.diag([2.0, 1.0, 1.0, 1.0]), optik.InvalidArgumentError),  # not orthonormal
+        (np.diag([0.0, 0.0, 0.0, 1.0]), optik.InvalidArgumentError),
+    ],
+)
+def test_as_transform_errors_name_the_argument(value: object, error: type) -> None:
+    with pytest.raises(error) as info:
+        as_transform(value, "target")
+    assert isinstance(info.value, optik.InvalidArgumentError)
+    assert info.value.argument == "target"
+
+
+def test_as_transform_nan_is_a_nonfinite_error_not_a_rotation_error() -> None:
+    t = np.eye(4)
+    t[0, 3] = np.nan
+    with pytest.raises(optik.NonFiniteError):
+        as_transform(t, "target")
+
+
+def test_as_transform_large_finite_entries_are_finite() -> None:
+    # the entries' sum overflows to inf; that alone must not count as non-finite
+    t = np.eye(4)
+    t[:3, 3] = 1.5e308
+    as_transform(t, "target")
+
+
+def test_as_transform_matches_the_numpy_checks_near_the_tolerances() -> None:
+    rng = np.random.default_rng(7)
+    for k in range(400):
+        t = _transform(k)
+        scale = 10.0 ** rng.uniform(-9, -4)
+        t[:3, :3] += scale * rng.normal(size=(3, 3))
+        if k % 3 == 0:
+            t[3, :3] += 10.0 ** rng.uniform(-11, -7) * rng.normal(size=3)
+        if k % 5 == 0:
+            t[:3, :3] = -t[:3, :3]
+        ok = _reference_valid(t)
+        if ok:
+            as_transform(t, "T")
+        else:
+            with pytest.raises(optik.InvalidArgumentError):
+                as_transform(t, "T")
+
+
+def test_as_vector_fast_path_and_errors() -> None:
+    v = np.array([0.1, 0.2, 0.3])
+    assert as_vector(v, "q", 3) is v
+    big = np.array([1.5e308, 1.5e308])  # sum overflows, entries finite
+    assert as_vector(big, "q", 2) is big
+    with pytest.raises(optik.ShapeError) as info:
+        as_vector(v, "q0", 2)
+    assert info.value.argument == "q0"
+    for bad in (np.array([np.nan, 0.0, 0.0]), np.array([np.inf, -np.inf, 0.0])):
+        with pytest.raises(optik.NonFiniteError) as info:
+            as_vector(bad, "q0", 3)
+        assert info.value.argument == "q0"
+    with pytest.raises(optik.ShapeError):
+        as_vector(np.zeros((3, 1)), "q0", 3)
+    np.testing.assert_array_equal(as_vector(np.arange(3), "q", 3), [0.0, 1.0, 2.0])
+    np.testing.assert_array_equal(as_vector(2.5, "x", 1), [2.5])
+
+
+def _reference_task_errors(task: str, pose: np.ndarray, target: np.ndarray) -> tuple[float, float]:
+    dp = pose[:3, 3] - target[:3, 3]
+    pos = float(np.linalg.norm(dp[:2] if task in ("pose2d", "position2d") else dp))
+    if task in ("position", "position2d"):
+        return pos, 0.0
+    if task == "orientation":
+        pos = 0.0
+    if task == "pose2d":
+        phi = np.arctan2(pose[1, 0], pose[0, 0]) - np.arctan2(target[1, 0], target[0, 0])
+        return pos, float(abs(spatial.wrap_angle(phi)))
+    return pos, float(spatial.angle_between(pose[:3, :3], target[:3, :3]))
+
+
+@pytest.mark.parametrize("task", ["pose", "position", "orientation", "pose2d", "position2d"])
+def test_task_errors_match_the_numpy_definitions(task: str) -> None:
+    for k in range(50):
+        a, b = _transform(k), _transform(k + 1000)
+        if task in ("pose2d", "position2d"):
+            a = spatial.planar_pose(*a[:3, 3])
+            b = spatial.planar_pose(*b[:3, 3])
+        if k == 0:
+            b = a.copy()  # zero error
+        got = task_errors(task, a, b)
+        ref = _reference_task_errors(task, a, b)
+        assert all(isinstance(x, float) for x in got)
+        np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)
+
+
+def test_task_errors_half_turn_and_heading_wrap() -> None:
+    a = np.eye(4)
+    b = np.diag([1.0, -1.0, -1.0, 1.0])  # half-turn about x
+    assert task_errors("pose", a, b)[1] == pytest.approx(np.pi)
+    p = spatial.planar_pose(0.0, 0.0, 3.1)
+    q = spatial.planar_pose(0.0, 0.0, -3.1)
+    assert task_errors("pose2d", p, q)[1] == pytest.approx(2 * np.pi - 6.2)
+
+
+@pytest.mark.parametrize(
+    ("time_limit", "error"),
+    [
+        (-1.0, optik.InvalidArgumentError),
+        (0.0, optik.InvalidArgumentError),
+        (float("nan"), optik.NonFiniteError),
+        (float("inf"), optik.NonFiniteError),
+        ("soon", optik.InvalidArgumentError),
+        ([0.1, 0.2], optik.ShapeError),
+    ],
+)
+def test_make_request_time_limit_errors(time_limit: object, error: type) -> None:
+    m = optik.catalog.planar_3r()
+    with pytest.raises(error) as info:
+        make_request(m, optik.Pose2D(1.0, 0.5, 0.3), time_limit=time_limit)
+    assert info.value.argument == "time_limit"
+
+
+def test_make_request_defaults_and_conversions() -> None:
+    m = optik.catalog.planar_3r()
+    req = make_request(m, optik.Pose2D(1.0, 0.5, 0.3))
+    assert req.time_limit == 0.1 and req.tol == Tolerances()
+    np.testing.assert_array_equal(req.q0, m.mid_q())
+    req = make_request(m, m.fk(m.mid_q()), q0=[0, 0, 0], time_limit=1, tol=1e-4, seed=np.int64(3))
+    assert req.time_limit == 1.0 and isinstance(req.time_limit, float)
+    assert req.tol == Tolerances(position=1e-4, orientation=1e-4)
+    assert req.q0.dtype == float
+    with pytest.raises(optik.InvalidArgumentError) as info:
+        make_request(m, optik.Pose2D(1.0, 0.5, 0.3), tol=-1.0)
+    assert info.value.argument == "tol"
+    with pytest.raises(optik.InvalidArgumentError) as info:
+        make_request(m, np.diag([1.0, 1.0, -1.0, 1.0]))
+    assert info.value.argument == "target"
+
+
+def test_make_result_wraps_clips_and_judges() -> None:
+    m = optik.catalog.planar_3r()
+    q = np.array([0.3, -0.4, 0.5])
+    req = make_request(m, m.fk(q))
+    res = make_result(req, q, "test", 1)
+    assert res.success and res.limits_ok and res.status == "solved"
+    assert res.q is not q
+    np.testing.assert_array_equal(res.q, q)
+    # wrapped by 2 pi: the same configuration, reported wrapped
+    res = make_result(req, q + np.array([2 * np.pi, 0.0, -2 * np.pi]), "test", 1)
+    assert res.success
+    np.testing.assert_allclose(res.q, q, atol=1e-12)
+    # a list is accepted; a far-off q fails with a message
+    res = make_result(req, [1.0, 1.0, 1.0], "test", 2, restarts=1)
+    assert not res.success and res.status == "not_converged" and "position error" in res.message
+    assert res.iterations == 2 and res.restarts == 1 and res.method == "test"
+    # a compiled error callback is used and the limits are judged on the clipped q
+    res = make_result(req, q, "test", 1, errors=lambda qq: (0.0, 0.0, 0.0))
+    assert res.success and res.limits_ok
+    res = make_result(req, q, "test", 1, errors=lambda qq: (1.0, 0.0, 0.0), status="custom")
+    assert not res.success and res.status == "custom"

@@ -160,10 +160,30 @@ def test_invalid_inputs_raise_named_errors():
         optik.solve_fk_all(m, [0.1, 0.2], method="magic")
     with pytest.raises(optik.ShapeError, match="q0"):
         optik.solve_fk(m, [0.1, 0.2], q0=[0.0])
-    with pytest.raises(optik.InvalidArgumentError, match="m"):
+    with pytest.raises(optik.InvalidArgumentError, match=r"^m:"):
         optik.solve_fk(optik.catalog.planar_2r(), [0.1, 0.2])
     with pytest.raises(optik.SolverUnavailableError):
         optik.solve_fk_all(optik.Mechanism(m.joints, name="hand_built"), [0.1, 0.2], method="closed_form")
+
+
+@pytest.mark.parametrize(
+    ("function", "name", "value"),
+    [
+        (optik.solve_fk, "max_iter", 0),
+        (optik.solve_fk, "max_iter", np.nan),
+        (optik.solve_fk, "max_jump", np.nan),
+        (optik.solve_fk, "max_jump", -1.0),
+        (optik.solve_fk, "max_restarts", -1),
+        (optik.solve_fk, "max_restarts", 1.5),
+        (optik.solve_fk, "singular_condition", np.nan),
+        (optik.solve_fk_all, "patience", -1),
+        (optik.solve_fk_all, "max_iter", 2.5),
+        (optik.solve_fk_all, "singular_condition", np.inf),
+    ],
+)
+def test_invalid_numeric_options_raise_named_errors(function, name, value):
+    with pytest.raises(optik.InvalidArgumentError, match=rf"^{name}:"):
+        function(optik.catalog.five_bar(), [0.1, 0.2], **{name: value})
 
 
 def test_compiled_functions_are_cached_per_mechanism():

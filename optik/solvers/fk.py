@@ -48,7 +48,7 @@ from optik.checks import as_rng, as_vector
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 from optik.results import FKResult
-from optik.solvers.base import BRANCH_TOL, Tolerances, joint_distance
+from optik.solvers.base import BRANCH_TOL, Tolerances, joint_distance, positive_int
 
 DEFAULT_TIME_LIMIT = 1.0
 """Default wall-time budget of :func:`solve_fk` and of the multi-start in :func:`solve_fk_all` (s)."""
@@ -228,6 +228,11 @@ def _result(
     )
 
 
+def _count(value: Any, name: str) -> int:
+    """``value`` as an integer >= 0 (else :class:`InvalidArgumentError` naming ``name``)."""
+    return positive_int(float(as_vector(value, name, 1)[0]) + 1, name) - 1
+
+
 def _check_inputs(m: Mechanism, actuated: Any) -> np.ndarray:
     if not m.is_closed:
         raise InvalidArgumentError("m", f"mechanism {m.name!r} has no loop closure; use m.fk(q)")
@@ -305,6 +310,10 @@ def solve_fk(
     a = _check_inputs(m, actuated)
     limit = _positive(time_limit, "time_limit")
     tol_c = _closure_tol(tol)
+    max_iter = positive_int(max_iter, "max_iter")
+    max_jump = _positive(max_jump, "max_jump")
+    max_restarts = _count(max_restarts, "max_restarts")
+    singular_condition = _positive(singular_condition, "singular_condition")
     deadline = start + limit
     cm = _compiled(m)
     q_start = m.mid_q() if q0 is None else m.check_q(q0, "q0").copy()
@@ -370,6 +379,9 @@ def solve_fk_all(
     a = _check_inputs(m, actuated)
     tol_c = _closure_tol(tol)
     limit = _positive(time_limit, "time_limit")
+    patience = positive_int(patience, "patience")
+    max_iter = positive_int(max_iter, "max_iter")
+    singular_condition = _positive(singular_condition, "singular_condition")
     if method not in (None, "closed_form", "numeric"):
         raise InvalidArgumentError("method", f"unknown FK method {method!r}; use 'closed_form' or 'numeric'")
     cm = _compiled(m)

@@ -125,7 +125,7 @@ def test_quick_bench_writes_every_file(tmp_path):
 def test_run_bench_rejects_bad_arguments(tmp_path):
     with pytest.raises(InvalidArgumentError, match="solvers"):
         run_bench(["planar_2r"], solvers=["nope"], out=tmp_path, progress=False)
-    with pytest.raises(InvalidArgumentError, match="n"):
+    with pytest.raises(InvalidArgumentError, match=r"^n:"):
         run_bench(["planar_2r"], n=0, out=tmp_path, progress=False)
     with pytest.raises(InvalidArgumentError, match="problem"):
         run_bench(["no_such_problem"], out=tmp_path, progress=False)

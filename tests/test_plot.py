@@ -106,7 +106,7 @@ def test_workspace(build):
 
 
 def test_workspace_rejects_bad_n():
-    with pytest.raises(InvalidArgumentError, match="n"):
+    with pytest.raises(InvalidArgumentError, match=r"^n:"):
         plot.workspace(optik.catalog.planar_2r(), n=0)
 
 

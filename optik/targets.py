@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from optik import spatial
 from optik.checks import as_transform, as_vector
+
+_PLAIN = (float, int)
 
 
 @dataclass(frozen=True)
@@ -23,6 +25,15 @@ class Pose2D:
     phi: float
 
     def __post_init__(self) -> None:
+        x, y, phi = self.x, self.y, self.phi
+        if type(x) in _PLAIN and type(y) in _PLAIN and type(phi) in _PLAIN:
+            # plain numbers: float() converts them as numpy would (no array round trip)
+            x, y, phi = float(x), float(y), float(phi)
+            if math.isfinite(x + y + phi) or (math.isfinite(x) and math.isfinite(y) and math.isfinite(phi)):
+                object.__setattr__(self, "x", x)
+                object.__setattr__(self, "y", y)
+                object.__setattr__(self, "phi", phi)
+                return
         v = as_vector([self.x, self.y, self.phi], "Pose2D", 3)
         object.__setattr__(self, "x", float(v[0]))
         object.__setattr__(self, "y", float(v[1]))
@@ -34,7 +45,13 @@ class Pose2D:
 
     def as_transform(self) -> np.ndarray:
         """The 4x4 transform ``Trans(x, y, 0) Rot(z, phi)``."""
-        return spatial.planar_pose(self.x, self.y, self.phi)
+        # spatial.planar_pose's entries (same np.cos / np.sin, zeros as 0 * c) without its
+        # generic numpy / CasADi dispatch: this runs per IK call
+        c, s = np.cos(self.phi), np.sin(self.phi)
+        z = 0 * c
+        return np.array(
+            [[c, -s, z, self.x], [s, c, z, self.y], [z, z, 1 + z, 0.0], [0.0, 0.0, 0.0, 1.0]], dtype=float
+        )
 
 
 @dataclass(frozen=True)
@@ -59,7 +76,8 @@ class Position:
 
     def as_transform(self) -> np.ndarray:
         """A transform with this translation and identity rotation."""
-        return spatial.translation(*self.xyz)
+        x, y, z = self.xyz
+        return np.array([[1.0, 0.0, 0.0, x], [0.0, 1.0, 0.0, y], [0.0, 0.0, 1.0, z], [0.0, 0.0, 0.0, 1.0]])
 
 
 Target = np.ndarray | Pose2D | Position

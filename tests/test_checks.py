@@ -213,3 +213,31 @@ def test_make_result_wraps_clips_and_judges() -> None:
     assert res.success and res.limits_ok
     res = make_result(req, q, "test", 1, errors=lambda qq: (1.0, 0.0, 0.0), status="custom")
     assert not res.success and res.status == "custom"
+
+
+def test_target_transforms_match_spatial() -> None:
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        x, y, phi = (float(v) for v in rng.normal(size=3) * [1.0, 1.0, 10.0])
+        a = optik.Pose2D(x, y, phi).as_transform()
+        assert a.tobytes() == spatial.planar_pose(x, y, phi).tobytes()
+        b = optik.Position(x, y, phi).as_transform()
+        assert b.tobytes() == spatial.translation(x, y, phi).tobytes()
+    p = optik.Pose2D(1, np.float64(0.5), 2)
+    assert (p.x, p.y, p.phi) == (1.0, 0.5, 2.0)
+    assert all(type(v) is float for v in (p.x, p.y, p.phi))
+
+
+@pytest.mark.parametrize(
+    ("args", "error"),
+    [
+        ((float("nan"), 0.0, 0.0), optik.NonFiniteError),
+        ((0.0, float("inf"), 0.0), optik.NonFiniteError),
+        ((0.0, 0.0, "x"), optik.InvalidArgumentError),
+        ((0.0, 0.0, [1.0, 2.0]), optik.InvalidArgumentError),
+    ],
+)
+def test_pose2d_errors(args: tuple, error: type) -> None:
+    with pytest.raises(error) as info:
+        optik.Pose2D(*args)
+    assert info.value.argument == "Pose2D"

@@ -345,3 +345,13 @@ def test_limits_wrap_and_within_limits():
     assert w[0] == pytest.approx(2 * np.pi - 0.5) and m.within_limits(w)
     assert not m.within_limits(np.array([0.1, 1.5]))
     assert m.kind == "planar_2r" and m.params == built("planar_2r").params
+
+
+def test_fk_of_an_empty_batch_and_unhashable_frame_names():
+    """An empty batch gives no poses (it used to raise IndexError); a frame that is no string
+    is an unknown frame (a list used to raise TypeError from the cache lookup)."""
+    m = catalog.planar_2r()
+    assert m.fk(np.zeros((0, 2))).shape == (0, 4, 4)
+    for call in (m.fk, m.jacobian):
+        with pytest.raises(UnknownFrameError, match=r"^frame:"):
+            call(np.zeros(2), frame=["ee"])

@@ -274,7 +274,7 @@ class Mechanism:
 
     def _frame(self, frame: str | None) -> tuple[str, np.ndarray]:
         name = self.ee if frame is None else frame
-        if name not in self.frames:
+        if not isinstance(name, str) or name not in self.frames:
             raise UnknownFrameError("frame", f"unknown frame {name!r}; known: {sorted(self.frames)}")
         return self.frames[name]
 
@@ -282,16 +282,20 @@ class Mechanism:
     def fk_function(self, frame: str | None = None) -> ca.Function:
         """Compiled ``q -> T_frame(q)`` (built once per frame)."""
         key = self.ee if frame is None else frame
-        if key not in self._fk_funs:
-            self._fk_funs[key] = ca.Function(f"fk_{key}", [self.q_sym], [self.frame_expr(key)])
-        return self._fk_funs[key]
+        try:
+            return self._fk_funs[key]
+        except (KeyError, TypeError):  # TypeError: an unhashable frame, rejected by _frame
+            f = self._fk_funs[key] = ca.Function(f"fk_{key}", [self.q_sym], [self.frame_expr(key)])
+            return f
 
     def jacobian_function(self, frame: str | None = None) -> ca.Function:
         """Compiled ``q -> J(q)`` (6 x n geometric Jacobian, built once per frame)."""
         key = self.ee if frame is None else frame
-        if key not in self._jac_funs:
-            self._jac_funs[key] = ca.Function(f"jac_{key}", [self.q_sym], [self.jacobian_expr(key)])
-        return self._jac_funs[key]
+        try:
+            return self._jac_funs[key]
+        except (KeyError, TypeError):  # TypeError: an unhashable frame, rejected by _frame
+            f = self._jac_funs[key] = ca.Function(f"jac_{key}", [self.q_sym], [self.jacobian_expr(key)])
+            return f
 
     @cached_property
     def closure_function(self) -> ca.Function:
@@ -313,6 +317,8 @@ class Mechanism:
         """
         qb, single = as_batch(q, "q", self.n_q)
         f = self.fk_function(frame)
+        if not len(qb):
+            return np.zeros((0, 4, 4))
         out = (
             np.asarray(f(qb.T)).reshape(4, len(qb), 4).transpose(1, 0, 2)
             if len(qb) > 1

@@ -241,3 +241,14 @@ def test_pose2d_errors(args: tuple, error: type) -> None:
     with pytest.raises(error) as info:
         optik.Pose2D(*args)
     assert info.value.argument == "Pose2D"
+
+
+def test_make_result_limits_and_nan() -> None:
+    m = optik.catalog.planar_3r()
+    req = make_request(m, m.fk(m.mid_q()))
+    far = m.upper + 0.5  # outside: clipped into the limits (wrapped first where angular)
+    res = make_result(req, far, "test", 0, errors=lambda qq: (0.0, 0.0, 0.0))
+    assert res.limits_ok and res.success
+    assert np.all(res.q >= m.lower) and np.all(res.q <= m.upper)
+    with pytest.raises(optik.NonFiniteError):
+        make_result(req, np.array([np.nan, 0.0, 0.0]), "test", 0)

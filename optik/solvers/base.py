@@ -10,6 +10,7 @@ so the import direction stays one way.
 from __future__ import annotations
 
 import math
+import operator
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -211,8 +212,15 @@ def make_result(
         q = np.asarray(q, dtype=float)
     lower, upper = m.lower, m.upper
     # already wrapped and within limits: m.wrap would return q itself
-    inside = bool((q >= lower).all() and (q <= upper).all())
-    if inside and (np.abs(q) < np.pi).all():
+    if q.shape == lower.shape:
+        # plain-float comparisons (NaN compares False, as in numpy): cheaper than four ufuncs
+        ql = q.tolist()
+        inside = all(map(operator.le, lower.tolist(), ql)) and all(map(operator.le, ql, upper.tolist()))
+        wrapped = inside and (not ql or (-math.pi < min(ql) and max(ql) < math.pi))
+    else:
+        inside = bool((q >= lower).all() and (q <= upper).all())
+        wrapped = inside and bool((np.abs(q) < np.pi).all())
+    if wrapped:
         qq = q.copy()
     else:
         qq = np.clip(m.wrap(q), lower, upper)

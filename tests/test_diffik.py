@@ -320,3 +320,23 @@ def test_benchmark_script_runs(capsys: pytest.CaptureFixture[str], monkeypatch: 
     assert bench.main(["--goals", "2", "--steps", "5", "--no-pink"]) == 0
     out = capsys.readouterr().out
     assert "| optik qp (default: " in out and "| optik qp osqp" in out
+
+
+@pytest.mark.parametrize(
+    ("name", "tasks", "limits"),
+    [
+        ("tasks", None, None),
+        ("tasks", 3, None),
+        ("tasks", [], None),
+        ("tasks", ["zz"], None),
+        ("limits", "task", 3),
+        ("limits", "task", diffik.VelocityLimit(1.0)),
+        ("limits", "task", [None]),
+    ],
+)
+def test_step_rejects_malformed_tasks_and_limits(name, tasks, limits):
+    """Non-iterables used to leak TypeError (``'int' object is not iterable``)."""
+    m = optik.catalog.planar_2r()
+    tasks = diffik.tracking_task(m) if tasks == "task" else tasks
+    with pytest.raises(optik.InvalidArgumentError, match=rf"^{name}:"):
+        diffik.step(m, [0.1, 0.2], tasks, 0.01, limits=limits)

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import itertools
 import weakref
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -177,7 +177,7 @@ def normalize_limits(m: Mechanism, limits: Sequence[Limit] | None) -> list[Limit
             cached = _DEFAULT_LIMITS[m] = [*found, ConfigurationLimit()]
         return cached
     else:
-        chosen = list(limits)
+        chosen = _as_list(limits, "limits", "Limit")
         for lim in chosen:
             if not isinstance(lim, Limit):
                 raise InvalidArgumentError("limits", f"expected Limit objects, got {type(lim).__name__}")
@@ -200,10 +200,17 @@ def _positive_float(value: Any, name: str, strict: bool = False) -> float:
     return v
 
 
+def _as_list(items: Any, name: str, kind: str) -> list:
+    """``items`` as a list (else :class:`InvalidArgumentError` naming ``name``)."""
+    if isinstance(items, (str, bytes)) or not isinstance(items, Iterable):
+        raise InvalidArgumentError(name, f"expected a sequence of {kind} objects, got {type(items).__name__}")
+    return list(items)
+
+
 def _check_tasks(tasks: Sequence[Task]) -> list[Task]:
     if isinstance(tasks, Task):
         tasks = [tasks]
-    out = list(tasks)
+    out = _as_list(tasks, "tasks", "Task")
     if not out:
         raise InvalidArgumentError("tasks", "need at least one task")
     for t in out:

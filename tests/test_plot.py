@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 import optik
 from optik import plot
-from optik.errors import InvalidArgumentError, SolverUnavailableError
+from optik.errors import InvalidArgumentError
 
 MECHANISMS = (
     "planar_2r", "planar_3r", "rp_arm", "pp_arm", "seed_6r_arm", "five_bar", "doggy", "slider_crank",
@@ -93,10 +93,7 @@ def test_prismatic_joint_spans_its_stroke():
 def test_workspace(build):
     m = build()
     n = 40 if m.planar or not m.is_closed else 8
-    try:
-        fig = plot.workspace(m, n=n, seed=1)
-    except SolverUnavailableError as exc:
-        pytest.skip(f"no FK for {m.name} yet: {exc}")
+    fig = plot.workspace(m, n=n, seed=1)  # every catalog mechanism has an FK (no skip)
     assert len(fig.axes) == 1
     pts, modes, drawn = plot.workspace_points(m, n=n, seed=1)
     assert drawn == n and len(pts) == len(modes)

@@ -437,4 +437,7 @@ def save_figure(fig: Figure, path: str | os.PathLike[str], dpi: int = 110) -> Pa
     fmt = Path(path).suffix.lstrip(".").lower()
     if not fmt:
         raise InvalidArgumentError("path", f"needs an extension such as .png, got {str(path)!r}")
+    supported = fig.canvas.get_supported_filetypes()
+    if fmt not in supported:
+        raise InvalidArgumentError("path", f"unsupported image format {fmt!r}; known: {sorted(supported)}")
     return write_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=dpi))

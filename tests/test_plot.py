@@ -123,3 +123,6 @@ def test_save_is_atomic_and_cleans_up(tmp_path):
     assert sorted(p.name for p in target.parent.iterdir()) == ["x.txt"]
     with pytest.raises(InvalidArgumentError, match="path"):
         plot.save_figure(plot.draw_branches(optik.catalog.planar_2r(), []), tmp_path / "noext")
+    with pytest.raises(InvalidArgumentError, match=r"^path: unsupported image format 'zzz'"):
+        plot.save_figure(plot.draw_branches(optik.catalog.planar_2r(), []), tmp_path / "fig.zzz")
+    assert not list(tmp_path.glob("fig*"))

@@ -581,7 +581,7 @@ def _far(a: list[float], b: list[float], mask: tuple[bool, ...]) -> bool:
     return False
 
 
-def _planar_one(m: Mechanism, t: np.ndarray) -> tuple[float, float, float]:
+def _planar_one(t: np.ndarray) -> tuple[float, float, float]:
     """``(x, y, phi)`` of a validated planar target (:func:`optik.spatial.planar_pose_of`)."""
     return float(t[0, 3]), float(t[1, 3]), math.atan2(t[1, 0], t[0, 0])
 
@@ -599,7 +599,7 @@ def _adapter(solve: Callable[..., list[list[float]]], *names: str):
 
     def adapter(m: Mechanism, t: np.ndarray) -> list[list[float]]:
         params = [v for name in names for v in m.params[name]]
-        return _distinct_rows(m, solve(*params, *_planar_one(m, t)))
+        return _distinct_rows(m, solve(*params, *_planar_one(t)))
 
     return adapter
 

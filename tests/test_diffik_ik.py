@@ -66,3 +66,22 @@ def test_unknown_option_names_the_argument() -> None:
     m = optik.catalog.planar_2r()
     with pytest.raises(optik.InvalidArgumentError, match="options"):
         optik.solve_ik(m, optik.Position(1.0, 0.5), method="dls", bogus=1)
+
+
+@pytest.mark.parametrize(
+    ("method", "name", "value"),
+    [
+        ("dls", "max_iterations", float("nan")),
+        ("qp", "max_iterations", "a"),
+        ("qp", "stall_iterations", None),
+        ("qp", "lm_damping", "x"),
+        ("qp", "lm_damping", -1.0),
+        ("dls", "damping", -1.0),
+        ("dls", "threshold", "x"),
+    ],
+)
+def test_bad_option_values_raise_named_errors(method, name, value):
+    """They used to leak ValueError / TypeError from int(), float() or a comparison."""
+    m = optik.catalog.planar_2r()
+    with pytest.raises(optik.InvalidArgumentError, match=rf"^{name}:"):
+        optik.solve_ik(m, optik.Position(0.5, 0.5, 0.0), method=method, **{name: value})

@@ -25,6 +25,7 @@ import time
 
 import numpy as np
 
+from optik.diffik.base import positive
 from optik.diffik.limits import ConfigurationLimit
 from optik.diffik.problem import normalize_limits, stack_function
 from optik.diffik.step import step
@@ -32,7 +33,7 @@ from optik.diffik.track import tracking_task
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 from optik.results import IKResult
-from optik.solvers.base import IKRequest, make_result, register_method
+from optik.solvers.base import IKRequest, make_result, positive_int, register_method
 
 _OPTIONS = {"max_iterations", "stall_iterations", "damping", "threshold", "solver", "lm_damping"}
 
@@ -42,10 +43,7 @@ target are damped, ``mu = lambda ||e||^2``; none at the solution)."""
 
 
 def _int_option(options: dict, name: str, default: int) -> int:
-    value = options.get(name, default)
-    if int(value) != value or value < 1:
-        raise InvalidArgumentError(name, f"must be a positive integer, got {value!r}")
-    return int(value)
+    return positive_int(options.get(name, default), name)
 
 
 def _errors_of(rows: tuple[int, ...], e: np.ndarray) -> tuple[float, float]:
@@ -70,7 +68,7 @@ def iterate(request: IKRequest, method: str) -> IKResult:
     task = tracking_task(m, request.task, request.frame)
     task.set_target(request.target)
     if method == "qp":
-        task.lm_damping = float(opts.get("lm_damping", LM_DAMPING))
+        task.lm_damping = positive(opts.get("lm_damping", LM_DAMPING), "lm_damping")
     limits = [ConfigurationLimit()]
     build_start = time.perf_counter()
     stack_function(m, [task], normalize_limits(m, limits), 1.0)  # compiled once per structure

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from optik.diffik.base import Limit, Task
+from optik.diffik.base import Limit, Task, positive
 from optik.diffik.linalg import solve_pseudo_inverse
 from optik.diffik.problem import DiffIKProblem, build_qp
 from optik.diffik.qp import default_solver, solve_qp
@@ -102,6 +102,8 @@ def _dls(problem: DiffIKProblem, method: str, options: dict[str, Any]) -> tuple[
     if unknown:
         raise InvalidArgumentError("options", f"unknown options for method {method!r}: {sorted(unknown)}")
     kw.update({k: v for k, v in options.items() if k != "adaptive"})
+    kw["damping"] = positive(kw["damping"], "damping")
+    kw["threshold"] = positive(kw["threshold"], "threshold")
     if options.get("adaptive") is False:
         kw["threshold"] = 0.0
     return solve_pseudo_inverse(problem, **kw)

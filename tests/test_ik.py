@@ -240,3 +240,26 @@ def test_bad_input_raises_named_errors(kwargs: dict, error: type) -> None:
 def test_closed_form_does_not_apply_to_other_tasks() -> None:
     with pytest.raises(optik.SolverUnavailableError):
         optik.solve_ik(_arm("planar_3r"), optik.Position(1.0, 0.5), method="closed_form")
+
+
+@pytest.mark.parametrize(
+    ("method", "name", "value"),
+    [
+        ("lm", "mu0", 0.0),
+        ("lm", "stall", "a"),
+        ("lm", "posture_gain", float("nan")),
+        ("lm", "closure_weight", -1.0),
+        ("lm", "max_restarts", float("nan")),
+        ("nlp", "posture", "a"),
+        ("nlp", "damping", -1.0),
+        ("nlp", "ipopt_tol", -1.0),
+        ("nlp", "stall", float("nan")),
+        ("nlp", "max_restarts", -1),
+        ("nlp", "solver_options", {"no_such_option": 1}),
+    ],
+)
+def test_bad_numeric_option_values_raise_named_errors(method, name, value):
+    """They used to leak ValueError from float()/int() or casadi's RuntimeError from nlpsol."""
+    m = optik.catalog.planar_2r()
+    with pytest.raises(optik.InvalidArgumentError, match=rf"^{name}:"):
+        optik.solve_ik(m, optik.Position(0.5, 0.5, 0.0), method=method, **{name: value})

@@ -60,6 +60,7 @@ from optik.solvers.base import (
 )
 from optik.solvers.evaluation import error_function, errors_against
 from optik.solvers.native import NativeFunction, native_functions
+from optik.solvers.options import check_floats, check_max_restarts
 
 DEFAULTS: dict[str, Any] = {
     "block": 5,
@@ -147,6 +148,8 @@ def _native_block(
 def solve_lm(request: IKRequest) -> IKResult:
     """Solve an IK request by bounded LM with random restarts (see the module docstring)."""
     opts = method_options(request, DEFAULTS)
+    check_floats(opts, "stall", "posture_gain", "closure_weight", strict=("mu0",))
+    opts["max_restarts"] = check_max_restarts(opts["max_restarts"])
     m, tol = request.mechanism, request.tol
     block = positive_int(opts["block"], "block")
     max_blocks = max(1, positive_int(opts["max_iter"], "max_iter") // block)

@@ -54,6 +54,7 @@ import contextlib
 import ctypes
 import io
 import os
+import re
 import sys
 import time
 from collections.abc import Iterator
@@ -78,6 +79,7 @@ from optik.solvers.base import (
     start_points,
 )
 from optik.solvers.evaluation import ErrorFn, errors_against
+from optik.solvers.options import check_floats, check_max_restarts
 
 DEFAULTS: dict[str, Any] = {
     "solver": "ipopt",
@@ -311,8 +313,15 @@ def nlp_solver(
         options = _solver_options(solver, max_iter, ipopt_tol, extra, monitor, m.n_closure > 0)
         if hessian == "gauss-newton":
             options["hess_lag"] = _hessian_function(problem, solver == "ipopt", damping)
-        with _silenced_stdout():  # qpOASES prints a licence banner on construction
-            fn = ca.nlpsol("optik_ik", solver, problem.nlp(), options)
+        try:
+            with _silenced_stdout():  # qpOASES prints a licence banner on construction
+                fn = ca.nlpsol("optik_ik", solver, problem.nlp(), options)
+        except RuntimeError as exc:  # CasADi rejects an unknown or ill-typed option
+            if not extra:
+                raise
+            found = re.findall(r"\.[ch]pp:\d+: (.+)", str(exc))
+            message = found[-1] if found else str(exc)
+            raise InvalidArgumentError("solver_options", f"rejected by nlpsol: {message}") from exc
         _SOLVERS[key] = _Solver(problem, fn, monitor)
     return _SOLVERS[key]
 
@@ -329,6 +338,8 @@ def _default_stall(solver: str, closed: bool, stop_at_tolerance: bool) -> tuple[
 def solve_nlp(request: IKRequest) -> IKResult:
     """Solve an IK request with ``nlpsol``, multi-start (see the module docstring)."""
     opts = method_options(request, DEFAULTS)
+    check_floats(opts, "posture", "manipulability", "limits", "damping", "stall", strict=("ipopt_tol",))
+    opts["max_restarts"] = check_max_restarts(opts["max_restarts"])
     if opts["solver"] not in SOLVERS:
         raise InvalidArgumentError("solver", f"unknown NLP solver {opts['solver']!r}; use one of {SOLVERS}")
     hessian = opts["hessian"]

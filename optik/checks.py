@@ -10,6 +10,18 @@ import numpy as np
 from optik.errors import InvalidArgumentError, NonFiniteError, ShapeError
 
 
+def _real_array(value: Any, name: str) -> np.ndarray:
+    """``value`` as a float array; strings, complex numbers and other non-real input raise an
+    :class:`InvalidArgumentError` naming the argument (never numpy's own exception)."""
+    try:
+        a = np.asarray(value)
+    except (TypeError, ValueError) as exc:  # ragged nested sequences
+        raise InvalidArgumentError(name, f"expected real numbers, got {value!r}") from exc
+    if a.dtype.kind not in "biuf":
+        raise InvalidArgumentError(name, f"expected real numbers, got {value!r}")
+    return a.astype(float, copy=False)
+
+
 def as_vector(value: Any, name: str, size: int | None = None) -> np.ndarray:
     """A finite float vector of the given size.
 
@@ -24,10 +36,7 @@ def as_vector(value: Any, name: str, size: int | None = None) -> np.ndarray:
             return value
         a = value
     else:
-        try:
-            a = np.asarray(value, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise InvalidArgumentError(name, f"expected numbers, got {value!r}") from exc
+        a = _real_array(value, name)
     if a.ndim == 0:
         a = a.reshape(1)
     if a.ndim != 1:
@@ -46,7 +55,7 @@ def as_batch(value: Any, name: str, size: int) -> tuple[np.ndarray, bool]:
         ShapeError: last axis is not ``size`` or more than two axes.
         NonFiniteError: contains NaN or infinity.
     """
-    a = np.asarray(value, dtype=float)
+    a = _real_array(value, name)
     single = a.ndim <= 1
     a = np.atleast_2d(a)
     if a.ndim != 2 or a.shape[1] != size:
@@ -68,7 +77,7 @@ def as_transform(value: Any, name: str) -> np.ndarray:
         NonFiniteError: NaN or infinity.
         InvalidArgumentError: the last row is not ``[0, 0, 0, 1]`` or the rotation is not proper.
     """
-    t = np.asarray(value, dtype=float)
+    t = value if type(value) is np.ndarray and value.dtype == np.float64 else _real_array(value, name)
     if t.shape != (4, 4):
         raise ShapeError(name, f"expected a 4x4 transform, got shape {t.shape}")
     rows = t.tolist()
@@ -101,6 +110,6 @@ def as_rng(seed: int | np.random.Generator | None) -> np.random.Generator:
         return seed
     if seed is None:
         seed = 0
-    if not isinstance(seed, (int, np.integer)):
-        raise InvalidArgumentError("seed", f"expected an int or numpy Generator, got {seed!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InvalidArgumentError("seed", f"expected an int >= 0 or a numpy Generator, got {seed!r}")
     return np.random.default_rng(int(seed))

@@ -252,3 +252,25 @@ def test_make_result_limits_and_nan() -> None:
     assert np.all(res.q >= m.lower) and np.all(res.q <= m.upper)
     with pytest.raises(optik.NonFiniteError):
         make_result(req, np.array([np.nan, 0.0, 0.0]), "test", 0)
+
+
+@pytest.mark.parametrize(
+    ("call", "argument"),
+    [
+        (lambda m: optik.solve_ik(m, "abc"), "target"),
+        (lambda m: optik.closed_form.ik(m, "abc"), "target"),
+        (lambda m: m.fk("ab"), "q"),
+        (lambda m: m.fk(np.array([1j, 1.0, 1.0])), "q"),
+        (lambda m: m.fk([[1.0, 2.0], [3.0]]), "q"),
+        (lambda m: optik.solve_ik(m, optik.Pose2D(1.0, 0.5, 0.0), q0=[1, "a", 2]), "q0"),
+        (lambda m: optik.solve_ik(m, optik.Pose2D(1.0, 0.5, 0.0), seed=-1), "seed"),
+        (lambda m: optik.solve_ik(m, optik.Pose2D(1.0, 0.5, 0.0), seed=1.5), "seed"),
+        (lambda m: optik.solve_ik(m, optik.Pose2D(1.0, 0.5, 0.0), seed=True), "seed"),
+    ],
+)
+def test_non_real_input_and_bad_seeds_raise_named_errors(call, argument) -> None:
+    m = optik.catalog.planar_3r()
+    with pytest.raises(optik.InvalidArgumentError) as info:
+        call(m)
+    assert info.value.argument == argument
+    assert str(info.value).startswith(f"{argument}:")

@@ -391,8 +391,8 @@ def make_request(
     tk = m._task(default_task(m, target) if task is None else task)  # raises on an unknown task
     m._frame(frame)  # raises UnknownFrameError naming the frame
     q_start = m.mid_q() if q0 is None else m.check_q(q0, "q0")
-    if seed is not None and not isinstance(seed, (int, np.integer, np.random.Generator)):
-        raise InvalidArgumentError("seed", f"expected an int or numpy Generator, got {seed!r}")
+    if seed is not None and not isinstance(seed, np.random.Generator):
+        as_rng(seed)  # validates the seed now (the generator itself is made on first use)
     if time_limit is None:
         limit = 0.1
     elif type(time_limit) is float and math.isfinite(time_limit):

@@ -155,6 +155,19 @@ def slider_crank(
     return _tag(m, "slider_crank", crank=r, rod=l, offset=e)
 
 
+def _leg_limits(leg_limits: Sequence[float]) -> tuple[float, float]:
+    """Validated ``(min, max)`` length of the actuated legs of a parallel mechanism."""
+    lo, hi = (float(v) for v in as_vector(leg_limits, "leg_limits", 2))
+    if not 0 <= lo < hi:
+        raise InvalidArgumentError("leg_limits", f"need 0 <= min < max, got {tuple(leg_limits)}")
+    return lo, hi
+
+
+def _actuated_leg(i: int, axis: Sequence[float], lo: float, hi: float) -> Joint:
+    """The actuated prismatic joint ``rho<i+1>`` from ``cylinder<i+1>`` to ``rod<i+1>``."""
+    return Joint(f"rho{i + 1}", "prismatic", f"cylinder{i + 1}", f"rod{i + 1}", axis=axis, lower=lo, upper=hi)
+
+
 DEFAULT_3RPR_BASE = ((0.0, 0.0), (2.0, 0.0), (0.8, 1.8))
 DEFAULT_3RPR_PLATFORM = ((-0.3, -0.15), (0.3, -0.15), (0.0, 0.3))
 
@@ -175,22 +188,12 @@ def planar_3rpr(
     """
     b = _points(base, "base", 3, 2)
     p = _points(platform, "platform", 3, 2)
-    lo, hi = (float(v) for v in as_vector(leg_limits, "leg_limits", 2))
-    if not 0 <= lo < hi:
-        raise InvalidArgumentError("leg_limits", f"need 0 <= min < max, got {leg_limits}")
+    lo, hi = _leg_limits(leg_limits)
     joints: list[Joint] = []
     for i in range(3):
         joints += [
             Joint(f"theta{i + 1}", "revolute", "base", f"cylinder{i + 1}", _at(b[i]), actuated=False),
-            Joint(
-                f"rho{i + 1}",
-                "prismatic",
-                f"cylinder{i + 1}",
-                f"rod{i + 1}",
-                axis=[1, 0, 0],
-                lower=lo,
-                upper=hi,
-            ),
+            _actuated_leg(i, [1, 0, 0], lo, hi),
             Joint(
                 f"pin{i + 1}", "revolute", f"rod{i + 1}", "platform", actuated=False, child_offset=_at(p[i])
             ),
@@ -227,9 +230,7 @@ def stewart_gough(
     """
     b = _points(base, "base", 6, 3)
     p = _points(platform, "platform", 6, 3)
-    lo, hi = (float(v) for v in as_vector(leg_limits, "leg_limits", 2))
-    if not 0 <= lo < hi:
-        raise InvalidArgumentError("leg_limits", f"need 0 <= min < max, got {leg_limits}")
+    lo, hi = _leg_limits(leg_limits)
     half = np.pi / 2  # legs leave the base upwards: one universal-joint solution per leg direction
     joints: list[Joint] = []
     for i in range(6):
@@ -246,15 +247,7 @@ def stewart_gough(
                 upper=(half, half),
                 actuated=False,
             ),
-            Joint(
-                f"rho{i + 1}",
-                "prismatic",
-                f"cylinder{i + 1}",
-                f"rod{i + 1}",
-                axis=[0, 0, 1],
-                lower=lo,
-                upper=hi,
-            ),
+            _actuated_leg(i, [0, 0, 1], lo, hi),
             Joint(
                 f"s{i + 1}",
                 "spherical",

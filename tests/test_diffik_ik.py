@@ -62,10 +62,14 @@ def test_unreachable_target_is_a_normal_failure_within_the_time_limit(method: st
     assert elapsed < 0.2 + 0.3
 
 
-def test_unknown_option_names_the_argument() -> None:
+@pytest.mark.parametrize(
+    ("method", "option"), [("dls", "bogus"), ("dls", "lm_damping"), ("qp", "damping"), ("qp", "threshold")]
+)
+def test_unknown_option_names_the_argument(method, option) -> None:
+    """An option the method does not read is an error, not silently ignored."""
     m = optik.catalog.planar_2r()
-    with pytest.raises(optik.InvalidArgumentError, match="options"):
-        optik.solve_ik(m, optik.Position(1.0, 0.5), method="dls", bogus=1)
+    with pytest.raises(optik.InvalidArgumentError, match=rf"^options:.*{option}"):
+        optik.solve_ik(m, optik.Position(1.0, 0.5), method=method, **{option: 0.1})
 
 
 @pytest.mark.parametrize(

@@ -35,7 +35,11 @@ from optik.mechanism import Mechanism
 from optik.results import IKResult
 from optik.solvers.base import IKRequest, make_result, positive_int, register_method
 
-_OPTIONS = {"max_iterations", "stall_iterations", "damping", "threshold", "solver", "lm_damping"}
+_OPTIONS = {
+    "dls": {"max_iterations", "stall_iterations", "damping", "threshold"},
+    "qp": {"max_iterations", "stall_iterations", "solver", "lm_damping"},
+}
+"""Options each method reads; any other option is an error (never silently ignored)."""
 
 LM_DAMPING = 0.1
 """Default Levenberg-Marquardt damping of the task in ``method="qp"`` (large steps far from the
@@ -58,13 +62,13 @@ def iterate(request: IKRequest, method: str) -> IKResult:
     """Iterated differential IK for one request (see the module docstring)."""
     m: Mechanism = request.mechanism
     opts = dict(request.options)
-    unknown = set(opts) - _OPTIONS
+    unknown = set(opts) - _OPTIONS[method]
     if unknown:
         raise InvalidArgumentError("options", f"unknown options for method {method!r}: {sorted(unknown)}")
     max_iter = _int_option(opts, "max_iterations", 100)
     stall = _int_option(opts, "stall_iterations", 10)
-    step_opts = {k: opts[k] for k in ("damping", "threshold") if k in opts and method == "dls"}
-    solver = opts.get("solver") if method == "qp" else None
+    step_opts = {k: opts[k] for k in ("damping", "threshold") if k in opts}
+    solver = opts.get("solver")
     task = tracking_task(m, request.task, request.frame)
     task.set_target(request.target)
     if method == "qp":

@@ -7,16 +7,16 @@ common axis limits, with the pedestal from the base origin to the first joint in
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 import numpy as np
+from _write import write_figures
 from matplotlib.figure import Figure
 
 from optik import catalog
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
-from optik.plot import draw, save_figure
+from optik.plot import draw
 
 PI = np.pi
 POSTURES = {
@@ -65,18 +65,14 @@ def figure(m: Mechanism, postures: dict[str, tuple[float, ...]]) -> Figure:
     return fig
 
 
+def figures() -> dict[str, Figure]:
+    """One figure per arm of :data:`POSTURES`."""
+    return {name: figure(getattr(catalog, name)(), postures) for name, postures in POSTURES.items()}
+
+
 def main(argv: list[str] | None = None) -> list[Path]:
     """Write one PNG per arm into ``--out`` (default ``docs/img``) and return the paths."""
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / "img"))
-    args = parser.parse_args(argv)
-    written = []
-    for name, postures in POSTURES.items():
-        fig = figure(getattr(catalog, name)(), postures)
-        written.append(save_figure(fig, Path(args.out) / f"arms_{name}.png"))
-    for path in written:
-        print(path)
-    return written
+    return write_figures("arms", figures, __doc__.splitlines()[0], argv)
 
 
 if __name__ == "__main__":

@@ -16,15 +16,15 @@ Run from the repository root: ``python docs/figures/parallel.py``. Each figure i
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 import numpy as np
+from _write import write_figures
 from matplotlib.figure import Figure
 
 import optik
 from optik import closed_form
-from optik.plot import draw_branches, save_figure
+from optik.plot import draw_branches
 
 RPR_SIX = {
     "platform": ((-0.14, -0.52), (-0.6, 0.41), (0.74, 0.11)),
@@ -72,13 +72,7 @@ def figures() -> dict[str, Figure]:
 
 def main(argv: list[str] | None = None) -> list[Path]:
     """Write every figure into ``--out`` (default ``docs/img``) and return the paths."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / "img"))
-    args = parser.parse_args(argv)
-    written = [save_figure(fig, Path(args.out) / f"parallel_{stem}.png") for stem, fig in figures().items()]
-    for path in written:
-        print(path)
-    return written
+    return write_figures("parallel", figures, __doc__.splitlines()[0], argv)
 
 
 if __name__ == "__main__":

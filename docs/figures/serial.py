@@ -13,15 +13,15 @@ Run from the repository root: ``python docs/figures/serial.py``. Each figure is
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 import numpy as np
+from _write import write_figures
 from matplotlib.figure import Figure
 
 import optik
 from optik import closed_form
-from optik.plot import draw_branches, save_figure
+from optik.plot import draw_branches
 
 SEED_6R_Q = np.array([0.5, -0.8, -1.1, -1.0, 1.1, 0.8])
 """A posture of the default seed 6R arm whose pose has all 8 branches."""
@@ -53,13 +53,7 @@ def figures() -> dict[str, Figure]:
 
 def main(argv: list[str] | None = None) -> list[Path]:
     """Write every figure into ``--out`` (default ``docs/img``) and return the paths."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / "img"))
-    args = parser.parse_args(argv)
-    written = [save_figure(fig, Path(args.out) / f"serial_{stem}.png") for stem, fig in figures().items()]
-    for path in written:
-        print(path)
-    return written
+    return write_figures("serial", figures, __doc__.splitlines()[0], argv)
 
 
 if __name__ == "__main__":

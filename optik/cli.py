@@ -460,7 +460,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     k = sub.add_parser(
         "benchmark",
-        help="run a focused benchmark script of benchmarks/ (ik, diffik, closed_form, parallel_fk)",
+        help="run a focused benchmark script of benchmarks/ (ik, diffik, closed_form, general_6r, ...)",
         description=(
             "Run benchmarks/bench_NAME.py of a source checkout with the remaining arguments, e.g. "
             "'optik benchmark ik --n 1000' (Panda: lm / nlp against TRAC-IK) or 'optik benchmark diffik' "

@@ -108,7 +108,7 @@ def _dh(theta: np.ndarray, d: float, a: float, alpha: float) -> np.ndarray:
     """``Rz(theta) Tz(d) Tx(a) Rx(alpha)`` for an array of angles: shape ``theta.shape + (4, 4)``."""
     c, s = np.cos(theta), np.sin(theta)
     ca, sa = math.cos(alpha), math.sin(alpha)
-    out = np.zeros(np.shape(theta) + (4, 4))
+    out = np.zeros((*np.shape(theta), 4, 4))
     out[..., 0, 0], out[..., 0, 1], out[..., 0, 2], out[..., 0, 3] = c, -s * ca, s * sa, a * c
     out[..., 1, 0], out[..., 1, 1], out[..., 1, 2], out[..., 1, 3] = s, c * ca, -c * sa, a * s
     out[..., 2, 1], out[..., 2, 2], out[..., 2, 3] = sa, ca, d
@@ -190,12 +190,14 @@ class General6R:
             InvalidArgumentError: (argument ``m``) not a serial chain of six revolute joints,
                 or the DH description does not reproduce ``m.fk``.
         """
-        lines, ee = _joint_lines(m)
+        lines, ee = joint_lines(m)
         arm = _dh_from_lines(lines[:, 0], lines[:, 1], ee)
         q = np.random.default_rng(0).uniform(-np.pi, np.pi, size=(4, 6))
         err = float(np.max(np.abs(arm.fk(q) - m.fk(q))))
         if err > 1e-9 * max(1.0, arm.scale):
-            raise InvalidArgumentError("m", f"{m.name!r}: its DH description does not reproduce m.fk ({err:.1e})")
+            raise InvalidArgumentError(
+                "m", f"{m.name!r}: its DH description does not reproduce m.fk ({err:.1e})"
+            )
         return arm
 
     @property
@@ -207,7 +209,7 @@ class General6R:
     def fk(self, q: Any) -> np.ndarray:
         """``T(q)``: 4x4, or ``(N, 4, 4)`` for ``q`` of shape ``(N, 6)``."""
         theta = np.asarray(q, dtype=float) + self.offset
-        t = np.broadcast_to(self.base, theta.shape[:-1] + (4, 4)).copy()
+        t = np.broadcast_to(self.base, (*theta.shape[:-1], 4, 4)).copy()
         for i in range(6):
             t = t @ _dh(theta[..., i], self.d[i], self.a[i], self.alpha[i])
         return t @ self.tool
@@ -217,12 +219,14 @@ class General6R:
         return self.a / self.scale, self.d / self.scale
 
 
-def _joint_lines(m: Mechanism) -> tuple[np.ndarray, np.ndarray]:
+def joint_lines(m: Mechanism) -> tuple[np.ndarray, np.ndarray]:
     """``(lines, ee)``: ``lines[k] = (point, direction)`` of the k-th revolute coordinate's axis
     at ``q = 0`` in the base frame (``(6, 2, 3)``, in chain order = coordinate order) and the
     end-effector pose at ``q = 0``."""
     if m.n_q != 6 or m.is_closed:
-        raise InvalidArgumentError("m", f"{m.name!r}: expected an open chain with 6 coordinates, got n_q={m.n_q}")
+        raise InvalidArgumentError(
+            "m", f"{m.name!r}: expected an open chain with 6 coordinates, got n_q={m.n_q}"
+        )
     tree = [m.joints[i] for i in m.topology.tree]
     by_child = {j.child: j for j in tree}
     body, chain = m.frames[m.ee][0], []
@@ -276,11 +280,19 @@ def _dh_from_lines(points: np.ndarray, dirs: np.ndarray, ee: np.ndarray) -> Gene
             den = 1.0 - b * b
             s, t = (u1 @ w - b * (u2 @ w)) / den, (b * (u1 @ w) - u2 @ w) / den
             f, o = p1 + s * u1, p2 + t * u2
-            x = (o - f) / np.linalg.norm(o - f) if np.linalg.norm(o - f) > 1e-12 * scale else n / np.linalg.norm(n)
+            x = (
+                (o - f) / np.linalg.norm(o - f)
+                if np.linalg.norm(o - f) > 1e-12 * scale
+                else n / np.linalg.norm(n)
+            )
         else:  # parallel: the normal through the previous origin
             f = p1 + ((prev_origin - p1) @ u1) * u1
             o = p2 + ((f - p2) @ u2) * u2
-            x = (o - f) / np.linalg.norm(o - f) if np.linalg.norm(o - f) > 1e-12 * scale else _perpendicular(u1, prev_x)
+            x = (
+                (o - f) / np.linalg.norm(o - f)
+                if np.linalg.norm(o - f) > 1e-12 * scale
+                else _perpendicular(u1, prev_x)
+            )
         feet.append(f)
         origins.append(o)
         xs.append(x)
@@ -365,7 +377,9 @@ def _arm(arm: Mechanism | General6R) -> General6R:
     if isinstance(arm, General6R):
         return arm
     if not isinstance(arm, Mechanism):
-        raise InvalidArgumentError("arm", f"expected an optik Mechanism or a General6R, got {type(arm).__name__}")
+        raise InvalidArgumentError(
+            "arm", f"expected an optik Mechanism or a General6R, got {type(arm).__name__}"
+        )
     try:
         return _ARMS[arm]
     except KeyError:
@@ -447,17 +461,22 @@ def _eigen(m_poly: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _half_angle(w: np.ndarray) -> np.ndarray:
     """``phi = 2 atan(x)`` from the eigenvector blocks ``w = (x^i y^j)``: least-squares ratios,
     taken the way round that keeps them bounded. ``w``: ``(..., 4, 3)`` -> ``(phi_4, phi_5)``."""
+
     def angle(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-        fwd = np.sum(np.conj(lo) * hi, axis=(-2, -1)) / np.maximum(np.sum(np.abs(lo) ** 2, axis=(-2, -1)), 1e-300)
-        rev = np.sum(np.conj(hi) * lo, axis=(-2, -1)) / np.maximum(np.sum(np.abs(hi) ** 2, axis=(-2, -1)), 1e-300)
+        fwd = np.sum(np.conj(lo) * hi, axis=(-2, -1)) / np.maximum(
+            np.sum(np.abs(lo) ** 2, axis=(-2, -1)), 1e-300
+        )
+        rev = np.sum(np.conj(hi) * lo, axis=(-2, -1)) / np.maximum(
+            np.sum(np.abs(hi) ** 2, axis=(-2, -1)), 1e-300
+        )
         return np.where(np.abs(fwd) <= 1.0, 2.0 * np.arctan(fwd.real), 2.0 * np.arctan2(1.0, rev.real))
 
     return np.stack([angle(w[..., :3, :], w[..., 1:, :]), angle(w[..., :, :2], w[..., :, 1:])], axis=-1)
 
 
 def _chain(left: _Left, theta: np.ndarray) -> np.ndarray:
-    """Prefix products ``A1 ... A_k`` (unit scale), ``k = 0..6``: shape ``theta.shape[:-1] + (7, 4, 4)``."""
-    out = np.empty(theta.shape[:-1] + (7, 4, 4))
+    """Prefix products ``A1 ... A_k`` (unit scale), ``k = 0..6``: shape ``(..., 7, 4, 4)``."""
+    out = np.empty((*theta.shape[:-1], 7, 4, 4))
     out[..., 0, :, :] = np.eye(4)
     for i in range(6):
         out[..., i + 1, :, :] = out[..., i, :, :] @ _dh(theta[..., i], left.d[i], left.a[i], left.alpha[i])
@@ -465,8 +484,9 @@ def _chain(left: _Left, theta: np.ndarray) -> np.ndarray:
 
 
 def _polish(left: _Left, theta: np.ndarray, tp: np.ndarray) -> np.ndarray:
-    """Newton on ``A1 ... A6 (theta) = tp`` (unit scale): residual ``[p - p*; vee(R R*^T - R* R^T) / 2]``,
-    geometric Jacobian ``[z_{i-1} x (p - o_{i-1}); z_{i-1}]``. ``theta``: ``(K, 6)``, ``tp``: ``(K, 4, 4)``."""
+    """Newton on ``A1 ... A6 (theta) = tp`` (unit scale), ``theta (K, 6)``, ``tp (K, 4, 4)``:
+    residual ``[p - p*; vee(R R*^T - R* R^T) / 2]``, geometric Jacobian
+    ``[z_{i-1} x (p - o_{i-1}); z_{i-1}]``."""
     rt = tp[:, :3, :3]
     for _ in range(NEWTON_ITERATIONS):
         pre = _chain(left, theta)
@@ -475,10 +495,8 @@ def _polish(left: _Left, theta: np.ndarray, tp: np.ndarray) -> np.ndarray:
         jac = np.empty((len(theta), 6, 6))
         jac[:, :3] = np.swapaxes(np.cross(z, t[:, None, :3, 3] - o), 1, 2)
         jac[:, 3:] = np.swapaxes(z, 1, 2)
-        s = t[:, :3, :3] @ np.swapaxes(rt, 1, 2)
         err = np.concatenate(
-            [t[:, :3, 3] - tp[:, :3, 3], 0.5 * np.stack([s[:, 2, 1] - s[:, 1, 2], s[:, 0, 2] - s[:, 2, 0], s[:, 1, 0] - s[:, 0, 1]], axis=1)],
-            axis=1,
+            [t[:, :3, 3] - tp[:, :3, 3], 0.5 * _skew(t[:, :3, :3] @ np.swapaxes(rt, 1, 2))], 1
         )
         if not len(theta) or float(np.max(np.abs(err))) < 1e-15:
             break
@@ -491,6 +509,13 @@ def _polish(left: _Left, theta: np.ndarray, tp: np.ndarray) -> np.ndarray:
     return theta
 
 
+def _skew(r: np.ndarray) -> np.ndarray:
+    """``vee(R - R^T)`` of rotations ``(..., 3, 3)``: ``2 sin(angle) axis``."""
+    return np.stack(
+        [r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]], -1
+    )
+
+
 def _wrap(q: np.ndarray) -> np.ndarray:
     w = (q + np.pi) % _TWO_PI - np.pi
     return np.where(w <= -np.pi, w + _TWO_PI, w)
@@ -501,8 +526,7 @@ def _pose_errors(t: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndar
     dp = np.linalg.norm(t[..., :3, 3] - target[..., :3, 3], axis=-1)
     r = np.swapaxes(target[..., :3, :3], -1, -2) @ t[..., :3, :3]
     cos = np.clip((np.trace(r, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)
-    skew = np.stack([r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]], -1)
-    return dp, np.arctan2(0.5 * np.linalg.norm(skew, axis=-1), cos)
+    return dp, np.arctan2(0.5 * np.linalg.norm(_skew(r), axis=-1), cos)
 
 
 def _dedup(q: np.ndarray) -> np.ndarray:
@@ -542,8 +566,9 @@ def _solve(arm: General6R, targets: np.ndarray, fk: Any) -> list[General6RSoluti
     real = good & (np.abs(phi3.imag) <= REAL_TOL)
     # candidates
     idx_n, idx_e = np.nonzero(real)
-    w = vecs[idx_n, idx_e].reshape(-1, 4, 3)
-    w = w / w.reshape(len(w), -1)[np.arange(len(w)), np.argmax(np.abs(w.reshape(len(w), -1)), axis=1)][:, None, None]
+    flat = vecs[idx_n, idx_e]  # (K, 12), normalized by the largest entry: real for a real root
+    flat = flat / flat[np.arange(len(flat)), np.argmax(np.abs(flat), axis=1)][:, None]
+    w = flat.reshape(-1, 4, 3)
     phi = np.concatenate([phi3[idx_n, idx_e].real[:, None], _half_angle(w)], axis=1)
     lhs = left.values(phi[:, 0], phi[:, 1], phi[:, 2])
     pinv = np.swapaxes(vt[:, :8], 1, 2) @ (u[:, :, :8] / sv[:, None, :8]).transpose(0, 2, 1)
@@ -589,7 +614,9 @@ def _solve(arm: General6R, targets: np.ndarray, fk: Any) -> list[General6RSoluti
     return out
 
 
-def solve_general_6r(arm: Mechanism | General6R, target: Any) -> General6RSolutions | list[General6RSolutions]:
+def solve_general_6r(
+    arm: Mechanism | General6R, target: Any
+) -> General6RSolutions | list[General6RSolutions]:
     """All real IK solutions of a 6R arm with their count check.
 
     Args:

@@ -197,6 +197,8 @@ def _cmd_solve(args: argparse.Namespace) -> int:
             print(f"    {r.message}")
     if not results:
         print("no solution: the target is unreachable within the joint limits")
+    if args.all:
+        print(results.message)
     if args.plot and results:
         from optik.plot import draw_branches
 

@@ -1,8 +1,8 @@
-"""URDF import: a serial chain of a URDF robot as one :class:`~optik.mechanism.Mechanism`.
+"""URDF import: a serial chain of a URDF robot as one [`Mechanism`][optik.mechanism.Mechanism].
 
-:func:`load_urdf` reads a URDF file (or a URDF string), finds the path through the link tree
+[`load_urdf`][optik.urdf.load_urdf] reads a URDF file (or a URDF string), finds the path through the link tree
 from ``base_link`` down to ``tip_link`` and turns the joints on that path into
-:class:`~optik.mechanism.Joint` objects; branches off the path are ignored.
+[`Joint`][optik.mechanism.Joint] objects; branches off the path are ignored.
 
 Supported, per joint on the path:
 
@@ -15,12 +15,13 @@ Supported, per joint on the path:
   and no needless bodies.
 
 ``<origin xyz rpy>`` places the joint frame in the parent link: ``T = Trans(xyz) R`` with
-URDF's ``R = Rot(z, yaw) Rot(y, pitch) Rot(x, roll)`` = :func:`optik.spatial.rpy_to_rot`.
-``<axis xyz>`` (default ``1 0 0``) is normalized. ``<limit velocity>`` values, when every moving
-joint has a positive one, are kept in ``m.params["velocity_limits"]``. ``floating`` and ``planar`` joints and
-``<mimic>`` joints on the path are rejected with :class:`~optik.errors.ModelError`.
+URDF's ``R = Rot(z, yaw) Rot(y, pitch) Rot(x, roll)`` =
+[`optik.spatial.rpy_to_rot`][optik.spatial.rpy_to_rot]. ``<axis xyz>`` (default ``1 0 0``) is normalized.
+``<limit velocity>`` values, when every moving joint has a positive one, are kept in
+``m.params["velocity_limits"]``. ``floating`` and ``planar`` joints and ``<mimic>`` joints on the path are
+rejected with [`ModelError`][optik.errors.ModelError].
 
-Safety: the text is parsed with :mod:`xml.etree.ElementTree` only after a check that rejects any
+Safety: the text is parsed with `xml.etree.ElementTree` only after a check that rejects any
 ``<!DOCTYPE`` or ``<!ENTITY`` declaration, so no entity is ever expanded and no external
 resource is fetched (URDF never needs a DTD).
 """

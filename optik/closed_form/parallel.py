@@ -3,7 +3,7 @@
 Every solver returns **full** coordinate vectors (passive coordinates included, in the model's
 coordinate order, found by coordinate name), one per branch, so that each answer can be checked
 against ``m.fk`` and ``m.closure``. Geometry comes from ``m.params`` (see
-:mod:`optik.catalog.closed_chains`).
+[`optik.catalog.closed_chains`][optik.catalog.closed_chains]).
 
 Branch counts: five-bar IK 4 working modes, FK 2 assembly modes; doggy IK 4 leg combinations,
 FK 1; slider-crank IK 2, FK 2; 3-RPR IK 1, FK every real root of a degree-6 polynomial;
@@ -76,7 +76,8 @@ def two_link_ik(origin: np.ndarray, a: float, b: float, point: np.ndarray) -> li
 def _two_link_one(
     ox: float, oy: float, a: float, b: float, px: float, py: float
 ) -> list[tuple[float, float]]:
-    """:func:`two_link_ik` on floats (one target: cheaper than numpy on 2-vectors)."""
+    """[`two_link_ik`][optik.closed_form.parallel.two_link_ik] on floats (one target: cheaper than numpy on
+    2-vectors)."""
     dx, dy = px - ox, py - oy
     c = (dx * dx + dy * dy - a * a - b * b) / (2 * a * b)
     if abs(c) > 1 + CIRCLE_TOL:
@@ -90,7 +91,7 @@ def _two_link_one(
 
 
 def _row(m: Mechanism, values: Mapping[str, float]) -> list[float]:
-    """:func:`_assemble` as a list of floats (what the registry works on)."""
+    """`_assemble` as a list of floats (what the registry works on)."""
     return [values[name] for name in m.coordinate_names]
 
 
@@ -137,7 +138,8 @@ def five_bar_ik(m: Mechanism, target: np.ndarray) -> list[np.ndarray]:
 
 
 def _five_bar_rows(m: Mechanism, target: np.ndarray) -> list[list[float]]:
-    """:func:`five_bar_ik` as lists of floats (registered: the registry works on floats)."""
+    """[`five_bar_ik`][optik.closed_form.parallel.five_bar_ik] as lists of floats (registered: the registry
+    works on floats)."""
     (a1x, a1y), (a2x, a2y) = m.params["base"].tolist()
     l1, l2, l3, l4 = m.params["lengths"]
     tool = m.params["tool"]
@@ -176,7 +178,8 @@ def doggy_ik(m: Mechanism, target: np.ndarray) -> list[np.ndarray]:
 
 
 def _doggy_rows(m: Mechanism, target: np.ndarray) -> list[list[float]]:
-    """:func:`doggy_ik` as lists of floats (registered: the registry works on floats)."""
+    """[`doggy_ik`][optik.closed_form.parallel.doggy_ik] as lists of floats (registered: the registry works on
+    floats)."""
     f, h, lg = m.params["feet"].tolist(), m.params["hips"].tolist(), m.params["legs"].tolist()
     bx, by = float(target[0, 3]), float(target[1, 3])
     phi = math.atan2(target[1, 0], target[0, 0])
@@ -258,12 +261,13 @@ def _rpr_q(m: Mechanism, pos: np.ndarray, phi: float) -> np.ndarray:
 
 def planar_3rpr_ik(m: Mechanism, target: np.ndarray) -> list[np.ndarray]:
     """3-RPR IK (one branch): ``rho_i = |t + R(phi) p_i - b_i|``, leg angles by atan2
-    (:func:`_rpr_q` on floats)."""
+    (`_rpr_q` on floats)."""
     return [np.array(row) for row in _planar_3rpr_rows(m, target)]
 
 
 def _planar_3rpr_rows(m: Mechanism, target: np.ndarray) -> list[list[float]]:
-    """:func:`planar_3rpr_ik` as lists of floats (registered: the registry works on floats)."""
+    """[`planar_3rpr_ik`][optik.closed_form.parallel.planar_3rpr_ik] as lists of floats (registered: the
+    registry works on floats)."""
     tx, ty = float(target[0, 3]), float(target[1, 3])
     phi = math.atan2(target[1, 0], target[0, 0])
     c, s = math.cos(phi), math.sin(phi)
@@ -309,8 +313,8 @@ def rpr_polynomial(b: np.ndarray, p: np.ndarray, rho: np.ndarray) -> np.ndarray:
 
 
 def _rpr_coefficients(b: np.ndarray, p: np.ndarray, rho: np.ndarray) -> tuple[np.ndarray, float]:
-    """:func:`rpr_polynomial` and the magnitude ``max(|N|^2 + rho_1^2 D^2)`` of its two terms
-    over the samples (to tell an identically vanishing ``F`` from a small one)."""
+    """[`rpr_polynomial`][optik.closed_form.parallel.rpr_polynomial] and the magnitude ``max(|N|^2 + rho_1^2
+    D^2)`` of its two terms over the samples (to tell an identically vanishing ``F`` from a small one)."""
     phis = 2 * np.pi * np.arange(16) / 16
     d, e = p[1:] - p[0], b[1:] - b[0]
     c, s = np.cos(phis), np.sin(phis)
@@ -393,17 +397,17 @@ def polish_planar_3rpr(
 def planar_3rpr_poses(b: np.ndarray, p: np.ndarray, rho: np.ndarray, tol: float = 1e-9) -> list[np.ndarray]:
     """All real assembly modes ``(x, y, phi)`` of a 3-RPR for leg lengths ``rho`` (at most 6).
 
-    Roots of :func:`rpr_polynomial` in ``z = e^{i phi}`` near the unit circle give candidate
-    headings (a double root may split off the circle by ``O(sqrt(eps))``, hence the loose
-    filter; the centroids of root clusters are tried as well, see :func:`_cluster_means`); each
-    candidate is polished by Newton on the leg equations, kept when every leg
-    length is met to ``tol`` and de-duplicated. Leading/trailing coefficients that vanish only
-    remove roots at ``z = 0`` or infinity, which are never real headings.
+    Roots of [`rpr_polynomial`][optik.closed_form.parallel.rpr_polynomial] in ``z = e^{i phi}`` near the unit
+    circle give candidate headings (a double root may split off the circle by ``O(sqrt(eps))``, hence the
+    loose filter; the centroids of root clusters are tried as well, see `_cluster_means`); each candidate is
+    polished by Newton on the leg equations, kept when every leg length is met to ``tol`` and de-duplicated.
+    Leading/trailing coefficients that vanish only remove roots at ``z = 0`` or infinity, which are never real
+    headings.
 
     Architecture singularities, where the modes form a continuum, give
-    :data:`CONTINUUM_SAMPLES` representatives of it: ``F`` vanishing identically (every heading
-    a root), or ``W = 0`` at a root (platform congruent to the base: every ``P_1`` on the circle
-    ``|P_1 - b_1| = rho_1``).
+    [`CONTINUUM_SAMPLES`][optik.closed_form.parallel.CONTINUUM_SAMPLES] representatives of it: ``F`` vanishing
+    identically (every heading a root), or ``W = 0`` at a root (platform congruent to the base: every ``P_1``
+    on the circle ``|P_1 - b_1| = rho_1``).
     """
     coef, magnitude = _rpr_coefficients(b, p, rho)
     scale = np.max(np.abs(coef))
@@ -436,7 +440,8 @@ def planar_3rpr_poses(b: np.ndarray, p: np.ndarray, rho: np.ndarray, tol: float 
 
 
 def planar_3rpr_fk(m: Mechanism, actuated: np.ndarray) -> list[np.ndarray]:
-    """3-RPR FK: every real assembly mode (see :func:`planar_3rpr_poses`) as a full ``q``."""
+    """3-RPR FK: every real assembly mode (see
+    [`planar_3rpr_poses`][optik.closed_form.parallel.planar_3rpr_poses]) as a full ``q``."""
     rho = np.asarray(actuated, dtype=float)
     poses = planar_3rpr_poses(m.params["base"], m.params["platform"], rho)
     return [_rpr_q(m, x[:2], float(x[2])) for x in poses]
@@ -559,8 +564,8 @@ def _stewart_q(m: Mechanism, r: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 
 def _so3_log_one(r: list[list[float]]) -> list[float]:
-    """:func:`optik.spatial.so3_log` of one rotation on floats (the same formulas; within 1e-3
-    of a half-turn, where the axis comes from the symmetric part, it calls ``so3_log``)."""
+    """[`optik.spatial.so3_log`][optik.spatial.so3_log] of one rotation on floats (the same formulas; within
+    1e-3 of a half-turn, where the axis comes from the symmetric part, it calls ``so3_log``)."""
     sx, sy, sz = r[2][1] - r[1][2], r[0][2] - r[2][0], r[1][0] - r[0][1]
     theta = math.atan2(
         0.5 * math.sqrt(sx * sx + sy * sy + sz * sz), 0.5 * (r[0][0] + r[1][1] + r[2][2] - 1.0)
@@ -573,7 +578,7 @@ def _so3_log_one(r: list[list[float]]) -> list[float]:
 
 def stewart_gough_ik(m: Mechanism, target: np.ndarray) -> list[np.ndarray]:
     """Stewart-Gough IK (one branch): leg lengths ``rho_i = |R p_i + t - b_i|`` and the passive
-    joint angles of :func:`_stewart_q`."""
+    joint angles of `_stewart_q`."""
     return [_stewart_q(m, target[:3, :3], target[:3, 3])]
 
 
@@ -637,17 +642,17 @@ def stewart_poses(
 ) -> StewartFK:
     """Every real posture of a Stewart-Gough platform by homotopy continuation (all 40 complex).
 
-    The leg equations in Study's coordinates (:func:`stewart_quadrics`) are 7 quadrics in
-    ``P^7``; :func:`optik.closed_form.homotopy.track` follows all ``2^7 = 128`` paths from a
-    total-degree start system (gamma trick). With probability one every isolated nonsingular
-    solution ends a path; the other paths end on the degenerate set ``e = 0`` (where all leg
-    quadrics reduce to ``|g|^2 = 0``). A round is *complete* when every path is accounted for
-    and no two paths share an end point (a shared end point reveals path jumping); finding 40
-    distinct solutions proves completeness outright, since 40 bounds the isolated solutions.
-    Otherwise a new round (fresh gamma and patch) is tracked and the solutions merged, up to
-    ``max_rounds``. Real solutions (``max |Im|`` small after fixing the projective phase) are
-    polished by Newton on the real leg equations and kept when every leg length is met to
-    ``tol`` (relative to the platform size).
+    The leg equations in Study's coordinates
+    ([`stewart_quadrics`][optik.closed_form.parallel.stewart_quadrics]) are 7 quadrics in ``P^7``;
+    [`optik.closed_form.homotopy.track`][optik.closed_form.homotopy.track] follows all ``2^7 = 128`` paths
+    from a total-degree start system (gamma trick). With probability one every isolated nonsingular solution
+    ends a path; the other paths end on the degenerate set ``e = 0`` (where all leg quadrics reduce to ``|g|^2
+    = 0``). A round is *complete* when every path is accounted for and no two paths share an end point (a
+    shared end point reveals path jumping); finding 40 distinct solutions proves completeness outright, since
+    40 bounds the isolated solutions. Otherwise a new round (fresh gamma and patch) is tracked and the
+    solutions merged, up to ``max_rounds``. Real solutions (``max |Im|`` small after fixing the projective
+    phase) are polished by Newton on the real leg equations and kept when every leg length is met to ``tol``
+    (relative to the platform size).
     """
     start = time.perf_counter()
     rng = np.random.default_rng(seed) if not isinstance(seed, np.random.Generator) else seed
@@ -699,7 +704,8 @@ def stewart_poses(
 
 
 def stewart_gough_fk(m: Mechanism, actuated: np.ndarray) -> list[np.ndarray]:
-    """Stewart-Gough FK: every real posture (:func:`stewart_poses`) as a full ``q``.
+    """Stewart-Gough FK: every real posture ([`stewart_poses`][optik.closed_form.parallel.stewart_poses]) as a
+    full ``q``.
 
     Warns (``RuntimeWarning``) when the homotopy could not certify completeness within its
     time limit, so that a possibly missing posture never goes unnoticed.

@@ -7,9 +7,9 @@
 * ``"cvxpy"``: the same QP written with cvxpy parameters (built once, DPP), for cross-checks.
 * any other name: the backend of that name through ``qpsolvers.solve_problem``.
 
-Every backend returns a :class:`QPOutcome`; none raises on an infeasible or failed solve.
-Unknown settings raise :class:`~optik.errors.InvalidArgumentError` (``"options"``) for DAQP and
-OSQP; cvxpy and the qpsolvers backends report them as a failed solve (status and message).
+Every backend returns a [`QPOutcome`][optik.diffik.qp.QPOutcome]; none raises on an infeasible or failed
+solve. Unknown settings raise [`InvalidArgumentError`][optik.errors.InvalidArgumentError] (``"options"``) for
+DAQP and OSQP; cvxpy and the qpsolvers backends report them as a failed solve (status and message).
 """
 
 from __future__ import annotations
@@ -156,7 +156,8 @@ def solve_qpsolvers(problem: DiffIKProblem, solver: str, **settings: Any) -> QPO
 
 
 def solve_qp(problem: DiffIKProblem, solver: str | None = None, **settings: Any) -> QPOutcome:
-    """Solve the step's QP with a backend by name (None: :func:`default_solver`)."""
+    """Solve the step's QP with a backend by name (None:
+    [`default_solver`][optik.diffik.qp.default_solver])."""
     name = default_solver() if solver is None else solver
     if name == "daqp":
         return solve_daqp(problem, **settings)

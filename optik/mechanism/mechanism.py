@@ -23,6 +23,7 @@ from optik.checks import as_batch, as_rng, as_vector
 from optik.errors import InvalidArgumentError, ModelError, UnknownFrameError
 from optik.mechanism.joint import Joint
 from optik.mechanism.topology import analyse, gruebler_kutzbach
+from optik.mechanism.urdf import parse_urdf
 
 TASK_ROWS: dict[str, tuple[int, ...]] = {
     "pose": (0, 1, 2, 3, 4, 5),
@@ -138,12 +139,14 @@ class Mechanism:
         """The serial chain of a URDF robot from ``base_link`` to ``tip_link``.
 
         ``source`` is a URDF file path or the XML text. Coordinates are named after the URDF
-        joints and ``ee`` is ``tip_link``; see :func:`optik.urdf.load_urdf` for what is supported
-        and what is raised.
+        joints and ``ee`` is ``tip_link``; the task is ``"pose"``; ``params`` holds what
+        `optik.mechanism.urdf.parse_urdf` read. See that function for what is supported and what
+        is raised.
         """
-        from optik.urdf import load_urdf  # optik.urdf builds on this module: import lazily
-
-        return load_urdf(source, base_link, tip_link)
+        model = parse_urdf(source, base_link, tip_link)
+        m = cls(model.joints, model.base, model.frames, model.ee, model.name, task="pose")
+        m.params = dict(model.params)
+        return m
 
     # ------------------------------------------------------------------ structure
     @property

@@ -11,10 +11,10 @@ from optik.bench.peers.base import Peer, PeerUnavailable
 from optik.bench.peers.ikpy_peer import IKPy
 from optik.bench.peers.pink_peer import Pink
 from optik.bench.peers.tracik_peer import TracIK
-from optik.problems import PEERS, Problem
+from optik.problem_files import PEERS, Problem
 
 ADAPTERS: dict[str, type[Peer]] = {"trac_ik": TracIK, "pink": Pink, "ikpy": IKPy}
-"""Adapter class per peer name (the names of :data:`optik.problems.PEERS`)."""
+"""Adapter class per peer name (the names of :data:`optik.problem_files.PEERS`)."""
 
 __all__ = ["ADAPTERS", "IKPy", "Peer", "PeerUnavailable", "Pink", "TracIK", "load_peer"]
 

@@ -40,7 +40,7 @@ import optik
 from optik import closed_form, spatial
 from optik.errors import OptikError, SolverUnavailableError
 from optik.mechanism import Mechanism
-from optik.problems import Problem, find_problem
+from optik.problem_files import Problem, find_problem
 
 __all__ = ["build_parser", "main", "parse_target"]
 

@@ -36,7 +36,7 @@ from matplotlib.figure import Figure
 from optik.checks import as_rng
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
-from optik.problems import assemble
+from optik.problem_files import assemble
 
 __all__ = [
     "Geometry",

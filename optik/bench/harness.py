@@ -33,7 +33,7 @@ from optik.bench.peers import PeerUnavailable, load_peer
 from optik.bench.progress import Progress
 from optik.errors import InvalidArgumentError, OptikError
 from optik.mechanism import Mechanism
-from optik.problems import PEERS, Problem, TargetSet
+from optik.problem_files import PEERS, Problem, TargetSet
 from optik.solvers import methods
 from optik.solvers.base import BRANCH_TOL, evaluate, joint_distance
 

@@ -14,7 +14,7 @@ from optik.bench.harness import ProblemRun, known_solvers, run_problems
 from optik.bench.progress import Progress
 from optik.bench.report import format_table, machine_info, write_outputs
 from optik.errors import InvalidArgumentError
-from optik.problems import Problem, default_problems, find_problem
+from optik.problem_files import Problem, default_problems, find_problem
 
 __all__ = ["BenchOutcome", "run_bench", "select_problems"]
 

@@ -233,7 +233,7 @@ REQUIRED_TABLES = ("problem", "mechanism")
 
 
 def _validate(path: Path, data: dict[str, Any]) -> dict[str, dict[str, Any]]:
-    """Check every table and key against [`SCHEMA`][optik.problems.SCHEMA]; return the parsed values."""
+    """Check every table and key against [`SCHEMA`][optik.problem_files.SCHEMA]; return the parsed values."""
     out: dict[str, dict[str, Any]] = {}
     for table in data:
         if table not in SCHEMA:
@@ -328,7 +328,7 @@ class Problem:
         lower, upper: joint-limit overrides (None: the constructor's limits).
         n, quick_n: numbers of targets (full run, ``--quick``).
         seed: target seed.
-        sampling: sampling mode (see [`SAMPLING`][optik.problems.SAMPLING]).
+        sampling: sampling mode (see [`SAMPLING`][optik.problem_files.SAMPLING]).
         pose_center, pose_half_range: the pose box of ``sampling = "pose"``.
         tolerances: success tolerances.
         methods: IK methods to run (None: every registered method that applies).
@@ -446,7 +446,7 @@ class Problem:
             seed: seed or Generator (default: the file's ``seed``).
 
         Returns:
-            A [`TargetSet`][optik.problems.TargetSet]; for closed chains possibly fewer than ``n`` targets
+            A [`TargetSet`][optik.problem_files.TargetSet]; for closed chains possibly fewer than ``n`` targets
             when fewer than ``n`` of ``MAX_DRAWS_PER_TARGET * n`` draws assemble (``draws`` says how many).
 
         Raises:
@@ -578,7 +578,7 @@ def _directory(directory: str | Path | None) -> Path:
 
 
 def list_problems(directory: str | Path | None = None) -> list[Problem]:
-    """Every problem file of a directory (default [`PROBLEM_DIR`][optik.problems.PROBLEM_DIR]), sorted by
+    """Every problem file of a directory (default [`PROBLEM_DIR`][optik.problem_files.PROBLEM_DIR]), sorted by
     name."""
     return sorted((load_problem(p) for p in _directory(directory).glob("*.toml")), key=lambda pr: pr.name)
 

@@ -446,8 +446,9 @@ class Problem:
             seed: seed or Generator (default: the file's ``seed``).
 
         Returns:
-            A [`TargetSet`][optik.problem_files.TargetSet]; for closed chains possibly fewer than ``n`` targets
-            when fewer than ``n`` of ``MAX_DRAWS_PER_TARGET * n`` draws assemble (``draws`` says how many).
+            A [`TargetSet`][optik.problem_files.TargetSet]; for closed chains possibly fewer than ``n``
+            targets when fewer than ``n`` of ``MAX_DRAWS_PER_TARGET * n`` draws assemble (``draws`` says how
+            many).
 
         Raises:
             ProblemFileError: the sampling mode does not apply, or no draw succeeded.

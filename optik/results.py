@@ -67,7 +67,7 @@ class FKResult:
 
 
 class IKSolutions(list):
-    """The list of :class:`IKResult` that :func:`optik.solve_ik_all` returns, one per distinct
+    """The list of ``IKResult`` that ``optik.solve_ik_all`` returns, one per distinct
     solution, with what was left out and why.
 
     Attributes:

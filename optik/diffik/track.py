@@ -58,9 +58,10 @@ class TrackResult:
 
 
 def tracking_task(m: Mechanism, space: str | None = None, frame: str | None = None) -> FrameRowsTask:
-    """The frame task of a task space: ``"pose"`` -> :class:`FrameTask`, ``"position"`` /
-    ``"position2d"`` -> :class:`PositionTask` (``xyz`` / ``xy``), ``"pose2d"`` -> :class:`Pose2DTask`
-    (``None``: the mechanism's own task space), ``"orientation"`` -> :class:`OrientationTask`."""
+    """The frame task of a task space: ``"pose"`` -> [`FrameTask`][optik.diffik.track.FrameTask],
+    ``"position"`` / ``"position2d"`` -> [`PositionTask`][optik.diffik.track.PositionTask] (``xyz`` / ``xy``),
+    ``"pose2d"`` -> [`Pose2DTask`][optik.diffik.track.Pose2DTask] (``None``: the mechanism's own task space),
+    ``"orientation"`` -> [`OrientationTask`][optik.diffik.track.OrientationTask]."""
     s = m.task if space is None else space
     if s == "pose":
         return FrameTask(frame)
@@ -91,24 +92,25 @@ def track(
     limits: Sequence[Limit] | None = None,
     **options: Any,
 ) -> TrackResult:
-    """Track a path: at step ``k`` the frame task's target is ``path[k]`` and one :func:`step` of
-    length ``dt`` moves the mechanism (gain 1: the step asks for the whole way to the sample, which
-    is the feed-forward velocity of the path plus the correction of the current error).
+    """Track a path: at step ``k`` the frame task's target is ``path[k]`` and one
+    [`step`][optik.diffik.track.step] of length ``dt`` moves the mechanism (gain 1: the step asks for the
+    whole way to the sample, which is the feed-forward velocity of the path plus the correction of the current
+    error).
 
     Args:
         m: the mechanism.
         q0: start configuration (may lie slightly outside the limits: the steps bring it back).
-        path: ``(N, 4, 4)`` target poses, one per step (see :mod:`optik.diffik.paths`).
+        path: ``(N, 4, 4)`` target poses, one per step (see [`optik.diffik.paths`][optik.diffik.paths]).
         dt: control period (s).
-        method, solver: see :func:`step`.
+        method, solver: see [`step`][optik.diffik.track.step].
         space: task space of the tracked frame (default: the mechanism's).
         frame: tracked frame (default: the end effector).
         tasks: extra tasks (posture, manipulability...), kept for every step.
-        limits: see :func:`step`; acceleration limits get the previous velocity.
-        **options: passed to :func:`step`.
+        limits: see [`step`][optik.diffik.track.step]; acceleration limits get the previous velocity.
+        **options: passed to [`step`][optik.diffik.track.step].
 
     Returns:
-        The :class:`TrackResult`.
+        The [`TrackResult`][optik.diffik.track.TrackResult].
     """
     targets = np.asarray(path, dtype=float)
     if targets.ndim != 3 or targets.shape[1:] != (4, 4) or len(targets) == 0:

@@ -2,21 +2,21 @@
 
 * **Closed form** (``method="closed_form"``, or ``method=None`` when the mechanism has one for
   its own task: a catalog closed form or one derived from the model's structure, see
-  :mod:`optik.closed_form.derived`): every branch is computed, each passing the FK check (a
+  ``optik.closed_form.derived``): every branch is computed, each passing the FK check (a
   branch that fails it is polished, then dropped if it still fails, and counted). A closed form is
   complete, so it answers alone: no numerical search follows.
 * **Numerical** (``method="lm"``, ``"nlp"``, ... or ``method=None`` without a closed form): the
   method runs from ``q0`` and then from points drawn uniformly within the limits, one start per
   call. Every successful answer is polished to full precision on the exact residual
-  (:func:`optik.solvers.polish.polish`) and kept when it is not the same solution as one already
+  (``optik.solvers.polish.polish``) and kept when it is not the same solution as one already
   found, the distance being tied to the polished accuracy
-  (:func:`optik.solvers.polish.same_point_tol`). The search stops after ``patience`` consecutive
+  (``optik.solvers.polish.same_point_tol``). The search stops after ``patience`` consecutive
   starts without a new solution, after ``max_solutions`` (redundant arms have infinitely many) or
   at the time limit.
 
 The method asked for is the method used: ``method="lm"`` never returns closed-form answers.
 Solutions outside the joint limits are never returned; the returned
-:class:`~optik.results.IKSolutions` lists them in ``outside_limits`` and says how many in its
+``optik.results.IKSolutions`` lists them in ``outside_limits`` and says how many in its
 ``message``.
 """
 
@@ -68,7 +68,7 @@ def solve_ik_all(
 
     Args:
         m: the mechanism.
-        target: 4x4 transform, :class:`~optik.Pose2D` or :class:`~optik.Position`.
+        target: 4x4 transform, [`Pose2D`][optik.Pose2D] or [`Position`][optik.Position].
         q0: first start of the numerical search (default mid-limit); results are sorted by their
             distance to it.
         method: ``"closed_form"`` (all analytic branches only), a numerical method for the
@@ -85,7 +85,7 @@ def solve_ik_all(
         **options: options of the numerical method (the closed form takes none).
 
     Returns:
-        An :class:`~optik.results.IKSolutions` (a list of successful results, one per solution,
+        An ``optik.results.IKSolutions`` (a list of successful results, one per solution,
         nearest ``q0`` first; empty when none was found, e.g. an unreachable target), with the
         solutions left out for the joint limits in ``outside_limits``.
 

@@ -1,6 +1,6 @@
 """Newton polishing of IK candidates and their deduplication by the polished accuracy.
 
-:func:`polish` refines a configuration that nearly solves an IK request to full floating-point
+``polish`` refines a configuration that nearly solves an IK request to full floating-point
 precision by Gauss-Newton steps on the exact residual
 
 ``r(q) = [e_task(q); c(q)]``, ``e_task = pose_error(T(q), T*)`` restricted to the rows of the
@@ -10,7 +10,7 @@ task (position ``p - p*``, rotation vector ``log(R R*^T)``, planar heading ``phi
 only when it lowers ``|r|`` and leaves ``q`` within the joint limits; it stops when ``|r|`` no
 longer decreases.
 
-:func:`same_point_tol` ties the deduplication distance to that accuracy: a configuration known to
+``same_point_tol`` ties the deduplication distance to that accuracy: a configuration known to
 ``|r|`` with smallest singular value ``sigma`` of ``J`` is determined to about ``|r| / sigma`` in
 joint space, so two polished candidates closer than ``100 |r| / sigma + 1e-9`` (capped at
 ``BRANCH_TOL``) are the same solution, and candidates further apart are distinct solutions even
@@ -28,7 +28,7 @@ from optik.mechanism import Mechanism
 from optik.solvers.base import BRANCH_TOL, IKRequest
 
 MAX_STEPS = 8
-"""Gauss-Newton steps of :func:`polish` at most."""
+"""Gauss-Newton steps of ``polish`` at most."""
 
 
 def residual(m: Mechanism, request: IKRequest, q: np.ndarray) -> np.ndarray:

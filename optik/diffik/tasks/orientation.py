@@ -18,7 +18,7 @@ class OrientationTask(FrameRowsTask):
         frame: frame name (None: the end effector).
         target: 3x3 rotation or 4x4 transform (its rotation is used).
         cost: weight of each rotation row (per radian).
-        gain, lm_damping, priority: see :class:`~optik.diffik.Task`.
+        gain, lm_damping, priority: see [`Task`][optik.diffik.Task].
     """
 
     rows = (3, 4, 5)

@@ -1,4 +1,4 @@
-"""Validation of user input: shapes, finiteness, names. Raise :mod:`optik.errors` subclasses."""
+"""Validation of user input: shapes, finiteness, names. Raise [`optik.errors`][optik.errors] subclasses."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from optik.errors import InvalidArgumentError, NonFiniteError, ShapeError
 
 def real_array(value: Any, name: str) -> np.ndarray:
     """``value`` as a float array; strings, complex numbers and other non-real input raise an
-    :class:`InvalidArgumentError` naming the argument (never numpy's own exception)."""
+    [`InvalidArgumentError`][optik.InvalidArgumentError] naming the argument (never numpy's own exception)."""
     try:
         a = np.asarray(value)
     except (TypeError, ValueError) as exc:  # ragged nested sequences

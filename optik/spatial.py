@@ -192,7 +192,7 @@ def hat(w: Any) -> Any:
 
 
 def vee(m: Any) -> Any:
-    """Inverse of :func:`hat` applied to the skew part: ``vee(M) = [M32, M13, M21]``.
+    """Inverse of [`hat`][optik.spatial.hat] applied to the skew part: ``vee(M) = [M32, M13, M21]``.
 
     For a general matrix this returns the vee of ``M`` read off its lower/upper entries; callers
     pass skew matrices (or ``(M - M^T) / 2``).
@@ -294,7 +294,7 @@ def rot_to_rpy(r: Any) -> Any:
 def rot_to_rpy_all(r: np.ndarray) -> list[np.ndarray]:
     """Both RPY triples of a rotation (numpy, one matrix).
 
-    Besides ``(roll, pitch, yaw)`` from :func:`rot_to_rpy`, the triple
+    Besides ``(roll, pitch, yaw)`` from [`rot_to_rpy`][optik.spatial.rot_to_rpy], the triple
     ``(roll + pi, pi - pitch, yaw + pi)`` (wrapped) gives the same matrix. At gimbal lock the
     two coincide up to the undetermined ``roll -+ yaw`` split and only one is returned.
     """
@@ -401,10 +401,10 @@ def angle_between(r_a: Any, r_b: Any) -> Any:
 def so3_log(r: Any) -> Any:
     """Rotation vector ``w`` (axis times angle, angle in ``[0, pi]``) with ``exp([w]x) = R``.
 
-    Uses the angle from :func:`rotation_angle` and the axis from the skew part when the angle is
-    below ``pi - 1e-3``; closer to a half-turn the axis is read from the symmetric part
-    ``(R + R^T) / 2 - cos(t) I = (1 - cos(t)) a a^T`` (largest diagonal column), whose sign is
-    fixed by the skew part.
+    Uses the angle from [`rotation_angle`][optik.spatial.rotation_angle] and the axis from the skew part when
+    the angle is below ``pi - 1e-3``; closer to a half-turn the axis is read from the symmetric part ``(R +
+    R^T) / 2 - cos(t) I = (1 - cos(t)) a a^T`` (largest diagonal column), whose sign is fixed by the skew
+    part.
     """
     theta = rotation_angle(r)
     if isinstance(r, np.ndarray):

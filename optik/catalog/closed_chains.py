@@ -1,7 +1,7 @@
 """Closed chains and parallel mechanisms: five-bar, doggy, slider-crank, 3-RPR, Stewart-Gough.
 
 Each constructor lays out bodies and joints; the spanning tree and the cut joints follow from
-:mod:`optik.mechanism.topology`, and the loop closures from the cut joints.
+[`optik.mechanism.topology`][optik.mechanism.topology], and the loop closures from the cut joints.
 """
 
 from __future__ import annotations

@@ -60,9 +60,10 @@ class TrackResult:
 
 
 def tracking_task(m: Mechanism, space: str | None = None, frame: str | None = None) -> FrameRowsTask:
-    """The frame task of a task space: ``"pose"`` -> :class:`FrameTask`, ``"position"`` /
-    ``"position2d"`` -> :class:`PositionTask` (``xyz`` / ``xy``), ``"pose2d"`` -> :class:`Pose2DTask`
-    (``None``: the mechanism's own task space), ``"orientation"`` -> :class:`OrientationTask`."""
+    """The frame task of a task space: ``"pose"`` -> [`FrameTask`][optik.diffik.track.FrameTask],
+    ``"position"`` / ``"position2d"`` -> [`PositionTask`][optik.diffik.track.PositionTask] (``xyz`` / ``xy``),
+    ``"pose2d"`` -> [`Pose2DTask`][optik.diffik.track.Pose2DTask] (``None``: the mechanism's own task space),
+    ``"orientation"`` -> [`OrientationTask`][optik.diffik.track.OrientationTask]."""
     s = m.task if space is None else space
     if s == "pose":
         return FrameTask(frame)
@@ -78,8 +79,8 @@ def tracking_task(m: Mechanism, space: str | None = None, frame: str | None = No
 def path_targets(m: Mechanism, path: Any) -> tuple[np.ndarray, str]:
     """The ``(N, 4, 4)`` target transforms of a path and the task space they imply.
 
-    A path is what :func:`optik.solve_ik` accepts as a target, one per step: a sequence of
-    :class:`~optik.Pose2D` (task ``"pose2d"``) or of :class:`~optik.Position`, an ``(N, 3)`` or
+    A path is what [`solve_ik`][optik.solve_ik] accepts as a target, one per step: a sequence of
+    `Pose2D` (task ``"pose2d"``) or of `Position`, an ``(N, 3)`` or
     ``(N, 2)`` array of points (task ``"position"``, ``"position2d"`` for planar mechanisms), or
     ``(N, 4, 4)`` transforms, each a proper rigid transform (the mechanism's own task).
 
@@ -122,26 +123,28 @@ def track(
     limits: Sequence[Limit] | None = None,
     **options: Any,
 ) -> TrackResult:
-    """Track a path: at step ``k`` the frame task's target is ``path[k]`` and one :func:`step` of
-    length ``dt`` moves the mechanism (gain 1: the step asks for the whole way to the sample, which
-    is the feed-forward velocity of the path plus the correction of the current error).
+    """Track a path: at step ``k`` the frame task's target is ``path[k]`` and one
+    [`step`][optik.diffik.track.step] of length ``dt`` moves the mechanism (gain 1: the step asks for the
+    whole way to the sample, which is the feed-forward velocity of the path plus the correction of the current
+    error).
 
     Args:
         m: the mechanism.
         q0: start configuration (may lie slightly outside the limits: the steps bring it back).
-        path: one target per step: ``(N, 4, 4)`` poses (see :mod:`optik.diffik.paths`), a
-            sequence of `Pose2D` or `Position`, or ``(N, 3)`` points (see :func:`path_targets`).
+        path: one target per step: ``(N, 4, 4)`` poses (see [`optik.diffik.paths`][optik.diffik.paths]),
+            a sequence of `Pose2D` or `Position`, or ``(N, 3)`` points (see
+            [`path_targets`][optik.diffik.track.path_targets]).
         dt: control period (s).
-        method, solver: see :func:`step`.
+        method, solver: see [`step`][optik.diffik.track.step].
         space: task space of the tracked frame (default: the one the targets imply, as in
-            :func:`optik.solve_ik`).
+            [`solve_ik`][optik.solve_ik]).
         frame: tracked frame (default: the end effector).
         tasks: extra tasks (posture, manipulability...), kept for every step.
-        limits: see :func:`step`; acceleration limits get the previous velocity.
-        **options: passed to :func:`step`.
+        limits: see [`step`][optik.diffik.track.step]; acceleration limits get the previous velocity.
+        **options: passed to [`step`][optik.diffik.track.step].
 
     Returns:
-        The :class:`TrackResult`.
+        The [`TrackResult`][optik.diffik.track.TrackResult].
     """
     targets, implied = path_targets(m, path)
     q = m.check_q(q0, "q0")

@@ -7,7 +7,7 @@ DH conventions (``q_i`` enters ``theta_i`` for revolute joints, ``d_i`` for pris
 * ``"standard"`` (Denavit-Hartenberg): ``A_i = Rot(z, theta_i) Trans(z, d_i) Trans(x, a_i) Rot(x, alpha_i)``.
 * ``"modified"`` (Craig): ``A_i = Rot(x, alpha_{i-1}) Trans(x, a_{i-1}) Rot(z, theta_i) Trans(z, d_i)``.
 
-Every builder returns a :class:`~optik.mechanism.mechanism.Mechanism` whose bodies are
+Every builder returns a [`Mechanism`][optik.mechanism.mechanism.Mechanism] whose bodies are
 ``base, link1, ..., linkN`` and whose end effector ``ee`` sits at the end of the last A-matrix
 (for the modified convention, at an optional flange transform).
 """
@@ -48,7 +48,7 @@ def planar_chain(
         lengths: one link length per joint (metres).
         lower, upper: coordinate limits (defaults: +-pi for R, [0, 2] m for P).
         name: label (default: ``"planar_" + types``).
-        task: default task space (see :class:`Mechanism`).
+        task: default task space (see [`Mechanism`][optik.Mechanism]).
     """
     types = as_name(types, "types").upper()
     if not types or set(types) - {"R", "P"}:

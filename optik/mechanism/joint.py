@@ -21,7 +21,7 @@ spherical    3    ``exp([q]x)``: q is a rotation vector (one chart covering SO(3
 ===========  ===  ==============================================================
 
 When a joint closes a loop (a *cut* joint) it has no coordinates; instead it contributes
-loop-closure equations (see :mod:`optik.mechanism.closure`).
+loop-closure equations (see `optik.mechanism.closure`).
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ Branches are collected in two ways:
 2. a numerical method (``"lm"`` where it applies, else ``"nlp"``) is run from the start ``q0``
    and then from points drawn uniformly within the limits, one start per call (no restarts
    inside a call); each successful answer that is not the same branch as one already found
-   (DESIGN.md rule: joint vectors within :data:`~optik.solvers.base.BRANCH_TOL`, angles modulo
+   (same-branch rule: joint vectors within [`BRANCH_TOL`][optik.solvers.base.BRANCH_TOL], angles modulo
    2 pi) is added.
 
 The search stops after ``patience`` consecutive starts without a new branch, after
@@ -59,7 +59,7 @@ def solve_ik_all(
 
     Args:
         m: the mechanism.
-        target: 4x4 transform, :class:`~optik.Pose2D` or :class:`~optik.Position`.
+        target: 4x4 transform, [`Pose2D`][optik.Pose2D] or [`Position`][optik.Position].
         q0: first start of the numerical search (default mid-limit); results are sorted by their
             distance to it.
         method: numerical method for the multi-start (default ``"lm"`` where it applies,

@@ -16,7 +16,7 @@ class ConfigurationLimit(Limit):
 
     Starting outside the limits (``q_i < lower_i``) the bound on that side becomes
     ``dq_i >= lower_i - q_i > 0`` with gain 1: the step must bring the coordinate back in at once,
-    and since velocity limits rank before this limit (see :class:`~optik.diffik.Limit`) a
+    and since velocity limits rank before this limit (see [`Limit`][optik.diffik.Limit]) a
     coordinate that cannot get back within one step moves towards the limits at full speed. The QP
     therefore stays feasible and the motion returns inside the limits.
 

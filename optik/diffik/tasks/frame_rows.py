@@ -17,7 +17,7 @@ from optik.targets import target_transform
 class FrameRowsTask(Task):
     """Rows of ``e = [p - p*; log(R R*^T)]`` (base frame) of one frame against a target pose.
 
-    Subclasses fix :attr:`rows` (0-2 position, 3-5 rotation vector) and convert their target
+    Subclasses fix `rows` (0-2 position, 3-5 rotation vector) and convert their target
     argument into a 4x4 transform.
     """
 

@@ -26,7 +26,7 @@ class JointLimitTask(Task):
         n_q: number of coordinates of the mechanism it will be used with.
         cost: weight per coordinate (scalar or ``n_q`` values).
         exponent: odd integer ``k >= 1`` (``k = 1`` is a posture task to mid-limit, normalised).
-        gain, lm_damping, priority: see :class:`~optik.diffik.Task`.
+        gain, lm_damping, priority: see [`Task`][optik.diffik.Task].
     """
 
     def __init__(

@@ -30,7 +30,7 @@ class ManipulabilityTask(Task):
             ``"position2d"``.
         cost: weight per coordinate (scalar or ``n_q`` values).
         gain: ascent step ``alpha`` (rad per unit of ``grad w``), in ``(0, 1]``.
-        lm_damping, priority: see :class:`~optik.diffik.Task`.
+        lm_damping, priority: see [`Task`][optik.diffik.Task].
     """
 
     def __init__(

@@ -19,7 +19,7 @@ class OrientationTask(FrameRowsTask):
         frame: frame name (None: the end effector).
         target: 3x3 rotation, 4x4 transform or `Pose2D` (its rotation is used).
         cost: weight of each rotation row (per radian).
-        gain, lm_damping, priority: see :class:`~optik.diffik.Task`.
+        gain, lm_damping, priority: see [`Task`][optik.diffik.Task].
     """
 
     rows = (3, 4, 5)

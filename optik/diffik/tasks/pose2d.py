@@ -19,9 +19,9 @@ class Pose2DTask(PoseRowsTask):
 
     Args:
         frame: frame name (None: the end effector).
-        target: :class:`~optik.Pose2D`, ``(x, y, phi)`` or a 4x4 transform in the x-y plane.
+        target: [`Pose2D`][optik.Pose2D], ``(x, y, phi)`` or a 4x4 transform in the x-y plane.
         position_cost: weight of the x and y rows; orientation_cost: of the heading row.
-        gain, lm_damping, priority: see :class:`~optik.diffik.Task`.
+        gain, lm_damping, priority: see [`Task`][optik.diffik.Task].
     """
 
     rows = (0, 1, 5)

@@ -18,11 +18,11 @@ class PositionTask(FrameRowsTask):
 
     Args:
         frame: frame name (None: the end effector).
-        target: 3-vector (2-vector for planar), :class:`~optik.Position` or a 4x4 transform
+        target: 3-vector (2-vector for planar), [`Position`][optik.Position] or a 4x4 transform
             (its translation is used).
         cost: weight of each position row (scalar or one per axis).
         axes: the coordinates to control, e.g. ``"xyz"`` or ``"xy"`` for planar mechanisms.
-        gain, lm_damping, priority: see :class:`~optik.diffik.Task`.
+        gain, lm_damping, priority: see [`Task`][optik.diffik.Task].
     """
 
     kind = "position"

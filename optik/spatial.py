@@ -19,6 +19,7 @@ Conventions:
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import casadi as ca
@@ -50,6 +51,7 @@ __all__ = [
     "translation_of",
     "vee",
     "wrap_angle",
+    "wrap_rotation_vector",
     "zyz_to_rot",
 ]
 
@@ -137,6 +139,22 @@ def wrap_angle(a: Any) -> Any:
         if np.ndim(w)
         else (float(w + 2.0 * np.pi) if w <= -np.pi else float(w))
     )
+
+
+def wrap_rotation_vector(w: np.ndarray) -> np.ndarray:
+    """The rotation vector of the same rotation with angle in ``[0, pi]``.
+
+    ``w = theta u`` with ``theta = |w| > pi`` is replaced by ``wrap_angle(theta) u``: the angle
+    reduced modulo 2 pi in one step (a negative reduced angle is the rotation about ``-u``), so
+    the cost does not grow with ``|w|``.
+
+    Args:
+        w: a finite rotation vector (numpy, 3 entries).
+    """
+    norm = math.hypot(*w.tolist())  # no overflow for huge finite entries (unlike the dot product)
+    if norm <= np.pi:
+        return w
+    return w * (wrap_angle(norm) / norm)
 
 
 def rot_x(a: Any) -> Any:

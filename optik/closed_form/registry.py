@@ -26,6 +26,7 @@ import numpy as np
 from optik.checks import as_vector
 from optik.errors import SolverUnavailableError
 from optik.mechanism import Mechanism
+from optik.spatial import wrap_rotation_vector
 from optik.targets import target_transform
 
 IKSolver = Callable[[Mechanism, np.ndarray], Sequence[Sequence[float]]]
@@ -101,10 +102,7 @@ def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]
         return [m.wrap(row).tolist() for row in rows]
     for row in out:
         for sl in spherical:  # rotation vectors: angle above pi -> 2 pi - angle, opposite axis
-            norm = float(np.linalg.norm(row[sl]))
-            while norm > np.pi:
-                row[sl] = [v * (1.0 - 2.0 * np.pi / norm) for v in row[sl]]
-                norm = float(np.linalg.norm(row[sl]))
+            row[sl] = wrap_rotation_vector(np.array(row[sl])).tolist()
     lo, hi = m.lower.tolist(), m.upper.tolist()
     pi, two_pi = np.pi, _TWO_PI
     for row in out:

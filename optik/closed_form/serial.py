@@ -157,7 +157,8 @@ def _two_link_one(l1: float, l2: float, x: float, y: float) -> tuple[bool, float
     inv = 1.0 / (2.0 * l1 * l2)
     one_plus = (r2 - (l1 - l2) ** 2) * inv
     one_minus = ((l1 + l2) ** 2 - r2) * inv
-    ok = one_plus >= -COS_TOL and one_minus >= -COS_TOL
+    if not (one_plus >= -COS_TOL and one_minus >= -COS_TOL):
+        return False, 0.0, 0.0, 0.0  # unreachable (also a target so far away that r2 overflows)
     one_plus = max(one_plus, 0.0)
     one_minus = max(one_minus, 0.0)
     s2 = math.sqrt(one_minus * one_plus)
@@ -165,7 +166,7 @@ def _two_link_one(l1: float, l2: float, x: float, y: float) -> tuple[bool, float
     th2 = math.atan2(s2, c2)
     beta = math.atan2(y, x)
     delta = math.atan2(s2 * l2, one_plus * l2 + (l1 - l2))
-    return ok, _wrap_one(beta - delta), _wrap_one(beta + delta), th2
+    return True, _wrap_one(beta - delta), _wrap_one(beta + delta), th2
 
 
 def _planar_2r_one(l1: float, l2: float, x: float, y: float) -> list[list[float]]:

@@ -22,7 +22,7 @@ import casadi as ca
 import numpy as np
 
 from optik import spatial
-from optik.checks import as_vector
+from optik.checks import as_int, as_vector, real_array
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 
@@ -108,9 +108,7 @@ class Task(ABC):
             raise InvalidArgumentError("gain", f"must be in (0, 1], got {g}")
         self.gain = g
         self.lm_damping = positive(lm_damping, "lm_damping")
-        if int(priority) != priority or priority < 0:
-            raise InvalidArgumentError("priority", f"must be an integer >= 0, got {priority!r}")
-        self.priority = int(priority)
+        self.priority = as_int(priority, "priority", 0)
 
     def _check_coordinates(self, m: Mechanism) -> None:
         """Raise unless the task (one row per coordinate, built for ``n_q``) fits ``m``."""
@@ -182,7 +180,7 @@ class Limit(ABC):
 
 def rate_limits(value: Any, name: str, what: str) -> np.ndarray:
     """Per-coordinate maxima (scalar or one per coordinate), each ``> 0`` (``inf`` allowed)."""
-    v = np.asarray(value, dtype=float).reshape(-1)
+    v = real_array(value, name).reshape(-1)
     if v.size == 0 or np.any(np.isnan(v)) or np.any(v <= 0):
         raise InvalidArgumentError(name, f"{what} must be > 0, got {v}")
     return v

@@ -268,9 +268,7 @@ def build_qp(
         OptikError: a subclass naming the bad argument (q, tasks, dt, limits, v_prev, damping, a
             task's target or frame).
     """
-    qq = np.asarray(q, dtype=float)
-    if qq.shape != (m.n_q,) or not np.isfinite(qq).all():
-        qq = m.check_q(q)  # raises the error naming q
+    qq = m.check_q(q)  # raises the error naming q
     task_list = _check_tasks(tasks)
     step = _positive_float(dt, "dt", strict=True)
     lims = normalize_limits(m, limits)

@@ -99,7 +99,7 @@ class OsqpWorkspace:
 
 def solve_osqp(problem: DiffIKProblem, **settings: Any) -> QPOutcome:
     """OSQP with a persistent workspace per task structure (``settings``: OSQP settings)."""
-    key = ("osqp", tuple(sorted(settings.items())))
+    key = ("osqp", repr(sorted(settings.items())))  # repr: settings values may be unhashable
     ws = problem.cache.backends.get(key) if problem.cache is not None else None
     if ws is None:
         ws = OsqpWorkspace(problem, settings)

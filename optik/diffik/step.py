@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from optik.checks import as_name
 from optik.diffik.base import Limit, Task, positive
 from optik.diffik.linalg import solve_pseudo_inverse
 from optik.diffik.problem import DiffIKProblem, build_qp
@@ -163,8 +164,9 @@ def step(
         OptikError: a subclass naming the argument, for malformed input or an unknown method.
     """
     start = time.perf_counter()
-    if method not in METHODS:
-        raise InvalidArgumentError("method", f"unknown method {method!r}; use one of {METHODS}")
+    as_name(method, "method", METHODS)
+    if solver is not None:
+        as_name(solver, "solver")
     qp_damping = 1e-12 if damping is None or method != "qp" else damping
     problem = build_qp(m, q, tasks, dt, limits, v_prev=v_prev, damping=qp_damping, closure_gain=closure_gain)
     status, message, used = "ok", "", None

@@ -19,7 +19,7 @@ import casadi as ca
 import numpy as np
 
 from optik import spatial
-from optik.checks import as_batch, as_rng, as_vector
+from optik.checks import as_batch, as_name, as_rng, as_vector
 from optik.errors import InvalidArgumentError, ModelError, UnknownFrameError
 from optik.mechanism.joint import Joint
 from optik.mechanism.topology import analyse, gruebler_kutzbach
@@ -353,10 +353,7 @@ class Mechanism:
         return self.jacobian(q, frame)[list(rows)]
 
     def _task(self, task: str | None) -> str:
-        t = self.task if task is None else task
-        if t not in TASK_ROWS:
-            raise InvalidArgumentError("task", f"unknown task {t!r}; use one of {sorted(TASK_ROWS)}")
-        return t
+        return self.task if task is None else as_name(task, "task", TASK_ROWS)
 
     def manipulability(self, q: Any, frame: str | None = None, task: str | None = None) -> float:
         """Yoshikawa's measure ``sqrt(det(J J^T))`` = product of singular values of the task Jacobian."""
@@ -430,10 +427,7 @@ class Mechanism:
         w = qq.copy()
         w[ang] = spatial.wrap_angle(qq[ang])
         for sl in self.spherical_slices:
-            norm = float(np.linalg.norm(w[sl]))
-            while norm > np.pi:
-                w[sl] *= 1.0 - 2.0 * np.pi / norm
-                norm = float(np.linalg.norm(w[sl]))
+            w[sl] = spatial.wrap_rotation_vector(w[sl])
         for k in np.flatnonzero(ang):
             if self.lower[k] <= w[k] <= self.upper[k]:
                 continue

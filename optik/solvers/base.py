@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from optik import spatial
-from optik.checks import as_rng, as_vector
+from optik.checks import as_float, as_name, as_rng, as_vector
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.results import IKResult
@@ -41,6 +41,16 @@ class Tolerances:
     orientation: float = 1e-6
     closure: float = 1e-9
 
+    def __post_init__(self) -> None:
+        """Each tolerance must be a finite number > 0 (0 can never be met by floating point,
+        and the methods divide by the tolerances to scale their stopping tests).
+
+        Raises:
+            InvalidArgumentError: naming the field (``position``, ``orientation``, ``closure``).
+        """
+        for name in ("position", "orientation", "closure"):
+            object.__setattr__(self, name, as_float(getattr(self, name), name, 0.0, strict=True))
+
     @classmethod
     def from_arg(cls, tol: float | Tolerances | None) -> Tolerances:
         """``None`` -> defaults; a float sets position and orientation tolerances."""
@@ -48,9 +58,7 @@ class Tolerances:
             return _DEFAULT_TOL if cls is Tolerances else cls()
         if isinstance(tol, Tolerances):
             return tol
-        t = float(as_vector(tol, "tol", 1)[0])
-        if t <= 0:
-            raise InvalidArgumentError("tol", f"must be > 0, got {t}")
+        t = as_float(tol, "tol", 0.0, strict=True)
         return cls(position=t, orientation=t)
 
 
@@ -200,8 +208,11 @@ def make_result(
 ) -> IKResult:
     """An [`IKResult`][optik.IKResult] for ``q``: errors evaluated here, success judged by the tolerances.
 
-    ``q`` is clipped into the limits first (a method must never report a violating answer);
-    the status defaults to ``"solved"`` or ``"not_converged"``.
+    ``q`` is clipped into the limits first (a method must never report a violating answer).
+    Status and success always agree: a result that meets the tolerances is ``"solved"`` (with
+    no message) whatever the method's stop reason, since the final, wrapped and clipped ``q``
+    decides, not the method's own bookkeeping; a failed result has the method's ``status``,
+    default ``"not_converged"``.
 
     Args:
         errors: optional faster evaluation ``q -> (position, orientation, closure)`` errors with
@@ -240,8 +251,10 @@ def make_result(
         pos, ori, clo = errors(qq)
         err = Errors(float(pos), float(ori), float(clo), inside)
     success = err.ok(request.tol)
-    if status is None:
-        status = "solved" if success else "not_converged"
+    if success:
+        status, message = "solved", ""
+    elif status is None or status == "solved":
+        status = "not_converged"
     if not success and not message:
         message = (
             f"tolerances not met within the time limit ({request.time_limit:g} s): position error "
@@ -357,7 +370,7 @@ def get_method(name: str) -> MethodInfo:
     Raises:
         SolverUnavailableError: unknown name (the message lists the known ones).
     """
-    if name not in _METHODS:
+    if as_name(name, "method") not in _METHODS:
         raise SolverUnavailableError(f"unknown IK method {name!r}; available: {sorted(_METHODS)}")
     return _METHODS[name]
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from optik.checks import as_float
 from optik.diffik.base import BIG, Limit
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
@@ -27,9 +28,10 @@ class ConfigurationLimit(Limit):
     rank = 1
 
     def __init__(self, gain: float = 1.0) -> None:
-        if not 0 < gain <= 1:
+        g = as_float(gain, "gain", 0.0, strict=True)
+        if g > 1:
             raise InvalidArgumentError("gain", f"must be in (0, 1], got {gain}")
-        self.gain = float(gain)
+        self.gain = g
 
     def key(self) -> tuple:
         return ("configuration",)

@@ -7,6 +7,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from optik.checks import as_int
 from optik.diffik.base import Task
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
@@ -37,10 +38,11 @@ class JointLimitTask(Task):
         lm_damping: float = 0.0,
         priority: int = 0,
     ) -> None:
-        if int(exponent) != exponent or exponent < 1 or exponent % 2 == 0:
+        k = as_int(exponent, "exponent", 1)
+        if k % 2 == 0:
             raise InvalidArgumentError("exponent", f"must be an odd integer >= 1, got {exponent!r}")
         self.dim = positive_int(n_q, "n_q")
-        self.exponent = int(exponent)
+        self.exponent = k
         super().__init__(cost, gain, lm_damping, priority)
 
     def key(self) -> tuple:

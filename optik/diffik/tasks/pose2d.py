@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from optik.checks import as_vector
+from optik.checks import as_vector, real_array
 from optik.diffik.tasks.frame_rows import PoseRowsTask
 from optik.targets import Pose2D, target_transform
 
@@ -30,7 +30,7 @@ class Pose2DTask(PoseRowsTask):
     def to_transform(self, target: Any) -> np.ndarray:
         if isinstance(target, Pose2D):
             return target.as_transform()
-        arr = np.asarray(target, dtype=float)
+        arr = real_array(target, "target")
         if arr.shape == (4, 4):
             return target_transform(arr)
         return Pose2D(*as_vector(target, "target", 3)).as_transform()

@@ -6,6 +6,7 @@ assembly mode and differential IK, and compares every solver against closed form
 """
 
 from optik import catalog, closed_form, diffik, spatial  # diffik registers the "dls" and "qp" IK methods
+from optik.batch import BatchResult, fk_batch, solve_ik_batch
 from optik.errors import (
     InvalidArgumentError,
     LimitsError,
@@ -27,6 +28,7 @@ from optik.targets import Pose2D, Position
 __version__ = "0.1.0"
 
 __all__ = [
+    "BatchResult",
     "FKResult",
     "IKProblem",
     "IKResult",
@@ -49,10 +51,12 @@ __all__ = [
     "closed_form",
     "dh_chain",
     "diffik",
+    "fk_batch",
     "planar_chain",
     "solve_fk",
     "solve_fk_all",
     "solve_ik",
     "solve_ik_all",
+    "solve_ik_batch",
     "spatial",
 ]

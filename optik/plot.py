@@ -31,6 +31,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.backend_bases import FigureCanvasBase
 from matplotlib.figure import Figure
 
 from optik.checks import as_rng
@@ -428,6 +429,39 @@ def write_atomic(path: str | os.PathLike[str], write: Callable[[str], None]) -> 
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+    return dest
+
+
+def check_writable(path: str | os.PathLike[str], name: str, directory: bool = False) -> Path:
+    """Check, before a long computation, that its output can be written: the folder (``path``
+    itself when ``directory``, else its parent) is created when missing and a temporary file is
+    created in it and removed; a figure file needs an image extension matplotlib knows.
+
+    Raises:
+        InvalidArgumentError: naming ``name``, with the operating system's reason.
+    """
+    try:
+        dest = Path(path)
+    except TypeError:
+        raise InvalidArgumentError(name, f"expected a file path, got {path!r}") from None
+    folder = dest if directory else dest.parent
+    if not directory:
+        if dest.is_dir():
+            raise InvalidArgumentError(name, f"{str(dest)!r} is a directory; name a file such as plot.png")
+        fmt = dest.suffix.lstrip(".").lower()
+        known = FigureCanvasBase.get_supported_filetypes()
+        if fmt not in known:
+            raise InvalidArgumentError(
+                name, f"unsupported image format {fmt!r} of {str(dest)!r}; known: {sorted(known)}"
+            )
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=".optik-write-check.", dir=folder)
+        os.close(fd)
+        os.unlink(tmp)
+    except (OSError, ValueError) as exc:  # ValueError: a NUL character in the path
+        reason = getattr(exc, "strerror", None) or str(exc)
+        raise InvalidArgumentError(name, f"cannot write into {str(folder)!r}: {reason}") from None
     return dest
 
 

@@ -153,7 +153,7 @@ def _count(minimum: int, maximum: int | None = None) -> Callable[[Any], int]:
     def parse(v: Any) -> int:
         too_big = maximum is not None and isinstance(v, int) and v > maximum
         if isinstance(v, bool) or not isinstance(v, int) or v < minimum or too_big:
-            bound = f"an integer >= {minimum}" if maximum is None else f"an integer in [{minimum}, {maximum}]"
+            bound = f"an integer >= {minimum}" + ("" if maximum is None else f" and <= {maximum}")
             raise ValueError(f"expected {bound}, got {v!r}")
         return v
 

@@ -23,6 +23,7 @@ from optik.results import FKResult, IKResult
 from optik.solvers import Tolerances, solve_ik, solve_ik_all
 from optik.solvers.fk import solve_fk, solve_fk_all
 from optik.targets import Pose2D, Position
+from optik.view import view
 
 __version__ = "0.1.0"
 
@@ -55,4 +56,5 @@ __all__ = [
     "solve_ik",
     "solve_ik_all",
     "spatial",
+    "view",
 ]

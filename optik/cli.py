@@ -470,6 +470,10 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("name", metavar="NAME", help="benchmark name: the NAME of benchmarks/bench_NAME.py")
     k.add_argument("args", nargs=argparse.REMAINDER, help="arguments passed to the script")
     k.set_defaults(func=_cmd_benchmark)
+
+    from optik.view.command import add_parser as add_view  # optik view: the browser viewer
+
+    add_view(sub)
     return parser
 
 

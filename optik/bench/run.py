@@ -14,14 +14,14 @@ from optik.bench.harness import ProblemRun, known_solvers, run_problems
 from optik.bench.progress import Progress
 from optik.bench.report import format_table, machine_info, write_outputs
 from optik.errors import InvalidArgumentError
-from optik.problems import Problem, default_problems, find_problem
+from optik.problem_files import Problem, default_problems, find_problem
 
 __all__ = ["BenchOutcome", "run_bench", "select_problems"]
 
 
 @dataclass(frozen=True)
 class BenchOutcome:
-    """What :func:`run_bench` did: the problem results and the files it wrote."""
+    """What [`run_bench`][optik.bench.run.run_bench] did: the problem results and the files it wrote."""
 
     runs: list[ProblemRun]
     files: list[Path]

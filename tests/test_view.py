@@ -199,16 +199,16 @@ def test_latest_runs_the_newest_request_and_drops_the_stale_ones():
 @pytest.mark.parametrize(
     ("argv", "argument"),
     [
-        (["view", "no_such_problem", "--no-browser"], "PROBLEM"),
+        (["view", "no_such_problem", "--no-browser"], "problem"),
         (["view", "robot.urdf", "--no-browser"], "--base"),
-        (["view", "planar_3r", "--no-browser", "--method", "warp"], "--method"),
+        (["view", "planar_3r", "--no-browser", "--method", "warp"], "method"),
         (["view", "planar_3r", "--no-browser", "--port", "70000"], "--port"),
     ],
 )
 def test_view_command_errors_exit_2_naming_the_argument(argv, argument, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err
-    assert err.startswith("optik view: error: argument " + argument) and len(err.splitlines()) == 1
+    assert err.startswith(f"optik view: error: {argument}: ") and len(err.splitlines()) == 1
 
 
 def test_view_help(capsys):

@@ -43,24 +43,21 @@ def add_parser(sub: Any) -> None:
 
 
 def _viewer(args: argparse.Namespace) -> Any:
-    from optik.cli import UsageError, _problem, _usage  # the command line's problem lookup and messages
-    from optik.errors import OptikError
+    from optik.errors import InvalidArgumentError
     from optik.mechanism import Mechanism
+    from optik.problem_files import find_problem
     from optik.view import Viewer
 
     if not 0 <= args.port <= 65535:
-        raise UsageError("--port", f"expected 0..65535, got {args.port}")
+        raise InvalidArgumentError("--port", f"expected 0..65535, got {args.port}")
     if Path(args.source).suffix.lower() == ".urdf":
         if args.base is None or args.tip is None:
-            raise UsageError("--base", "a URDF file needs --base and --tip (the chain's end links)")
+            raise InvalidArgumentError("--base", "a URDF file needs --base and --tip (the chain's end links)")
         m, task, tol = Mechanism.from_urdf(args.source, args.base, args.tip), None, None
     else:
-        problem = _problem(args.source, args.problems_dir)
+        problem = find_problem(args.source, args.problems_dir)
         m, task, tol = problem.mechanism(), problem.mechanism_task, problem.tolerances
-    try:
-        return Viewer(m, host=args.host, port=args.port, task=task, tol=tol, method=args.method)
-    except OptikError as exc:  # a bad --method
-        raise _usage(exc) from None
+    return Viewer(m, host=args.host, port=args.port, task=task, tol=tol, method=args.method)
 
 
 def _interrupt(signum: int, frame: FrameType | None) -> None:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -16,9 +16,6 @@ from optik.diffik.track import TrackResult
 from optik.errors import OptikError
 from optik.results import IKResult
 from optik.view.latest import Latest
-
-if TYPE_CHECKING:
-    from optik.view.viewer import Viewer
 
 __all__ = ["Panel"]
 
@@ -30,9 +27,9 @@ def _range(lo: float, hi: float, revolute: bool, size: float) -> tuple[float, fl
 
 
 class Panel:
-    """The GUI of a `Viewer` (built by it)."""
+    """The GUI of an `optik.view.Viewer` (built by it; ``viewer`` is that object)."""
 
-    def __init__(self, viewer: Viewer) -> None:
+    def __init__(self, viewer: Any) -> None:
         self.v = viewer
         m = viewer.m
         gui = viewer.server.gui

@@ -1,6 +1,6 @@
 """Throughput of the vectorized closed forms: planar 2R, planar 3R and the seed's 6R arm.
 
-Method (DESIGN.md): random joint vectors drawn uniformly within the limits (seeded), targets by
+Method (docs/benchmarks.md): random joint vectors drawn uniformly within the limits (seeded), targets by
 the mechanism's own FK, then the vectorized solver on all targets at once in one process on one
 core (thread pools pinned to 1 before numpy is imported). Each solver call is timed ``--repeat``
 times over the same targets; the table shows the median and best throughput (targets/s, every

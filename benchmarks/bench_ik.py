@@ -1,6 +1,6 @@
 """IK on the Franka Panda: optik ``lm`` and ``nlp`` against TRAC-IK, same URDF, same targets, same run.
 
-Method (DESIGN.md): the Panda chain is loaded from the shipped URDF
+Method (docs/benchmarks.md): the Panda chain is loaded from the shipped URDF
 (``optik.catalog.arms.urdf_path("panda")``, ``panda_link0`` -> ``panda_link8``) by optik and by
 TRAC-IK (``pytracik``, Speed mode). ``--n`` joint vectors are drawn uniformly within the limits
 (seeded), the targets are their FK poses, and every solver starts from the mid-limit seed with

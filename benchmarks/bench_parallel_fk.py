@@ -1,6 +1,6 @@
 """Forward kinematics of parallel mechanisms: all assembly modes (closed form) and numerical FK.
 
-Method (DESIGN.md): poses drawn at random (seeded), actuated values by the closed-form IK, then
+Method (docs/benchmarks.md): poses drawn at random (seeded), actuated values by the closed-form IK, then
 each solver on the same inputs in the same process, every call timed (failures included).
 Thread pools are pinned to 1 before numpy is imported (the machine has 2 cores).
 

@@ -1,6 +1,6 @@
 """optik: kinematics by constrained optimization.
 
-Every mechanism becomes one CasADi model (:class:`Mechanism`) with joint limits and
+Every mechanism becomes one CasADi model ([`Mechanism`][optik.Mechanism]) with joint limits and
 loop-closure constraints; optik solves IK with limits, FK of parallel mechanisms in every
 assembly mode and differential IK, and compares every solver against closed forms.
 """

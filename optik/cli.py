@@ -4,7 +4,7 @@
 Every problem subcommand takes a problem name (a file of ``problems/``) or the path of a
 ``.toml`` problem file, and has ``--help``. Bad arguments give a one-line message naming the
 argument and exit code 2; unreachable targets and non-assemblable inputs are normal outcomes
-(exit code 1 when nothing was solved). The problem-set benchmark lives in :mod:`optik.bench`;
+(exit code 1 when nothing was solved). The problem-set benchmark lives in [`optik.bench`][optik.bench];
 ``optik benchmark NAME`` loads ``benchmarks/bench_NAME.py`` of a source checkout and calls its
 ``main(argv)``.
 
@@ -130,7 +130,7 @@ ARGUMENTS = {
 
 
 def _usage(exc: OptikError) -> UsageError:
-    """A :class:`UsageError` for a library error, naming the command-line option."""
+    """A [`UsageError`][optik.cli.UsageError] for a library error, naming the command-line option."""
     text = str(exc)
     prefix = f"{getattr(exc, 'argument', '')}: "
     return UsageError(_option(exc), text[len(prefix) :] if text.startswith(prefix) else text)
@@ -197,6 +197,8 @@ def _cmd_solve(args: argparse.Namespace) -> int:
             print(f"    {r.message}")
     if not results:
         print("no solution: the target is unreachable within the joint limits")
+    if args.all:
+        print(results.message)
     if args.plot and results:
         from optik.plot import draw_branches
 
@@ -206,7 +208,8 @@ def _cmd_solve(args: argparse.Namespace) -> int:
 
 # ---------------------------------------------------------------------------- fk
 def _assembly_modes(m: Mechanism, actuated: np.ndarray) -> list[np.ndarray]:
-    """All assembly modes: the closed form when registered, else :func:`optik.solve_fk_all`."""
+    """All assembly modes: the closed form when registered, else
+    [`optik.solve_fk_all`][optik.solve_fk_all]."""
     if closed_form.has_fk(m):
         return closed_form.fk(m, actuated)
     return [np.asarray(r.q) for r in optik.solve_fk_all(m, actuated) if r.success]

@@ -5,17 +5,16 @@ a child body the two sides of the joint are
 
 ``A_j(q) = T_parent(q) origin_j``  and  ``B_j(q) = T_child(q) child_offset_j``
 
-(see :mod:`optik.mechanism.joint`). For a revolute, universal or spherical tree joint their
-origins coincide; for a prismatic joint ``B_j = A_j Trans(q_j axis_j)``, so the segment
-``A_j -> B_j`` is the slide; for a cut joint they coincide exactly when the loop is closed. One
-CasADi function ``q -> (p_A, p_B, T_ee)`` is compiled once per mechanism. A body is drawn as the
-polyline through the joint locations it carries (a filled polygon when they span an area, e.g.
-a platform); joints are markers (actuated filled, passive hollow), the ground as hatching, the
-end-effector frame as a small x-y(-z) triad. Planar mechanisms are drawn in 2-D, spatial ones
-in 3-D.
+(see [`optik.mechanism.joint`][optik.mechanism.joint]). For a revolute, universal or spherical tree joint
+their origins coincide; for a prismatic joint ``B_j = A_j Trans(q_j axis_j)``, so the segment ``A_j -> B_j``
+is the slide; for a cut joint they coincide exactly when the loop is closed. One CasADi function ``q -> (p_A,
+p_B, T_ee)`` is compiled once per mechanism. A body is drawn as the polyline through the joint locations it
+carries (a filled polygon when they span an area, e.g. a platform); joints are markers (actuated filled,
+passive hollow), the ground as hatching, the end-effector frame as a small x-y(-z) triad. Planar mechanisms
+are drawn in 2-D, spatial ones in 3-D.
 
-No ``pyplot`` state is used: figures are :class:`matplotlib.figure.Figure` objects, saved with
-:func:`save_figure` (temporary file + ``os.replace``, so a reader never sees half a PNG).
+No ``pyplot`` state is used: figures are `matplotlib.figure.Figure` objects, saved with
+[`save_figure`][optik.plot.save_figure] (temporary file + ``os.replace``, so a reader never sees half a PNG).
 """
 
 from __future__ import annotations
@@ -289,7 +288,7 @@ def draw_branches(
         qs: one coordinate vector per branch (an empty list gives a figure saying so).
         title: figure title (default: the mechanism's name and the number of branches).
         label: subplot titles are ``f"{label} {i}"`` (e.g. ``"assembly mode"``).
-        **style: passed to :func:`draw`.
+        **style: passed to [`draw`][optik.plot.draw].
 
     Returns:
         A figure with ``len(qs)`` axes (one axes with a note when ``qs`` is empty).
@@ -322,7 +321,7 @@ def workspace_points(
     Open chains: ``q ~ U(lower, upper)``, point ``p_ee(q)``. Closed chains: the actuated
     coordinates ``a ~ U(lower_a, upper_a)`` are assembled and the non-assemblable samples are
     dropped. Planar closed chains use the closed-form FK (every assembly mode within limits);
-    spatial ones the numerical :func:`optik.solve_fk` (one mode per sample from the mid-limit
+    spatial ones the numerical [`optik.solve_fk`][optik.solve_fk] (one mode per sample from the mid-limit
     start), since the closed-form FK of a 6-6 platform costs about a second per sample.
 
     Returns:
@@ -350,8 +349,8 @@ def workspace_points(
 def workspace(m: Mechanism, n: int = 2000, seed: int | np.random.Generator | None = 0) -> Figure:
     """Scatter plot of sampled reachable end-effector positions within the joint limits.
 
-    See :func:`workspace_points` for the sampling. Points are coloured by assembly mode; the
-    mechanism is drawn in the mid-limit configuration of open chains, or in the first assembled
+    See [`workspace_points`][optik.plot.workspace_points] for the sampling. Points are coloured by assembly
+    mode; the mechanism is drawn in the mid-limit configuration of open chains, or in the first assembled
     sample of closed chains.
 
     Args:

@@ -2,7 +2,7 @@
 
 A problem file names a catalog constructor and its parameters, optional joint-limit overrides,
 how to draw targets, the success tolerances and which solvers and peers apply. Files are parsed
-with :mod:`tomllib` (``tomli`` on Python 3.10): data only, no code is executed. Every error
+with `tomllib` (``tomli`` on Python 3.10): data only, no code is executed. Every error
 names the file, the key and what is wrong, e.g.
 ``problems/five_bar.toml: targets.n: expected an integer >= 1, got 0``.
 
@@ -34,7 +34,7 @@ path. Schema (every table but ``[mechanism]`` optional)::
     pose_center = [...]          # "pose": (x, y, phi) planar, (x, y, z, roll, pitch, yaw) spatial
     pose_half_range = [...]
 
-    [tolerances]                 # DESIGN.md defaults
+    [tolerances]                 # the default success tolerances
     position = 1e-6
     orientation = 1e-6
     closure = 1e-9
@@ -45,13 +45,13 @@ path. Schema (every table but ``[mechanism]`` optional)::
     time_limit = 0.1             # seconds per IK call
     quick_time_limit = 0.05
 
-Target sampling (DESIGN.md benchmark method): the reference configuration ``q`` is drawn so
+Target sampling (the benchmark method): the reference configuration ``q`` is drawn so
 that it satisfies the limits and the loop closures, and the target is ``T = FK(q)``:
 
 * ``joint`` (open chains): ``q ~ U(lower, upper)``.
 * ``actuated`` (closed chains): actuated coordinates ``a ~ U(lower_a, upper_a)``, assembled by
   the closed-form FK (one of its assembly modes within limits, drawn at random) or by
-  :func:`optik.solve_fk`; draws that do not assemble are discarded.
+  [`optik.solve_fk`][optik.solve_fk]; draws that do not assemble are discarded.
 * ``pose`` (closed chains with a closed-form IK): a pose drawn uniformly in the box
   ``center +- half_range``, solved by the closed-form IK (one branch within limits, at random);
   unreachable draws are discarded.
@@ -102,7 +102,7 @@ PROBLEM_DIR = Path(__file__).resolve().parent.parent / "problems"
 """``problems/`` at the top of the repository the package was installed from."""
 
 PEERS = ("trac_ik", "pink", "ikpy")
-"""Peer libraries a problem may ask for (adapters in :mod:`optik.bench.peers`)."""
+"""Peer libraries a problem may ask for (adapters in [`optik.bench.peers`][optik.bench.peers])."""
 
 SAMPLING = ("auto", "joint", "actuated", "pose")
 """Target sampling modes."""
@@ -233,7 +233,7 @@ REQUIRED_TABLES = ("problem", "mechanism")
 
 
 def _validate(path: Path, data: dict[str, Any]) -> dict[str, dict[str, Any]]:
-    """Check every table and key against :data:`SCHEMA`; return the parsed values."""
+    """Check every table and key against [`SCHEMA`][optik.problem_files.SCHEMA]; return the parsed values."""
     out: dict[str, dict[str, Any]] = {}
     for table in data:
         if table not in SCHEMA:
@@ -291,7 +291,7 @@ def assemble(
     """Configurations of a closed chain for given actuated values, within limits.
 
     Every assembly mode of the closed-form FK when one is registered (and ``numerical`` is
-    False), else the one mode :func:`optik.solve_fk` finds from the mid-limit configuration
+    False), else the one mode [`optik.solve_fk`][optik.solve_fk] finds from the mid-limit configuration
     (``[]`` when the inputs do not assemble; ``time_limit`` seconds bound that search).
 
     Raises:
@@ -321,14 +321,14 @@ class Problem:
         path: the file.
         description: one line.
         default: part of the default set of ``optik bench``.
-        constructor: name of the :mod:`optik.catalog` function.
+        constructor: name of the [`optik.catalog`][optik.catalog] function.
         params: its keyword arguments.
         task: task space override (None: the mechanism's task).
         urdf: shipped URDF robot name for the peers (None: no peers can run).
         lower, upper: joint-limit overrides (None: the constructor's limits).
         n, quick_n: numbers of targets (full run, ``--quick``).
         seed: target seed.
-        sampling: sampling mode (see :data:`SAMPLING`).
+        sampling: sampling mode (see [`SAMPLING`][optik.problem_files.SAMPLING]).
         pose_center, pose_half_range: the pose box of ``sampling = "pose"``.
         tolerances: success tolerances.
         methods: IK methods to run (None: every registered method that applies).
@@ -439,15 +439,16 @@ class Problem:
     def sample_targets(
         self, n: int | None = None, seed: int | np.random.Generator | None = None
     ) -> TargetSet:
-        """Draw ``n`` reference configurations and their targets (DESIGN.md benchmark method).
+        """Draw ``n`` reference configurations and their targets (the benchmark method).
 
         Args:
             n: number of targets (default: the file's ``n``).
             seed: seed or Generator (default: the file's ``seed``).
 
         Returns:
-            A :class:`TargetSet`; for closed chains possibly fewer than ``n`` targets when fewer
-            than ``n`` of ``MAX_DRAWS_PER_TARGET * n`` draws assemble (``draws`` says how many).
+            A [`TargetSet`][optik.problem_files.TargetSet]; for closed chains possibly fewer than ``n``
+            targets when fewer than ``n`` of ``MAX_DRAWS_PER_TARGET * n`` draws assemble (``draws`` says how
+            many).
 
         Raises:
             ProblemFileError: the sampling mode does not apply, or no draw succeeded.
@@ -578,7 +579,8 @@ def _directory(directory: str | Path | None) -> Path:
 
 
 def list_problems(directory: str | Path | None = None) -> list[Problem]:
-    """Every problem file of a directory (default :data:`PROBLEM_DIR`), sorted by name."""
+    """Every problem file of a directory (default [`PROBLEM_DIR`][optik.problem_files.PROBLEM_DIR]), sorted by
+    name."""
     return sorted((load_problem(p) for p in _directory(directory).glob("*.toml")), key=lambda pr: pr.name)
 
 

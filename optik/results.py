@@ -72,12 +72,12 @@ class FKResult:
 
 
 class FKModes(list):
-    """The assembly modes returned by `optik.solve_fk_all`: a list of `FKResult`, plus what
-    was left out and why.
+    """The assembly modes returned by [`solve_fk_all`][optik.solve_fk_all]: a list of
+    [`FKResult`][optik.FKResult], plus what was left out and why.
 
     Attributes:
         dropped: modes that close but were left out because they violate a joint limit
-            (``within_limits=True``), each an `FKResult` with ``limits_ok=False``.
+            (``within_limits=True``), each an [`FKResult`][optik.FKResult] with ``limits_ok=False``.
         message: why the list is what it is: empty inputs that cannot assemble, modes dropped
             (how many, which coordinates), actuated values outside their limits; ``""`` when
             every mode found is in the list.
@@ -90,3 +90,39 @@ class FKModes(list):
 
     def __repr__(self) -> str:
         return f"FKModes({list.__repr__(self)}, dropped={len(self.dropped)}, message={self.message!r})"
+
+
+class IKSolutions(list):
+    """The list of ``IKResult`` that ``optik.solve_ik_all`` returns, one per distinct
+    solution, with what was left out and why.
+
+    Attributes:
+        outside_limits: configurations that solve the target but lie outside the joint limits
+            (not in the list).
+        failed_check: candidates dropped because they did not pass the FK check, even after
+            polishing (not in the list).
+        method: how the solutions were found (``"closed_form"`` or the numerical method).
+        message: a sentence summarizing the counts.
+    """
+
+    def __init__(
+        self,
+        results: list[IKResult] = (),  # type: ignore[assignment]
+        outside_limits: list[np.ndarray] | None = None,
+        failed_check: int = 0,
+        method: str = "",
+    ) -> None:
+        super().__init__(results)
+        self.outside_limits: list[np.ndarray] = list(outside_limits or [])
+        self.failed_check = failed_check
+        self.method = method
+
+    @property
+    def message(self) -> str:
+        """E.g. ``"6 solutions by closed_form; 2 outside the joint limits left out"``."""
+        text = f"{len(self)} solution(s) by {self.method or 'no method'}"
+        if self.outside_limits:
+            text += f"; {len(self.outside_limits)} outside the joint limits left out"
+        if self.failed_check:
+            text += f"; {self.failed_check} candidate(s) failing the FK check dropped"
+        return text

@@ -1,7 +1,7 @@
 """Figure of the IK benchmark on the Panda: docs/img/ik_panda_times.png.
 
 Run from the repository root: ``python docs/figures/ik.py [--n 1000]``. It runs
-``benchmarks/bench_ik.py``'s :func:`run` (same method: URDF model, random targets within limits,
+``benchmarks/bench_ik.py``'s ``run`` (same method: URDF model, random targets within limits,
 mid-limit seed, 5 ms limit for ``lm`` and TRAC-IK, 300 ms for the NLP variants, tolerance 1e-5)
 and draws, per solver, the share of targets solved within a given time (empirical distribution
 of the call time of the successful calls, failures counted as never solved): the curve's right

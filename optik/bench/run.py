@@ -21,7 +21,7 @@ __all__ = ["BenchOutcome", "run_bench", "select_problems"]
 
 @dataclass(frozen=True)
 class BenchOutcome:
-    """What :func:`run_bench` did: the problem results and the files it wrote."""
+    """What [`run_bench`][optik.bench.run.run_bench] did: the problem results and the files it wrote."""
 
     runs: list[ProblemRun]
     files: list[Path]

@@ -1,7 +1,7 @@
 """Closed chains and parallel mechanisms: five-bar, doggy, slider-crank, 3-RPR, Stewart-Gough.
 
 Each constructor lays out bodies and joints; the spanning tree and the cut joints follow from
-:mod:`optik.mechanism.topology`, and the loop closures from the cut joints.
+[`optik.mechanism.topology`][optik.mechanism.topology], and the loop closures from the cut joints.
 """
 
 from __future__ import annotations
@@ -13,17 +13,17 @@ import numpy as np
 
 from optik import spatial
 from optik.catalog.serial import _positive, _tag
-from optik.checks import as_vector
-from optik.errors import InvalidArgumentError, ShapeError
+from optik.checks import as_vector, real_array
+from optik.errors import InvalidArgumentError, NonFiniteError, ShapeError
 from optik.mechanism import Joint, Mechanism
 
 
 def _points(value: Any, name: str, n: int, dim: int) -> np.ndarray:
-    a = np.asarray(value, dtype=float)
+    a = real_array(value, name)
     if a.shape != (n, dim):
         raise ShapeError(name, f"expected {n} points of {dim} coordinates, got shape {a.shape}")
     if not np.all(np.isfinite(a)):
-        raise InvalidArgumentError(name, "contains NaN or infinity")
+        raise NonFiniteError(name, "contains NaN or infinity")
     return a
 
 

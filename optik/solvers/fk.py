@@ -1,4 +1,5 @@
-"""Forward kinematics of closed chains: one assembly mode (:func:`solve_fk`) or all (:func:`solve_fk_all`).
+"""Forward kinematics of closed chains: one assembly mode ([`solve_fk`][optik.solve_fk]) or all
+([`solve_fk_all`][optik.solve_fk_all]).
 
 With the actuated coordinates ``a`` fixed, the passive coordinates ``x`` solve the loop closure
 ``c(x; a) = 0`` (``m.closure``). There may be more equations than unknowns (the doggy with four
@@ -14,18 +15,17 @@ mechanism, built on first use and cached.
 
 *Tracking.* When ``q0`` closes its loops and the closure is square (as many equations as
 passive coordinates, so every actuator value on the way has a mode to follow),
-:func:`solve_fk` moves the actuated coordinates from ``q0``'s values to ``a`` along a straight
+[`solve_fk`][optik.solve_fk] moves the actuated coordinates from ``q0``'s values to ``a`` along a straight
 line in steps (halved whenever Newton needs more than a few iterations or a passive coordinate
 jumps), so it returns the assembly mode reached continuously from ``q0``: the one "nearest"
 ``q0``. Otherwise Levenberg-Marquardt starts from ``q0`` (mid-limit when None) directly; if it
 fails, up to ``max_restarts`` seeded random restarts follow (within the time limit).
 
-*All modes.* :func:`solve_fk_all` uses the registered closed form when the mechanism has one
-(:mod:`optik.closed_form.parallel`: five-bar, slider-crank, 3-RPR, doggy, Stewart-Gough by
-homotopy continuation) and otherwise a seeded multi-start: random passive coordinates within
-the limits, Levenberg-Marquardt, de-duplication by the branch rule (coordinates differ by
-``< 1e-4``, angles modulo 2 pi), stopping after ``patience`` consecutive starts that found no new
-mode (or at the time limit).
+*All modes.* [`solve_fk_all`][optik.solve_fk_all] uses the registered closed form when the mechanism has one
+([`optik.closed_form.parallel`][optik.closed_form.parallel]: five-bar, slider-crank, 3-RPR, doggy,
+Stewart-Gough by homotopy continuation) and otherwise a seeded multi-start: random passive coordinates within
+the limits, Levenberg-Marquardt, de-duplication by the branch rule (coordinates differ by ``< 1e-4``, angles
+modulo 2 pi), stopping after ``patience`` consecutive starts that found no new mode (or at the time limit).
 
 *Outcomes.* Inputs that cannot assemble give ``success=False`` with the least-squares
 configuration, its residual and a message. Every result reports the condition number of ``J``
@@ -51,7 +51,8 @@ from optik.results import FKModes, FKResult
 from optik.solvers.base import BRANCH_TOL, Tolerances, joint_distance, positive_int
 
 DEFAULT_TIME_LIMIT = 1.0
-"""Default wall-time budget of :func:`solve_fk` and of the multi-start in :func:`solve_fk_all` (s)."""
+"""Default wall-time budget of [`solve_fk`][optik.solve_fk] and of the multi-start in
+[`solve_fk_all`][optik.solve_fk_all] (s)."""
 
 SINGULAR_CONDITION = 1e4
 """Condition number of ``dc/dx`` above which a result is flagged as near a singularity."""
@@ -99,7 +100,7 @@ def _compiled(m: Mechanism) -> _Compiled:
 
 
 def same_mode(m: Mechanism, q1: np.ndarray, q2: np.ndarray, tol: float = BRANCH_TOL) -> bool:
-    """Branch rule of DESIGN.md: every coordinate differs by ``< tol`` (angles modulo 2 pi)."""
+    """The same-branch rule: every coordinate differs by ``< tol`` (angles modulo 2 pi)."""
     return joint_distance(m, q1, q2) < tol
 
 
@@ -214,8 +215,8 @@ def _result(
     note: str = "",
     **extra: Any,
 ) -> FKResult:
-    """An `FKResult` for ``q``: residual, success, limits (which coordinates are out),
-    condition number, message."""
+    """An [`FKResult`][optik.FKResult] for ``q``: residual, success, limits (which coordinates
+    are out), condition number, message."""
     qq = m.wrap(q)
     residual, cond = _residual_and_condition(cm, qq)
     closed = residual <= tol
@@ -252,7 +253,8 @@ def _result(
 
 
 def _count(value: Any, name: str) -> int:
-    """``value`` as an integer >= 0 (else :class:`InvalidArgumentError` naming ``name``)."""
+    """``value`` as an integer >= 0 (else [`InvalidArgumentError`][optik.InvalidArgumentError] naming
+    ``name``)."""
     return positive_int(float(as_vector(value, name, 1)[0]) + 1, name) - 1
 
 
@@ -315,7 +317,7 @@ def solve_fk(
         q0: start / reference configuration (default: mid-limit). When it closes its loops the
             answer is the assembly mode reached continuously from it (see module docstring).
         time_limit: wall-time budget (s), restarts included.
-        tol: closure tolerance (max-norm; a float or :class:`~optik.Tolerances`, default 1e-9).
+        tol: closure tolerance (max-norm; a float or [`Tolerances`][optik.Tolerances], default 1e-9).
         seed: seed or Generator of the random restarts used when the first attempt fails.
         max_iter: Levenberg-Marquardt iterations per attempt.
         max_jump: largest change of a passive coordinate in one continuation step.
@@ -323,7 +325,7 @@ def solve_fk(
         singular_condition: condition number above which the result is flagged as singular.
 
     Returns:
-        :class:`~optik.FKResult`; non-assemblable inputs give ``success=False``, the least-squares
+        [`FKResult`][optik.FKResult]; non-assemblable inputs give ``success=False``, the least-squares
         configuration, its ``residual`` and a message.
 
     Raises:
@@ -397,10 +399,11 @@ def solve_fk_all(
         singular_condition: condition number above which a mode is flagged as singular.
 
     Returns:
-        `FKModes`: a list with one `FKResult` per distinct mode (within the limits unless
-        ``within_limits=False``), its ``dropped`` modes and a ``message`` that says why modes
-        are missing: inputs that cannot assemble (``[]``; use `solve_fk` for the least-squares
-        residual), actuated values outside their limits, passive joints out of range.
+        [`FKModes`][optik.FKModes]: a list with one [`FKResult`][optik.FKResult] per distinct
+        mode (within the limits unless ``within_limits=False``), its ``dropped`` modes and a
+        ``message`` that says why modes are missing: inputs that cannot assemble (``[]``; use
+        [`solve_fk`][optik.solve_fk] for the least-squares residual), actuated values outside their
+        limits, passive joints out of range.
 
     Raises:
         OptikError: malformed input, unknown method, or ``"closed_form"`` without a closed form.

@@ -1,7 +1,7 @@
 """Method ``"lm"``: bounded Levenberg-Marquardt with random restarts, compiled to C.
 
 The residual is ``e(q) = [w_p r_p; w_o r_o; w_c c(q)]``: the task residual of
-:mod:`optik.problem` with the loop closures of a closed chain appended as heavily weighted rows.
+[`optik.problem`][optik.problem] with the loop closures of a closed chain appended as heavily weighted rows.
 One iteration at ``q`` with gradient ``g = J^T e`` and Gauss-Newton matrix ``A = J^T J``:
 
 1. *Active set*: coordinate ``i`` is frozen when it sits on a bound and the descent direction
@@ -14,12 +14,11 @@ One iteration at ``q`` with gradient ``g = J^T e`` and Gauss-Newton matrix ``A =
    ``|e(q+)|^2 < |e(q)|^2``, then ``mu <- max(mu / 3, 1e-12)``, else ``mu <- min(4 mu, 1e8)``.
 
 Iterations are grouped into blocks of ``block`` iterations, one CasADi function generated as C,
-compiled with gcc and called through ``ctypes`` (:mod:`optik.solvers.native`), so Python runs
-once per block. Between blocks the driver checks the tolerances and the time limit; a start is
-abandoned when a block reduces the cost by less than the factor ``stall`` or after
-``max_iter`` iterations, and the next start is drawn uniformly within the limits from the
-request's generator. The answer is the first start that meets the tolerances, or the lowest
-cost configuration seen when the time limit ends the search.
+compiled with gcc and called through ``ctypes`` ([`optik.solvers.native`][optik.solvers.native]), so Python
+runs once per block. Between blocks the driver checks the tolerances and the time limit; a start is abandoned
+when a block reduces the cost by less than the factor ``stall`` or after ``max_iter`` iterations, and the next
+start is drawn uniformly within the limits from the request's generator. The answer is the first start that
+meets the tolerances, or the lowest cost configuration seen when the time limit ends the search.
 
 Options (``solve_ik(..., method="lm", **options)``):
 
@@ -32,7 +31,8 @@ Options (``solve_ik(..., method="lm", **options)``):
 * ``weights`` ((1, 1)): task weights ``(w_p, w_o)``.
 * ``closure_weight`` (100.0): weight ``w_c`` of the loop-closure rows.
 * ``max_restarts`` (None): cap on restarts (None: until success or the time limit).
-* ``compile`` ("auto"): compile to C when a compiler exists (see :class:`NativeFunction`).
+* ``compile`` ("auto"): compile to C when a compiler exists (see
+  [`NativeFunction`][optik.solvers.lm.NativeFunction]).
 """
 
 from __future__ import annotations
@@ -118,7 +118,7 @@ def lm_block_function(problem: IKProblem, closure_weight: float, block: int) -> 
 
     Inputs ``(q, mu, target, weights, q_ref, gain)``; outputs ``(q, mu, cost, position error,
     orientation error, closure error)``, the errors of the final ``q`` as
-    :func:`error_function` defines them.
+    [`error_function`][optik.solvers.lm.error_function] defines them.
     """
     m = problem.mechanism
     step = lm_step_function(problem, closure_weight)

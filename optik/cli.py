@@ -212,6 +212,8 @@ def _cmd_solve(args: argparse.Namespace) -> int:
             print(f"    {r.message}")
     if not results:
         print("no solution: the target is unreachable within the joint limits")
+    if args.all:
+        print(results.message)
     if args.plot and results:
         from optik.plot import draw_branches
 
@@ -488,6 +490,10 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("name", metavar="NAME", help="benchmark name: the NAME of benchmarks/bench_NAME.py")
     k.add_argument("args", nargs=argparse.REMAINDER, help="arguments passed to the script")
     k.set_defaults(func=_cmd_benchmark)
+
+    from optik.view.command import add_parser as add_view  # optik view: the browser viewer
+
+    add_view(sub)
     return parser
 
 

@@ -41,9 +41,11 @@ from optik.problem_files import assemble
 
 __all__ = [
     "Geometry",
+    "body_points",
     "draw",
     "draw_branches",
     "geometry",
+    "ordered_outline",
     "save_figure",
     "workspace",
     "workspace_points",
@@ -97,7 +99,7 @@ def geometry(m: Mechanism, q: Any) -> Geometry:
     return Geometry(np.asarray(a).T, np.asarray(b).T, np.asarray(t))
 
 
-def _body_points(m: Mechanism, g: Geometry, body: str) -> list[np.ndarray]:
+def body_points(m: Mechanism, g: Geometry, body: str) -> list[np.ndarray]:
     """Joint locations carried by ``body``, and the end effector when it sits on a bar-like body
     (on a plate, e.g. a platform, the end-effector triad marks it instead)."""
     pts = []
@@ -110,12 +112,12 @@ def _body_points(m: Mechanism, g: Geometry, body: str) -> list[np.ndarray]:
     for p in pts:
         if all(np.linalg.norm(p - d) > 1e-9 for d in distinct):
             distinct.append(p)
-    if m.frames[m.ee][0] == body and not _outline(distinct)[1]:  # a tool point on a bar, not a plate
+    if m.frames[m.ee][0] == body and not ordered_outline(distinct)[1]:  # a tool point on a bar, not a plate
         distinct.append(g.ee[:3, 3])
     return distinct
 
 
-def _outline(pts: list[np.ndarray]) -> tuple[np.ndarray, bool]:
+def ordered_outline(pts: list[np.ndarray]) -> tuple[np.ndarray, bool]:
     """Points ordered along their principal direction (collinear) or by angle (a polygon).
 
     Returns the ordered ``(k, 3)`` points and whether they enclose an area.
@@ -163,19 +165,19 @@ def _render(ax: Axes, m: Mechanism, g: Geometry, style: dict[str, Any]) -> None:
     size = style.get("scale", 0.04 * _extent(g.points()))
     first = True
     for body in m.topology.bodies:
-        pts = _body_points(m, g, body)
+        pts = body_points(m, g, body)
         if body == m.base:
             if style.get("ground", True):
                 for p in pts:
                     _ground(ax, p, size, planar, "0.3")
             if len(pts) >= 2:
-                outline, area = _outline(pts)
+                outline, area = ordered_outline(pts)
                 ring = np.vstack([outline, outline[:1]]) if area else outline
                 _plot_line(ax, ring, planar, color="0.5", lw=1.0, alpha=alpha)
             continue
         if len(pts) < 2:
             continue
-        outline, area = _outline(pts)
+        outline, area = ordered_outline(pts)
         kw: dict[str, Any] = {"color": color, "lw": lw, "alpha": alpha, "solid_capstyle": "round"}
         if first and style.get("label"):
             kw["label"] = style["label"]

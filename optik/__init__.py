@@ -19,14 +19,16 @@ from optik.errors import (
 )
 from optik.mechanism import Joint, Mechanism, dh_chain, planar_chain
 from optik.problem import IKProblem, build_ik_problem
-from optik.results import FKResult, IKResult
+from optik.results import FKModes, FKResult, IKResult
 from optik.solvers import Tolerances, solve_ik, solve_ik_all
 from optik.solvers.fk import solve_fk, solve_fk_all
 from optik.targets import Pose2D, Position
+from optik.view import view
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "FKModes",
     "FKResult",
     "IKProblem",
     "IKResult",
@@ -55,4 +57,5 @@ __all__ = [
     "solve_ik",
     "solve_ik_all",
     "spatial",
+    "view",
 ]

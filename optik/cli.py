@@ -105,6 +105,17 @@ def _pose_text(m: Mechanism, t: np.ndarray, digits: int = 6) -> str:
     return "  ".join(f"{n}={float(v):+.{digits}f}" for n, v in zip(names, values, strict=True))
 
 
+def _writable(path: Path | str | None, name: str, directory: bool = False) -> None:
+    """Fail before the work when the output ``--plot`` / ``--out`` cannot be written."""
+    from optik.plot import check_writable
+
+    if path is not None:
+        try:
+            check_writable(path, name, directory)
+        except OptikError as exc:
+            raise _usage(exc) from None
+
+
 def _save(fig: Figure, path: Path) -> Path:
     from optik.plot import save_figure
 
@@ -122,6 +133,8 @@ ARGUMENTS = {
     "q": "--q",
     "actuated": "--q",
     "method": "--method",
+    "plot": "--plot",
+    "out": "--out",
 }
 """Library argument names -> command-line options, for error messages."""
 
@@ -145,6 +158,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     from optik.bench import run_bench
 
     solvers = [s for item in args.solvers or () for s in item.split(",") if s] or None
+    _writable(args.out, "out", directory=True)
     try:
         outcome = run_bench(
             args.problem,
@@ -164,6 +178,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 # ---------------------------------------------------------------------------- solve
 def _cmd_solve(args: argparse.Namespace) -> int:
+    _writable(args.plot, "plot")
     problem = _problem(args.problem, args.problems_dir)
     m = problem.mechanism()
     task = problem.mechanism_task
@@ -213,6 +228,7 @@ def _assembly_modes(m: Mechanism, actuated: np.ndarray) -> list[np.ndarray]:
 
 
 def _cmd_fk(args: argparse.Namespace) -> int:
+    _writable(args.plot, "plot")
     problem = _problem(args.problem, args.problems_dir)
     m = problem.mechanism()
     n_act = len(m.actuated_indices)
@@ -244,6 +260,7 @@ def _cmd_fk(args: argparse.Namespace) -> int:
 def _cmd_plot(args: argparse.Namespace) -> int:
     from optik.plot import draw, draw_branches, workspace
 
+    _writable(args.out, "out", directory=True)
     problem = _problem(args.problem, args.problems_dir)
     m = problem.mechanism()
     task = problem.mechanism_task
@@ -466,6 +483,10 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("name", metavar="NAME", help="benchmark name: the NAME of optik.benchmarks.bench_NAME")
     k.add_argument("args", nargs=argparse.REMAINDER, help="arguments passed to the script")
     k.set_defaults(func=_cmd_benchmark)
+
+    from optik.view.command import add_parser as add_view  # optik view: the browser viewer
+
+    add_view(sub)
     return parser
 
 

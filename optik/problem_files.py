@@ -66,7 +66,9 @@ that it satisfies the limits and the loop closures, and the target is ``T = FK(q
 from __future__ import annotations
 
 import inspect
+import os
 import sys
+import typing
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
@@ -77,7 +79,7 @@ from typing import Any
 import numpy as np
 
 from optik import catalog, closed_form, spatial
-from optik.checks import as_rng
+from optik.checks import as_name, as_rng
 from optik.errors import InvalidArgumentError, OptikError, ProblemFileError, SolverUnavailableError
 from optik.mechanism import TASK_ROWS, Mechanism
 from optik.solvers import Tolerances
@@ -94,6 +96,7 @@ __all__ = [
     "Problem",
     "TargetSet",
     "assemble",
+    "constructors",
     "default_problems",
     "find_problem",
     "list_problems",
@@ -119,6 +122,13 @@ DEFAULT_QUICK_TIME_LIMIT = 0.05
 MAX_DRAWS_PER_TARGET = 50
 """Draws allowed per requested target before sampling gives up (closed chains)."""
 
+MAX_TARGETS = 1_000_000
+"""Most targets one problem samples (``targets.n``, ``quick_n`` and the ``n`` of
+[`Problem.sample_targets`][optik.problem_files.Problem.sample_targets]): memory stays bounded."""
+
+MAX_FILE_BYTES = 1 << 20
+"""Largest problem file read (1 MiB; the shipped ones are under 2 kB)."""
+
 
 # ---------------------------------------------------------------------------- schema
 @dataclass(frozen=True)
@@ -142,10 +152,12 @@ def _positive(v: Any) -> float:
     return x
 
 
-def _count(minimum: int) -> Callable[[Any], int]:
+def _count(minimum: int, maximum: int | None = None) -> Callable[[Any], int]:
     def parse(v: Any) -> int:
-        if isinstance(v, bool) or not isinstance(v, int) or v < minimum:
-            raise ValueError(f"expected an integer >= {minimum}, got {v!r}")
+        too_big = maximum is not None and isinstance(v, int) and v > maximum
+        if isinstance(v, bool) or not isinstance(v, int) or v < minimum or too_big:
+            bound = f"an integer >= {minimum}" + ("" if maximum is None else f" and <= {maximum}")
+            raise ValueError(f"expected {bound}, got {v!r}")
         return v
 
     return parse
@@ -215,8 +227,8 @@ SCHEMA: dict[str, dict[str, _Key]] = {
     },
     "limits": {"lower": _Key(_numbers), "upper": _Key(_numbers)},
     "targets": {
-        "n": _Key(_count(1)),
-        "quick_n": _Key(_count(1)),
+        "n": _Key(_count(1, MAX_TARGETS)),
+        "quick_n": _Key(_count(1, MAX_TARGETS)),
         "seed": _Key(_count(0)),
         "sampling": _Key(_one_of(SAMPLING)),
         "pose_center": _Key(_numbers),
@@ -371,6 +383,8 @@ class Problem:
             m = fn(**self.params)
         except InvalidArgumentError as exc:
             raise self._error(f"mechanism.params.{exc.argument}", str(exc)) from None
+        except OptikError as exc:  # e.g. a ModelError of parameters that do not make a mechanism
+            raise self._error("mechanism.params", str(exc)) from None
         if self.lower is not None or self.upper is not None:
             for key, value in (("lower", self.lower), ("upper", self.upper)):
                 if value is not None and len(value) != m.n_q:
@@ -459,8 +473,9 @@ class Problem:
                 is not available.
         """
         count = self.n if n is None else n
-        if not isinstance(count, (int, np.integer)) or count < 1:
-            raise InvalidArgumentError("n", f"expected a positive integer, got {count!r}")
+        integer = isinstance(count, (int, np.integer)) and not isinstance(count, bool)
+        if not integer or not 1 <= count <= MAX_TARGETS:
+            raise InvalidArgumentError("n", f"expected an integer in [1, {MAX_TARGETS}], got {count!r}")
         rng = as_rng(self.seed if seed is None else seed)
         m = self.mechanism()
         mode = self.sampling_mode()
@@ -505,13 +520,25 @@ class Problem:
         return closed_form.ik(m, t)
 
 
+def constructors() -> list[str]:
+    """The mechanism constructors of [`optik.catalog`][optik.catalog]: its public functions that
+    return a [`Mechanism`][optik.Mechanism] (not helpers such as ``urdf_path``, nor attributes
+    such as ``__class__``), sorted."""
+    names = []
+    for name in getattr(catalog, "__all__", ()):
+        fn = getattr(catalog, name, None)
+        if inspect.isfunction(fn) and typing.get_type_hints(fn).get("return") is Mechanism:
+            names.append(name)
+    return sorted(names)
+
+
 def _from_data(path: Path, data: dict[str, Any]) -> Problem:
     v = _validate(path, data)
     prob, mech, lim, tg, tol, sol = (v[k] for k in SCHEMA)
     constructor = mech["constructor"]
-    fn = getattr(catalog, constructor, None)
-    if not callable(fn):
-        names = sorted(n for n in getattr(catalog, "__all__", ()) if callable(getattr(catalog, n, None)))
+    names = constructors()
+    fn = getattr(catalog, constructor) if constructor in names else None
+    if fn is None:
         raise ProblemFileError(
             f"{path}: mechanism.constructor: {constructor!r} is not available in this version of "
             f"optik.catalog; available: {names}"
@@ -560,15 +587,28 @@ def load_problem(path: str | Path) -> Problem:
         ProblemFileError: unreadable file, invalid TOML, or a schema violation (the message
             names the file and the key).
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise InvalidArgumentError("path", f"expected a file path, got {path!r}")
     p = Path(path)
+    if "\0" in str(p):
+        raise ProblemFileError(f"{str(p)!r}: cannot read the problem file: the path contains a NUL character")
     try:
-        text = p.read_text(encoding="utf-8")
+        with p.open("rb") as f:
+            raw = f.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise ProblemFileError(f"{p}: cannot read the problem file: {exc.strerror or exc}") from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise ProblemFileError(f"{p}: larger than {MAX_FILE_BYTES} bytes; not a problem file")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ProblemFileError(f"{p}: not UTF-8 text (byte {exc.start}): {exc.reason}") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ProblemFileError(f"{p}: invalid TOML: {exc}") from None
+    except RecursionError:  # tomllib recurses per nesting level of arrays and inline tables
+        raise ProblemFileError(f"{p}: invalid TOML: arrays or tables nested too deeply") from None
     return _from_data(p, data)
 
 
@@ -599,7 +639,9 @@ def find_problem(name: str, directory: str | Path | None = None) -> Problem:
         InvalidArgumentError: no such problem (the message lists the known names).
         ProblemFileError: the file is invalid.
     """
-    as_path = Path(name)
+    as_path = Path(as_name(name, "problem"))
+    if "\0" in name:
+        raise InvalidArgumentError("problem", f"no such problem file: {name!r} (contains a NUL character)")
     if as_path.suffix == ".toml" or as_path.is_file():
         if not as_path.is_file():
             raise InvalidArgumentError("problem", f"no such problem file: {name}")

@@ -2,14 +2,14 @@
 
 Calling a CasADi ``Function`` from Python costs tens to a hundred microseconds per call
 (argument conversion to ``DM`` and back), more than a whole IK iteration or QP step should take.
-:func:`library` generates C code for a list of functions (``casadi.CodeGenerator``), compiles it
+`library` generates C code for a list of functions (``casadi.CodeGenerator``), compiles it
 once with the system C compiler into a shared library cached on disk (keyed by a hash of the
 source and the compiler, so each machine compiles a given model once) and loads it;
-:class:`CCall` then calls one generated entry point through ``ctypes`` on preallocated numpy
-buffers, about 1 us of overhead per call. Both the IK solvers (:mod:`optik.solvers.native`) and
-differential IK (:mod:`optik.diffik._codegen`) use it.
+`CCall` then calls one generated entry point through ``ctypes`` on preallocated numpy
+buffers, about 1 us of overhead per call. Both the IK solvers ([`optik.solvers.native`][optik.solvers.native])
+and differential IK (`optik.diffik._codegen`) use it.
 
-Without a C compiler, with ``$OPTIK_NO_CODEGEN`` set, or with ``compile=False``, :func:`library`
+Without a C compiler, with ``$OPTIK_NO_CODEGEN`` set, or with ``compile=False``, `library`
 returns None and the callers evaluate with CasADi's own evaluator (same numbers, slower).
 
 The cache directory is ``$OPTIK_CACHE_DIR`` or ``~/.cache/optik``. A library is written under a
@@ -132,7 +132,7 @@ class CCall:
     """One generated function of a loaded library, bound to preallocated numpy buffers.
 
     Args:
-        lib: the library (from :func:`library`) that holds ``name``.
+        lib: the library (from `library`) that holds ``name``.
         name: the CasADi function's name.
         inputs: one contiguous float64 array per input (dense, column-major).
         outputs: one contiguous float64 array per output.

@@ -1,7 +1,7 @@
 """Named mechanisms with sensible default dimensions.
 
-Every constructor returns an :class:`optik.Mechanism` whose ``kind`` names its entry here, so
-that :mod:`optik.closed_form` can find the analytic solvers of that mechanism.
+Every constructor returns an [`optik.Mechanism`][optik.Mechanism] whose ``kind`` names its entry here, so
+that [`optik.closed_form`][optik.closed_form] can find the analytic solvers of that mechanism.
 """
 
 from optik.catalog.arms import URDF_CHAINS, iiwa14, panda, urdf_path

@@ -1,8 +1,8 @@
 """Closed-form (analytic) kinematics returning every branch.
 
 ``ik(m, target)`` and ``fk(m, actuated)`` dispatch on ``m.kind``; the vectorized functions
-(e.g. :func:`ik_planar_3r`) work on arrays of targets at once and return all branches with a
-reachability mask.
+(e.g. [`ik_planar_3r`][optik.closed_form.ik_planar_3r]) work on arrays of targets at once and return all
+branches with a reachability mask.
 """
 
 from optik.closed_form import parallel

@@ -1,7 +1,7 @@
 """Method ``"lm"``: bounded Levenberg-Marquardt with random restarts, compiled to C.
 
 The residual is ``e(q) = [w_p r_p; w_o r_o; w_c c(q)]``: the task residual of
-:mod:`optik.problem` with the loop closures of a closed chain appended as heavily weighted rows.
+[`optik.problem`][optik.problem] with the loop closures of a closed chain appended as heavily weighted rows.
 One iteration at ``q`` with gradient ``g = J^T e`` and Gauss-Newton matrix ``A = J^T J``:
 
 1. *Active set*: coordinate ``i`` is frozen when it sits on a bound and the descent direction
@@ -13,12 +13,12 @@ One iteration at ``q`` with gradient ``g = J^T e`` and Gauss-Newton matrix ``A =
 3. *Projection and acceptance*: ``q+ = clip(q + dq, lo, hi)``; accepted when
    ``|e(q+)|^2 < |e(q)|^2``, then ``mu <- max(mu / 3, 1e-12)``, else ``mu <- min(4 mu, 1e8)``.
 
-Each target's whole multi-start loop runs in generated C (:mod:`optik.solvers.lm_kernel`):
+Each target's whole multi-start loop runs in generated C (`optik.solvers.lm_kernel`):
 the tolerances and the time limit are checked after every iteration; a start is abandoned when
 a block of ``block`` iterations reduces the cost by less than the factor ``stall`` or after
 ``max_iter`` iterations, and the next start is drawn uniformly within the limits from a
-generator seeded with the request's seed (:func:`optik.solvers.lm_kernel.target_seeds` gives
-the seeds of a batch, so :func:`optik.solve_ik_batch` answers as this method does). The answer
+generator seeded with the request's seed (`optik.solvers.lm_kernel.target_seeds` gives
+the seeds of a batch, so `optik.solve_ik_batch` answers as this method does). The answer
 is the first start that meets the tolerances, or the lowest cost configuration seen when the
 time limit or ``max_restarts`` ends the search.
 
@@ -33,7 +33,7 @@ Options (``solve_ik(..., method="lm", **options)``):
 * ``weights`` ((1, 1)): task weights ``(w_p, w_o)``.
 * ``closure_weight`` (100.0): weight ``w_c`` of the loop-closure rows.
 * ``max_restarts`` (None): cap on restarts (None: until success or the time limit).
-* ``compile`` ("auto"): compile to C when a compiler exists (see :class:`NativeFunction`).
+* ``compile`` ("auto"): compile to C when a compiler exists (see `optik.solvers.native.NativeFunction`).
 """
 
 from __future__ import annotations

@@ -9,8 +9,8 @@ import pytest
 
 import optik
 from optik.batch import BatchResult, fk_batch, solve_ik_batch
+from optik.batch.chunk import wrap_rows
 from optik.batch.fk import CHUNK
-from optik.batch.solve import wrap_rows
 
 PANDA = optik.catalog.panda()
 

@@ -18,8 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from optik.batch.chunk import ChunkSpec, chunk_bounds, solve_chunk
 from optik.batch.result import BatchResult
-from optik.batch.solve import ChunkSpec, chunk_bounds, solve_chunk
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 

@@ -10,6 +10,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from optik.batch.chunk import default_workers
 from optik.checks import as_batch
 from optik.mechanism import Mechanism
 from optik.native import CCall, library
@@ -62,8 +63,6 @@ def fk_batch(m: Mechanism, q: Any, frame: str | None = None, workers: int | None
         ShapeError, NonFiniteError: bad ``q``.
         UnknownFrameError: unknown frame.
     """
-    from optik.batch.solve import default_workers
-
     qb, _ = as_batch(q, "q", m.n_q)
     m._frame(frame)
     fk = _mapped(m, frame)

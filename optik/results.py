@@ -54,6 +54,9 @@ class FKResult:
         condition_number: condition number of the closure Jacobian with respect to the passive
             coordinates (large near a singularity of the assembly).
         message: explanation, in particular why a solve failed.
+        limits_ok: ``lower <= q <= upper`` holds exactly (angles shifted by 2 pi into the limits
+            first).
+        limits_violated: names of the coordinates outside their limits (actuated ones included).
     """
 
     pose: np.ndarray
@@ -64,6 +67,29 @@ class FKResult:
     condition_number: float = float("nan")
     message: str = ""
     extra: dict = field(default_factory=dict)
+    limits_ok: bool = True
+    limits_violated: tuple[str, ...] = ()
+
+
+class FKModes(list):
+    """The assembly modes returned by [`solve_fk_all`][optik.solve_fk_all]: a list of
+    [`FKResult`][optik.FKResult], plus what was left out and why.
+
+    Attributes:
+        dropped: modes that close but were left out because they violate a joint limit
+            (``within_limits=True``), each an [`FKResult`][optik.FKResult] with ``limits_ok=False``.
+        message: why the list is what it is: empty inputs that cannot assemble, modes dropped
+            (how many, which coordinates), actuated values outside their limits; ``""`` when
+            every mode found is in the list.
+    """
+
+    def __init__(self, modes: list[FKResult] = (), dropped: list[FKResult] = (), message: str = "") -> None:
+        super().__init__(modes)
+        self.dropped = list(dropped)
+        self.message = message
+
+    def __repr__(self) -> str:
+        return f"FKModes({list.__repr__(self)}, dropped={len(self.dropped)}, message={self.message!r})"
 
 
 class IKSolutions(list):

@@ -47,7 +47,7 @@ from optik import closed_form, spatial
 from optik.checks import as_rng, as_vector
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
-from optik.results import FKResult
+from optik.results import FKModes, FKResult
 from optik.solvers.base import BRANCH_TOL, Tolerances, joint_distance, positive_int
 
 DEFAULT_TIME_LIMIT = 1.0
@@ -183,6 +183,28 @@ def _positive(value: float, name: str) -> float:
     return v
 
 
+def _violations(m: Mechanism, q: np.ndarray) -> list[str]:
+    """Names of the coordinates of ``q`` outside their limits."""
+    return [
+        n
+        for n, v, lo, hi in zip(m.coordinate_names, q.tolist(), m.lower, m.upper, strict=True)
+        if not lo <= v <= hi
+    ]
+
+
+def _actuated_out(m: Mechanism, a: np.ndarray) -> str:
+    """``"rho1 = 2.7 > 2.5, ..."`` for the actuated values outside their limits (``""`` if none)."""
+    idx = m.actuated_indices
+    names = [m.coordinate_names[i] for i in idx]
+    lo, hi = m.lower[idx], m.upper[idx]
+    parts = [
+        f"{n} = {v:.6g} {'<' if v < low else '>'} {low if v < low else up:.6g}"
+        for n, v, low, up in zip(names, a.tolist(), lo, hi, strict=True)
+        if not low <= v <= up
+    ]
+    return ", ".join(parts)
+
+
 def _result(
     m: Mechanism,
     cm: _Compiled,
@@ -193,24 +215,23 @@ def _result(
     note: str = "",
     **extra: Any,
 ) -> FKResult:
-    """An [`FKResult`][optik.FKResult] for ``q``: residual, success, limits, condition number, message."""
+    """An [`FKResult`][optik.FKResult] for ``q``: residual, success, limits (which coordinates
+    are out), condition number, message."""
     qq = m.wrap(q)
     residual, cond = _residual_and_condition(cm, qq)
     closed = residual <= tol
-    inside = m.within_limits(qq)
+    bad = _violations(m, qq)
     messages = [note] if note else []
     if not closed:
         messages.append(
             f"the actuated values cannot assemble (or no assembly was found): least-squares closure "
             f"residual {residual:.3g} > tol {tol:.3g}"
         )
-    elif not inside:
-        bad = [
-            n
-            for n, v, lo, hi in zip(m.coordinate_names, qq, m.lower, m.upper, strict=True)
-            if not lo <= v <= hi
-        ]
-        messages.append(f"the assembly violates the joint limits of {bad}")
+    actuated_out = _actuated_out(m, qq[cm.act])
+    if actuated_out:
+        messages.append(f"the actuated values are outside their limits: {actuated_out}")
+    if bad:
+        messages.append(f"the {'assembly' if closed else 'configuration'} violates the joint limits of {bad}")
     singular = cond > singular_condition
     if singular:
         messages.append(
@@ -220,12 +241,14 @@ def _result(
     return FKResult(
         pose=m.fk(qq),
         q=qq,
-        success=bool(closed and inside),
+        success=bool(closed and not bad),
         residual=float(residual),
         solve_time=time.perf_counter() - start,
         condition_number=cond,
         message="; ".join(messages),
         extra={"singular": singular, **extra},
+        limits_ok=not bad,
+        limits_violated=tuple(bad),
     )
 
 
@@ -348,6 +371,7 @@ def solve_fk_all(
     m: Mechanism,
     actuated: Any,
     *,
+    within_limits: bool = True,
     method: str | None = None,
     time_limit: float = DEFAULT_TIME_LIMIT,
     tol: float | Tolerances | None = None,
@@ -355,12 +379,16 @@ def solve_fk_all(
     patience: int = 64,
     max_iter: int = 50,
     singular_condition: float = SINGULAR_CONDITION,
-) -> list[FKResult]:
+) -> FKModes:
     """Every real assembly mode for given actuated coordinates.
 
     Args:
         m: a mechanism with loop closures.
         actuated: values of the actuated coordinates, in the order of ``m.actuated_indices``.
+        within_limits: keep only the modes within every joint limit; the others are counted
+            and kept on the result's ``dropped`` list, with the reason in its ``message``.
+            ``False``: every real mode comes back, each with ``limits_ok`` and
+            ``limits_violated`` (``success`` stays False for a mode outside the limits).
         method: ``"closed_form"`` (needs a registered closed form), ``"numeric"`` (multi-start), or
             None: the closed form when registered, else numeric.
         time_limit: wall-time budget of the multi-start (s).
@@ -371,8 +399,11 @@ def solve_fk_all(
         singular_condition: condition number above which a mode is flagged as singular.
 
     Returns:
-        One successful [`FKResult`][optik.FKResult] per distinct mode within the limits; ``[]`` when
-        the inputs cannot assemble (use [`solve_fk`][optik.solve_fk] for the least-squares residual).
+        [`FKModes`][optik.FKModes]: a list with one [`FKResult`][optik.FKResult] per distinct
+        mode (within the limits unless ``within_limits=False``), its ``dropped`` modes and a
+        ``message`` that says why modes are missing: inputs that cannot assemble (``[]``; use
+        [`solve_fk`][optik.solve_fk] for the least-squares residual), actuated values outside their
+        limits, passive joints out of range.
 
     Raises:
         OptikError: malformed input, unknown method, or ``"closed_form"`` without a closed form.
@@ -386,11 +417,13 @@ def solve_fk_all(
     singular_condition = _positive(singular_condition, "singular_condition")
     if method not in (None, "closed_form", "numeric"):
         raise InvalidArgumentError("method", f"unknown FK method {method!r}; use 'closed_form' or 'numeric'")
+    if not isinstance(within_limits, (bool, np.bool_)):
+        raise InvalidArgumentError("within_limits", f"must be True or False, got {within_limits!r}")
     cm = _compiled(m)
     use_closed = method == "closed_form" or (method is None and closed_form.has_fk(m))
     found: list[np.ndarray] = []
     if use_closed:
-        for q_exact in closed_form.fk(m, a):
+        for q_exact in closed_form.fk(m, a, respect_limits=False):
             # a no-op (one evaluation) unless the closed form lost digits, e.g. near a singularity
             q = _levenberg_marquardt(cm, q_exact, tol_c, max_iter, start + limit).q[0]
             if not any(same_mode(m, q, f) for f in found):
@@ -405,15 +438,38 @@ def solve_fk_all(
             sol = _levenberg_marquardt(cm, trials, tol_c, max_iter, start + limit)
             for q_raw, res in zip(sol.q, sol.residual, strict=True):
                 q = m.wrap(q_raw)
-                if res <= tol_c and m.within_limits(q) and not any(same_mode(m, q, f) for f in found):
+                if res <= tol_c and not any(same_mode(m, q, f) for f in found):
                     found.append(q)
                     idle = 0
                 else:
                     idle += 1
         label = "numeric"
-    results = []
+    kept, dropped, unclosed = [], [], 0
     for q in found:
         res = _result(m, cm, q, tol_c, start, singular_condition, method=label)
-        if res.success:
-            results.append(res)
-    return results
+        if res.residual > tol_c:
+            unclosed += 1  # not a mode: a closed-form candidate that the polish could not close
+            continue
+        (kept if res.limits_ok or not within_limits else dropped).append(res)
+    return FKModes(kept, dropped, _modes_message(m, a, kept, dropped, unclosed))
+
+
+def _modes_message(
+    m: Mechanism, a: np.ndarray, kept: list[FKResult], dropped: list[FKResult], unclosed: int
+) -> str:
+    """Why `solve_fk_all` returned what it did (``""`` when nothing is missing)."""
+    parts = []
+    if unclosed:
+        parts.append(f"{unclosed} closed-form candidate(s) left out: their closure residual exceeds tol")
+    actuated_out = _actuated_out(m, a)
+    if actuated_out:
+        parts.append(f"the actuated values are outside their limits: {actuated_out}")
+    if dropped:
+        names = sorted({n for r in dropped for n in r.limits_violated})
+        parts.append(
+            f"{len(dropped)} assembly mode(s) left out because they violate the joint limits of {names} "
+            "(solve_fk_all(..., within_limits=False) returns them)"
+        )
+    if not kept and not dropped:
+        parts.append("the actuated values cannot assemble: no real assembly mode")
+    return "; ".join(parts)

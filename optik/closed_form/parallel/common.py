@@ -39,30 +39,28 @@ def direction(phi: float) -> np.ndarray:
 def two_link_ik(origin: np.ndarray, a: float, b: float, point: np.ndarray) -> list[tuple[float, float]]:
     """Both solutions of a planar 2R chain from ``origin`` with links ``a``, ``b`` reaching ``point``.
 
-    ``point = origin + a u(theta) + b u(theta + psi)``: ``cos psi = (d^2 - a^2 - b^2) / (2 a b)``,
+    ``point = origin + a u(theta) + b u(theta + psi)``: ``psi = atan2(+-sqrt(S), d^2 - a^2 - b^2)``
+    with ``S = (a + b - d)(a + b + d)(d - a + b)(d + a - b) = (2 a b sin psi)^2`` (the product form
+    keeps ``sin psi`` accurate where ``cos psi`` is near +-1, unlike ``acos``),
     ``theta = atan2(d) - atan2(b sin psi, a + b cos psi)``. Returns ``[(theta, psi), ...]``: two
-    solutions, one at a boundary of the workspace (``|cos psi| = 1``), none outside.
+    solutions, one at a boundary of the workspace (``S = 0``), none outside.
     """
-    d = np.asarray(point, dtype=float) - origin
-    c = (d @ d - a * a - b * b) / (2 * a * b)
-    if abs(c) > 1 + CIRCLE_TOL:
-        return []
-    c = float(np.clip(c, -1.0, 1.0))
-    psis = [float(np.arccos(c))]
-    if 1 - abs(c) > CIRCLE_TOL:
-        psis.append(-psis[0])
-    return [(angle(d) - float(np.arctan2(b * np.sin(p), a + b * np.cos(p))), p) for p in psis]
+    (ox, oy), (px, py) = np.asarray(origin, dtype=float).tolist(), np.asarray(point, dtype=float).tolist()
+    return two_link_one(ox, oy, a, b, px, py)
 
 
 def two_link_one(ox: float, oy: float, a: float, b: float, px: float, py: float) -> list[tuple[float, float]]:
     """`two_link_ik` on floats (one target: cheaper than numpy on 2-vectors)."""
     dx, dy = px - ox, py - oy
-    c = (dx * dx + dy * dy - a * a - b * b) / (2 * a * b)
-    if abs(c) > 1 + CIRCLE_TOL:
+    d = math.hypot(dx, dy)
+    s2 = (a + b - d) * (a + b + d) * (d - a + b) * (d + a - b)
+    scale = 4 * a * a * b * b
+    if s2 < -2 * CIRCLE_TOL * scale:
         return []
-    c = min(max(c, -1.0), 1.0)
-    psis = [math.acos(c)]
-    if 1 - abs(c) > CIRCLE_TOL:
+    cos_part = dx * dx + dy * dy - a * a - b * b  # 2 a b cos psi
+    sin_part = math.sqrt(max(s2, 0.0))  # 2 a b |sin psi|
+    psis = [math.atan2(sin_part, cos_part)]
+    if s2 > 2 * CIRCLE_TOL * scale:
         psis.append(-psis[0])
     angle = math.atan2(dy, dx)
     return [(angle - math.atan2(b * math.sin(p), a + b * math.cos(p)), p) for p in psis]
@@ -80,7 +78,7 @@ def circle_intersections(c1: np.ndarray, r1: float, c2: np.ndarray, r2: float) -
     if d < CIRCLE_TOL * max(r1, r2, 1.0):
         return []
     a = (d * d + r1 * r1 - r2 * r2) / (2 * d)
-    h2 = r1 * r1 - a * a
+    h2 = (r1 - a) * (r1 + a)
     if h2 < -CIRCLE_TOL * max(r1 * r1, 1.0):
         return []
     u = d_vec / d

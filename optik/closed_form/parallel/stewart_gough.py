@@ -109,9 +109,10 @@ def _stewart_q(m: Mechanism, r: np.ndarray, t: np.ndarray) -> np.ndarray:
 
     Leg ``i``: ``rho_i = |v_i|``, ``v_i = R p_i + t - b_i``; the universal joint turns the leg's
     z axis onto ``n = v_i / rho_i``: ``Rx(a) Ry(c) e_z = (sin c, -sin a cos c, cos a cos c)``, so
-    ``c = asin(n_x)`` in ``[-pi/2, pi/2]`` and ``a = atan2(-n_y, n_z)``. The spherical joint of
-    leg 1 is the rotation vector ``log(R_u1^T R)`` (angle in ``[0, pi]``: every posture,
-    half-turns included, has coordinates).
+    ``c = asin(n_x)`` in ``[-pi/2, pi/2]`` and ``a = atan2(-n_y, n_z)`` in ``(-pi, pi]``: the one
+    canonical pair of every direction, downward legs included (the catalog's limits; a zero-length
+    leg, ``rho_i = 0``, gets ``a = c = 0``). The spherical joint of leg 1 is the rotation vector
+    ``log(R_u1^T R)`` (angle in ``[0, pi]``: every posture, half-turns included, has coordinates).
     """
     b, p = m.params["base"], m.params["platform"]
     values: dict[str, float] = {}
@@ -119,7 +120,8 @@ def _stewart_q(m: Mechanism, r: np.ndarray, t: np.ndarray) -> np.ndarray:
     # per leg on floats (six legs: numpy on 3-vectors costs more than the arithmetic)
     for i, (vx, vy, vz) in enumerate((p @ r.T + t - b).tolist()):
         rho = math.sqrt(vx * vx + vy * vy + vz * vz)
-        nx, ny, nz = vx / rho, vy / rho, vz / rho
+        # a zero-length leg has no direction: any angles place it; take the upright (0, 0)
+        nx, ny, nz = (vx / rho, vy / rho, vz / rho) if rho > 0 else (0.0, 0.0, 1.0)
         c = math.asin(min(max(nx, -1.0), 1.0))
         a = math.atan2(-ny, nz) if math.hypot(ny, nz) > 1e-15 else 0.0
         values[f"u{i + 1}[0]"], values[f"u{i + 1}[1]"], values[f"rho{i + 1}"] = a, c, rho

@@ -2,14 +2,14 @@
 
 Calling a CasADi ``Function`` from Python costs tens to a hundred microseconds per call
 (argument conversion to ``DM`` and back), more than a whole IK iteration or QP step should take.
-:func:`library` generates C code for a list of functions (``casadi.CodeGenerator``), compiles it
+`library` generates C code for a list of functions (``casadi.CodeGenerator``), compiles it
 once with the system C compiler into a shared library cached on disk (keyed by a hash of the
 source and the compiler, so each machine compiles a given model once) and loads it;
-:class:`CCall` then calls one generated entry point through ``ctypes`` on preallocated numpy
-buffers, about 1 us of overhead per call. Both the IK solvers (:mod:`optik.solvers.native`) and
-differential IK (:mod:`optik.diffik._codegen`) use it.
+`CCall` then calls one generated entry point through ``ctypes`` on preallocated numpy
+buffers, about 1 us of overhead per call. Both the IK solvers ([`optik.solvers.native`][optik.solvers.native])
+and differential IK (`optik.diffik._codegen`) use it.
 
-Without a C compiler, with ``$OPTIK_NO_CODEGEN`` set, or with ``compile=False``, :func:`library`
+Without a C compiler, with ``$OPTIK_NO_CODEGEN`` set, or with ``compile=False``, `library`
 returns None and the callers evaluate with CasADi's own evaluator (same numbers, slower).
 
 The cache directory is ``$OPTIK_CACHE_DIR`` or ``~/.cache/optik``. A library is written under a
@@ -55,16 +55,18 @@ def cache_dir() -> Path:
     return d
 
 
-def c_source(functions: Sequence[ca.Function]) -> str:
-    """C code of ``functions`` in one file (no header, ``casadi_int`` = ``long long int``)."""
+def c_source(functions: Sequence[ca.Function], extra_source: str = "") -> str:
+    """C code of ``functions`` in one file (no header, ``casadi_int`` = ``long long int``),
+    followed by ``extra_source`` (optik's own C calling the generated functions)."""
     gen = ca.CodeGenerator(f"{functions[0].name()}.c", {"with_header": False, "casadi_int": "long long int"})
     for f in functions:
         gen.add(f)
-    return gen.dump()
+    return gen.dump() + extra_source
 
 
-def compile_library(functions: Sequence[ca.Function]) -> Path:
-    """Compile ``functions`` into one shared library (once per source hash); its path.
+def compile_library(functions: Sequence[ca.Function], extra_source: str = "") -> Path:
+    """Compile ``functions`` (and ``extra_source``, see :func:`c_source`) into one shared
+    library (once per source hash); its path.
 
     Raises:
         SolverUnavailableError: no C compiler, or the compilation failed.
@@ -73,7 +75,7 @@ def compile_library(functions: Sequence[ca.Function]) -> Path:
     cc = compiler()
     if cc is None:
         raise SolverUnavailableError("no C compiler found (set $CC or install gcc; unset $OPTIK_NO_CODEGEN)")
-    source = c_source(functions)
+    source = c_source(functions, extra_source)
     stem = functions[0].name()
     digest = hashlib.sha256((source + cc).encode()).hexdigest()[:20]
     folder = cache_dir()
@@ -96,13 +98,16 @@ def compile_library(functions: Sequence[ca.Function]) -> Path:
     return lib
 
 
-def library(functions: Sequence[ca.Function], compile: bool | str = "auto") -> ctypes.CDLL | None:
+def library(
+    functions: Sequence[ca.Function], compile: bool | str = "auto", extra_source: str = ""
+) -> ctypes.CDLL | None:
     """The loaded library of ``functions``, or None: evaluate them with CasADi instead.
 
     Args:
         functions: the functions to compile into one library.
         compile: ``True`` compile (raise when impossible), ``False`` never compile (None),
             ``"auto"`` compile when a C compiler exists and works, else None.
+        extra_source: C code appended to the generated code (see :func:`c_source`).
 
     Raises:
         InvalidArgumentError: bad ``compile`` value.
@@ -113,7 +118,7 @@ def library(functions: Sequence[ca.Function], compile: bool | str = "auto") -> c
     if compile is False or (compile == "auto" and compiler() is None):
         return None
     try:
-        path = str(compile_library(functions))
+        path = str(compile_library(functions, extra_source))
         if path not in _LIBS:
             _LIBS[path] = ctypes.CDLL(path)
         return _LIBS[path]
@@ -127,7 +132,7 @@ class CCall:
     """One generated function of a loaded library, bound to preallocated numpy buffers.
 
     Args:
-        lib: the library (from :func:`library`) that holds ``name``.
+        lib: the library (from `library`) that holds ``name``.
         name: the CasADi function's name.
         inputs: one contiguous float64 array per input (dense, column-major).
         outputs: one contiguous float64 array per output.

@@ -62,6 +62,7 @@ import numpy as np
 import scipy.linalg
 
 from optik.checks import as_transform, as_vector
+from optik.closed_form.structure import axes_of
 from optik.errors import InvalidArgumentError, ShapeError
 from optik.mechanism import Mechanism
 
@@ -181,17 +182,22 @@ class General6R:
         """The DH description of an optik mechanism with exactly six revolute coordinates in one
         serial chain from the base to the end effector (fixed joints in between are allowed).
 
-        The joint lines at ``q = 0`` (points and directions in the base frame) give the common
-        normals of consecutive axes; parallel axes take the normal through the previous frame's
-        origin (``d_i = 0``), intersecting axes ``x_i = z_{i-1} x z_i``. The result is checked
-        against ``m.fk`` at seeded random ``q``.
+        The joint lines at ``q = 0`` (`optik.closed_form.structure.axes_of`: a point and a
+        direction per axis in the base frame, checked against ``m.fk``) give the common normals
+        of consecutive axes; parallel axes take the normal through the previous frame's origin
+        (``d_i = 0``), intersecting axes ``x_i = z_{i-1} x z_i``. The DH model is checked
+        against ``m.fk`` at seeded random ``q`` too.
 
         Raises:
             InvalidArgumentError: (argument ``m``) not a serial chain of six revolute joints,
                 or the DH description does not reproduce ``m.fk``.
         """
-        lines, ee = joint_lines(m)
-        arm = _dh_from_lines(lines[:, 0], lines[:, 1], ee)
+        axes = axes_of(m) if m.n_q == 6 else None
+        if axes is None:
+            raise InvalidArgumentError(
+                "m", f"{m.name!r}: expected a serial chain of six revolute joints (n_q={m.n_q})"
+            )
+        arm = _dh_from_lines(axes.r, axes.h, axes.home)
         q = np.random.default_rng(0).uniform(-np.pi, np.pi, size=(4, 6))
         err = float(np.max(np.abs(arm.fk(q) - m.fk(q))))
         if err > 1e-9 * max(1.0, arm.scale):
@@ -217,36 +223,6 @@ class General6R:
     def _unit(self) -> tuple[np.ndarray, np.ndarray]:
         """Scaled ``(a, d)``: the arm at unit size."""
         return self.a / self.scale, self.d / self.scale
-
-
-def joint_lines(m: Mechanism) -> tuple[np.ndarray, np.ndarray]:
-    """``(lines, ee)``: ``lines[k] = (point, direction)`` of the k-th revolute coordinate's axis
-    at ``q = 0`` in the base frame (``(6, 2, 3)``, in chain order = coordinate order) and the
-    end-effector pose at ``q = 0``."""
-    if m.n_q != 6 or m.is_closed:
-        raise InvalidArgumentError(
-            "m", f"{m.name!r}: expected an open chain with 6 coordinates, got n_q={m.n_q}"
-        )
-    tree = [m.joints[i] for i in m.topology.tree]
-    by_child = {j.child: j for j in tree}
-    body, chain = m.frames[m.ee][0], []
-    while body in by_child:
-        j = by_child[body]
-        chain.append(j)
-        body = j.parent
-    moving = [j for j in reversed(chain) if j.dof]
-    if body != m.base or len(moving) != 6 or any(j.type != "revolute" for j in moving):
-        raise InvalidArgumentError(
-            "m", f"{m.name!r}: the path from the base to the end effector must have six revolute joints"
-        )
-    if [m.coordinate_names.index(j.name) for j in moving] != list(range(6)):
-        raise InvalidArgumentError("m", f"{m.name!r}: coordinates are not in base-to-tip order")
-    zero = np.zeros(6)
-    lines = np.zeros((6, 2, 3))
-    for k, j in enumerate(moving):
-        frame = (np.eye(4) if j.parent == m.base else m.fk(zero, frame=j.parent)) @ j.origin
-        lines[k, 0], lines[k, 1] = frame[:3, 3], frame[:3, :3] @ j.axis
-    return lines, m.fk(zero)
 
 
 def _perpendicular(z: np.ndarray, hint: np.ndarray) -> np.ndarray:

@@ -1,8 +1,8 @@
 """Compiled CasADi functions for the differential-IK hot path.
 
 A CasADi ``Function`` called from Python costs tens of microseconds per call (argument
-conversion to ``DM`` and back), more than a whole QP step should take. :class:`CompiledFunction`
-flattens a function to one input and one output vector, compiles it through :mod:`optik.native`
+conversion to ``DM`` and back), more than a whole QP step should take. `CompiledFunction`
+flattens a function to one input and one output vector, compiles it through `optik.native`
 (generated C, cached on disk, called through ``ctypes`` on preallocated numpy buffers) and falls
 back to calling the CasADi function itself without a C compiler (same numbers, slower).
 

@@ -1,10 +1,10 @@
 """CasADi functions with dense vector inputs/outputs, called on preallocated buffers.
 
 The IK methods that iterate in compiled code (``lm``, the error checks of ``nlp``) call their
-CasADi functions through :class:`NativeFunction`: generated C code compiled and loaded by
-:mod:`optik.native` (about 1 us of overhead per call instead of about 100 us through CasADi's
-Python interface), or, without a compiler (or with ``compile=False``), the same interface over
-CasADi's own evaluator.
+CasADi functions through [`NativeFunction`][optik.solvers.native.NativeFunction]: generated C code compiled
+and loaded by `optik.native` (about 1 us of overhead per call instead of about 100 us through CasADi's Python
+interface), or, without a compiler (or with ``compile=False``), the same interface over CasADi's own
+evaluator.
 """
 
 from __future__ import annotations
@@ -19,7 +19,8 @@ from optik.native import CCall, library
 
 
 def native_functions(functions: list[ca.Function], compile: bool | str = "auto") -> list[NativeFunction]:
-    """:class:`NativeFunction` wrappers of several functions compiled into one library.
+    """[`NativeFunction`][optik.solvers.native.NativeFunction] wrappers of several functions compiled into one
+    library.
 
     Args:
         functions: functions with dense column inputs and outputs.
@@ -48,12 +49,12 @@ def _check_dense(f: ca.Function) -> None:
 class NativeFunction:
     """A CasADi function with dense vector inputs/outputs, callable on preallocated buffers.
 
-    Write the inputs into :attr:`inputs` (numpy arrays), call, read :attr:`outputs` (views of
+    Write the inputs into `inputs` (numpy arrays), call, read `outputs` (views of
     preallocated buffers: copy them to keep them across calls). Not thread-safe.
 
     Args:
         f: the function; every input and output must be a dense column or scalar.
-        library: loaded library holding ``f`` (:func:`optik.native.library`; None: CasADi's
+        library: loaded library holding ``f`` (`optik.native.library`; None: CasADi's
             evaluator).
 
     Attributes:
@@ -69,7 +70,7 @@ class NativeFunction:
         self._call = CCall(library, f.name(), self.inputs, self.outputs) if library is not None else None
 
     def __call__(self) -> list[np.ndarray]:
-        """Evaluate on the current contents of :attr:`inputs`; returns :attr:`outputs`."""
+        """Evaluate on the current contents of `inputs`; returns `outputs`."""
         if self._call is not None:
             self._call()
             return self.outputs

@@ -29,8 +29,8 @@ for a pose with 16 real solutions and prints it: the reference instance of
 ``tests/test_general_6r.py`` was found this way (seed 7, under a minute), then rounded to two
 decimals and re-checked.
 
-Run: ``python benchmarks/bench_general_6r.py [--arms 200] [--poses 5] [--multistart-arms 20]
-[--seed 0] [--plot docs/img/general_6r_counts.png]``.
+Run: ``optik benchmark general_6r [--arms 200] [--poses 5] [--multistart-arms 20]
+[--seed 0] [--plot docs/img/general_6r_counts.png]`` (or ``python -m optik.benchmarks.bench_general_6r``).
 """
 
 from __future__ import annotations
@@ -49,7 +49,8 @@ from dataclasses import dataclass, field  # noqa: E402
 import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
-from optik.closed_form.general_6r import General6R, joint_lines, solve_general_6r  # noqa: E402
+from optik.closed_form.general_6r import General6R, solve_general_6r  # noqa: E402
+from optik.closed_form.structure import axes_of  # noqa: E402
 from optik.mechanism import Mechanism, dh_chain  # noqa: E402
 
 try:  # an optional peer
@@ -89,10 +90,10 @@ class Tally:
 
 def _ik_geo_robot(m: Mechanism) -> tuple[object, np.ndarray]:
     """ik-geo's general 6-DOF robot from the joint lines at q = 0 (axes h, offsets p)."""
-    lines, ee = joint_lines(m)
-    pts = lines[:, 0]
-    p = np.vstack([pts[0], np.diff(pts, axis=0), ee[:3, 3] - pts[5]])
-    return ik_geo.Robot.gen_six_dof(lines[:, 1], p), ee[:3, :3]
+    axes = axes_of(m)
+    pts = axes.r
+    p = np.vstack([pts[0], np.diff(pts, axis=0), axes.home[:3, 3] - pts[5]])
+    return ik_geo.Robot.gen_six_dof(axes.h, p), axes.home[:3, :3]
 
 
 def _verified(m: Mechanism, qs: Sequence[Sequence[float]], target: np.ndarray) -> list[np.ndarray]:

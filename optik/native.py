@@ -55,16 +55,18 @@ def cache_dir() -> Path:
     return d
 
 
-def c_source(functions: Sequence[ca.Function]) -> str:
-    """C code of ``functions`` in one file (no header, ``casadi_int`` = ``long long int``)."""
+def c_source(functions: Sequence[ca.Function], extra_source: str = "") -> str:
+    """C code of ``functions`` in one file (no header, ``casadi_int`` = ``long long int``),
+    followed by ``extra_source`` (optik's own C calling the generated functions)."""
     gen = ca.CodeGenerator(f"{functions[0].name()}.c", {"with_header": False, "casadi_int": "long long int"})
     for f in functions:
         gen.add(f)
-    return gen.dump()
+    return gen.dump() + extra_source
 
 
-def compile_library(functions: Sequence[ca.Function]) -> Path:
-    """Compile ``functions`` into one shared library (once per source hash); its path.
+def compile_library(functions: Sequence[ca.Function], extra_source: str = "") -> Path:
+    """Compile ``functions`` (and ``extra_source``, see :func:`c_source`) into one shared
+    library (once per source hash); its path.
 
     Raises:
         SolverUnavailableError: no C compiler, or the compilation failed.
@@ -73,7 +75,7 @@ def compile_library(functions: Sequence[ca.Function]) -> Path:
     cc = compiler()
     if cc is None:
         raise SolverUnavailableError("no C compiler found (set $CC or install gcc; unset $OPTIK_NO_CODEGEN)")
-    source = c_source(functions)
+    source = c_source(functions, extra_source)
     stem = functions[0].name()
     digest = hashlib.sha256((source + cc).encode()).hexdigest()[:20]
     folder = cache_dir()
@@ -96,13 +98,16 @@ def compile_library(functions: Sequence[ca.Function]) -> Path:
     return lib
 
 
-def library(functions: Sequence[ca.Function], compile: bool | str = "auto") -> ctypes.CDLL | None:
+def library(
+    functions: Sequence[ca.Function], compile: bool | str = "auto", extra_source: str = ""
+) -> ctypes.CDLL | None:
     """The loaded library of ``functions``, or None: evaluate them with CasADi instead.
 
     Args:
         functions: the functions to compile into one library.
         compile: ``True`` compile (raise when impossible), ``False`` never compile (None),
             ``"auto"`` compile when a C compiler exists and works, else None.
+        extra_source: C code appended to the generated code (see :func:`c_source`).
 
     Raises:
         InvalidArgumentError: bad ``compile`` value.
@@ -113,7 +118,7 @@ def library(functions: Sequence[ca.Function], compile: bool | str = "auto") -> c
     if compile is False or (compile == "auto" and compiler() is None):
         return None
     try:
-        path = str(compile_library(functions))
+        path = str(compile_library(functions, extra_source))
         if path not in _LIBS:
             _LIBS[path] = ctypes.CDLL(path)
         return _LIBS[path]

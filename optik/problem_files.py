@@ -4,11 +4,13 @@ A problem file names a catalog constructor and its parameters, optional joint-li
 how to draw targets, the success tolerances and which solvers and peers apply. Files are parsed
 with `tomllib` (``tomli`` on Python 3.10): data only, no code is executed. Every error
 names the file, the key and what is wrong, e.g.
-``problems/five_bar.toml: targets.n: expected an integer >= 1, got 0``.
+``.../optik/data/problems/five_bar.toml: targets.n: expected an integer >= 1, got 0``.
 
-The files live in ``problems/`` at the top of the repository (the one source of truth); they
-are found next to the installed package (clean clone, ``pip install -e .``), or anywhere by
-path. Schema (every table but ``[mechanism]`` optional)::
+The shipped files are package data in ``optik/data/problems/`` (the one copy in the
+repository), found through `importlib.resources` as `PROBLEM_DIR`, so that a wheel install,
+an editable install and a source tree on ``PYTHONPATH`` all see them; any other directory can
+be given instead (``optik --problems-dir DIR``), and any file by path. Schema (every table but
+``[mechanism]`` optional)::
 
     [problem]
     description = "..."          # required, one line
@@ -70,6 +72,7 @@ import typing
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -101,8 +104,8 @@ __all__ = [
     "problem_summary",
 ]
 
-PROBLEM_DIR = Path(__file__).resolve().parent.parent / "problems"
-"""``problems/`` at the top of the repository the package was installed from."""
+PROBLEM_DIR = Path(str(resources.files("optik") / "data" / "problems"))
+"""The shipped problem files: the package data folder ``optik/data/problems``."""
 
 PEERS = ("trac_ik", "pink", "ikpy")
 """Peer libraries a problem may ask for (adapters in [`optik.bench.peers`][optik.bench.peers])."""
@@ -613,7 +616,7 @@ def _directory(directory: str | Path | None) -> Path:
     d = PROBLEM_DIR if directory is None else Path(directory)
     if not d.is_dir():
         raise InvalidArgumentError(
-            "problems", f"no problem directory at {d}; pass the path of a problems/ folder or of a .toml file"
+            "problems", f"no problem directory at {d}; pass a folder of .toml problem files or a .toml file"
         )
     return d
 

@@ -27,7 +27,7 @@ Mathematics (seed ``000``/``001`` notation):
 * **Seed 6R arm**: see [`ik_seed_6r`][optik.closed_form.serial.ik_seed_6r].
 
 The kernels run over blocks of [`BLOCK`][optik.closed_form.serial.BLOCK] targets so that temporaries stay in
-cache (``benchmarks/bench_closed_form.py``: the 3R arm solves several million targets per second on one core).
+cache (``optik benchmark closed_form``: the 3R arm solves several million targets per second on one core).
 [`optik.closed_form.ik`][optik.closed_form.ik] solves one target at a time; it calls scalar twins of the
 kernels (``_*_one``, plain ``math`` on floats, the same operations in the same order), since a numpy call on a
 one-element array costs about as much as the whole scalar solve.

@@ -6,6 +6,7 @@ assembly mode and differential IK, and compares every solver against closed form
 """
 
 from optik import catalog, closed_form, diffik, spatial  # diffik registers the "dls" and "qp" IK methods
+from optik.batch import BatchResult, fk_batch, solve_ik_batch
 from optik.errors import (
     InvalidArgumentError,
     LimitsError,
@@ -23,10 +24,12 @@ from optik.results import FKModes, FKResult, IKResult
 from optik.solvers import Tolerances, solve_ik, solve_ik_all
 from optik.solvers.fk import solve_fk, solve_fk_all
 from optik.targets import Pose2D, Position
+from optik.view import view
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "BatchResult",
     "FKModes",
     "FKResult",
     "IKProblem",
@@ -50,10 +53,13 @@ __all__ = [
     "closed_form",
     "dh_chain",
     "diffik",
+    "fk_batch",
     "planar_chain",
     "solve_fk",
     "solve_fk_all",
     "solve_ik",
     "solve_ik_all",
+    "solve_ik_batch",
     "spatial",
+    "view",
 ]

@@ -55,22 +55,24 @@ def cache_dir() -> Path:
     return d
 
 
-def c_source(functions: Sequence[ca.Function]) -> str:
-    """C code of ``functions`` in one file (no header, ``casadi_int`` = ``long long int``)."""
+def c_source(functions: Sequence[ca.Function], extra_source: str = "") -> str:
+    """C code of ``functions`` in one file (no header, ``casadi_int`` = ``long long int``),
+    followed by ``extra_source`` (optik's own C calling the generated functions)."""
     gen = ca.CodeGenerator(f"{functions[0].name()}.c", {"with_header": False, "casadi_int": "long long int"})
     for f in functions:
         gen.add(f)
-    return gen.dump()
+    return gen.dump() + extra_source
 
 
-def compile_library(functions: Sequence[ca.Function]) -> Path:
-    """Compile ``functions`` into one shared library (once per source hash); its path.
+def compile_library(functions: Sequence[ca.Function], extra_source: str = "") -> Path:
+    """Compile ``functions`` (and ``extra_source``, see `c_source`) into one shared
+    library (once per source hash); its path.
 
     Raises:
         SolverUnavailableError: no C compiler, or the compilation failed.
         OSError: the cache directory is not writable.
     """
-    return compile_source(c_source(functions), functions[0].name())
+    return compile_source(c_source(functions, extra_source), functions[0].name())
 
 
 def compile_source(source: str, stem: str, flags: Sequence[str] = ()) -> Path:
@@ -105,19 +107,22 @@ def compile_source(source: str, stem: str, flags: Sequence[str] = ()) -> Path:
     return lib
 
 
-def library(functions: Sequence[ca.Function], compile: bool | str = "auto") -> ctypes.CDLL | None:
+def library(
+    functions: Sequence[ca.Function], compile: bool | str = "auto", extra_source: str = ""
+) -> ctypes.CDLL | None:
     """The loaded library of ``functions``, or None: evaluate them with CasADi instead.
 
     Args:
         functions: the functions to compile into one library.
         compile: ``True`` compile (raise when impossible), ``False`` never compile (None),
             ``"auto"`` compile when a C compiler exists and works, else None.
+        extra_source: C code appended to the generated code (see :func:`c_source`).
 
     Raises:
         InvalidArgumentError: bad ``compile`` value.
         SolverUnavailableError: ``compile=True`` without a working compiler.
     """
-    return _load(lambda: compile_library(functions), compile)
+    return _load(lambda: compile_library(functions, extra_source), compile)
 
 
 def source_library(

@@ -31,6 +31,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.backend_bases import FigureCanvasBase
 from matplotlib.figure import Figure
 
 from optik.checks import as_rng
@@ -40,9 +41,11 @@ from optik.problem_files import assemble
 
 __all__ = [
     "Geometry",
+    "body_points",
     "draw",
     "draw_branches",
     "geometry",
+    "ordered_outline",
     "save_figure",
     "workspace",
     "workspace_points",
@@ -96,7 +99,7 @@ def geometry(m: Mechanism, q: Any) -> Geometry:
     return Geometry(np.asarray(a).T, np.asarray(b).T, np.asarray(t))
 
 
-def _body_points(m: Mechanism, g: Geometry, body: str) -> list[np.ndarray]:
+def body_points(m: Mechanism, g: Geometry, body: str) -> list[np.ndarray]:
     """Joint locations carried by ``body``, and the end effector when it sits on a bar-like body
     (on a plate, e.g. a platform, the end-effector triad marks it instead)."""
     pts = []
@@ -109,12 +112,12 @@ def _body_points(m: Mechanism, g: Geometry, body: str) -> list[np.ndarray]:
     for p in pts:
         if all(np.linalg.norm(p - d) > 1e-9 for d in distinct):
             distinct.append(p)
-    if m.frames[m.ee][0] == body and not _outline(distinct)[1]:  # a tool point on a bar, not a plate
+    if m.frames[m.ee][0] == body and not ordered_outline(distinct)[1]:  # a tool point on a bar, not a plate
         distinct.append(g.ee[:3, 3])
     return distinct
 
 
-def _outline(pts: list[np.ndarray]) -> tuple[np.ndarray, bool]:
+def ordered_outline(pts: list[np.ndarray]) -> tuple[np.ndarray, bool]:
     """Points ordered along their principal direction (collinear) or by angle (a polygon).
 
     Returns the ordered ``(k, 3)`` points and whether they enclose an area.
@@ -162,19 +165,19 @@ def _render(ax: Axes, m: Mechanism, g: Geometry, style: dict[str, Any]) -> None:
     size = style.get("scale", 0.04 * _extent(g.points()))
     first = True
     for body in m.topology.bodies:
-        pts = _body_points(m, g, body)
+        pts = body_points(m, g, body)
         if body == m.base:
             if style.get("ground", True):
                 for p in pts:
                     _ground(ax, p, size, planar, "0.3")
             if len(pts) >= 2:
-                outline, area = _outline(pts)
+                outline, area = ordered_outline(pts)
                 ring = np.vstack([outline, outline[:1]]) if area else outline
                 _plot_line(ax, ring, planar, color="0.5", lw=1.0, alpha=alpha)
             continue
         if len(pts) < 2:
             continue
-        outline, area = _outline(pts)
+        outline, area = ordered_outline(pts)
         kw: dict[str, Any] = {"color": color, "lw": lw, "alpha": alpha, "solid_capstyle": "round"}
         if first and style.get("label"):
             kw["label"] = style["label"]
@@ -428,6 +431,39 @@ def write_atomic(path: str | os.PathLike[str], write: Callable[[str], None]) -> 
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+    return dest
+
+
+def check_writable(path: str | os.PathLike[str], name: str, directory: bool = False) -> Path:
+    """Check, before a long computation, that its output can be written: the folder (``path``
+    itself when ``directory``, else its parent) is created when missing and a temporary file is
+    created in it and removed; a figure file needs an image extension matplotlib knows.
+
+    Raises:
+        InvalidArgumentError: naming ``name``, with the operating system's reason.
+    """
+    try:
+        dest = Path(path)
+    except TypeError:
+        raise InvalidArgumentError(name, f"expected a file path, got {path!r}") from None
+    folder = dest if directory else dest.parent
+    if not directory:
+        if dest.is_dir():
+            raise InvalidArgumentError(name, f"{str(dest)!r} is a directory; name a file such as plot.png")
+        fmt = dest.suffix.lstrip(".").lower()
+        known = FigureCanvasBase.get_supported_filetypes()
+        if fmt not in known:
+            raise InvalidArgumentError(
+                name, f"unsupported image format {fmt!r} of {str(dest)!r}; known: {sorted(known)}"
+            )
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=".optik-write-check.", dir=folder)
+        os.close(fd)
+        os.unlink(tmp)
+    except (OSError, ValueError) as exc:  # ValueError: a NUL character in the path
+        reason = getattr(exc, "strerror", None) or str(exc)
+        raise InvalidArgumentError(name, f"cannot write into {str(folder)!r}: {reason}") from None
     return dest
 
 

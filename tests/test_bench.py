@@ -183,4 +183,4 @@ def test_missing_peer_package_is_a_clean_note(monkeypatch):
     monkeypatch.setattr(ADAPTERS["ikpy"], "package", "no_such_ikpy_module")
     res = run_problem(problem_files.find_problem("panda"), n=2, time_limit=0.02, only=["ikpy", "lm"])
     assert [r.name for r in res.runs] == ["lm"]
-    assert any("no_such_ikpy_module" in n and "pip install" in n for n in res.notes), res.notes
+    assert any("no_such_ikpy_module" in n and 'pip install "optik[peers]"' in n for n in res.notes), res.notes

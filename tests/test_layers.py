@@ -3,7 +3,7 @@ modules import each other (directly or around a loop), lazy imports inside funct
 
 Layers, bottom to top: errors; checks, native; spatial, targets, results; mechanism; catalog;
 closed_form; problem; solvers; diffik; applications (problem_files, batch, reach, plot, bench,
-view, cli). A package's ``__init__`` may import its own submodules (it re-exports them).
+benchmarks, view, cli). A package's ``__init__`` may import its own submodules (it re-exports them).
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ LAYERS = [
     {"problem"},
     {"solvers"},
     {"diffik"},
-    {"problem_files", "batch", "reach", "plot", "bench", "view", "cli"},
+    {"problem_files", "batch", "reach", "plot", "bench", "benchmarks", "view", "cli"},
 ]
 LEVEL = {name: i for i, layer in enumerate(LAYERS) for name in layer}
 

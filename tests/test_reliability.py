@@ -8,11 +8,14 @@ import time
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import optik
-from optik import catalog, diffik
+from optik import catalog, diffik, problem_files
 from optik.cli import main
 from optik.mechanism import Joint, planar_chain
+from optik.problem_files import find_problem, load_problem
 
 
 def _raises(argument: str, call, *args, **kwargs) -> optik.InvalidArgumentError:
@@ -233,3 +236,140 @@ def test_success_iff_status_solved(method):
     ):
         res = optik.solve_ik(m, target, method=method, time_limit=0.05, seed=k)
         assert res.success == (res.status == "solved"), (res.status, res.success)
+
+
+# ------------------------------------------------------------------------------------------ files
+_FIVE_BAR = """[problem]
+description = "five-bar"
+[mechanism]
+constructor = "{constructor}"
+[mechanism.params]
+{params}
+[targets]
+n = {n}
+"""
+
+
+def _problem_file(tmp_path, constructor="five_bar", params="", n=10, text=None):
+    p = tmp_path / "p.toml"
+    if text is None:
+        text = _FIVE_BAR.format(constructor=constructor, params=params, n=n)
+    p.write_bytes(text.encode() if isinstance(text, str) else text)
+    return p
+
+
+def test_problem_file_not_utf8(tmp_path):
+    p = _problem_file(tmp_path, text=b'[problem]\ndescription = "\xff\xfe"\n')
+    with pytest.raises(optik.ProblemFileError, match="not UTF-8"):
+        load_problem(p)
+
+
+def test_problem_file_path_with_nul():
+    with pytest.raises(optik.ProblemFileError, match="NUL"):
+        load_problem("problems/a\0b.toml")
+    _raises("problem", find_problem, "a\0b.toml")
+    _raises("problem", find_problem, ["planar_2r"])
+
+
+def test_problem_file_deeply_nested_arrays(tmp_path):
+    p = _problem_file(tmp_path, text="[problem]\ndescription = " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(optik.ProblemFileError, match="nested too deeply"):
+        load_problem(p)
+
+
+def test_problem_file_too_large(tmp_path):
+    p = _problem_file(tmp_path, text="# " + "x" * (2 << 20) + "\n")
+    with pytest.raises(optik.ProblemFileError, match="larger than"):
+        load_problem(p)
+
+
+@pytest.mark.parametrize("name", ["urdf_path", "__class__", "URDF_CHAINS", "no_such"])
+def test_problem_file_constructor_must_build_a_mechanism(tmp_path, name):
+    with pytest.raises(optik.ProblemFileError, match=r"mechanism\.constructor"):
+        load_problem(_problem_file(tmp_path, constructor=name))
+
+
+def test_problem_file_constructors_are_the_mechanism_functions():
+    names = problem_files.constructors()
+    assert {"five_bar", "panda", "planar_2r", "stewart_gough"} <= set(names)
+    assert "urdf_path" not in names and "URDF_CHAINS" not in names
+
+
+def test_problem_file_huge_n(tmp_path):
+    with pytest.raises(optik.ProblemFileError, match=r"targets\.n"):
+        load_problem(_problem_file(tmp_path, n=10**12))
+    problem = load_problem(_problem_file(tmp_path))
+    _raises("n", problem.sample_targets, 10**12)
+
+
+def test_problem_file_bad_constructor_parameter_fails_at_build(tmp_path):
+    problem = load_problem(_problem_file(tmp_path, params='base = "ab"'))
+    with pytest.raises(optik.ProblemFileError, match=r"mechanism\.params\.base"):
+        problem.mechanism()
+
+
+@pytest.mark.parametrize(
+    ("argv", "option"),
+    [
+        (["solve", "planar_2r", "--target", "1", "0.5", "--plot", "{file}/x.png"], "--plot"),
+        (["solve", "planar_2r", "--target", "1", "0.5", "--plot", "{dir}"], "--plot"),
+        (["solve", "planar_2r", "--target", "1", "0.5", "--plot", "{dir}/x.zzz"], "--plot"),
+        (["fk", "planar_2r", "--q", "0.1", "0.2", "--plot", "{file}/x.png"], "--plot"),
+        (["bench", "planar_2r", "--n", "1", "--out", "{file}/out"], "--out"),
+        (["plot", "planar_2r", "--out", "{file}"], "--out"),
+    ],
+)
+def test_cli_unwritable_output_fails_before_the_run(tmp_path, capsys, argv, option):
+    """A regular file where a folder is needed, a folder where a file is needed, an unknown
+    image format: exit code 2 with one line naming the option, before any work."""
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    args = [a.format(file=blocker, dir=tmp_path) for a in argv]
+    assert main(args) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""  # nothing ran
+    assert option in captured.err and "Traceback" not in captured.err
+
+
+# ----------------------------------------------------------------- closed forms at extreme sizes
+def test_planar_3r_branches_at_extreme_proportions_pass_fk():
+    """lengths (1e-9, 1e3, 1e3), identity target: the branches were off by 7.6e-3 (1 + c2 and
+    1 - c2 did not add up to 2 in rounding, so theta1 missed by l2 times the mismatch)."""
+    m = catalog.planar_3r(lengths=(1e-9, 1e3, 1e3))
+    branches = optik.closed_form.ik(m, np.eye(4))
+    assert branches
+    for q in branches:
+        assert np.abs(m.fk(q) - np.eye(4)).max() < 1e-12 * 2e3
+
+
+_SIZES = st.sampled_from([1e-9, 1e-6, 1e-3, 1.0, 1e3, 1e6, 1e9])
+
+
+@settings(derandomize=True, max_examples=40, deadline=None, database=None)
+@given(
+    lengths=st.tuples(_SIZES, _SIZES, _SIZES), q=st.lists(st.floats(-np.pi, np.pi), min_size=6, max_size=6)
+)
+def test_serial_closed_forms_pass_fk_at_any_proportion(lengths, q):
+    """Every branch returned (scalar and vectorized kernels, 3R and seed 6R arms) reproduces the
+    target to rounding relative to the arm's size."""
+    scale = sum(lengths)
+    arms = (
+        catalog.planar_2r(lengths=lengths[:2]),
+        catalog.planar_3r(lengths=lengths),
+        catalog.seed_6r_arm(*lengths),
+    )
+    for m in arms:
+        qq = q[: m.n_q]
+        t = m.fk(qq)
+        rows = optik.closed_form.ik(m, t, respect_limits=False)
+        assert rows, m.name  # a target made by FK is reachable
+        for b in rows:
+            f = m.fk(b)
+            assert np.abs(f[:3, 3] - t[:3, 3]).max() <= 1e-12 * scale, (m.name, b)
+            if m.task != "position2d":
+                assert np.abs(f[:3, :3] - t[:3, :3]).max() <= 1e-9, (m.name, b)
+    x, y, phi = optik.spatial.planar_pose_of(catalog.planar_3r(lengths=lengths).fk(q[:3]))
+    qs, ok = optik.closed_form.ik_planar_3r(lengths, x, y, phi)
+    m = catalog.planar_3r(lengths=lengths)
+    for b in qs[0][ok[0]]:
+        assert np.abs(m.fk(b)[:2, 3] - [x, y]).max() <= 1e-12 * scale

@@ -56,7 +56,7 @@ def run_bench(
         quick: the quick settings of every file (fewer targets, shorter time limits).
         out: output directory.
         time_limit: seconds per IK call (default: from the files).
-        problem_dir: where named problems are looked up (default: the repository's ``problems/``).
+        problem_dir: where named problems are looked up (default: the shipped ``optik/data/problems``).
         stream: where tables go (default stdout); the progress bar goes to stderr.
         progress: show the progress bar.
         command: the command line, recorded in the report.

@@ -28,7 +28,7 @@ from optik.errors import InvalidArgumentError, SolverUnavailableError
 
 
 def default_solver() -> str:
-    """The default backend: ``"daqp"`` when installed (fastest in ``benchmarks/bench_diffik.py``),
+    """The default backend: ``"daqp"`` when installed (fastest in ``optik benchmark diffik``),
     else ``"osqp"``."""
     return "daqp" if importlib.util.find_spec("daqp") is not None else "osqp"
 

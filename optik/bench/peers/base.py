@@ -56,7 +56,7 @@ class Peer(ABC):
         except ImportError as exc:
             raise PeerUnavailable(
                 f"{cls.name}: package {cls.package!r} is not installed ({exc}); "
-                "install the peers with: pip install -e '.[peers]'"
+                'install the peers with: pip install "optik[peers]"'
             ) from None
 
     def check_joints(self, n: int) -> None:

@@ -15,7 +15,7 @@ Pink's fastest installed solver is picked the way a new user would: each install
 backend runs the first goal and the fastest median step wins. The solvers then run interleaved,
 goal by goal.
 
-Run: ``python benchmarks/bench_diffik.py [--goals 20] [--steps 300] [--dt 0.01]``.
+Run: ``optik benchmark diffik [--goals 20] [--steps 300] [--dt 0.01]``.
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ solved one target at a time through ``optik.closed_form.ik`` (validation, limits
 merging included), with mean / median / p95 time per call and the ratio to the vectorized
 per-target time.
 
-Run: ``python benchmarks/bench_closed_form.py [--n 1000000] [--n-6r 200000] [--repeat 5]``.
+Run: ``optik benchmark closed_form [--n 1000000] [--n-6r 200000] [--repeat 5]``.
 """
 
 from __future__ import annotations

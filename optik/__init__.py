@@ -6,6 +6,7 @@ assembly mode and differential IK, and compares every solver against closed form
 """
 
 from optik import catalog, closed_form, diffik, spatial  # diffik registers the "dls" and "qp" IK methods
+from optik.batch import BatchResult, fk_batch, solve_ik_batch
 from optik.errors import (
     InvalidArgumentError,
     LimitsError,
@@ -19,6 +20,7 @@ from optik.errors import (
 )
 from optik.mechanism import Joint, Mechanism, dh_chain, planar_chain
 from optik.problem import IKProblem, build_ik_problem
+from optik.reach import reach
 from optik.results import FKModes, FKResult, IKResult
 from optik.solvers import Tolerances, solve_ik, solve_ik_all
 from optik.solvers.fk import solve_fk, solve_fk_all
@@ -28,6 +30,7 @@ from optik.view import view
 __version__ = "0.1.0"
 
 __all__ = [
+    "BatchResult",
     "FKModes",
     "FKResult",
     "IKProblem",
@@ -51,11 +54,14 @@ __all__ = [
     "closed_form",
     "dh_chain",
     "diffik",
+    "fk_batch",
     "planar_chain",
+    "reach",
     "solve_fk",
     "solve_fk_all",
     "solve_ik",
     "solve_ik_all",
+    "solve_ik_batch",
     "spatial",
     "view",
 ]

@@ -44,9 +44,40 @@ def register(kind: str, ik: IKSolver | None = None, fk: FKSolver | None = None) 
         _FK[kind] = fk
 
 
+Deriver = Callable[[Mechanism], IKSolver | None]
+_DERIVERS: list[Deriver] = []
+_DERIVED: weakref.WeakKeyDictionary[Mechanism, IKSolver | None] = weakref.WeakKeyDictionary()
+
+
+def register_deriver(deriver: Deriver) -> None:
+    """Register a function that derives a closed-form IK from a mechanism's model (or returns
+    None). Derivers are tried in registration order for mechanisms whose kind has no registered
+    IK; the first answer is cached per mechanism."""
+    _DERIVERS.append(deriver)
+    _DERIVED.clear()
+
+
+def ik_solver(m: Mechanism) -> IKSolver | None:
+    """The closed-form IK of ``m``: the one registered for its kind, else the first derived one
+    (see [`register_deriver`][optik.closed_form.registry.register_deriver]), else None."""
+    solver = _IK.get(m.kind) if m.kind is not None else None
+    if solver is not None:
+        return solver
+    try:
+        return _DERIVED[m]
+    except KeyError:
+        pass
+    for deriver in _DERIVERS:
+        solver = deriver(m)
+        if solver is not None:
+            break
+    _DERIVED[m] = solver
+    return solver
+
+
 def has_ik(m: Mechanism) -> bool:
-    """True when a closed-form IK is registered for the mechanism's kind."""
-    return m.kind in _IK
+    """True when a closed-form IK is registered for the mechanism's kind or derived from its model."""
+    return ik_solver(m) is not None
 
 
 def has_fk(m: Mechanism) -> bool:
@@ -134,9 +165,10 @@ def branches(m: Mechanism, t: np.ndarray) -> list[list[float]]:
     Raises:
         SolverUnavailableError: no closed form is registered for ``m.kind``.
     """
-    if m.kind not in _IK:
+    solver = ik_solver(m)
+    if solver is None:
         raise SolverUnavailableError(f"no closed-form IK for mechanism {m.name!r} (kind {m.kind!r})")
-    return wrap_rows(m, _IK[m.kind](m, t))
+    return wrap_rows(m, solver(m, t))
 
 
 def _finish(m: Mechanism, rows: list[list[float]], respect_limits: bool) -> list[np.ndarray]:
@@ -158,7 +190,7 @@ def ik(m: Mechanism, target: Any, respect_limits: bool = True) -> list[np.ndarra
     Raises:
         SolverUnavailableError: no closed form is registered for ``m.kind``.
     """
-    if m.kind not in _IK:
+    if ik_solver(m) is None:
         raise SolverUnavailableError(f"no closed-form IK for mechanism {m.name!r} (kind {m.kind!r})")
     return _finish(m, branches(m, target_transform(target)), respect_limits)
 

@@ -88,9 +88,12 @@ def sp4(h: np.ndarray, k: np.ndarray, p: np.ndarray, d: np.ndarray) -> tuple[np.
     a = _dot(h, p) - hk * kp
     b = _dot(h, np.cross(k, p))
     c = d - hk * kp
+    a, b, c = np.broadcast_arrays(a, b, c)
     r = np.hypot(a, b)
     phi = np.arctan2(b, a)
-    scale = np.maximum(np.linalg.norm(p, axis=-1) * np.linalg.norm(h, axis=-1), 1e-300)
+    scale = np.broadcast_to(
+        np.maximum(np.linalg.norm(p, axis=-1) * np.linalg.norm(h, axis=-1), 1e-300), r.shape
+    )
     ratio = np.divide(c, r, out=np.zeros_like(r), where=r > EXACT_TOL * scale)
     exact = np.abs(ratio) <= 1.0 + EXACT_TOL
     exact &= (r > EXACT_TOL * scale) | (np.abs(c) <= EXACT_TOL * scale)

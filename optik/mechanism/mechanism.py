@@ -512,7 +512,29 @@ class Mechanism:
 
     def _rebuild(self, joints: Sequence[Joint]) -> Mechanism:
         extra = {k: v for k, v in self.frames.items() if k not in self.topology.bodies}
-        m = Mechanism(joints, self.base, extra, self.ee, self.name, self.task)
-        m.kind = self.kind
-        m.params = dict(self.params)
-        return m
+        return _restore(joints, self.base, extra, self.ee, self.name, self.task, self.kind, self.params)
+
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        """Pickle the definition (joints, frames, names, catalog data) only: the symbolic model
+        and the compiled functions are rebuilt on first use after unpickling (CasADi symbols do
+        not pickle; e.g. Dask ships a mechanism to its workers this way)."""
+        extra = {k: v for k, v in self.frames.items() if k not in self.topology.bodies}
+        definition = (self.joints, self.base, extra, self.ee, self.name, self.task, self.kind, self.params)
+        return _restore, definition
+
+
+def _restore(
+    joints: Sequence[Joint],
+    base: str,
+    frames: Mapping[str, tuple[str, Any]],
+    ee: str,
+    name: str,
+    task: str,
+    kind: str | None,
+    params: dict[str, Any],
+) -> Mechanism:
+    """A mechanism from its definition, with its catalog kind and parameters."""
+    m = Mechanism(joints, base, frames, ee, name, task)
+    m.kind = kind
+    m.params = dict(params)
+    return m

@@ -2,31 +2,48 @@
 
 Calling a CasADi ``Function`` from Python costs tens to a hundred microseconds per call
 (argument conversion to ``DM`` and back), more than a whole IK iteration or QP step should take.
-:func:`library` generates C code for a list of functions (``casadi.CodeGenerator``), compiles it
-once with the system C compiler into a shared library cached on disk (keyed by a hash of the
-source and the compiler, so each machine compiles a given model once) and loads it;
-:class:`CCall` then calls one generated entry point through ``ctypes`` on preallocated numpy
-buffers, about 1 us of overhead per call. Both the IK solvers (:mod:`optik.solvers.native`) and
-differential IK (:mod:`optik.diffik._codegen`) use it.
+`optik.native.library` generates C code for a list of functions
+(``casadi.CodeGenerator``) and compiles it with the system C compiler into a shared library
+cached on disk (keyed by a hash of the source, the compiler and its flags, so each machine
+compiles a given model once); `optik.native.Binding` then calls one generated entry
+point through ``ctypes`` on preallocated numpy buffers, about 1 us of overhead per call. Both the
+IK solvers (`optik.solvers.native`) and differential IK (`optik.diffik._codegen`) use it.
 
-Without a C compiler, with ``$OPTIK_NO_CODEGEN`` set, or with ``compile=False``, :func:`library`
-returns None and the callers evaluate with CasADi's own evaluator (same numbers, slower).
+*No wait for the compiler.* Compiling a 7-joint arm's solver takes about half a second. With
+``compile="auto"`` (the default) a library that is not in the cache yet is built in a background
+(daemon) thread: until it is loaded, the callers evaluate the same functions with CasADi's own
+``SX`` virtual machine (same operations in the same order, so the same numbers to rounding, and
+the generated code is compiled with ``-ffp-contract=off`` so that no fused multiply-add changes
+them), then switch to the compiled entry points at their next call. A failed build is logged (logger
+``optik.native``) and the callers keep the virtual machine; nothing raises. A build still
+running when the interpreter exits is stopped and its temporary files removed (the next process
+starts it again). ``compile=True`` builds in the calling thread and raises when it cannot;
+`optik.native.wait` blocks until the background builds are done.
 
-The cache directory is ``$OPTIK_CACHE_DIR`` or ``~/.cache/optik``. A library is written under a
-temporary name and renamed into place (``os.replace``), so processes compiling the same source
-at once never load a half-written file.
+Without a C compiler, with ``$OPTIK_NO_CODEGEN`` set, or with ``compile=False``, there is no
+library and the callers always evaluate with CasADi's virtual machine (same numbers, slower).
+
+The cache directory is ``$OPTIK_CACHE_DIR`` or ``~/.cache/optik``. A library is compiled in a
+private temporary folder of the cache and renamed into place (``os.replace``), so processes and
+threads compiling the same source at once never load a half-written file.
 """
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import ctypes
 import hashlib
+import logging
 import os
 import shutil
 import subprocess
 import tempfile
+import threading
+import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -34,7 +51,14 @@ import numpy as np
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 
 _INT = ctypes.c_longlong  # casadi_int of the generated code (see c_source)
-_LIBS: dict[str, ctypes.CDLL] = {}  # loaded libraries by path
+_FLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off")
+"""Compiler flags; no contraction into fused multiply-adds, so C and the virtual machine agree."""
+_LOG = logging.getLogger(__name__)
+_BUILDS: dict[Path, Library] = {}  # every library this process loaded or built, by path
+_BUILDS_LOCK = threading.Lock()
+_RUNNING: dict[subprocess.Popen, Path] = {}  # compiler processes at work -> their temporary folder
+_RUNNING_LOCK = threading.Lock()
+_EXITING = threading.Event()  # set at interpreter exit: unfinished builds are stopped, not failures
 
 
 def compiler() -> str | None:
@@ -63,46 +87,150 @@ def c_source(functions: Sequence[ca.Function]) -> str:
     return gen.dump()
 
 
-def compile_library(functions: Sequence[ca.Function]) -> Path:
-    """Compile ``functions`` into one shared library (once per source hash); its path.
+def _library_file(stem: str, source: str, cc: str) -> Path:
+    """Cache path of the library of ``source`` compiled by ``cc`` with the flags (hash-keyed)."""
+    digest = hashlib.sha256("\0".join((source, cc, *_FLAGS)).encode()).hexdigest()[:20]
+    return cache_dir() / f"{stem}_{digest}.so"
+
+
+def _start(source: str, cc: str, lib: Path) -> tuple[subprocess.Popen, Path]:
+    """Write ``source`` into a new temporary folder of the cache and start the compiler on it at a
+    lower scheduling priority (returns at once); the compiler process and the folder.
 
     Raises:
-        SolverUnavailableError: no C compiler, or the compilation failed.
-        OSError: the cache directory is not writable.
+        OSError: the cache directory is not writable, or the compiler cannot be started.
     """
-    cc = compiler()
-    if cc is None:
-        raise SolverUnavailableError("no C compiler found (set $CC or install gcc; unset $OPTIK_NO_CODEGEN)")
-    source = c_source(functions)
-    stem = functions[0].name()
-    digest = hashlib.sha256((source + cc).encode()).hexdigest()[:20]
-    folder = cache_dir()
-    lib = folder / f"{stem}_{digest}.so"
-    if lib.exists():
-        return lib
-    with tempfile.TemporaryDirectory(dir=folder) as tmp:
-        src = Path(tmp, "f.c")
-        src.write_text(source)
-        out = Path(tmp, "f.so")
-        proc = subprocess.run(
-            [cc, "-O2", "-fPIC", "-shared", "-o", str(out), str(src), "-lm"],
-            capture_output=True,
-            text=True,
-            check=False,
-        )
+    tmp = Path(tempfile.mkdtemp(dir=lib.parent, prefix=".build-"))
+    try:
+        (tmp / "f.c").write_text(source)
+        with _RUNNING_LOCK:
+            proc = subprocess.Popen(
+                [cc, *_FLAGS, "-o", str(tmp / "f.so"), str(tmp / "f.c"), "-lm"],
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.PIPE,
+                text=True,
+            )
+            _RUNNING[proc] = tmp
+        with contextlib.suppress(OSError, AttributeError):  # a background job: let the solves go first
+            os.setpriority(os.PRIO_PROCESS, proc.pid, 10)
+    except OSError:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return proc, tmp
+
+
+def _finish(proc: subprocess.Popen, tmp: Path, lib: Path) -> None:
+    """Wait for the compiler started by `_start`, rename its output to ``lib``, remove ``tmp``.
+
+    Raises:
+        SolverUnavailableError: the compiler failed (its last error lines in the message).
+        OSError: the rename failed.
+    """
+    try:
+        try:
+            _, err = proc.communicate()
+        finally:
+            with _RUNNING_LOCK:
+                _RUNNING.pop(proc, None)
         if proc.returncode != 0:
-            raise SolverUnavailableError(f"compiling {stem} failed: {proc.stderr[-2000:]}")
-        os.replace(out, lib)  # atomic: concurrent processes may compile the same source
-    return lib
+            raise SolverUnavailableError(f"compiling {lib.name} failed: {err[-2000:]}")
+        os.replace(tmp / "f.so", lib)  # atomic: concurrent processes may compile the same source
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
-def library(functions: Sequence[ca.Function], compile: bool | str = "auto") -> ctypes.CDLL | None:
-    """The loaded library of ``functions``, or None: evaluate them with CasADi instead.
+@atexit.register
+def _stop_builds() -> None:
+    """Stop the compilers of unfinished background builds and remove their temporary folders."""
+    _EXITING.set()
+    with _RUNNING_LOCK:
+        running = list(_RUNNING.items())
+    for proc, tmp in running:
+        proc.kill()
+        proc.wait()
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+class Library:
+    """A shared library of generated C code: loaded, being built in the background, or failed.
+
+    Created by `optik.native.library` (one object per library file and process).
+
+    Attributes:
+        path: the library file in the cache.
+        error: why the build or the load failed (None otherwise).
+    """
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.error: str | None = None
+        self._cdll: ctypes.CDLL | None = None
+        self._done = threading.Event()
+
+    @property
+    def state(self) -> str:
+        """``"building"``, ``"ready"`` or ``"failed"``."""
+        if not self._done.is_set():
+            return "building"
+        return "ready" if self._cdll is not None else "failed"
+
+    def get(self) -> ctypes.CDLL | None:
+        """The loaded library when it is ready, else None (never blocks)."""
+        return self._cdll if self._done.is_set() else None
+
+    def wait(self, timeout: float | None = None) -> ctypes.CDLL | None:
+        """Block until the build is done (at most ``timeout`` seconds); the loaded library or None."""
+        self._done.wait(timeout)
+        return self.get()
+
+    def _make(self, source: str, cc: str, background: bool) -> None:
+        """Load the cached file, or start the compiler and load its output: in a daemon thread that
+        waits for it when ``background``, else here. A failure is recorded (and logged), not raised."""
+        try:
+            if self.path.exists():
+                self._settle(None, None)
+                return
+            proc, tmp = _start(source, cc, self.path)  # here: the thread does no Python work meanwhile
+            if not background:
+                self._settle(proc, tmp)
+                return
+            name = f"optik-build-{self.path.stem}"
+            threading.Thread(target=self._settle, args=(proc, tmp), name=name, daemon=True).start()
+        except Exception as exc:
+            self._fail(exc)
+            if not isinstance(exc, OSError):  # OSError: the compiler could not be started
+                raise
+
+    def _settle(self, proc: subprocess.Popen | None, tmp: Path | None) -> None:
+        """Finish the build (when ``proc`` runs) and load the library; record a failure."""
+        try:
+            if proc is not None and tmp is not None:
+                _finish(proc, tmp, self.path)
+            self._cdll = ctypes.CDLL(str(self.path))
+        except (SolverUnavailableError, OSError) as exc:  # broken toolchain, unwritable cache, bad file
+            self._fail(exc)
+        finally:
+            self._done.set()
+
+    def _fail(self, exc: Exception) -> None:
+        self.error = str(exc)
+        self._done.set()
+        if not _EXITING.is_set():
+            _LOG.warning(
+                "optik: no compiled code for %s, CasADi's evaluator is used: %s", self.path.name, exc
+            )
+
+
+def library(functions: Sequence[ca.Function], compile: bool | str = "auto") -> Library | None:
+    """The compiled library of ``functions`` (possibly still building), or None: evaluate them
+    with CasADi instead.
 
     Args:
         functions: the functions to compile into one library.
-        compile: ``True`` compile (raise when impossible), ``False`` never compile (None),
-            ``"auto"`` compile when a C compiler exists and works, else None.
+        compile: ``True`` compile now in this thread (raise when impossible), ``False`` never
+            compile (None), ``"auto"`` load the cached library, or start the compiler and
+            return at once when it is not cached yet (a daemon thread waits for the compiler
+            and loads the library; None without a C compiler).
 
     Raises:
         InvalidArgumentError: bad ``compile`` value.
@@ -110,53 +238,109 @@ def library(functions: Sequence[ca.Function], compile: bool | str = "auto") -> c
     """
     if compile not in (True, False, "auto"):
         raise InvalidArgumentError("compile", f"expected True, False or 'auto', got {compile!r}")
-    if compile is False or (compile == "auto" and compiler() is None):
+    cc = compiler()
+    if compile is False or cc is None:
+        if compile is True:
+            raise SolverUnavailableError(
+                "no C compiler found (set $CC or install gcc; unset $OPTIK_NO_CODEGEN)"
+            )
         return None
+    source = c_source(functions)
     try:
-        path = str(compile_library(functions))
-        if path not in _LIBS:
-            _LIBS[path] = ctypes.CDLL(path)
-        return _LIBS[path]
-    except (SolverUnavailableError, OSError):  # broken toolchain, unwritable cache, bad library
+        path = _library_file(functions[0].name(), source, cc)
+    except OSError as exc:  # the cache directory cannot be created
         if compile is True:
             raise
+        _LOG.warning("optik: no compiled code, the cache directory is not usable: %s", exc)
         return None
+    with _BUILDS_LOCK:
+        lib = _BUILDS.get(path)
+        fresh = lib is None
+        if fresh:
+            lib = _BUILDS[path] = Library(path)
+    if fresh:
+        lib._make(source, cc, background=compile == "auto")  # cached: loading takes a millisecond
+    if compile is True and lib.wait() is None:
+        raise SolverUnavailableError(lib.error or f"{path.name}: no library")
+    return lib
 
 
-class CCall:
-    """One generated function of a loaded library, bound to preallocated numpy buffers.
+def wait(timeout: float | None = None) -> bool:
+    """Wait until every background build of this process is done (at most ``timeout`` seconds
+    in all); True when none is left running."""
+    deadline = None if timeout is None else time.monotonic() + timeout
+    with _BUILDS_LOCK:
+        builds = list(_BUILDS.values())
+    for lib in builds:
+        lib.wait(None if deadline is None else max(0.0, deadline - time.monotonic()))
+    return all(lib.state != "building" for lib in builds)
+
+
+class Binding:
+    """One generated function of a `optik.native.Library`, bound to preallocated numpy
+    buffers once the library is ready.
 
     Args:
-        lib: the library (from :func:`library`) that holds ``name``.
+        lib: the library that holds ``name`` (None: never compiled).
         name: the CasADi function's name.
         inputs: one contiguous float64 array per input (dense, column-major).
         outputs: one contiguous float64 array per output.
 
     The arrays are bound by address: write into ``inputs``, call, read ``outputs``. Keep them
-    alive (and never reallocate them) while the call object is in use.
+    alive (and never reallocate them) while the binding is in use. A call returns False while
+    there is no compiled code (still building, failed or never compiled): the caller then
+    evaluates the CasADi function itself.
     """
 
     def __init__(
-        self, lib: ctypes.CDLL, name: str, inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray]
+        self, lib: Library | None, name: str, inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray]
     ) -> None:
         self.name = name
+        self._lib = lib
         self._buffers = (list(inputs), list(outputs))  # keep the bound memory alive
+        self._fn: Any = None  # the ctypes entry point once bound
+
+    @property
+    def compiled(self) -> bool:
+        """True once calls go to the compiled code."""
+        return self._fn is not None or self._bind()
+
+    def _bind(self) -> bool:
+        """Bind the entry point when the library has become ready; True when bound."""
+        lib = self._lib
+        cdll = lib.get() if lib is not None else None
+        if cdll is None:
+            if lib is not None and lib.state == "failed":
+                self._lib = None  # stop asking
+            return False
+        inputs, outputs = self._buffers
         sizes = [_INT() for _ in range(4)]
-        getattr(lib, f"{name}_work")(*[ctypes.byref(s) for s in sizes])
+        getattr(cdll, f"{self.name}_work")(*[ctypes.byref(s) for s in sizes])
         n_arg, n_res, n_iw, n_w = (max(int(s.value), 1) for s in sizes)
         self._argv = (ctypes.c_void_p * n_arg)(*[b.ctypes.data for b in inputs])
         self._resv = (ctypes.c_void_p * n_res)(*[b.ctypes.data for b in outputs])
         self._iw = (_INT * n_iw)()
         self._w = (ctypes.c_double * n_w)()
-        self._fn = getattr(lib, name)
-        self._fn.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int]
-        self._fn.restype = ctypes.c_int
+        fn = getattr(cdll, self.name)
+        fn.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int]
+        fn.restype = ctypes.c_int
+        self._fn, self._lib = fn, None
+        return True
 
-    def __call__(self) -> None:
-        """Evaluate on the current contents of the input buffers.
+    def __call__(self) -> bool:
+        """Evaluate on the current contents of the input buffers when compiled code is there.
+
+        Returns:
+            True when the outputs were computed, False when the caller must evaluate.
 
         Raises:
             SolverUnavailableError: the generated code reported an error.
         """
-        if self._fn(self._argv, self._resv, self._iw, self._w, 0) != 0:
+        fn = self._fn
+        if fn is None:
+            if self._lib is None or not self._bind():
+                return False
+            fn = self._fn
+        if fn(self._argv, self._resv, self._iw, self._w, 0) != 0:
             raise SolverUnavailableError(f"{self.name}: evaluation failed")
+        return True

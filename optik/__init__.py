@@ -1,11 +1,12 @@
 """optik: kinematics by constrained optimization.
 
-Every mechanism becomes one CasADi model (:class:`Mechanism`) with joint limits and
+Every mechanism becomes one CasADi model ([`Mechanism`][optik.Mechanism]) with joint limits and
 loop-closure constraints; optik solves IK with limits, FK of parallel mechanisms in every
 assembly mode and differential IK, and compares every solver against closed forms.
 """
 
 from optik import catalog, closed_form, diffik, spatial  # diffik registers the "dls" and "qp" IK methods
+from optik.batch import BatchResult, fk_batch, solve_ik_batch
 from optik.errors import (
     InvalidArgumentError,
     LimitsError,
@@ -19,14 +20,17 @@ from optik.errors import (
 )
 from optik.mechanism import Joint, Mechanism, dh_chain, planar_chain
 from optik.problem import IKProblem, build_ik_problem
-from optik.results import FKResult, IKResult
+from optik.results import FKModes, FKResult, IKResult
 from optik.solvers import Tolerances, solve_ik, solve_ik_all
 from optik.solvers.fk import solve_fk, solve_fk_all
 from optik.targets import Pose2D, Position
+from optik.view import view
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "BatchResult",
+    "FKModes",
     "FKResult",
     "IKProblem",
     "IKResult",
@@ -49,10 +53,13 @@ __all__ = [
     "closed_form",
     "dh_chain",
     "diffik",
+    "fk_batch",
     "planar_chain",
     "solve_fk",
     "solve_fk_all",
     "solve_ik",
     "solve_ik_all",
+    "solve_ik_batch",
     "spatial",
+    "view",
 ]

@@ -1,4 +1,4 @@
-"""Validation of user input: shapes, finiteness, names. Raise :mod:`optik.errors` subclasses."""
+"""Validation of user input: shapes, finiteness, names. Raise [`optik.errors`][optik.errors] subclasses."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ import numpy as np
 from optik.errors import InvalidArgumentError, NonFiniteError, ShapeError
 
 
-def _real_array(value: Any, name: str) -> np.ndarray:
+def real_array(value: Any, name: str) -> np.ndarray:
     """``value`` as a float array; strings, complex numbers and other non-real input raise an
-    :class:`InvalidArgumentError` naming the argument (never numpy's own exception)."""
+    [`InvalidArgumentError`][optik.InvalidArgumentError] naming the argument (never numpy's own exception)."""
     try:
         a = np.asarray(value)
     except (TypeError, ValueError) as exc:  # ragged nested sequences
@@ -36,7 +36,7 @@ def as_vector(value: Any, name: str, size: int | None = None) -> np.ndarray:
             return value
         a = value
     else:
-        a = _real_array(value, name)
+        a = real_array(value, name)
     if a.ndim == 0:
         a = a.reshape(1)
     if a.ndim != 1:
@@ -55,7 +55,7 @@ def as_batch(value: Any, name: str, size: int) -> tuple[np.ndarray, bool]:
         ShapeError: last axis is not ``size`` or more than two axes.
         NonFiniteError: contains NaN or infinity.
     """
-    a = _real_array(value, name)
+    a = real_array(value, name)
     single = a.ndim <= 1
     a = np.atleast_2d(a)
     if a.ndim != 2 or a.shape[1] != size:
@@ -77,7 +77,7 @@ def as_transform(value: Any, name: str) -> np.ndarray:
         NonFiniteError: NaN or infinity.
         InvalidArgumentError: the last row is not ``[0, 0, 0, 1]`` or the rotation is not proper.
     """
-    t = value if type(value) is np.ndarray and value.dtype == np.float64 else _real_array(value, name)
+    t = value if type(value) is np.ndarray and value.dtype == np.float64 else real_array(value, name)
     if t.shape != (4, 4):
         raise ShapeError(name, f"expected a 4x4 transform, got shape {t.shape}")
     rows = t.tolist()
@@ -113,3 +113,51 @@ def as_rng(seed: int | np.random.Generator | None) -> np.random.Generator:
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise InvalidArgumentError("seed", f"expected an int >= 0 or a numpy Generator, got {seed!r}")
     return np.random.default_rng(int(seed))
+
+
+def as_float(value: Any, name: str, minimum: float | None = None, strict: bool = False) -> float:
+    """A finite real number, optionally bounded below (``>= minimum``, or ``> minimum`` when
+    ``strict``).
+
+    Raises:
+        InvalidArgumentError: not a real number (None, a string, a sequence, complex ...).
+        NonFiniteError: NaN or infinity.
+        InvalidArgumentError: below the bound.
+    """
+    if type(value) is not float or not math.isfinite(value):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise InvalidArgumentError(name, f"expected a real number, got {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise NonFiniteError(name, f"must be finite, got {value}")
+    if minimum is not None and (value <= minimum if strict else value < minimum):
+        raise InvalidArgumentError(name, f"must be {'>' if strict else '>='} {minimum:g}, got {value:g}")
+    return value
+
+
+def as_name(value: Any, name: str, choices: Any = None) -> str:
+    """A string, optionally one of ``choices`` (anything supporting ``in``).
+
+    Lists, None and other non-strings raise here instead of a ``TypeError`` from a dictionary
+    lookup (an unhashable value) or a confusing "unknown name" later.
+
+    Raises:
+        InvalidArgumentError: not a string, or not one of ``choices`` (the message lists them).
+    """
+    if not isinstance(value, str):
+        raise InvalidArgumentError(name, f"expected a string, got {value!r}")
+    if choices is not None and value not in choices:
+        raise InvalidArgumentError(name, f"unknown {name} {value!r}; use one of {sorted(choices)}")
+    return value
+
+
+def as_int(value: Any, name: str, minimum: int = 0) -> int:
+    """An integer ``>= minimum``; integral floats (``3.0``) are accepted, bools are not.
+
+    Raises:
+        InvalidArgumentError: not an integer (NaN, 2.5, a string ...) or below ``minimum``.
+    """
+    v = as_float(value, name)
+    if v != int(v) or v < minimum:
+        raise InvalidArgumentError(name, f"expected an integer >= {minimum}, got {value!r}")
+    return int(v)

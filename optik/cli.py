@@ -1,12 +1,12 @@
 """The ``optik`` command: ``bench``, ``solve``, ``fk`` and ``plot`` on the problem files, and
-``benchmark`` for the focused benchmark scripts of the repository's ``benchmarks/`` folder.
+``benchmark`` for the focused benchmark scripts of `optik.benchmarks`.
 
-Every problem subcommand takes a problem name (a file of ``problems/``) or the path of a
-``.toml`` problem file, and has ``--help``. Bad arguments give a one-line message naming the
-argument and exit code 2; unreachable targets and non-assemblable inputs are normal outcomes
-(exit code 1 when nothing was solved). The problem-set benchmark lives in :mod:`optik.bench`;
-``optik benchmark NAME`` loads ``benchmarks/bench_NAME.py`` of a source checkout and calls its
-``main(argv)``.
+Every problem subcommand takes a problem name (a file shipped in ``optik/data/problems/``, or
+of ``--problems-dir``) or the path of a ``.toml`` problem file, and has ``--help``. Bad arguments
+give a one-line message naming the argument and exit code 2; unreachable targets and
+non-assemblable inputs are normal outcomes (exit code 1 when nothing was solved). The
+problem-set benchmark lives in [`optik.bench`][optik.bench]; ``optik benchmark NAME`` imports
+``optik.benchmarks.bench_NAME`` and calls its ``main(argv)``.
 
 Target and joint values are given as numbers, per task space of the problem:
 
@@ -25,7 +25,6 @@ pose           ``x y z roll pitch yaw`` (RPY: ``Rot(z, yaw) Rot(y, pitch) Rot(x,
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import shlex
 import sys
 from collections.abc import Sequence
@@ -40,13 +39,11 @@ import optik
 from optik import closed_form, spatial
 from optik.errors import OptikError, SolverUnavailableError
 from optik.mechanism import Mechanism
-from optik.problems import Problem, find_problem
+from optik.problem_files import Problem, find_problem
 
 __all__ = ["build_parser", "main", "parse_target"]
 
 PLOT_MODES = ("config", "branches", "assembly", "workspace", "all")
-BENCHMARK_DIR = Path(__file__).resolve().parent.parent / "benchmarks"
-"""The focused benchmark scripts ``bench_*.py`` (present in a source checkout)."""
 
 
 class UsageError(Exception):
@@ -108,6 +105,17 @@ def _pose_text(m: Mechanism, t: np.ndarray, digits: int = 6) -> str:
     return "  ".join(f"{n}={float(v):+.{digits}f}" for n, v in zip(names, values, strict=True))
 
 
+def _writable(path: Path | str | None, name: str, directory: bool = False) -> None:
+    """Fail before the work when the output ``--plot`` / ``--out`` cannot be written."""
+    from optik.plot import check_writable
+
+    if path is not None:
+        try:
+            check_writable(path, name, directory)
+        except OptikError as exc:
+            raise _usage(exc) from None
+
+
 def _save(fig: Figure, path: Path) -> Path:
     from optik.plot import save_figure
 
@@ -125,12 +133,14 @@ ARGUMENTS = {
     "q": "--q",
     "actuated": "--q",
     "method": "--method",
+    "plot": "--plot",
+    "out": "--out",
 }
 """Library argument names -> command-line options, for error messages."""
 
 
 def _usage(exc: OptikError) -> UsageError:
-    """A :class:`UsageError` for a library error, naming the command-line option."""
+    """A [`UsageError`][optik.cli.UsageError] for a library error, naming the command-line option."""
     text = str(exc)
     prefix = f"{getattr(exc, 'argument', '')}: "
     return UsageError(_option(exc), text[len(prefix) :] if text.startswith(prefix) else text)
@@ -148,6 +158,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     from optik.bench import run_bench
 
     solvers = [s for item in args.solvers or () for s in item.split(",") if s] or None
+    _writable(args.out, "out", directory=True)
     try:
         outcome = run_bench(
             args.problem,
@@ -167,6 +178,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 # ---------------------------------------------------------------------------- solve
 def _cmd_solve(args: argparse.Namespace) -> int:
+    _writable(args.plot, "plot")
     problem = _problem(args.problem, args.problems_dir)
     m = problem.mechanism()
     task = problem.mechanism_task
@@ -197,6 +209,8 @@ def _cmd_solve(args: argparse.Namespace) -> int:
             print(f"    {r.message}")
     if not results:
         print("no solution: the target is unreachable within the joint limits")
+    if args.all:
+        print(results.message)
     if args.plot and results:
         from optik.plot import draw_branches
 
@@ -206,13 +220,15 @@ def _cmd_solve(args: argparse.Namespace) -> int:
 
 # ---------------------------------------------------------------------------- fk
 def _assembly_modes(m: Mechanism, actuated: np.ndarray) -> list[np.ndarray]:
-    """All assembly modes: the closed form when registered, else :func:`optik.solve_fk_all`."""
+    """All assembly modes: the closed form when registered, else
+    [`optik.solve_fk_all`][optik.solve_fk_all]."""
     if closed_form.has_fk(m):
         return closed_form.fk(m, actuated)
     return [np.asarray(r.q) for r in optik.solve_fk_all(m, actuated) if r.success]
 
 
 def _cmd_fk(args: argparse.Namespace) -> int:
+    _writable(args.plot, "plot")
     problem = _problem(args.problem, args.problems_dir)
     m = problem.mechanism()
     n_act = len(m.actuated_indices)
@@ -244,6 +260,7 @@ def _cmd_fk(args: argparse.Namespace) -> int:
 def _cmd_plot(args: argparse.Namespace) -> int:
     from optik.plot import draw, draw_branches, workspace
 
+    _writable(args.out, "out", directory=True)
     problem = _problem(args.problem, args.problems_dir)
     m = problem.mechanism()
     task = problem.mechanism_task
@@ -290,24 +307,13 @@ def _cmd_plot(args: argparse.Namespace) -> int:
     return 0 if written else 1
 
 
-def benchmark_scripts() -> dict[str, Path]:
-    """``{name: path}`` of the scripts ``benchmarks/bench_<name>.py`` next to the package."""
-    return {p.stem.removeprefix("bench_"): p for p in sorted(BENCHMARK_DIR.glob("bench_*.py"))}
-
-
 def _cmd_benchmark(args: argparse.Namespace) -> int:
-    scripts = benchmark_scripts()
-    if not scripts:
-        raise UsageError("NAME", f"no benchmark scripts in {BENCHMARK_DIR} (a source checkout has them)")
-    if args.name not in scripts:
-        raise UsageError("NAME", f"unknown benchmark {args.name!r}; available: {', '.join(scripts)}")
-    spec = importlib.util.spec_from_file_location(f"optik_benchmark_{args.name}", scripts[args.name])
-    if spec is None or spec.loader is None:  # pragma: no cover - a .py path always has a loader
-        raise UsageError("NAME", f"cannot load {scripts[args.name]}")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses and pickling look the module up there
-    spec.loader.exec_module(module)
-    return int(module.main(list(args.args)) or 0)
+    from optik import benchmarks
+
+    names = benchmarks.available()
+    if args.name not in names:
+        raise UsageError("NAME", f"unknown benchmark {args.name!r}; available: {', '.join(names)}")
+    return benchmarks.run(args.name, args.args)
 
 
 # ---------------------------------------------------------------------------- parser
@@ -355,7 +361,11 @@ def _common(p: argparse.ArgumentParser, many: bool = False) -> None:
         )
     else:
         p.add_argument("problem", metavar="PROBLEM", help="problem name (e.g. five_bar) or a .toml file")
-    p.add_argument("--problems-dir", metavar="DIR", help="directory of problem files (default: problems/)")
+    p.add_argument(
+        "--problems-dir",
+        metavar="DIR",
+        help="directory of problem files (default: the problem files shipped with optik)",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -363,7 +373,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="optik",
         description="Kinematics by constrained optimization: benchmark, solve, FK and plots of the problems.",
-        epilog="Problems are the TOML files of problems/ (e.g. planar_3r, five_bar, stewart_gough, panda).",
+        epilog=(
+            "Problems are the TOML files shipped in optik/data/problems (e.g. planar_3r, five_bar, "
+            "stewart_gough, panda), or of --problems-dir."
+        ),
     )
     parser.add_argument("--version", action="version", version=f"optik {optik.__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
@@ -460,16 +473,20 @@ def build_parser() -> argparse.ArgumentParser:
 
     k = sub.add_parser(
         "benchmark",
-        help="run a focused benchmark script of benchmarks/ (ik, diffik, closed_form, parallel_fk)",
+        help="run a focused benchmark script of optik.benchmarks (ik, diffik, closed_form, parallel_fk)",
         description=(
-            "Run benchmarks/bench_NAME.py of a source checkout with the remaining arguments, e.g. "
+            "Run the benchmark script optik.benchmarks.bench_NAME with the remaining arguments, e.g. "
             "'optik benchmark ik --n 1000' (Panda: lm / nlp against TRAC-IK) or 'optik benchmark diffik' "
             "(QP step against Pink). 'optik benchmark NAME --help' shows a script's own options."
         ),
     )
-    k.add_argument("name", metavar="NAME", help="benchmark name: the NAME of benchmarks/bench_NAME.py")
+    k.add_argument("name", metavar="NAME", help="benchmark name: the NAME of optik.benchmarks.bench_NAME")
     k.add_argument("args", nargs=argparse.REMAINDER, help="arguments passed to the script")
     k.set_defaults(func=_cmd_benchmark)
+
+    from optik.view.command import add_parser as add_view  # optik view: the browser viewer
+
+    add_view(sub)
     return parser
 
 

@@ -1,6 +1,6 @@
 """Exceptions raised by optik.
 
-Every error that a caller can cause derives from :class:`OptikError`. Errors about an argument
+Every error that a caller can cause derives from [`OptikError`][optik.OptikError]. Errors about an argument
 carry the argument's name in ``argument`` and in the message, so that a user sees at once what
 to fix. Unreachable targets and non-assemblable mechanisms are *not* errors: solvers return a
 result with ``success=False`` for them.

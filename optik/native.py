@@ -5,9 +5,11 @@ Calling a CasADi ``Function`` from Python costs tens to a hundred microseconds p
 `optik.native.library` generates C code for a list of functions
 (``casadi.CodeGenerator``) and compiles it with the system C compiler into a shared library
 cached on disk (keyed by a hash of the source, the compiler and its flags, so each machine
-compiles a given model once); `optik.native.Binding` then calls one generated entry
-point through ``ctypes`` on preallocated numpy buffers, about 1 us of overhead per call. Both the
-IK solvers (`optik.solvers.native`) and differential IK (`optik.diffik._codegen`) use it.
+compiles a given model once); `optik.native.CCall` then calls one generated entry
+point through ``ctypes`` on preallocated numpy buffers, about 1 us of overhead per call
+(`optik.native.Binding`: the same once the library is ready). The IK solvers
+(`optik.solvers.native`, `optik.solvers.lm_kernel`), differential IK (`optik.diffik._codegen`)
+and `optik.batch` use it.
 
 *No wait for the compiler.* Compiling a 7-joint arm's solver takes about half a second. With
 ``compile="auto"`` (the default) a library that is not in the cache yet is built in a background
@@ -41,9 +43,8 @@ import subprocess
 import tempfile
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -58,6 +59,10 @@ _BUILDS: dict[Path, Library] = {}  # every library this process loaded or built,
 _BUILDS_LOCK = threading.Lock()
 _RUNNING: dict[subprocess.Popen, Path] = {}  # compiler processes at work -> their temporary folder
 _RUNNING_LOCK = threading.Lock()
+EVALUATOR_BUDGET = 0.25
+"""Seconds of evaluation in CasADi's virtual machine, summed over the calls made while a library
+builds, after which the next call waits for the build instead: the first answers come at once, and
+a long computation started on a cold cache runs at most this long at the evaluator's speed."""
 _EXITING = threading.Event()  # set at interpreter exit: unfinished builds are stopped, not failures
 
 
@@ -79,12 +84,13 @@ def cache_dir() -> Path:
     return d
 
 
-def c_source(functions: Sequence[ca.Function]) -> str:
-    """C code of ``functions`` in one file (no header, ``casadi_int`` = ``long long int``)."""
+def c_source(functions: Sequence[ca.Function], extra_source: str = "") -> str:
+    """C code of ``functions`` in one file (no header, ``casadi_int`` = ``long long int``),
+    followed by ``extra_source`` (optik's own C calling the generated functions)."""
     gen = ca.CodeGenerator(f"{functions[0].name()}.c", {"with_header": False, "casadi_int": "long long int"})
     for f in functions:
         gen.add(f)
-    return gen.dump()
+    return gen.dump() + extra_source
 
 
 def _library_file(stem: str, source: str, cc: str) -> Path:
@@ -166,6 +172,7 @@ class Library:
         self.error: str | None = None
         self._cdll: ctypes.CDLL | None = None
         self._done = threading.Event()
+        self._evaluated = 0.0  # seconds the callers spent in CasADi's evaluator while it builds
 
     @property
     def state(self) -> str:
@@ -175,8 +182,15 @@ class Library:
         return "ready" if self._cdll is not None else "failed"
 
     def get(self) -> ctypes.CDLL | None:
-        """The loaded library when it is ready, else None (never blocks)."""
+        """The loaded library when it is ready, else None; blocks until the build is done only
+        once the callers have spent `EVALUATOR_BUDGET` seconds in CasADi's evaluator meanwhile."""
+        if not self._done.is_set() and self._evaluated > EVALUATOR_BUDGET:
+            self._done.wait()
         return self._cdll if self._done.is_set() else None
+
+    def evaluated(self, seconds: float) -> None:
+        """Account ``seconds`` spent evaluating in CasADi instead of this library (see `get`)."""
+        self._evaluated += seconds
 
     def wait(self, timeout: float | None = None) -> ctypes.CDLL | None:
         """Block until the build is done (at most ``timeout`` seconds); the loaded library or None."""
@@ -221,7 +235,9 @@ class Library:
             )
 
 
-def library(functions: Sequence[ca.Function], compile: bool | str = "auto") -> Library | None:
+def library(
+    functions: Sequence[ca.Function], compile: bool | str = "auto", extra_source: str = ""
+) -> Library | None:
     """The compiled library of ``functions`` (possibly still building), or None: evaluate them
     with CasADi instead.
 
@@ -231,6 +247,7 @@ def library(functions: Sequence[ca.Function], compile: bool | str = "auto") -> L
             compile (None), ``"auto"`` load the cached library, or start the compiler and
             return at once when it is not cached yet (a daemon thread waits for the compiler
             and loads the library; None without a C compiler).
+        extra_source: C code appended to the generated code (see `c_source`).
 
     Raises:
         InvalidArgumentError: bad ``compile`` value.
@@ -245,7 +262,7 @@ def library(functions: Sequence[ca.Function], compile: bool | str = "auto") -> L
                 "no C compiler found (set $CC or install gcc; unset $OPTIK_NO_CODEGEN)"
             )
         return None
-    source = c_source(functions)
+    source = c_source(functions, extra_source)
     try:
         path = _library_file(functions[0].name(), source, cc)
     except OSError as exc:  # the cache directory cannot be created
@@ -276,71 +293,91 @@ def wait(timeout: float | None = None) -> bool:
     return all(lib.state != "building" for lib in builds)
 
 
-class Binding:
-    """One generated function of a `optik.native.Library`, bound to preallocated numpy
-    buffers once the library is ready.
+class CCall:
+    """One generated function of a loaded library, bound to preallocated numpy buffers.
 
     Args:
-        lib: the library that holds ``name`` (None: never compiled).
+        lib: the loaded library (`Library.get`) that holds ``name``.
         name: the CasADi function's name.
         inputs: one contiguous float64 array per input (dense, column-major).
         outputs: one contiguous float64 array per output.
 
     The arrays are bound by address: write into ``inputs``, call, read ``outputs``. Keep them
-    alive (and never reallocate them) while the binding is in use. A call returns False while
-    there is no compiled code (still building, failed or never compiled): the caller then
-    evaluates the CasADi function itself.
+    alive (and never reallocate them) while the call object is in use.
+    """
+
+    def __init__(
+        self, lib: ctypes.CDLL, name: str, inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray]
+    ) -> None:
+        self.name = name
+        self._buffers = (list(inputs), list(outputs))  # keep the bound memory alive
+        sizes = [_INT() for _ in range(4)]
+        getattr(lib, f"{name}_work")(*[ctypes.byref(s) for s in sizes])
+        n_arg, n_res, n_iw, n_w = (max(int(s.value), 1) for s in sizes)
+        self._argv = (ctypes.c_void_p * n_arg)(*[b.ctypes.data for b in inputs])
+        self._resv = (ctypes.c_void_p * n_res)(*[b.ctypes.data for b in outputs])
+        self._iw = (_INT * n_iw)()
+        self._w = (ctypes.c_double * n_w)()
+        self._fn = getattr(lib, name)
+        self._fn.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int]
+        self._fn.restype = ctypes.c_int
+
+    def __call__(self) -> None:
+        """Evaluate on the current contents of the input buffers.
+
+        Raises:
+            SolverUnavailableError: the generated code reported an error.
+        """
+        if self._fn(self._argv, self._resv, self._iw, self._w, 0) != 0:
+            raise SolverUnavailableError(f"{self.name}: evaluation failed")
+
+
+class Binding:
+    """A `CCall` of a `Library` that may still be building: made at the first call after the
+    library is ready.
+
+    Args:
+        lib: the library that holds ``name`` (None: never compiled).
+        name, inputs, outputs: as for `CCall`.
+
+    While there is no compiled code (still building, failed or never compiled) a call runs the
+    caller's own evaluation instead.
     """
 
     def __init__(
         self, lib: Library | None, name: str, inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray]
     ) -> None:
-        self.name = name
         self._lib = lib
-        self._buffers = (list(inputs), list(outputs))  # keep the bound memory alive
-        self._fn: Any = None  # the ctypes entry point once bound
+        self._args = (name, inputs, outputs)
+        self._call: CCall | None = None
 
     @property
     def compiled(self) -> bool:
         """True once calls go to the compiled code."""
-        return self._fn is not None or self._bind()
+        return self._call is not None or self._bind()
 
     def _bind(self) -> bool:
-        """Bind the entry point when the library has become ready; True when bound."""
+        """Make the `CCall` when the library has become ready; True when made."""
         lib = self._lib
         cdll = lib.get() if lib is not None else None
         if cdll is None:
             if lib is not None and lib.state == "failed":
                 self._lib = None  # stop asking
             return False
-        inputs, outputs = self._buffers
-        sizes = [_INT() for _ in range(4)]
-        getattr(cdll, f"{self.name}_work")(*[ctypes.byref(s) for s in sizes])
-        n_arg, n_res, n_iw, n_w = (max(int(s.value), 1) for s in sizes)
-        self._argv = (ctypes.c_void_p * n_arg)(*[b.ctypes.data for b in inputs])
-        self._resv = (ctypes.c_void_p * n_res)(*[b.ctypes.data for b in outputs])
-        self._iw = (_INT * n_iw)()
-        self._w = (ctypes.c_double * n_w)()
-        fn = getattr(cdll, self.name)
-        fn.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int]
-        fn.restype = ctypes.c_int
-        self._fn, self._lib = fn, None
+        self._call, self._lib = CCall(cdll, *self._args), None
         return True
 
-    def __call__(self) -> bool:
-        """Evaluate on the current contents of the input buffers when compiled code is there.
-
-        Returns:
-            True when the outputs were computed, False when the caller must evaluate.
+    def __call__(self, evaluate: Callable[[], object]) -> None:
+        """Evaluate on the current input buffers: the compiled code when it is there, else
+        ``evaluate()`` (CasADi's evaluator writing the outputs), timed for `Library.get`.
 
         Raises:
             SolverUnavailableError: the generated code reported an error.
         """
-        fn = self._fn
-        if fn is None:
-            if self._lib is None or not self._bind():
-                return False
-            fn = self._fn
-        if fn(self._argv, self._resv, self._iw, self._w, 0) != 0:
-            raise SolverUnavailableError(f"{self.name}: evaluation failed")
-        return True
+        if self._call is None and not self._bind():
+            lib, start = self._lib, time.perf_counter()
+            evaluate()
+            if lib is not None:
+                lib.evaluated(time.perf_counter() - start)
+            return
+        self._call()

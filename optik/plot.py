@@ -5,17 +5,16 @@ a child body the two sides of the joint are
 
 ``A_j(q) = T_parent(q) origin_j``  and  ``B_j(q) = T_child(q) child_offset_j``
 
-(see :mod:`optik.mechanism.joint`). For a revolute, universal or spherical tree joint their
-origins coincide; for a prismatic joint ``B_j = A_j Trans(q_j axis_j)``, so the segment
-``A_j -> B_j`` is the slide; for a cut joint they coincide exactly when the loop is closed. One
-CasADi function ``q -> (p_A, p_B, T_ee)`` is compiled once per mechanism. A body is drawn as the
-polyline through the joint locations it carries (a filled polygon when they span an area, e.g.
-a platform); joints are markers (actuated filled, passive hollow), the ground as hatching, the
-end-effector frame as a small x-y(-z) triad. Planar mechanisms are drawn in 2-D, spatial ones
-in 3-D.
+(see [`optik.mechanism.joint`][optik.mechanism.joint]). For a revolute, universal or spherical tree joint
+their origins coincide; for a prismatic joint ``B_j = A_j Trans(q_j axis_j)``, so the segment ``A_j -> B_j``
+is the slide; for a cut joint they coincide exactly when the loop is closed. One CasADi function ``q -> (p_A,
+p_B, T_ee)`` is compiled once per mechanism. A body is drawn as the polyline through the joint locations it
+carries (a filled polygon when they span an area, e.g. a platform); joints are markers (actuated filled,
+passive hollow), the ground as hatching, the end-effector frame as a small x-y(-z) triad. Planar mechanisms
+are drawn in 2-D, spatial ones in 3-D.
 
-No ``pyplot`` state is used: figures are :class:`matplotlib.figure.Figure` objects, saved with
-:func:`save_figure` (temporary file + ``os.replace``, so a reader never sees half a PNG).
+No ``pyplot`` state is used: figures are `matplotlib.figure.Figure` objects, saved with
+[`save_figure`][optik.plot.save_figure] (temporary file + ``os.replace``, so a reader never sees half a PNG).
 """
 
 from __future__ import annotations
@@ -32,18 +31,21 @@ from typing import Any
 import casadi as ca
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.backend_bases import FigureCanvasBase
 from matplotlib.figure import Figure
 
 from optik.checks import as_rng
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
-from optik.problems import assemble
+from optik.problem_files import assemble
 
 __all__ = [
     "Geometry",
+    "body_points",
     "draw",
     "draw_branches",
     "geometry",
+    "ordered_outline",
     "save_figure",
     "workspace",
     "workspace_points",
@@ -97,7 +99,7 @@ def geometry(m: Mechanism, q: Any) -> Geometry:
     return Geometry(np.asarray(a).T, np.asarray(b).T, np.asarray(t))
 
 
-def _body_points(m: Mechanism, g: Geometry, body: str) -> list[np.ndarray]:
+def body_points(m: Mechanism, g: Geometry, body: str) -> list[np.ndarray]:
     """Joint locations carried by ``body``, and the end effector when it sits on a bar-like body
     (on a plate, e.g. a platform, the end-effector triad marks it instead)."""
     pts = []
@@ -110,12 +112,12 @@ def _body_points(m: Mechanism, g: Geometry, body: str) -> list[np.ndarray]:
     for p in pts:
         if all(np.linalg.norm(p - d) > 1e-9 for d in distinct):
             distinct.append(p)
-    if m.frames[m.ee][0] == body and not _outline(distinct)[1]:  # a tool point on a bar, not a plate
+    if m.frames[m.ee][0] == body and not ordered_outline(distinct)[1]:  # a tool point on a bar, not a plate
         distinct.append(g.ee[:3, 3])
     return distinct
 
 
-def _outline(pts: list[np.ndarray]) -> tuple[np.ndarray, bool]:
+def ordered_outline(pts: list[np.ndarray]) -> tuple[np.ndarray, bool]:
     """Points ordered along their principal direction (collinear) or by angle (a polygon).
 
     Returns the ordered ``(k, 3)`` points and whether they enclose an area.
@@ -163,19 +165,19 @@ def _render(ax: Axes, m: Mechanism, g: Geometry, style: dict[str, Any]) -> None:
     size = style.get("scale", 0.04 * _extent(g.points()))
     first = True
     for body in m.topology.bodies:
-        pts = _body_points(m, g, body)
+        pts = body_points(m, g, body)
         if body == m.base:
             if style.get("ground", True):
                 for p in pts:
                     _ground(ax, p, size, planar, "0.3")
             if len(pts) >= 2:
-                outline, area = _outline(pts)
+                outline, area = ordered_outline(pts)
                 ring = np.vstack([outline, outline[:1]]) if area else outline
                 _plot_line(ax, ring, planar, color="0.5", lw=1.0, alpha=alpha)
             continue
         if len(pts) < 2:
             continue
-        outline, area = _outline(pts)
+        outline, area = ordered_outline(pts)
         kw: dict[str, Any] = {"color": color, "lw": lw, "alpha": alpha, "solid_capstyle": "round"}
         if first and style.get("label"):
             kw["label"] = style["label"]
@@ -289,7 +291,7 @@ def draw_branches(
         qs: one coordinate vector per branch (an empty list gives a figure saying so).
         title: figure title (default: the mechanism's name and the number of branches).
         label: subplot titles are ``f"{label} {i}"`` (e.g. ``"assembly mode"``).
-        **style: passed to :func:`draw`.
+        **style: passed to [`draw`][optik.plot.draw].
 
     Returns:
         A figure with ``len(qs)`` axes (one axes with a note when ``qs`` is empty).
@@ -322,7 +324,7 @@ def workspace_points(
     Open chains: ``q ~ U(lower, upper)``, point ``p_ee(q)``. Closed chains: the actuated
     coordinates ``a ~ U(lower_a, upper_a)`` are assembled and the non-assemblable samples are
     dropped. Planar closed chains use the closed-form FK (every assembly mode within limits);
-    spatial ones the numerical :func:`optik.solve_fk` (one mode per sample from the mid-limit
+    spatial ones the numerical [`optik.solve_fk`][optik.solve_fk] (one mode per sample from the mid-limit
     start), since the closed-form FK of a 6-6 platform costs about a second per sample.
 
     Returns:
@@ -350,8 +352,8 @@ def workspace_points(
 def workspace(m: Mechanism, n: int = 2000, seed: int | np.random.Generator | None = 0) -> Figure:
     """Scatter plot of sampled reachable end-effector positions within the joint limits.
 
-    See :func:`workspace_points` for the sampling. Points are coloured by assembly mode; the
-    mechanism is drawn in the mid-limit configuration of open chains, or in the first assembled
+    See [`workspace_points`][optik.plot.workspace_points] for the sampling. Points are coloured by assembly
+    mode; the mechanism is drawn in the mid-limit configuration of open chains, or in the first assembled
     sample of closed chains.
 
     Args:
@@ -429,6 +431,39 @@ def write_atomic(path: str | os.PathLike[str], write: Callable[[str], None]) -> 
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+    return dest
+
+
+def check_writable(path: str | os.PathLike[str], name: str, directory: bool = False) -> Path:
+    """Check, before a long computation, that its output can be written: the folder (``path``
+    itself when ``directory``, else its parent) is created when missing and a temporary file is
+    created in it and removed; a figure file needs an image extension matplotlib knows.
+
+    Raises:
+        InvalidArgumentError: naming ``name``, with the operating system's reason.
+    """
+    try:
+        dest = Path(path)
+    except TypeError:
+        raise InvalidArgumentError(name, f"expected a file path, got {path!r}") from None
+    folder = dest if directory else dest.parent
+    if not directory:
+        if dest.is_dir():
+            raise InvalidArgumentError(name, f"{str(dest)!r} is a directory; name a file such as plot.png")
+        fmt = dest.suffix.lstrip(".").lower()
+        known = FigureCanvasBase.get_supported_filetypes()
+        if fmt not in known:
+            raise InvalidArgumentError(
+                name, f"unsupported image format {fmt!r} of {str(dest)!r}; known: {sorted(known)}"
+            )
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=".optik-write-check.", dir=folder)
+        os.close(fd)
+        os.unlink(tmp)
+    except (OSError, ValueError) as exc:  # ValueError: a NUL character in the path
+        reason = getattr(exc, "strerror", None) or str(exc)
+        raise InvalidArgumentError(name, f"cannot write into {str(folder)!r}: {reason}") from None
     return dest
 
 

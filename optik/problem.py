@@ -19,9 +19,10 @@ with ``theta`` the geodesic angle between ``R`` and ``R*``: their squared norm i
 minimum ``theta = 0`` and the maximum ``theta = pi``. (The common ``vee(R R*^T - R* R^T)`` error
 vanishes at ``theta = pi`` too and would create a spurious stationary point there.) The planar
 heading rows are the same construction in SO(2): their norm is ``2 sin(|phi - phi*| / 2)``. So
-for both, ``theta = 2 asin(|r_o| / 2)`` recovers the angle error (:func:`angle_from_residual`).
+for both, ``theta = 2 asin(|r_o| / 2)`` recovers the angle error
+([`angle_from_residual`][optik.problem.angle_from_residual]).
 
-The NLP (:class:`IKProblem`) is::
+The NLP ([`IKProblem`][optik.IKProblem]) is::
 
     minimize_q   1/2 (w_p^2 |r_p|^2 + w_o^2 |r_o|^2)               task error
                + 1/2 w_post |q - q_ref|^2                          posture (resolves redundancy)
@@ -31,8 +32,8 @@ The NLP (:class:`IKProblem`) is::
                 c(q) = 0                                           loop closures (closed chains)
 
 with the target, the weights and ``q_ref`` as NLP parameters: a new target or weight never
-rebuilds anything. :func:`build_ik_problem` returns the problem, cached per mechanism, task,
-frame and secondary-objective selection.
+rebuilds anything. [`build_ik_problem`][optik.build_ik_problem] returns the problem, cached per mechanism,
+task, frame and secondary-objective selection.
 """
 
 from __future__ import annotations
@@ -98,7 +99,7 @@ class IKProblem:
 
     Attributes:
         mechanism: the model.
-        task: task space (a key of :data:`optik.mechanism.TASK_ROWS`).
+        task: task space (a key of [`optik.mechanism.TASK_ROWS`][optik.mechanism.TASK_ROWS]).
         frame: task frame (None: end effector).
         secondary: the secondary objectives included besides posture.
         q: decision variables (``SX``, ``n_q`` x 1).
@@ -160,7 +161,7 @@ class IKProblem:
         manipulability: float = 0.0,
         limits: float = 0.0,
     ) -> np.ndarray:
-        """Numerical parameter vector for :attr:`parameters`.
+        """Numerical parameter vector for `parameters`.
 
         Args:
             target: 4x4 target transform.
@@ -168,8 +169,8 @@ class IKProblem:
             q_ref: reference posture (default: mid-limit).
             posture: weight of ``1/2 |q - q_ref|^2``.
             manipulability: weight of ``-log(det(J J^T))`` (needs ``"manipulability"`` in
-                :attr:`secondary`).
-            limits: weight of the distance-to-limits term (needs ``"limits"`` in :attr:`secondary`).
+                `secondary`).
+            limits: weight of the distance-to-limits term (needs ``"limits"`` in `secondary`).
 
         Raises:
             InvalidArgumentError: negative weights, or a weight for an objective not built in.
@@ -211,10 +212,10 @@ class IKProblem:
     def error_expressions(self) -> tuple[ca.SX, ca.SX, ca.SX]:
         """Position error, orientation error and max-norm of the closure residual, symbolically.
 
-        The definitions of the success check (:func:`optik.solvers.base.task_errors`), computed
-        from the frame pose directly (not from the residual): the Euclidean distance of the
-        origins (x-y only for planar tasks), the geodesic angle
-        ``atan2(|vee(M - M^T)| / 2, (tr M - 1) / 2)`` of ``M = R*^T R`` for ``pose`` and
+        The definitions of the success check
+        ([`optik.solvers.base.task_errors`][optik.solvers.base.task_errors]), computed from the frame pose
+        directly (not from the residual): the Euclidean distance of the origins (x-y only for planar tasks),
+        the geodesic angle ``atan2(|vee(M - M^T)| / 2, (tr M - 1) / 2)`` of ``M = R*^T R`` for ``pose`` and
         ``orientation``, ``|wrap(phi - phi*)|`` for ``pose2d``, and 0 where a task has no such part.
         """
         t = self.mechanism.frame_expr(self.frame)

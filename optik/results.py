@@ -54,6 +54,9 @@ class FKResult:
         condition_number: condition number of the closure Jacobian with respect to the passive
             coordinates (large near a singularity of the assembly).
         message: explanation, in particular why a solve failed.
+        limits_ok: ``lower <= q <= upper`` holds exactly (angles shifted by 2 pi into the limits
+            first).
+        limits_violated: names of the coordinates outside their limits (actuated ones included).
     """
 
     pose: np.ndarray
@@ -64,3 +67,62 @@ class FKResult:
     condition_number: float = float("nan")
     message: str = ""
     extra: dict = field(default_factory=dict)
+    limits_ok: bool = True
+    limits_violated: tuple[str, ...] = ()
+
+
+class FKModes(list):
+    """The assembly modes returned by [`solve_fk_all`][optik.solve_fk_all]: a list of
+    [`FKResult`][optik.FKResult], plus what was left out and why.
+
+    Attributes:
+        dropped: modes that close but were left out because they violate a joint limit
+            (``within_limits=True``), each an [`FKResult`][optik.FKResult] with ``limits_ok=False``.
+        message: why the list is what it is: empty inputs that cannot assemble, modes dropped
+            (how many, which coordinates), actuated values outside their limits; ``""`` when
+            every mode found is in the list.
+    """
+
+    def __init__(self, modes: list[FKResult] = (), dropped: list[FKResult] = (), message: str = "") -> None:
+        super().__init__(modes)
+        self.dropped = list(dropped)
+        self.message = message
+
+    def __repr__(self) -> str:
+        return f"FKModes({list.__repr__(self)}, dropped={len(self.dropped)}, message={self.message!r})"
+
+
+class IKSolutions(list):
+    """The list of ``IKResult`` that ``optik.solve_ik_all`` returns, one per distinct
+    solution, with what was left out and why.
+
+    Attributes:
+        outside_limits: configurations that solve the target but lie outside the joint limits
+            (not in the list).
+        failed_check: candidates dropped because they did not pass the FK check, even after
+            polishing (not in the list).
+        method: how the solutions were found (``"closed_form"`` or the numerical method).
+        message: a sentence summarizing the counts.
+    """
+
+    def __init__(
+        self,
+        results: list[IKResult] = (),  # type: ignore[assignment]
+        outside_limits: list[np.ndarray] | None = None,
+        failed_check: int = 0,
+        method: str = "",
+    ) -> None:
+        super().__init__(results)
+        self.outside_limits: list[np.ndarray] = list(outside_limits or [])
+        self.failed_check = failed_check
+        self.method = method
+
+    @property
+    def message(self) -> str:
+        """E.g. ``"6 solutions by closed_form; 2 outside the joint limits left out"``."""
+        text = f"{len(self)} solution(s) by {self.method or 'no method'}"
+        if self.outside_limits:
+            text += f"; {len(self.outside_limits)} outside the joint limits left out"
+        if self.failed_check:
+            text += f"; {self.failed_check} candidate(s) failing the FK check dropped"
+        return text

@@ -19,6 +19,7 @@ Conventions:
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import casadi as ca
@@ -50,6 +51,7 @@ __all__ = [
     "translation_of",
     "vee",
     "wrap_angle",
+    "wrap_rotation_vector",
     "zyz_to_rot",
 ]
 
@@ -139,6 +141,22 @@ def wrap_angle(a: Any) -> Any:
     )
 
 
+def wrap_rotation_vector(w: np.ndarray) -> np.ndarray:
+    """The rotation vector of the same rotation with angle in ``[0, pi]``.
+
+    ``w = theta u`` with ``theta = |w| > pi`` is replaced by ``wrap_angle(theta) u``: the angle
+    reduced modulo 2 pi in one step (a negative reduced angle is the rotation about ``-u``), so
+    the cost does not grow with ``|w|``.
+
+    Args:
+        w: a finite rotation vector (numpy, 3 entries).
+    """
+    norm = math.hypot(*w.tolist())  # no overflow for huge finite entries (unlike the dot product)
+    if norm <= np.pi:
+        return w
+    return w * (wrap_angle(norm) / norm)
+
+
 def rot_x(a: Any) -> Any:
     """``Rot(x, a) = [[1, 0, 0], [0, c, -s], [0, s, c]]``."""
     o = _ops(a)
@@ -174,7 +192,7 @@ def hat(w: Any) -> Any:
 
 
 def vee(m: Any) -> Any:
-    """Inverse of :func:`hat` applied to the skew part: ``vee(M) = [M32, M13, M21]``.
+    """Inverse of [`hat`][optik.spatial.hat] applied to the skew part: ``vee(M) = [M32, M13, M21]``.
 
     For a general matrix this returns the vee of ``M`` read off its lower/upper entries; callers
     pass skew matrices (or ``(M - M^T) / 2``).
@@ -276,7 +294,7 @@ def rot_to_rpy(r: Any) -> Any:
 def rot_to_rpy_all(r: np.ndarray) -> list[np.ndarray]:
     """Both RPY triples of a rotation (numpy, one matrix).
 
-    Besides ``(roll, pitch, yaw)`` from :func:`rot_to_rpy`, the triple
+    Besides ``(roll, pitch, yaw)`` from [`rot_to_rpy`][optik.spatial.rot_to_rpy], the triple
     ``(roll + pi, pi - pitch, yaw + pi)`` (wrapped) gives the same matrix. At gimbal lock the
     two coincide up to the undetermined ``roll -+ yaw`` split and only one is returned.
     """
@@ -383,10 +401,10 @@ def angle_between(r_a: Any, r_b: Any) -> Any:
 def so3_log(r: Any) -> Any:
     """Rotation vector ``w`` (axis times angle, angle in ``[0, pi]``) with ``exp([w]x) = R``.
 
-    Uses the angle from :func:`rotation_angle` and the axis from the skew part when the angle is
-    below ``pi - 1e-3``; closer to a half-turn the axis is read from the symmetric part
-    ``(R + R^T) / 2 - cos(t) I = (1 - cos(t)) a a^T`` (largest diagonal column), whose sign is
-    fixed by the skew part.
+    Uses the angle from [`rotation_angle`][optik.spatial.rotation_angle] and the axis from the skew part when
+    the angle is below ``pi - 1e-3``; closer to a half-turn the axis is read from the symmetric part ``(R +
+    R^T) / 2 - cos(t) I = (1 - cos(t)) a a^T`` (largest diagonal column), whose sign is fixed by the skew
+    part.
     """
     theta = rotation_angle(r)
     if isinstance(r, np.ndarray):

@@ -81,7 +81,7 @@ class Position:
 
 
 Target = np.ndarray | Pose2D | Position
-"""Anything :func:`optik.solve_ik` accepts as a target."""
+"""Anything [`optik.solve_ik`][optik.solve_ik] accepts as a target."""
 
 
 def target_transform(target: Any, name: str = "target") -> np.ndarray:

@@ -11,7 +11,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from optik import problems
+from optik import problem_files
 from optik.bench import run_bench, run_problem
 from optik.bench.harness import Call, SolverRun
 from optik.bench.progress import Progress
@@ -60,7 +60,7 @@ def write_problem(tmp_path, extra):
         )
         + textwrap.dedent(extra)
     )
-    return problems.load_problem(path)
+    return problem_files.load_problem(path)
 
 
 def test_missing_methods_and_peers_become_notes(tmp_path):
@@ -133,7 +133,7 @@ def test_run_bench_rejects_bad_arguments(tmp_path):
 
 def test_peers_run_on_the_panda():
     pytest.importorskip("pytracik")
-    p = problems.find_problem("panda")
+    p = problem_files.find_problem("panda")
     res = run_problem(p, n=3, time_limit=0.05, only=["trac_ik"])
     assert [r.name for r in res.runs] == ["trac_ik"], res.notes
     s = res.summary()[0]
@@ -157,7 +157,7 @@ def test_each_peer_matches_the_model_and_solves(peer, package):
     from optik.bench.peers import load_peer
     from optik.solvers.base import evaluate
 
-    p = problems.find_problem("iiwa14")
+    p = problem_files.find_problem("iiwa14")
     m = p.mechanism()
     adapter = load_peer(peer, p)  # checks the peer's FK against the mechanism's
     t = p.sample_targets(2, seed=5)
@@ -174,13 +174,13 @@ def test_peer_with_a_different_chain_is_unavailable(tmp_path):
     path = tmp_path / "mix.toml"
     path.write_text('[problem]\ndescription = "x"\n[mechanism]\nconstructor = "iiwa14"\nurdf = "panda"\n')
     with pytest.raises(PeerUnavailable, match="differs"):
-        load_peer("trac_ik", problems.load_problem(path))
+        load_peer("trac_ik", problem_files.load_problem(path))
 
 
 def test_missing_peer_package_is_a_clean_note(monkeypatch):
     from optik.bench.peers import ADAPTERS
 
     monkeypatch.setattr(ADAPTERS["ikpy"], "package", "no_such_ikpy_module")
-    res = run_problem(problems.find_problem("panda"), n=2, time_limit=0.02, only=["ikpy", "lm"])
+    res = run_problem(problem_files.find_problem("panda"), n=2, time_limit=0.02, only=["ikpy", "lm"])
     assert [r.name for r in res.runs] == ["lm"]
-    assert any("no_such_ikpy_module" in n and "pip install" in n for n in res.notes), res.notes
+    assert any("no_such_ikpy_module" in n and 'pip install "optik[peers]"' in n for n in res.notes), res.notes

@@ -62,7 +62,7 @@ def check_round_trip(m, q, recover=True, strict=True):
     """FK -> closed form -> every branch reaches the target and q itself is among the branches.
 
     The vectorized solver must return q to 1e-6 (``strict``); ``closed_form.ik`` merges branches
-    closer than DESIGN's same-branch distance 1e-4, so there q is found to 1e-4.
+    closer than the same-branch distance 1e-4, so there q is found to 1e-4.
     """
     t = m.fk(q)
     branches = closed_form.ik(m, t, respect_limits=False)

@@ -51,7 +51,7 @@ def arms():
 
 
 def reference_branches(m, t, respect_limits):
-    """The batched kernel, merged as DESIGN says, then Mechanism.wrap / within_limits per branch."""
+    """The batched kernel, merged by the same-branch rule, then Mechanism.wrap / within_limits per branch."""
     q, ok = RAW[m.kind](m, t)
     kept = []
     for b in np.flatnonzero(ok[0]):

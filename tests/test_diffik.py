@@ -307,16 +307,9 @@ def test_task_without_target_and_unknown_frame_raise() -> None:
         diffik.FrameTask(gain=2.0)
 
 
-def test_benchmark_script_runs(capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
-    import importlib.util
-    import sys
-    from pathlib import Path
+def test_benchmark_script_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    from optik.benchmarks import bench_diffik as bench
 
-    path = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_diffik.py"
-    spec = importlib.util.spec_from_file_location("bench_diffik", path)
-    bench = importlib.util.module_from_spec(spec)
-    monkeypatch.setitem(sys.modules, "bench_diffik", bench)  # dataclasses look their module up
-    spec.loader.exec_module(bench)
     assert bench.main(["--goals", "2", "--steps", "5", "--no-pink"]) == 0
     out = capsys.readouterr().out
     assert "| optik qp (default: " in out and "| optik qp osqp" in out

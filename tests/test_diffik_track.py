@@ -149,4 +149,4 @@ def test_track_from_slightly_outside_the_limits_recovers() -> None:
 def test_track_rejects_a_malformed_path() -> None:
     m = optik.catalog.planar_2r()
     with pytest.raises(optik.InvalidArgumentError, match="path"):
-        diffik.track(m, m.mid_q(), np.zeros((3, 3)), 0.01)
+        diffik.track(m, m.mid_q(), np.zeros((3, 4, 3)), 0.01)  # (3, 3) is three points now

@@ -76,7 +76,7 @@ def test_solve_ik_all_finds_every_closed_form_branch(name: str) -> None:
         branches = closed_form.ik(m, target)
         for use_closed_form in (True, False):
             sols = optik.solve_ik_all(
-                m, target, time_limit=5.0, tol=1e-10, seed=seed, patience=100, closed_form=use_closed_form
+                m, target, time_limit=5.0, tol=1e-10, seed=seed, patience=400, closed_form=use_closed_form
             )
             assert all(s.success for s in sols)
             for b in branches:

@@ -13,7 +13,7 @@ import pytest
 import optik
 from optik import native
 from optik.diffik._codegen import CompiledFunction
-from optik.solvers import evaluation, lm
+from optik.solvers import evaluation, lm_kernel
 from optik.solvers.native import NativeFunction, native_functions
 
 X = ca.SX.sym("x", 3)
@@ -83,12 +83,28 @@ def test_first_calls_evaluate_while_the_library_builds_then_switch(
     assert [p.name for p in (tmp_path / "fresh").iterdir()] == [fn.library.path.name]  # no leftovers
 
 
+def test_calls_wait_for_the_build_once_the_evaluator_budget_is_spent(
+    monkeypatch: pytest.MonkeyPatch, tmp_path
+) -> None:
+    monkeypatch.setenv("OPTIK_CACHE_DIR", str(tmp_path))
+    f = ca.Function("optik_test_budget", [X], [ca.exp(X) - X[0]])
+    fn = native_functions([f])[0]
+    fn.inputs[0][:] = [0.1, 0.2, 0.3]
+    fn()
+    assert fn.library.state == "building" and 0 < fn.library._evaluated < native.EVALUATOR_BUDGET
+    fn.library.evaluated(native.EVALUATOR_BUDGET)  # as if long evaluations had been made meanwhile
+    out = fn()[0].copy()
+    assert fn.library.state == "ready" and fn.compiled  # that call waited for the compiler
+    np.testing.assert_allclose(out, np.exp([0.1, 0.2, 0.3]) - 0.1, rtol=0, atol=1e-15)
+
+
 def test_a_failed_background_build_is_logged_and_evaluation_goes_on(
     monkeypatch: pytest.MonkeyPatch, tmp_path, caplog: pytest.LogCaptureFixture
 ) -> None:
     monkeypatch.setenv("OPTIK_CACHE_DIR", str(tmp_path))
     monkeypatch.setenv("CC", "false")  # a "compiler" that always fails
     f = ca.Function("optik_test_failed", [X], [X * 3.0])
+    monkeypatch.setattr(native._LOG, "disabled", False)  # logging.config may disable it (dask does)
     with caplog.at_level(logging.WARNING, logger="optik.native"):
         fn = native_functions([f])[0]
         fn.inputs[0][:] = [1.0, 2.0, 3.0]
@@ -122,7 +138,7 @@ def test_fallback_without_a_working_compiler(monkeypatch: pytest.MonkeyPatch, tm
 def _fresh_panda(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> optik.Mechanism:
     """A Panda never compiled: empty cache directory, no solver function cached in the process."""
     monkeypatch.setenv("OPTIK_CACHE_DIR", str(tmp_path))
-    lm._native_block.cache_clear()
+    lm_kernel.kernel.cache_clear()
     evaluation._native_errors.cache_clear()
     return optik.Mechanism.from_urdf(PANDA, "panda_link0", "panda_link8")
 
@@ -133,17 +149,17 @@ def test_panda_ik_answers_the_same_before_and_after_the_switch(
     m = _fresh_panda(monkeypatch, tmp_path)
     targets = [m.fk(q) for q in m.random_q(12, seed=7)]
     first = optik.solve_ik(m, targets[0], method="lm", seed=0)
-    block = lm._native_block(m, "pose", None, 100.0, 5, "auto")
-    assert block.library.state == "building" and not block.compiled  # answered without the C build
+    kernel = lm_kernel.kernel(m, "pose", None, 100.0, "auto")
+    assert kernel.library.state == "building" and not kernel.compiled  # answered without the C build
     interpreted = [optik.solve_ik(m, t, method="lm", seed=0, compile=False) for t in targets]
     assert native.wait(timeout=120)
     compiled = [optik.solve_ik(m, t, method="lm", seed=0) for t in targets]
-    assert block.compiled and not lm._native_block(m, "pose", None, 100.0, 5, False).compiled
+    assert kernel.compiled and not lm_kernel.kernel(m, "pose", None, 100.0, False).compiled
     assert first.success and np.array_equal(first.q, compiled[0].q)
     for a, b in zip(interpreted, compiled, strict=True):
         assert a.success and b.success and a.iterations == b.iterations
         np.testing.assert_allclose(a.q, b.q, rtol=0, atol=1e-12)
-    assert len(list(tmp_path.glob("*.so"))) == 2  # the LM block and the error check
+    assert len(list(tmp_path.glob("*.so"))) == 2  # the LM kernel and the error check
 
 
 def test_diffik_step_answers_the_same_before_and_after_the_switch(

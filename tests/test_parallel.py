@@ -15,6 +15,8 @@ from hypothesis import strategies as st
 import optik
 from optik import closed_form as cf
 from optik.closed_form import parallel as par
+from optik.closed_form.parallel import stewart_gough
+from optik.closed_form.parallel.common import rot2
 from optik.solvers.fk import same_mode
 
 CLOSE = 1e-11
@@ -124,7 +126,7 @@ def test_slider_crank_rod_too_short_and_target_off_the_line():
 def _rpr_sample(rng: np.random.Generator):
     b, p = rng.normal(size=(3, 2)), 0.7 * rng.normal(size=(3, 2))
     t, phi = rng.normal(size=2), rng.uniform(-np.pi, np.pi)
-    rho = np.linalg.norm(t + p @ par._rot2(phi).T - b, axis=1)
+    rho = np.linalg.norm(t + p @ rot2(phi).T - b, axis=1)
     return b, p, rho, np.array([*t, phi])
 
 
@@ -140,7 +142,7 @@ def test_3rpr_fk_finds_every_real_root_of_a_dense_scan():
         assert len(poses) <= 6
         assert any(np.allclose(y, x, atol=1e-8) for y in poses)
         for y in poses:
-            legs = np.linalg.norm(y[:2] + p @ par._rot2(y[2]).T - b, axis=1)
+            legs = np.linalg.norm(y[:2] + p @ rot2(y[2]).T - b, axis=1)
             assert np.allclose(legs, rho, atol=1e-9)
         c = par.rpr_polynomial(b, p, rho)
         grid = np.linspace(-np.pi, np.pi, 4001)
@@ -156,7 +158,7 @@ def test_3rpr_polynomial_is_degree_six():
     c = par.rpr_polynomial(b, p, rho)
     for phi in rng.uniform(-np.pi, np.pi, 5):
         d, e = p[1:] - p[0], b[1:] - b[0]
-        w = d @ par._rot2(phi).T - e
+        w = d @ rot2(phi).T - e
         k = rho[1:] ** 2 - rho[0] ** 2 - np.sum(w * w, axis=1)
         det = np.linalg.det(w)
         n = np.array([[w[1, 1], -w[0, 1]], [-w[1, 0], w[0, 0]]]) @ k
@@ -282,7 +284,7 @@ def test_3rpr_congruent_platform_continuum_gives_representatives():
     assert np.sum(np.abs(headings) < 1e-9) == par.CONTINUUM_SAMPLES
     assert np.sum(np.abs(np.abs(headings) - np.pi / 2) < 1e-9) == 2
     for x in poses:
-        legs = np.linalg.norm(x[:2] + b @ par._rot2(x[2]).T - b, axis=1)
+        legs = np.linalg.norm(x[:2] + b @ rot2(x[2]).T - b, axis=1)
         assert np.allclose(legs, rho, atol=1e-9)
 
 
@@ -311,6 +313,6 @@ def test_stewart_incomplete_search_is_flagged_and_warned(monkeypatch):
     hurried = par.stewart_poses(m.params["base"], m.params["platform"], legs, time_limit=0.02)
     assert not hurried.complete
     full = par.stewart_poses
-    monkeypatch.setattr(par, "stewart_poses", lambda b, p, rho: full(b, p, rho, time_limit=0.02))
+    monkeypatch.setattr(stewart_gough, "stewart_poses", lambda b, p, rho: full(b, p, rho, time_limit=0.02))
     with pytest.warns(RuntimeWarning, match="not certified"):
         par.stewart_gough_fk(m, legs)

@@ -1,4 +1,4 @@
-"""URDF import (optik.urdf), Mechanism.from_urdf, and the Panda / iiwa14 catalog arms vs their URDFs."""
+"""URDF import (optik.mechanism.urdf), Mechanism.from_urdf, and the Panda / iiwa14 arms vs their URDFs."""
 
 from __future__ import annotations
 
@@ -13,7 +13,8 @@ from scipy.spatial.transform import Rotation
 import optik
 from optik.catalog import URDF_CHAINS, iiwa14, panda, urdf_path
 from optik.errors import InvalidArgumentError, ModelError, OptikError, UnknownFrameError
-from optik.urdf import load_urdf
+
+load_urdf = optik.Mechanism.from_urdf
 
 
 def _joint(name, kind, parent, child, xyz=None, rpy=None, axis=None, limit=None, extra=""):

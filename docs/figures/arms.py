@@ -1,7 +1,7 @@
 """Figures of the 7-DOF catalog arms in a few postures: docs/img/arms_panda.png, arms_iiwa14.png.
 
 Run from the repository root: ``python docs/figures/arms.py``. Each posture is drawn from the
-catalog model (``optik.catalog.panda()`` / ``iiwa14()``) with :func:`optik.plot.draw`, on
+catalog model (``optik.catalog.panda()`` / ``iiwa14()``) with ``optik.plot.draw``, on
 common axis limits, with the pedestal from the base origin to the first joint in grey.
 """
 
@@ -66,7 +66,7 @@ def figure(m: Mechanism, postures: dict[str, tuple[float, ...]]) -> Figure:
 
 
 def figures() -> dict[str, Figure]:
-    """One figure per arm of :data:`POSTURES`."""
+    """One figure per arm of ``POSTURES``."""
     return {name: figure(getattr(catalog, name)(), postures) for name, postures in POSTURES.items()}
 
 

@@ -17,7 +17,7 @@ PROBLEMS = ("five_bar", "stewart_gough")
 
 
 def run() -> int:
-    """``optik plot PROBLEM --mode all`` for every problem of :data:`PROBLEMS`."""
+    """``optik plot PROBLEM --mode all`` for every problem of ``PROBLEMS``."""
     codes = [main(["plot", name, "--mode", "all", "--out", str(OUT)]) for name in PROBLEMS]
     return max(codes)
 

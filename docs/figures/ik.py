@@ -1,7 +1,7 @@
 """Figure of the IK benchmark on the Panda: docs/img/ik_panda_times.png.
 
 Run from the repository root: ``python docs/figures/ik.py [--n 1000]``. It runs
-``benchmarks/bench_ik.py``'s :func:`run` (same method: URDF model, random targets within limits,
+``optik.benchmarks.bench_ik.run`` (same method: URDF model, random targets within limits,
 mid-limit seed, 5 ms limit for ``lm`` and TRAC-IK, 300 ms for the NLP variants, tolerance 1e-5)
 and draws, per solver, the share of targets solved within a given time (empirical distribution
 of the call time of the successful calls, failures counted as never solved): the curve's right
@@ -11,30 +11,20 @@ end is the success rate.
 from __future__ import annotations
 
 import argparse
-import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 
+from optik.benchmarks import bench_ik
 from optik.plot import save_figure
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def _bench_module():  # the benchmark script is not a package module: load it by path
-    spec = importlib.util.spec_from_file_location("bench_ik", ROOT / "benchmarks" / "bench_ik.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up there
-    spec.loader.exec_module(module)
-    return module
-
-
 def figure(n: int) -> Figure:
     """Solved share against call time, one curve per solver."""
-    bench = _bench_module()
-    records = bench.run(n=n, methods=("lm", "nlp", "nlp-sqp", "tracik"), n_nlp=max(n // 5, 1))
+    records = bench_ik.run(n=n, methods=("lm", "nlp", "nlp-sqp", "tracik"), n_nlp=max(n // 5, 1))
     fig = Figure(figsize=(7.0, 4.2))
     ax = fig.add_subplot()
     for label, rec in records.items():

@@ -1,15 +1,15 @@
 """Figures of the closed-chain catalog in every assembly / working mode: docs/img/parallel_*.png.
 
 Run from the repository root: ``python docs/figures/parallel.py``. Each figure is
-:func:`optik.plot.draw_branches` of the branches returned by the closed forms
-(:mod:`optik.closed_form.parallel`) for one input:
+``optik.plot.draw_branches`` of the branches returned by the closed forms
+(``optik.closed_form.parallel``) for one input:
 
 * ``parallel_five_bar_fk.png``: the 2 assembly modes for ``theta = (1.2, 0.6)``;
 * ``parallel_five_bar_ik.png``: the 4 working modes for the tool at ``(0.5, 1.4)``;
 * ``parallel_five_bar_seed.png``: the seed's coaxial variant (tool on an extended link), 4 working modes;
 * ``parallel_doggy_ik.png``: the 4 leg combinations for the body pose ``(0.1, 0.8, 0.2)``;
 * ``parallel_slider_crank_fk.png``: the 2 assembly modes for ``theta = 1.0``;
-* ``parallel_planar_3rpr_fk.png``: 6 real assembly modes of a 3-RPR (:data:`RPR_SIX`);
+* ``parallel_planar_3rpr_fk.png``: 6 real assembly modes of a 3-RPR (``RPR_SIX``);
 * ``parallel_stewart_gough_fk.png``: every real posture of the catalog Stewart-Gough platform
   for the leg lengths of a tilted pose.
 """

@@ -1,14 +1,14 @@
 """Figures of the serial catalog arms in every IK branch for one target: docs/img/serial_*.png.
 
 Run from the repository root: ``python docs/figures/serial.py``. Each figure is
-:func:`optik.plot.draw_branches` of the branches that :func:`optik.closed_form.ik` returns
+``optik.plot.draw_branches`` of the branches that ``optik.closed_form.ik`` returns
 (limits ignored, so that every branch of the closed form shows) for one target:
 
 * ``serial_planar_2r.png``: 2 branches (``theta2 >= 0`` and ``<= 0``) for ``(x, y) = (1.2, 0.6)``;
 * ``serial_planar_3r.png``: 2 branches for ``(x, y, phi) = (1.1, 0.9, 0.6)``;
 * ``serial_rp_arm.png``: ``(theta, r)`` and ``(theta + pi, -r)`` for ``(x, y) = (0.8, 0.9)``;
 * ``serial_pp_arm.png``: the single branch for ``(x, y) = (0.4, -0.3)``;
-* ``serial_seed_6r_arm.png``: the 8 branches (shoulder x wrist x elbow) of :data:`SEED_6R_Q`'s pose.
+* ``serial_seed_6r_arm.png``: the 8 branches (shoulder x wrist x elbow) of ``SEED_6R_Q``'s pose.
 """
 
 from __future__ import annotations

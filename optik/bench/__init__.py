@@ -1,10 +1,10 @@
-"""The benchmark harness behind ``optik bench`` (DESIGN.md benchmark method).
+"""The benchmark harness behind ``optik bench`` (the benchmark method of docs/benchmarks.md).
 
-* :mod:`optik.bench.harness`: contenders (registered IK methods and peers), targets, timed
+* [`optik.bench.harness`][optik.bench.harness]: contenders (registered IK methods and peers), targets, timed
   calls, summary statistics;
-* :mod:`optik.bench.peers`: thin adapters for TRAC-IK, Pink and ikpy;
-* :mod:`optik.bench.report`: console table, JSON, CSV, Markdown and PNG charts;
-* :mod:`optik.bench.run`: :func:`run_bench`, the whole command as a function.
+* [`optik.bench.peers`][optik.bench.peers]: thin adapters for TRAC-IK, Pink and ikpy;
+* [`optik.bench.report`][optik.bench.report]: console table, JSON, CSV, Markdown and PNG charts;
+* [`optik.bench.run`][optik.bench.run]: [`run_bench`][optik.bench.run_bench], the whole command as a function.
 """
 
 from optik.bench.harness import Call, ProblemRun, SolverRun, known_solvers, run_problem, run_problems

@@ -1,6 +1,6 @@
 """The benchmark harness: every applicable solver and peer on the same targets, timed call by call.
 
-Method (DESIGN.md): per problem, reference configurations are drawn within limits (loop closures
+Method (docs/benchmarks.md): per problem, reference configurations are drawn within limits (loop closures
 satisfied) and their poses are the targets; every contender solves every target from the
 mid-limit seed ``q0 = (lower + upper) / 2`` with the same time limit and tolerances. Calls are
 interleaved target by target (target 1 for every contender, then target 2, ...) so that a noisy
@@ -8,11 +8,12 @@ machine slows every contender alike. Each contender gets one untimed warm-up cal
 functions and NLPs are built once, peers load their URDF); after that every call is timed with
 ``time.perf_counter`` around the whole call, failures included.
 
-Success is judged by one function for everybody (:func:`optik.solvers.base.evaluate`): position,
-orientation and closure errors within the problem's tolerances and the joint limits satisfied
-exactly. Where a closed-form IK exists, each successful answer is compared with the nearest
-closed-form branch (max-norm joint distance, angles modulo 2 pi): the *closed-form error*, and
-*branch agreement* when that distance is below :data:`optik.solvers.base.BRANCH_TOL`.
+Success is judged by one function for everybody
+([`optik.solvers.base.evaluate`][optik.solvers.base.evaluate]): position, orientation and closure errors
+within the problem's tolerances and the joint limits satisfied exactly. Where a closed-form IK exists, each
+successful answer is compared with the nearest closed-form branch (max-norm joint distance, angles modulo 2
+pi): the *closed-form error*, and *branch agreement* when that distance is below
+[`optik.solvers.base.BRANCH_TOL`][optik.solvers.base.BRANCH_TOL].
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from optik.bench.peers import PeerUnavailable, load_peer
 from optik.bench.progress import Progress
 from optik.errors import InvalidArgumentError, OptikError
 from optik.mechanism import Mechanism
-from optik.problems import PEERS, Problem, TargetSet
+from optik.problem_files import PEERS, Problem, TargetSet
 from optik.solvers import methods
 from optik.solvers.base import BRANCH_TOL, evaluate, joint_distance
 
@@ -117,7 +118,8 @@ class SolverRun:
 
 @dataclass
 class ProblemRun:
-    """The outcome of one problem: its targets, one :class:`SolverRun` per contender, notes."""
+    """The outcome of one problem: its targets, one [`SolverRun`][optik.bench.harness.SolverRun] per
+    contender, notes."""
 
     problem: Problem
     targets: TargetSet | None
@@ -127,8 +129,8 @@ class ProblemRun:
     time_limit: float
 
     def summary(self) -> list[dict[str, Any]]:
-        """:meth:`SolverRun.stats` of every contender; ratios relative to the fastest median
-        time among the contenders that solved at least one target."""
+        """[`SolverRun.stats`][optik.bench.harness.SolverRun.stats] of every contender; ratios relative to the
+        fastest median time among the contenders that solved at least one target."""
         medians = [
             float(np.median([c.time for c in r.calls]))
             for r in self.runs
@@ -319,7 +321,8 @@ def run_problems(
     progress: Progress | None = None,
     on_done: Callable[[ProblemRun], None] | None = None,
 ) -> list[ProblemRun]:
-    """:func:`run_problem` for each problem in turn; ``on_done`` sees each result as it lands."""
+    """[`run_problem`][optik.bench.harness.run_problem] for each problem in turn; ``on_done`` sees each result
+    as it lands."""
     out = []
     for p in problems:
         res = run_problem(p, quick, n, time_limit, only, progress)

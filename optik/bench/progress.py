@@ -39,9 +39,9 @@ class Progress:
         self.t0 = self.last = time.perf_counter()
         self._draw(force=True)
 
-    def step(self) -> None:
-        """One call done."""
-        self.done += 1
+    def step(self, count: int = 1) -> None:
+        """``count`` calls done."""
+        self.done += count
         self._draw()
 
     def finish(self) -> None:

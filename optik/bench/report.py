@@ -28,7 +28,7 @@ from matplotlib.figure import Figure
 
 from optik.bench.harness import ProblemRun
 from optik.plot import save_figure, write_atomic
-from optik.problems import problem_summary
+from optik.problem_files import problem_summary
 
 __all__ = ["COLUMNS", "format_table", "machine_info", "write_outputs"]
 

@@ -14,14 +14,14 @@ from optik.bench.harness import ProblemRun, known_solvers, run_problems
 from optik.bench.progress import Progress
 from optik.bench.report import format_table, machine_info, write_outputs
 from optik.errors import InvalidArgumentError
-from optik.problems import Problem, default_problems, find_problem
+from optik.problem_files import Problem, default_problems, find_problem
 
 __all__ = ["BenchOutcome", "run_bench", "select_problems"]
 
 
 @dataclass(frozen=True)
 class BenchOutcome:
-    """What :func:`run_bench` did: the problem results and the files it wrote."""
+    """What [`run_bench`][optik.bench.run.run_bench] did: the problem results and the files it wrote."""
 
     runs: list[ProblemRun]
     files: list[Path]
@@ -56,7 +56,7 @@ def run_bench(
         quick: the quick settings of every file (fewer targets, shorter time limits).
         out: output directory.
         time_limit: seconds per IK call (default: from the files).
-        problem_dir: where named problems are looked up (default: the repository's ``problems/``).
+        problem_dir: where named problems are looked up (default: the shipped ``optik/data/problems``).
         stream: where tables go (default stdout); the progress bar goes to stderr.
         progress: show the progress bar.
         command: the command line, recorded in the report.

@@ -1,11 +1,12 @@
 """Named mechanisms with sensible default dimensions.
 
-Every constructor returns an :class:`optik.Mechanism` whose ``kind`` names its entry here, so
-that :mod:`optik.closed_form` can find the analytic solvers of that mechanism.
+Every constructor returns an [`optik.Mechanism`][optik.Mechanism] whose ``kind`` names its entry here, so
+that [`optik.closed_form`][optik.closed_form] can find the analytic solvers of that mechanism.
 """
 
 from optik.catalog.arms import URDF_CHAINS, iiwa14, panda, urdf_path
 from optik.catalog.closed_chains import doggy, five_bar, planar_3rpr, slider_crank, stewart_gough
+from optik.catalog.industrial import puma560
 from optik.catalog.serial import planar_2r, planar_3r, pp_arm, rp_arm, seed_6r_arm
 
 __all__ = [
@@ -18,6 +19,7 @@ __all__ = [
     "planar_3r",
     "planar_3rpr",
     "pp_arm",
+    "puma560",
     "rp_arm",
     "seed_6r_arm",
     "slider_crank",

@@ -1,14 +1,15 @@
 """Redundant 7-DOF arms from their published kinematic parameters, and the shipped URDF files.
 
-* :func:`panda`: Franka Emika Panda, the modified-DH table of Franka's documentation, flange
-  ``panda_link8`` 0.107 m beyond axis 7.
-* :func:`iiwa14`: KUKA LBR iiwa 14 R820, a standard-DH chain whose axes meet the vertical line
-  of the stretched arm at 0.36 m, 0.78 m and 1.18 m, flange at 1.306 m.
+* [`panda`][optik.catalog.arms.panda]: Franka Emika Panda, the modified-DH table of Franka's documentation,
+  flange ``panda_link8`` 0.107 m beyond axis 7.
+* [`iiwa14`][optik.catalog.arms.iiwa14]: KUKA LBR iiwa 14 R820, a standard-DH chain whose axes meet the
+  vertical line of the stretched arm at 0.36 m, 0.78 m and 1.18 m, flange at 1.306 m.
 
 Both describe the same robots as the URDF files shipped in ``optik/data/urdf`` (found with
-:func:`urdf_path`; base and tip links in :data:`URDF_CHAINS`): for every ``q``,
-``panda().fk(q) == Mechanism.from_urdf(urdf_path("panda"), "panda_link0", "panda_link8").fk(q)``
-and likewise for the iiwa (tested to 1e-12).
+[`urdf_path`][optik.catalog.arms.urdf_path]; base and tip links in
+[`URDF_CHAINS`][optik.catalog.arms.URDF_CHAINS]): for every ``q``, ``panda().fk(q) ==
+Mechanism.from_urdf(urdf_path("panda"), "panda_link0", "panda_link8").fk(q)`` and likewise for the iiwa
+(tested to 1e-12).
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Closed chains and parallel mechanisms: five-bar, doggy, slider-crank, 3-RPR, Stewart-Gough.
 
 Each constructor lays out bodies and joints; the spanning tree and the cut joints follow from
-:mod:`optik.mechanism.topology`, and the loop closures from the cut joints.
+[`optik.mechanism.topology`][optik.mechanism.topology], and the loop closures from the cut joints.
 """
 
 from __future__ import annotations
@@ -13,17 +13,17 @@ import numpy as np
 
 from optik import spatial
 from optik.catalog.serial import _positive, _tag
-from optik.checks import as_vector
-from optik.errors import InvalidArgumentError, ShapeError
+from optik.checks import as_vector, real_array
+from optik.errors import InvalidArgumentError, NonFiniteError, ShapeError
 from optik.mechanism import Joint, Mechanism
 
 
 def _points(value: Any, name: str, n: int, dim: int) -> np.ndarray:
-    a = np.asarray(value, dtype=float)
+    a = real_array(value, name)
     if a.shape != (n, dim):
         raise ShapeError(name, f"expected {n} points of {dim} coordinates, got shape {a.shape}")
     if not np.all(np.isfinite(a)):
-        raise InvalidArgumentError(name, "contains NaN or infinity")
+        raise NonFiniteError(name, "contains NaN or infinity")
     return a
 
 
@@ -218,8 +218,9 @@ def stewart_gough(
 ) -> Mechanism:
     """Stewart-Gough platform, general 6-6 geometry (seed 004, Figure 7).
 
-    Leg ``i`` is U-P-S: a universal joint at ``base[i]`` (passive, axes x then y, each within
-    +-pi/2 so that a leg pointing up from the base has exactly one pair of angles), an actuated
+    Leg ``i`` is U-P-S: a universal joint at ``base[i]`` (passive, axes x then y, the first within
+    ``[-pi, pi]``, the second within ``[-pi/2, pi/2]``: every leg direction, up or down, has
+    exactly one pair of angles ``(a, c)``, ``Rx(a) Ry(c) e_z = n``), an actuated
     prismatic joint of length ``rho_i`` along the leg, a spherical joint at ``platform[i]``
     (platform frame). Leg ``i`` joins ``base[i]`` and ``R @ platform[i] + t``. The end effector is
     the platform frame.
@@ -231,7 +232,7 @@ def stewart_gough(
     b = _points(base, "base", 6, 3)
     p = _points(platform, "platform", 6, 3)
     lo, hi = _leg_limits(leg_limits)
-    half = np.pi / 2  # legs leave the base upwards: one universal-joint solution per leg direction
+    half = np.pi / 2  # one canonical universal-joint pair per leg direction (up or down)
     joints: list[Joint] = []
     for i in range(6):
         joints += [
@@ -243,8 +244,8 @@ def stewart_gough(
                 spatial.translation(*b[i]),
                 axis=[1, 0, 0],
                 axis2=[0, 1, 0],
-                lower=(-half, -half),
-                upper=(half, half),
+                lower=(-np.pi, -half),
+                upper=(np.pi, half),
                 actuated=False,
             ),
             _actuated_leg(i, [0, 0, 1], lo, hi),

@@ -6,10 +6,12 @@ kind, an IK solver ``ik(m, T) -> list[q]`` (``T`` a 4x4 target) and/or an FK sol
 mode (an empty list when unreachable or not assemblable). The functions here add validation,
 the 2 pi shift of angles into the limits and the optional filtering by joint limits.
 
-The shift and the limit filter (:func:`wrap_rows`, :func:`within_limits`) work on the few
-branches of one target as plain floats, with the same arithmetic as :meth:`Mechanism.wrap` and
-:meth:`Mechanism.within_limits`; :func:`branches` is the unvalidated core that
-:mod:`optik.solvers.closed` calls with an already validated target.
+The shift and the limit filter ([`wrap_rows`][optik.closed_form.registry.wrap_rows],
+[`within_limits`][optik.closed_form.registry.within_limits]) work on the few branches of one target as plain
+floats, with the same arithmetic as [`Mechanism.wrap`][optik.Mechanism.wrap] and
+[`Mechanism.within_limits`][optik.Mechanism.within_limits]; [`branches`][optik.closed_form.registry.branches]
+is the unvalidated core that [`optik.solvers.closed`][optik.solvers.closed] calls with an already validated
+target.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ import numpy as np
 from optik.checks import as_vector
 from optik.errors import SolverUnavailableError
 from optik.mechanism import Mechanism
+from optik.spatial import wrap_rotation_vector
 from optik.targets import target_transform
 
 IKSolver = Callable[[Mechanism, np.ndarray], Sequence[Sequence[float]]]
@@ -41,9 +44,40 @@ def register(kind: str, ik: IKSolver | None = None, fk: FKSolver | None = None) 
         _FK[kind] = fk
 
 
+Deriver = Callable[[Mechanism], IKSolver | None]
+_DERIVERS: list[Deriver] = []
+_DERIVED: weakref.WeakKeyDictionary[Mechanism, IKSolver | None] = weakref.WeakKeyDictionary()
+
+
+def register_deriver(deriver: Deriver) -> None:
+    """Register a function that derives a closed-form IK from a mechanism's model (or returns
+    None). Derivers are tried in registration order for mechanisms whose kind has no registered
+    IK; the first answer is cached per mechanism."""
+    _DERIVERS.append(deriver)
+    _DERIVED.clear()
+
+
+def ik_solver(m: Mechanism) -> IKSolver | None:
+    """The closed-form IK of ``m``: the one registered for its kind, else the first derived one
+    (see [`register_deriver`][optik.closed_form.registry.register_deriver]), else None."""
+    solver = _IK.get(m.kind) if m.kind is not None else None
+    if solver is not None:
+        return solver
+    try:
+        return _DERIVED[m]
+    except KeyError:
+        pass
+    for deriver in _DERIVERS:
+        solver = deriver(m)
+        if solver is not None:
+            break
+    _DERIVED[m] = solver
+    return solver
+
+
 def has_ik(m: Mechanism) -> bool:
-    """True when a closed-form IK is registered for the mechanism's kind."""
-    return m.kind in _IK
+    """True when a closed-form IK is registered for the mechanism's kind or derived from its model."""
+    return ik_solver(m) is not None
 
 
 def has_fk(m: Mechanism) -> bool:
@@ -56,12 +90,12 @@ _COORDS: weakref.WeakKeyDictionary[Mechanism, _Coordinates] = weakref.WeakKeyDic
 
 _TWO_PI = 2.0 * np.pi
 _SHIFTS = (2 * np.pi, -2 * np.pi, 4 * np.pi, -4 * np.pi)
-"""The shifts :meth:`Mechanism.wrap` tries, in its order."""
+"""The shifts [`Mechanism.wrap`][optik.Mechanism.wrap] tries, in its order."""
 
 
 def _coordinates(m: Mechanism) -> _Coordinates:
     """``(m.revolute_mask as a tuple, m.spherical_slices, angle indices)``, cached per mechanism:
-    the joints and topology of a :class:`Mechanism` never change (limits may; they are read on
+    the joints and topology of a [`Mechanism`][optik.Mechanism] never change (limits may; they are read on
     every call)."""
     try:
         return _COORDS[m]
@@ -78,13 +112,14 @@ def angle_mask(m: Mechanism) -> tuple[bool, ...]:
 
 
 def wrap_angle_one(a: float) -> float:
-    """:func:`optik.spatial.wrap_angle` of one float (to ``(-pi, pi]``, same arithmetic)."""
+    """[`optik.spatial.wrap_angle`][optik.spatial.wrap_angle] of one float (to ``(-pi, pi]``, same
+    arithmetic)."""
     w = (a + np.pi) % _TWO_PI - np.pi
     return w + _TWO_PI if w <= -np.pi else w
 
 
 def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]]:
-    """:meth:`Mechanism.wrap` of every row (branches of one target: a few short rows).
+    """[`Mechanism.wrap`][optik.Mechanism.wrap] of every row (branches of one target: a few short rows).
 
     Plain floats: for a handful of branches this is several times cheaper than numpy calls on
     tiny arrays. Same arithmetic as ``m.wrap`` (angles to ``(-pi, pi]``, then the first of the
@@ -98,10 +133,7 @@ def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]
         return [m.wrap(row).tolist() for row in rows]
     for row in out:
         for sl in spherical:  # rotation vectors: angle above pi -> 2 pi - angle, opposite axis
-            norm = float(np.linalg.norm(row[sl]))
-            while norm > np.pi:
-                row[sl] = [v * (1.0 - 2.0 * np.pi / norm) for v in row[sl]]
-                norm = float(np.linalg.norm(row[sl]))
+            row[sl] = wrap_rotation_vector(np.array(row[sl])).tolist()
     lo, hi = m.lower.tolist(), m.upper.tolist()
     pi, two_pi = np.pi, _TWO_PI
     for row in out:
@@ -119,7 +151,8 @@ def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]
 
 
 def within_limits(m: Mechanism, rows: list[list[float]]) -> list[list[float]]:
-    """The rows with ``lower <= q <= upper`` in every coordinate (:meth:`Mechanism.within_limits`)."""
+    """The rows with ``lower <= q <= upper`` in every coordinate
+    ([`Mechanism.within_limits`][optik.Mechanism.within_limits])."""
     lo, hi = m.lower.tolist(), m.upper.tolist()
     n = range(len(lo))
     return [row for row in rows if len(row) == len(lo) and all([lo[k] <= row[k] <= hi[k] for k in n])]
@@ -127,14 +160,15 @@ def within_limits(m: Mechanism, rows: list[list[float]]) -> list[list[float]]:
 
 def branches(m: Mechanism, t: np.ndarray) -> list[list[float]]:
     """All closed-form IK branches for a validated 4x4 target ``t``, wrapped by
-    :func:`wrap_rows`, without the limit filter (``[]`` when unreachable).
+    [`wrap_rows`][optik.closed_form.registry.wrap_rows], without the limit filter (``[]`` when unreachable).
 
     Raises:
         SolverUnavailableError: no closed form is registered for ``m.kind``.
     """
-    if m.kind not in _IK:
+    solver = ik_solver(m)
+    if solver is None:
         raise SolverUnavailableError(f"no closed-form IK for mechanism {m.name!r} (kind {m.kind!r})")
-    return wrap_rows(m, _IK[m.kind](m, t))
+    return wrap_rows(m, solver(m, t))
 
 
 def _finish(m: Mechanism, rows: list[list[float]], respect_limits: bool) -> list[np.ndarray]:
@@ -146,7 +180,7 @@ def ik(m: Mechanism, target: Any, respect_limits: bool = True) -> list[np.ndarra
 
     Args:
         m: a catalog mechanism with a registered closed form.
-        target: 4x4 transform, :class:`~optik.Pose2D` or :class:`~optik.Position`.
+        target: 4x4 transform, [`Pose2D`][optik.Pose2D] or [`Position`][optik.Position].
         respect_limits: drop branches outside the joint limits (angles are first shifted by
             multiples of 2 pi into the limits where possible).
 
@@ -156,7 +190,7 @@ def ik(m: Mechanism, target: Any, respect_limits: bool = True) -> list[np.ndarra
     Raises:
         SolverUnavailableError: no closed form is registered for ``m.kind``.
     """
-    if m.kind not in _IK:
+    if ik_solver(m) is None:
         raise SolverUnavailableError(f"no closed-form IK for mechanism {m.name!r} (kind {m.kind!r})")
     return _finish(m, branches(m, target_transform(target)), respect_limits)
 

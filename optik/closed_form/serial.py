@@ -17,25 +17,25 @@ Mathematics (seed ``000``/``001`` notation):
   precision at both edges of the annulus, ``1 + c2 = (r^2 - (l1 - l2)^2) / (2 l1 l2)`` and
   ``1 - c2 = ((l1 + l2)^2 - r^2) / (2 l1 l2)`` are formed directly and
   ``s2 = sqrt((1 - c2)(1 + c2))``. The target is reachable when both are ``>= 0``; one that is
-  negative by at most :data:`COS_TOL` (rounding at the workspace boundary) is clipped to 0,
-  anything beyond is unreachable.
+  negative by at most [`COS_TOL`][optik.closed_form.serial.COS_TOL] (rounding at the workspace boundary) is
+  clipped to 0, anything beyond is unreachable.
 * **Planar 3R** (seed 000): the wrist point ``x' = x - l3 cos(phi)``, ``y' = y - l3 sin(phi)``
   is a two-link problem, then ``theta3 = phi - theta1 - theta2`` (the seed prints
   ``phi - theta1 + theta2``, a typo that fails the FK round trip).
 * **R-P** (seed 001, theta-r): ``(theta, r) = (atan2(y, x), sqrt(x^2 + y^2))`` and
   ``(theta + pi, -r)``; **P-P**: ``(q1, q2) = (x, y)``.
-* **Seed 6R arm**: see :func:`ik_seed_6r`.
+* **Seed 6R arm**: see [`ik_seed_6r`][optik.closed_form.serial.ik_seed_6r].
 
-The kernels run over blocks of :data:`BLOCK` targets so that temporaries stay in cache
-(``benchmarks/bench_closed_form.py``: the 3R arm solves several million targets per second on
-one core). :func:`optik.closed_form.ik` solves one target at a time; it calls scalar twins of
-the kernels (``_*_one``, plain ``math`` on floats, the same operations in the same order),
-since a numpy call on a one-element array costs about as much as the whole scalar solve.
+The kernels run over blocks of [`BLOCK`][optik.closed_form.serial.BLOCK] targets so that temporaries stay in
+cache (``optik benchmark closed_form``: the 3R arm solves several million targets per second on one core).
+[`optik.closed_form.ik`][optik.closed_form.ik] solves one target at a time; it calls scalar twins of the
+kernels (``_*_one``, plain ``math`` on floats, the same operations in the same order), since a numpy call on a
+one-element array costs about as much as the whole scalar solve.
 
 Exactly degenerate targets have a defined representative: a two-link target at the origin with
 ``l1 = l2`` gives ``theta1 = 0``, ``theta2 = pi`` (``atan2(0, 0) = 0``); the R-P target at the
 origin gives ``theta = 0`` (and ``pi``) with ``r = 0``; the 6R singularities are described in
-:func:`ik_seed_6r`.
+[`ik_seed_6r`][optik.closed_form.serial.ik_seed_6r].
 """
 
 from __future__ import annotations
@@ -71,7 +71,7 @@ SINGULAR_TOL = 1e-12
 _TWO_PI = 2.0 * np.pi
 _INV_TWO_PI = 1.0 / _TWO_PI
 _SAME_BRANCH = 1e-4
-"""DESIGN's same-branch distance (the solvers layer, above this one, has it as ``BRANCH_TOL``)."""
+"""The same-branch distance (the solvers layer, above this one, has it as ``BRANCH_TOL``)."""
 
 BLOCK = 2048
 """Targets per block in the vectorized kernels."""
@@ -146,18 +146,19 @@ def _two_link(l1: float, l2: float, x: np.ndarray, y: np.ndarray, out: np.ndarra
 
 
 def _wrap_one(a: float) -> float:
-    """:func:`_wrap` of one float."""
+    """`_wrap` of one float."""
     return a - round(a * _INV_TWO_PI) * _TWO_PI
 
 
 def _two_link_one(l1: float, l2: float, x: float, y: float) -> tuple[bool, float, float, float]:
-    """:func:`_two_link` for one target: ``(ok, theta1 branch 0, theta1 branch 1, theta2 branch 0)``
+    """`_two_link` for one target: ``(ok, theta1 branch 0, theta1 branch 1, theta2 branch 0)``
     (branch 1 has ``-theta2``)."""
     r2 = x * x + y * y
     inv = 1.0 / (2.0 * l1 * l2)
     one_plus = (r2 - (l1 - l2) ** 2) * inv
     one_minus = ((l1 + l2) ** 2 - r2) * inv
-    ok = one_plus >= -COS_TOL and one_minus >= -COS_TOL
+    if not (one_plus >= -COS_TOL and one_minus >= -COS_TOL):
+        return False, 0.0, 0.0, 0.0  # unreachable (also a target so far away that r2 overflows)
     one_plus = max(one_plus, 0.0)
     one_minus = max(one_minus, 0.0)
     s2 = math.sqrt(one_minus * one_plus)
@@ -165,17 +166,19 @@ def _two_link_one(l1: float, l2: float, x: float, y: float) -> tuple[bool, float
     th2 = math.atan2(s2, c2)
     beta = math.atan2(y, x)
     delta = math.atan2(s2 * l2, one_plus * l2 + (l1 - l2))
-    return ok, _wrap_one(beta - delta), _wrap_one(beta + delta), th2
+    return True, _wrap_one(beta - delta), _wrap_one(beta + delta), th2
 
 
 def _planar_2r_one(l1: float, l2: float, x: float, y: float) -> list[list[float]]:
-    """The reachable branches of :func:`ik_planar_2r` for one target, in branch order."""
+    """The reachable branches of [`ik_planar_2r`][optik.closed_form.serial.ik_planar_2r] for one target, in
+    branch order."""
     ok, t1a, t1b, t2 = _two_link_one(l1, l2, x, y)
     return [[t1a, t2], [t1b, -t2]] if ok else []
 
 
 def _planar_3r_one(l1: float, l2: float, l3: float, x: float, y: float, phi: float) -> list[list[float]]:
-    """The reachable branches of :func:`ik_planar_3r` for one target, in branch order."""
+    """The reachable branches of [`ik_planar_3r`][optik.closed_form.serial.ik_planar_3r] for one target, in
+    branch order."""
     ok, t1a, t1b, t2 = _two_link_one(l1, l2, math.cos(phi) * -l3 + x, math.sin(phi) * -l3 + y)
     if not ok:
         return []
@@ -185,7 +188,8 @@ def _planar_3r_one(l1: float, l2: float, l3: float, x: float, y: float, phi: flo
 def _blocked(
     kernel: Callable[..., None], arrays: Sequence[np.ndarray], n_branches: int, n_q: int
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Run ``kernel(*blocks, q_block, ok_block)`` over blocks of :data:`BLOCK` targets.
+    """Run ``kernel(*blocks, q_block, ok_block)`` over blocks of [`BLOCK`][optik.closed_form.serial.BLOCK]
+    targets.
 
     Working block by block keeps the kernels' temporaries in cache (several times faster than
     whole-array passes for a million targets) and bounds their memory. Rows of unreachable
@@ -282,7 +286,7 @@ def ik_rp(x: Any, y: Any) -> tuple[np.ndarray, np.ndarray]:
     Returns:
         ``q`` of shape ``(N, 2, 2)``: ``(atan2(y, x), sqrt(x^2 + y^2))`` and
         ``(atan2(y, x) + pi, -sqrt(x^2 + y^2))`` (wrapped); ``ok`` all True (every point of the
-        plane is reached; stroke limits are applied by :func:`optik.closed_form.ik`).
+        plane is reached; stroke limits are applied by [`optik.closed_form.ik`][optik.closed_form.ik]).
 
     Raises:
         NonFiniteError: NaN or infinity in ``x`` or ``y``.
@@ -334,7 +338,7 @@ def _reachable_wrist(
     th234: np.ndarray, s5_abs: np.ndarray, beta: np.ndarray, r: np.ndarray, d: tuple[float, float, float]
 ) -> np.ndarray:
     """Move ``theta234`` into the range where the elbow reaches the wrist centre, when that costs
-    at most :data:`SINGULAR_TOL` of orientation.
+    at most [`SINGULAR_TOL`][optik.closed_form.serial.SINGULAR_TOL] of orientation.
 
     The wrist centre ``w = (rho', z) - d4 (c234, s234)`` has ``|w|^2 = r^2 + d4^2 - 2 r d4 cos(psi)``
     with ``psi = theta234 - beta``, ``beta = atan2(z, rho')``; the elbow reaches it when
@@ -389,8 +393,8 @@ def ik_seed_6r(d2: float, d3: float, d4: float, t: Any) -> tuple[np.ndarray, np.
       orientation, ``atan2(c5 a_x, -c5 a_y)``, when it agrees with the position to within the
       tolerance below (a short ``rho`` determines ``theta1`` poorly, the locked wrist exactly).
 
-    A distance below :data:`SINGULAR_TOL` (times ``d2 + d3 + d4``; unitless for ``s5``) counts
-    as singular, so the representative's FK error is below that tolerance.
+    A distance below [`SINGULAR_TOL`][optik.closed_form.serial.SINGULAR_TOL] (times ``d2 + d3 + d4``; unitless
+    for ``s5``) counts as singular, so the representative's FK error is below that tolerance.
 
     Args:
         d2, d3, d4: link lengths along x (> 0).
@@ -413,7 +417,7 @@ def ik_seed_6r(d2: float, d3: float, d4: float, t: Any) -> tuple[np.ndarray, np.
 def _seed_6r_block(
     d2: float, d3: float, d4: float, tt: np.ndarray, q_out: np.ndarray, ok_out: np.ndarray
 ) -> None:
-    """One block of :func:`ik_seed_6r` (steps 1-4 of its docstring)."""
+    """One block of [`ik_seed_6r`][optik.closed_form.serial.ik_seed_6r] (steps 1-4 of its docstring)."""
     n_t = tt.shape[0]
     nx, ny, nz = tt[:, 0, 0], tt[:, 1, 0], tt[:, 2, 0]
     ox, oy, oz = tt[:, 0, 1], tt[:, 1, 1], tt[:, 2, 1]
@@ -474,7 +478,7 @@ def _seed_6r_block(
 
 
 def _safe_one(num: float, den: float, default: float) -> float:
-    """:func:`_safe_ratio` of floats."""
+    """`_safe_ratio` of floats."""
     return num / den if den != 0 else default
 
 
@@ -486,7 +490,7 @@ def _clip_one(a: float, lo: float, hi: float) -> float:
 def _reachable_wrist_one(
     th234: float, s5_abs: float, beta: float, r: float, d: tuple[float, float, float]
 ) -> float:
-    """:func:`_reachable_wrist` for one candidate."""
+    """`_reachable_wrist` for one candidate."""
     d2, d3, d4 = d
     lo = math.acos(_clip_one(_safe_one(r * r + d4 * d4 - (d2 - d3) ** 2, 2.0 * d4 * r, 1.0), -1.0, 1.0))
     hi = math.acos(_clip_one(_safe_one(r * r + d4 * d4 - (d2 + d3) ** 2, 2.0 * d4 * r, 1.0), -1.0, 1.0))
@@ -498,8 +502,8 @@ def _reachable_wrist_one(
 
 
 def _seed_6r_one(d2: float, d3: float, d4: float, t: np.ndarray) -> list[list[float]]:
-    """The reachable branches of :func:`ik_seed_6r` for one target, in branch order: the same
-    steps as :func:`_seed_6r_block` on floats."""
+    """The reachable branches of [`ik_seed_6r`][optik.closed_form.serial.ik_seed_6r] for one target, in branch
+    order: the same steps as `_seed_6r_block` on floats."""
     (nx, ox, ax, px), (ny, oy, ay, py), (nz, oz, az, pz) = t[:3].tolist()
     mid = max(d2, d3)
     scale = SINGULAR_TOL * (d2 + d3 + d4)
@@ -552,7 +556,7 @@ def _seed_6r_one(d2: float, d3: float, d4: float, t: np.ndarray) -> list[list[fl
 # ---------------------------------------------------------------------------- registry adapters
 def _distinct_rows(m: Mechanism, rows: list[list[float]]) -> list[list[float]]:
     """The reachable branches of one target (rows, in branch order) without repeats of an
-    earlier kept one (DESIGN: same branch when every coordinate differs by < 1e-4, angles
+    earlier kept one (same branch when every coordinate differs by < 1e-4, angles
     modulo 2 pi)."""
     if len(rows) <= 1:
         return rows
@@ -582,12 +586,13 @@ def _far(a: list[float], b: list[float], mask: tuple[bool, ...]) -> bool:
 
 
 def _planar_one(t: np.ndarray) -> tuple[float, float, float]:
-    """``(x, y, phi)`` of a validated planar target (:func:`optik.spatial.planar_pose_of`)."""
+    """``(x, y, phi)`` of a validated planar target
+    ([`optik.spatial.planar_pose_of`][optik.spatial.planar_pose_of])."""
     return float(t[0, 3]), float(t[1, 3]), math.atan2(t[1, 0], t[0, 0])
 
 
 def _rp_one(x: float, y: float) -> list[list[float]]:
-    """The branches of :func:`ik_rp` for one target."""
+    """The branches of [`ik_rp`][optik.closed_form.serial.ik_rp] for one target."""
     th = math.atan2(y, x)
     r = math.hypot(x, y)
     return [[th, r], [_wrap_one(th + np.pi), -r]]

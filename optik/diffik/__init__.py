@@ -1,6 +1,6 @@
 """Differential inverse kinematics: tasks, limits, one step by QP / DLS / pseudo-inverse /
 strict priority, path tracking, and iterated differential IK as the ``"dls"`` and ``"qp"``
-methods of :func:`optik.solve_ik` (registered on import).
+methods of [`optik.solve_ik`][optik.solve_ik] (registered on import).
 """
 
 from optik.diffik import ik as _ik

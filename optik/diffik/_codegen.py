@@ -1,8 +1,8 @@
 """Compiled CasADi functions for the differential-IK hot path.
 
 A CasADi ``Function`` called from Python costs tens of microseconds per call (argument
-conversion to ``DM`` and back), more than a whole QP step should take. :class:`CompiledFunction`
-flattens a function to one input and one output vector, compiles it through :mod:`optik.native`
+conversion to ``DM`` and back), more than a whole QP step should take. `CompiledFunction`
+flattens a function to one input and one output vector, compiles it through `optik.native`
 (generated C, cached on disk, called through ``ctypes`` on preallocated numpy buffers) and calls
 the CasADi function itself while the C library is being built in the background and without a
 C compiler (same numbers, slower).
@@ -60,10 +60,15 @@ class CompiledFunction:
         or without a compiler)."""
         return self._native.compiled
 
+    def _evaluate(self) -> None:
+        """CasADi's evaluator, into the output buffer."""
+        self._out[:] = np.asarray(self._flat(self._in), dtype=float).reshape(-1)
+
     def call_flat(self, x: np.ndarray) -> tuple[np.ndarray, ...]:
         """Evaluate on the concatenated (column-major) inputs."""
         self._in[:] = x
-        out = self._out.copy() if self._native() else np.asarray(self._flat(x), dtype=float).reshape(-1)
+        self._native(self._evaluate)
+        out = self._out.copy()
         return tuple([out[a:b] if c == 1 else out[a:b].reshape(c, r).T for a, b, r, c in self._bounds])
 
     def __call__(self, *inputs: np.ndarray) -> tuple[np.ndarray, ...]:

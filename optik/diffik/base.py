@@ -1,10 +1,10 @@
-"""The two abstractions of differential IK: a :class:`Task` (what to achieve) and a
-:class:`Limit` (what must hold), plus the symbolic helpers they share.
+"""The two abstractions of differential IK: a [`Task`][optik.diffik.base.Task] (what to achieve) and a
+[`Limit`][optik.diffik.base.Limit] (what must hold), plus the symbolic helpers they share.
 
 Both are *symbolic*: a task returns CasADi expressions of its error ``e(q, p)`` and Jacobian
 ``J(q, p) = de/dq`` in the coordinate symbol ``q`` and a parameter vector ``p`` (targets); a limit
-returns expressions of velocity bounds. :func:`optik.diffik.build_qp` stacks the expressions of
-all tasks and limits into one compiled function per task structure, so changing a target or a
+returns expressions of velocity bounds. [`optik.diffik.build_qp`][optik.diffik.build_qp] stacks the
+expressions of all tasks and limits into one compiled function per task structure, so changing a target or a
 cost never recompiles, and one compiled call per step evaluates every task.
 
 Task convention (the one of Pink/mink): the step ``dq = v dt`` minimises
@@ -22,7 +22,7 @@ import casadi as ca
 import numpy as np
 
 from optik import spatial
-from optik.checks import as_vector
+from optik.checks import as_int, as_vector, real_array
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 
@@ -31,7 +31,8 @@ BIG = 1e20
 
 
 def positive(value: Any, name: str) -> float:
-    """A finite float ``>= 0`` (else :class:`InvalidArgumentError` naming the argument)."""
+    """A finite float ``>= 0`` (else [`InvalidArgumentError`][optik.InvalidArgumentError] naming the
+    argument)."""
     v = float(as_vector(value, name, 1)[0])
     if v < 0:
         raise InvalidArgumentError(name, f"must be >= 0, got {v}")
@@ -54,9 +55,8 @@ def so3_left_jacobian_inverse(w: Any) -> Any:
 
     ``J_l^{-1}(w) = I - [w]x / 2 + (1/t^2 - (1 + cos t) / (2 t sin t)) [w]x^2`` with ``t = |w|``;
     the coefficient tends to ``1/12`` at ``t = 0`` (Taylor branch below ``t^2 = 1e-6``). With it
-    the derivative of :func:`optik.spatial.pose_error`'s rotation vector ``log(R R*^T)`` (the
-    base-frame angular velocity ``omega`` perturbs ``R`` on the left) is exact, not only near
-    the target.
+    the derivative of [`optik.spatial.pose_error`][optik.spatial.pose_error]'s rotation vector ``log(R R*^T)``
+    (the base-frame angular velocity ``omega`` perturbs ``R`` on the left) is exact, not only near the target.
     """
     t2 = ca.dot(w, w)
     t = ca.sqrt(t2 + 1e-300)
@@ -108,9 +108,7 @@ class Task(ABC):
             raise InvalidArgumentError("gain", f"must be in (0, 1], got {g}")
         self.gain = g
         self.lm_damping = positive(lm_damping, "lm_damping")
-        if int(priority) != priority or priority < 0:
-            raise InvalidArgumentError("priority", f"must be an integer >= 0, got {priority!r}")
-        self.priority = int(priority)
+        self.priority = as_int(priority, "priority", 0)
 
     def _check_coordinates(self, m: Mechanism) -> None:
         """Raise unless the task (one row per coordinate, built for ``n_q``) fits ``m``."""
@@ -130,7 +128,7 @@ class Task(ABC):
         """Symbolic error ``e`` (``dim``) and Jacobian ``de/dq`` (``dim x n_q``)."""
 
     def n_parameters(self, m: Mechanism) -> int:
-        """Length of :meth:`parameters`."""
+        """Length of `parameters`."""
         return int(self.parameters(m).shape[0])
 
     def compute(self, m: Mechanism, q: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -150,7 +148,7 @@ class Task(ABC):
 class Limit(ABC):
     """A bound on the joint step ``dq = v dt``: ``lb(q) <= dq <= ub(q)``.
 
-    Limits are intersected in the order of :attr:`rank` (velocity 0, configuration 1,
+    Limits are intersected in the order of `rank` (velocity 0, configuration 1,
     acceleration 2). When a new limit's interval misses the one built so far, the point of the
     earlier interval nearest to it is kept: physical speed wins over returning into the position
     limits at once, and the position limits win over acceleration limits, so the step is always
@@ -174,7 +172,7 @@ class Limit(ABC):
     _cached: tuple[Mechanism, np.ndarray] | None = None
 
     def _parameters_of(self, m: Mechanism, build: Callable[[], np.ndarray]) -> np.ndarray:
-        """``build()``, computed once per mechanism (:meth:`parameters` runs at every step)."""
+        """``build()``, computed once per mechanism (`parameters` runs at every step)."""
         if self._cached is None or self._cached[0] is not m:
             self._cached = (m, build())
         return self._cached[1]
@@ -182,14 +180,15 @@ class Limit(ABC):
 
 def rate_limits(value: Any, name: str, what: str) -> np.ndarray:
     """Per-coordinate maxima (scalar or one per coordinate), each ``> 0`` (``inf`` allowed)."""
-    v = np.asarray(value, dtype=float).reshape(-1)
+    v = real_array(value, name).reshape(-1)
     if v.size == 0 or np.any(np.isnan(v)) or np.any(v <= 0):
         raise InvalidArgumentError(name, f"{what} must be > 0, got {v}")
     return v
 
 
 def per_coordinate(values: np.ndarray, name: str, m: Mechanism) -> np.ndarray:
-    """``values`` (from :func:`rate_limits`) broadcast to ``m.n_q`` and capped at :data:`BIG`."""
+    """``values`` (from [`rate_limits`][optik.diffik.base.rate_limits]) broadcast to ``m.n_q`` and capped at
+    [`BIG`][optik.diffik.base.BIG]."""
     v = np.broadcast_to(values, (m.n_q,)) if values.size == 1 else values
     if v.shape[0] != m.n_q:
         raise InvalidArgumentError(name, f"expected {m.n_q} values, got {v.shape[0]}")

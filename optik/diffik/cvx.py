@@ -6,7 +6,7 @@ programming), then re-solved with new values::
     minimise    1/2 ||W J dq - t||^2 + mu/2 ||dq||^2
     subject to  lb <= dq <= ub,  J_c dq = b
 
-which has the same minimiser as ``1/2 dq^T H dq + c^T dq`` of :func:`optik.diffik.build_qp`
+which has the same minimiser as ``1/2 dq^T H dq + c^T dq`` of [`optik.diffik.build_qp`][optik.diffik.build_qp]
 (``H = (WJ)^T WJ + mu I``, ``c = -(WJ)^T t``).
 """
 
@@ -17,14 +17,14 @@ from typing import Any
 import numpy as np
 
 from optik.diffik.problem import DiffIKProblem
-from optik.diffik.qp import QPOutcome, _require
+from optik.diffik.qp_outcome import QPOutcome, require_backend
 
 
 class CvxpyStepProblem:
     """The parametrised cvxpy problem of one task structure."""
 
     def __init__(self, problem: DiffIKProblem) -> None:
-        cp = _require("cvxpy", "cvxpy")
+        cp = require_backend("cvxpy", "cvxpy")
         n, rows, m_eq = problem.n, problem.jacobian.shape[0], problem.A.shape[0]
         self.dq = cp.Variable(n)
         self.jac = cp.Parameter((rows, n))

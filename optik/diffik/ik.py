@@ -1,21 +1,20 @@
 """Iterated differential IK as position IK: the ``"dls"`` and ``"qp"`` methods of
-:func:`optik.solve_ik`.
+[`optik.solve_ik`][optik.solve_ik].
 
-From ``q0``, repeat ``q <- q + dq`` with the step of :func:`optik.diffik.step` at ``dt = 1`` and gain
-1 (a Gauss-Newton step on the task error; with adaptive damping the DLS step is the exact
-Newton step away from singularities, so convergence is quadratic near a regular solution), inside
-the joint limits (:class:`ConfigurationLimit`) and, for closed chains, with the loop closures
-as the top level / equality constraint. The error is checked before each step; after
-``stall_iterations`` steps without a 1 % improvement, or ``max_iterations`` steps from one
-start, the method restarts from a random configuration within the limits (``request.rng``).
-It returns within the request's time limit (plus one step) with the best configuration found;
-compiling the task function on the first request of a mechanism and task space (cached
-afterwards) does not count against the limit.
+From ``q0``, repeat ``q <- q + dq`` with the step of [`optik.diffik.step`][optik.diffik.step] at ``dt = 1``
+and gain 1 (a Gauss-Newton step on the task error; with adaptive damping the DLS step is the exact Newton step
+away from singularities, so convergence is quadratic near a regular solution), inside the joint limits
+([`ConfigurationLimit`][optik.diffik.ik.ConfigurationLimit]) and, for closed chains, with the loop closures as
+the top level / equality constraint. The error is checked before each step; after ``stall_iterations`` steps
+without a 1 % improvement, or ``max_iterations`` steps from one start, the method restarts from a random
+configuration within the limits (``request.rng``). It returns within the request's time limit (plus one step)
+with the best configuration found; compiling the task function on the first request of a mechanism and task
+space (cached afterwards) does not count against the limit.
 
 Options (``solve_ik(..., method="dls", max_iterations=..., ...)``): ``max_iterations`` (per
 start, default 100), ``stall_iterations`` (default 10), ``damping`` and ``threshold`` (DLS) or
-``solver`` (QP backend) and ``lm_damping`` (QP, default :data:`LM_DAMPING`: the QP Hessian gets
-``lm_damping ||e||^2 I``, which shortens the Gauss-Newton steps far from the target and vanishes
+``solver`` (QP backend) and ``lm_damping`` (QP, default [`LM_DAMPING`][optik.diffik.ik.LM_DAMPING]: the QP
+Hessian gets ``lm_damping ||e||^2 I``, which shortens the Gauss-Newton steps far from the target and vanishes
 at it; 40/40 Panda targets within 50 ms instead of 35/40 without).
 """
 
@@ -115,12 +114,14 @@ def solve_dls(request: IKRequest) -> IKResult:
 
 
 def solve_qp(request: IKRequest) -> IKResult:
-    """``method="qp"``: iterated QP steps (default backend, see :func:`optik.diffik.default_solver`)."""
+    """``method="qp"``: iterated QP steps (default backend, see
+    [`optik.diffik.default_solver`][optik.diffik.default_solver])."""
     return iterate(request, "qp")
 
 
 def register() -> None:
-    """Register ``"dls"`` and ``"qp"`` with :func:`optik.solvers.base.register_method`."""
+    """Register ``"dls"`` and ``"qp"`` with
+    [`optik.solvers.base.register_method`][optik.solvers.base.register_method]."""
     register_method(
         "dls",
         solve_dls,

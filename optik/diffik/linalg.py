@@ -1,7 +1,7 @@
 """Pseudo-inverse methods of differential IK: ``pinv``, ``dls`` (fixed or adaptive damping,
 joint weights, null-space projection of secondary tasks) and the strict ``priority`` hierarchy.
 
-All work on a :class:`~optik.diffik.problem.DiffIKProblem`: the stacked weighted task rows ask
+All work on a [`DiffIKProblem`][optik.diffik.problem.DiffIKProblem]: the stacked weighted task rows ask
 ``W J dq = -alpha W e``; loop closures ``J_c dq = -gain c`` form an extra top level solved
 exactly. Limits are enforced by *saturation in the null space* (SNS): when the solution leaves
 ``[lb, ub]``, the most violating coordinate is fixed at its bound and the remaining coordinates
@@ -61,7 +61,8 @@ def pinv_pair(jac: np.ndarray, damping: float = 0.0, threshold: float = 0.0) -> 
 
 
 def damped_pinv(jac: np.ndarray, damping: float = 0.0, threshold: float = 0.0) -> np.ndarray:
-    """The damped pseudo-inverse of :func:`pinv_pair` (``damping = 0``: Moore-Penrose)."""
+    """The damped pseudo-inverse of [`pinv_pair`][optik.diffik.linalg.pinv_pair] (``damping = 0``:
+    Moore-Penrose)."""
     return pinv_pair(jac, damping, threshold)[0]
 
 
@@ -72,10 +73,10 @@ def solve_levels(
 
     Recursive task priority (Siciliano and Slotine): ``dq_k = dq_{k-1} + (J_k N_{k-1})# (t_k -
     J_k dq_{k-1})``, ``N_k = N_{k-1} - (J_k N_{k-1})^+ (J_k N_{k-1})`` with ``N_0 = I``; ``#`` is the
-    damped inverse of :func:`pinv_pair` for every level but the first, which is exact (the
-    closures), ``^+`` the exact one. With ``project_last`` the last level is solved on its own and
-    projected, ``dq += N (J_last# t_last)`` (the classic gradient projection of a secondary task: it
-    never disturbs the levels above, but it is not compensated for their motion).
+    damped inverse of [`pinv_pair`][optik.diffik.linalg.pinv_pair] for every level but the first, which is
+    exact (the closures), ``^+`` the exact one. With ``project_last`` the last level is solved on its own and
+    projected, ``dq += N (J_last# t_last)`` (the classic gradient projection of a secondary task: it never
+    disturbs the levels above, but it is not compensated for their motion).
     """
     dq = np.zeros(n)
     proj: np.ndarray | None = None
@@ -218,15 +219,16 @@ def solve_pseudo_inverse(
 
     Args:
         problem: the step's problem.
-        damping, threshold: see :func:`pinv_pair` (applied to every task level; the closure level
-            is always exact).
+        damping, threshold: see [`pinv_pair`][optik.diffik.linalg.pinv_pair] (applied to every task level; the
+            closure level is always exact).
         hierarchy: ``"projection"``: priority-0 tasks primary, the others projected into their null
-            space (:func:`solve_levels` with ``project_last``); ``"strict"``: every priority value
-            a level of the recursive hierarchy.
+            space ([`solve_levels`][optik.diffik.linalg.solve_levels] with ``project_last``); ``"strict"``:
+            every priority value a level of the recursive hierarchy.
         joint_weights: positive weight per coordinate ``M = diag(w)`` (weighted pseudo-inverse).
 
     Returns:
-        ``(dq, number of saturated coordinates, task scale)`` (see :func:`saturate`).
+        ``(dq, number of saturated coordinates, task scale)`` (see
+        [`saturate`][optik.diffik.linalg.saturate]).
     """
     levels = _levels(problem, "two" if hierarchy == "projection" else "all")
     levels, lb, ub, scale = _weighted(problem, levels, joint_weights)

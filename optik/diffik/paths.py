@@ -7,14 +7,30 @@ from typing import Any
 import numpy as np
 
 from optik import spatial
-from optik.checks import as_transform, as_vector
-from optik.errors import InvalidArgumentError
+from optik.checks import as_batch, as_float, as_transform, as_vector, real_array
+from optik.errors import InvalidArgumentError, ShapeError
+
+MAX_SAMPLES = 1_000_000
+"""Most poses one path function returns (128 MB of 4x4 transforms): a longer path is an
+[InvalidArgumentError][optik.InvalidArgumentError] naming the argument that sets the count,
+never a huge allocation (split a longer motion into several paths)."""
 
 
 def _count(n: Any, name: str = "n") -> int:
-    if int(n) != n or n < 2:
-        raise InvalidArgumentError(name, f"must be an integer >= 2, got {n!r}")
-    return int(n)
+    v = as_float(n, name)
+    if v != int(v) or v < 2 or v > MAX_SAMPLES:
+        raise InvalidArgumentError(name, f"must be an integer in [2, {MAX_SAMPLES}], got {n!r}")
+    return int(v)
+
+
+def _rotation(rotation: Any) -> np.ndarray:
+    """The 3x3 tool orientation (identity when None), validated as a proper rotation."""
+    if rotation is None:
+        return np.eye(3)
+    r = real_array(rotation, "rotation")
+    if r.shape != (3, 3):
+        raise ShapeError("rotation", f"expected a 3x3 rotation, got shape {r.shape}")
+    return as_transform(spatial.transform(r), "rotation")[:3, :3]
 
 
 def line_path(start: Any, end: Any, n: int) -> np.ndarray:
@@ -60,9 +76,8 @@ def circle_path(
         turns: number of turns (1: a closed circle, first and last samples equal).
     """
     c = as_vector(center, "center", 3)
-    r = float(as_vector(radius, "radius", 1)[0])
-    if r <= 0:
-        raise InvalidArgumentError("radius", f"must be > 0, got {r}")
+    r = as_float(radius, "radius", 0.0, strict=True)
+    a0, turns = as_float(start_angle, "start_angle"), as_float(turns, "turns")
     z = as_vector(normal, "normal", 3)
     if np.linalg.norm(z) == 0:
         raise InvalidArgumentError("normal", "must be non-zero")
@@ -71,13 +86,9 @@ def circle_path(
     x = ref - (ref @ z) * z
     x /= np.linalg.norm(x)
     y = np.cross(z, x)
-    a = start_angle + np.linspace(0.0, 2 * np.pi * turns, _count(n))
+    a = a0 + np.linspace(0.0, 2 * np.pi * turns, _count(n))
     pos = c + r * (np.cos(a)[:, None] * x + np.sin(a)[:, None] * y)
-    rot = (
-        np.eye(3)
-        if rotation is None
-        else as_transform(spatial.transform(np.asarray(rotation)), "rotation")[:3, :3]
-    )
+    rot = _rotation(rotation)
     return spatial.transform(np.broadcast_to(rot, (len(a), 3, 3)), pos)
 
 
@@ -95,21 +106,25 @@ def polyline_path(points: Any, speed: float, dt: float, rotation: Any = None) ->
 
     Returns:
         ``(n, 4, 4)`` array.
+
+    Raises:
+        InvalidArgumentError: bad points, speed or dt, or more than `MAX_SAMPLES`
+            samples (argument ``speed/dt``).
     """
-    pts = np.asarray(points, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] < 2 or not np.all(np.isfinite(pts)):
-        raise InvalidArgumentError("points", f"expected (k >= 2, 3) finite points, got shape {pts.shape}")
-    v = float(as_vector(speed, "speed", 1)[0])
-    h = float(as_vector(dt, "dt", 1)[0])
-    if v <= 0 or h <= 0:
-        raise InvalidArgumentError("speed" if v <= 0 else "dt", "must be > 0")
+    pts, _ = as_batch(points, "points", 3)
+    if pts.shape[0] < 2:
+        raise InvalidArgumentError("points", f"expected at least 2 points, got {pts.shape[0]}")
+    step = as_float(speed, "speed", 0.0, strict=True) * as_float(dt, "dt", 0.0, strict=True)
     seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
     arc = np.concatenate([[0.0], np.cumsum(seg)])
-    s = np.append(np.arange(0.0, arc[-1], v * h), arc[-1])
+    # the sample count is known before anything is allocated: arc length / step, plus the end
+    if not arc[-1] / step < MAX_SAMPLES - 1:
+        raise InvalidArgumentError(
+            "speed/dt",
+            f"the path would have about {arc[-1] / step:.3g} samples (arc length {arc[-1]:.3g} m, "
+            f"{step:.3g} m per sample); at most {MAX_SAMPLES} are allowed",
+        )
+    s = np.append(np.arange(0.0, arc[-1], step), arc[-1])
     pos = np.stack([np.interp(s, arc, pts[:, k]) for k in range(3)], axis=-1)
-    rot = (
-        np.eye(3)
-        if rotation is None
-        else as_transform(spatial.transform(np.asarray(rotation)), "rotation")[:3, :3]
-    )
+    rot = _rotation(rotation)
     return spatial.transform(np.broadcast_to(rot, (len(s), 3, 3)), pos)

@@ -11,7 +11,7 @@ With the step ``dq = v dt`` (Pink's convention; ``v`` is returned), tasks ``k`` 
 
 which is ``1/2 sum_k ||W_k (J_k dq + alpha_k e_k)||^2 + mu/2 ||dq||^2`` up to a constant. Every
 term is one compiled CasADi function per mechanism and task structure (see
-:mod:`optik.diffik._codegen`): a new target or cost changes only parameter values.
+`optik.diffik._codegen`): a new target or cost changes only parameter values.
 """
 
 from __future__ import annotations
@@ -165,7 +165,8 @@ _STACKS: weakref.WeakKeyDictionary[Mechanism, dict[tuple, StackFunction]] = weak
 
 
 def normalize_limits(m: Mechanism, limits: Sequence[Limit] | None) -> list[Limit]:
-    """The limits of a step, sorted by rank, with a :class:`ConfigurationLimit` always present.
+    """The limits of a step, sorted by rank, with a
+    [`ConfigurationLimit`][optik.diffik.problem.ConfigurationLimit] always present.
 
     ``None`` means the mechanism's velocity limits (when ``m.params`` has them) and its position
     limits.
@@ -201,7 +202,7 @@ def _positive_float(value: Any, name: str, strict: bool = False) -> float:
 
 
 def _as_list(items: Any, name: str, kind: str) -> list:
-    """``items`` as a list (else :class:`InvalidArgumentError` naming ``name``)."""
+    """``items`` as a list (else [`InvalidArgumentError`][optik.InvalidArgumentError] naming ``name``)."""
     if isinstance(items, (str, bytes)) or not isinstance(items, Iterable):
         raise InvalidArgumentError(name, f"expected a sequence of {kind} objects, got {type(items).__name__}")
     return list(items)
@@ -222,7 +223,8 @@ def _check_tasks(tasks: Sequence[Task]) -> list[Task]:
 def stack_function(
     m: Mechanism, tasks: Sequence[Task], limits: Sequence[Limit], closure_gain: float
 ) -> StackFunction:
-    """The compiled :class:`StackFunction` of a task structure (built once, then cached)."""
+    """The compiled [`StackFunction`][optik.diffik.problem.StackFunction] of a task structure (built once,
+    then cached)."""
     key = (tuple(t.key() for t in tasks), tuple(lim.key() for lim in limits), closure_gain)
     per_m = _STACKS.get(m)
     if per_m is None:
@@ -252,21 +254,21 @@ def build_qp(
         tasks: the tasks (a single task is accepted).
         dt: time step (s), ``> 0``.
         limits: limits on the step (default: the mechanism's velocity limits if known, and its
-            position limits; a :class:`ConfigurationLimit` is always added).
-        v_prev: previous joint velocity for :class:`AccelerationLimit` (default zero).
+            position limits; a [`ConfigurationLimit`][optik.diffik.problem.ConfigurationLimit] is always
+            added).
+        v_prev: previous joint velocity for [`AccelerationLimit`][optik.diffik.AccelerationLimit] (default
+            zero).
         damping: Tikhonov regularisation ``mu`` (``>= 0``).
         closure_gain: gain of the loop-closure constraint (closed chains).
 
     Returns:
-        The :class:`DiffIKProblem`.
+        The [`DiffIKProblem`][optik.diffik.problem.DiffIKProblem].
 
     Raises:
         OptikError: a subclass naming the bad argument (q, tasks, dt, limits, v_prev, damping, a
             task's target or frame).
     """
-    qq = np.asarray(q, dtype=float)
-    if qq.shape != (m.n_q,) or not np.isfinite(qq).all():
-        qq = m.check_q(q)  # raises the error naming q
+    qq = m.check_q(q)  # raises the error naming q
     task_list = _check_tasks(tasks)
     step = _positive_float(dt, "dt", strict=True)
     lims = normalize_limits(m, limits)

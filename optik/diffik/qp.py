@@ -7,51 +7,30 @@
 * ``"cvxpy"``: the same QP written with cvxpy parameters (built once, DPP), for cross-checks.
 * any other name: the backend of that name through ``qpsolvers.solve_problem``.
 
-Every backend returns a :class:`QPOutcome`; none raises on an infeasible or failed solve.
-Unknown settings raise :class:`~optik.errors.InvalidArgumentError` (``"options"``) for DAQP and
-OSQP; cvxpy and the qpsolvers backends report them as a failed solve (status and message).
+Every backend returns a [`QPOutcome`][optik.diffik.qp_outcome.QPOutcome]; none raises on an infeasible or
+failed solve. Unknown settings raise [`InvalidArgumentError`][optik.errors.InvalidArgumentError]
+(``"options"``) for DAQP and OSQP; cvxpy and the qpsolvers backends report them as a failed solve (status and
+message).
 """
 
 from __future__ import annotations
 
 import importlib
 import importlib.util
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from optik.diffik.cvx import solve_cvxpy
 from optik.diffik.problem import DiffIKProblem
+from optik.diffik.qp_outcome import QPOutcome, require_backend
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 
 
-@dataclass
-class QPOutcome:
-    """What a backend returns.
-
-    Attributes:
-        dq: the solution (None when the backend found none).
-        status: ``"optimal"``, ``"infeasible"`` or ``"failed"``.
-        detail: backend status text.
-    """
-
-    dq: np.ndarray | None
-    status: str
-    detail: str
-
-
 def default_solver() -> str:
-    """The default backend: ``"daqp"`` when installed (fastest in ``benchmarks/bench_diffik.py``),
+    """The default backend: ``"daqp"`` when installed (fastest in ``optik benchmark diffik``),
     else ``"osqp"``."""
     return "daqp" if importlib.util.find_spec("daqp") is not None else "osqp"
-
-
-def _require(module: str, solver: str) -> Any:
-    if importlib.util.find_spec(module) is None:
-        raise SolverUnavailableError(
-            f"QP solver {solver!r} needs the {module!r} package: pip install {module}"
-        )
-    return importlib.import_module(module)
 
 
 _SENSE: dict[int, np.ndarray] = {}
@@ -59,7 +38,7 @@ _SENSE: dict[int, np.ndarray] = {}
 
 def solve_daqp(problem: DiffIKProblem, **settings: Any) -> QPOutcome:
     """DAQP on the dense problem (``settings`` are DAQP settings, e.g. ``primal_tol``)."""
-    daqp = _require("daqp", "daqp")
+    daqp = require_backend("daqp", "daqp")
     n, m_eq = problem.n, problem.A.shape[0]
     if m_eq:
         upper = np.concatenate([problem.ub, problem.b])
@@ -81,7 +60,7 @@ class OsqpWorkspace:
     """An OSQP workspace for one problem structure, set up once and updated in place."""
 
     def __init__(self, problem: DiffIKProblem, settings: dict[str, Any]) -> None:
-        osqp = _require("osqp", "osqp")
+        osqp = require_backend("osqp", "osqp")
         sp = importlib.import_module("scipy.sparse")  # imported on first use: it is slow to import
         n, m_eq = problem.n, problem.A.shape[0]
         self._triu = np.triu_indices(n)
@@ -120,7 +99,7 @@ class OsqpWorkspace:
 
 def solve_osqp(problem: DiffIKProblem, **settings: Any) -> QPOutcome:
     """OSQP with a persistent workspace per task structure (``settings``: OSQP settings)."""
-    key = ("osqp", tuple(sorted(settings.items())))
+    key = ("osqp", repr(sorted(settings.items())))  # repr: settings values may be unhashable
     ws = problem.cache.backends.get(key) if problem.cache is not None else None
     if ws is None:
         ws = OsqpWorkspace(problem, settings)
@@ -131,7 +110,7 @@ def solve_osqp(problem: DiffIKProblem, **settings: Any) -> QPOutcome:
 
 def solve_qpsolvers(problem: DiffIKProblem, solver: str, **settings: Any) -> QPOutcome:
     """Any backend of ``qpsolvers`` by name."""
-    qpsolvers = _require("qpsolvers", solver)
+    qpsolvers = require_backend("qpsolvers", solver)
     if solver not in qpsolvers.available_solvers:
         raise SolverUnavailableError(
             f"QP solver {solver!r} is not installed; available: {sorted(qpsolvers.available_solvers)} "
@@ -156,14 +135,13 @@ def solve_qpsolvers(problem: DiffIKProblem, solver: str, **settings: Any) -> QPO
 
 
 def solve_qp(problem: DiffIKProblem, solver: str | None = None, **settings: Any) -> QPOutcome:
-    """Solve the step's QP with a backend by name (None: :func:`default_solver`)."""
+    """Solve the step's QP with a backend by name (None:
+    [`default_solver`][optik.diffik.qp.default_solver])."""
     name = default_solver() if solver is None else solver
     if name == "daqp":
         return solve_daqp(problem, **settings)
     if name == "osqp":
         return solve_osqp(problem, **settings)
     if name == "cvxpy":
-        from optik.diffik.cvx import solve_cvxpy
-
         return solve_cvxpy(problem, **settings)
     return solve_qpsolvers(problem, name, **settings)

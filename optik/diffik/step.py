@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from optik.checks import as_name
 from optik.diffik.base import Limit, Task, positive
 from optik.diffik.linalg import solve_pseudo_inverse
 from optik.diffik.problem import DiffIKProblem, build_qp
@@ -18,7 +19,7 @@ from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 
 METHODS = ("qp", "dls", "pinv", "priority")
-"""Methods of :func:`step`."""
+"""Methods of [`step`][optik.diffik.step.step]."""
 
 DLS_DAMPING = 0.05
 """Default ``lambda_max`` of ``method="dls"``."""
@@ -36,7 +37,7 @@ class StepResult:
         v: joint velocity ``dq / dt``.
         q: next configuration ``q + v dt``, within the limits (or, starting outside, no farther
             out than before); closed chains are projected back onto their closures (see
-            :func:`integrate`).
+            [`integrate`][optik.diffik.step.integrate]).
         status: ``"ok"``; ``"saturated"`` (pseudo-inverse methods that held coordinates at
             their bounds or scaled the task velocity down to fit them);
             ``"qp_infeasible_fallback"`` / ``"qp_failed_fallback"`` (the QP had no solution and
@@ -46,7 +47,7 @@ class StepResult:
         closure_error: max-norm of the loop-closure residual at the current ``q``.
         solve_time: wall time of the step (s).
         message: what went wrong, if anything.
-        problem: the :class:`~optik.diffik.DiffIKProblem` that was solved.
+        problem: the [`DiffIKProblem`][optik.diffik.DiffIKProblem] that was solved.
     """
 
     v: np.ndarray
@@ -67,7 +68,7 @@ class StepResult:
 
 
 CLOSURE_TOL = 1e-12
-"""Closure residual (max-norm) to which :func:`integrate` projects closed chains."""
+"""Closure residual (max-norm) to which [`integrate`][optik.diffik.step.integrate] projects closed chains."""
 
 
 def integrate(m: Mechanism, q: np.ndarray, v: np.ndarray, dt: float) -> np.ndarray:
@@ -127,9 +128,9 @@ def step(
 
     Methods (formulas in ``docs/solvers/diffik.md``):
 
-    * ``"qp"``: the QP of :func:`build_qp` (tasks weighted by cost; limits and closures exact) by
-      ``solver`` (None: :func:`~optik.diffik.qp.default_solver`; ``"osqp"``, ``"daqp"``,
-      ``"cvxpy"`` or any qpsolvers backend). An infeasible or failed QP falls back to the DLS
+    * ``"qp"``: the QP of [`build_qp`][optik.diffik.step.build_qp] (tasks weighted by cost; limits and
+      closures exact) by ``solver`` (None: [`default_solver`][optik.diffik.qp.default_solver]; ``"osqp"``,
+      ``"daqp"``, ``"cvxpy"`` or any qpsolvers backend). An infeasible or failed QP falls back to the DLS
       answer within the bounds, with status ``"qp_infeasible_fallback"``/``"qp_failed_fallback"``.
     * ``"dls"``: damped least squares ``J^T (J J^T + lambda^2 I)^-1`` with adaptive damping
       (options ``damping`` = ``lambda_max``, ``threshold``; ``adaptive=False`` for fixed
@@ -149,7 +150,7 @@ def step(
         dt: time step (s).
         method: ``"qp"``, ``"dls"``, ``"pinv"`` or ``"priority"``.
         solver: QP backend (``method="qp"`` only).
-        limits: see :func:`build_qp`.
+        limits: see [`build_qp`][optik.diffik.step.build_qp].
         v_prev: previous velocity (acceleration limits).
         damping: QP Tikhonov weight (default 1e-12) or DLS ``lambda`` (see above).
         closure_gain: gain of the loop-closure constraint.
@@ -157,14 +158,15 @@ def step(
             pseudo-inverse methods; backend settings for ``"qp"``).
 
     Returns:
-        A :class:`StepResult`.
+        A [`StepResult`][optik.diffik.step.StepResult].
 
     Raises:
         OptikError: a subclass naming the argument, for malformed input or an unknown method.
     """
     start = time.perf_counter()
-    if method not in METHODS:
-        raise InvalidArgumentError("method", f"unknown method {method!r}; use one of {METHODS}")
+    as_name(method, "method", METHODS)
+    if solver is not None:
+        as_name(solver, "solver")
     qp_damping = 1e-12 if damping is None or method != "qp" else damping
     problem = build_qp(m, q, tasks, dt, limits, v_prev=v_prev, damping=qp_damping, closure_gain=closure_gain)
     status, message, used = "ok", "", None

@@ -9,13 +9,15 @@ from typing import Any
 
 import numpy as np
 
+from optik.checks import as_transform, real_array
 from optik.diffik.base import Limit, Task
 from optik.diffik.step import StepResult, step
 from optik.diffik.tasks import FrameTask, OrientationTask, Pose2DTask, PositionTask
 from optik.diffik.tasks.frame_rows import FrameRowsTask
-from optik.errors import InvalidArgumentError
+from optik.errors import InvalidArgumentError, NonFiniteError, ShapeError
 from optik.mechanism import Mechanism
-from optik.solvers.base import task_errors
+from optik.solvers.base import default_task, task_errors
+from optik.targets import Pose2D, Position
 
 
 @dataclass
@@ -58,9 +60,10 @@ class TrackResult:
 
 
 def tracking_task(m: Mechanism, space: str | None = None, frame: str | None = None) -> FrameRowsTask:
-    """The frame task of a task space: ``"pose"`` -> :class:`FrameTask`, ``"position"`` /
-    ``"position2d"`` -> :class:`PositionTask` (``xyz`` / ``xy``), ``"pose2d"`` -> :class:`Pose2DTask`
-    (``None``: the mechanism's own task space), ``"orientation"`` -> :class:`OrientationTask`."""
+    """The frame task of a task space: ``"pose"`` -> [`FrameTask`][optik.diffik.track.FrameTask],
+    ``"position"`` / ``"position2d"`` -> [`PositionTask`][optik.diffik.track.PositionTask] (``xyz`` / ``xy``),
+    ``"pose2d"`` -> [`Pose2DTask`][optik.diffik.track.Pose2DTask] (``None``: the mechanism's own task space),
+    ``"orientation"`` -> [`OrientationTask`][optik.diffik.track.OrientationTask]."""
     s = m.task if space is None else space
     if s == "pose":
         return FrameTask(frame)
@@ -71,6 +74,35 @@ def tracking_task(m: Mechanism, space: str | None = None, frame: str | None = No
     if s == "orientation":
         return OrientationTask(frame)
     raise InvalidArgumentError("space", f"unknown task space {s!r}")
+
+
+def path_targets(m: Mechanism, path: Any) -> tuple[np.ndarray, str]:
+    """The ``(N, 4, 4)`` target transforms of a path and the task space they imply.
+
+    A path is what [`solve_ik`][optik.solve_ik] accepts as a target, one per step: a sequence of
+    `Pose2D` (task ``"pose2d"``) or of `Position`, an ``(N, 3)`` or
+    ``(N, 2)`` array of points (task ``"position"``, ``"position2d"`` for planar mechanisms), or
+    ``(N, 4, 4)`` transforms, each a proper rigid transform (the mechanism's own task).
+
+    Raises:
+        InvalidArgumentError: an empty path, mixed target types, another shape, or an invalid
+            target (named ``path[k]``).
+    """
+    if isinstance(path, (str, bytes)) or not isinstance(path, Sequence | np.ndarray) or len(path) == 0:
+        raise InvalidArgumentError("path", f"expected a non-empty sequence of targets, got {path!r:.80}")
+    kinds = {type(p) for p in path if isinstance(p, (Pose2D, Position))}
+    if kinds:
+        if len(kinds) > 1 or not all(isinstance(p, (Pose2D, Position)) for p in path):
+            raise InvalidArgumentError("path", "mixes target types; use one of Pose2D, Position, 4x4")
+        return np.stack([p.as_transform() for p in path]), default_task(m, path[0])
+    a = real_array(path, "path")
+    if a.ndim == 2 and a.shape[1] in (2, 3):
+        if not np.isfinite(a).all():
+            raise NonFiniteError("path", "contains NaN or infinity")
+        return np.stack([Position(p).as_transform() for p in a]), default_task(m, Position(a[0]))
+    if a.ndim != 3 or a.shape[1:] != (4, 4):
+        raise ShapeError("path", f"expected (N, 4, 4) poses or (N, 3) points, got shape {a.shape}")
+    return np.stack([as_transform(t, f"path[{k}]") for k, t in enumerate(a)]), m.task
 
 
 def _margin(m: Mechanism, q: np.ndarray) -> float:
@@ -91,34 +123,34 @@ def track(
     limits: Sequence[Limit] | None = None,
     **options: Any,
 ) -> TrackResult:
-    """Track a path: at step ``k`` the frame task's target is ``path[k]`` and one :func:`step` of
-    length ``dt`` moves the mechanism (gain 1: the step asks for the whole way to the sample, which
-    is the feed-forward velocity of the path plus the correction of the current error).
+    """Track a path: at step ``k`` the frame task's target is ``path[k]`` and one
+    [`step`][optik.diffik.track.step] of length ``dt`` moves the mechanism (gain 1: the step asks for the
+    whole way to the sample, which is the feed-forward velocity of the path plus the correction of the current
+    error).
 
     Args:
         m: the mechanism.
         q0: start configuration (may lie slightly outside the limits: the steps bring it back).
-        path: ``(N, 4, 4)`` target poses, one per step (see :mod:`optik.diffik.paths`).
+        path: one target per step: ``(N, 4, 4)`` poses (see [`optik.diffik.paths`][optik.diffik.paths]),
+            a sequence of `Pose2D` or `Position`, or ``(N, 3)`` points (see
+            [`path_targets`][optik.diffik.track.path_targets]).
         dt: control period (s).
-        method, solver: see :func:`step`.
-        space: task space of the tracked frame (default: the mechanism's).
+        method, solver: see [`step`][optik.diffik.track.step].
+        space: task space of the tracked frame (default: the one the targets imply, as in
+            [`solve_ik`][optik.solve_ik]).
         frame: tracked frame (default: the end effector).
         tasks: extra tasks (posture, manipulability...), kept for every step.
-        limits: see :func:`step`; acceleration limits get the previous velocity.
-        **options: passed to :func:`step`.
+        limits: see [`step`][optik.diffik.track.step]; acceleration limits get the previous velocity.
+        **options: passed to [`step`][optik.diffik.track.step].
 
     Returns:
-        The :class:`TrackResult`.
+        The [`TrackResult`][optik.diffik.track.TrackResult].
     """
-    targets = np.asarray(path, dtype=float)
-    if targets.ndim != 3 or targets.shape[1:] != (4, 4) or len(targets) == 0:
-        raise InvalidArgumentError("path", f"expected (N, 4, 4) poses, got shape {targets.shape}")
-    if not np.all(np.isfinite(targets)):
-        raise InvalidArgumentError("path", "contains NaN or infinity")
+    targets, implied = path_targets(m, path)
     q = m.check_q(q0, "q0")
-    main = tracking_task(m, space, frame)
+    space_name = implied if space is None else space
+    main = tracking_task(m, space_name, frame)
     all_tasks = [main, *tasks]
-    space_name = m.task if space is None else space
     n_steps = len(targets)
     qs = np.zeros((n_steps + 1, m.n_q))
     vs = np.zeros((n_steps, m.n_q))

@@ -7,7 +7,7 @@ DH conventions (``q_i`` enters ``theta_i`` for revolute joints, ``d_i`` for pris
 * ``"standard"`` (Denavit-Hartenberg): ``A_i = Rot(z, theta_i) Trans(z, d_i) Trans(x, a_i) Rot(x, alpha_i)``.
 * ``"modified"`` (Craig): ``A_i = Rot(x, alpha_{i-1}) Trans(x, a_{i-1}) Rot(z, theta_i) Trans(z, d_i)``.
 
-Every builder returns a :class:`~optik.mechanism.mechanism.Mechanism` whose bodies are
+Every builder returns a [`Mechanism`][optik.mechanism.mechanism.Mechanism] whose bodies are
 ``base, link1, ..., linkN`` and whose end effector ``ee`` sits at the end of the last A-matrix
 (for the modified convention, at an optional flange transform).
 """
@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from optik import spatial
-from optik.checks import as_vector
+from optik.checks import as_name, as_transform, as_vector
 from optik.errors import InvalidArgumentError
 from optik.mechanism.joint import Joint
 from optik.mechanism.mechanism import Mechanism
@@ -48,9 +48,9 @@ def planar_chain(
         lengths: one link length per joint (metres).
         lower, upper: coordinate limits (defaults: +-pi for R, [0, 2] m for P).
         name: label (default: ``"planar_" + types``).
-        task: default task space (see :class:`Mechanism`).
+        task: default task space (see [`Mechanism`][optik.Mechanism]).
     """
-    types = types.upper()
+    types = as_name(types, "types").upper()
     if not types or set(types) - {"R", "P"}:
         raise InvalidArgumentError("types", f"expected letters R and P, got {types!r}")
     ls = as_vector(lengths, "lengths", len(types))
@@ -110,10 +110,9 @@ def dh_chain(
         Mechanism with bodies ``link1..linkN`` (joint frames after each joint's motion), frames
         ``frame1..frameN`` (the DH frames, i.e. after each whole A-matrix) and ``ee``.
     """
-    if convention not in CONVENTIONS:
-        raise InvalidArgumentError(
-            "convention", f"unknown DH convention {convention!r}; use one of {CONVENTIONS}"
-        )
+    as_name(convention, "convention", CONVENTIONS)
+    if isinstance(params, (str, bytes)) or not isinstance(params, Sequence | np.ndarray):
+        raise InvalidArgumentError("params", f"expected a sequence of DH rows, got {params!r}")
     rows = [as_vector(r, f"params[{i}]") for i, r in enumerate(params)]
     width = {"seed": 2, "standard": 3, "modified": 3}[convention]
     for i, r in enumerate(rows):
@@ -122,7 +121,7 @@ def dh_chain(
                 f"params[{i}]", f"{convention} DH rows have {width} values, got {r.shape[0]}"
             )
     n = len(rows)
-    types = (types or "R" * n).upper()
+    types = ("R" * n if types is None else as_name(types, "types")).upper()
     if len(types) != n or set(types) - {"R", "P"}:
         raise InvalidArgumentError("types", f"expected {n} letters R/P, got {types!r}")
     lo = None if lower is None else as_vector(lower, "lower", n)
@@ -162,6 +161,6 @@ def dh_chain(
         )
         frames[f"frame{i + 1}"] = (body, after)
         prev, pending = body, after
-    flange_t = np.eye(4) if flange is None else np.asarray(flange, dtype=float)
+    flange_t = np.eye(4) if flange is None else as_transform(flange, "flange")
     frames["ee"] = (prev, pending @ flange_t)
     return Mechanism(joints, "base", frames, "ee", name, task)

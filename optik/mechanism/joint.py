@@ -21,7 +21,7 @@ spherical    3    ``exp([q]x)``: q is a rotation vector (one chart covering SO(3
 ===========  ===  ==============================================================
 
 When a joint closes a loop (a *cut* joint) it has no coordinates; instead it contributes
-loop-closure equations (see :mod:`optik.mechanism.closure`).
+loop-closure equations (see `optik.mechanism.closure`).
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ import casadi as ca
 import numpy as np
 
 from optik import spatial
+from optik.checks import as_name, real_array
 from optik.errors import InvalidArgumentError, LimitsError
 
 JOINT_DOF = {"revolute": 1, "prismatic": 1, "fixed": 0, "universal": 2, "spherical": 3}
@@ -42,10 +43,20 @@ _DEFAULT_LIMIT = {"revolute": np.pi, "prismatic": 1.0, "universal": np.pi, "sphe
 
 
 def _unit(v: Any, name: str) -> np.ndarray:
-    a = np.asarray(v, dtype=float).reshape(-1)
+    a = real_array(v, name).reshape(-1)
     if a.shape != (3,) or not np.all(np.isfinite(a)) or np.linalg.norm(a) < 1e-12:
         raise InvalidArgumentError(name, f"expected a finite non-zero 3-vector, got {v!r}")
     return a / np.linalg.norm(a)
+
+
+def _limits(value: Any, name: str, joint: str, default: float, n: int) -> tuple[float, ...]:
+    """One limit per coordinate (``default`` when None); NaN and non-numbers raise here."""
+    if value is None:
+        return (default,) * n
+    a = real_array(value, f"{name} (joint {joint!r})").reshape(-1)
+    if np.isnan(a).any():
+        raise LimitsError(name, f"joint {joint!r}: contains NaN: {value!r}")
+    return tuple(a.tolist())
 
 
 def axis_rotation(axis: np.ndarray, angle: Any) -> Any:
@@ -101,14 +112,17 @@ class Joint:
     cut: bool = False
 
     def __post_init__(self) -> None:
-        if self.type not in JOINT_DOF:
-            raise InvalidArgumentError(
-                "type", f"joint {self.name!r}: unknown type {self.type!r}; use one of {sorted(JOINT_DOF)}"
-            )
-        if not self.name:
-            raise InvalidArgumentError("name", "joint name must be a non-empty string")
+        as_name(self.type, "type", JOINT_DOF)
+        for key in ("name", "parent", "child"):
+            if not isinstance(getattr(self, key), str) or not getattr(self, key):
+                raise InvalidArgumentError(key, f"expected a non-empty string, got {getattr(self, key)!r}")
+        for key in ("actuated", "cut"):
+            flag = getattr(self, key)
+            if not isinstance(flag, bool | np.bool_ | int | np.integer) or flag not in (0, 1):
+                raise InvalidArgumentError(key, f"joint {self.name!r}: expected a bool, got {flag!r}")
+            object.__setattr__(self, key, bool(flag))
         for key in ("origin", "child_offset"):
-            t = np.asarray(getattr(self, key), dtype=float)
+            t = real_array(getattr(self, key), key)
             if t.shape != (4, 4) or not np.all(np.isfinite(t)):
                 raise InvalidArgumentError(key, f"joint {self.name!r}: expected a finite 4x4 transform")
             object.__setattr__(self, key, t)
@@ -116,14 +130,14 @@ class Joint:
         object.__setattr__(self, "axis2", _unit(self.axis2, f"axis2 (joint {self.name!r})"))
         n = self.dof
         default = _DEFAULT_LIMIT.get(self.type, 0.0)
-        lo = (-default,) * n if self.lower is None else tuple(np.atleast_1d(self.lower).astype(float))
-        hi = (default,) * n if self.upper is None else tuple(np.atleast_1d(self.upper).astype(float))
+        lo = _limits(self.lower, "lower", self.name, -default, n)
+        hi = _limits(self.upper, "upper", self.name, default, n)
         if len(lo) != n or len(hi) != n:
             raise LimitsError(
                 "lower/upper", f"joint {self.name!r} has {n} coordinate(s), got {len(lo)}/{len(hi)} limits"
             )
         for a, b in zip(lo, hi, strict=True):
-            if np.isnan(a) or np.isnan(b) or a > b:
+            if a > b:
                 raise LimitsError("lower/upper", f"joint {self.name!r}: need lower <= upper, got {a} > {b}")
         object.__setattr__(self, "lower", lo)
         object.__setattr__(self, "upper", hi)

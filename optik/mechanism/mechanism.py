@@ -1,11 +1,11 @@
-"""The :class:`Mechanism`: one symbolic CasADi model of any linkage.
+"""The [`Mechanism`][optik.Mechanism]: one symbolic CasADi model of any linkage.
 
-A mechanism is a set of bodies connected by :class:`~optik.mechanism.joint.Joint` objects. A
-spanning tree (see :mod:`optik.mechanism.topology`) gives every body a pose ``T_body(q)`` as a
-CasADi ``SX`` expression in the coordinates ``q`` of the tree joints; each cut joint gives
-loop-closure equations ``c(q) = 0``. Named frames are fixed offsets on bodies. From these
-expressions the mechanism compiles, once and lazily, CasADi functions for forward kinematics,
-the geometric Jacobian and the closure residual.
+A mechanism is a set of bodies connected by [`Joint`][optik.mechanism.joint.Joint] objects. A
+spanning tree (see [`optik.mechanism.topology`][optik.mechanism.topology]) gives every body a pose
+``T_body(q)`` as a CasADi ``SX`` expression in the coordinates ``q`` of the tree joints; each cut joint gives
+loop-closure equations ``c(q) = 0``. Named frames are fixed offsets on bodies. From these expressions the
+mechanism compiles, once and lazily, CasADi functions for forward kinematics, the geometric Jacobian and the
+closure residual.
 """
 
 from __future__ import annotations
@@ -19,10 +19,11 @@ import casadi as ca
 import numpy as np
 
 from optik import spatial
-from optik.checks import as_batch, as_rng, as_vector
+from optik.checks import as_batch, as_name, as_rng, as_vector
 from optik.errors import InvalidArgumentError, ModelError, UnknownFrameError
 from optik.mechanism.joint import Joint
 from optik.mechanism.topology import analyse, gruebler_kutzbach
+from optik.mechanism.urdf import parse_urdf
 
 TASK_ROWS: dict[str, tuple[int, ...]] = {
     "pose": (0, 1, 2, 3, 4, 5),
@@ -73,7 +74,8 @@ class Mechanism:
             ``"pose"`` otherwise).
 
     Raises:
-        ModelError: inconsistent topology (see :func:`optik.mechanism.topology.analyse`).
+        ModelError: inconsistent topology (see
+            [`optik.mechanism.topology.analyse`][optik.mechanism.topology.analyse]).
         UnknownFrameError: ``ee`` or a frame's body does not exist.
     """
 
@@ -128,7 +130,7 @@ class Mechanism:
         self.params: dict[str, Any] = {}
         """Catalog parameters (link lengths, base points, ...) the mechanism was built from."""
         self.kind: str | None = None
-        """Catalog key (e.g. ``"planar_3r"``) under which :mod:`optik.closed_form` finds this
+        """Catalog key (e.g. ``"planar_3r"``) under which [`optik.closed_form`][optik.closed_form] finds this
         mechanism's analytic solvers; None for mechanisms built by hand."""
         self._fk_funs: dict[str, ca.Function] = {}
         self._jac_funs: dict[str, ca.Function] = {}
@@ -138,12 +140,14 @@ class Mechanism:
         """The serial chain of a URDF robot from ``base_link`` to ``tip_link``.
 
         ``source`` is a URDF file path or the XML text. Coordinates are named after the URDF
-        joints and ``ee`` is ``tip_link``; see :func:`optik.urdf.load_urdf` for what is supported
-        and what is raised.
+        joints and ``ee`` is ``tip_link``; the task is ``"pose"``; ``params`` holds what
+        `optik.mechanism.urdf.parse_urdf` read. See that function for what is supported and what
+        is raised.
         """
-        from optik.urdf import load_urdf  # optik.urdf builds on this module: import lazily
-
-        return load_urdf(source, base_link, tip_link)
+        model = parse_urdf(source, base_link, tip_link)
+        m = cls(model.joints, model.base, model.frames, model.ee, model.name, task="pose")
+        m.params = dict(model.params)
+        return m
 
     # ------------------------------------------------------------------ structure
     @property
@@ -174,7 +178,7 @@ class Mechanism:
     @cached_property
     def revolute_mask(self) -> np.ndarray:
         """True for scalar angle coordinates (revolute and universal joints), which are equal
-        modulo 2 pi. Spherical coordinates are rotation vectors, not angles (see :meth:`wrap`)."""
+        modulo 2 pi. Spherical coordinates are rotation vectors, not angles (see `wrap`)."""
         mask: list[bool] = []
         for i in self.topology.tree:
             j = self.joints[i]
@@ -207,7 +211,7 @@ class Mechanism:
 
     @cached_property
     def body_transforms(self) -> dict[str, ca.SX]:
-        """``{body: T_body(q)}`` as ``SX`` 4x4 expressions in :attr:`q_sym`."""
+        """``{body: T_body(q)}`` as ``SX`` 4x4 expressions in `q_sym`."""
         q = self.q_sym
         poses: dict[str, Any] = {self.base: ca.SX.eye(4)}
         for edge in self.topology.order:
@@ -305,7 +309,7 @@ class Mechanism:
 
     # ------------------------------------------------------------------ numerical API
     def check_q(self, q: Any, name: str = "q") -> np.ndarray:
-        """``q`` as a finite float vector of length :attr:`n_q` (else :class:`OptikError`)."""
+        """``q`` as a finite float vector of length `n_q` (else [`OptikError`][optik.OptikError])."""
         return as_vector(q, name, self.n_q)
 
     def fk(self, q: Any, frame: str | None = None) -> np.ndarray:
@@ -344,15 +348,12 @@ class Mechanism:
         return np.asarray(self.closure_function(self.check_q(q))[1])
 
     def task_jacobian(self, q: Any, frame: str | None = None, task: str | None = None) -> np.ndarray:
-        """Rows of the geometric Jacobian for a task space (default :attr:`task`)."""
+        """Rows of the geometric Jacobian for a task space (default `task`)."""
         rows = TASK_ROWS[self._task(task)]
         return self.jacobian(q, frame)[list(rows)]
 
     def _task(self, task: str | None) -> str:
-        t = self.task if task is None else task
-        if t not in TASK_ROWS:
-            raise InvalidArgumentError("task", f"unknown task {t!r}; use one of {sorted(TASK_ROWS)}")
-        return t
+        return self.task if task is None else as_name(task, "task", TASK_ROWS)
 
     def manipulability(self, q: Any, frame: str | None = None, task: str | None = None) -> float:
         """Yoshikawa's measure ``sqrt(det(J J^T))`` = product of singular values of the task Jacobian."""
@@ -426,10 +427,7 @@ class Mechanism:
         w = qq.copy()
         w[ang] = spatial.wrap_angle(qq[ang])
         for sl in self.spherical_slices:
-            norm = float(np.linalg.norm(w[sl]))
-            while norm > np.pi:
-                w[sl] *= 1.0 - 2.0 * np.pi / norm
-                norm = float(np.linalg.norm(w[sl]))
+            w[sl] = spatial.wrap_rotation_vector(w[sl])
         for k in np.flatnonzero(ang):
             if self.lower[k] <= w[k] <= self.upper[k]:
                 continue
@@ -468,7 +466,29 @@ class Mechanism:
 
     def _rebuild(self, joints: Sequence[Joint]) -> Mechanism:
         extra = {k: v for k, v in self.frames.items() if k not in self.topology.bodies}
-        m = Mechanism(joints, self.base, extra, self.ee, self.name, self.task)
-        m.kind = self.kind
-        m.params = dict(self.params)
-        return m
+        return _restore(joints, self.base, extra, self.ee, self.name, self.task, self.kind, self.params)
+
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        """Pickle the definition (joints, frames, names, catalog data) only: the symbolic model
+        and the compiled functions are rebuilt on first use after unpickling (CasADi symbols do
+        not pickle; e.g. Dask ships a mechanism to its workers this way)."""
+        extra = {k: v for k, v in self.frames.items() if k not in self.topology.bodies}
+        definition = (self.joints, self.base, extra, self.ee, self.name, self.task, self.kind, self.params)
+        return _restore, definition
+
+
+def _restore(
+    joints: Sequence[Joint],
+    base: str,
+    frames: Mapping[str, tuple[str, Any]],
+    ee: str,
+    name: str,
+    task: str,
+    kind: str | None,
+    params: dict[str, Any],
+) -> Mechanism:
+    """A mechanism from its definition, with its catalog kind and parameters."""
+    m = Mechanism(joints, base, frames, ee, name, task)
+    m.kind = kind
+    m.params = dict(params)
+    return m

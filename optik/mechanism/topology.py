@@ -33,7 +33,7 @@ class TreeEdge:
 
 @dataclass(frozen=True)
 class Topology:
-    """Result of :func:`analyse`.
+    """Result of [`analyse`][optik.mechanism.topology.analyse].
 
     Attributes:
         bodies: body names, base first, then in order of first appearance.

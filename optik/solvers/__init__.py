@@ -1,4 +1,5 @@
-"""IK solvers behind one ``solve_ik``; methods register themselves in :mod:`optik.solvers.base`."""
+"""IK solvers behind one ``solve_ik``; methods register themselves in
+[`optik.solvers.base`][optik.solvers.base]."""
 
 from optik.solvers import closed as _closed  # noqa: F401  (registers "closed_form")
 from optik.solvers import lm as _lm  # noqa: F401  (registers "lm")

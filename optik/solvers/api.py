@@ -41,19 +41,19 @@ def solve_ik(
 
     Args:
         m: the mechanism.
-        target: 4x4 transform, :class:`~optik.Pose2D` or :class:`~optik.Position`.
+        target: 4x4 transform, [`Pose2D`][optik.Pose2D] or [`Position`][optik.Position].
         q0: start configuration (default: mid-limit).
         method: ``"closed_form"``, ``"lm"``, ``"nlp"``, ``"dls"``, ``"qp"``; None picks the best
             available (closed form where the catalog has one, else ``"lm"``).
         task: task space (default from the target type and the mechanism).
         frame: task frame (default: the end effector).
         time_limit: wall-time budget in seconds (default 0.1).
-        tol: tolerances (float: position and orientation) or :class:`Tolerances`.
+        tol: tolerances (float: position and orientation) or [`Tolerances`][optik.Tolerances].
         seed: seed or Generator for restarts.
         **options: method-specific options (see each method's documentation).
 
     Returns:
-        An :class:`~optik.IKResult`; unreachable targets give ``success=False`` with the closest
+        An [`IKResult`][optik.IKResult]; unreachable targets give ``success=False`` with the closest
         configuration found and a message.
 
     Raises:

@@ -1,10 +1,10 @@
 """What every IK method shares: the request, tolerances, result evaluation and a method registry.
 
 A method is a function ``solve(request) -> IKResult`` registered under a name with
-:func:`register_method`. :func:`optik.solve_ik` validates the user's input once, builds an
-:class:`IKRequest` and dispatches to the method. Methods registered from layers below the
-solvers (e.g. :mod:`optik.diffik`, which registers ``"dls"`` and ``"qp"``) plug in the same way,
-so the import direction stays one way.
+[`register_method`][optik.solvers.base.register_method]. [`optik.solve_ik`][optik.solve_ik] validates the
+user's input once, builds an [`IKRequest`][optik.solvers.base.IKRequest] and dispatches to the method. Methods
+registered from layers below the solvers (e.g. [`optik.diffik`][optik.diffik], which registers ``"dls"`` and
+``"qp"``) plug in the same way, so the import direction stays one way.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from optik import spatial
-from optik.checks import as_rng, as_vector
+from optik.checks import as_float, as_name, as_rng, as_vector
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.results import IKResult
@@ -29,7 +29,7 @@ from optik.targets import Pose2D, Position, target_transform
 
 @dataclass(frozen=True)
 class Tolerances:
-    """Success tolerances (DESIGN.md defaults).
+    """Success tolerances (the defaults of the docs' Concepts page, Conventions).
 
     Attributes:
         position: max position error (m).
@@ -41,6 +41,16 @@ class Tolerances:
     orientation: float = 1e-6
     closure: float = 1e-9
 
+    def __post_init__(self) -> None:
+        """Each tolerance must be a finite number > 0 (0 can never be met by floating point,
+        and the methods divide by the tolerances to scale their stopping tests).
+
+        Raises:
+            InvalidArgumentError: naming the field (``position``, ``orientation``, ``closure``).
+        """
+        for name in ("position", "orientation", "closure"):
+            object.__setattr__(self, name, as_float(getattr(self, name), name, 0.0, strict=True))
+
     @classmethod
     def from_arg(cls, tol: float | Tolerances | None) -> Tolerances:
         """``None`` -> defaults; a float sets position and orientation tolerances."""
@@ -48,9 +58,7 @@ class Tolerances:
             return _DEFAULT_TOL if cls is Tolerances else cls()
         if isinstance(tol, Tolerances):
             return tol
-        t = float(as_vector(tol, "tol", 1)[0])
-        if t <= 0:
-            raise InvalidArgumentError("tol", f"must be > 0, got {t}")
+        t = as_float(tol, "tol", 0.0, strict=True)
         return cls(position=t, orientation=t)
 
 
@@ -58,7 +66,7 @@ _DEFAULT_TOL = Tolerances()  # frozen: one shared instance for the common ``tol=
 
 SETUP_THRESHOLD = 1e-3
 """Seconds above which a method's setup counts as a first-time build (see
-:meth:`IKRequest.exclude_setup`)."""
+[`IKRequest.exclude_setup`][optik.solvers.base.IKRequest.exclude_setup])."""
 
 
 @dataclass
@@ -73,11 +81,11 @@ class IKRequest:
         q0: start configuration (mid-limit when the user gave none).
         time_limit: wall-time budget (s); every method must return within it (plus one iteration).
         tol: success tolerances.
-        seed: seed or Generator of the restarts; :attr:`rng` makes the generator on first use
+        seed: seed or Generator of the restarts; `rng` makes the generator on first use
             (creating one costs ~20 us, more than many solves).
         options: method-specific options.
         start: ``time.perf_counter()`` when the request was made (moved forward by
-            :meth:`exclude_setup`).
+            `exclude_setup`).
         setup_time: one-time build time excluded from the time limit (s).
     """
 
@@ -95,17 +103,18 @@ class IKRequest:
 
     @cached_property
     def rng(self) -> np.random.Generator:
-        """The random generator for restarts (from :attr:`seed`)."""
+        """The random generator for restarts (from `seed`)."""
         return as_rng(self.seed)
 
     def exclude_setup(self, since: float) -> None:
         """Exclude a one-time build from the time limit and from the reported solve time.
 
         Methods call this after fetching their cached problem / compiled code. When the time
-        since ``since`` (a ``perf_counter`` value) exceeds :data:`SETUP_THRESHOLD` it was a
-        first-time build (construction, code generation, compilation), which must not fail the
-        first call on a new mechanism: it is added to :attr:`start` and reported as
-        ``IKResult.extra["setup_time"]``. Cached lookups (microseconds) stay counted."""
+        since ``since`` (a ``perf_counter`` value) exceeds
+        [`SETUP_THRESHOLD`][optik.solvers.base.SETUP_THRESHOLD] it was a first-time build (construction, code
+        generation, compilation), which must not fail the first call on a new mechanism: it is added to
+        `start` and reported as ``IKResult.extra["setup_time"]``. Cached lookups (microseconds) stay
+        counted."""
         spent = time.perf_counter() - since
         if spent > SETUP_THRESHOLD:
             self.start += spent
@@ -174,7 +183,7 @@ _TWO_PI = 2.0 * math.pi
 
 
 def _wrap_angle(a: float) -> float:
-    """:func:`optik.spatial.wrap_angle` of one float: into ``(-pi, pi]``."""
+    """[`optik.spatial.wrap_angle`][optik.spatial.wrap_angle] of one float: into ``(-pi, pi]``."""
     w = (a + math.pi) % _TWO_PI - math.pi
     return w + _TWO_PI if w <= -math.pi else w
 
@@ -197,15 +206,18 @@ def make_result(
     message: str = "",
     errors: Callable[[np.ndarray], tuple[float, float, float]] | None = None,
 ) -> IKResult:
-    """An :class:`IKResult` for ``q``: errors evaluated here, success judged by the tolerances.
+    """An [`IKResult`][optik.IKResult] for ``q``: errors evaluated here, success judged by the tolerances.
 
-    ``q`` is clipped into the limits first (a method must never report a violating answer);
-    the status defaults to ``"solved"`` or ``"not_converged"``.
+    ``q`` is clipped into the limits first (a method must never report a violating answer).
+    Status and success always agree: a result that meets the tolerances is ``"solved"`` (with
+    no message) whatever the method's stop reason, since the final, wrapped and clipped ``q``
+    decides, not the method's own bookkeeping; a failed result has the method's ``status``,
+    default ``"not_converged"``.
 
     Args:
         errors: optional faster evaluation ``q -> (position, orientation, closure)`` errors with
-            the definitions of :func:`evaluate` (e.g. compiled code); it is applied to the final,
-            wrapped and clipped ``q``. Default: :func:`evaluate`.
+            the definitions of [`evaluate`][optik.solvers.base.evaluate] (e.g. compiled code); it is applied
+            to the final, wrapped and clipped ``q``. Default: [`evaluate`][optik.solvers.base.evaluate].
     """
     m = request.mechanism
     if type(q) is not np.ndarray or q.dtype != np.float64:
@@ -239,8 +251,10 @@ def make_result(
         pos, ori, clo = errors(qq)
         err = Errors(float(pos), float(ori), float(clo), inside)
     success = err.ok(request.tol)
-    if status is None:
-        status = "solved" if success else "not_converged"
+    if success:
+        status, message = "solved", ""
+    elif status is None or status == "solved":
+        status = "not_converged"
     if not success and not message:
         message = (
             f"tolerances not met within the time limit ({request.time_limit:g} s): position error "
@@ -266,7 +280,7 @@ def make_result(
 
 BRANCH_TOL = 1e-4
 """Two solutions are the same branch when their joint vectors differ by less than this
-(DESIGN.md; angles compared modulo 2 pi)."""
+(the same-branch rule; angles compared modulo 2 pi)."""
 
 
 def joint_distance(m: Mechanism, qa: np.ndarray, qb: np.ndarray) -> float:
@@ -278,7 +292,8 @@ def joint_distance(m: Mechanism, qa: np.ndarray, qb: np.ndarray) -> float:
 
 
 def positive_int(value: Any, name: str) -> int:
-    """``value`` as an integer >= 1 (else :class:`InvalidArgumentError` naming ``name``)."""
+    """``value`` as an integer >= 1 (else [`InvalidArgumentError`][optik.InvalidArgumentError] naming
+    ``name``)."""
     v = float(as_vector(value, name, 1)[0])
     if v < 1 or v != int(v):
         raise InvalidArgumentError(name, f"expected a positive integer, got {value!r}")
@@ -355,14 +370,14 @@ def get_method(name: str) -> MethodInfo:
     Raises:
         SolverUnavailableError: unknown name (the message lists the known ones).
     """
-    if name not in _METHODS:
+    if as_name(name, "method") not in _METHODS:
         raise SolverUnavailableError(f"unknown IK method {name!r}; available: {sorted(_METHODS)}")
     return _METHODS[name]
 
 
 def default_task(m: Mechanism, target: Any) -> str:
-    """Task implied by the target type: :class:`Pose2D` -> ``pose2d``; :class:`Position` ->
-    ``position2d`` (planar) or ``position``; a 4x4 transform -> the mechanism's own task."""
+    """Task implied by the target type: [`Pose2D`][optik.Pose2D] -> ``pose2d``; [`Position`][optik.Position]
+    -> ``position2d`` (planar) or ``position``; a 4x4 transform -> the mechanism's own task."""
     if isinstance(target, Pose2D):
         return "pose2d"
     if isinstance(target, Position):
@@ -381,7 +396,7 @@ def make_request(
     seed: int | np.random.Generator | None = None,
     options: dict[str, Any] | None = None,
 ) -> IKRequest:
-    """Validate user input and build an :class:`IKRequest`.
+    """Validate user input and build an [`IKRequest`][optik.solvers.base.IKRequest].
 
     Raises:
         OptikError: a subclass naming the bad argument (target, q0, task, frame, time_limit, tol, seed).

@@ -1,15 +1,15 @@
 """Method ``"closed_form"``: the analytic IK of a catalog mechanism, branch nearest ``q0``.
 
-:func:`optik.closed_form.ik` returns every branch (angles shifted by multiples of 2 pi into the
-limits where possible); this method keeps those within the joint limits and answers the one
-nearest the start ``q0`` (max-norm, angles modulo 2 pi). It applies when the mechanism's catalog
-kind has a registered closed form and the task is the mechanism's own task space. No branch
-within the limits gives ``success=False`` with a message that says whether the target is out of
-reach or only out of the limits (then the nearest branch, clipped into the limits, is returned).
+[`optik.closed_form.ik`][optik.closed_form.ik] returns every branch (angles shifted by multiples of 2 pi into
+the limits where possible); this method keeps those within the joint limits and answers the one nearest the
+start ``q0`` (max-norm, angles modulo 2 pi). It applies when the mechanism's catalog kind has a registered
+closed form and the task is the mechanism's own task space. No branch within the limits gives
+``success=False`` with a message that says whether the target is out of reach or only out of the limits (then
+the nearest branch, clipped into the limits, is returned).
 
-The request's target is validated once by :func:`optik.solve_ik`; this method goes straight to
-the branches (:func:`optik.closed_form.registry.branches`, computed once for both cases) and
-evaluates the answer with the mechanism's compiled FK / closure functions.
+The request's target is validated once by [`optik.solve_ik`][optik.solve_ik]; this method goes straight to
+the branches ([`optik.closed_form.registry.branches`][optik.closed_form.registry.branches], computed once for
+both cases) and evaluates the answer with the mechanism's compiled FK / closure functions.
 """
 
 from __future__ import annotations
@@ -42,12 +42,14 @@ def closed_form_applies(m: Mechanism, task: str) -> bool:
 
 
 def nearest(m: Mechanism, qs: list[np.ndarray], q0: np.ndarray) -> np.ndarray:
-    """The configuration of ``qs`` nearest ``q0`` (see :func:`joint_distance`)."""
+    """The configuration of ``qs`` nearest ``q0`` (see
+    [`joint_distance`][optik.solvers.closed.joint_distance])."""
     return min(qs, key=lambda q: joint_distance(m, q, q0))
 
 
 def _nearest_row(m: Mechanism, rows: list[list[float]], q0: np.ndarray) -> np.ndarray:
-    """:func:`nearest` over rows of floats (the first of equally near ones), as an array."""
+    """[`nearest`][optik.solvers.closed.nearest] over rows of floats (the first of equally near ones), as an
+    array."""
     if len(rows) > 1:
         mask = registry.angle_mask(m)
         start = q0.tolist()
@@ -105,8 +107,8 @@ def _evaluator(m: Mechanism, frame: str | None) -> _Evaluator:
 
 def _compiled_errors(request: IKRequest) -> Callable[[np.ndarray], tuple[float, float, float]]:
     """``q -> (position, orientation, closure)`` errors exactly as
-    :func:`optik.solvers.base.evaluate` computes them, with the FK and closure residual from
-    :class:`_Evaluator` (``q`` is the validated, clipped answer: no re-validation)."""
+    [`optik.solvers.base.evaluate`][optik.solvers.base.evaluate] computes them, with the FK and closure
+    residual from `_Evaluator` (``q`` is the validated, clipped answer: no re-validation)."""
     m, task, target = request.mechanism, request.task, request.target
     ev = _evaluator(m, request.frame)
 

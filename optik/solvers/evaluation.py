@@ -1,9 +1,10 @@
 """Compiled evaluation of the success check (position, orientation and closure errors).
 
-:func:`optik.solvers.base.evaluate` computes the errors through CasADi's Python interface
-(about 0.1 ms per call); the methods that iterate in compiled code call this compiled twin of the
-same definitions (:meth:`optik.problem.IKProblem.error_expressions`) instead, both to stop their
-iterations and to check their final answer in :func:`~optik.solvers.base.make_result`.
+[`optik.solvers.base.evaluate`][optik.solvers.base.evaluate] computes the errors through CasADi's Python
+interface (about 0.1 ms per call); the methods that iterate in compiled code call this compiled twin of the
+same definitions ([`optik.problem.IKProblem.error_expressions`][optik.problem.IKProblem.error_expressions])
+instead, both to stop their iterations and to check their final answer in
+[`make_result`][optik.solvers.base.make_result].
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ ErrorFn = Callable[[np.ndarray], tuple[float, float, float]]
 
 def error_function(problem: IKProblem) -> ca.Function:
     """``(q, target) -> (position error, orientation error, closure error)`` of the success check
-    (:meth:`IKProblem.error_expressions`), as a CasADi function."""
+    ([`IKProblem.error_expressions`][optik.IKProblem.error_expressions]), as a CasADi function."""
     outs = [ca.densify(v) for v in problem.error_expressions()]
     return ca.Function("optik_ik_errors", [problem.q, problem.target], outs)
 

@@ -1,4 +1,5 @@
-"""Forward kinematics of closed chains: one assembly mode (:func:`solve_fk`) or all (:func:`solve_fk_all`).
+"""Forward kinematics of closed chains: one assembly mode ([`solve_fk`][optik.solve_fk]) or all
+([`solve_fk_all`][optik.solve_fk_all]).
 
 With the actuated coordinates ``a`` fixed, the passive coordinates ``x`` solve the loop closure
 ``c(x; a) = 0`` (``m.closure``). There may be more equations than unknowns (the doggy with four
@@ -14,18 +15,17 @@ mechanism, built on first use and cached.
 
 *Tracking.* When ``q0`` closes its loops and the closure is square (as many equations as
 passive coordinates, so every actuator value on the way has a mode to follow),
-:func:`solve_fk` moves the actuated coordinates from ``q0``'s values to ``a`` along a straight
+[`solve_fk`][optik.solve_fk] moves the actuated coordinates from ``q0``'s values to ``a`` along a straight
 line in steps (halved whenever Newton needs more than a few iterations or a passive coordinate
 jumps), so it returns the assembly mode reached continuously from ``q0``: the one "nearest"
 ``q0``. Otherwise Levenberg-Marquardt starts from ``q0`` (mid-limit when None) directly; if it
 fails, up to ``max_restarts`` seeded random restarts follow (within the time limit).
 
-*All modes.* :func:`solve_fk_all` uses the registered closed form when the mechanism has one
-(:mod:`optik.closed_form.parallel`: five-bar, slider-crank, 3-RPR, doggy, Stewart-Gough by
-homotopy continuation) and otherwise a seeded multi-start: random passive coordinates within
-the limits, Levenberg-Marquardt, de-duplication by the branch rule (coordinates differ by
-``< 1e-4``, angles modulo 2 pi), stopping after ``patience`` consecutive starts that found no new
-mode (or at the time limit).
+*All modes.* [`solve_fk_all`][optik.solve_fk_all] uses the registered closed form when the mechanism has one
+([`optik.closed_form.parallel`][optik.closed_form.parallel]: five-bar, slider-crank, 3-RPR, doggy,
+Stewart-Gough by homotopy continuation) and otherwise a seeded multi-start: random passive coordinates within
+the limits, Levenberg-Marquardt, de-duplication by the branch rule (coordinates differ by ``< 1e-4``, angles
+modulo 2 pi), stopping after ``patience`` consecutive starts that found no new mode (or at the time limit).
 
 *Outcomes.* Inputs that cannot assemble give ``success=False`` with the least-squares
 configuration, its residual and a message. Every result reports the condition number of ``J``
@@ -47,11 +47,12 @@ from optik import closed_form, spatial
 from optik.checks import as_rng, as_vector
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
-from optik.results import FKResult
+from optik.results import FKModes, FKResult
 from optik.solvers.base import BRANCH_TOL, Tolerances, joint_distance, positive_int
 
 DEFAULT_TIME_LIMIT = 1.0
-"""Default wall-time budget of :func:`solve_fk` and of the multi-start in :func:`solve_fk_all` (s)."""
+"""Default wall-time budget of [`solve_fk`][optik.solve_fk] and of the multi-start in
+[`solve_fk_all`][optik.solve_fk_all] (s)."""
 
 SINGULAR_CONDITION = 1e4
 """Condition number of ``dc/dx`` above which a result is flagged as near a singularity."""
@@ -99,7 +100,7 @@ def _compiled(m: Mechanism) -> _Compiled:
 
 
 def same_mode(m: Mechanism, q1: np.ndarray, q2: np.ndarray, tol: float = BRANCH_TOL) -> bool:
-    """Branch rule of DESIGN.md: every coordinate differs by ``< tol`` (angles modulo 2 pi)."""
+    """The same-branch rule: every coordinate differs by ``< tol`` (angles modulo 2 pi)."""
     return joint_distance(m, q1, q2) < tol
 
 
@@ -182,6 +183,28 @@ def _positive(value: float, name: str) -> float:
     return v
 
 
+def _violations(m: Mechanism, q: np.ndarray) -> list[str]:
+    """Names of the coordinates of ``q`` outside their limits."""
+    return [
+        n
+        for n, v, lo, hi in zip(m.coordinate_names, q.tolist(), m.lower, m.upper, strict=True)
+        if not lo <= v <= hi
+    ]
+
+
+def _actuated_out(m: Mechanism, a: np.ndarray) -> str:
+    """``"rho1 = 2.7 > 2.5, ..."`` for the actuated values outside their limits (``""`` if none)."""
+    idx = m.actuated_indices
+    names = [m.coordinate_names[i] for i in idx]
+    lo, hi = m.lower[idx], m.upper[idx]
+    parts = [
+        f"{n} = {v:.6g} {'<' if v < low else '>'} {low if v < low else up:.6g}"
+        for n, v, low, up in zip(names, a.tolist(), lo, hi, strict=True)
+        if not low <= v <= up
+    ]
+    return ", ".join(parts)
+
+
 def _result(
     m: Mechanism,
     cm: _Compiled,
@@ -192,24 +215,23 @@ def _result(
     note: str = "",
     **extra: Any,
 ) -> FKResult:
-    """An :class:`FKResult` for ``q``: residual, success, limits, condition number, message."""
+    """An [`FKResult`][optik.FKResult] for ``q``: residual, success, limits (which coordinates
+    are out), condition number, message."""
     qq = m.wrap(q)
     residual, cond = _residual_and_condition(cm, qq)
     closed = residual <= tol
-    inside = m.within_limits(qq)
+    bad = _violations(m, qq)
     messages = [note] if note else []
     if not closed:
         messages.append(
             f"the actuated values cannot assemble (or no assembly was found): least-squares closure "
             f"residual {residual:.3g} > tol {tol:.3g}"
         )
-    elif not inside:
-        bad = [
-            n
-            for n, v, lo, hi in zip(m.coordinate_names, qq, m.lower, m.upper, strict=True)
-            if not lo <= v <= hi
-        ]
-        messages.append(f"the assembly violates the joint limits of {bad}")
+    actuated_out = _actuated_out(m, qq[cm.act])
+    if actuated_out:
+        messages.append(f"the actuated values are outside their limits: {actuated_out}")
+    if bad:
+        messages.append(f"the {'assembly' if closed else 'configuration'} violates the joint limits of {bad}")
     singular = cond > singular_condition
     if singular:
         messages.append(
@@ -219,17 +241,20 @@ def _result(
     return FKResult(
         pose=m.fk(qq),
         q=qq,
-        success=bool(closed and inside),
+        success=bool(closed and not bad),
         residual=float(residual),
         solve_time=time.perf_counter() - start,
         condition_number=cond,
         message="; ".join(messages),
         extra={"singular": singular, **extra},
+        limits_ok=not bad,
+        limits_violated=tuple(bad),
     )
 
 
 def _count(value: Any, name: str) -> int:
-    """``value`` as an integer >= 0 (else :class:`InvalidArgumentError` naming ``name``)."""
+    """``value`` as an integer >= 0 (else [`InvalidArgumentError`][optik.InvalidArgumentError] naming
+    ``name``)."""
     return positive_int(float(as_vector(value, name, 1)[0]) + 1, name) - 1
 
 
@@ -292,7 +317,7 @@ def solve_fk(
         q0: start / reference configuration (default: mid-limit). When it closes its loops the
             answer is the assembly mode reached continuously from it (see module docstring).
         time_limit: wall-time budget (s), restarts included.
-        tol: closure tolerance (max-norm; a float or :class:`~optik.Tolerances`, default 1e-9).
+        tol: closure tolerance (max-norm; a float or [`Tolerances`][optik.Tolerances], default 1e-9).
         seed: seed or Generator of the random restarts used when the first attempt fails.
         max_iter: Levenberg-Marquardt iterations per attempt.
         max_jump: largest change of a passive coordinate in one continuation step.
@@ -300,7 +325,7 @@ def solve_fk(
         singular_condition: condition number above which the result is flagged as singular.
 
     Returns:
-        :class:`~optik.FKResult`; non-assemblable inputs give ``success=False``, the least-squares
+        [`FKResult`][optik.FKResult]; non-assemblable inputs give ``success=False``, the least-squares
         configuration, its ``residual`` and a message.
 
     Raises:
@@ -346,6 +371,7 @@ def solve_fk_all(
     m: Mechanism,
     actuated: Any,
     *,
+    within_limits: bool = True,
     method: str | None = None,
     time_limit: float = DEFAULT_TIME_LIMIT,
     tol: float | Tolerances | None = None,
@@ -353,12 +379,16 @@ def solve_fk_all(
     patience: int = 64,
     max_iter: int = 50,
     singular_condition: float = SINGULAR_CONDITION,
-) -> list[FKResult]:
+) -> FKModes:
     """Every real assembly mode for given actuated coordinates.
 
     Args:
         m: a mechanism with loop closures.
         actuated: values of the actuated coordinates, in the order of ``m.actuated_indices``.
+        within_limits: keep only the modes within every joint limit; the others are counted
+            and kept on the result's ``dropped`` list, with the reason in its ``message``.
+            ``False``: every real mode comes back, each with ``limits_ok`` and
+            ``limits_violated`` (``success`` stays False for a mode outside the limits).
         method: ``"closed_form"`` (needs a registered closed form), ``"numeric"`` (multi-start), or
             None: the closed form when registered, else numeric.
         time_limit: wall-time budget of the multi-start (s).
@@ -369,8 +399,11 @@ def solve_fk_all(
         singular_condition: condition number above which a mode is flagged as singular.
 
     Returns:
-        One successful :class:`~optik.FKResult` per distinct mode within the limits; ``[]`` when
-        the inputs cannot assemble (use :func:`solve_fk` for the least-squares residual).
+        [`FKModes`][optik.FKModes]: a list with one [`FKResult`][optik.FKResult] per distinct
+        mode (within the limits unless ``within_limits=False``), its ``dropped`` modes and a
+        ``message`` that says why modes are missing: inputs that cannot assemble (``[]``; use
+        [`solve_fk`][optik.solve_fk] for the least-squares residual), actuated values outside their
+        limits, passive joints out of range.
 
     Raises:
         OptikError: malformed input, unknown method, or ``"closed_form"`` without a closed form.
@@ -384,11 +417,13 @@ def solve_fk_all(
     singular_condition = _positive(singular_condition, "singular_condition")
     if method not in (None, "closed_form", "numeric"):
         raise InvalidArgumentError("method", f"unknown FK method {method!r}; use 'closed_form' or 'numeric'")
+    if not isinstance(within_limits, (bool, np.bool_)):
+        raise InvalidArgumentError("within_limits", f"must be True or False, got {within_limits!r}")
     cm = _compiled(m)
     use_closed = method == "closed_form" or (method is None and closed_form.has_fk(m))
     found: list[np.ndarray] = []
     if use_closed:
-        for q_exact in closed_form.fk(m, a):
+        for q_exact in closed_form.fk(m, a, respect_limits=False):
             # a no-op (one evaluation) unless the closed form lost digits, e.g. near a singularity
             q = _levenberg_marquardt(cm, q_exact, tol_c, max_iter, start + limit).q[0]
             if not any(same_mode(m, q, f) for f in found):
@@ -403,15 +438,38 @@ def solve_fk_all(
             sol = _levenberg_marquardt(cm, trials, tol_c, max_iter, start + limit)
             for q_raw, res in zip(sol.q, sol.residual, strict=True):
                 q = m.wrap(q_raw)
-                if res <= tol_c and m.within_limits(q) and not any(same_mode(m, q, f) for f in found):
+                if res <= tol_c and not any(same_mode(m, q, f) for f in found):
                     found.append(q)
                     idle = 0
                 else:
                     idle += 1
         label = "numeric"
-    results = []
+    kept, dropped, unclosed = [], [], 0
     for q in found:
         res = _result(m, cm, q, tol_c, start, singular_condition, method=label)
-        if res.success:
-            results.append(res)
-    return results
+        if res.residual > tol_c:
+            unclosed += 1  # not a mode: a closed-form candidate that the polish could not close
+            continue
+        (kept if res.limits_ok or not within_limits else dropped).append(res)
+    return FKModes(kept, dropped, _modes_message(m, a, kept, dropped, unclosed))
+
+
+def _modes_message(
+    m: Mechanism, a: np.ndarray, kept: list[FKResult], dropped: list[FKResult], unclosed: int
+) -> str:
+    """Why `solve_fk_all` returned what it did (``""`` when nothing is missing)."""
+    parts = []
+    if unclosed:
+        parts.append(f"{unclosed} closed-form candidate(s) left out: their closure residual exceeds tol")
+    actuated_out = _actuated_out(m, a)
+    if actuated_out:
+        parts.append(f"the actuated values are outside their limits: {actuated_out}")
+    if dropped:
+        names = sorted({n for r in dropped for n in r.limits_violated})
+        parts.append(
+            f"{len(dropped)} assembly mode(s) left out because they violate the joint limits of {names} "
+            "(solve_fk_all(..., within_limits=False) returns them)"
+        )
+    if not kept and not dropped:
+        parts.append("the actuated values cannot assemble: no real assembly mode")
+    return "; ".join(parts)

@@ -1,10 +1,10 @@
 """CasADi functions with dense vector inputs/outputs, called on preallocated buffers.
 
 The IK methods that iterate in compiled code (``lm``, the error checks of ``nlp``) call their
-CasADi functions through [NativeFunction][optik.solvers.native.NativeFunction]: generated C code
-compiled and loaded by `optik.native` (about 1 us of overhead per call instead of about 100 us
-through CasADi's Python interface), or the same interface over CasADi's own evaluator: while the
-library is still being built in the background, without a compiler, or with ``compile=False``.
+CasADi functions through [`NativeFunction`][optik.solvers.native.NativeFunction]: generated C code compiled
+and loaded by `optik.native` (about 1 us of overhead per call instead of about 100 us through CasADi's Python
+interface), or the same interface over CasADi's own evaluator: while the library is still being built in
+the background, without a compiler, or with ``compile=False``.
 """
 
 from __future__ import annotations
@@ -17,7 +17,8 @@ from optik.native import Binding, Library, library
 
 
 def native_functions(functions: list[ca.Function], compile: bool | str = "auto") -> list[NativeFunction]:
-    """:class:`NativeFunction` wrappers of several functions compiled into one library.
+    """[`NativeFunction`][optik.solvers.native.NativeFunction] wrappers of several functions compiled into one
+    library.
 
     Args:
         functions: functions with dense column inputs and outputs.
@@ -47,13 +48,13 @@ def _check_dense(f: ca.Function) -> None:
 class NativeFunction:
     """A CasADi function with dense vector inputs/outputs, callable on preallocated buffers.
 
-    Write the inputs into :attr:`inputs` (numpy arrays), call, read :attr:`outputs` (views of
+    Write the inputs into `inputs` (numpy arrays), call, read `outputs` (views of
     preallocated buffers: copy them to keep them across calls). Not thread-safe.
 
     Args:
         f: the function; every input and output must be a dense column or scalar.
-        library: library holding ``f`` (`optik.native.library`; None: CasADi's
-            evaluator). Until it is ready the calls go to CasADi's evaluator, then to the C code.
+        library: library holding ``f`` (`optik.native.library`; None: CasADi's evaluator).
+            Until it is ready the calls go to CasADi's evaluator, then to the C code.
     """
 
     def __init__(self, f: ca.Function, library: Library | None = None) -> None:
@@ -70,11 +71,13 @@ class NativeFunction:
         return self._native.compiled
 
     def __call__(self) -> list[np.ndarray]:
-        """Evaluate on the current contents of :attr:`inputs`; returns :attr:`outputs`."""
-        if self._native():
-            return self.outputs
+        """Evaluate on the current contents of `inputs`; returns `outputs`."""
+        self._native(self._evaluate)
+        return self.outputs
+
+    def _evaluate(self) -> None:
+        """CasADi's evaluator, into :attr:`outputs`."""
         res = self.function(*self.inputs)
         res = res if isinstance(res, (list, tuple)) else [res]
         for buf, val in zip(self.outputs, res, strict=True):
             buf[:] = np.asarray(val, dtype=float).reshape(-1)
-        return self.outputs

@@ -1,4 +1,4 @@
-"""Method ``"nlp"``: the IK NLP of :mod:`optik.problem` solved by CasADi ``nlpsol``, multi-start.
+"""Method ``"nlp"``: the IK NLP of [`optik.problem`][optik.problem] solved by CasADi ``nlpsol``, multi-start.
 
 The NLP (built once per mechanism, task, frame and secondary objectives; the target, weights and
 reference posture are parameters) is::
@@ -14,7 +14,7 @@ early stopping IPOPT runs to its own convergence (tolerance ``ipopt_tol``), whic
 posture or secondary weight shape the answer. Those terms bias the optimum slightly off the
 target; a start that ends close to but not within the tolerances is polished by a second solve
 from its answer with the posture and secondary weights set to 0 (same NLP, new parameter
-values; for IPOPT with a small initial barrier parameter, :data:`_IPOPT_POLISH`). The first
+values; for IPOPT with a small initial barrier parameter, `_IPOPT_POLISH`). The first
 start is ``q0`` (warm start); later starts are drawn uniformly within the limits from the
 request's seeded generator, until success or the time limit. The answer is the best iterate
 seen (largest ratio error / tolerance smallest).
@@ -38,13 +38,13 @@ Options (``solve_ik(..., method="nlp", **options)``):
 * ``ipopt_tol`` (1e-12): IPOPT's own convergence tolerance.
 * ``solver_options`` ({}): extra ``nlpsol`` options, e.g. ``{"ipopt.mu_init": 1e-3}``.
 * ``hessian`` ("gauss-newton"): Hessian of the Lagrangian given to the solver,
-  ``"gauss-newton"`` (:meth:`IKProblem.lagrangian_hessian`, positive semidefinite task part;
-  ``sqpmethod`` needs it for convex QPs, IPOPT needs fewer iterations and restarts with it on
-  the Panda) or ``"exact"`` (CasADi's automatic second derivatives).
+  ``"gauss-newton"`` ([`IKProblem.lagrangian_hessian`][optik.IKProblem.lagrangian_hessian], positive
+  semidefinite task part; ``sqpmethod`` needs it for convex QPs, IPOPT needs fewer iterations and restarts
+  with it on the Panda) or ``"exact"`` (CasADi's automatic second derivatives).
 * ``damping`` (1e-6): Levenberg term added to the Gauss-Newton Hessian (steps only, not the
   solution): without it ``sqpmethod`` stalls near singular configurations.
 * ``max_restarts`` (None): cap on restarts (None: until success or the time limit).
-* ``compile`` ("auto"): compile the error check to C (see :mod:`optik.solvers.native`).
+* ``compile`` ("auto"): compile the error check to C (see [`optik.solvers.native`][optik.solvers.native]).
 """
 
 from __future__ import annotations
@@ -180,7 +180,7 @@ class _Monitor(ca.Callback):
     def eval_buffer(self, arg: list[memoryview], res: list[memoryview]) -> int:
         """The callback through CasADi's buffer protocol: the iterate as a view of the solver's
         memory, no ``DM`` conversions (half the cost of an IPOPT iteration on the Panda with
-        :meth:`eval`)."""
+        `eval`)."""
         x = np.frombuffer(arg[0], dtype=float).copy()  # a copy: the buffer dies with the call
         np.frombuffer(res[0], dtype=float)[0] = float(self.check(x))
         return 0
@@ -249,8 +249,8 @@ def _solver_options(
 
 
 def _hessian_function(problem: IKProblem, upper: bool, damping: float) -> ca.Function:
-    """``hess_lag`` option of ``nlpsol``: :meth:`IKProblem.lagrangian_hessian` (upper triangle
-    for IPOPT, full for ``sqpmethod``)."""
+    """``hess_lag`` option of ``nlpsol``: [`IKProblem.lagrangian_hessian`][optik.IKProblem.lagrangian_hessian]
+    (upper triangle for IPOPT, full for ``sqpmethod``)."""
     lam_f = ca.SX.sym("lam_f")
     lam_g = ca.SX.sym("lam_g", problem.closure.shape[0])
     h = problem.lagrangian_hessian(lam_f, lam_g, damping)
@@ -302,8 +302,8 @@ def nlp_solver(
     damping: float = 1e-6,
 ) -> _Solver:
     """The ``nlpsol`` instance of an IK problem, built once per argument combination (defaults
-    as in :data:`DEFAULTS`; ``extra``: additional ``nlpsol`` options, applied last, part of the
-    cache key through their ``repr``)."""
+    as in [`DEFAULTS`][optik.solvers.nlp.DEFAULTS]; ``extra``: additional ``nlpsol`` options, applied last,
+    part of the cache key through their ``repr``)."""
     extra = dict(extra or {})
     options_key = repr(sorted(extra.items()))
     key = (m, task, frame, secondary, solver, max_iter, ipopt_tol, options_key, hessian, damping)

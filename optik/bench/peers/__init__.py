@@ -1,8 +1,8 @@
 """Thin adapters for the peer IK libraries the benchmark compares optik against.
 
-:func:`load_peer` returns a ready :class:`~optik.bench.peers.base.Peer` for a problem, or
-raises :class:`~optik.bench.peers.base.PeerUnavailable` with the reason (package missing, no
-URDF, different joint count), which the benchmark reports as a note instead of crashing.
+[`load_peer`][optik.bench.peers.load_peer] returns a ready [`Peer`][optik.bench.peers.base.Peer] for a
+problem, or raises [`PeerUnavailable`][optik.bench.peers.base.PeerUnavailable] with the reason (package
+missing, no URDF, different joint count), which the benchmark reports as a note instead of crashing.
 """
 
 from __future__ import annotations
@@ -11,10 +11,10 @@ from optik.bench.peers.base import Peer, PeerUnavailable
 from optik.bench.peers.ikpy_peer import IKPy
 from optik.bench.peers.pink_peer import Pink
 from optik.bench.peers.tracik_peer import TracIK
-from optik.problems import PEERS, Problem
+from optik.problem_files import PEERS, Problem
 
 ADAPTERS: dict[str, type[Peer]] = {"trac_ik": TracIK, "pink": Pink, "ikpy": IKPy}
-"""Adapter class per peer name (the names of :data:`optik.problems.PEERS`)."""
+"""Adapter class per peer name (the names of [`optik.problem_files.PEERS`][optik.problem_files.PEERS])."""
 
 __all__ = ["ADAPTERS", "IKPy", "Peer", "PeerUnavailable", "Pink", "TracIK", "load_peer"]
 

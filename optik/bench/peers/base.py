@@ -1,7 +1,7 @@
 """What every peer adapter shares: the interface, the unavailability error, the URDF chain check.
 
 A peer is a third-party IK library run on the same targets as optik's methods. An adapter loads
-the problem's URDF once (:func:`load`), then answers ``solve(q0, target, time_limit, tol)`` with
+the problem's URDF once (`load`), then answers ``solve(q0, target, time_limit, tol)`` with
 the best configuration it found; the harness times the call and judges success with optik's own
 evaluation (the same tolerances and exact joint limits for every solver).
 """
@@ -56,11 +56,12 @@ class Peer(ABC):
         except ImportError as exc:
             raise PeerUnavailable(
                 f"{cls.name}: package {cls.package!r} is not installed ({exc}); "
-                "install the peers with: pip install -e '.[peers]'"
+                'install the peers with: pip install "optik[peers]"'
             ) from None
 
     def check_joints(self, n: int) -> None:
-        """Raise :class:`PeerUnavailable` when the peer's chain has ``n != mechanism.n_q`` joints."""
+        """Raise [`PeerUnavailable`][optik.bench.peers.base.PeerUnavailable] when the peer's chain has ``n !=
+        mechanism.n_q`` joints."""
         if n != self.mechanism.n_q:
             raise PeerUnavailable(
                 f"{self.name}: the URDF chain {self.base_link} -> {self.tip_link} has {n} joints, "

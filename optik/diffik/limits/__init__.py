@@ -1,4 +1,4 @@
-"""Limits of differential IK, one class per file (see :class:`optik.diffik.Limit`)."""
+"""Limits of differential IK, one class per file (see [`optik.diffik.Limit`][optik.diffik.Limit])."""
 
 from optik.diffik.limits.acceleration import AccelerationLimit
 from optik.diffik.limits.closure import ClosureConstraint

@@ -15,9 +15,9 @@ class AccelerationLimit(Limit):
     """``|v - v_prev| <= a_max dt``, i.e. ``(v_prev - a_max dt) dt <= dq <= (v_prev + a_max dt) dt``.
 
     ``v_prev`` is the previous step's velocity (``step(..., v_prev=...)``; zero when not given,
-    :func:`optik.diffik.track` passes it). This limit ranks after the position limits: when
+    [`optik.diffik.track`][optik.diffik.track] passes it). This limit ranks after the position limits: when
     braking within ``a_max`` cannot stop a joint before its position limit, the position limit
-    wins (see :class:`~optik.diffik.Limit`).
+    wins (see [`Limit`][optik.diffik.Limit]).
 
     Args:
         a_max: maximum acceleration per coordinate (scalar or ``n_q`` values, ``> 0``).

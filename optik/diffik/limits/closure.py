@@ -12,9 +12,8 @@ class ClosureConstraint:
     """Keep the loops closed: ``J_c dq = -gain c(q)`` with ``J_c = dc/dq``.
 
     With ``gain = 1`` the step also removes the closure drift of the previous steps (a Newton
-    step on ``c(q) = 0``). Added automatically by :func:`optik.diffik.build_qp` for mechanisms
-    with loops; an equality constraint of the QP and the top level of the DLS and priority
-    methods.
+    step on ``c(q) = 0``). Added automatically by [`optik.diffik.build_qp`][optik.diffik.build_qp] for
+    mechanisms with loops; an equality constraint of the QP and the top level of the DLS and priority methods.
 
     Args:
         gain: fraction of the residual removed per step, ``> 0``.

@@ -5,6 +5,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from optik.checks import as_float
 from optik.diffik.base import BIG, Limit
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
@@ -15,7 +16,7 @@ class ConfigurationLimit(Limit):
 
     Starting outside the limits (``q_i < lower_i``) the bound on that side becomes
     ``dq_i >= lower_i - q_i > 0`` with gain 1: the step must bring the coordinate back in at once,
-    and since velocity limits rank before this limit (see :class:`~optik.diffik.Limit`) a
+    and since velocity limits rank before this limit (see [`Limit`][optik.diffik.Limit]) a
     coordinate that cannot get back within one step moves towards the limits at full speed. The QP
     therefore stays feasible and the motion returns inside the limits.
 
@@ -27,9 +28,10 @@ class ConfigurationLimit(Limit):
     rank = 1
 
     def __init__(self, gain: float = 1.0) -> None:
-        if not 0 < gain <= 1:
+        g = as_float(gain, "gain", 0.0, strict=True)
+        if g > 1:
             raise InvalidArgumentError("gain", f"must be in (0, 1], got {gain}")
-        self.gain = float(gain)
+        self.gain = g
 
     def key(self) -> tuple:
         return ("configuration",)

@@ -1,4 +1,4 @@
-"""Differential-IK tasks, one class per file (see :class:`optik.diffik.Task`)."""
+"""Differential-IK tasks, one class per file (see [`optik.diffik.Task`][optik.diffik.Task])."""
 
 from optik.diffik.tasks.frame import FrameTask
 from optik.diffik.tasks.joint_limit import JointLimitTask

@@ -7,6 +7,7 @@ from typing import Any, ClassVar
 import casadi as ca
 import numpy as np
 
+from optik.checks import as_name
 from optik.diffik.base import Task, frame_error_expr, positive
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
@@ -16,7 +17,7 @@ from optik.targets import target_transform
 class FrameRowsTask(Task):
     """Rows of ``e = [p - p*; log(R R*^T)]`` (base frame) of one frame against a target pose.
 
-    Subclasses fix :attr:`rows` (0-2 position, 3-5 rotation vector) and convert their target
+    Subclasses fix `rows` (0-2 position, 3-5 rotation vector) and convert their target
     argument into a 4x4 transform.
     """
 
@@ -34,7 +35,7 @@ class FrameRowsTask(Task):
     ) -> None:
         self.dim = len(self.rows)
         super().__init__(cost, gain, lm_damping, priority)
-        self.frame = frame
+        self.frame = None if frame is None else as_name(frame, "frame")
         self.target: np.ndarray | None = None
         if target is not None:
             self.set_target(target)

@@ -7,6 +7,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from optik.checks import as_int
 from optik.diffik.base import Task
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
@@ -25,7 +26,7 @@ class JointLimitTask(Task):
         n_q: number of coordinates of the mechanism it will be used with.
         cost: weight per coordinate (scalar or ``n_q`` values).
         exponent: odd integer ``k >= 1`` (``k = 1`` is a posture task to mid-limit, normalised).
-        gain, lm_damping, priority: see :class:`~optik.diffik.Task`.
+        gain, lm_damping, priority: see [`Task`][optik.diffik.Task].
     """
 
     def __init__(
@@ -37,10 +38,11 @@ class JointLimitTask(Task):
         lm_damping: float = 0.0,
         priority: int = 0,
     ) -> None:
-        if int(exponent) != exponent or exponent < 1 or exponent % 2 == 0:
+        k = as_int(exponent, "exponent", 1)
+        if k % 2 == 0:
             raise InvalidArgumentError("exponent", f"must be an odd integer >= 1, got {exponent!r}")
         self.dim = positive_int(n_q, "n_q")
-        self.exponent = int(exponent)
+        self.exponent = k
         super().__init__(cost, gain, lm_damping, priority)
 
     def key(self) -> tuple:

@@ -7,8 +7,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from optik.checks import as_name
 from optik.diffik.base import Task
-from optik.errors import InvalidArgumentError
 from optik.mechanism import TASK_ROWS, Mechanism
 from optik.solvers.base import positive_int
 
@@ -30,7 +30,7 @@ class ManipulabilityTask(Task):
             ``"position2d"``.
         cost: weight per coordinate (scalar or ``n_q`` values).
         gain: ascent step ``alpha`` (rad per unit of ``grad w``), in ``(0, 1]``.
-        lm_damping, priority: see :class:`~optik.diffik.Task`.
+        lm_damping, priority: see [`Task`][optik.diffik.Task].
     """
 
     def __init__(
@@ -43,13 +43,10 @@ class ManipulabilityTask(Task):
         lm_damping: float = 0.0,
         priority: int = 0,
     ) -> None:
-        if space not in TASK_ROWS:
-            raise InvalidArgumentError(
-                "space", f"unknown task space {space!r}; use one of {sorted(TASK_ROWS)}"
-            )
+        as_name(space, "space", TASK_ROWS)
         self.dim = positive_int(n_q, "n_q")
         super().__init__(cost, gain, lm_damping, priority)
-        self.frame = frame
+        self.frame = None if frame is None else as_name(frame, "frame")
         self.space = space
 
     def key(self) -> tuple:

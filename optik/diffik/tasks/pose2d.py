@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from optik.checks import as_vector
+from optik.checks import as_vector, real_array
 from optik.diffik.tasks.frame_rows import PoseRowsTask
 from optik.targets import Pose2D, target_transform
 
@@ -19,9 +19,9 @@ class Pose2DTask(PoseRowsTask):
 
     Args:
         frame: frame name (None: the end effector).
-        target: :class:`~optik.Pose2D`, ``(x, y, phi)`` or a 4x4 transform in the x-y plane.
+        target: [`Pose2D`][optik.Pose2D], ``(x, y, phi)`` or a 4x4 transform in the x-y plane.
         position_cost: weight of the x and y rows; orientation_cost: of the heading row.
-        gain, lm_damping, priority: see :class:`~optik.diffik.Task`.
+        gain, lm_damping, priority: see [`Task`][optik.diffik.Task].
     """
 
     rows = (0, 1, 5)
@@ -30,7 +30,7 @@ class Pose2DTask(PoseRowsTask):
     def to_transform(self, target: Any) -> np.ndarray:
         if isinstance(target, Pose2D):
             return target.as_transform()
-        arr = np.asarray(target, dtype=float)
+        arr = real_array(target, "target")
         if arr.shape == (4, 4):
             return target_transform(arr)
         return Pose2D(*as_vector(target, "target", 3)).as_transform()

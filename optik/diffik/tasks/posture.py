@@ -22,7 +22,7 @@ class PostureTask(Task):
     Args:
         target: target coordinates ``q*`` (one value per coordinate).
         cost: weight per coordinate (scalar or one value per coordinate).
-        gain, lm_damping, priority: see :class:`~optik.diffik.Task`.
+        gain, lm_damping, priority: see [`Task`][optik.diffik.Task].
     """
 
     def __init__(

@@ -1,6 +1,6 @@
 """IK on the Franka Panda: optik ``lm`` and ``nlp`` against TRAC-IK, same URDF, same targets, same run.
 
-Method (DESIGN.md): the Panda chain is loaded from the shipped URDF
+Method (docs/benchmarks.md): the Panda chain is loaded from the shipped URDF
 (``optik.catalog.arms.urdf_path("panda")``, ``panda_link0`` -> ``panda_link8``) by optik and by
 TRAC-IK (``pytracik``, Speed mode). ``--n`` joint vectors are drawn uniformly within the limits
 (seeded), the targets are their FK poses, and every solver starts from the mid-limit seed with
@@ -16,7 +16,7 @@ methods run interleaved per target so that load changes on a shared machine hit 
 alike; the table reports success rate, mean / median / p95 time and the ratio of each mean time
 to TRAC-IK's.
 
-Run: ``python benchmarks/bench_ik.py [--n 10000] [--time-limit 0.005] [--tol 1e-5]
+Run: ``optik benchmark ik [--n 10000] [--time-limit 0.005] [--tol 1e-5]
 [--methods lm,nlp,nlp-sqp,tracik] [--n-nlp 1000] [--nlp-time-limit 0.3]``.
 """
 
@@ -154,7 +154,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             import trac_ik  # noqa: F401
         except ImportError:
-            print("pytracik is not installed (pip install pytracik): TRAC-IK skipped")
+            print('pytracik is not installed (pip install "optik[peers]"): TRAC-IK skipped')
             methods.remove("tracik")
     records = run(args.n, args.time_limit, args.tol, methods, args.n_nlp, args.nlp_time_limit, args.seed)
     ref = next((r for label, r in records.items() if label.startswith("TRAC-IK")), None)

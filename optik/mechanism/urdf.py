@@ -1,8 +1,9 @@
-"""URDF import: a serial chain of a URDF robot as one :class:`~optik.mechanism.Mechanism`.
+"""URDF builder: the joints and frames of a URDF robot, for `Mechanism.from_urdf`.
 
-:func:`load_urdf` reads a URDF file (or a URDF string), finds the path through the link tree
+`parse_urdf` reads a URDF file (or a URDF string), finds the path through the link tree
 from ``base_link`` down to ``tip_link`` and turns the joints on that path into
-:class:`~optik.mechanism.Joint` objects; branches off the path are ignored.
+`Joint` objects; branches off the path are ignored. It imports only the joint layer, so
+that `optik.mechanism.mechanism` can build on it without an import cycle.
 
 Supported, per joint on the path:
 
@@ -15,12 +16,12 @@ Supported, per joint on the path:
   and no needless bodies.
 
 ``<origin xyz rpy>`` places the joint frame in the parent link: ``T = Trans(xyz) R`` with
-URDF's ``R = Rot(z, yaw) Rot(y, pitch) Rot(x, roll)`` = :func:`optik.spatial.rpy_to_rot`.
+URDF's ``R = Rot(z, yaw) Rot(y, pitch) Rot(x, roll)`` = `optik.spatial.rpy_to_rot`.
 ``<axis xyz>`` (default ``1 0 0``) is normalized. ``<limit velocity>`` values, when every moving
 joint has a positive one, are kept in ``m.params["velocity_limits"]``. ``floating`` and ``planar`` joints and
-``<mimic>`` joints on the path are rejected with :class:`~optik.errors.ModelError`.
+``<mimic>`` joints on the path are rejected with `ModelError`.
 
-Safety: the text is parsed with :mod:`xml.etree.ElementTree` only after a check that rejects any
+Safety: the text is parsed with `xml.etree.ElementTree` only after a check that rejects any
 ``<!DOCTYPE`` or ``<!ENTITY`` declaration, so no entity is ever expanded and no external
 resource is fetched (URDF never needs a DTD).
 """
@@ -30,20 +31,42 @@ from __future__ import annotations
 import os
 import re
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from optik import spatial
 from optik.errors import InvalidArgumentError, ModelError, UnknownFrameError
-from optik.mechanism import Joint, Mechanism
+from optik.mechanism.joint import Joint
 
-__all__ = ["load_urdf"]
+__all__ = ["UrdfModel", "parse_urdf"]
 
 _DTD = re.compile(r"<!\s*(DOCTYPE|ENTITY)", re.IGNORECASE)
 _MOVING = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic"}
 _REJECTED = ("floating", "planar")
+
+
+@dataclass(frozen=True)
+class UrdfModel:
+    """What `parse_urdf` read: the arguments of a `Mechanism` and its ``params``.
+
+    Attributes:
+        name: the ``<robot name>`` (``"urdf"`` when absent).
+        base: the base link (the fixed body).
+        joints: one `Joint` per moving joint, in coordinate order.
+        frames: links reached through fixed joints, ``{link: (body, 4x4 offset)}``.
+        ee: the end-effector link.
+        params: ``"urdf"`` (source label), ``"base_link"``, ``"tip_link"`` and, when every
+            moving joint has a positive ``<limit velocity>``, ``"velocity_limits"``.
+    """
+
+    name: str
+    base: str
+    joints: tuple[Joint, ...]
+    frames: dict[str, tuple[str, np.ndarray]]
+    ee: str
+    params: dict[str, object] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -199,7 +222,7 @@ def _chain(src: _Source, root: ET.Element, base_link: str, tip_link: str) -> lis
     return path
 
 
-def load_urdf(source: str | os.PathLike[str], base_link: str, tip_link: str) -> Mechanism:
+def parse_urdf(source: str | os.PathLike[str], base_link: str, tip_link: str) -> UrdfModel:
     """The serial chain of a URDF robot from ``base_link`` to ``tip_link``.
 
     Every moving joint on the path becomes one coordinate named after the URDF joint; its pose
@@ -214,11 +237,11 @@ def load_urdf(source: str | os.PathLike[str], base_link: str, tip_link: str) -> 
         tip_link: the end-effector link; it becomes the frame ``m.ee``.
 
     Returns:
-        Mechanism named after the ``<robot name>``, with task ``"pose"``, coordinates named after
-        the URDF joints, limits from ``<limit>`` (``[-pi, pi]`` for continuous joints) and the
-        parsed chain in ``m.params`` (``"urdf"``: source label, ``"base_link"``, ``"tip_link"``,
-        and ``"velocity_limits"``, rad/s or m/s per coordinate, when every moving joint on the
-        path has a positive ``<limit velocity>``).
+        The model named after the ``<robot name>``, coordinates named after the URDF joints,
+        limits from ``<limit>`` (``[-pi, pi]`` for continuous joints) and the parsed chain in
+        ``params`` (``"urdf"``: source label, ``"base_link"``, ``"tip_link"``, and
+        ``"velocity_limits"``, rad/s or m/s per coordinate, when every moving joint on the path
+        has a positive ``<limit velocity>``).
 
     Raises:
         InvalidArgumentError: ``source`` is neither an existing file nor XML text.
@@ -268,8 +291,7 @@ def load_urdf(source: str | os.PathLike[str], base_link: str, tip_link: str) -> 
         body, pending = child, np.eye(4)
     if not joints:
         raise ModelError(f"{src.label}: no moving joint between {base_link!r} and {tip_link!r}")
-    m = Mechanism(joints, base_link, frames, tip_link, root.get("name") or "urdf", task="pose")
-    m.params = {"urdf": src.label, "base_link": base_link, "tip_link": tip_link}
+    params: dict[str, object] = {"urdf": src.label, "base_link": base_link, "tip_link": tip_link}
     if all(v is not None for v in velocities):
-        m.params["velocity_limits"] = np.array(velocities, dtype=float)
-    return m
+        params["velocity_limits"] = np.array(velocities, dtype=float)
+    return UrdfModel(root.get("name") or "urdf", base_link, tuple(joints), frames, tip_link, params)

@@ -1,6 +1,6 @@
 """Forward kinematics of parallel mechanisms: all assembly modes (closed form) and numerical FK.
 
-Method (DESIGN.md): poses drawn at random (seeded), actuated values by the closed-form IK, then
+Method (docs/benchmarks.md): poses drawn at random (seeded), actuated values by the closed-form IK, then
 each solver on the same inputs in the same process, every call timed (failures included).
 Thread pools are pinned to 1 before numpy is imported (the machine has 2 cores).
 
@@ -22,7 +22,7 @@ Thread pools are pinned to 1 before numpy is imported (the machine has 2 cores).
 No peer library solves the FK of closed chains, so the comparisons are internal (closed form vs
 numeric on the same inputs).
 
-Run: ``python benchmarks/bench_parallel_fk.py [--n-rpr 500] [--n-sg 10] [--n-fk 200] [--seed 0]``.
+Run: ``optik benchmark parallel_fk [--n-rpr 500] [--n-sg 10] [--n-fk 200] [--seed 0]``.
 """
 
 from __future__ import annotations

@@ -2,13 +2,15 @@
 
 A problem file names a catalog constructor and its parameters, optional joint-limit overrides,
 how to draw targets, the success tolerances and which solvers and peers apply. Files are parsed
-with :mod:`tomllib` (``tomli`` on Python 3.10): data only, no code is executed. Every error
+with `tomllib` (``tomli`` on Python 3.10): data only, no code is executed. Every error
 names the file, the key and what is wrong, e.g.
-``problems/five_bar.toml: targets.n: expected an integer >= 1, got 0``.
+``.../optik/data/problems/five_bar.toml: targets.n: expected an integer >= 1, got 0``.
 
-The files live in ``problems/`` at the top of the repository (the one source of truth); they
-are found next to the installed package (clean clone, ``pip install -e .``), or anywhere by
-path. Schema (every table but ``[mechanism]`` optional)::
+The shipped files are package data in ``optik/data/problems/`` (the one copy in the
+repository), found through `importlib.resources` as `PROBLEM_DIR`, so that a wheel install,
+an editable install and a source tree on ``PYTHONPATH`` all see them; any other directory can
+be given instead (``optik --problems-dir DIR``), and any file by path. Schema (every table but
+``[mechanism]`` optional)::
 
     [problem]
     description = "..."          # required, one line
@@ -34,7 +36,7 @@ path. Schema (every table but ``[mechanism]`` optional)::
     pose_center = [...]          # "pose": (x, y, phi) planar, (x, y, z, roll, pitch, yaw) spatial
     pose_half_range = [...]
 
-    [tolerances]                 # DESIGN.md defaults
+    [tolerances]                 # the default success tolerances
     position = 1e-6
     orientation = 1e-6
     closure = 1e-9
@@ -45,13 +47,13 @@ path. Schema (every table but ``[mechanism]`` optional)::
     time_limit = 0.1             # seconds per IK call
     quick_time_limit = 0.05
 
-Target sampling (DESIGN.md benchmark method): the reference configuration ``q`` is drawn so
+Target sampling (the benchmark method): the reference configuration ``q`` is drawn so
 that it satisfies the limits and the loop closures, and the target is ``T = FK(q)``:
 
 * ``joint`` (open chains): ``q ~ U(lower, upper)``.
 * ``actuated`` (closed chains): actuated coordinates ``a ~ U(lower_a, upper_a)``, assembled by
   the closed-form FK (one of its assembly modes within limits, drawn at random) or by
-  :func:`optik.solve_fk`; draws that do not assemble are discarded.
+  [`optik.solve_fk`][optik.solve_fk]; draws that do not assemble are discarded.
 * ``pose`` (closed chains with a closed-form IK): a pose drawn uniformly in the box
   ``center +- half_range``, solved by the closed-form IK (one branch within limits, at random);
   unreachable draws are discarded.
@@ -64,17 +66,20 @@ that it satisfies the limits and the loop closures, and the target is ``T = FK(q
 from __future__ import annotations
 
 import inspect
+import os
 import sys
+import typing
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from optik import catalog, closed_form, spatial
-from optik.checks import as_rng
+from optik.checks import as_name, as_rng
 from optik.errors import InvalidArgumentError, OptikError, ProblemFileError, SolverUnavailableError
 from optik.mechanism import TASK_ROWS, Mechanism
 from optik.solvers import Tolerances
@@ -91,6 +96,7 @@ __all__ = [
     "Problem",
     "TargetSet",
     "assemble",
+    "constructors",
     "default_problems",
     "find_problem",
     "list_problems",
@@ -98,11 +104,11 @@ __all__ = [
     "problem_summary",
 ]
 
-PROBLEM_DIR = Path(__file__).resolve().parent.parent / "problems"
-"""``problems/`` at the top of the repository the package was installed from."""
+PROBLEM_DIR = Path(str(resources.files("optik") / "data" / "problems"))
+"""The shipped problem files: the package data folder ``optik/data/problems``."""
 
 PEERS = ("trac_ik", "pink", "ikpy")
-"""Peer libraries a problem may ask for (adapters in :mod:`optik.bench.peers`)."""
+"""Peer libraries a problem may ask for (adapters in [`optik.bench.peers`][optik.bench.peers])."""
 
 SAMPLING = ("auto", "joint", "actuated", "pose")
 """Target sampling modes."""
@@ -115,6 +121,13 @@ DEFAULT_QUICK_TIME_LIMIT = 0.05
 
 MAX_DRAWS_PER_TARGET = 50
 """Draws allowed per requested target before sampling gives up (closed chains)."""
+
+MAX_TARGETS = 1_000_000
+"""Most targets one problem samples (``targets.n``, ``quick_n`` and the ``n`` of
+[`Problem.sample_targets`][optik.problem_files.Problem.sample_targets]): memory stays bounded."""
+
+MAX_FILE_BYTES = 1 << 20
+"""Largest problem file read (1 MiB; the shipped ones are under 2 kB)."""
 
 
 # ---------------------------------------------------------------------------- schema
@@ -139,10 +152,12 @@ def _positive(v: Any) -> float:
     return x
 
 
-def _count(minimum: int) -> Callable[[Any], int]:
+def _count(minimum: int, maximum: int | None = None) -> Callable[[Any], int]:
     def parse(v: Any) -> int:
-        if isinstance(v, bool) or not isinstance(v, int) or v < minimum:
-            raise ValueError(f"expected an integer >= {minimum}, got {v!r}")
+        too_big = maximum is not None and isinstance(v, int) and v > maximum
+        if isinstance(v, bool) or not isinstance(v, int) or v < minimum or too_big:
+            bound = f"an integer >= {minimum}" + ("" if maximum is None else f" and <= {maximum}")
+            raise ValueError(f"expected {bound}, got {v!r}")
         return v
 
     return parse
@@ -212,8 +227,8 @@ SCHEMA: dict[str, dict[str, _Key]] = {
     },
     "limits": {"lower": _Key(_numbers), "upper": _Key(_numbers)},
     "targets": {
-        "n": _Key(_count(1)),
-        "quick_n": _Key(_count(1)),
+        "n": _Key(_count(1, MAX_TARGETS)),
+        "quick_n": _Key(_count(1, MAX_TARGETS)),
         "seed": _Key(_count(0)),
         "sampling": _Key(_one_of(SAMPLING)),
         "pose_center": _Key(_numbers),
@@ -233,7 +248,7 @@ REQUIRED_TABLES = ("problem", "mechanism")
 
 
 def _validate(path: Path, data: dict[str, Any]) -> dict[str, dict[str, Any]]:
-    """Check every table and key against :data:`SCHEMA`; return the parsed values."""
+    """Check every table and key against [`SCHEMA`][optik.problem_files.SCHEMA]; return the parsed values."""
     out: dict[str, dict[str, Any]] = {}
     for table in data:
         if table not in SCHEMA:
@@ -291,7 +306,7 @@ def assemble(
     """Configurations of a closed chain for given actuated values, within limits.
 
     Every assembly mode of the closed-form FK when one is registered (and ``numerical`` is
-    False), else the one mode :func:`optik.solve_fk` finds from the mid-limit configuration
+    False), else the one mode [`optik.solve_fk`][optik.solve_fk] finds from the mid-limit configuration
     (``[]`` when the inputs do not assemble; ``time_limit`` seconds bound that search).
 
     Raises:
@@ -321,14 +336,14 @@ class Problem:
         path: the file.
         description: one line.
         default: part of the default set of ``optik bench``.
-        constructor: name of the :mod:`optik.catalog` function.
+        constructor: name of the [`optik.catalog`][optik.catalog] function.
         params: its keyword arguments.
         task: task space override (None: the mechanism's task).
         urdf: shipped URDF robot name for the peers (None: no peers can run).
         lower, upper: joint-limit overrides (None: the constructor's limits).
         n, quick_n: numbers of targets (full run, ``--quick``).
         seed: target seed.
-        sampling: sampling mode (see :data:`SAMPLING`).
+        sampling: sampling mode (see [`SAMPLING`][optik.problem_files.SAMPLING]).
         pose_center, pose_half_range: the pose box of ``sampling = "pose"``.
         tolerances: success tolerances.
         methods: IK methods to run (None: every registered method that applies).
@@ -368,6 +383,8 @@ class Problem:
             m = fn(**self.params)
         except InvalidArgumentError as exc:
             raise self._error(f"mechanism.params.{exc.argument}", str(exc)) from None
+        except OptikError as exc:  # e.g. a ModelError of parameters that do not make a mechanism
+            raise self._error("mechanism.params", str(exc)) from None
         if self.lower is not None or self.upper is not None:
             for key, value in (("lower", self.lower), ("upper", self.upper)):
                 if value is not None and len(value) != m.n_q:
@@ -439,15 +456,16 @@ class Problem:
     def sample_targets(
         self, n: int | None = None, seed: int | np.random.Generator | None = None
     ) -> TargetSet:
-        """Draw ``n`` reference configurations and their targets (DESIGN.md benchmark method).
+        """Draw ``n`` reference configurations and their targets (the benchmark method).
 
         Args:
             n: number of targets (default: the file's ``n``).
             seed: seed or Generator (default: the file's ``seed``).
 
         Returns:
-            A :class:`TargetSet`; for closed chains possibly fewer than ``n`` targets when fewer
-            than ``n`` of ``MAX_DRAWS_PER_TARGET * n`` draws assemble (``draws`` says how many).
+            A [`TargetSet`][optik.problem_files.TargetSet]; for closed chains possibly fewer than ``n``
+            targets when fewer than ``n`` of ``MAX_DRAWS_PER_TARGET * n`` draws assemble (``draws`` says how
+            many).
 
         Raises:
             ProblemFileError: the sampling mode does not apply, or no draw succeeded.
@@ -455,8 +473,9 @@ class Problem:
                 is not available.
         """
         count = self.n if n is None else n
-        if not isinstance(count, (int, np.integer)) or count < 1:
-            raise InvalidArgumentError("n", f"expected a positive integer, got {count!r}")
+        integer = isinstance(count, (int, np.integer)) and not isinstance(count, bool)
+        if not integer or not 1 <= count <= MAX_TARGETS:
+            raise InvalidArgumentError("n", f"expected an integer in [1, {MAX_TARGETS}], got {count!r}")
         rng = as_rng(self.seed if seed is None else seed)
         m = self.mechanism()
         mode = self.sampling_mode()
@@ -501,13 +520,25 @@ class Problem:
         return closed_form.ik(m, t)
 
 
+def constructors() -> list[str]:
+    """The mechanism constructors of [`optik.catalog`][optik.catalog]: its public functions that
+    return a [`Mechanism`][optik.Mechanism] (not helpers such as ``urdf_path``, nor attributes
+    such as ``__class__``), sorted."""
+    names = []
+    for name in getattr(catalog, "__all__", ()):
+        fn = getattr(catalog, name, None)
+        if inspect.isfunction(fn) and typing.get_type_hints(fn).get("return") is Mechanism:
+            names.append(name)
+    return sorted(names)
+
+
 def _from_data(path: Path, data: dict[str, Any]) -> Problem:
     v = _validate(path, data)
     prob, mech, lim, tg, tol, sol = (v[k] for k in SCHEMA)
     constructor = mech["constructor"]
-    fn = getattr(catalog, constructor, None)
-    if not callable(fn):
-        names = sorted(n for n in getattr(catalog, "__all__", ()) if callable(getattr(catalog, n, None)))
+    names = constructors()
+    fn = getattr(catalog, constructor) if constructor in names else None
+    if fn is None:
         raise ProblemFileError(
             f"{path}: mechanism.constructor: {constructor!r} is not available in this version of "
             f"optik.catalog; available: {names}"
@@ -556,15 +587,28 @@ def load_problem(path: str | Path) -> Problem:
         ProblemFileError: unreadable file, invalid TOML, or a schema violation (the message
             names the file and the key).
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise InvalidArgumentError("path", f"expected a file path, got {path!r}")
     p = Path(path)
+    if "\0" in str(p):
+        raise ProblemFileError(f"{str(p)!r}: cannot read the problem file: the path contains a NUL character")
     try:
-        text = p.read_text(encoding="utf-8")
+        with p.open("rb") as f:
+            raw = f.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise ProblemFileError(f"{p}: cannot read the problem file: {exc.strerror or exc}") from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise ProblemFileError(f"{p}: larger than {MAX_FILE_BYTES} bytes; not a problem file")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ProblemFileError(f"{p}: not UTF-8 text (byte {exc.start}): {exc.reason}") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ProblemFileError(f"{p}: invalid TOML: {exc}") from None
+    except RecursionError:  # tomllib recurses per nesting level of arrays and inline tables
+        raise ProblemFileError(f"{p}: invalid TOML: arrays or tables nested too deeply") from None
     return _from_data(p, data)
 
 
@@ -572,13 +616,14 @@ def _directory(directory: str | Path | None) -> Path:
     d = PROBLEM_DIR if directory is None else Path(directory)
     if not d.is_dir():
         raise InvalidArgumentError(
-            "problems", f"no problem directory at {d}; pass the path of a problems/ folder or of a .toml file"
+            "problems", f"no problem directory at {d}; pass a folder of .toml problem files or a .toml file"
         )
     return d
 
 
 def list_problems(directory: str | Path | None = None) -> list[Problem]:
-    """Every problem file of a directory (default :data:`PROBLEM_DIR`), sorted by name."""
+    """Every problem file of a directory (default [`PROBLEM_DIR`][optik.problem_files.PROBLEM_DIR]), sorted by
+    name."""
     return sorted((load_problem(p) for p in _directory(directory).glob("*.toml")), key=lambda pr: pr.name)
 
 
@@ -594,7 +639,9 @@ def find_problem(name: str, directory: str | Path | None = None) -> Problem:
         InvalidArgumentError: no such problem (the message lists the known names).
         ProblemFileError: the file is invalid.
     """
-    as_path = Path(name)
+    as_path = Path(as_name(name, "problem"))
+    if "\0" in name:
+        raise InvalidArgumentError("problem", f"no such problem file: {name!r} (contains a NUL character)")
     if as_path.suffix == ".toml" or as_path.is_file():
         if not as_path.is_file():
             raise InvalidArgumentError("problem", f"no such problem file: {name}")

@@ -1,6 +1,6 @@
 """Throughput of the vectorized closed forms: planar 2R, planar 3R and the seed's 6R arm.
 
-Method (DESIGN.md): random joint vectors drawn uniformly within the limits (seeded), targets by
+Method (docs/benchmarks.md): random joint vectors drawn uniformly within the limits (seeded), targets by
 the mechanism's own FK, then the vectorized solver on all targets at once in one process on one
 core (thread pools pinned to 1 before numpy is imported). Each solver call is timed ``--repeat``
 times over the same targets; the table shows the median and best throughput (targets/s, every
@@ -11,7 +11,7 @@ solved one target at a time through ``optik.closed_form.ik`` (validation, limits
 merging included), with mean / median / p95 time per call and the ratio to the vectorized
 per-target time.
 
-Run: ``python benchmarks/bench_closed_form.py [--n 1000000] [--n-6r 200000] [--repeat 5]``.
+Run: ``optik benchmark closed_form [--n 1000000] [--n-6r 200000] [--repeat 5]``.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Tests of optik.problems: schema validation with named errors, shipped files, target sampling."""
+"""Tests of optik.problem_files: schema validation with named errors, shipped files, target sampling."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from optik import problems
+from optik import problem_files
 from optik.errors import InvalidArgumentError, ProblemFileError
 
 MINIMAL = """
@@ -28,7 +28,7 @@ def write(tmp_path, text, name="p.toml"):
 
 
 def test_minimal_file_gets_the_design_defaults(tmp_path):
-    p = problems.load_problem(write(tmp_path, MINIMAL, "mine.toml"))
+    p = problem_files.load_problem(write(tmp_path, MINIMAL, "mine.toml"))
     assert p.name == "mine" and p.default
     assert (p.tolerances.position, p.tolerances.orientation, p.tolerances.closure) == (1e-6, 1e-6, 1e-9)
     assert p.methods is None and p.peers == ()
@@ -54,7 +54,7 @@ def test_minimal_file_gets_the_design_defaults(tmp_path):
 def test_schema_errors_name_file_and_key(tmp_path, extra, key, what):
     path = write(tmp_path, MINIMAL + extra)
     with pytest.raises(ProblemFileError) as info:
-        problems.load_problem(path)
+        problem_files.load_problem(path)
     msg = str(info.value)
     assert msg.startswith(str(path)), msg
     assert key in msg and what in msg, msg
@@ -73,18 +73,20 @@ def test_schema_errors_name_file_and_key(tmp_path, extra, key, what):
 def test_structural_errors(tmp_path, text, key):
     path = write(tmp_path, text)
     with pytest.raises(ProblemFileError, match=key) as info:
-        problems.load_problem(path)
+        problem_files.load_problem(path)
     assert str(path) in str(info.value)
 
 
 def test_constructor_and_limit_errors_surface_when_building(tmp_path):
-    bad_len = problems.load_problem(write(tmp_path, MINIMAL.replace("[1.0, 0.8, 0.5]", "[1.0, -0.8, 0.5]")))
+    bad_len = problem_files.load_problem(
+        write(tmp_path, MINIMAL.replace("[1.0, 0.8, 0.5]", "[1.0, -0.8, 0.5]"))
+    )
     with pytest.raises(ProblemFileError, match=r"mechanism\.params\.lengths"):
         bad_len.mechanism()
-    short = problems.load_problem(write(tmp_path, MINIMAL + "[limits]\nlower = [0.0, 0.0]\n", "s.toml"))
+    short = problem_files.load_problem(write(tmp_path, MINIMAL + "[limits]\nlower = [0.0, 0.0]\n", "s.toml"))
     with pytest.raises(ProblemFileError, match=r"limits\.lower: expected 3 values"):
         short.mechanism()
-    crossed = problems.load_problem(
+    crossed = problem_files.load_problem(
         write(tmp_path, MINIMAL + "[limits]\nlower = [1.0, 0.0, 0.0]\nupper = [0.0, 1.0, 1.0]\n", "c.toml")
     )
     with pytest.raises(ProblemFileError, match="limits"):
@@ -92,35 +94,45 @@ def test_constructor_and_limit_errors_surface_when_building(tmp_path):
 
 
 def test_sampling_mode_must_fit_the_chain(tmp_path):
-    p = problems.load_problem(write(tmp_path, MINIMAL + "[targets]\nsampling = 'actuated'\n"))
+    p = problem_files.load_problem(write(tmp_path, MINIMAL + "[targets]\nsampling = 'actuated'\n"))
     with pytest.raises(ProblemFileError, match=r"targets\.sampling"):
         p.sample_targets(3)
 
 
 def test_missing_file_and_unknown_problem(tmp_path):
     with pytest.raises(ProblemFileError, match="cannot read"):
-        problems.load_problem(tmp_path / "nope.toml")
+        problem_files.load_problem(tmp_path / "nope.toml")
     with pytest.raises(InvalidArgumentError, match="unknown problem 'nope'"):
-        problems.find_problem("nope")
+        problem_files.find_problem("nope")
     with pytest.raises(InvalidArgumentError, match="problems"):
-        problems.list_problems(tmp_path / "absent")
+        problem_files.list_problems(tmp_path / "absent")
 
 
-SHIPPED = sorted(p.stem for p in problems.PROBLEM_DIR.glob("*.toml"))
+SHIPPED = sorted(p.stem for p in problem_files.PROBLEM_DIR.glob("*.toml"))
 
 
 def test_every_mechanism_of_the_issue_has_a_problem_file():
     wanted = {
-        "planar_2r", "planar_3r", "rp_arm", "pp_arm", "seed_6r_arm", "five_bar", "doggy",
-        "slider_crank", "planar_3rpr", "stewart_gough", "panda", "iiwa14",
+        "planar_2r",
+        "planar_3r",
+        "rp_arm",
+        "pp_arm",
+        "seed_6r_arm",
+        "five_bar",
+        "doggy",
+        "slider_crank",
+        "planar_3rpr",
+        "stewart_gough",
+        "panda",
+        "iiwa14",
     }
     assert wanted <= set(SHIPPED)
-    assert {p.name for p in problems.default_problems()} >= wanted
+    assert {p.name for p in problem_files.default_problems()} >= wanted
 
 
 @pytest.mark.parametrize("name", SHIPPED)
 def test_shipped_problem_targets(name):
-    p = problems.find_problem(name)
+    p = problem_files.find_problem(name)
     m = p.mechanism()
     t = p.sample_targets(6, seed=1)  # every shipped problem must be sampleable (no skip)
     assert len(t) >= 1 and t.q.shape[1] == m.n_q
@@ -137,7 +149,7 @@ def test_shipped_problem_targets(name):
 
 
 def test_joint_sampling_is_uniform_within_limits():
-    p = problems.find_problem("planar_2r")
+    p = problem_files.find_problem("planar_2r")
     t = p.sample_targets(400, seed=0)
     m = p.mechanism()
     assert t.sampling == "joint" and t.draws == 400

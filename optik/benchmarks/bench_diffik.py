@@ -1,6 +1,6 @@
 """Differential-IK step on the Panda: optik's QP step against Pink (pin-pink), same URDF, same tasks.
 
-Method (DESIGN.md): the same goals for every solver in the same run. Goals are flange poses of
+Method (docs/benchmarks.md): the same goals for every solver in the same run. Goals are flange poses of
 random joint vectors drawn within the limits (seeded); every solver starts at the mid-limit
 posture and runs closed-loop steps ``q <- q + v dt`` with a frame task on the flange (position
 and orientation cost 1, gain 1), a posture task to the mid-limit posture (cost 1e-3), the joint
@@ -15,7 +15,7 @@ Pink's fastest installed solver is picked the way a new user would: each install
 backend runs the first goal and the fastest median step wins. The solvers then run interleaved,
 goal by goal.
 
-Run: ``python benchmarks/bench_diffik.py [--goals 20] [--steps 300] [--dt 0.01]``.
+Run: ``optik benchmark diffik [--goals 20] [--steps 300] [--dt 0.01]``.
 """
 
 from __future__ import annotations

@@ -1,0 +1,114 @@
+"""Batch IK on a Dask cluster (``pip install optik[dist]``).
+
+Each chunk of targets is one Dask task running `optik.batch.solve.solve_chunk` on a worker.
+The mechanism is scattered once to every worker (``Client.scatter(..., broadcast=True)``, the
+definition only: see ``Mechanism.__reduce__``), so a worker unpickles it once and its compiled
+kernel, built on the first chunk into the worker machine's cache
+(``$OPTIK_CACHE_DIR`` or ``~/.cache/optik``), serves every later chunk. Results are gathered in
+input order; a chunk whose worker dies is rerun by Dask on another worker (``retries``). The
+answers are those of a local run: each target carries its own seed.
+"""
+
+from __future__ import annotations
+
+import uuid
+import weakref
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from optik.batch.chunk import ChunkSpec, chunk_bounds, solve_chunk
+from optik.batch.result import BatchResult
+from optik.errors import InvalidArgumentError, SolverUnavailableError
+from optik.mechanism import Mechanism
+
+_SCATTERED: weakref.WeakKeyDictionary[Mechanism, dict[str, Any]] = weakref.WeakKeyDictionary()
+"""Scattered mechanisms per client id (ship a mechanism once per cluster)."""
+
+_ON_WORKER: dict[str, Mechanism] = {}
+"""In a worker process: the first copy of each shipped mechanism by its key, so that every
+later chunk (even one given another deserialized copy) reuses its built and compiled kernel."""
+
+
+def client_of(scheduler: Any) -> Any:
+    """A ``dask.distributed.Client``: the one given, or one connected to a scheduler address.
+
+    Raises:
+        SolverUnavailableError: dask.distributed is not installed.
+        InvalidArgumentError: ``scheduler`` is neither a Client nor an address string.
+    """
+    try:
+        from distributed import Client
+    except ImportError as exc:
+        raise SolverUnavailableError("scheduler= needs dask.distributed (pip install 'optik[dist]')") from exc
+    if isinstance(scheduler, Client):
+        return scheduler
+    if isinstance(scheduler, str):
+        return Client(scheduler)
+    raise InvalidArgumentError(
+        "scheduler", f"expected a dask.distributed.Client or an address, got {type(scheduler).__name__}"
+    )
+
+
+def scattered(client: Any, m: Mechanism) -> Any:
+    """The future of ``(key, m)`` on every worker of ``client`` (scattered on first use; the
+    key names this mechanism on the workers)."""
+    per_client = _SCATTERED.setdefault(m, {})
+    if client.id not in per_client:
+        per_client[client.id] = client.scatter((uuid.uuid4().hex, m), broadcast=True, hash=False)
+    return per_client[client.id]
+
+
+def solve_shipped(
+    shipped: tuple[str, Mechanism],
+    spec: ChunkSpec,
+    targets: np.ndarray,
+    starts: np.ndarray,
+    seeds: np.ndarray,
+) -> BatchResult:
+    """`solve_chunk` on a worker with the worker's one copy of the shipped mechanism."""
+    key, m = shipped
+    return solve_chunk(_ON_WORKER.setdefault(key, m), spec, targets, starts, seeds)
+
+
+def solve_on_cluster(
+    scheduler: Any,
+    m: Mechanism,
+    spec: ChunkSpec,
+    targets: np.ndarray,
+    starts: np.ndarray,
+    seeds: np.ndarray,
+    chunk_size: int | None,
+    retries: int,
+    step: Callable[[int], None] | None = None,
+) -> tuple[list[BatchResult], int]:
+    """Solve the chunks as Dask tasks; the parts in input order and the number of workers.
+
+    Default chunks: about eight per worker thread, at most 4096 targets.
+    """
+    from distributed import as_completed
+
+    client = client_of(scheduler)
+    threads = sum(client.nthreads().values()) or 1
+    workers = len(client.nthreads()) or 1
+    n = len(targets)
+    size = chunk_size or max(1, min(4096, -(-n // (8 * threads))))
+    bounds = chunk_bounds(n, threads, size)
+    mf = scattered(client, m)
+    futures = [
+        client.submit(
+            solve_shipped, mf, spec, targets[a:b], starts[a:b], seeds[a:b], retries=retries, pure=False
+        )
+        for a, b in bounds
+    ]
+    sizes = {f.key: b - a for f, (a, b) in zip(futures, bounds, strict=True)}
+    try:
+        for f in as_completed(futures):
+            if step:
+                step(sizes[f.key])
+        parts = client.gather(futures)
+    except KeyboardInterrupt:
+        client.cancel(futures)
+        raise
+    return list(parts), workers

@@ -1,0 +1,166 @@
+"""`solve_ik_batch`: many IK targets on every core, or on a Dask cluster.
+
+The targets are cut into chunks. With method ``"lm"`` a chunk is one call of the compiled
+kernel (`optik.solvers.lm_kernel`): the whole multi-start loop of every target runs in C and
+the call releases the GIL, so a thread pool keeps every core busy; other methods loop over
+`optik.solve_ik` per target. Target ``i`` is solved with seed ``target_seeds(seed)[i]`` and its
+own time limit, so the answers depend neither on the chunking nor on the number of threads or
+Dask workers, and ``solve_ik(m, targets[i], q0[i], seed=result.seed[i], ...)`` gives the same
+answer (``result.seed`` holds the seeds). With ``scheduler=`` a ``dask.distributed.Client``,
+the chunks are Dask tasks (`optik.batch.distributed`).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
+from typing import Any
+
+import numpy as np
+
+from optik.batch.chunk import ChunkSpec, chunk_bounds, default_workers, solve_chunk
+from optik.batch.inputs import as_starts, as_targets, base_seed
+from optik.batch.result import BatchResult
+from optik.bench.progress import Progress
+from optik.mechanism import Mechanism
+from optik.solvers.base import Tolerances, get_method, make_request, positive_int
+from optik.solvers.lm import lm_settings
+from optik.solvers.lm_kernel import target_seeds
+
+
+def solve_ik_batch(
+    m: Mechanism,
+    targets: Any,
+    q0: Any = None,
+    *,
+    method: str = "lm",
+    task: str | None = None,
+    frame: str | None = None,
+    time_limit: float | None = None,
+    tol: float | Tolerances | None = None,
+    seed: int | np.random.Generator | None = None,
+    workers: int | None = None,
+    scheduler: Any = None,
+    chunk_size: int | None = None,
+    retries: int = 2,
+    progress: bool = False,
+    **options: Any,
+) -> BatchResult:
+    """Inverse kinematics of many targets: every core, or a Dask cluster.
+
+    Args:
+        m: the mechanism.
+        targets: ``(N, 4, 4)`` transforms, ``(N, 3)`` positions, or a sequence of
+            `optik.Pose2D` / `optik.Position` / 4x4 transforms.
+        q0: first start: None (mid-limit), one vector for all, or ``(N, n)``.
+        method: IK method (``"lm"``: the compiled chunk kernel; others loop over `optik.solve_ik`).
+        task: task space (default from the targets and the mechanism).
+        frame: task frame (default: the end effector).
+        time_limit: seconds per target (default 0.1, as `optik.solve_ik`).
+        tol: tolerances (float: position and orientation) or `optik.Tolerances`.
+        seed: batch seed (None: 0) or a Generator (one draw); target ``i`` is solved with seed
+            ``result.seed[i]``.
+        workers: threads of the local pool (default: the cores available); ignored with
+            ``scheduler``.
+        scheduler: a ``dask.distributed.Client`` (or a scheduler address) to solve the chunks
+            on a Dask cluster.
+        chunk_size: targets per chunk (default: about eight chunks per worker, at most 512
+            locally).
+        retries: Dask retries of a chunk whose worker was lost.
+        progress: draw a progress bar on stderr.
+        **options: method options (as for `optik.solve_ik`).
+
+    Returns:
+        A `optik.batch.BatchResult`, rows in input order.
+
+    Raises:
+        OptikError: malformed input (named argument), unknown option or method.
+    """
+    t0 = time.perf_counter()
+    transforms, implied = as_targets(m, targets)
+    n = len(transforms)
+    starts = as_starts(m, q0, n)
+    seed0 = base_seed(seed)
+    request = make_request(
+        m,
+        transforms[0] if n else np.eye(4),
+        starts[0] if n else None,
+        task or implied,
+        frame,
+        time_limit,
+        tol,
+        seed0,
+        options,
+    )
+    spec = ChunkSpec(method, request.task, frame, request.time_limit, request.tol, dict(options))
+    if method == "lm":
+        lm_settings(request)  # unknown options and bad values raise here, not in a worker
+    else:
+        get_method(method)
+    seeds = target_seeds(seed0, 0, n)
+    if workers is not None:
+        workers = positive_int(workers, "workers")
+    if chunk_size is not None:
+        chunk_size = positive_int(chunk_size, "chunk_size")
+    bar = Progress(1) if progress else None
+    if bar is not None:
+        bar.start(f"IK x{n}", n)
+    if scheduler is not None:
+        from optik.batch.distributed import solve_on_cluster
+
+        parts, used = solve_on_cluster(
+            scheduler, m, spec, transforms, starts, seeds, chunk_size, retries, bar.step if bar else None
+        )
+    else:
+        used = workers or default_workers()
+        if method == "lm" and n:  # build and compile once, before the threads start
+            solve_chunk(m, spec, transforms[:1], starts[:1], seeds[:1])
+        bounds = chunk_bounds(n, used, chunk_size)
+        parts = _run_threads(m, spec, transforms, starts, seeds, bounds, used, bar.step if bar else None)
+    if bar is not None:
+        bar.finish()
+    if not parts:  # no target
+        parts = [solve_chunk(m, spec, transforms, starts, seeds)]
+    return BatchResult.concatenate(
+        parts, method=method, base_seed=seed0, wall_time=time.perf_counter() - t0, workers=used
+    )
+
+
+def _run_threads(
+    m: Mechanism,
+    spec: ChunkSpec,
+    targets: np.ndarray,
+    starts: np.ndarray,
+    seeds: np.ndarray,
+    bounds: list[tuple[int, int]],
+    workers: int,
+    step: Callable[[int], None] | None,
+) -> list[BatchResult]:
+    """Solve the chunks on a thread pool; parts in input order. Ctrl-C cancels the chunks
+    not started and re-raises."""
+    parts: list[BatchResult | None] = [None] * len(bounds)
+
+    def job(i: int) -> int:
+        a, b = bounds[i]
+        parts[i] = solve_chunk(m, spec, targets[a:b], starts[a:b], seeds[a:b])
+        return b - a
+
+    if workers == 1 or len(bounds) <= 1:
+        for i in range(len(bounds)):
+            done = job(i)
+            if step:
+                step(done)
+        return [p for p in parts if p is not None]
+    pool = ThreadPoolExecutor(max_workers=workers)
+    try:
+        pending = {pool.submit(job, i) for i in range(len(bounds))}
+        while pending:
+            finished, pending = wait(pending, timeout=0.5, return_when=FIRST_COMPLETED)
+            for f in finished:
+                done = f.result()
+                if step:
+                    step(done)
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+    return [p for p in parts if p is not None]

@@ -1,0 +1,131 @@
+/* optik: the projected Levenberg-Marquardt driver over a chunk of IK targets.
+ *
+ * Compiled together with the CasADi-generated functions OPTIK_STEP (one LM iteration) and
+ * OPTIK_ERRORS (the success check's errors); optik/solvers/lm_kernel.py defines OPTIK_NQ,
+ * OPTIK_STEP and OPTIK_ERRORS before this file and documents the algorithm. Every target runs
+ * its own multi-start loop: the start q0, then starts drawn uniformly within the limits from
+ * a splitmix64 stream seeded with the target's seed; iterations until the errors are below the
+ * stop thresholds, a block of iterations stalls, max_iter iterations, or the target's time
+ * limit (checked after every iteration). Reentrant: work memory is allocated per call.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+/* conf: [block, max_iter, max_restarts (< 0: none), time_limit, mu0, stall,
+ *        stop_position, stop_orientation, stop_closure, gain, w_p, w_o,
+ *        lower[n], upper[n], q_ref[n]] */
+#define OPTIK_CONF_SCALARS 12
+
+static double optik_now(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static unsigned long long optik_splitmix64(unsigned long long *state) {
+  unsigned long long z = (*state += 0x9E3779B97F4A7C15ULL);
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+  return z ^ (z >> 31);
+}
+
+static int optik_work(int (*work)(casadi_int *, casadi_int *, casadi_int *, casadi_int *),
+                      casadi_int *sz) {
+  return work(&sz[0], &sz[1], &sz[2], &sz[3]);
+}
+
+/* Status codes: 0 converged (stop thresholds met), 1 time limit, 2 max_restarts, -1 error. */
+CASADI_SYMBOL_EXPORT int optik_lm_chunk(casadi_int n_targets, const double *targets, const double *q0,
+                                        const unsigned long long *seeds, const double *conf,
+                                        double *q_out, double *err_out, casadi_int *iter_out,
+                                        casadi_int *restart_out, casadi_int *status_out,
+                                        double *time_out) {
+  enum { N = OPTIK_NQ };
+  casadi_int ss[4], se[4];
+  optik_work(OPTIK_STEP_WORK, ss);
+  optik_work(OPTIK_ERRORS_WORK, se);
+  casadi_int n_iw = ss[2] > se[2] ? ss[2] : se[2];
+  casadi_int n_w = ss[3] > se[3] ? ss[3] : se[3];
+  casadi_int *iw = (casadi_int *)malloc(sizeof(casadi_int) * (size_t)(n_iw + 1));
+  double *w = (double *)malloc(sizeof(double) * (size_t)(n_w + 1));
+  if (!iw || !w) {
+    free(iw);
+    free(w);
+    return -1;
+  }
+  const casadi_int block = (casadi_int)conf[0], max_iter = (casadi_int)conf[1];
+  const casadi_int max_restarts = (casadi_int)conf[2];
+  const double time_limit = conf[3], mu0 = conf[4], stall = conf[5];
+  const double stop_p = conf[6], stop_o = conf[7], stop_c = conf[8];
+  const double gain = conf[9];
+  const double weights[2] = {conf[10], conf[11]};
+  const double *lower = conf + OPTIK_CONF_SCALARS, *upper = lower + N;
+  const double *q_ref = upper + N;
+  int rc = 0;
+  for (casadi_int t = 0; t < n_targets; ++t) {
+    const double t0 = optik_now(), deadline = t0 + time_limit;
+    const double *target = targets + 12 * t;
+    unsigned long long rng = seeds[t];
+    double q[N], q_new[N], best[N], mu, mu_new, cost, pos, ori, clo, accept;
+    double best_cost = INFINITY, e3[3];
+    casadi_int iterations = 0, restarts = -1, status = 0;
+    const double *answer = q;
+    memcpy(best, q0 + N * t, sizeof(best));
+    /* step: (q, mu, target, weights, q_ref, gain) -> (q+, mu+, cost+, accept, pos+, ori+, clo+) */
+    const double *s_arg[6] = {q, &mu, target, weights, q_ref, &gain};
+    double *s_res[7] = {q_new, &mu_new, &cost, &accept, &e3[0], &e3[1], &e3[2]};
+    const double *e_arg[2] = {q, target};
+    double *e_res[3] = {&pos, &ori, &clo};
+    for (;;) {
+      ++restarts;
+      if (restarts == 0) {
+        memcpy(q, q0 + N * t, sizeof(q));
+      } else {
+        for (int j = 0; j < N; ++j) {
+          double u = (double)(optik_splitmix64(&rng) >> 11) * 0x1.0p-53;
+          q[j] = lower[j] + (upper[j] - lower[j]) * u;
+        }
+      }
+      if (OPTIK_ERRORS(e_arg, e_res, iw, w, 0)) { rc = -1; status = -1; break; }
+      if (pos <= stop_p && ori <= stop_o && clo <= stop_c) { answer = q; status = 0; break; }
+      mu = mu0;
+      double previous = INFINITY;
+      int out_of_time = 0;
+      for (casadi_int k = 1; k <= max_iter; ++k) {
+        if (OPTIK_STEP(s_arg, s_res, iw, w, 0)) { rc = -1; status = -1; break; }
+        ++iterations;
+        memcpy(q, q_new, sizeof(q));
+        mu = mu_new;
+        if (accept != 0.0) { pos = e3[0]; ori = e3[1]; clo = e3[2]; }
+        if (cost < best_cost) { best_cost = cost; memcpy(best, q, sizeof(best)); }
+        if (pos <= stop_p && ori <= stop_o && clo <= stop_c) { status = 0; goto done; }
+        if (optik_now() >= deadline) { out_of_time = 1; break; }
+        if (k % block == 0) {
+          if (cost > stall * previous) break;
+          previous = cost;
+        }
+      }
+      if (status == -1) break;
+      if (out_of_time || optik_now() >= deadline) { status = 1; answer = best; break; }
+      if (max_restarts >= 0 && restarts >= max_restarts) { status = 2; answer = best; break; }
+    }
+  done:
+    memcpy(q_out + N * t, answer, sizeof(q));
+    if (status != -1) { /* the errors of the answer (the best start's may be older) */
+      const double *a_arg[2] = {q_out + N * t, target};
+      if (OPTIK_ERRORS(a_arg, e_res, iw, w, 0)) { rc = -1; status = -1; }
+    }
+    err_out[3 * t] = pos;
+    err_out[3 * t + 1] = ori;
+    err_out[3 * t + 2] = clo;
+    iter_out[t] = iterations;
+    restart_out[t] = restarts;
+    status_out[t] = status;
+    time_out[t] = optik_now() - t0;
+  }
+  free(iw);
+  free(w);
+  return rc;
+}

@@ -1,0 +1,317 @@
+"""The compiled chunk kernel of method ``"lm"``: whole multi-start solves of many targets in C.
+
+One LM iteration (`lm_iteration_function`, the algorithm of `optik.solvers.lm`) and
+the success check's errors (`optik.solvers.evaluation.error_function`) are generated as C
+by CasADi and compiled together with optik's driver ``lm_chunk.c``, which runs, for each target
+of a chunk, the whole multi-start loop: iterations, stop test, stall test, restarts and the time
+limit, checked after every iteration. Python calls the driver once per chunk through ``ctypes``,
+which releases the GIL, so threads solve chunks on every core (`optik.batch`) and
+`optik.solve_ik` runs a chunk of one target: both give the same answer for the same seed.
+
+Restarts are drawn from a splitmix64 stream seeded with the target's seed:
+``u = (x >> 11) 2^-53`` in ``[0, 1)`` and ``q_j = lo_j + (hi_j - lo_j) u`` per coordinate.
+`target_seeds` derives the seed of target ``i`` of a batch from the batch seed: the
+``(i + 1)``-th output of splitmix64 started at that seed, shifted right by one bit. Without a C
+compiler (or with ``compile=False``) `LMKernel.run` runs the same loop in Python over
+CasADi's evaluator, with the same generator (same answers, slower).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import time
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from optik.mechanism import Mechanism
+from optik.native import library
+from optik.problem import IKProblem, build_ik_problem
+from optik.solvers.evaluation import error_function
+from optik.solvers.native import NativeFunction
+
+DRIVER = Path(__file__).with_name("lm_chunk.c")
+"""optik's C driver of the chunk loop."""
+
+STATUS = {0: "converged", 1: "time_limit", 2: "max_restarts"}
+"""Kernel status codes: stop thresholds met, time limit, restart cap."""
+
+MU_MIN, MU_MAX = 1e-12, 1e8
+"""Bounds of the LM damping."""
+
+_GOLDEN = 0x9E3779B97F4A7C15
+_MIX1, _MIX2 = 0xBF58476D1CE4E5B9, 0x94D049BB133111EB
+_MASK = (1 << 64) - 1
+_STEP, _ERRORS = "optik_lm_step", "optik_ik_errors"
+
+
+def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Function:
+    """One bounded LM iteration with the errors of the trial point, as an ``SX`` function.
+
+    ``(q, mu, target, weights, q_ref, gain) -> (q+, mu+, cost+, accepted, position error,
+    orientation error, closure error)``: the step of `optik.solvers.lm` from ``q``, the
+    projected trial point ``q_t = clip(q + dq, lo, hi)``, accepted when its cost
+    ``|e(q_t)|^2 / 2`` is below that of ``q``; the errors are those of ``q_t`` (the driver keeps
+    the previous ones when the trial is rejected).
+    """
+    m = problem.mechanism
+    q = problem.q
+    lo, hi = problem.lower, problem.upper
+    e = problem.weighted_residual(closure_weight if m.is_closed else None)
+    at = ca.Function("at", [q, problem.target, problem.weights], [e, *problem.error_expressions()])
+    mu, gain = ca.SX.sym("mu"), ca.SX.sym("gain")
+    jac = ca.jacobian(e, q)
+    g = ca.mtimes(jac.T, e)
+    free = 1 - ca.logic_or(ca.logic_and(q <= lo, g > 0), ca.logic_and(q >= hi, g < 0))
+    d = ca.diag(free)
+    lhs = ca.mtimes([d, ca.mtimes(jac.T, jac), d]) + mu * ca.SX.eye(m.n_q) + ca.diag(1 - free)
+    rhs = free * (-g + gain * mu * (problem.q_ref - q))
+    q_trial = ca.fmin(ca.fmax(q + ca.solve(lhs, rhs), lo), hi)
+    e_trial, pos, ori, clo = at(q_trial, problem.target, problem.weights)
+    cost, cost_trial = 0.5 * ca.sumsqr(e), 0.5 * ca.sumsqr(e_trial)
+    accept = cost_trial < cost
+    outs = [
+        ca.if_else(accept, q_trial, q),
+        ca.if_else(accept, ca.fmax(mu / 3, MU_MIN), ca.fmin(mu * 4, MU_MAX)),
+        ca.if_else(accept, cost_trial, cost),
+        accept,
+        pos,
+        ori,
+        clo,
+    ]
+    return ca.Function(
+        _STEP, [q, mu, problem.target, problem.weights, problem.q_ref, gain], [ca.densify(v) for v in outs]
+    )
+
+
+def target_seeds(seed: int, start: int, count: int) -> np.ndarray:
+    """Seeds of targets ``start .. start + count - 1`` of a batch seeded with ``seed`` (uint64,
+    each below 2^63): splitmix64 outputs ``start + 1 ..`` of the stream started at ``seed``."""
+    index = np.arange(start + 1, start + count + 1, dtype=np.uint64)
+    z = np.uint64(seed & _MASK) + np.uint64(_GOLDEN) * index
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(_MIX1)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(_MIX2)
+    return (z ^ (z >> np.uint64(31))) >> np.uint64(1)
+
+
+@dataclass(frozen=True)
+class Settings:
+    """The kernel's options (see `optik.solvers.lm`), one set for every target of a call.
+
+    Attributes:
+        block: iterations per stall test.
+        max_iter: iterations per start.
+        max_restarts: restart cap (-1: none).
+        time_limit: seconds per target.
+        mu0: initial damping.
+        stall: a start stops when a block ends above ``stall`` times the previous block's cost.
+        stop: position, orientation and closure errors below which a target is done.
+        gain: null-space posture gain.
+        weights: task weights ``(w_p, w_o)``.
+        q_ref: posture reference.
+    """
+
+    block: int
+    max_iter: int
+    max_restarts: int
+    time_limit: float
+    mu0: float
+    stall: float
+    stop: tuple[float, float, float]
+    gain: float
+    weights: tuple[float, float]
+    q_ref: np.ndarray
+
+    def conf(self, m: Mechanism) -> np.ndarray:
+        """The driver's ``conf`` vector (layout in ``lm_chunk.c``)."""
+        scalars = [self.block, self.max_iter, self.max_restarts, self.time_limit, self.mu0, self.stall]
+        scalars += [*self.stop, self.gain, *self.weights]
+        return np.concatenate([scalars, m.lower, m.upper, self.q_ref]).astype(float)
+
+
+@dataclass
+class Output:
+    """Per-target outputs of a kernel run (``N`` targets, ``n`` coordinates).
+
+    Attributes:
+        q: answers ``(N, n)``: the converged start, else the lowest-cost point seen.
+        errors: position, orientation and closure errors of ``q`` ``(N, 3)``.
+        iterations: LM iterations summed over the starts.
+        restarts: starts after the first.
+        status: codes of `STATUS`.
+        solve_time: seconds per target, measured in the kernel.
+    """
+
+    q: np.ndarray
+    errors: np.ndarray
+    iterations: np.ndarray
+    restarts: np.ndarray
+    status: np.ndarray
+    solve_time: np.ndarray
+
+
+_P = ctypes.c_void_p
+
+
+class LMKernel:
+    """The chunk kernel of one mechanism, task, frame and closure weight (thread-safe).
+
+    Args:
+        m: the mechanism.
+        task: task space.
+        frame: task frame (None: end effector).
+        closure_weight: weight of the loop-closure rows.
+        compile: as in `optik.native.library` (False: the Python loop; ``"auto"``: the
+            Python loop until the library built in the background is loaded).
+    """
+
+    def __init__(
+        self, m: Mechanism, task: str, frame: str | None, closure_weight: float, compile: bool | str
+    ) -> None:
+        problem = build_ik_problem(m, task, frame)
+        self.mechanism = m
+        self.step = lm_iteration_function(problem, closure_weight)
+        self.errors = error_function(problem)
+        defines = (
+            f"\n#define OPTIK_NQ {m.n_q}\n#define OPTIK_STEP {_STEP}\n#define OPTIK_STEP_WORK {_STEP}_work\n"
+            f"#define OPTIK_ERRORS {_ERRORS}\n#define OPTIK_ERRORS_WORK {_ERRORS}_work\n"
+        )
+        self.library = library([self.step, self.errors], compile, defines + DRIVER.read_text())
+        self._fn: Any = None
+
+    @property
+    def compiled(self) -> bool:
+        """True when `run` calls the compiled driver (False while it is being built)."""
+        return self._driver() is not None
+
+    def _driver(self) -> Any:
+        """The driver's entry point once the library is loaded, else None."""
+        if self._fn is None and self.library is not None:
+            lib = self.library.get()
+            if lib is not None:
+                fn = lib.optik_lm_chunk
+                fn.argtypes = [ctypes.c_longlong] + [_P] * 10
+                fn.restype = ctypes.c_int
+                self._fn = fn
+        return self._fn
+
+    def run(self, targets: np.ndarray, q0: np.ndarray, seeds: np.ndarray, conf: np.ndarray) -> Output:
+        """Solve ``N`` targets.
+
+        Args:
+            targets: target parameters ``(N, 12)`` (`optik.problem.target_parameters`).
+            q0: first start of each target ``(N, n)``.
+            seeds: restart seeds (uint64, ``(N,)``).
+            conf: `Settings.conf`.
+        """
+        n, nq = len(targets), self.mechanism.n_q
+        out = Output(
+            np.empty((n, nq)),
+            np.empty((n, 3)),
+            np.empty(n, dtype=np.int64),
+            np.empty(n, dtype=np.int64),
+            np.empty(n, dtype=np.int64),
+            np.empty(n),
+        )
+        fn = self._driver()
+        if fn is None:
+            start = time.perf_counter()
+            self._run_python(targets, q0, seeds, conf, out)
+            if self.library is not None:  # still building: account the time (see optik.native)
+                self.library.evaluated(time.perf_counter() - start)
+            return out
+        pairs = ((targets, float), (q0, float), (seeds, np.uint64))
+        ins = [np.ascontiguousarray(a, dtype=t) for a, t in pairs]
+        conf = np.ascontiguousarray(conf, dtype=float)
+        bufs = [*ins, conf, out.q, out.errors, out.iterations, out.restarts, out.status, out.solve_time]
+        if fn(n, *[b.ctypes.data for b in bufs]) != 0:
+            from optik.errors import SolverUnavailableError
+
+            raise SolverUnavailableError("optik_lm_chunk: evaluation of the generated code failed")
+        return out
+
+    def _run_python(
+        self, targets: np.ndarray, q0: np.ndarray, seeds: np.ndarray, conf: np.ndarray, out: Output
+    ) -> None:
+        """The loop of ``lm_chunk.c`` in Python over CasADi's evaluator (no compiler)."""
+        nq = self.mechanism.n_q
+        step, errors = NativeFunction(self.step), NativeFunction(self.errors)
+        block, max_iter, max_restarts = int(conf[0]), int(conf[1]), int(conf[2])
+        time_limit, mu0, stall = conf[3], conf[4], conf[5]
+        stop = conf[6:9]
+        lo, hi = conf[12 : 12 + nq], conf[12 + nq : 12 + 2 * nq]
+        step.inputs[3][:] = conf[10:12]
+        step.inputs[4][:] = conf[12 + 2 * nq :]
+        step.inputs[5][0] = conf[9]
+
+        def check(q: np.ndarray, target: np.ndarray) -> np.ndarray:
+            errors.inputs[0][:] = q
+            errors.inputs[1][:] = target
+            return np.array([float(v[0]) for v in errors()])
+
+        for t, target in enumerate(targets):
+            t0 = time.perf_counter()
+            deadline = t0 + time_limit
+            state = int(seeds[t])
+            step.inputs[2][:] = target
+            best, best_cost = q0[t].copy(), np.inf
+            iterations, restarts, status, answer = 0, -1, 0, None
+            while answer is None:
+                restarts += 1
+                if restarts == 0:
+                    q = q0[t].copy()
+                else:
+                    u = np.empty(nq)
+                    for j in range(nq):
+                        state = (state + _GOLDEN) & _MASK
+                        z = ((state ^ (state >> 30)) * _MIX1) & _MASK
+                        z = ((z ^ (z >> 27)) * _MIX2) & _MASK
+                        u[j] = ((z ^ (z >> 31)) >> 11) * 2.0**-53
+                    q = lo + (hi - lo) * u
+                err = check(q, target)
+                if (err <= stop).all():
+                    answer = q
+                    break
+                mu, previous, out_of_time = mu0, np.inf, False
+                for k in range(1, max_iter + 1):
+                    step.inputs[0][:] = q
+                    step.inputs[1][0] = mu
+                    q_new, mu_new, cost, accept, *trial = step()
+                    iterations += 1
+                    q, mu, c = q_new.copy(), float(mu_new[0]), float(cost[0])
+                    if accept[0] != 0.0:
+                        err = np.array([float(v[0]) for v in trial])
+                    if c < best_cost:
+                        best, best_cost = q.copy(), c
+                    if (err <= stop).all():
+                        answer = q
+                        break
+                    if time.perf_counter() >= deadline:
+                        out_of_time = True
+                        break
+                    if k % block == 0:
+                        if c > stall * previous:
+                            break
+                        previous = c
+                if answer is not None:
+                    break
+                if out_of_time or time.perf_counter() >= deadline:
+                    status, answer = 1, best
+                elif 0 <= max_restarts <= restarts:
+                    status, answer = 2, best
+            out.q[t] = answer
+            out.errors[t] = check(answer, target)
+            out.iterations[t], out.restarts[t], out.status[t] = iterations, restarts, status
+            out.solve_time[t] = time.perf_counter() - t0
+
+
+@lru_cache(maxsize=64)
+def kernel(
+    m: Mechanism, task: str, frame: str | None, closure_weight: float, compile: bool | str
+) -> LMKernel:
+    """The `LMKernel` of a mechanism, task, frame and closure weight (built once)."""
+    return LMKernel(m, task, frame, closure_weight, compile)

@@ -1,0 +1,83 @@
+"""``optik view PROBLEM|URDF``: serve a mechanism in the browser until Ctrl-C.
+
+``PROBLEM`` is a problem name or ``.toml`` file, resolved like ``optik solve`` does (its
+mechanism, task and tolerances); a ``.urdf`` file needs ``--base`` and ``--tip``. The page binds
+to ``127.0.0.1`` (this machine); ``--host 0.0.0.0`` serves it to the network (or keep the default
+and forward the port: ``ssh -L 8080:localhost:8080 HOST``). Ctrl-C (SIGINT) or SIGTERM stops the
+server and exits with code 0.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import time
+import webbrowser
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+__all__ = ["add_parser", "run"]
+
+
+def add_parser(sub: Any) -> None:
+    """Register ``view`` on the ``optik`` subcommand parsers."""
+    p = sub.add_parser(
+        "view",
+        help="interactive 3-D viewer in the browser (drag the IK target, branches, assembly modes)",
+        description=(
+            "Serve a mechanism in a local web page (viser): drag the target gizmo and the arm follows "
+            "by IK, show every IK branch, move joint or actuator sliders (every assembly mode of a "
+            "closed chain), track a path. Binds to 127.0.0.1 unless --host says otherwise; Ctrl-C stops."
+        ),
+    )
+    p.add_argument("source", metavar="PROBLEM|URDF", help="problem name or .toml file, or a .urdf file")
+    p.add_argument("--base", help="base link of a URDF chain")
+    p.add_argument("--tip", help="tip link of a URDF chain")
+    p.add_argument("--port", type=int, default=8080, help="TCP port (default: %(default)s, or the next free)")
+    p.add_argument("--host", default="127.0.0.1", help="interface to bind (default: %(default)s)")
+    p.add_argument("--method", help="IK method of the gizmo (default: the best available)")
+    p.add_argument("--no-browser", action="store_true", help="do not open a browser window")
+    p.add_argument("--problems-dir", metavar="DIR", help="directory of problem files (default: problems/)")
+    p.set_defaults(func=run)
+
+
+def _viewer(args: argparse.Namespace) -> Any:
+    from optik.errors import InvalidArgumentError
+    from optik.mechanism import Mechanism
+    from optik.problem_files import find_problem
+    from optik.view import Viewer
+
+    if not 0 <= args.port <= 65535:
+        raise InvalidArgumentError("--port", f"expected 0..65535, got {args.port}")
+    if Path(args.source).suffix.lower() == ".urdf":
+        if args.base is None or args.tip is None:
+            raise InvalidArgumentError("--base", "a URDF file needs --base and --tip (the chain's end links)")
+        m, task, tol = Mechanism.from_urdf(args.source, args.base, args.tip), None, None
+    else:
+        problem = find_problem(args.source, args.problems_dir)
+        m, task, tol = problem.mechanism(), problem.mechanism_task, problem.tolerances
+    return Viewer(m, host=args.host, port=args.port, task=task, tol=tol, method=args.method)
+
+
+def _interrupt(signum: int, frame: FrameType | None) -> None:
+    raise KeyboardInterrupt
+
+
+def run(args: argparse.Namespace) -> int:
+    """Body of ``optik view``: serve until SIGINT / SIGTERM, then stop the server; exit code 0."""
+    viewer = _viewer(args)
+    previous = signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        print(f"optik view: {viewer.m.name} at {viewer.url} (Ctrl-C to stop)", flush=True)
+        if not args.no_browser:
+            webbrowser.open(viewer.url)
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        viewer.close()
+    print("optik view: stopped", flush=True)
+    return 0

@@ -1,0 +1,414 @@
+"""`Viewer`: a mechanism in a local viser web page, with its IK target, branches and modes.
+
+The page is served by a `viser.ViserServer` (its own threads: the caller is never blocked).
+Every interaction of the page has a Python twin on `Viewer`, so that scripts, notebooks and
+tests drive the same code paths as a mouse:
+
+========================  ==================================================================
+page                      Python
+========================  ==================================================================
+drag the target gizmo     `Viewer.set_target` (IK from the shown ``q`` as the seed)
+IK method dropdown        `Viewer.method`
+"all solutions" box       `Viewer.show_all_solutions` (every branch of ``solve_ik_all``)
+joint sliders             `Viewer.set_q` (FK)
+actuator sliders          `Viewer.set_actuated` (closed chains: every assembly mode)
+"next assembly mode"      `Viewer.show_mode`
+"track a circle", time    `Viewer.track`, `Viewer.show_path_sample`
+========================  ==================================================================
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+import threading
+from typing import Any
+
+import numpy as np
+
+from optik import spatial
+from optik.checks import as_vector
+from optik.diffik import circle_path, track
+from optik.diffik.track import TrackResult
+from optik.errors import InvalidArgumentError, SolverUnavailableError
+from optik.mechanism import Mechanism
+from optik.results import IKResult
+from optik.solvers import methods, pick_method, solve_ik, solve_ik_all
+from optik.solvers.base import Tolerances, joint_distance, positive_int
+from optik.solvers.fk import solve_fk, solve_fk_all
+from optik.targets import target_transform
+from optik.view.latest import Latest
+from optik.view.scene import RobotDrawing, Style, extent, poses
+from optik.view.shapes import rotation, wxyz
+
+__all__ = ["Viewer", "view"]
+
+PLANAR_TASKS = ("pose2d", "position2d")
+GHOST = Style(link=(120, 170, 230), ground=(120, 120, 120), slide=(230, 150, 120), opacity=0.3, frames=False)
+
+
+def _viser() -> Any:
+    try:
+        import viser
+    except ImportError:  # pragma: no cover - the view extra is installed in the test environment
+        raise ImportError("optik.view needs viser: pip install 'optik[view]'") from None
+    return viser
+
+
+def _positive(value: Any, name: str) -> float:
+    v = float(as_vector(value, name, 1)[0])
+    if not v > 0:
+        raise InvalidArgumentError(name, f"must be > 0, got {value!r}")
+    return v
+
+
+def applicable_methods(m: Mechanism, task: str) -> list[str]:
+    """IK methods of `optik.solve_ik` that apply to ``m`` with ``task``."""
+    return [name for name, info in methods().items() if info.applies(m, task)]
+
+
+class Viewer:
+    """A mechanism in a local web page: links, joint frames, end effector and a draggable target.
+
+    Args:
+        m: the mechanism.
+        q: first configuration (default: mid-limit; for a closed chain, the first assembly mode
+            of the mid-limit actuated values).
+        host: interface to bind (default ``127.0.0.1``: this machine only; ``0.0.0.0`` exposes
+            the page to the network).
+        port: TCP port (viser takes the next free one when it is busy; see `Viewer.url`).
+        task: IK task space (default: the mechanism's).
+        method: IK method of the target gizmo (default: `optik.solvers.pick_method`).
+        time_limit: seconds per IK solve of a gizmo move.
+        tol: success tolerances of the solves.
+        all_time_limit: seconds for ``solve_ik_all`` / ``solve_fk_all``.
+        max_ghosts: at most this many IK branches are drawn (a redundant arm has a continuum).
+
+    Raises:
+        InvalidArgumentError: bad ``q``, ``method``, ``time_limit``.
+        SolverUnavailableError: ``method`` does not apply to ``m``.
+    """
+
+    def __init__(
+        self,
+        m: Mechanism,
+        q: Any = None,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 8080,
+        task: str | None = None,
+        method: str | None = None,
+        time_limit: float = 0.05,
+        tol: float | Tolerances | None = None,
+        all_time_limit: float = 1.0,
+        max_ghosts: int = 16,
+    ) -> None:
+        viser = _viser()
+        self.m = m
+        self.task = m.task if task is None else task
+        self.tol = tol
+        self.time_limit = _positive(time_limit, "time_limit")
+        self.all_time_limit = _positive(all_time_limit, "all_time_limit")
+        self.max_ghosts = positive_int(max_ghosts, "max_ghosts")
+        self.methods = applicable_methods(m, self.task)
+        self._method = ""
+        self.method = pick_method(m, self.task) if method is None else method
+        self._lock = threading.RLock()
+        self.result: IKResult | None = None
+        """The last IK answer (None before the first target)."""
+        self.solutions: list[IKResult] = []
+        """The branches shown by "all solutions" (empty when it is off)."""
+        self.modes: list[np.ndarray] = []
+        """The assembly modes of the last actuator values (closed chains)."""
+        self.path: TrackResult | None = None
+        """The last tracked path."""
+        self._all = False
+        self._q = self._first_q(q)
+        with contextlib.redirect_stdout(io.StringIO()):  # viser prints a banner; `url` tells the address
+            self.server = viser.ViserServer(host=host, port=int(port), label=f"optik: {m.name}")
+        self.server.gui.configure_theme(show_share_button=False)  # no public share tunnel from the page
+        self.size = extent(m, self._q)
+        self._draw_scene()
+        self._ghosts: list[RobotDrawing] = []
+        from optik.view.panel import Panel  # the panel calls back into this object
+
+        self.panel = Panel(self)
+        solve = Latest(self.panel.guard(self._solve_target))
+        self.gizmo.on_update(lambda _event: solve(self._gizmo_pose()))
+        self.set_q(self._q)
+        if m.is_closed:
+            self.modes = [self._q]
+
+    # ------------------------------------------------------------------ setup
+    def _first_q(self, q: Any) -> np.ndarray:
+        if q is not None:
+            return self.m.check_q(q)
+        mid = self.m.mid_q()
+        if not self.m.is_closed:
+            return mid
+        modes = solve_fk_all(self.m, mid[self.m.actuated_indices], time_limit=self.all_time_limit)
+        if modes:
+            return np.asarray(modes[0].q, dtype=float)
+        return np.asarray(solve_fk(self.m, mid[self.m.actuated_indices]).q, dtype=float)
+
+    def _draw_scene(self) -> None:
+        scene, size = self.server.scene, self.size
+        scene.set_up_direction("+z")
+        center = poses(self.m, self._q).geometry().points().mean(axis=0)
+        cell = 10 ** math.floor(math.log10(size / 2))
+        scene.add_grid(
+            "/ground",
+            width=4 * size,
+            height=4 * size,
+            cell_size=cell,
+            section_size=10 * cell,
+            position=(center[0], center[1], 0.0),
+        )
+        self.robot = RobotDrawing(scene, self.m, self._q, "/robot", Style(radius=0.02 * size))
+        planar = self.task in PLANAR_TASKS
+        self.gizmo = scene.add_transform_controls(
+            "/target",
+            scale=0.3 * size,
+            active_axes=(True, True, not planar),
+            disable_rotations=self.task in ("position", "position2d"),
+            disable_axes=self.task == "orientation",
+            depth_test=False,
+        )
+        camera = self.server.initial_camera
+        view_dir = np.array([0.0, -0.55, 1.0]) if self.m.planar else np.array([1.3, -1.5, 0.9])
+        camera.look_at = tuple(center)
+        camera.position = tuple(center + 1.6 * size * view_dir / np.linalg.norm(view_dir) * 1.4)
+        camera.up = (0.0, 0.0, 1.0)
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def url(self) -> str:
+        """Address of the page."""
+        return f"http://{self.server.get_host()}:{self.server.get_port()}"
+
+    @property
+    def port(self) -> int:
+        """TCP port the page is served on."""
+        return int(self.server.get_port())
+
+    @property
+    def q(self) -> np.ndarray:
+        """The displayed configuration (a copy)."""
+        return self._q.copy()
+
+    @property
+    def target(self) -> np.ndarray:
+        """The target gizmo's pose (4x4; projected on the plane for planar tasks)."""
+        return self._gizmo_pose()
+
+    @property
+    def method(self) -> str:
+        """IK method of the gizmo; assigning checks that it applies."""
+        return self._method
+
+    @method.setter
+    def method(self, name: str) -> None:
+        if name not in methods():
+            raise InvalidArgumentError("method", f"unknown IK method {name!r}; known: {sorted(methods())}")
+        if name not in self.methods:
+            raise SolverUnavailableError(f"method {name!r} does not apply to {self.m.name!r} ({self.task})")
+        self._method = name
+
+    # ------------------------------------------------------------------ target and IK
+    def _gizmo_pose(self) -> np.ndarray:
+        t = spatial.transform(rotation(self.gizmo.wxyz), np.asarray(self.gizmo.position, dtype=float))
+        if self.task in PLANAR_TASKS:
+            x, y, phi = spatial.planar_pose_of(t)
+            return spatial.planar_pose(x, y, phi)
+        return t
+
+    def _move_gizmo(self, t: np.ndarray) -> None:
+        self.gizmo.position, self.gizmo.wxyz = t[:3, 3], wxyz(t[:3, :3])
+
+    def set_target(self, target: Any) -> IKResult:
+        """Move the target gizmo to ``target`` and solve IK from the displayed configuration (what a
+        drag of the gizmo does); the arm moves to the answer (the closest configuration found when
+        it fails, with the reason in the status line).
+
+        Args:
+            target: 4x4 transform, `optik.Pose2D` or `optik.Position`.
+
+        Returns:
+            The `optik.IKResult`.
+        """
+        t = target_transform(target)
+        with self._lock:
+            self._move_gizmo(t)
+            return self._solve_target(self._gizmo_pose())
+
+    def _solve_target(self, t: np.ndarray) -> IKResult:
+        with self._lock:
+            res = solve_ik(
+                self.m, t, self._q, self._method, task=self.task, time_limit=self.time_limit, tol=self.tol
+            )
+            self.result = res
+            if np.all(np.isfinite(res.q)):
+                self._show_q(np.asarray(res.q, dtype=float))
+            self.panel.show_result(res)
+            if self._all:
+                self._solve_all(t)
+            else:
+                self._show_ghosts([])
+            return res
+
+    def show_all_solutions(self, on: bool = True) -> list[IKResult]:
+        """Draw every branch of `optik.solve_ik_all` for the current target as translucent ghosts
+        (and keep doing it on every gizmo move while ``on``); returns the branches."""
+        with self._lock:
+            self._all = bool(on)
+            self.panel.set_all(self._all)
+            if not self._all:
+                self.solutions = []
+                self._show_ghosts([])
+                return []
+            return self._solve_all(self._gizmo_pose())
+
+    def _solve_all(self, t: np.ndarray) -> list[IKResult]:
+        sols = solve_ik_all(
+            self.m,
+            t,
+            self._q,
+            task=self.task,
+            time_limit=self.all_time_limit,
+            tol=self.tol,
+            max_solutions=self.max_ghosts,
+        )
+        self.solutions = [r for r in sols if r.success]
+        self._show_ghosts([r.q for r in self.solutions])
+        self.panel.show_branches(
+            len(self.solutions), len(sols) - len(self.solutions), len(sols) >= self.max_ghosts
+        )
+        return self.solutions
+
+    # ------------------------------------------------------------------ FK
+    def _show_q(self, q: np.ndarray) -> None:
+        self._q = q
+        self.robot.update(q)
+        self.panel.sync(q)
+
+    def set_q(self, q: Any) -> np.ndarray:
+        """Show configuration ``q`` (what the joint sliders do) and put the target on its end
+        effector; returns the end-effector pose."""
+        q = self.m.check_q(q)
+        with self._lock:
+            self._show_q(q)
+            pose = self.m.fk(q)
+            self._move_gizmo(pose)
+            return pose
+
+    def set_actuated(self, values: Any) -> list[np.ndarray]:
+        """Closed chains: every assembly mode of the actuated coordinates ``values`` (what the
+        actuator sliders do, through `optik.solve_fk_all`). The mode nearest to the displayed
+        configuration is shown, the others are ghosts; an input that does not assemble leaves the
+        configuration as it is and says so.
+
+        Raises:
+            InvalidArgumentError: open chain (use `set_q`), or wrong number of values.
+        """
+        if not self.m.is_closed:
+            raise InvalidArgumentError("values", f"{self.m.name!r} is an open chain: use set_q")
+        a = as_vector(values, "values", len(self.m.actuated_indices))
+        with self._lock:
+            found = solve_fk_all(self.m, a, time_limit=self.all_time_limit, tol=self.tol)
+            self.modes = [np.asarray(r.q, dtype=float) for r in found]
+            if self.modes:
+                gaps = [joint_distance(self.m, q, self._q) for q in self.modes]
+                self.show_mode(int(np.argmin(gaps)))
+            else:
+                self._show_ghosts([])
+                self.panel.show_modes(0, None)
+            return [q.copy() for q in self.modes]
+
+    def show_mode(self, index: int) -> np.ndarray:
+        """Show assembly mode ``index`` of `modes` (the others as ghosts); returns it."""
+        if not 0 <= int(index) < len(self.modes):
+            raise InvalidArgumentError("index", f"expected 0 <= index < {len(self.modes)}, got {index!r}")
+        with self._lock:
+            k = int(index)
+            self.set_q(self.modes[k])
+            self._show_ghosts([q for i, q in enumerate(self.modes) if i != k])
+            self.panel.show_modes(len(self.modes), k)
+            return self.modes[k].copy()
+
+    def _show_ghosts(self, qs: list[np.ndarray]) -> None:
+        for k, q in enumerate(qs):
+            if k < len(self._ghosts):
+                self._ghosts[k].update(q)
+                self._ghosts[k].set_visible(True)
+            else:
+                style = Style(**{**GHOST.__dict__, "radius": 0.02 * self.size})
+                self._ghosts.append(RobotDrawing(self.server.scene, self.m, q, f"/ghosts/{k}", style))
+        for ghost in self._ghosts[len(qs) :]:
+            if ghost.visible:
+                ghost.set_visible(False)
+
+    # ------------------------------------------------------------------ paths
+    def track(self, path: Any = None, dt: float = 0.02, method: str = "qp") -> TrackResult:
+        """Follow a path with `optik.diffik.track` from the displayed configuration and keep it for
+        playback (`show_path_sample`, the time slider).
+
+        Args:
+            path: ``(N, 4, 4)`` poses (default: a circle of 100 poses around the end effector,
+                radius a sixth of the mechanism's size, in the horizontal plane, at the current
+                tool orientation).
+            dt: control period (s).
+            method: differential-IK method of `optik.diffik.step`.
+        """
+        with self._lock:
+            if path is None:
+                pose = self.m.fk(self._q)
+                r = self.size / 6
+                center = pose[:3, 3] - np.array([r, 0.0, 0.0])
+                path = circle_path(center, r, 100, rotation=pose[:3, :3])
+            result = track(self.m, self._q, path, dt, method, space=self.task)
+            self.path = result
+            self._path_targets = np.asarray(path, dtype=float)
+            pts = self._path_targets[:, :3, 3]
+            segments = np.stack([pts[:-1], pts[1:]], axis=1)
+            self.server.scene.add_line_segments(
+                "/path", segments, (230, 60, 160), thickness=0.004 * self.size
+            )
+            self.panel.show_path(result)
+            return result
+
+    def show_path_sample(self, k: int) -> np.ndarray:
+        """Show configuration ``k`` of the tracked path (0: the start) with its target; returns it."""
+        if self.path is None:
+            raise InvalidArgumentError("k", "no tracked path: call track first")
+        n = len(self.path.q)
+        if not 0 <= int(k) < n:
+            raise InvalidArgumentError("k", f"expected 0 <= k < {n}, got {k!r}")
+        with self._lock:
+            q = self.path.q[int(k)]
+            self._show_q(q)
+            self._move_gizmo(self._path_targets[max(int(k) - 1, 0)])
+            return q.copy()
+
+    # ------------------------------------------------------------------ lifetime
+    def close(self) -> None:
+        """Stop the server (the page disconnects)."""
+        self.panel.stop()
+        with contextlib.redirect_stdout(io.StringIO()):  # viser's "Server stopped"
+            self.server.stop()
+
+    def __enter__(self) -> Viewer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"Viewer({self.m.name!r}, url={self.url!r})"
+
+
+def view(m: Mechanism, q: Any = None, **options: Any) -> Viewer:
+    """Show ``m`` in a local web page and return the `Viewer` without blocking (scripts,
+    notebooks): ``v = optik.view(m); v.set_target(T); v.q; v.close()``. ``options`` are those of
+    `Viewer` (``port``, ``host``, ``method``...). Open `Viewer.url` in a browser."""
+    return Viewer(m, q, **options)

@@ -1,0 +1,140 @@
+"""solve_ik_batch and fk_batch: answers equal to solve_ik, independent of chunks and threads."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+
+import optik
+from optik.batch import BatchResult, fk_batch, solve_ik_batch
+from optik.batch.chunk import wrap_rows
+from optik.batch.fk import CHUNK
+
+PANDA = optik.catalog.panda()
+
+
+def _panda_targets(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    return fk_batch(PANDA, PANDA.random_q(n, seed=seed)), PANDA.random_q(n, seed=seed + 1)
+
+
+def test_batch_equals_solve_ik_with_each_targets_seed() -> None:
+    targets, q0 = _panda_targets(40, 11)
+    res = solve_ik_batch(PANDA, targets, q0, tol=1e-5, seed=3, time_limit=0.5)
+    assert len(res) == 40 and res.success.all() and res.restarts.sum() > 0
+    assert len(set(res.seed.tolist())) == 40
+    for i in range(40):
+        one = optik.solve_ik(
+            PANDA, targets[i], q0[i], method="lm", tol=1e-5, seed=int(res.seed[i]), time_limit=0.5
+        )
+        np.testing.assert_array_equal(one.q, res.q[i])
+        assert one.iterations == res.iterations[i] and one.restarts == res.restarts[i]
+        assert one.status == res.status[i] == "solved"
+        assert one.position_error == res.position_error[i]
+        assert one.orientation_error == res.orientation_error[i]
+    # the success is real: FK of the answers, limits
+    pose = fk_batch(PANDA, res.q)
+    assert np.abs(pose[:, :3, 3] - targets[:, :3, 3]).max() <= 1e-5
+    assert ((res.q >= PANDA.lower) & (res.q <= PANDA.upper)).all()
+
+
+def test_answers_do_not_depend_on_chunks_or_threads() -> None:
+    targets, q0 = _panda_targets(60, 21)
+    a = solve_ik_batch(PANDA, targets, q0, tol=1e-6, seed=9, workers=1)
+    b = solve_ik_batch(PANDA, targets, q0, tol=1e-6, seed=9, workers=2, chunk_size=7)
+    for name in ("q", "success", "iterations", "restarts", "status", "seed", "position_error"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    c = solve_ik_batch(PANDA, targets, q0, tol=1e-6, seed=10, workers=2)
+    assert not np.array_equal(a.seed, c.seed)
+
+
+def test_unreachable_targets_fail_within_their_time_limit() -> None:
+    far = np.tile(np.eye(4), (3, 1, 1))
+    far[:, :3, 3] = [[2.0, 0, 0.3], [0, 2.5, 0.3], [0.1, 0.0, 0.5]]
+    far[2] = PANDA.fk(PANDA.random_q(seed=1))  # reachable, in the middle
+    res = solve_ik_batch(PANDA, far, time_limit=0.02, workers=2, chunk_size=1)
+    assert res.success.tolist() == [False, False, True]
+    assert res.status.tolist()[:2] == ["time_limit", "time_limit"]
+    assert (res.solve_time[:2] >= 0.02).all() and (res.solve_time[:2] < 0.08).all()
+    assert (res.position_error[:2] > 0.5).all()
+    capped = solve_ik_batch(PANDA, far[:1], max_restarts=2)
+    assert capped.status.tolist() == ["max_restarts"] and capped.restarts.tolist() == [2]
+    assert capped.result(0).message and not capped.result(0).success
+
+
+def test_positions_pose2d_and_shared_start() -> None:
+    arm = optik.catalog.planar_3r(lengths=(1.0, 0.8, 0.5))
+    qs = arm.random_q(12, seed=4)
+    poses = fk_batch(arm, qs)
+    targets = [optik.Pose2D(t[0, 3], t[1, 3], np.arctan2(t[1, 0], t[0, 0])) for t in poses]
+    res = solve_ik_batch(arm, targets, q0=[0.1, 0.2, 0.3], seed=1)
+    assert res.success.all()
+    np.testing.assert_allclose(fk_batch(arm, res.q)[:, :2, 3], poses[:, :2, 3], atol=1e-6)
+    one = optik.solve_ik(arm, targets[5], [0.1, 0.2, 0.3], method="lm", seed=int(res.seed[5]))
+    np.testing.assert_array_equal(one.q, res.q[5])
+    pos = solve_ik_batch(PANDA, fk_batch(PANDA, PANDA.random_q(5, seed=2))[:, :3, 3], tol=1e-6)
+    assert pos.success.all() and (pos.orientation_error == 0).all()
+
+
+def test_other_methods_loop_over_solve_ik() -> None:
+    arm = optik.catalog.planar_3r(lengths=(1.0, 0.8, 0.5))
+    targets = fk_batch(arm, arm.random_q(4, seed=7))
+    res = solve_ik_batch(arm, targets, method="closed_form")
+    assert res.method == "closed_form" and res.success.all()
+    for i in range(4):
+        np.testing.assert_array_equal(optik.solve_ik(arm, targets[i], method="closed_form").q, res.q[i])
+
+
+def test_table_records_and_concatenation() -> None:
+    targets, _ = _panda_targets(3, 5)
+    res = solve_ik_batch(PANDA, targets)
+    rows = res.records()
+    assert len(rows) == 3 and rows[1]["status"] == res.status[1] and rows[1]["q"] == res.q[1].tolist()
+    both = BatchResult.concatenate([res, res])
+    assert len(both) == 6 and both.success_rate == res.success_rate
+    assert res.throughput > 0
+    empty = solve_ik_batch(PANDA, np.zeros((0, 4, 4)))
+    assert len(empty) == 0 and empty.q.shape == (0, 7)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "name"),
+    [
+        ({"targets": np.zeros((3, 4))}, optik.ShapeError, "targets"),
+        ({"targets": np.full((2, 4, 4), np.nan)}, optik.NonFiniteError, "targets"),
+        ({"targets": np.tile(2 * np.eye(4), (2, 1, 1))}, optik.InvalidArgumentError, "targets"),
+        ({"q0": np.zeros((3, 7))}, optik.ShapeError, "q0"),
+        ({"bogus": 1}, optik.InvalidArgumentError, "bogus"),
+        ({"workers": 0}, optik.InvalidArgumentError, "workers"),
+        ({"seed": -1}, optik.InvalidArgumentError, "seed"),
+        ({"time_limit": 0.0}, optik.InvalidArgumentError, "time_limit"),
+        ({"scheduler": 3}, optik.InvalidArgumentError, "scheduler"),
+    ],
+)
+def test_bad_input_names_the_argument(kwargs: dict, error: type, name: str) -> None:
+    args = {"targets": np.tile(np.eye(4), (2, 1, 1)), **kwargs}
+    with pytest.raises(error, match=f"^{name}"):
+        solve_ik_batch(PANDA, **args)
+
+
+def test_fk_batch_matches_fk_and_wrap_rows_matches_wrap() -> None:
+    q = PANDA.random_q(CHUNK * 2 + 17, seed=3)
+    np.testing.assert_array_equal(fk_batch(PANDA, q, workers=2), PANDA.fk(q))
+    np.testing.assert_array_equal(fk_batch(PANDA, q[:3], frame="ee"), PANDA.fk(q[:3]))
+    with pytest.raises(optik.UnknownFrameError):
+        fk_batch(PANDA, q, frame="nope")
+    wild = np.random.default_rng(0).uniform(-12, 12, (300, 7))  # joint 6's limits exceed pi
+    np.testing.assert_array_equal(wrap_rows(PANDA, wild), np.array([PANDA.wrap(r) for r in wild]))
+
+
+def test_mechanism_pickles_by_definition() -> None:
+    m = optik.catalog.panda()
+    m.fk(m.mid_q())  # built CasADi functions must not be pickled
+    back = pickle.loads(pickle.dumps(m))
+    assert back.kind == m.kind and back.params.keys() == m.params.keys() and back.name == m.name
+    q = m.random_q(seed=1)
+    np.testing.assert_array_equal(back.fk(q), m.fk(q))
+    np.testing.assert_array_equal(back.lower, m.lower)
+    closed = optik.catalog.five_bar()
+    assert pickle.loads(pickle.dumps(closed)).n_closure == closed.n_closure

@@ -1,0 +1,45 @@
+"""solve_ik_batch on a two-process Dask LocalCluster: the answers of the local run, in order."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import optik
+from optik.batch import fk_batch, solve_ik_batch
+
+distributed = pytest.importorskip("distributed", reason="needs the dist extra (pip install 'optik[dist]')")
+
+
+@pytest.fixture(scope="module")
+def client():
+    cluster = distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=40
+    )
+    with distributed.Client(cluster) as c:
+        yield c
+    cluster.close()
+
+
+def test_cluster_answers_equal_the_local_run(client) -> None:
+    m = optik.catalog.panda()
+    targets = fk_batch(m, m.random_q(300, seed=5))
+    q0 = m.random_q(300, seed=6)
+    local = solve_ik_batch(m, targets, q0, tol=1e-5, seed=2)
+    remote = solve_ik_batch(m, targets, q0, tol=1e-5, seed=2, scheduler=client, chunk_size=16)
+    assert remote.workers == 2 and remote.success.all()
+    for name in ("q", "success", "iterations", "restarts", "status", "seed", "position_error"):
+        np.testing.assert_array_equal(getattr(remote, name), getattr(local, name))
+    # both workers solved chunks, each from its own unpickled mechanism
+    who = client.run(
+        lambda: __import__("optik.solvers.lm_kernel").solvers.lm_kernel.kernel.cache_info().currsize
+    )
+    assert sorted(who.values()) == [1, 1]
+    again = solve_ik_batch(m, targets[:20], q0[:20], tol=1e-5, seed=2, scheduler=client)
+    np.testing.assert_array_equal(again.q, local.q[:20])
+    assert (
+        client.run(
+            lambda: __import__("optik.solvers.lm_kernel").solvers.lm_kernel.kernel.cache_info().currsize
+        )
+        == who
+    )

@@ -1,0 +1,87 @@
+"""The compiled chunk kernel of "lm": the C driver against its Python twin, limits, seeds."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+import optik
+from optik.problem import target_parameters
+from optik.solvers.lm_kernel import STATUS, LMKernel, Settings, target_seeds
+
+
+def _settings(m: optik.Mechanism, **over: object) -> Settings:
+    base = {
+        "block": 5,
+        "max_iter": 100,
+        "max_restarts": -1,
+        "time_limit": 1.0,
+        "mu0": 1e-2,
+        "stall": 0.7,
+        "stop": (5e-7, 5e-7, 5e-10),
+        "gain": 0.0,
+        "weights": (1.0, 1.0),
+        "q_ref": m.mid_q(),
+    }
+    return Settings(**{**base, **over})
+
+
+def test_compiled_driver_and_python_loop_agree() -> None:
+    m = optik.catalog.panda()
+    n = 6
+    targets = np.stack([target_parameters(t) for t in m.fk(m.random_q(n, seed=3))])
+    q0 = m.random_q(n, seed=4)  # random starts: restarts happen
+    seeds = target_seeds(7, 0, n)
+    conf = _settings(m).conf(m)
+    compiled = LMKernel(m, "pose", None, 100.0, True)
+    python = LMKernel(m, "pose", None, 100.0, False)
+    assert compiled.compiled and not python.compiled
+    a, b = compiled.run(targets, q0, seeds, conf), python.run(targets, q0, seeds, conf)
+    np.testing.assert_allclose(a.q, b.q, atol=1e-12)
+    np.testing.assert_array_equal(a.iterations, b.iterations)
+    np.testing.assert_array_equal(a.restarts, b.restarts)
+    np.testing.assert_array_equal(a.status, b.status)
+    assert (a.status == 0).all() and a.restarts.sum() > 0
+    assert (a.errors[:, :2] <= 5e-7).all()
+    # the reported errors are those of the answer, recomputed independently
+    for i in range(n):
+        assert m.within_limits(a.q[i])
+        pos = np.linalg.norm(m.fk(a.q[i])[:3, 3] - targets[i][9:])
+        assert pos == pytest.approx(a.errors[i, 0], abs=1e-12)
+
+
+def test_time_limit_and_restart_cap_are_honoured_per_target() -> None:
+    m = optik.catalog.panda()
+    far = np.eye(4)
+    far[:3, 3] = [3.0, 0.0, 0.5]  # out of reach
+    k = LMKernel(m, "pose", None, 100.0, "auto")
+    targets = np.stack([target_parameters(far)] * 2)
+    q0 = np.stack([m.mid_q()] * 2)
+    t0 = time.perf_counter()
+    out = k.run(targets, q0, target_seeds(0, 0, 2), _settings(m, time_limit=0.02).conf(m))
+    wall = time.perf_counter() - t0
+    assert [STATUS[s] for s in out.status] == ["time_limit", "time_limit"]
+    assert (out.solve_time >= 0.02).all() and (out.solve_time < 0.08).all()
+    assert wall < 0.2
+    out = k.run(targets, q0, target_seeds(0, 0, 2), _settings(m, max_restarts=3).conf(m))
+    assert [STATUS[s] for s in out.status] == ["max_restarts"] * 2
+    assert (out.restarts == 3).all()
+
+
+def test_target_seeds_are_a_splitmix64_stream() -> None:
+    def splitmix(state: int) -> tuple[int, int]:
+        mask = (1 << 64) - 1
+        state = (state + 0x9E3779B97F4A7C15) & mask
+        z = ((state ^ (state >> 30)) * 0xBF58476D1CE4E5B9) & mask
+        z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & mask
+        return state, z ^ (z >> 31)
+
+    state, expected = 12345, []
+    for _ in range(5):
+        state, z = splitmix(state)
+        expected.append(z >> 1)
+    assert target_seeds(12345, 0, 5).tolist() == expected
+    assert target_seeds(12345, 2, 3).tolist() == expected[2:]  # independent of chunking
+    assert len(set(target_seeds(0, 0, 10000).tolist())) == 10000

@@ -1,0 +1,329 @@
+"""Regression tests of issue 9: each reproducer of a leaked exception, a hang, a huge allocation
+or a contradictory result, now an `OptikError` naming the argument or a correct result."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+
+import optik
+from optik import catalog, diffik, problem_files
+from optik.cli import main
+from optik.mechanism import Joint, planar_chain
+from optik.problem_files import find_problem, load_problem
+
+
+def _raises(argument: str, call, *args, **kwargs) -> optik.InvalidArgumentError:
+    """``call(*args, **kwargs)`` raises an InvalidArgumentError whose argument is ``argument``."""
+    with pytest.raises(optik.InvalidArgumentError) as info:
+        call(*args, **kwargs)
+    assert info.value.argument == argument, str(info.value)
+    assert str(info.value).startswith(argument)
+    return info.value
+
+
+# ------------------------------------------------------------------------------------ hang, memory
+def test_wrap_of_a_huge_rotation_vector_is_constant_time():
+    """A spherical rotation vector was reduced by 2 pi per loop turn (|s1| = 1e8: > 20 s)."""
+    sg = catalog.stewart_gough()
+    s1 = sg.coordinate_names.index("s1[0]")
+    q = sg.mid_q()
+    for value in (1e8, 1e300, -7.5):
+        q[s1] = value
+        t0 = time.perf_counter()
+        w = sg.wrap(q)
+        assert time.perf_counter() - t0 < 0.05
+        r = w[s1 : s1 + 3]
+        assert np.linalg.norm(r) <= np.pi + 1e-12 and np.isfinite(r).all()
+    q[s1] = 7.5  # same rotation: angle 7.5 - 2 pi about +x
+    np.testing.assert_allclose(sg.wrap(q)[s1 : s1 + 3], [7.5 - 2 * np.pi, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(
+        optik.spatial.so3_exp(sg.wrap(q)[s1 : s1 + 3]), optik.spatial.so3_exp([7.5, 0, 0])
+    )
+
+
+def test_solve_fk_with_a_huge_leg_returns_within_its_time_limit():
+    t0 = time.perf_counter()
+    res = optik.solve_fk(catalog.stewart_gough(), [1e9, 1, 1, 1, 1, 1], time_limit=0.2)
+    assert time.perf_counter() - t0 < 3 * 0.2 + 0.5
+    assert not res.success
+
+
+def test_polyline_path_sample_count_is_capped_before_allocating():
+    err = _raises("speed/dt", diffik.polyline_path, [[0.3, 0, 0.5], [0.4, 0.1, 0.5]], 1e-9, 0.05)
+    assert str(diffik.paths.MAX_SAMPLES) in str(err)
+    assert diffik.polyline_path([[0.3, 0, 0.5], [0.4, 0.1, 0.5]], 0.1, 0.01).shape[1:] == (4, 4)
+
+
+# ------------------------------------------------------------------------------ huge finite targets
+@pytest.mark.parametrize("ctor", [catalog.planar_2r, catalog.planar_3r])
+def test_huge_finite_planar_target_is_unreachable(ctor):
+    """Position targets go to the closed forms of both arms (a pose2d target of the 2R arm goes
+    to lm, which fails at its time limit)."""
+    res = optik.solve_ik(ctor(), optik.Position(1e300, 0))
+    assert not res.success and math.isfinite(res.q.sum())
+    if ctor is catalog.planar_2r:
+        assert res.method == "closed_form" and res.status == "unreachable"
+    res = optik.solve_ik(ctor(), optik.Pose2D(1e300, 0, 0), time_limit=0.02)
+    assert not res.success and res.status in ("unreachable", "time_limit")
+
+
+def test_huge_finite_target_closed_form_ik_is_empty():
+    t = np.eye(4)
+    t[0, 3] = 1e300
+    assert optik.closed_form.ik(catalog.seed_6r_arm(), t) == []
+    assert optik.closed_form.ik(catalog.planar_3r(), t) == []
+    assert optik.solve_ik(catalog.seed_6r_arm(), t).status == "unreachable"
+
+
+def test_cli_huge_target_is_unreachable_not_a_traceback(capsys):
+    code = main(["solve", "planar_2r", "--target", "1e300", "0"])
+    out = capsys.readouterr().out
+    assert code != 0 or "success" in out.lower() or "unreachable" in out.lower()
+    assert "Traceback" not in out
+
+
+# -------------------------------------------------------------------------------------- Tolerances
+@pytest.mark.parametrize(
+    ("kwargs", "argument"),
+    [
+        ({"closure": None}, "closure"),
+        ({"position": 0, "orientation": 0, "closure": 0}, "position"),
+        ({"orientation": 0.0}, "orientation"),
+        ({"position": float("nan")}, "position"),
+        ({"position": -1}, "position"),
+        ({"closure": math.inf}, "closure"),
+        ({"position": "1e-6"}, "position"),
+    ],
+)
+def test_tolerances_are_validated(kwargs, argument):
+    _raises(argument, optik.Tolerances, **kwargs)
+
+
+def test_tolerances_accept_numbers():
+    t = optik.Tolerances(1, np.float32(1e-3), np.int64(1))
+    assert (t.position, t.closure) == (1.0, 1.0) and type(t.orientation) is float
+
+
+# -------------------------------------------------------------------------------- unhashable names
+@pytest.mark.parametrize(
+    ("kwargs", "argument"), [({"task": ["pose"]}, "task"), ({"method": ["lm"]}, "method")]
+)
+def test_unhashable_task_and_method(kwargs, argument):
+    _raises(argument, optik.solve_ik, catalog.planar_3r(), optik.Pose2D(1, 0.5, 0), **kwargs)
+
+
+def test_step_with_osqp_and_a_list_option():
+    m = catalog.planar_3r()
+    task = diffik.Pose2DTask(target=optik.Pose2D(1, 0.5, 0))
+    _raises("options", diffik.step, m, m.mid_q(), [task], 0.01, solver="osqp", joint_weights=[1, 1, 1])
+    _raises("solver", diffik.step, m, m.mid_q(), [task], 0.01, solver=["osqp"])
+
+
+# ---------------------------------------------------------------------------------- constructors
+@pytest.mark.parametrize(
+    ("call", "argument"),
+    [
+        (lambda: catalog.five_bar(base="ab"), "base"),
+        (lambda: catalog.doggy(hips=object()), "hips"),
+        (lambda: catalog.stewart_gough(base=[[0, 0, 0]] * 5 + [[0, 0]]), "base"),
+        (lambda: catalog.stewart_gough(platform=[[0, 0, 0]] * 5), "platform"),
+        (lambda: planar_chain(3, [1.0]), "types"),
+        (lambda: planar_chain("RRR", [1.0]), "lengths"),
+        (lambda: Joint("j", "revolute", "a", "b", axis="z"), "axis (joint 'j')"),
+        (lambda: Joint("j", "revolute", "a", "b", lower="a"), "lower (joint 'j')"),
+        (lambda: Joint("j", "revolute", "a", "b", lower=float("nan")), "lower"),
+        (lambda: Joint("j", ["revolute"], "a", "b"), "type"),
+        (lambda: Joint("j", "revolute", None, "b"), "parent"),
+        (lambda: Joint("j", "revolute", "a", "b", actuated="yes"), "actuated"),
+        (lambda: Joint("j", "revolute", "a", "b", origin="eye"), "origin"),
+    ],
+)
+def test_constructors_name_the_bad_argument(call, argument):
+    _raises(argument, call)
+
+
+def test_joint_without_parent_and_child_is_a_type_error_of_python():
+    """The issue's ``Joint(axis='z')`` lacked the required parent/child: that stays Python's own
+    TypeError for a wrong call signature (as for any function); the values are what optik checks."""
+    with pytest.raises(TypeError):
+        Joint("j", "revolute", axis="z")  # type: ignore[call-arg]
+
+
+# --------------------------------------------------------------------------------------- diffik
+@pytest.mark.parametrize(
+    ("call", "argument"),
+    [
+        (lambda: diffik.FrameTask(priority=float("nan")), "priority"),
+        (lambda: diffik.FrameTask(frame=["ee"]), "frame"),
+        (lambda: diffik.JointLimitTask(3, exponent=float("nan")), "exponent"),
+        (lambda: diffik.PositionTask(None, "abc"), "target"),
+        (lambda: diffik.PositionTask(axes=3), "axes"),
+        (lambda: diffik.ManipulabilityTask(3, space=["pose"]), "space"),
+        (lambda: diffik.VelocityLimit("a"), "v_max"),
+        (lambda: diffik.ConfigurationLimit("a"), "gain"),
+        (lambda: diffik.line_path(np.eye(4), np.eye(4), float("nan")), "n"),
+        (lambda: diffik.line_path(np.eye(4), np.eye(4), 10**7), "n"),
+        (lambda: diffik.circle_path([0, 0, 0], 0.1, 10, turns="x"), "turns"),
+        (lambda: diffik.polyline_path([[0, 0, 0], [1, 0]], 0.1, 0.01), "points"),
+    ],
+)
+def test_diffik_constructors_name_the_bad_argument(call, argument):
+    _raises(argument, call)
+
+
+def test_orientation_task_accepts_a_pose2d():
+    task = diffik.OrientationTask(None, optik.Pose2D(0.1, 0.2, 0.3))
+    np.testing.assert_allclose(task.target[:3, :3], optik.spatial.rot_z(0.3), atol=1e-15)
+
+
+@pytest.mark.parametrize("q", [object(), [1j] * 3, "abc", [1.0, 2.0]])
+def test_step_bad_q(q):
+    m = catalog.planar_3r()
+    _raises("q", diffik.step, m, q, [diffik.Pose2DTask(target=optik.Pose2D(1, 0.5, 0))], 0.01)
+
+
+def test_track_bad_path():
+    m = catalog.planar_3r()
+    _raises("path", diffik.track, m, m.mid_q(), "path", 0.01)
+    _raises("path", diffik.track, m, m.mid_q(), [], 0.01)
+    _raises("path", diffik.track, m, m.mid_q(), [optik.Pose2D(1, 0, 0), optik.Position(1, 0)], 0.01)
+    bad = np.tile(np.eye(4), (3, 1, 1))
+    bad[1, 0, 0] = 2.0
+    _raises("path[1]", diffik.track, m, m.mid_q(), bad, 0.01)
+
+
+def test_track_accepts_what_solve_ik_accepts():
+    """Sequences of Position / Pose2D and (N, 3) points, with the task they imply."""
+    m = catalog.planar_2r(lengths=(1.0, 1.0))
+    xs = np.linspace(1.2, 1.3, 6)
+    points = [optik.Position(x, 0.3) for x in xs]
+    q0 = optik.solve_ik(m, points[0]).q
+    a = diffik.track(m, q0, points, 0.01, method="qp")
+    b = diffik.track(m, q0, np.stack([xs, np.full(6, 0.3), np.zeros(6)], axis=1), 0.01, method="qp")
+    c = diffik.track(m, q0, np.stack([p.as_transform() for p in points]), 0.01, space="position2d")
+    np.testing.assert_allclose(a.q, b.q)
+    np.testing.assert_allclose(a.q, c.q)
+    assert a.position_error.max() < 1e-3
+    np.testing.assert_allclose(m.fk(a.q[-1])[:2, 3], [xs[-1], 0.3], atol=1e-3)
+    m3 = catalog.planar_3r()
+    poses = [optik.Pose2D(1.2, 0.5 + 0.01 * k, 0.2) for k in range(5)]
+    r = diffik.track(m3, m3.mid_q() + 0.3, poses, 0.01, method="qp")
+    pose = m3.fk(r.q[-1])
+    xy_phi = [pose[0, 3], pose[1, 3], math.atan2(pose[1, 0], pose[0, 0])]
+    np.testing.assert_allclose(xy_phi, [1.2, 0.54, 0.2], atol=1e-3)
+
+
+# ------------------------------------------------------------------------------ status / success
+def test_success_and_status_agree_for_fixed_joints():
+    """planar_2r with lower == upper: the closed form's nearest branch clipped into the limits
+    met the tolerances and was reported as success together with status outside_limits."""
+    m = catalog.planar_2r().with_limits([0.3, 0.2], [0.3, 0.2])
+    res = optik.solve_ik(m, optik.Position(*m.fk([0.3, 0.2])[:2, 3]))
+    assert res.success and res.status == "solved" and res.message == ""
+
+
+@pytest.mark.parametrize("method", ["lm", "qp", "dls", "nlp", "closed_form"])
+def test_success_iff_status_solved(method):
+    m = catalog.planar_3r()
+    for k, target in enumerate(
+        [optik.Pose2D(1.2, 0.8, 0.5), optik.Pose2D(5, 0, 0), optik.Pose2D(0.3, 0.2, 2.0)]
+    ):
+        res = optik.solve_ik(m, target, method=method, time_limit=0.05, seed=k)
+        assert res.success == (res.status == "solved"), (res.status, res.success)
+
+
+# ------------------------------------------------------------------------------------------ files
+_FIVE_BAR = """[problem]
+description = "five-bar"
+[mechanism]
+constructor = "{constructor}"
+[mechanism.params]
+{params}
+[targets]
+n = {n}
+"""
+
+
+def _problem_file(tmp_path, constructor="five_bar", params="", n=10, text=None):
+    p = tmp_path / "p.toml"
+    if text is None:
+        text = _FIVE_BAR.format(constructor=constructor, params=params, n=n)
+    p.write_bytes(text.encode() if isinstance(text, str) else text)
+    return p
+
+
+def test_problem_file_not_utf8(tmp_path):
+    p = _problem_file(tmp_path, text=b'[problem]\ndescription = "\xff\xfe"\n')
+    with pytest.raises(optik.ProblemFileError, match="not UTF-8"):
+        load_problem(p)
+
+
+def test_problem_file_path_with_nul():
+    with pytest.raises(optik.ProblemFileError, match="NUL"):
+        load_problem("problems/a\0b.toml")
+    _raises("problem", find_problem, "a\0b.toml")
+    _raises("problem", find_problem, ["planar_2r"])
+
+
+def test_problem_file_deeply_nested_arrays(tmp_path):
+    p = _problem_file(tmp_path, text="[problem]\ndescription = " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(optik.ProblemFileError, match="nested too deeply"):
+        load_problem(p)
+
+
+def test_problem_file_too_large(tmp_path):
+    p = _problem_file(tmp_path, text="# " + "x" * (2 << 20) + "\n")
+    with pytest.raises(optik.ProblemFileError, match="larger than"):
+        load_problem(p)
+
+
+@pytest.mark.parametrize("name", ["urdf_path", "__class__", "URDF_CHAINS", "no_such"])
+def test_problem_file_constructor_must_build_a_mechanism(tmp_path, name):
+    with pytest.raises(optik.ProblemFileError, match=r"mechanism\.constructor"):
+        load_problem(_problem_file(tmp_path, constructor=name))
+
+
+def test_problem_file_constructors_are_the_mechanism_functions():
+    names = problem_files.constructors()
+    assert {"five_bar", "panda", "planar_2r", "stewart_gough"} <= set(names)
+    assert "urdf_path" not in names and "URDF_CHAINS" not in names
+
+
+def test_problem_file_huge_n(tmp_path):
+    with pytest.raises(optik.ProblemFileError, match=r"targets\.n"):
+        load_problem(_problem_file(tmp_path, n=10**12))
+    problem = load_problem(_problem_file(tmp_path))
+    _raises("n", problem.sample_targets, 10**12)
+
+
+def test_problem_file_bad_constructor_parameter_fails_at_build(tmp_path):
+    problem = load_problem(_problem_file(tmp_path, params='base = "ab"'))
+    with pytest.raises(optik.ProblemFileError, match=r"mechanism\.params\.base"):
+        problem.mechanism()
+
+
+@pytest.mark.parametrize(
+    ("argv", "option"),
+    [
+        (["solve", "planar_2r", "--target", "1", "0.5", "--plot", "{file}/x.png"], "--plot"),
+        (["solve", "planar_2r", "--target", "1", "0.5", "--plot", "{dir}"], "--plot"),
+        (["solve", "planar_2r", "--target", "1", "0.5", "--plot", "{dir}/x.zzz"], "--plot"),
+        (["fk", "planar_2r", "--q", "0.1", "0.2", "--plot", "{file}/x.png"], "--plot"),
+        (["bench", "planar_2r", "--n", "1", "--out", "{file}/out"], "--out"),
+        (["plot", "planar_2r", "--out", "{file}"], "--out"),
+    ],
+)
+def test_cli_unwritable_output_fails_before_the_run(tmp_path, capsys, argv, option):
+    """A regular file where a folder is needed, a folder where a file is needed, an unknown
+    image format: exit code 2 with one line naming the option, before any work."""
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    args = [a.format(file=blocker, dir=tmp_path) for a in argv]
+    assert main(args) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""  # nothing ran
+    assert option in captured.err and "Traceback" not in captured.err

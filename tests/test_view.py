@@ -1,0 +1,219 @@
+"""The browser viewer driven from Python (no browser): every answer it shows is checked
+independently (FK of the shown q against the target, loop closures, limits, branch counts)."""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+
+import numpy as np
+import pytest
+
+pytest.importorskip("viser", reason="the view extra (viser) is not installed")
+
+import optik
+from optik import catalog, closed_form, spatial
+from optik.cli import main
+from optik.view import Viewer
+from optik.view.latest import Latest
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@pytest.fixture
+def open_viewer():
+    """``open_viewer(m, **options)``: a Viewer on a free port, closed after the test."""
+    viewers: list[Viewer] = []
+
+    def make(m, q=None, **options):
+        v = optik.view(m, q, port=free_port(), **options)
+        viewers.append(v)
+        return v
+
+    yield make
+    for v in viewers:
+        v.close()
+
+
+def test_gizmo_target_moves_the_arm_to_a_solved_configuration(open_viewer):
+    m = catalog.panda()
+    v = open_viewer(m)
+    assert v.url.startswith("http://127.0.0.1:")  # localhost by default
+    assert v.method == "lm" and {"lm", "nlp", "dls", "qp"} <= set(v.methods)
+    for seed in range(5):
+        target = m.fk(m.random_q(seed=seed))
+        res = v.set_target(target)
+        assert res.success, res.message
+        np.testing.assert_allclose(v.target, target, atol=1e-12)  # the gizmo is at the target
+        shown = m.fk(v.q)  # independent check of what is displayed
+        assert np.linalg.norm(shown[:3, 3] - target[:3, 3]) < 1e-6
+        assert spatial.angle_between(shown[:3, :3], target[:3, :3]) < 1e-6
+        assert m.within_limits(v.q)
+        assert "solved" in v.panel.status.content and "ms" in v.panel.status.content
+
+
+def test_the_last_answer_seeds_the_next_solve(open_viewer):
+    m = catalog.panda()
+    v = open_viewer(m)
+    v.set_target(m.fk(m.random_q(seed=1)))
+    before = v.q
+    res = v.set_target(m.fk(before + 0.01))  # a small gizmo move of a redundant arm
+    assert res.success
+    assert np.max(np.abs(v.q - before)) < 0.05  # seeded by the last answer: no jump to another branch
+
+
+def test_unreachable_target_is_shown_as_not_solved(open_viewer):
+    m = catalog.planar_3r(lengths=(1.0, 0.8, 0.5))
+    v = open_viewer(m)
+    res = v.set_target(optik.Pose2D(5.0, 0.0, 0.0))
+    assert not res.success
+    assert "not solved" in v.panel.status.content
+    assert m.within_limits(v.q)
+
+
+def test_planar_gizmo_is_projected_on_the_plane(open_viewer):
+    m = catalog.planar_3r(lengths=(1.0, 0.8, 0.5))
+    v = open_viewer(m)
+    res = v.set_target(optik.Pose2D(1.2, 0.8, 0.5))
+    assert res.success
+    np.testing.assert_allclose(spatial.planar_pose_of(m.fk(v.q)), (1.2, 0.8, 0.5), atol=1e-9)
+    np.testing.assert_allclose(spatial.planar_pose_of(v.target), (1.2, 0.8, 0.5), atol=1e-12)
+
+
+def test_all_solutions_draws_every_closed_form_branch(open_viewer):
+    m = catalog.seed_6r_arm()
+    target = m.fk(m.random_q(seed=4))
+    v = open_viewer(m)
+    v.set_target(target)
+    branches = v.show_all_solutions(True)
+    expected = closed_form.ik(m, target)
+    assert len(branches) == len(expected) >= 2
+    for r in branches:
+        assert np.linalg.norm(m.fk(r.q)[:3, 3] - target[:3, 3]) < 1e-6
+    assert sum(g.visible for g in v._ghosts) == len(branches)
+    assert f"**{len(branches)}** branches" in v.panel.branches.content
+    assert v.show_all_solutions(False) == [] and not any(g.visible for g in v._ghosts)
+
+
+def test_joint_sliders_follow_fk(open_viewer):
+    m = catalog.panda()
+    v = open_viewer(m)
+    q = m.random_q(seed=7)
+    pose = v.set_q(q)
+    np.testing.assert_allclose(pose, m.fk(q), atol=1e-12)
+    np.testing.assert_allclose(v.target, m.fk(q), atol=1e-9)  # the gizmo sits on the end effector
+    np.testing.assert_allclose([s.value for s in v.panel.sliders], q, atol=1e-12)
+
+
+def test_actuator_sliders_show_every_assembly_mode_of_the_five_bar(open_viewer):
+    m = catalog.five_bar()
+    v = open_viewer(m)
+    assert np.max(np.abs(m.closure(v.q))) < 1e-9  # the first configuration is assembled
+    modes = v.set_actuated([1.5, 1.0])
+    assert len(modes) == 2 == len(closed_form.fk(m, [1.5, 1.0]))
+    for q in modes:
+        assert np.max(np.abs(m.closure(q))) < 1e-9
+        np.testing.assert_allclose(q[m.actuated_indices], [1.5, 1.0], atol=1e-12)
+    shown = v.q
+    other = v.show_mode(1 - next(i for i, q in enumerate(modes) if np.allclose(q, shown)))
+    assert not np.allclose(other, shown) and np.allclose(v.q, other)
+    assert sum(g.visible for g in v._ghosts) == 1
+    assert "**2** assembly modes" in v.panel.modes.content
+    assert v.set_actuated([np.pi, 0.0]) == []  # the proximal ends are 3 apart: the distal links reach 2.4
+    assert "does not assemble" in v.panel.modes.content
+
+
+def test_stewart_gough_modes_close_their_loops(open_viewer):
+    m = catalog.stewart_gough()
+    v = open_viewer(m)
+    legs = [1.2, 1.1, 1.15, 1.25, 1.2, 1.1]
+    modes = v.set_actuated(legs)
+    assert len(modes) >= 2
+    for q in modes:
+        assert np.max(np.abs(m.closure(q))) < 1e-9 and m.within_limits(q)
+
+
+def test_tracked_path_plays_back_on_the_sample_slider(open_viewer):
+    m = catalog.panda()
+    v = open_viewer(m)
+    result = v.track()
+    assert result.within_limits and np.max(result.position_error) < 1e-3
+    assert v.panel.sample.max == len(result.q) - 1 and not v.panel.play.disabled
+    k = 40
+    np.testing.assert_allclose(v.show_path_sample(k), result.q[k])
+    assert np.linalg.norm(m.fk(v.q)[:3, 3] - v.target[:3, 3]) < 1e-3  # the gizmo shows sample k's target
+
+
+def test_bad_input_raises_named_errors(open_viewer):
+    m = catalog.planar_3r(lengths=(1.0, 0.8, 0.5))
+    with pytest.raises(optik.InvalidArgumentError, match=r"^method"):
+        open_viewer(m, method="warp")
+    with pytest.raises(optik.SolverUnavailableError):
+        open_viewer(catalog.panda(), method="closed_form")
+    v = open_viewer(m)
+    with pytest.raises(optik.ShapeError):
+        v.set_q([0.0, 1.0])
+    with pytest.raises(optik.InvalidArgumentError, match=r"^values"):
+        v.set_actuated([1.0])
+    with pytest.raises(optik.InvalidArgumentError, match=r"^k"):
+        v.show_path_sample(0)
+    with pytest.raises(optik.InvalidArgumentError, match=r"^time_limit"):
+        open_viewer(m, time_limit=0)
+
+
+def test_a_busy_port_gives_the_next_free_one(open_viewer):
+    m = catalog.planar_2r()
+    a = open_viewer(m)
+    b = optik.view(m, port=a.port)
+    try:
+        assert b.port != a.port
+    finally:
+        b.close()
+
+
+def test_latest_runs_the_newest_request_and_drops_the_stale_ones():
+    seen: list[int] = []
+    release = threading.Event()
+
+    def slow(x: int) -> None:
+        if x == 0:
+            release.wait(5)
+        seen.append(x)
+
+    latest = Latest(slow)
+    first = threading.Thread(target=latest, args=(0,))
+    first.start()
+    time.sleep(0.05)
+    for x in (1, 2, 3):
+        latest(x)  # return at once: a run is going on
+    release.set()
+    first.join(5)
+    assert seen == [0, 3]
+
+
+@pytest.mark.parametrize(
+    ("argv", "argument"),
+    [
+        (["view", "no_such_problem", "--no-browser"], "problem"),
+        (["view", "robot.urdf", "--no-browser"], "--base"),
+        (["view", "planar_3r", "--no-browser", "--method", "warp"], "method"),
+        (["view", "planar_3r", "--no-browser", "--port", "70000"], "--port"),
+    ],
+)
+def test_view_command_errors_exit_2_naming_the_argument(argv, argument, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"optik view: error: {argument}: ") and len(err.splitlines()) == 1
+
+
+def test_view_help(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["view", "--help"])
+    assert info.value.code == 0
+    out = capsys.readouterr().out
+    assert "usage: optik view" in out and "127.0.0.1" in out

@@ -93,13 +93,13 @@ def c_source(functions: Sequence[ca.Function], extra_source: str = "") -> str:
     return gen.dump() + extra_source
 
 
-def _library_file(stem: str, source: str, cc: str) -> Path:
+def _library_file(stem: str, source: str, cc: str, flags: Sequence[str]) -> Path:
     """Cache path of the library of ``source`` compiled by ``cc`` with the flags (hash-keyed)."""
-    digest = hashlib.sha256("\0".join((source, cc, *_FLAGS)).encode()).hexdigest()[:20]
+    digest = hashlib.sha256("\0".join((source, cc, *_FLAGS, *flags)).encode()).hexdigest()[:20]
     return cache_dir() / f"{stem}_{digest}.so"
 
 
-def _start(source: str, cc: str, lib: Path) -> tuple[subprocess.Popen, Path]:
+def _start(source: str, cc: str, lib: Path, flags: Sequence[str]) -> tuple[subprocess.Popen, Path]:
     """Write ``source`` into a new temporary folder of the cache and start the compiler on it at a
     lower scheduling priority (returns at once); the compiler process and the folder.
 
@@ -111,7 +111,7 @@ def _start(source: str, cc: str, lib: Path) -> tuple[subprocess.Popen, Path]:
         (tmp / "f.c").write_text(source)
         with _RUNNING_LOCK:
             proc = subprocess.Popen(
-                [cc, *_FLAGS, "-o", str(tmp / "f.so"), str(tmp / "f.c"), "-lm"],
+                [cc, *_FLAGS, *flags, "-o", str(tmp / "f.so"), str(tmp / "f.c"), "-lm"],
                 stdout=subprocess.DEVNULL,
                 stderr=subprocess.PIPE,
                 text=True,
@@ -167,8 +167,9 @@ class Library:
         error: why the build or the load failed (None otherwise).
     """
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, flags: Sequence[str] = ()) -> None:
         self.path = path
+        self.flags = tuple(flags)
         self.error: str | None = None
         self._cdll: ctypes.CDLL | None = None
         self._done = threading.Event()
@@ -204,7 +205,9 @@ class Library:
             if self.path.exists():
                 self._settle(None, None)
                 return
-            proc, tmp = _start(source, cc, self.path)  # here: the thread does no Python work meanwhile
+            proc, tmp = _start(
+                source, cc, self.path, self.flags
+            )  # here: the thread does no Python work meanwhile
             if not background:
                 self._settle(proc, tmp)
                 return
@@ -253,18 +256,56 @@ def library(
         InvalidArgumentError: bad ``compile`` value.
         SolverUnavailableError: ``compile=True`` without a working compiler.
     """
-    if compile not in (True, False, "auto"):
-        raise InvalidArgumentError("compile", f"expected True, False or 'auto', got {compile!r}")
+    _check_compile(compile)
     cc = compiler()
     if compile is False or cc is None:
-        if compile is True:
-            raise SolverUnavailableError(
-                "no C compiler found (set $CC or install gcc; unset $OPTIK_NO_CODEGEN)"
-            )
-        return None
+        return _no_library(compile)
     source = c_source(functions, extra_source)
+    return _library(source, functions[0].name(), cc, compile, compile == "auto", ())
+
+
+def source_library(
+    source: str, stem: str, compile: bool | str = "auto", flags: Sequence[str] = ()
+) -> ctypes.CDLL | None:
+    """The loaded library of hand-written C ``source``, compiled in this thread (blocking), or None.
+
+    Args:
+        source: C source text.
+        stem: file name stem of the library (``<stem>_<hash>.so`` in `cache_dir`).
+        compile: as for `library`, except that ``"auto"`` waits for the compiler too (None when
+            it fails).
+        flags: extra compiler options (part of the cache key).
+
+    Raises:
+        InvalidArgumentError: bad ``compile`` value.
+        SolverUnavailableError: ``compile=True`` without a working compiler.
+    """
+    _check_compile(compile)
+    cc = compiler()
+    if compile is False or cc is None:
+        return _no_library(compile)
+    lib = _library(source, stem, cc, compile, False, flags)
+    return None if lib is None else lib.wait()
+
+
+def _check_compile(compile: bool | str) -> None:
+    if compile not in (True, False, "auto"):
+        raise InvalidArgumentError("compile", f"expected True, False or 'auto', got {compile!r}")
+
+
+def _no_library(compile: bool | str) -> None:
+    """None (no compiled code); raises for ``compile=True``."""
+    if compile is True:
+        raise SolverUnavailableError("no C compiler found (set $CC or install gcc; unset $OPTIK_NO_CODEGEN)")
+
+
+def _library(
+    source: str, stem: str, cc: str, compile: bool | str, background: bool, flags: Sequence[str]
+) -> Library | None:
+    """The `Library` of ``source`` (one per file and process): loaded from the cache, or built
+    here or, when ``background``, by the compiler started here and a daemon thread waiting for it."""
     try:
-        path = _library_file(functions[0].name(), source, cc)
+        path = _library_file(stem, source, cc, flags)
     except OSError as exc:  # the cache directory cannot be created
         if compile is True:
             raise
@@ -274,9 +315,9 @@ def library(
         lib = _BUILDS.get(path)
         fresh = lib is None
         if fresh:
-            lib = _BUILDS[path] = Library(path)
+            lib = _BUILDS[path] = Library(path, flags)
     if fresh:
-        lib._make(source, cc, background=compile == "auto")  # cached: loading takes a millisecond
+        lib._make(source, cc, background)  # cached: loading takes a millisecond
     if compile is True and lib.wait() is None:
         raise SolverUnavailableError(lib.error or f"{path.name}: no library")
     return lib

@@ -8,6 +8,8 @@ import time
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import optik
 from optik import catalog, diffik, problem_files
@@ -327,3 +329,87 @@ def test_cli_unwritable_output_fails_before_the_run(tmp_path, capsys, argv, opti
     captured = capsys.readouterr()
     assert captured.out == ""  # nothing ran
     assert option in captured.err and "Traceback" not in captured.err
+
+
+# ----------------------------------------------------------------- closed forms at extreme sizes
+def test_planar_3r_branches_at_extreme_proportions_pass_fk():
+    """lengths (1e-9, 1e3, 1e3), identity target: the branches were off by 7.6e-3 (1 + c2 and
+    1 - c2 did not add up to 2 in rounding, so theta1 missed by l2 times the mismatch)."""
+    m = catalog.planar_3r(lengths=(1e-9, 1e3, 1e3))
+    branches = optik.closed_form.ik(m, np.eye(4))
+    assert branches
+    for q in branches:
+        assert np.abs(m.fk(q) - np.eye(4)).max() < 1e-12 * 2e3
+
+
+_SIZES = st.sampled_from([1e-9, 1e-6, 1e-3, 1.0, 1e3, 1e6, 1e9])
+
+
+@settings(derandomize=True, max_examples=40, deadline=None, database=None)
+@given(
+    lengths=st.tuples(_SIZES, _SIZES, _SIZES), q=st.lists(st.floats(-np.pi, np.pi), min_size=6, max_size=6)
+)
+def test_serial_closed_forms_pass_fk_at_any_proportion(lengths, q):
+    """Every branch returned (scalar and vectorized kernels, 3R and seed 6R arms) reproduces the
+    target to rounding relative to the arm's size."""
+    scale = sum(lengths)
+    arms = (
+        catalog.planar_2r(lengths=lengths[:2]),
+        catalog.planar_3r(lengths=lengths),
+        catalog.seed_6r_arm(*lengths),
+    )
+    for m in arms:
+        qq = q[: m.n_q]
+        t = m.fk(qq)
+        rows = optik.closed_form.ik(m, t, respect_limits=False)
+        assert rows, m.name  # a target made by FK is reachable
+        for b in rows:
+            f = m.fk(b)
+            assert np.abs(f[:3, 3] - t[:3, 3]).max() <= 1e-12 * scale, (m.name, b)
+            if m.task != "position2d":
+                assert np.abs(f[:3, :3] - t[:3, :3]).max() <= 1e-9, (m.name, b)
+    x, y, phi = optik.spatial.planar_pose_of(catalog.planar_3r(lengths=lengths).fk(q[:3]))
+    qs, ok = optik.closed_form.ik_planar_3r(lengths, x, y, phi)
+    m = catalog.planar_3r(lengths=lengths)
+    for b in qs[0][ok[0]]:
+        assert np.abs(m.fk(b)[:2, 3] - [x, y]).max() <= 1e-12 * scale
+
+
+# ------------------------------------------------------------------------------ DLS stays bounded
+def test_dls_tracking_beyond_reach_stays_bounded():
+    """planar 2R (1, 1) from (0.5, -1) along y = 0.05, x = 1.5 -> 2.2 (out of reach from x = 2),
+    141 steps of 10 ms: the elbow flipped every step at up to 326 rad/s. Now the arm follows the
+    path to the edge, then stays stretched towards the target (the closest configuration)."""
+    m = catalog.planar_2r(lengths=(1.0, 1.0))
+    xs = np.linspace(1.5, 2.2, 141)
+    r = diffik.track(m, [0.5, -1.0], [optik.Position(x, 0.05) for x in xs], 0.01, method="dls")
+    speed = np.abs(r.v).max(axis=1)
+    beyond = xs > 2.0 + 1e-3
+    assert speed[1:].max() < 15.0  # the first step closes the 6 cm start error
+    assert speed[beyond][1:].max() < 1.0  # out of reach: nearly still
+    elbow = r.q[1:, 1]
+    assert np.abs(elbow[beyond]).max() < 5e-3  # stretched (rad), no flip through the singularity
+    assert np.all(elbow[xs < 1.99] < 0)  # the elbow branch of the start is kept up to the edge
+    assert r.position_error[(xs > 1.52) & (xs < 1.99)].max() < 2e-3
+    closest = np.hypot(2.2, 0.05) - 2.0
+    assert abs(r.position_error[-1] - closest) < 1e-3
+    assert "shortened" in r.status
+
+
+def test_dls_step_at_a_stretched_arm_stays_put():
+    m = catalog.planar_2r(lengths=(1.0, 1.0))
+    task = diffik.PositionTask(target=optik.Position(3.0, 0.0), axes="xy")
+    res = diffik.step(m, [0.0, 0.0], [task], 0.01, method="dls")
+    np.testing.assert_allclose(res.q, [0.0, 0.0], atol=1e-12)
+    res = diffik.step(m, [0.0, 1e-3], [task], 0.01, method="dls")
+    assert np.abs(res.v).max() < 1.0 and res.q[1] >= 0.0  # straightens, does not flip
+
+
+def test_iterated_dls_converges_at_a_near_singular_solution():
+    """A seed 6R target with s5 = 0.03 (inside the adaptive damping's threshold): the damped
+    steps converged linearly and the method failed within its time limit from every seed."""
+    m = catalog.seed_6r_arm()
+    t = m.fk([-1.54, -0.345, 0.029, 0.336, 3.113, 1.839])
+    for seed in range(3):
+        res = optik.solve_ik(m, t, method="dls", time_limit=1.0, seed=seed)
+        assert res.success and res.iterations < 100, (res.iterations, res.position_error)

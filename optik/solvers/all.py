@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from optik.checks import as_name
 from optik.closed_form import registry
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
@@ -96,6 +97,10 @@ def solve_ik_all(
     request = make_request(m, target, q0, task, frame, time_limit, tol, seed, options)
     patience = positive_int(patience, "patience")
     max_solutions = positive_int(max_solutions, "max_solutions")
+    if method is not None:
+        as_name(method, "method")
+    if not isinstance(closed_form, bool):
+        raise InvalidArgumentError("closed_form", f"expected True or False, got {closed_form!r}")
     applies = closed_form_applies(m, request.task) and frame in (None, m.ee)
     if method == "closed_form":
         if not applies:

@@ -94,6 +94,10 @@ def solve_ik_all(
             the method does not know.
     """
     request = make_request(m, target, q0, task, frame, time_limit, tol, seed, options)
+    if request.multi_target:
+        raise InvalidArgumentError(
+            "target", "solve_ik_all takes one frame target; several frame targets at once: optik.solve_ik"
+        )
     patience = positive_int(patience, "patience")
     max_solutions = positive_int(max_solutions, "max_solutions")
     applies = closed_form_applies(m, request.task) and frame in (None, m.ee)

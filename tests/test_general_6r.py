@@ -15,6 +15,7 @@ from optik.closed_form.general_6r import (
     FK_TOL,
     General6R,
     General6RSolutions,
+    covers,
     ik_general_6r,
     solve_general_6r,
 )
@@ -209,6 +210,18 @@ def test_both_ends_special_is_flagged() -> None:
     sols = solve_general_6r(arm, target)
     assert not sols.count_ok and "singular 12 x 12" in sols.reason and "other end" in sols.reason
     assert sols.fk_error <= FK_TOL
+    assert not covers(arm)
+
+
+def test_covers() -> None:
+    rng = np.random.default_rng(43)
+    assert covers(_random_arm(rng))
+    a, alpha, d = rng.uniform(0.1, 1, 6), rng.uniform(-np.pi, np.pi, 6), rng.uniform(-1, 1, 6)
+    a[0] = 0.0  # one special end: the other end is regular
+    assert covers(General6R(a=a, alpha=alpha, d=d))
+    alpha[[3, 4]] = 0.0  # and axes 4, 5, 6 parallel at the other
+    assert not covers(General6R(a=a, alpha=alpha, d=d))
+    assert not covers(dh_chain(REF_DH[:5], "standard"))  # not a 6R chain: False, no exception
 
 
 def test_reversed_chain_is_the_inverse() -> None:

@@ -26,7 +26,8 @@ Times: mean / median / p95 per target and the ratio of means to ``optik general_
 
 Then, on ``--special`` random arms per case, the same round trips on special geometries that no
 decomposable family covers (one or two pairs of consecutive axes intersecting or parallel):
-the share that passes the count check and the round trip.
+the share of arms that `covers` accepts, and of targets that pass the count check and the round
+trip.
 
 ``--search-16`` instead searches random arms and poses (then local perturbations of the best)
 for a pose with 16 real solutions and prints it: the reference instance of
@@ -53,7 +54,7 @@ from dataclasses import dataclass, field  # noqa: E402
 import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
-from optik.closed_form.general_6r import General6R, solve_general_6r  # noqa: E402
+from optik.closed_form.general_6r import General6R, covers, solve_general_6r  # noqa: E402
 from optik.closed_form.structure import axes_of  # noqa: E402
 from optik.mechanism import Mechanism, dh_chain  # noqa: E402
 
@@ -227,22 +228,26 @@ def special(arms: int, poses: int, seed: int) -> None:
     """Count check and round trips on random arms with one or two special axis pairs."""
     rng = np.random.default_rng(seed)
     print(f"\n## Special geometry: {arms} random arms x {poses} poses per case\n")
-    print("| geometry | count check passed % | round trip % | real solutions / target |")
-    print("|---|--:|--:|--:|")
+    print("| geometry | covers(arm) % | count check passed % | round trip % | real solutions / target |")
+    print("|---|--:|--:|--:|--:|")
     for label, zero in SPECIAL.items():
-        ok = trips = found = 0
+        ok = trips = found = covered = 0
         for _ in range(arms):
             a, alpha, d = rng.uniform(0.1, 1, 6), rng.uniform(-np.pi, np.pi, 6), rng.uniform(-1, 1, 6)
             a[zero.get("a", [])] = 0.0
             alpha[zero.get("alpha", [])] = 0.0
             arm = General6R(a=a, alpha=alpha, d=d)
+            covered += covers(arm)
             qs = rng.uniform(-np.pi, np.pi, (poses, 6))
             for q, sols in zip(qs, solve_general_6r(arm, arm.fk(qs)), strict=True):
                 ok += sols.count_ok
                 trips += any(_angle_dist(s, q) < 1e-8 for s in sols.q)
                 found += len(sols.q)
         n = arms * poses
-        print(f"| {label} | {100.0 * ok / n:.1f} | {100.0 * trips / n:.1f} | {found / n:.2f} |")
+        print(
+            f"| {label} | {100.0 * covered / arms:.0f} | {100.0 * ok / n:.1f} | "
+            f"{100.0 * trips / n:.1f} | {found / n:.2f} |"
+        )
 
 
 def search_16(seed: int, budget: float) -> int:

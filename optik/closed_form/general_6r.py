@@ -77,6 +77,7 @@ __all__ = [
     "ROTATIONS",
     "General6R",
     "General6RSolutions",
+    "covers",
     "ik_general_6r",
     "solve_general_6r",
 ]
@@ -243,6 +244,18 @@ class General6R:
     def _left(self) -> _Left:
         """The arm-only part of the elimination (computed once)."""
         return _Left(self)
+
+    @cached_property
+    def covered(self) -> bool:
+        """Whether the eigenvalue method covers this geometry: at three seeded random poses the
+        elimination is regular (``Q`` of full rank and ``M(x_3)`` not singular for every
+        ``x_3``) from at least one end of the chain. False for e.g. axes 1-2 and 5-6 both
+        intersecting, three consecutive parallel axes at an end, and most decomposable families;
+        a router should send only covered arms to `solve_general_6r`."""
+        targets = self.fk(np.random.default_rng(0).uniform(-np.pi, np.pi, (3, 6)))
+        fwd = _matrices(self, targets)
+        back = _matrices(self.reversed, _inv(targets))
+        return bool(np.all((fwd[6] & fwd[7]) | (back[6] & back[7])))
 
     @cached_property
     def reversed(self) -> General6R:
@@ -539,10 +552,10 @@ def _dedup(q: np.ndarray) -> np.ndarray:
     return np.array(keep).reshape(-1, 6)
 
 
-def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[General6RSolutions]:
-    """The eigenvalue solver on validated targets ``(N, 4, 4)``; ``fk`` is the independent
-    forward kinematics used for the final check (``q (K, 6) -> (K, 4, 4)``), ``refine`` the
-    last polish of the candidates on the exact model (``(q, target index) -> q``)."""
+def _matrices(arm: General6R, targets: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Steps 1-3 for targets ``(N, 4, 4)``: the unit-scale targets, the SVD ``u, sv, vt`` of
+    ``Q``, the constants ``r0``, the coefficients ``(C, B, A)`` of ``M(x_3)`` (``(N, 3, 12, 12)``)
+    and the masks ``rank_ok`` (``Q`` of rank 8) and ``regular`` (``M`` not singular for all x)."""
     left = arm._left
     n = len(targets)
     tp = _inv(arm.base) @ targets @ _inv(arm.tool)
@@ -561,6 +574,16 @@ def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[Ge
     probe = np.einsum("nkab,pk->npab", mats, _PROBES)
     probe_sv = np.linalg.svd(probe, compute_uv=False)
     regular = np.max(probe_sv[..., -1] / probe_sv[..., 0], axis=1) > _SINGULAR_PENCIL
+    return tp, u, sv, vt, r0, mats, rank_ok, regular
+
+
+def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[General6RSolutions]:
+    """The eigenvalue solver on validated targets ``(N, 4, 4)``; ``fk`` is the independent
+    forward kinematics used for the final check (``q (K, 6) -> (K, 4, 4)``), ``refine`` the
+    last polish of the candidates on the exact model (``(q, target index) -> q``)."""
+    left = arm._left
+    n = len(targets)
+    tp, u, sv, vt, r0, mats, rank_ok, regular = _matrices(arm, targets)
     vals, vecs = _eigen(mats)
     finite = np.isfinite(vals) & (np.abs(vals) < 1e12)
     spurious = np.zeros_like(finite)
@@ -713,8 +736,19 @@ def _merge(
     )
 
 
+def covers(arm: Mechanism | General6R) -> bool:
+    """Whether `solve_general_6r` covers the arm's geometry (`General6R.covered`): False for
+    chains that are not 6R (no exception) and for special geometry where the elimination is
+    singular from both ends, whose answers would fail the count check."""
+    try:
+        return _arm(arm).covered
+    except InvalidArgumentError:
+        return False
+
+
 def ik_general_6r(m: Mechanism, target: Any) -> list[np.ndarray]:
     """All real IK solutions of a 6R mechanism for one 4x4 target, as a list of ``q`` (the
     closed-form registry's solver contract ``(m, T) -> list[q]``; ``[]`` when unreachable).
-    `solve_general_6r` returns the same solutions with the count check and the reason."""
+    `solve_general_6r` returns the same solutions with the count check and the reason; route
+    only arms for which `covers` is True here, since this list cannot carry the flag."""
     return list(solve_general_6r(m, target).q)

@@ -100,7 +100,7 @@ class Style:
         radius: link radius (m).
     """
 
-    link: tuple[int, int, int] = (70, 130, 180)
+    link: tuple[int, int, int] = (90, 150, 210)
     ground: tuple[int, int, int] = (120, 120, 120)
     slide: tuple[int, int, int] = (200, 90, 60)
     opacity: float = 1.0
@@ -145,7 +145,7 @@ class RobotDrawing:
         self._visible = True
         self._frames = []
         if style.frames:
-            size = 4 * r
+            size = 2.5 * r
             for j in m.joints:
                 color = _ACTUATED if j.actuated and not j.cut else _PASSIVE
                 self._frames.append(
@@ -172,7 +172,15 @@ class RobotDrawing:
     def _mesh(self, node: str, mesh: Mesh, color: tuple[int, int, int], visible: bool = True) -> Any:
         opacity = None if self.style.opacity >= 1 else self.style.opacity
         return self.scene.add_mesh_simple(
-            node, mesh[0], mesh[1], color=color, opacity=opacity, side="double", visible=visible
+            node,
+            mesh[0],
+            mesh[1],
+            color=color,
+            opacity=opacity,
+            side="double",
+            visible=visible,
+            cast_shadow=False,
+            receive_shadow=False,
         )
 
     def update(self, q: Any) -> Poses:

@@ -75,8 +75,8 @@ class Viewer:
 
     Args:
         m: the mechanism.
-        q: first configuration (default: mid-limit; for a closed chain, the first assembly mode
-            of the mid-limit actuated values).
+        q: first configuration (default: mid-limit; for a closed chain, the assembly mode of the
+            mid-limit actuated values nearest to the mid-limit configuration).
         host: interface to bind (default ``127.0.0.1``: this machine only; ``0.0.0.0`` exposes
             the page to the network).
         port: TCP port (viser takes the next free one when it is busy; see `Viewer.url`).
@@ -150,8 +150,8 @@ class Viewer:
         if not self.m.is_closed:
             return mid
         modes = solve_fk_all(self.m, mid[self.m.actuated_indices], time_limit=self.all_time_limit)
-        if modes:
-            return np.asarray(modes[0].q, dtype=float)
+        if modes:  # the assembly mode nearest to the mid-limit configuration
+            return np.asarray(min(modes, key=lambda r: joint_distance(self.m, r.q, mid)).q, dtype=float)
         return np.asarray(solve_fk(self.m, mid[self.m.actuated_indices]).q, dtype=float)
 
     def _draw_scene(self) -> None:

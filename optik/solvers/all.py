@@ -39,7 +39,7 @@ from optik.solvers.base import (
     make_result,
     positive_int,
 )
-from optik.solvers.closed import closed_form_applies
+from optik.solvers.closed import _compiled_errors, closed_form_applies, row_distance
 from optik.solvers.polish import polish, same_point_tol
 
 NUMERIC_ORDER = ("lm", "nlp")
@@ -103,36 +103,49 @@ def solve_ik_all(
                 f"method 'closed_form' does not apply to {m.name!r} with task {request.task!r}"
                 + ("" if frame in (None, m.ee) else f" and frame {frame!r}")
             )
-        found = _closed_form_all(request)
-    elif method is None and closed_form and applies:
-        found = _closed_form_all(request)
-    else:
-        name = method or pick_method(m, request.task, NUMERIC_ORDER)
-        found = _numeric_all(request, name, patience, max_solutions)
+        return _closed_form_all(request)
+    if method is None and closed_form and applies:
+        return _closed_form_all(request)
+    name = method or pick_method(m, request.task, NUMERIC_ORDER)
+    found = _numeric_all(request, name, patience, max_solutions)
     found.sort(key=lambda r: joint_distance(m, r.q, request.q0))
     return found
 
 
 def _closed_form_all(request: IKRequest) -> IKSolutions:
-    """Every closed-form branch within limits, each FK-checked (polished or dropped)."""
+    """Every closed-form branch within limits, each FK-checked (polished or dropped), sorted by
+    the distance to ``q0``.
+
+    Lean on purpose (one closed-form call per target is the hot path of branch selection): the
+    rows come wrapped and within limits from the registry, so the results are built directly from
+    the compiled FK check (``closed._compiled_errors``) instead of the generic
+    [`make_result`][optik.solvers.base.make_result], which only the rare branch that needs
+    polishing goes through."""
     if request.options:
         name = sorted(request.options)[0]
         raise InvalidArgumentError(name, "unknown option for method 'closed_form'; it takes no options")
     m = request.mechanism
     rows = registry.branches(m, request.target)
     inside = registry.within_limits(m, rows)
-    outside = [np.array(r) for r in rows if r not in inside]
+    outside = [np.array(r) for r in rows if r not in inside] if len(inside) < len(rows) else []
+    errors = _compiled_errors(request)
+    tol = request.tol
+    mask = registry.angle_mask(m)
+    start = request.q0.tolist()
+    inside.sort(key=lambda row: row_distance(mask, row, start))
     kept: list[IKResult] = []
     failed = 0
     for row in inside:
-        res = make_result(request, np.array(row), "closed_form", 0)
-        if not res.success:
-            q, _, _ = polish(m, request, res.q)
-            res = make_result(request, q, "closed_form", 0)
-            if not res.success:
-                failed += 1
-                continue
-        kept.append(res)
+        q = np.array(row)
+        pos, ori, clo = errors(q)
+        if pos <= tol.position and ori <= tol.orientation and clo <= tol.closure:
+            kept.append(IKResult(q, True, pos, ori, clo, True, 0, request.elapsed(), "closed_form", "solved"))
+            continue
+        res = make_result(request, polish(m, request, q)[0], "closed_form", 0)
+        if res.success:
+            kept.append(res)
+        else:
+            failed += 1
     return IKSolutions(kept, outside, failed, "closed_form")
 
 

@@ -21,7 +21,7 @@ from optik.errors import (
 from optik.mechanism import Joint, Mechanism, dh_chain, planar_chain
 from optik.problem import IKProblem, build_ik_problem
 from optik.results import FKModes, FKResult, IKResult
-from optik.solvers import Tolerances, solve_ik, solve_ik_all
+from optik.solvers import Tolerances, self_motion, solve_ik, solve_ik_all
 from optik.solvers.fk import solve_fk, solve_fk_all
 from optik.targets import Pose2D, Position
 from optik.view import view
@@ -55,6 +55,7 @@ __all__ = [
     "diffik",
     "fk_batch",
     "planar_chain",
+    "self_motion",
     "solve_fk",
     "solve_fk_all",
     "solve_ik",

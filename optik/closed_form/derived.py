@@ -276,7 +276,19 @@ def derive_axes(axes: Axes) -> DerivedIK | None:
     return None if structure is None else DerivedIK(axes, structure)
 
 
+_AXES: weakref.WeakKeyDictionary[Mechanism, Axes | None] = weakref.WeakKeyDictionary()
 _CACHE: weakref.WeakKeyDictionary[Mechanism, DerivedIK | None] = weakref.WeakKeyDictionary()
+
+
+def chain_axes(m: Mechanism) -> Axes | None:
+    """`axes_of` of a mechanism with task ``"pose"``, cached per mechanism (None otherwise)."""
+    try:
+        return _AXES[m]
+    except KeyError:
+        pass
+    axes = axes_of(m) if m.task == "pose" else None
+    _AXES[m] = axes
+    return axes
 
 
 def derive(m: Mechanism) -> DerivedIK | None:
@@ -286,10 +298,22 @@ def derive(m: Mechanism) -> DerivedIK | None:
         return _CACHE[m]
     except KeyError:
         pass
-    axes = axes_of(m) if m.task == "pose" and m.n_q == 6 else None
+    axes = chain_axes(m) if m.n_q == 6 else None
     solver = None if axes is None else derive_axes(axes)
     _CACHE[m] = solver
     return solver
+
+
+def derive_locked(m: Mechanism, locked: dict[int, float]) -> DerivedIK | None:
+    """The derived IK of the 6R chain left when the coordinates ``locked`` (index -> value) of a
+    serial revolute chain are fixed (`Axes.lock`, highest index first), or None when that chain
+    is not decomposable (or ``m`` is not such a chain, or it does not leave 6 joints)."""
+    axes = chain_axes(m)
+    if axes is None or axes.n - len(locked) != 6:
+        return None
+    for index in sorted(locked, reverse=True):
+        axes = axes.lock(index, locked[index])
+    return derive_axes(axes)
 
 
 def derived_rows(m: Mechanism) -> registry.IKSolver | None:

@@ -33,6 +33,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from optik import native
 from optik.closed_form import registry, spherical_wrist, three_parallel
 from optik.closed_form import vec3 as v3
 from optik.closed_form.spherical_wrist import Branch
@@ -41,10 +42,12 @@ from optik.mechanism import Mechanism
 
 POLISH_STEPS = 3
 """Gauss-Newton steps applied to an inexact candidate."""
-POLISH_RANGE = 1e-3
-"""Candidates with errors above :data:`CHECK_TOL` but within this (times the arm's size for the
-position, rad for the orientation) are polished; those beyond are no solution (least-squares
-answers of subproblems without a real one)."""
+POLISH_RANGE = (1e-7, 1e-3)
+"""Bounds of `DerivedIK.polish_range`: candidates with errors above `CHECK_TOL` but within
+the polish range (times the arm's size for the position, rad for the orientation) are polished;
+those beyond are no solution (least-squares answers of subproblems without a real one)."""
+COMPILE_AFTER = 64
+"""Single-target calls of one kernel after which it is compiled to C (`optik.native`)."""
 CHECK_TOL = 1e-9
 """FK check: largest position error (times the arm's size) and orientation error (rad) kept."""
 SAME_TOL = 1e-4
@@ -147,7 +150,8 @@ class DerivedIK:
         inexact ones within :data:`POLISH_RANGE`, check, wrap, merge duplicates."""
         size = self.axes.size
         ok = (pos <= CHECK_TOL * size) & (ori <= CHECK_TOL)
-        near = ~ok & (pos <= POLISH_RANGE * size) & (ori <= POLISH_RANGE)
+        span = self.polish_range
+        near = ~ok & (pos <= span * size) & (ori <= span)
         if near.any():
             idx = np.nonzero(near)
             qq, good = self._polish(q[idx], t[idx[0]])
@@ -162,32 +166,60 @@ class DerivedIK:
         return np.where(ok[..., None], q, 0.0), ok
 
     @cached_property
+    def polish_range(self) -> float:
+        """How inexact a candidate may be and still be polished: 1000 times the model's defect
+        (the largest error of the candidate nearest the generating configuration over 16 seeded
+        FK targets: rounding for exact models, the mismatch of the detected relations for models
+        read from rounded URDF numbers), within `POLISH_RANGE`."""
+        q = np.random.default_rng(0).uniform(-np.pi, np.pi, (16, 6))
+        t = self.axes.fk(q)
+        cand = self.candidates(t)
+        rt, pt = _components(t[:, None])
+        pos, ori = self.errors_c(tuple(cand[..., i] for i in range(6)), rt, pt, v3.NUMPY)
+        defect = float(np.max(np.min(np.maximum(pos / self.axes.size, ori), axis=1)))
+        return min(max(1e3 * defect, POLISH_RANGE[0]), POLISH_RANGE[1])
+
+    @cached_property
     def _single(self) -> _Single:
         return _Single(self)
+
+    def compile(self) -> None:
+        """Compile the single-target kernel to C now (it is compiled by itself after
+        `COMPILE_AFTER` calls; without a C compiler CasADi's evaluator stays)."""
+        with self._single.lock:
+            self._single.compile()
 
     def solve_one(self, t: np.ndarray) -> list[list[float]]:
         """The solutions for one target ``t (4, 4)`` as rows, the same as ``solve(t)`` but
         through the symbolic kernel (`_Single`): about a hundred times cheaper per call than the
         numpy kernel on one target. Targets with a candidate to polish or two close candidates
-        take the numpy path (`finish`)."""
+        take the numpy path (`finish`); the others return
+        [`CheckedRows`][optik.closed_form.registry.CheckedRows] carrying the kernel's FK check
+        of each row (the product-of-exponentials model, equal to the mechanism's FK to
+        rounding: `axes_of` checks it)."""
         one = self._single
         with one.lock:
             one.t[:] = t.reshape(16)
             one.call()
+            one.calls += 1
+            if one.calls == COMPILE_AFTER:
+                one.compile()
             q, err, pairs = one.q.tolist(), one.err.tolist(), one.pairs.tolist()
         size_tol = CHECK_TOL * self.axes.size
+        span = self.polish_range
         ok = [err[2 * i] <= size_tol and err[2 * i + 1] <= CHECK_TOL for i in range(8)]
-        near = [
-            not ok[i] and err[2 * i] <= POLISH_RANGE * self.axes.size and err[2 * i + 1] <= POLISH_RANGE
-            for i in range(8)
-        ]
+        pos_span = span * self.axes.size
+        near = [not ok[i] and err[2 * i] <= pos_span and err[2 * i + 1] <= span for i in range(8)]
         close = any(ok[i] and ok[j] and pairs[k] < SAME_TOL for k, (i, j) in enumerate(_PAIRS))
         if any(near) or close:
             qa = np.array(q).reshape(1, 8, 6)
             e = np.array(err).reshape(1, 8, 2)
             qa, oka = self.finish(np.asarray(t, dtype=float).reshape(1, 4, 4), qa, e[..., 0], e[..., 1])
             return qa[0][oka[0]].tolist()
-        return [q[6 * i : 6 * i + 6] for i in range(8) if ok[i]]
+        keep = [i for i in range(8) if ok[i]]
+        return registry.CheckedRows(
+            [q[6 * i : 6 * i + 6] for i in keep], [(err[2 * i], err[2 * i + 1]) for i in keep]
+        )
 
     def _polish(self, q: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Gauss-Newton on ``q (K, 6)`` for targets ``t (K, 4, 4)``; which pass the check."""
@@ -240,7 +272,7 @@ class _Single:
                 d = ca.fabs(a - b)
                 dist = ops.fmax(dist, ops.fmin(d, two_pi - d))
             pairs.append(dist)
-        f = ca.Function(
+        self.function = f = ca.Function(
             "derived_ik",
             [t],
             [ca.vertcat(*[a for b in wrapped for a in b]), ca.vertcat(*errs), ca.vertcat(*pairs)],
@@ -254,6 +286,14 @@ class _Single:
         for k, out in enumerate((self.q, self.err, self.pairs)):
             self.buffer.set_res(k, memoryview(out))
         self.lock = threading.Lock()
+        self.calls = 0
+
+    def compile(self) -> None:
+        """Switch ``call`` to the function compiled to C on the same buffers (no-op without a
+        working C compiler: CasADi's evaluator stays)."""
+        lib = native.library([self.function])
+        if lib is not None:
+            self.call = native.CCall(lib, self.function.name(), [self.t], [self.q, self.err, self.pairs])
 
 
 def _components(t: np.ndarray) -> tuple[v3.Mat, v3.Vec]:

@@ -147,6 +147,9 @@ def _from_rows(request: IKRequest, rows: list[list[float]]) -> IKSolutions:
     m = request.mechanism
     inside = registry.within_limits(m, rows)
     outside = [np.array(r) for r in rows if r not in inside] if len(inside) < len(rows) else []
+    checked = {}
+    if isinstance(rows, registry.CheckedRows) and request.task == m.task == "pose" and not m.is_closed:
+        checked = {id(row): err for row, err in zip(rows, rows.errors, strict=True)}
     errors = _compiled_errors(request)
     tol = request.tol
     mask = registry.angle_mask(m)
@@ -156,7 +159,7 @@ def _from_rows(request: IKRequest, rows: list[list[float]]) -> IKSolutions:
     failed = 0
     for row in inside:
         q = np.array(row)
-        pos, ori, clo = errors(q)
+        pos, ori, clo = (*checked[id(row)], 0.0) if id(row) in checked else errors(q)
         if pos <= tol.position and ori <= tol.orientation and clo <= tol.closure:
             kept.append(IKResult(q, True, pos, ori, clo, True, 0, request.elapsed(), "closed_form", "solved"))
             continue

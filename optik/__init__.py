@@ -20,6 +20,7 @@ from optik.errors import (
 )
 from optik.mechanism import Joint, Mechanism, dh_chain, planar_chain
 from optik.problem import IKProblem, build_ik_problem
+from optik.reach import reach
 from optik.results import FKModes, FKResult, IKResult
 from optik.solvers import Tolerances, self_motion, solve_ik, solve_ik_all
 from optik.solvers.fk import solve_fk, solve_fk_all
@@ -55,6 +56,7 @@ __all__ = [
     "diffik",
     "fk_batch",
     "planar_chain",
+    "reach",
     "self_motion",
     "solve_fk",
     "solve_fk_all",

@@ -487,6 +487,9 @@ def build_parser() -> argparse.ArgumentParser:
     from optik.view.command import add_parser as add_view  # optik view: the browser viewer
 
     add_view(sub)
+    from optik.reach import add_parser as add_reach  # optik reach: capability maps
+
+    add_reach(sub)
     return parser
 
 

@@ -25,7 +25,7 @@ import os
 import shutil
 import subprocess
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import casadi as ca
@@ -65,8 +65,19 @@ def c_source(functions: Sequence[ca.Function], extra_source: str = "") -> str:
 
 
 def compile_library(functions: Sequence[ca.Function], extra_source: str = "") -> Path:
-    """Compile ``functions`` (and ``extra_source``, see :func:`c_source`) into one shared
+    """Compile ``functions`` (and ``extra_source``, see `c_source`) into one shared
     library (once per source hash); its path.
+
+    Raises:
+        SolverUnavailableError: no C compiler, or the compilation failed.
+        OSError: the cache directory is not writable.
+    """
+    return compile_source(c_source(functions, extra_source), functions[0].name())
+
+
+def compile_source(source: str, stem: str, flags: Sequence[str] = ()) -> Path:
+    """Compile C ``source`` into a shared library ``<stem>_<hash>.so`` in `cache_dir` (once per
+    source, flags and compiler); its path. ``flags`` are extra compiler options (after ``-O2``).
 
     Raises:
         SolverUnavailableError: no C compiler, or the compilation failed.
@@ -75,9 +86,7 @@ def compile_library(functions: Sequence[ca.Function], extra_source: str = "") ->
     cc = compiler()
     if cc is None:
         raise SolverUnavailableError("no C compiler found (set $CC or install gcc; unset $OPTIK_NO_CODEGEN)")
-    source = c_source(functions, extra_source)
-    stem = functions[0].name()
-    digest = hashlib.sha256((source + cc).encode()).hexdigest()[:20]
+    digest = hashlib.sha256((source + cc + " ".join(flags)).encode()).hexdigest()[:20]
     folder = cache_dir()
     lib = folder / f"{stem}_{digest}.so"
     if lib.exists():
@@ -87,7 +96,7 @@ def compile_library(functions: Sequence[ca.Function], extra_source: str = "") ->
         src.write_text(source)
         out = Path(tmp, "f.so")
         proc = subprocess.run(
-            [cc, "-O2", "-fPIC", "-shared", "-o", str(out), str(src), "-lm"],
+            [cc, "-O2", *flags, "-fPIC", "-shared", "-o", str(out), str(src), "-lm"],
             capture_output=True,
             text=True,
             check=False,
@@ -113,12 +122,34 @@ def library(
         InvalidArgumentError: bad ``compile`` value.
         SolverUnavailableError: ``compile=True`` without a working compiler.
     """
+    return _load(lambda: compile_library(functions, extra_source), compile)
+
+
+def source_library(
+    source: str, stem: str, compile: bool | str = "auto", flags: Sequence[str] = ()
+) -> ctypes.CDLL | None:
+    """The loaded library of hand-written C ``source`` (see `compile_source`), or None.
+
+    Args:
+        source: C source text.
+        stem: file name stem of the library.
+        compile: as for `library`.
+        flags: extra compiler options.
+
+    Raises:
+        InvalidArgumentError: bad ``compile`` value.
+        SolverUnavailableError: ``compile=True`` without a working compiler.
+    """
+    return _load(lambda: compile_source(source, stem, flags), compile)
+
+
+def _load(build: Callable[[], Path], compile: bool | str) -> ctypes.CDLL | None:
     if compile not in (True, False, "auto"):
         raise InvalidArgumentError("compile", f"expected True, False or 'auto', got {compile!r}")
     if compile is False or (compile == "auto" and compiler() is None):
         return None
     try:
-        path = str(compile_library(functions, extra_source))
+        path = str(build())
         if path not in _LIBS:
             _LIBS[path] = ctypes.CDLL(path)
         return _LIBS[path]

@@ -8,6 +8,8 @@ import time
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import optik
 from optik import catalog, diffik, problem_files
@@ -327,3 +329,47 @@ def test_cli_unwritable_output_fails_before_the_run(tmp_path, capsys, argv, opti
     captured = capsys.readouterr()
     assert captured.out == ""  # nothing ran
     assert option in captured.err and "Traceback" not in captured.err
+
+
+# ----------------------------------------------------------------- closed forms at extreme sizes
+def test_planar_3r_branches_at_extreme_proportions_pass_fk():
+    """lengths (1e-9, 1e3, 1e3), identity target: the branches were off by 7.6e-3 (1 + c2 and
+    1 - c2 did not add up to 2 in rounding, so theta1 missed by l2 times the mismatch)."""
+    m = catalog.planar_3r(lengths=(1e-9, 1e3, 1e3))
+    branches = optik.closed_form.ik(m, np.eye(4))
+    assert branches
+    for q in branches:
+        assert np.abs(m.fk(q) - np.eye(4)).max() < 1e-12 * 2e3
+
+
+_SIZES = st.sampled_from([1e-9, 1e-6, 1e-3, 1.0, 1e3, 1e6, 1e9])
+
+
+@settings(derandomize=True, max_examples=40, deadline=None, database=None)
+@given(
+    lengths=st.tuples(_SIZES, _SIZES, _SIZES), q=st.lists(st.floats(-np.pi, np.pi), min_size=6, max_size=6)
+)
+def test_serial_closed_forms_pass_fk_at_any_proportion(lengths, q):
+    """Every branch returned (scalar and vectorized kernels, 3R and seed 6R arms) reproduces the
+    target to rounding relative to the arm's size."""
+    scale = sum(lengths)
+    arms = (
+        catalog.planar_2r(lengths=lengths[:2]),
+        catalog.planar_3r(lengths=lengths),
+        catalog.seed_6r_arm(*lengths),
+    )
+    for m in arms:
+        qq = q[: m.n_q]
+        t = m.fk(qq)
+        rows = optik.closed_form.ik(m, t, respect_limits=False)
+        assert rows, m.name  # a target made by FK is reachable
+        for b in rows:
+            f = m.fk(b)
+            assert np.abs(f[:3, 3] - t[:3, 3]).max() <= 1e-12 * scale, (m.name, b)
+            if m.task != "position2d":
+                assert np.abs(f[:3, :3] - t[:3, :3]).max() <= 1e-9, (m.name, b)
+    x, y, phi = optik.spatial.planar_pose_of(catalog.planar_3r(lengths=lengths).fk(q[:3]))
+    qs, ok = optik.closed_form.ik_planar_3r(lengths, x, y, phi)
+    m = catalog.planar_3r(lengths=lengths)
+    for b in qs[0][ok[0]]:
+        assert np.abs(m.fk(b)[:2, 3] - [x, y]).max() <= 1e-12 * scale

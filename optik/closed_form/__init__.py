@@ -8,6 +8,7 @@ branches with a reachability mask.
 
 from optik.closed_form import parallel
 from optik.closed_form.derived import DerivedIK, derive
+from optik.closed_form.general_6r import General6R, ik_general_6r, solve_general_6r
 from optik.closed_form.registry import fk, has_fk, has_ik, ik, register
 from optik.closed_form.serial import ik_planar_2r, ik_planar_3r, ik_pp, ik_rp, ik_seed_6r
 from optik.spatial import rot_to_rpy_all as rpy_all
@@ -15,11 +16,13 @@ from optik.spatial import rot_to_zyz_all as zyz_all
 
 __all__ = [
     "DerivedIK",
+    "General6R",
     "derive",
     "fk",
     "has_fk",
     "has_ik",
     "ik",
+    "ik_general_6r",
     "ik_planar_2r",
     "ik_planar_3r",
     "ik_pp",
@@ -28,5 +31,6 @@ __all__ = [
     "parallel",
     "register",
     "rpy_all",
+    "solve_general_6r",
     "zyz_all",
 ]

@@ -68,6 +68,7 @@ COS_TOL = 1e-12
 SINGULAR_TOL = 1e-12
 """Below this (relative to the arm's size for distances) a 6R singularity is treated as exact."""
 
+_EPS = float(np.finfo(float).eps)
 _TWO_PI = 2.0 * np.pi
 _INV_TWO_PI = 1.0 / _TWO_PI
 _SAME_BRANCH = 1e-4
@@ -104,19 +105,40 @@ def _wrap(a: np.ndarray) -> None:
     a -= k
 
 
-def _two_link(l1: float, l2: float, x: np.ndarray, y: np.ndarray, out: np.ndarray) -> np.ndarray:
+def _cos_slack(l1: float, l2: float, extent: Any) -> Any:
+    """How far ``1 +- c2`` may fall below 0 for a reachable target: :data:`COS_TOL` plus the
+    rounding of ``(x, y)``. Coordinates formed from terms of magnitude ``extent`` (e.g.
+    ``|x| + |y| + l3`` for the 3R wrist point) are off by ``delta = 4 eps extent``, which moves
+    ``1 +- c2 = +-(r^2 - (l1 -+ l2)^2) / (2 l1 l2)`` by up to ``delta (l1 + l2 + delta) / (l1 l2)``:
+    negligible for arms of similar links, decisive when ``l1 l2`` is tiny against ``extent^2``
+    (then a point within rounding of the annulus is reached by the nearest boundary solution)."""
+    delta = 4.0 * _EPS * extent
+    return COS_TOL + delta * (l1 + l2 + delta) / (l1 * l2)
+
+
+def _two_link(
+    l1: float, l2: float, x: np.ndarray, y: np.ndarray, out: np.ndarray, extent: Any = None
+) -> np.ndarray:
     """Both two-link solutions into ``out[..., b, 0]`` (theta1) and ``out[..., b, 1]`` (theta2).
 
     Args:
         l1, l2: link lengths.
         x, y: target of the second link's tip, any shape ``S``.
         out: array of shape ``S + (2, k)``, ``k >= 2``; branch ``b`` is ``sigma = 1 - 2 b``.
+        extent: magnitude of the terms ``x`` and ``y`` were computed from (default
+            ``|x| + |y|``), for the rounding slack of :func:`_cos_slack`.
 
     Returns:
-        Reachability mask of shape ``S`` (``1 + c2`` and ``1 - c2`` both ``>= -COS_TOL``).
+        Reachability mask of shape ``S`` (``1 + c2`` and ``1 - c2`` both ``>= -slack``).
     """
     r2 = x * x
     r2 += y * y
+    # one bound for the block when it is within 2 COS_TOL (ordinary arms), else per target
+    top = (math.sqrt(2.0 * float(r2.max())) if extent is None else float(np.max(extent))) if r2.size else 0.0
+    tol = _cos_slack(l1, l2, top)
+    if not tol <= 2.0 * COS_TOL:
+        tol = _cos_slack(l1, l2, np.abs(x) + np.abs(y) if extent is None else extent)
+    tol = -tol
     inv = 1.0 / (2.0 * l1 * l2)
     # 1 + c2 and 1 - c2 straight from the distances, so that s2 keeps full precision at both
     # boundaries of the annulus (also for l1 = l2 near the base, where c2 -> -1)
@@ -124,9 +146,19 @@ def _two_link(l1: float, l2: float, x: np.ndarray, y: np.ndarray, out: np.ndarra
     one_plus *= inv
     one_minus = np.subtract((l1 + l2) ** 2, r2)
     one_minus *= inv
-    ok = (one_plus >= -COS_TOL) & (one_minus >= -COS_TOL)
+    ok = (one_plus >= tol) & (one_minus >= tol) & (r2 < np.inf)  # r2 = inf: overflow, far away
     np.maximum(one_plus, 0.0, out=one_plus)
     np.maximum(one_minus, 0.0, out=one_minus)
+    # (1 + c2) + (1 - c2) = 2 exactly, but not in rounding: rescale so that (c2, s2) is a unit
+    # vector, or theta1 (from both) misses the target by l2 times the mismatch (l1 << l2); both
+    # 0 (an annulus thinner than the rounding of r^2, l1 / l2 < 1e-16): the stretched arm c2 = 1
+    scale = one_plus + one_minus
+    flat = scale <= 0.0
+    np.copyto(one_plus, 2.0, where=flat)
+    np.copyto(scale, 2.0, where=flat)
+    np.divide(2.0, scale, out=scale)
+    one_plus *= scale
+    one_minus *= scale
     s2 = one_minus * one_plus
     np.sqrt(s2, out=s2)
     c2 = np.subtract(one_plus, one_minus, out=one_minus)
@@ -150,17 +182,26 @@ def _wrap_one(a: float) -> float:
     return a - round(a * _INV_TWO_PI) * _TWO_PI
 
 
-def _two_link_one(l1: float, l2: float, x: float, y: float) -> tuple[bool, float, float, float]:
+def _two_link_one(
+    l1: float, l2: float, x: float, y: float, extent: float | None = None
+) -> tuple[bool, float, float, float]:
     """`_two_link` for one target: ``(ok, theta1 branch 0, theta1 branch 1, theta2 branch 0)``
     (branch 1 has ``-theta2``)."""
     r2 = x * x + y * y
     inv = 1.0 / (2.0 * l1 * l2)
     one_plus = (r2 - (l1 - l2) ** 2) * inv
     one_minus = ((l1 + l2) ** 2 - r2) * inv
-    if not (one_plus >= -COS_TOL and one_minus >= -COS_TOL):
+    tol = -_cos_slack(l1, l2, abs(x) + abs(y) if extent is None else extent)
+    if not (one_plus >= tol and one_minus >= tol and r2 < math.inf):
         return False, 0.0, 0.0, 0.0  # unreachable (also a target so far away that r2 overflows)
     one_plus = max(one_plus, 0.0)
     one_minus = max(one_minus, 0.0)
+    total = one_plus + one_minus  # 2 up to rounding: rescale to a unit (c2, s2) (see _two_link)
+    if total > 0.0:
+        one_plus *= 2.0 / total
+        one_minus *= 2.0 / total
+    else:
+        one_plus = 2.0
     s2 = math.sqrt(one_minus * one_plus)
     c2 = (one_plus - one_minus) * 0.5
     th2 = math.atan2(s2, c2)
@@ -179,7 +220,8 @@ def _planar_2r_one(l1: float, l2: float, x: float, y: float) -> list[list[float]
 def _planar_3r_one(l1: float, l2: float, l3: float, x: float, y: float, phi: float) -> list[list[float]]:
     """The reachable branches of [`ik_planar_3r`][optik.closed_form.serial.ik_planar_3r] for one target, in
     branch order."""
-    ok, t1a, t1b, t2 = _two_link_one(l1, l2, math.cos(phi) * -l3 + x, math.sin(phi) * -l3 + y)
+    extent = abs(x) + abs(y) + l3
+    ok, t1a, t1b, t2 = _two_link_one(l1, l2, math.cos(phi) * -l3 + x, math.sin(phi) * -l3 + y, extent)
     if not ok:
         return []
     return [[t1a, t2, _wrap_one(phi - t1a - t2)], [t1b, -t2, _wrap_one(phi - t1b + t2)]]
@@ -229,7 +271,9 @@ def _planar_3r_block(
     yw = np.sin(phi)
     yw *= -l3
     yw += y
-    ok[:] = _two_link(l1, l2, xw, yw, q)[:, None]
+    extent = np.abs(x) + np.abs(y)
+    extent += l3
+    ok[:] = _two_link(l1, l2, xw, yw, q, extent)[:, None]
     t3 = q[..., 2]
     np.subtract(phi[:, None], q[..., 0], out=t3)
     t3 -= q[..., 1]
@@ -334,6 +378,23 @@ def _safe_ratio(num: np.ndarray, den: np.ndarray, default: float) -> np.ndarray:
     return np.divide(num, den, out=out, where=den != 0)
 
 
+def _triangle_angle(r: np.ndarray, d: float, c: float) -> np.ndarray:
+    """The angle between the sides ``r`` and ``d`` of a triangle whose third side is ``c``,
+    ``acos((r^2 + d^2 - c^2) / (2 r d))`` (argument clipped to ``[-1, 1]``; 0 when ``r d = 0``),
+    by the half-angle form ``2 asin(sqrt(h))``, ``h = (c - |r - d|)(c + |r - d|) / (4 r d)``:
+    ``acos`` near 1 turns one rounding unit into an angle of ``1.5e-8``, the half-angle form
+    keeps full precision for thin triangles (an elbow far shorter than the wrist offset)."""
+    gap = np.abs(r - d)
+    h = _safe_ratio((c - gap) * (c + gap), 4.0 * r * d, 0.0)
+    return 2.0 * np.arcsin(np.sqrt(np.clip(h, 0.0, 1.0)))
+
+
+def _triangle_angle_one(r: float, d: float, c: float) -> float:
+    """`_triangle_angle` of floats."""
+    gap = abs(r - d)
+    return 2.0 * math.asin(math.sqrt(_clip_one(_safe_one((c - gap) * (c + gap), 4.0 * r * d, 0.0), 0.0, 1.0)))
+
+
 def _reachable_wrist(
     th234: np.ndarray, s5_abs: np.ndarray, beta: np.ndarray, r: np.ndarray, d: tuple[float, float, float]
 ) -> np.ndarray:
@@ -349,8 +410,8 @@ def _reachable_wrist(
     reached with an FK error below the tolerance.
     """
     d2, d3, d4 = d
-    lo = np.arccos(np.clip(_safe_ratio(r * r + d4 * d4 - (d2 - d3) ** 2, 2.0 * d4 * r, 1.0), -1.0, 1.0))
-    hi = np.arccos(np.clip(_safe_ratio(r * r + d4 * d4 - (d2 + d3) ** 2, 2.0 * d4 * r, 1.0), -1.0, 1.0))
+    lo = _triangle_angle(r, d4, abs(d2 - d3))
+    hi = _triangle_angle(r, d4, d2 + d3)
     psi = th234 - beta
     _wrap(psi)
     inside = np.clip(np.abs(psi), lo, hi)
@@ -452,16 +513,16 @@ def _seed_6r_block(
     sigma = np.array([1.0, -1.0])
     th234 = np.arctan2(sigma * az2[..., None], sigma * u[..., None])
     r = np.hypot(rho, pz[:, None])
-    k = np.clip(_safe_ratio(r * r + d4 * d4 - mid * mid, 2.0 * d4 * r, 1.0), -1.0, 1.0)
     beta = np.arctan2(pz[:, None], rho)[..., None]
-    th234_singular = beta + sigma * np.arccos(k)[..., None]
+    th234_singular = beta + sigma * _triangle_angle(r, d4, mid)[..., None]
     s5_abs = np.hypot(u, az2)[..., None]
     th234 = np.where(s5_abs <= SINGULAR_TOL, th234_singular, th234)
     th234 = _reachable_wrist(th234, s5_abs, beta, r[..., None], (d2, d3, d4))
     c234, s234 = np.cos(th234), np.sin(th234)
 
     # 3. elbow
-    ok = _two_link(d2, d3, rho[..., None] - d4 * c234, pz[:, None, None] - d4 * s234, q[..., 1:3])
+    extent = (np.abs(px) + np.abs(py) + np.abs(pz) + d4)[:, None, None]
+    ok = _two_link(d2, d3, rho[..., None] - d4 * c234, pz[:, None, None] - d4 * s234, q[..., 1:3], extent)
     np.subtract(th234[..., None], q[..., 1], out=q[..., 3])
     q[..., 3] -= q[..., 2]
     _wrap(q[..., 3])
@@ -492,8 +553,8 @@ def _reachable_wrist_one(
 ) -> float:
     """`_reachable_wrist` for one candidate."""
     d2, d3, d4 = d
-    lo = math.acos(_clip_one(_safe_one(r * r + d4 * d4 - (d2 - d3) ** 2, 2.0 * d4 * r, 1.0), -1.0, 1.0))
-    hi = math.acos(_clip_one(_safe_one(r * r + d4 * d4 - (d2 + d3) ** 2, 2.0 * d4 * r, 1.0), -1.0, 1.0))
+    lo = _triangle_angle_one(r, d4, abs(d2 - d3))
+    hi = _triangle_angle_one(r, d4, d2 + d3)
     psi = _wrap_one(th234 - beta)
     inside = _clip_one(abs(psi), lo, hi)
     moved = beta + (inside if psi >= 0.0 else -inside)
@@ -507,6 +568,7 @@ def _seed_6r_one(d2: float, d3: float, d4: float, t: np.ndarray) -> list[list[fl
     (nx, ox, ax, px), (ny, oy, ay, py), (nz, oz, az, pz) = t[:3].tolist()
     mid = max(d2, d3)
     scale = SINGULAR_TOL * (d2 + d3 + d4)
+    extent = abs(px) + abs(py) + abs(pz) + d4
 
     # 1. shoulder, with the representative of the shoulder singularity
     if math.hypot(px, py) <= scale:
@@ -531,8 +593,7 @@ def _seed_6r_one(d2: float, d3: float, d4: float, t: np.ndarray) -> list[list[fl
         beta = math.atan2(pz, rho)
         s5_abs = math.hypot(u, az)
         if s5_abs <= SINGULAR_TOL:
-            k = _clip_one(_safe_one(r * r + d4 * d4 - mid * mid, 2.0 * d4 * r, 1.0), -1.0, 1.0)
-            acos_k = math.acos(k)
+            acos_k = _triangle_angle_one(r, d4, mid)
         c5 = ax * s1 - ay * c1
         nr = nx * c1 + ny * s1
         orr = ox * c1 + oy * s1
@@ -542,7 +603,7 @@ def _seed_6r_one(d2: float, d3: float, d4: float, t: np.ndarray) -> list[list[fl
             th234 = _reachable_wrist_one(th234, s5_abs, beta, r, (d2, d3, d4))
             c234, s234 = math.cos(th234), math.sin(th234)
             # 3. elbow
-            ok, t2a, t2b, t3 = _two_link_one(d2, d3, rho - d4 * c234, pz - d4 * s234)
+            ok, t2a, t2b, t3 = _two_link_one(d2, d3, rho - d4 * c234, pz - d4 * s234, extent)
             if not ok:
                 continue
             # 4. wrist angles from M = R_04^T R

@@ -29,14 +29,17 @@ from optik.closed_form.parallel.stewart_gough import (
     GENERAL_STEWART_SOLUTIONS,
     StewartFK,
     polish_stewart,
-    quat_left,
-    quat_right,
-    quat_to_rot,
     stewart_gough_fk,
     stewart_gough_ik,
     stewart_jacobian,
     stewart_poses,
+)
+from optik.closed_form.parallel.study import (
+    quat_left,
+    quat_right,
+    quat_to_rot,
     stewart_quadrics,
+    study_matrices,
 )
 
 __all__ = [
@@ -67,5 +70,6 @@ __all__ = [
     "stewart_jacobian",
     "stewart_poses",
     "stewart_quadrics",
+    "study_matrices",
     "two_link_ik",
 ]

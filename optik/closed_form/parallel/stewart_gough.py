@@ -11,60 +11,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from optik import spatial
-from optik.closed_form import homotopy
+from optik.closed_form import homotopy, parameter_homotopy
+from optik.closed_form.parallel import stewart_parameter
 from optik.closed_form.parallel.common import QUADRATIC_STOP, assemble, newton_step
+from optik.closed_form.parallel.study import leg_constants, quat_left, quat_to_rot, stewart_quadrics
 from optik.closed_form.registry import register
+from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
-
-
-def quat_left(a: np.ndarray) -> np.ndarray:
-    """``L(a)`` with ``a * b = L(a) b`` (Hamilton product, scalar first)."""
-    a0, a1, a2, a3 = a
-    return np.array([[a0, -a1, -a2, -a3], [a1, a0, -a3, a2], [a2, a3, a0, -a1], [a3, -a2, a1, a0]])
-
-
-def quat_right(b: np.ndarray) -> np.ndarray:
-    """``R(b)`` with ``a * b = R(b) a`` (Hamilton product, scalar first)."""
-    b0, b1, b2, b3 = b
-    return np.array([[b0, -b1, -b2, -b3], [b1, b0, b3, -b2], [b2, -b3, b0, b1], [b3, b2, -b1, b0]])
-
-
-def quat_to_rot(e: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a (not necessarily unit) quaternion ``e = (e0, e1, e2, e3)``."""
-    w, x, y, z = np.asarray(e, dtype=float) / np.linalg.norm(e)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
-def stewart_quadrics(b: np.ndarray, p: np.ndarray, rho: np.ndarray) -> np.ndarray:
-    """The Stewart-Gough FK as 7 homogeneous quadrics in Study's coordinates ``z = (e, g)``.
-
-    The pose is ``R = R(e)``, ``t = 2 vec(g e*) / |e|^2`` (``g = t e / 2``). The Study quadric
-    ``e . g = 0`` and, for each leg, ``|R p + t - b|^2 = rho^2`` times ``|e|^2``:
-
-    ``(|p|^2 + |b|^2 - rho^2) |e|^2 - 2 <b e, e p> + 4 <e p - b e, g> + 4 |g|^2 = 0``
-
-    (``b``, ``p`` as pure quaternions; ``<.,.>`` the Euclidean product of R^4). Each leg
-    quadric is scaled to unit Frobenius norm.
-    """
-    mats = np.zeros((7, 8, 8))
-    mats[0, :4, 4:] = mats[0, 4:, :4] = 0.5 * np.eye(4)
-    for i in range(6):
-        lb, rp = quat_left(np.r_[0.0, b[i]]), quat_right(np.r_[0.0, p[i]])
-        a = lb.T @ rp
-        c = p[i] @ p[i] + b[i] @ b[i] - rho[i] ** 2
-        mt = np.zeros((8, 8))
-        mt[:4, :4] = c * np.eye(4) - (a + a.T)
-        mt[4:, :4] = 2 * (rp - lb)
-        mt[:4, 4:] = mt[4:, :4].T
-        mt[4:, 4:] = 4 * np.eye(4)
-        mats[i + 1] = mt / np.linalg.norm(mt)
-    return mats
 
 
 def _sg_residual(b: np.ndarray, p: np.ndarray, rho: np.ndarray, r: np.ndarray, t: np.ndarray):
@@ -159,12 +112,19 @@ class StewartFK:
 
     Attributes:
         poses: real postures ``(R, t)``, each polished to leg-length error <= ``tol``.
-        complex_solutions: distinct nonsingular complex solutions found (40 for a general 6-6).
-        paths: number of tracked homotopy paths (128 per round).
-        rounds: tracking rounds used (a new round uses a fresh ``gamma`` and patch).
-        complete: every path was accounted for (nonsingular end point or the degenerate set
-            ``e = 0``) with no two paths at the same end point, or 40 solutions were found.
+        complex_solutions: distinct complex solutions found (40 for a general 6-6).
+        paths: number of tracked homotopy paths (40 per parameter-homotopy attempt, 128 per
+            total-degree round).
+        rounds: total-degree rounds used (0 when the parameter homotopy was complete).
+        complete: the count check passed (40 distinct nonsingular solutions, which bounds the
+            isolated ones), or a total-degree round accounted for every path with no two paths
+            at the same end point.
         solve_time: wall time (s).
+        method: ``"parameter"`` (40 paths), ``"total"`` (128 paths per round) or
+            ``"parameter+total"`` (the count check failed and the total method completed the set).
+        solutions: with ``keep_complex=True``, the distinct complex solutions in Study's
+            coordinates ``(e, g)`` of the unscaled geometry (``g = t e / 2``), each scaled so that
+            its largest ``|e_k|`` is 1; else None.
     """
 
     poses: list[tuple[np.ndarray, np.ndarray]]
@@ -173,12 +133,17 @@ class StewartFK:
     rounds: int
     complete: bool
     solve_time: float
+    method: str = "total"
+    solutions: np.ndarray | None = None
 
 
 GENERAL_STEWART_SOLUTIONS = 40
 """Number of complex assembly modes of a general 6-6 Stewart-Gough platform (Raghavan 1993;
 Ronga and Vust; Lazard; Mourrain; Husty 1996): an upper bound on the isolated solutions."""
 
+PARAMETER_ATTEMPTS = 2
+"""Parameter-homotopy attempts (fresh gamma and patch, solutions merged) before the count check
+gives way to the total-degree method."""
 
 DEGENERATE_E = 0.1
 """End points with ``|e| / |z|`` below this are not real postures: after scaling the geometry to
@@ -197,8 +162,37 @@ def _entered_degenerate_set(z: np.ndarray, t: np.ndarray) -> np.ndarray:
     return (t < 1e-3) & (_e_part(z) < DEGENERATE_E / 2)
 
 
-def _projective_same(u: np.ndarray, v: np.ndarray, tol: float = 1e-7) -> bool:
-    return bool(1 - abs(np.vdot(u, v)) / (np.linalg.norm(u) * np.linalg.norm(v)) < tol)
+def _merge(sols: np.ndarray, new: np.ndarray) -> np.ndarray:
+    """``sols`` followed by the rows of ``new`` that are new projective points."""
+    both = np.concatenate([sols, new])
+    return both[stewart_parameter.distinct(both)]
+
+
+def _total_round(mats: np.ndarray, rng: np.random.Generator, time_limit: float) -> tuple[np.ndarray, bool]:
+    """One 128-path total-degree round: (distinct candidate end points, clean).
+
+    Candidates solve the system and have ``|e| / |z| > DEGENERATE_E``; the round is *clean*
+    when every path is a candidate or ended on the degenerate set, and no two well-conditioned
+    paths share an end point (which would reveal path jumping).
+    """
+    with np.errstate(invalid="ignore", over="ignore"):  # diverging paths of special geometries
+        res = homotopy.track(mats, rng, time_limit=time_limit, abandon=_entered_degenerate_set)
+    z = homotopy.refine(mats, res.z)
+    e_part = _e_part(z)
+    candidate = (e_part > DEGENERATE_E) & (stewart_parameter.relative_residual(mats, z) < 1e-8)
+    sharp = (res.converged & (res.condition < 1e8))[candidate]
+    z = z[candidate]
+    keep = stewart_parameter.distinct(z)
+    jumped = bool(np.any(sharp) and len(keep) < len(z) and _shared_sharp_end(z, sharp))
+    return z[keep], not jumped and bool(np.all(candidate | (e_part <= DEGENERATE_E)))
+
+
+def _shared_sharp_end(z: np.ndarray, sharp: np.ndarray) -> bool:
+    """Whether a well-conditioned end point is reached by two paths."""
+    u = z / np.linalg.norm(z, axis=1, keepdims=True)
+    close = np.abs(np.conj(u) @ u.T) > 1 - stewart_parameter.SAME_POINT
+    np.fill_diagonal(close, False)
+    return bool(np.any(close[sharp]))
 
 
 def stewart_poses(
@@ -210,58 +204,103 @@ def stewart_poses(
     time_limit: float = 5.0,
     max_rounds: int = 3,
     tol: float = 1e-9,
+    method: str = "auto",
+    keep_complex: bool = False,
 ) -> StewartFK:
     """Every real posture of a Stewart-Gough platform by homotopy continuation (all 40 complex).
 
-    The leg equations in Study's coordinates (`stewart_quadrics`) are 7 quadrics in
-    ``P^7``; `optik.closed_form.homotopy.track` follows all ``2^7 = 128`` paths from a
-    total-degree start system (gamma trick). With probability one every isolated nonsingular
-    solution ends a path; the other paths end on the degenerate set ``e = 0`` (where all leg
-    quadrics reduce to ``|g|^2 = 0``). A round is *complete* when every path is accounted for
-    and no two paths share an end point (a shared end point reveals path jumping); finding 40
-    distinct solutions proves completeness outright, since 40 bounds the isolated solutions.
-    Otherwise a new round (fresh gamma and patch) is tracked and the solutions merged, up to
-    ``max_rounds``. Real solutions (``max |Im|`` small after fixing the projective phase) are
-    polished by Newton on the real leg equations and kept when every leg length is met to
-    ``tol`` (relative to the platform size).
+    The leg equations in Study's coordinates (`study_matrices`) are 7 quadrics in ``P^7``.
+
+    * ``method="parameter"``: the 40-path parameter homotopy from the shipped generic start
+      instance (`optik.closed_form.parallel.stewart_parameter`; compiled tracker with a Cauchy
+      endgame). The count check: 40 distinct nonsingular solutions prove completeness (40 bounds
+      the isolated solutions). When a path failed, a failed check is retried once with a fresh
+      gamma and patch, the solutions merged.
+    * ``method="total"``: `optik.closed_form.homotopy.track` follows all ``2^7 = 128`` paths from a
+      total-degree start system (gamma trick). With probability one every isolated nonsingular
+      solution ends a path; the other paths end on the degenerate set ``e = 0`` (where all leg
+      quadrics reduce to ``|g|^2 = 0``). A round is *complete* when every path is accounted for
+      and no two paths share an end point (a shared end point reveals path jumping), or when 40
+      distinct solutions are found. Otherwise a new round (fresh gamma and patch) is tracked and
+      the solutions merged, up to ``max_rounds``; two rounds that agree also end the search.
+    * ``method="auto"`` (default): the parameter homotopy, and the total method (solutions
+      merged) when its count check fails: special geometries (planar base and platform, 6-4,
+      3-3 platforms) have fewer than 40 isolated solutions. Without a C compiler: the total
+      method.
+
+    Real solutions (``max |Im|`` small after fixing the projective phase) are polished by
+    Newton on the real leg equations and kept when every leg length is met to ``tol``
+    (relative to the platform size).
+
+    Raises:
+        InvalidArgumentError: unknown ``method``.
     """
     start = time.perf_counter()
+    if method not in ("auto", "parameter", "total"):
+        raise InvalidArgumentError(
+            "method", f"unknown Stewart-Gough FK method {method!r}; use 'auto', 'parameter' or 'total'"
+        )
     rng = np.random.default_rng(seed) if not isinstance(seed, np.random.Generator) else seed
     size = float(max(np.max(np.linalg.norm(b, axis=1)), np.max(np.linalg.norm(p, axis=1)), np.max(rho)))
-    mats = stewart_quadrics(b / size, p / size, rho / size)
-    sols: list[np.ndarray] = []
-    complete, rounds, paths = False, 0, 0
-    while rounds < max_rounds and not complete:
-        remaining = time_limit - (time.perf_counter() - start)
-        if remaining <= 0:
-            break
-        rounds += 1
-        res = homotopy.track(mats, rng, time_limit=remaining, abandon=_entered_degenerate_set)
-        paths += len(res.z)
-        z = homotopy.refine(mats, res.z)
-        norm2 = np.sum(np.abs(z) ** 2, axis=1)
-        val = np.abs(np.einsum("kij,pi,pj->pk", mats, z, z)).max(axis=1) / norm2
-        e_part = _e_part(z)
-        candidate = (e_part > DEGENERATE_E) & (val < 1e-8)
-        well_conditioned = candidate & res.converged & (res.condition < 1e8)
-        before = len(sols)
-        ends: list[np.ndarray] = []
-        jumped = False
-        for v, sharp in zip(z[candidate], well_conditioned[candidate], strict=True):
-            seen = any(_projective_same(v, u) for u in ends)
-            jumped |= seen and bool(sharp)
-            if not seen:
-                ends.append(v)
-        sols += [v for v in ends if not any(_projective_same(v, u) for u in sols)]
-        clean = not jumped and bool(np.all(candidate | (e_part <= DEGENERATE_E)))
-        agreed = rounds > 1 and len(sols) == before
-        complete = len(sols) >= GENERAL_STEWART_SOLUTIONS or clean or agreed
+    bs, ps, rs = b / size, p / size, rho / size
+    sols = np.zeros((0, 8), dtype=complex)
+    complete, rounds, paths, used = False, 0, 0, []
+    if method != "total" and parameter_homotopy.available():
+        used.append("parameter")
+        sharp = np.zeros((0, 8), dtype=complex)
+        for _ in range(PARAMETER_ATTEMPTS):
+            remaining = time_limit - (time.perf_counter() - start)
+            if remaining <= 0:
+                break
+            res = stewart_parameter.solve(bs, ps, leg_constants(bs, ps, rs), rng, remaining)
+            paths += len(res.status)
+            nonsingular = res.condition < stewart_parameter.SINGULAR_CONDITION
+            # singular end points: possible (double) real postures, never on the set e = 0
+            keep = nonsingular | (_e_part(res.solutions) > DEGENERATE_E)
+            sols = _merge(sols, res.solutions[keep])
+            sharp = _merge(sharp, res.solutions[nonsingular])
+            complete = len(sharp) >= GENERAL_STEWART_SOLUTIONS
+            if complete or not np.any(res.status == "failed"):
+                break  # every path accounted for: a special geometry, retrying cannot add solutions
+    if not complete and method != "parameter":
+        used.append("total")
+        mats = stewart_quadrics(bs, ps, rs)
+        while rounds < max_rounds and not complete:
+            remaining = time_limit - (time.perf_counter() - start)
+            if remaining <= 0:
+                break
+            rounds += 1
+            before = len(sols)
+            ends, clean = _total_round(mats, rng, remaining)
+            paths += 128
+            sols = _merge(sols, ends)
+            agreed = rounds > 1 and len(sols) == before
+            complete = len(sols) >= GENERAL_STEWART_SOLUTIONS or clean or agreed
+    poses = _real_poses(sols, b, p, rho, size, tol)
+    kept = _unscaled(sols, size) if keep_complex else None
+    return StewartFK(
+        poses, len(sols), paths, rounds, complete, time.perf_counter() - start, "+".join(used), kept
+    )
+
+
+def _unscaled(z: np.ndarray, size: float) -> np.ndarray:
+    """Study coordinates of the unscaled geometry (``g`` times ``size``), largest ``|e_k|`` = 1."""
+    w = z / z[np.arange(len(z)), np.argmax(np.abs(z[:, :4]), axis=1)][:, None]
+    w[:, 4:] *= size
+    return w
+
+
+def _real_poses(
+    sols: np.ndarray, b: np.ndarray, p: np.ndarray, rho: np.ndarray, size: float, tol: float
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The real solutions as polished, distinct postures ``(R, t)`` (see `stewart_poses`)."""
     poses: list[tuple[np.ndarray, np.ndarray]] = []
-    for v in sols:
-        w = v / v[int(np.argmax(np.abs(v[:4])))]
-        if np.max(np.abs(w.imag)) > 1e-5 * np.max(np.abs(w)):
-            continue
-        e, g = w.real[:4], w.real[4:]
+    if len(sols) == 0:
+        return poses
+    w = sols / sols[np.arange(len(sols)), np.argmax(np.abs(sols[:, :4]), axis=1)][:, None]
+    real = np.max(np.abs(w.imag), axis=1) <= 1e-5 * np.max(np.abs(w), axis=1)
+    for v in w[real].real:
+        e, g = v[:4], v[4:]
         e_conj = e * np.array([1.0, -1.0, -1.0, -1.0])
         t = 2 * (quat_left(g) @ e_conj)[1:] / (e @ e)
         r, t, err = polish_stewart(b, p, rho, quat_to_rot(e), t * size)
@@ -271,7 +310,7 @@ def stewart_poses(
             np.linalg.norm(t - t2) > 1e-7 * size or spatial.angle_between(r, r2) > 1e-7 for r2, t2 in poses
         ):
             poses.append((r, t))
-    return StewartFK(poses, len(sols), paths, rounds, complete, time.perf_counter() - start)
+    return poses
 
 
 def stewart_gough_fk(m: Mechanism, actuated: np.ndarray) -> list[np.ndarray]:

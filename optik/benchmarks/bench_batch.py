@@ -1,0 +1,223 @@
+"""Batch IK on the Franka Panda: ``solve_ik_batch`` on every core against TRAC-IK's single-thread loop.
+
+Method: the Panda chain is loaded from the shipped URDF (``panda_link0`` -> ``panda_link8``) by
+optik and by TRAC-IK (``pytracik``, Speed mode). ``--n`` joint vectors are drawn uniformly
+within the limits (seeded), the targets are their FK poses, and each target gets a random start
+(also seeded), the same for both solvers; tolerance ``--tol`` (1e-5) and time limit
+``--time-limit`` (5 ms) per target. The targets are processed in blocks of ``--block``;
+every block is solved by ``optik.solve_ik_batch(..., workers=--workers)`` and by a Python loop
+over ``TracIK.ik`` on one thread, alternating which goes first, so that load changes of a
+shared machine hit both; each solver's throughput is its targets over the sum of its blocks'
+wall times (the batch call's validation, thread pool and result assembly included). Success is
+judged for both by an independent forward kinematics (Pinocchio on the same URDF; optik's own
+FK when Pinocchio is missing): position error and geodesic orientation error <= ``--tol`` and
+the joint limits satisfied exactly. Equality: on ``--n-check`` sampled targets,
+``optik.solve_ik(m, T[i], q0[i], method="lm", seed=res.seed[i])`` must return exactly the batch's
+``q`` (bitwise) and iteration count. Dask: the first ``--n-dask`` targets on a ``LocalCluster``
+of one and of two worker processes (one thread each), timed after a warm-up that ships the
+mechanism and builds each worker's kernel; the answers are compared with the local run. The
+load average (``/proc/loadavg``) is printed before and after: on a shared machine the numbers
+are depressed.
+
+Run: ``optik benchmark batch [--n 100000] [--block 5000] [--tol 1e-5] [--time-limit 0.005]
+[--workers 2] [--n-check 1000] [--n-dask 20000] [--seed 0]``.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+from collections.abc import Callable, Sequence  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+import optik  # noqa: E402
+from optik.batch.chunk import default_workers  # noqa: E402
+from optik.catalog.arms import URDF_CHAINS, urdf_path  # noqa: E402
+
+
+def load_average() -> str:
+    """The 1, 5 and 15 minute load averages (``/proc/loadavg``), or ``"n/a"``."""
+    try:
+        return " ".join(Path("/proc/loadavg").read_text().split()[:3])
+    except OSError:
+        return "n/a"
+
+
+def fk_checker(path: str, tip: str, m: optik.Mechanism) -> tuple[str, Callable[[np.ndarray], np.ndarray]]:
+    """An FK ``q -> 4x4`` independent of optik (Pinocchio) when available, and its name."""
+    try:
+        import pinocchio as pin
+    except ImportError:
+        return "optik fk (Pinocchio missing)", m.fk
+    model = pin.buildModelFromUrdf(path)
+    data = model.createData()
+    frame = model.getFrameId(tip)
+
+    def fk(q: np.ndarray) -> np.ndarray:
+        pin.framesForwardKinematics(model, data, q)
+        return data.oMf[frame].homogeneous
+
+    return "Pinocchio", fk
+
+
+def successes(
+    m: optik.Mechanism, fk: Callable[[np.ndarray], np.ndarray], qs: list, targets: np.ndarray, tol: float
+) -> np.ndarray:
+    """Per target: within limits, position and geodesic orientation errors <= tol."""
+    ok = np.zeros(len(targets), dtype=bool)
+    for i, (q, t) in enumerate(zip(qs, targets, strict=True)):
+        if q is None or not ((q >= m.lower) & (q <= m.upper)).all():
+            continue
+        pose = fk(q)
+        pos = np.linalg.norm(pose[:3, 3] - t[:3, 3])
+        r = pose[:3, :3].T @ t[:3, :3]
+        skew = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+        ori = np.arctan2(0.5 * np.linalg.norm(skew), 0.5 * (np.trace(r) - 1.0))
+        ok[i] = pos <= tol and ori <= tol
+    return ok
+
+
+def compare(a: optik.BatchResult, b: optik.BatchResult) -> str:
+    """How two runs of the same targets and seeds agree: bitwise ``q`` and iterations where
+    neither hit the time limit (there the clock decides)."""
+    timed = (a.status == "time_limit") | (b.status == "time_limit")
+    same = (a.q == b.q).all(axis=1) & (a.iterations == b.iterations)
+    differ = int((~same & ~timed).sum())
+    return f"{int(same.sum())} identical, {differ} differ, {int(timed.sum())} time-limited in either run"
+
+
+def dask_runs(
+    m: optik.Mechanism, targets: np.ndarray, q0: np.ndarray, local: optik.BatchResult, opts: dict
+) -> list[str]:
+    """Throughput on LocalClusters of one and two workers, and equality with the local run."""
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        return ["Dask: dask.distributed is not installed (pip install 'optik[dist]'): skipped"]
+    lines, rates = [], {}
+    for workers in (1, 2):
+        cluster = LocalCluster(
+            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=40
+        )
+        with Client(cluster) as client:
+            optik.solve_ik_batch(m, targets[:200], q0[:200], scheduler=client, **opts)  # warm-up
+            res = optik.solve_ik_batch(m, targets, q0, scheduler=client, **opts)
+        cluster.close()
+        rates[workers] = res.throughput
+        lines.append(
+            f"| Dask LocalCluster, {workers} worker(s) | {len(res)} | {100 * res.success_rate:.2f} | "
+            f"{res.wall_time:.2f} | {res.throughput:,.0f} | {compare(res, local)} |"
+        )
+    lines.append(f"\nDask 2 workers / 1 worker throughput: {rates[2] / rates[1]:.2f}x")
+    return lines
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point (also called by ``optik benchmark batch``)."""
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--n", type=int, default=100_000, help="number of targets")
+    p.add_argument("--block", type=int, default=5000, help="targets per alternating block")
+    p.add_argument("--tol", type=float, default=1e-5, help="position / orientation tolerance")
+    p.add_argument("--time-limit", type=float, default=0.005, help="time limit per target (s)")
+    p.add_argument("--workers", type=int, default=default_workers(), help="threads of solve_ik_batch")
+    p.add_argument("--n-check", type=int, default=1000, help="targets compared with solve_ik")
+    p.add_argument("--n-dask", type=int, default=20_000, help="targets of the Dask runs (0: skip)")
+    p.add_argument("--seed", type=int, default=0)
+    args = p.parse_args(argv)
+    print(f"load average before: {load_average()}  (cores: {os.cpu_count()})")
+    path, (base, tip) = str(urdf_path("panda")), URDF_CHAINS["panda"]
+    m = optik.Mechanism.from_urdf(path, base, tip)
+    targets = optik.fk_batch(m, m.random_q(args.n, seed=args.seed))
+    q0 = m.random_q(args.n, seed=args.seed + 1)
+    opts = {"tol": args.tol, "time_limit": args.time_limit, "seed": args.seed}
+    optik.solve_ik_batch(m, targets[:10], q0[:10], **opts)  # build and compile outside the timings
+    tracik = None
+    try:
+        from trac_ik import TracIK
+
+        # epsilon = tol as in `optik benchmark ik` (a bound per twist component)
+        tracik = TracIK(base, tip, path, timeout=args.time_limit, epsilon=args.tol, solver_type="Speed")
+    except ImportError:
+        print("pytracik is not installed (pip install pytracik): TRAC-IK skipped")
+    parts, t_optik, t_tracik, tracik_q = [], 0.0, 0.0, []
+    for k, a in enumerate(range(0, args.n, args.block)):
+        b = min(a + args.block, args.n)
+
+        def run_optik(a: int = a, b: int = b) -> float:
+            t0 = time.perf_counter()
+            parts.append(optik.solve_ik_batch(m, targets[a:b], q0[a:b], workers=args.workers, **opts))
+            return time.perf_counter() - t0
+
+        def run_tracik(a: int = a, b: int = b) -> float:
+            t0 = time.perf_counter()
+            for i in range(a, b):
+                tracik_q.append(tracik.ik(targets[i][:3, 3], targets[i][:3, :3], q0[i]))
+            return time.perf_counter() - t0
+
+        if tracik is None:
+            t_optik += run_optik()
+        elif k % 2 == 0:
+            t_optik += run_optik()
+            t_tracik += run_tracik()
+        else:
+            t_tracik += run_tracik()
+            t_optik += run_optik()
+    res = optik.BatchResult.concatenate(parts, wall_time=t_optik, workers=args.workers)
+    checker, fk = fk_checker(path, tip, m)
+    ok = successes(m, fk, list(res.q), targets, args.tol)
+    print(
+        f"\nPanda (URDF), {args.n} FK targets, random starts, tol {args.tol:g}, time limit "
+        f"{args.time_limit * 1e3:g} ms, blocks of {args.block} alternating; success by {checker}\n"
+    )
+    print("| solver | targets | success % | wall s | IK/s | IK/s / TRAC-IK |\n|---|--:|--:|--:|--:|--:|")
+    rate = args.n / t_optik
+    ratio = ""
+    if tracik is not None:
+        tk_ok = successes(m, fk, [None if q is None else np.asarray(q) for q in tracik_q], targets, args.tol)
+        ratio = f"{rate / (args.n / t_tracik):.1f}"
+        print(
+            f"| TRAC-IK (Speed), 1 thread | {args.n} | {100 * tk_ok.mean():.2f} | {t_tracik:.2f} | "
+            f"{args.n / t_tracik:,.0f} | 1.0 |"
+        )
+    print(
+        f"| optik solve_ik_batch, {args.workers} threads | {args.n} | {100 * ok.mean():.2f} | "
+        f"{t_optik:.2f} | {rate:,.0f} | {ratio or '-'} |"
+    )
+    print(f"\noptik status counts: {dict(zip(*np.unique(res.status, return_counts=True), strict=True))}")
+    rng = np.random.default_rng(args.seed)
+    sample = rng.choice(args.n, size=min(args.n_check, args.n), replace=False)
+    equal = timed_out = 0
+    for i in sample:
+        one = optik.solve_ik(
+            m, targets[i], q0[i], method="lm", tol=args.tol, time_limit=args.time_limit, seed=int(res.seed[i])
+        )
+        if res.status[i] == "time_limit":
+            timed_out += 1
+        equal += bool(np.array_equal(one.q, res.q[i]) and one.iterations == res.iterations[i])
+    print(
+        f"equal to solve_ik(seed=res.seed[i]) on {len(sample)} sampled targets: {equal} "
+        f"({timed_out} of them hit the time limit, where the clock decides)"
+    )
+    if args.n_dask:
+        nd = min(args.n_dask, args.n)
+        local = optik.solve_ik_batch(m, targets[:nd], q0[:nd], workers=args.workers, **opts)
+        print("\n| run | targets | success % | wall s | IK/s | answers |\n|---|--:|--:|--:|--:|---|")
+        print(
+            f"| local threads, {args.workers} | {nd} | {100 * local.success_rate:.2f} | "
+            f"{local.wall_time:.2f} | {local.throughput:,.0f} | - |"
+        )
+        for line in dask_runs(m, targets[:nd], q0[:nd], local, opts):
+            print(line)
+    print(f"\nload average after: {load_average()}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,624 @@
+"""All inverse-kinematics solutions of a general 6R serial arm (no special axes), by an eigenvalue
+problem in the style of Raghavan-Roth and Manocha-Canny.
+
+Any chain of six revolute joints is first written in standard Denavit-Hartenberg form
+
+``T(q) = B A1(theta_1) ... A6(theta_6) E``,  ``A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)``,
+``theta_i = q_i + o_i``,
+
+from its joint lines at ``q = 0`` (:meth:`General6R.from_mechanism`; the common normals of
+consecutive axes give ``a_i, alpha_i, d_i`` and the offsets ``o_i``). With ``T' = B^-1 T E^-1``:
+
+1. **Fourteen equations.** ``A3 A4 A5 = A2^-1 A1^-1 T' A6^-1``; the third and fourth columns of
+   ``A6^-1`` do not depend on ``theta_6``, so the axis ``l`` and the point ``p`` of frame 5 seen
+   from frame 2 give six equations without ``theta_6``. With ``p.p``, ``p.l``, ``p x l`` and
+   ``(p.p) l - 2 (p.l) p`` (computed on each side) there are fourteen, and every one is
+   trigonometric of degree at most one in each of ``theta_3, theta_4, theta_5`` (left side) and
+   in each of ``theta_1, theta_2`` (right side). The coefficients are computed exactly by a
+   five-point discrete Fourier transform per angle (a check that the degree-two coefficients
+   vanish guards this); no symbolic expansion is written out by hand.
+2. **Eliminate theta_1, theta_2.** The right sides are ``Q x_R`` with ``x_R`` the eight
+   non-constant products of ``(1, c1, s1) (x) (1, c2, s2)``; the six left null vectors of the
+   ``14 x 8`` matrix ``Q`` (an SVD) leave six equations ``Sigma(theta_3) x_L = 0`` in the nine
+   products of ``(theta_4, theta_5)``.
+3. **12 x 12 resultant.** With half-angle tangents ``x_k = tan(phi_k / 2)`` and the six
+   equations multiplied by ``(1 + x_3^2)(1 + x_4^2)(1 + x_5^2)`` and then by ``1`` and
+   ``x_4``, one gets ``M(x_3) w = 0``, ``M(x_3) = A x_3^2 + B x_3 + C`` (``12 x 12``) and
+   ``w = (x_4^i x_5^j)``, ``i <= 3``, ``j <= 2``. ``det M(x_3)`` has degree 24 and the factor
+   ``(1 + x_3^2)^4``; its 16 other roots are the solutions. They are the eigenvalues of the
+   ``24 x 24`` companion matrix of ``A^-1 M`` (the eigenvectors give ``x_4`` and ``x_5``); the
+   8 eigenvalues nearest ``+-i`` are the spurious factor.
+4. **Back-substitution.** ``x_R`` follows by least squares from the fourteen equations
+   (``theta_1, theta_2`` from its ``c, s`` entries), ``theta_6`` from ``A6 = (A1..A5)^-1 T'``.
+
+The angles in steps 1-3 are ``phi_k = theta_k - delta_k`` for fixed pseudo-random rotations
+``delta_3, delta_4, delta_5`` (:data:`ROTATIONS`): a real Moebius change of the half-angle
+variables that keeps ``+-i`` fixed and moves the poles ``x_k = inf`` away from any special angle
+of a designed arm, so that ``A`` is invertible and the eigenvectors are well scaled unless a
+solution lies exactly at the rotated pole (probability zero; then, and whenever ``A`` is badly
+conditioned, the ``24 x 24`` generalized eigenproblem is solved by QZ instead).
+
+**Certification.** Every candidate whose eigenvalue is real to within :data:`REAL_TOL` is
+Newton-polished on the full pose residual (six equations, six unknowns), kept only when the
+final forward kinematics matches the target to :data:`FK_TOL` (position relative to the arm's
+size, orientation in radians) and deduplicated (1e-6 rad, angles modulo 2 pi). The count check:
+a generic arm has exactly 16 finite solutions in complex space, so the result reports the number
+of finite eigenvalues (``n_finite``, 16 expected), of real and of complex ones, and flags
+(``count_ok = False``) any instance where the verified real solutions and the complex
+eigenvalues do not add up to 16, where fewer than 16 finite eigenvalues were found, or where a
+real candidate failed its check: the arm or the pose is then degenerate (special geometry, a
+pose on a singular boundary) and solutions may be missing.
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.linalg
+
+from optik.checks import as_transform, as_vector
+from optik.closed_form.structure import axes_of
+from optik.errors import InvalidArgumentError, ShapeError
+from optik.mechanism import Mechanism
+
+__all__ = [
+    "FK_TOL",
+    "REAL_TOL",
+    "ROTATIONS",
+    "General6R",
+    "General6RSolutions",
+    "ik_general_6r",
+    "solve_general_6r",
+]
+
+FK_TOL = 1e-9
+"""Largest accepted FK mismatch of a returned solution (position / arm size, orientation rad)."""
+
+REAL_TOL = 1e-3
+"""An eigenvalue is a real candidate when ``|Im(phi_3)| <= REAL_TOL`` (``phi_3 = 2 atan(x_3)``);
+polishing and the FK check then decide."""
+
+ROTATIONS = (0.7853981633974483 + 0.2718281828, -0.5772156649, 0.4142135624)
+"""The fixed rotations ``delta_3, delta_4, delta_5`` (rad) of the eliminated angles."""
+
+NEWTON_ITERATIONS = 12
+"""Newton iterations on the pose residual per candidate (converged candidates stop early)."""
+
+_SAME = 1e-6
+"""Two polished solutions closer than this (rad, modulo 2 pi) are the same."""
+
+_DFT_TOL = 1e-9
+"""Relative size of the degree-two Fourier coefficients above which the structure check fails."""
+
+_COND_QZ = 1e10
+"""Condition number of the leading matrix ``A`` above which QZ replaces the companion matrix."""
+
+# (1 + x^2) e^{i k phi} = (1 + i x)^(1 + k) (1 - i x)^(1 - k), k = -1, 0, 1 -> powers x^0, x^1, x^2
+_HALF = np.array([[1.0, 1.0, 1.0], [-2j, 0.0, 2j], [-1.0, 1.0, -1.0]])
+_GRID = 2.0 * np.pi * np.arange(5) / 5.0
+_TWO_PI = 2.0 * np.pi
+
+
+# ---------------------------------------------------------------------------- DH kinematics
+def _dh(theta: np.ndarray, d: float, a: float, alpha: float) -> np.ndarray:
+    """``Rz(theta) Tz(d) Tx(a) Rx(alpha)`` for an array of angles: shape ``theta.shape + (4, 4)``."""
+    c, s = np.cos(theta), np.sin(theta)
+    ca, sa = math.cos(alpha), math.sin(alpha)
+    out = np.zeros((*np.shape(theta), 4, 4))
+    out[..., 0, 0], out[..., 0, 1], out[..., 0, 2], out[..., 0, 3] = c, -s * ca, s * sa, a * c
+    out[..., 1, 0], out[..., 1, 1], out[..., 1, 2], out[..., 1, 3] = s, c * ca, -c * sa, a * s
+    out[..., 2, 1], out[..., 2, 2], out[..., 2, 3] = sa, ca, d
+    out[..., 3, 3] = 1.0
+    return out
+
+
+def _inv(t: np.ndarray) -> np.ndarray:
+    """Inverse of homogeneous transforms ``(..., 4, 4)``."""
+    out = np.zeros_like(t)
+    rt = np.swapaxes(t[..., :3, :3], -1, -2)
+    out[..., :3, :3] = rt
+    out[..., :3, 3] = -(rt @ t[..., :3, 3, None])[..., 0]
+    out[..., 3, 3] = 1.0
+    return out
+
+
+def _fourteen(l: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """The 14 Raghavan-Roth quantities ``(l, p, p.p, p.l, p x l, (p.p) l - 2 (p.l) p)``: ``(..., 14)``."""
+    pp = np.sum(p * p, axis=-1, keepdims=True)
+    pl = np.sum(p * l, axis=-1, keepdims=True)
+    return np.concatenate([l, p, pp, pl, np.cross(p, l), pp * l - 2.0 * pl * p], axis=-1)
+
+
+def _fourier(samples: np.ndarray, axes: Sequence[int]) -> np.ndarray:
+    """Trigonometric coefficients ``k = -1, 0, 1`` along ``axes`` (five samples each, exact for
+    degree <= 2) after checking that the degree-two coefficients vanish."""
+    c = samples.astype(complex)
+    for ax in axes:
+        c = np.fft.fft(c, axis=ax) / 5.0
+    scale = max(float(np.max(np.abs(c))), 1e-300)
+    for ax in axes:
+        high = np.take(c, [2, 3], axis=ax)
+        if float(np.max(np.abs(high))) > _DFT_TOL * scale:  # pragma: no cover - a derivation check
+            raise RuntimeError("general 6R: an elimination equation has trigonometric degree > 1")
+    for ax in axes:
+        c = np.take(c, [4, 0, 1], axis=ax)  # k = -1, 0, 1
+    return c
+
+
+@dataclass(frozen=True)
+class General6R:
+    """A 6R arm in standard DH form with base and tool transforms.
+
+    ``T(q) = base A1(q_1 + offset_1) ... A6(q_6 + offset_6) tool`` with
+    ``A_i(theta) = Rz(theta) Tz(d_i) Tx(a_i) Rx(alpha_i)``.
+
+    Attributes:
+        a, alpha, d, offset: DH parameters, six each (lengths in m, angles in rad).
+        base, tool: 4x4 transforms before the first and after the last DH matrix.
+        scale: characteristic length (largest translation of the description, at least 1e-12);
+            the elimination runs on the arm scaled to unit size.
+    """
+
+    a: np.ndarray
+    alpha: np.ndarray
+    d: np.ndarray
+    offset: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    base: np.ndarray = field(default_factory=lambda: np.eye(4))
+    tool: np.ndarray = field(default_factory=lambda: np.eye(4))
+
+    def __post_init__(self) -> None:
+        for key in ("a", "alpha", "d", "offset"):
+            object.__setattr__(self, key, as_vector(getattr(self, key), key, 6).copy())
+        for key in ("base", "tool"):
+            object.__setattr__(self, key, as_transform(getattr(self, key), key).copy())
+
+    @classmethod
+    def from_mechanism(cls, m: Mechanism) -> General6R:
+        """The DH description of an optik mechanism with exactly six revolute coordinates in one
+        serial chain from the base to the end effector (fixed joints in between are allowed).
+
+        The joint lines at ``q = 0`` (`optik.closed_form.structure.axes_of`: a point and a
+        direction per axis in the base frame, checked against ``m.fk``) give the common normals
+        of consecutive axes; parallel axes take the normal through the previous frame's origin
+        (``d_i = 0``), intersecting axes ``x_i = z_{i-1} x z_i``. The DH model is checked
+        against ``m.fk`` at seeded random ``q`` too.
+
+        Raises:
+            InvalidArgumentError: (argument ``m``) not a serial chain of six revolute joints,
+                or the DH description does not reproduce ``m.fk``.
+        """
+        axes = axes_of(m) if m.n_q == 6 else None
+        if axes is None:
+            raise InvalidArgumentError(
+                "m", f"{m.name!r}: expected a serial chain of six revolute joints (n_q={m.n_q})"
+            )
+        arm = _dh_from_lines(axes.r, axes.h, axes.home)
+        q = np.random.default_rng(0).uniform(-np.pi, np.pi, size=(4, 6))
+        err = float(np.max(np.abs(arm.fk(q) - m.fk(q))))
+        if err > 1e-9 * max(1.0, arm.scale):
+            raise InvalidArgumentError(
+                "m", f"{m.name!r}: its DH description does not reproduce m.fk ({err:.1e})"
+            )
+        return arm
+
+    @property
+    def scale(self) -> float:
+        """The characteristic length of the arm."""
+        lengths = [*np.abs(self.a), *np.abs(self.d), *np.abs(self.base[:3, 3]), *np.abs(self.tool[:3, 3])]
+        return max(max(lengths), 1e-12)
+
+    def fk(self, q: Any) -> np.ndarray:
+        """``T(q)``: 4x4, or ``(N, 4, 4)`` for ``q`` of shape ``(N, 6)``."""
+        theta = np.asarray(q, dtype=float) + self.offset
+        t = np.broadcast_to(self.base, (*theta.shape[:-1], 4, 4)).copy()
+        for i in range(6):
+            t = t @ _dh(theta[..., i], self.d[i], self.a[i], self.alpha[i])
+        return t @ self.tool
+
+    def _unit(self) -> tuple[np.ndarray, np.ndarray]:
+        """Scaled ``(a, d)``: the arm at unit size."""
+        return self.a / self.scale, self.d / self.scale
+
+
+def _perpendicular(z: np.ndarray, hint: np.ndarray) -> np.ndarray:
+    """A unit vector perpendicular to ``z``: ``hint`` made perpendicular, else any."""
+    for v in (hint, np.eye(3)[int(np.argmin(np.abs(z)))]):
+        w = v - (v @ z) * z
+        if np.linalg.norm(w) > 1e-9:
+            return w / np.linalg.norm(w)
+    raise AssertionError("unreachable: the least aligned unit axis is never parallel to z")
+
+
+def _frame(x: np.ndarray, z: np.ndarray, o: np.ndarray) -> np.ndarray:
+    t = np.eye(4)
+    t[:3, 0], t[:3, 1], t[:3, 2], t[:3, 3] = x, np.cross(z, x), z, o
+    return t
+
+
+def _dh_from_lines(points: np.ndarray, dirs: np.ndarray, ee: np.ndarray) -> General6R:
+    """Standard DH parameters of six joint lines (frame ``i`` has ``z_i`` on axis ``i + 1`` and
+    ``x_i`` on the common normal of axes ``i`` and ``i + 1``; frame 6 = frame 5 turned by
+    ``theta_6``)."""
+    u = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
+    scale = max(1.0, float(np.max(np.abs(points))))
+    feet, origins, xs = [], [], []
+    prev_origin, prev_x = points[0], _perpendicular(u[0], np.array([1.0, 0.0, 0.0]))
+    for i in range(5):  # common normal of axis i (u[i]) and axis i + 1
+        p1, u1, p2, u2 = points[i], u[i], points[i + 1], u[i + 1]
+        n = np.cross(u1, u2)
+        if np.linalg.norm(n) > 1e-9:
+            w, b = p2 - p1, u1 @ u2
+            den = 1.0 - b * b
+            s, t = (u1 @ w - b * (u2 @ w)) / den, (b * (u1 @ w) - u2 @ w) / den
+            f, o = p1 + s * u1, p2 + t * u2
+            x = (
+                (o - f) / np.linalg.norm(o - f)
+                if np.linalg.norm(o - f) > 1e-12 * scale
+                else n / np.linalg.norm(n)
+            )
+        else:  # parallel: the normal through the previous origin
+            f = p1 + ((prev_origin - p1) @ u1) * u1
+            o = p2 + ((f - p2) @ u2) * u2
+            x = (
+                (o - f) / np.linalg.norm(o - f)
+                if np.linalg.norm(o - f) > 1e-12 * scale
+                else _perpendicular(u1, prev_x)
+            )
+        feet.append(f)
+        origins.append(o)
+        xs.append(x)
+        prev_origin, prev_x = o, x
+    z = [*u, u[5]]  # z_0 .. z_6
+    x_all = [xs[0], *xs, xs[4]]  # x_0 .. x_6
+    o_all = [feet[0], *origins, origins[4]]  # o_0 .. o_6
+    f_all = [*feet, origins[4]]  # foot of x_i on axis i, i = 1..6
+    a, alpha, d, off = (np.zeros(6) for _ in range(4))
+    for i in range(1, 7):
+        zp, xp, xi = z[i - 1], x_all[i - 1], x_all[i]
+        d[i - 1] = (f_all[i - 1] - o_all[i - 1]) @ zp
+        off[i - 1] = math.atan2(np.cross(xp, xi) @ zp, xp @ xi)
+        a[i - 1] = (o_all[i] - f_all[i - 1]) @ xi
+        alpha[i - 1] = math.atan2(np.cross(zp, z[i]) @ xi, zp @ z[i])
+    base = _frame(x_all[0], z[0], o_all[0])
+    tool = _inv(_frame(x_all[6], z[6], o_all[6])) @ ee
+    return General6R(a, alpha, d, off, base, tool)
+
+
+# ---------------------------------------------------------------------------- elimination
+class _Left:
+    """The arm-only part: coefficients of the 14 left sides in ``(phi_3, phi_4, phi_5)``."""
+
+    def __init__(self, arm: General6R) -> None:
+        a, d = arm._unit()
+        self.a, self.d, self.alpha = a, d, arm.alpha
+        lhs = self.values(*np.meshgrid(_GRID, _GRID, _GRID, indexing="ij"))  # (5, 5, 5, 14)
+        c = _fourier(np.moveaxis(lhs, -1, 0), (1, 2, 3))  # (14, 3, 3, 3) in k = -1, 0, 1
+        for ax in (1, 2, 3):
+            c = np.moveaxis(np.tensordot(_HALF, c, axes=([1], [ax])), 0, ax)
+        self.coef = c.real  # (14, p3, p4, p5): (1 + x3^2)(1 + x4^2)(1 + x5^2) * left side
+        # the last columns of A6^-1 (independent of theta_6)
+        inv6 = _inv(_dh(np.array(0.0), d[5], a[5], arm.alpha[5]))
+        self.l6, self.p6 = inv6[:, 2], inv6[:, 3]
+
+    def values(self, phi3: np.ndarray, phi4: np.ndarray, phi5: np.ndarray) -> np.ndarray:
+        """The 14 left sides at ``theta_k = phi_k + delta_k``: shape ``phi.shape + (14,)``."""
+        a, d, al = self.a, self.d, self.alpha
+        t = _dh(phi3 + ROTATIONS[0], d[2], a[2], al[2])
+        t = t @ _dh(phi4 + ROTATIONS[1], d[3], a[3], al[3])
+        t = t @ _dh(phi5 + ROTATIONS[2], d[4], a[4], al[4])
+        return _fourteen(t[..., :3, 2], t[..., :3, 3])
+
+
+@dataclass
+class General6RSolutions:
+    """All real IK solutions of one target and the evidence that none is missing.
+
+    Attributes:
+        q: the verified solutions, ``(k, 6)``, angles wrapped to ``(-pi, pi]``.
+        n_finite: finite non-spurious eigenvalues (16 for a generic arm and pose).
+        n_real_candidates: eigenvalues real to within `REAL_TOL`.
+        n_complex: the other finite eigenvalues (complex solutions).
+        n_rejected: real candidates that failed polishing or the FK check.
+        fk_error: largest FK error of a returned solution.
+        count_ok: the count check passed (see the module docstring).
+        reason: why the list is empty or the count check failed ("" otherwise).
+    """
+
+    q: np.ndarray
+    n_finite: int
+    n_real_candidates: int
+    n_complex: int
+    n_rejected: int
+    fk_error: float
+    count_ok: bool
+    reason: str = ""
+
+    def __len__(self) -> int:
+        return len(self.q)
+
+    def __iter__(self) -> Any:
+        return iter(list(self.q))
+
+
+_ARMS: weakref.WeakKeyDictionary[Mechanism, General6R] = weakref.WeakKeyDictionary()
+_LEFTS: dict[int, tuple[General6R, _Left]] = {}
+
+
+def _arm(arm: Mechanism | General6R) -> General6R:
+    if isinstance(arm, General6R):
+        return arm
+    if not isinstance(arm, Mechanism):
+        raise InvalidArgumentError(
+            "arm", f"expected an optik Mechanism or a General6R, got {type(arm).__name__}"
+        )
+    try:
+        return _ARMS[arm]
+    except KeyError:
+        _ARMS[arm] = out = General6R.from_mechanism(arm)
+        return out
+
+
+def _left(arm: General6R) -> _Left:
+    hit = _LEFTS.get(id(arm))
+    if hit is not None and hit[0] is arm:
+        return hit[1]
+    if len(_LEFTS) > 64:
+        _LEFTS.clear()
+    left = _Left(arm)
+    _LEFTS[id(arm)] = (arm, left)
+    return left
+
+
+def _targets(arm: General6R, target: Any) -> tuple[np.ndarray, bool]:
+    """Validated targets as ``(N, 4, 4)`` and whether a single 4x4 was given."""
+    t = np.asarray(target, dtype=float) if not isinstance(target, np.ndarray) else target
+    if t.ndim == 2:
+        return as_transform(t, "target")[None], True
+    if t.ndim != 3 or t.shape[1:] != (4, 4):
+        raise ShapeError("target", f"expected a 4x4 transform or (N, 4, 4), got shape {t.shape}")
+    return np.stack([as_transform(ti, f"target[{i}]") for i, ti in enumerate(t)]), False
+
+
+def _right(arm: General6R, left: _Left, tp: np.ndarray) -> np.ndarray:
+    """Real coefficients ``(N, 14, 3, 3)`` of the 14 right sides in ``(1, c1, s1) (x) (1, c2, s2)``
+    for the unit-scale targets ``tp = B^-1 T E^-1``."""
+    a, d, al = left.a, left.d, left.alpha
+    g1, g2 = np.meshgrid(_GRID, _GRID, indexing="ij")
+    inv1 = _inv(_dh(g1, d[0], a[0], al[0]))  # (5, 5, 4, 4)
+    inv2 = _inv(_dh(g2, d[1], a[1], al[1]))
+    m = inv2 @ inv1  # A2^-1 A1^-1 on the grid
+    lv = tp @ left.l6  # (N, 4)
+    pv = tp @ left.p6
+    l = np.einsum("ijab,nb->nija", m, lv)[..., :3]
+    p = np.einsum("ijab,nb->nija", m, pv)[..., :3]
+    c = _fourier(np.moveaxis(_fourteen(l, p), -1, 1), (2, 3))  # (N, 14, 3, 3), k = -1, 0, 1
+    real = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 1.0], [-1j, 0.0, 1j]])  # (1, cos, sin) <- (k=-1, 0, 1)
+    c = np.einsum("ak,nekl->neal", real, c)
+    return np.einsum("bl,neal->neab", real, c).real
+
+
+def _eigen(m_poly: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues ``(N, 24)`` and the ``w`` parts ``(N, 24, 12)`` of the eigenvectors of
+    ``(A x^2 + B x + C) w = 0`` for ``m_poly = (C, B, A)`` of shape ``(N, 3, 12, 12)``."""
+    n = len(m_poly)
+    c, b, a = m_poly[:, 0], m_poly[:, 1], m_poly[:, 2]
+    vals = np.empty((n, 24), dtype=complex)
+    vecs = np.empty((n, 24, 12), dtype=complex)
+    cond = np.linalg.cond(a)
+    good = np.flatnonzero(cond < _COND_QZ)
+    if len(good):
+        ainv = np.linalg.inv(a[good])
+        comp = np.zeros((len(good), 24, 24))
+        comp[:, :12, 12:] = np.eye(12)
+        comp[:, 12:, :12] = -ainv @ c[good]
+        comp[:, 12:, 12:] = -ainv @ b[good]
+        w, v = np.linalg.eig(comp)
+        vals[good], vecs[good] = w, np.swapaxes(v, 1, 2)[..., :12]
+        big = np.abs(w) > 1.0  # the lower block (x w) is the better scaled part for |x| > 1
+        lower = np.swapaxes(v, 1, 2)[..., 12:]
+        vecs[good] = np.where(big[..., None], lower, vecs[good])
+    for k in np.flatnonzero(cond >= _COND_QZ):
+        lhs = np.zeros((24, 24))
+        rhs = np.eye(24)
+        lhs[:12, 12:] = np.eye(12)
+        lhs[12:, :12], lhs[12:, 12:] = -c[k], -b[k]
+        rhs[12:, 12:] = a[k]
+        w, v = scipy.linalg.eig(lhs, rhs)
+        vals[k] = w
+        vecs[k] = np.where((np.abs(w) > 1.0)[:, None], v[12:].T, v[:12].T)
+    return vals, vecs
+
+
+def _half_angle(w: np.ndarray) -> np.ndarray:
+    """``phi = 2 atan(x)`` from the eigenvector blocks ``w = (x^i y^j)``: least-squares ratios,
+    taken the way round that keeps them bounded. ``w``: ``(..., 4, 3)`` -> ``(phi_4, phi_5)``."""
+
+    def angle(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        fwd = np.sum(np.conj(lo) * hi, axis=(-2, -1)) / np.maximum(
+            np.sum(np.abs(lo) ** 2, axis=(-2, -1)), 1e-300
+        )
+        rev = np.sum(np.conj(hi) * lo, axis=(-2, -1)) / np.maximum(
+            np.sum(np.abs(hi) ** 2, axis=(-2, -1)), 1e-300
+        )
+        return np.where(np.abs(fwd) <= 1.0, 2.0 * np.arctan(fwd.real), 2.0 * np.arctan2(1.0, rev.real))
+
+    return np.stack([angle(w[..., :3, :], w[..., 1:, :]), angle(w[..., :, :2], w[..., :, 1:])], axis=-1)
+
+
+def _chain(left: _Left, theta: np.ndarray) -> np.ndarray:
+    """Prefix products ``A1 ... A_k`` (unit scale), ``k = 0..6``: shape ``(..., 7, 4, 4)``."""
+    out = np.empty((*theta.shape[:-1], 7, 4, 4))
+    out[..., 0, :, :] = np.eye(4)
+    for i in range(6):
+        out[..., i + 1, :, :] = out[..., i, :, :] @ _dh(theta[..., i], left.d[i], left.a[i], left.alpha[i])
+    return out
+
+
+def _polish(left: _Left, theta: np.ndarray, tp: np.ndarray) -> np.ndarray:
+    """Newton on ``A1 ... A6 (theta) = tp`` (unit scale), ``theta (K, 6)``, ``tp (K, 4, 4)``:
+    residual ``[p - p*; vee(R R*^T - R* R^T) / 2]``, geometric Jacobian
+    ``[z_{i-1} x (p - o_{i-1}); z_{i-1}]``."""
+    rt = tp[:, :3, :3]
+    for _ in range(NEWTON_ITERATIONS):
+        pre = _chain(left, theta)
+        t = pre[:, 6]
+        z, o = pre[:, :6, :3, 2], pre[:, :6, :3, 3]
+        jac = np.empty((len(theta), 6, 6))
+        jac[:, :3] = np.swapaxes(np.cross(z, t[:, None, :3, 3] - o), 1, 2)
+        jac[:, 3:] = np.swapaxes(z, 1, 2)
+        err = np.concatenate(
+            [t[:, :3, 3] - tp[:, :3, 3], 0.5 * _skew(t[:, :3, :3] @ np.swapaxes(rt, 1, 2))], 1
+        )
+        if not len(theta) or float(np.max(np.abs(err))) < 1e-15:
+            break
+        try:
+            step = np.linalg.solve(jac, err[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            step = np.stack([np.linalg.lstsq(j, e, rcond=None)[0] for j, e in zip(jac, err, strict=True)])
+        step = np.clip(step, -0.5, 0.5)  # a bounded step: a bad candidate never flies off
+        theta = theta - step
+    return theta
+
+
+def _skew(r: np.ndarray) -> np.ndarray:
+    """``vee(R - R^T)`` of rotations ``(..., 3, 3)``: ``2 sin(angle) axis``."""
+    return np.stack(
+        [r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]], -1
+    )
+
+
+def _wrap(q: np.ndarray) -> np.ndarray:
+    w = (q + np.pi) % _TWO_PI - np.pi
+    return np.where(w <= -np.pi, w + _TWO_PI, w)
+
+
+def _pose_errors(t: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Position error and geodesic orientation angle of ``t`` against ``target`` (batched)."""
+    dp = np.linalg.norm(t[..., :3, 3] - target[..., :3, 3], axis=-1)
+    r = np.swapaxes(target[..., :3, :3], -1, -2) @ t[..., :3, :3]
+    cos = np.clip((np.trace(r, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)
+    return dp, np.arctan2(0.5 * np.linalg.norm(_skew(r), axis=-1), cos)
+
+
+def _dedup(q: np.ndarray) -> np.ndarray:
+    keep: list[np.ndarray] = []
+    for row in q:
+        if all(float(np.max(np.abs(_wrap(row - k)))) >= _SAME for k in keep):
+            keep.append(row)
+    return np.array(keep).reshape(-1, 6)
+
+
+def _solve(arm: General6R, targets: np.ndarray, fk: Any) -> list[General6RSolutions]:
+    """The eigenvalue solver on validated targets ``(N, 4, 4)``; ``fk`` is the independent
+    forward kinematics used for the final check (``q (K, 6) -> (K, 4, 4)``)."""
+    left = _left(arm)
+    n = len(targets)
+    tp = _inv(arm.base) @ targets @ _inv(arm.tool)
+    tp[:, :3, 3] /= arm.scale
+    rhs = _right(arm, left, tp)
+    q_mat, r0 = rhs.reshape(n, 14, 9)[:, :, 1:], rhs[:, :, 0, 0]
+    u, sv, vt = np.linalg.svd(q_mat)
+    rank_ok = sv[:, 7] > 1e-11 * sv[:, 0]
+    one = np.array([1.0, 0.0, 1.0])  # 1 + x^2
+    g = left.coef[None] - r0[:, :, None, None, None] * np.einsum("a,b,c->abc", one, one, one)
+    sigma = np.einsum("nke,nkabc->naebc", u[:, :, 8:], g).reshape(n, 3, 6, 9)
+    mats = np.zeros((n, 3, 12, 12))
+    mats[:, :, :6, :9] = sigma
+    mats[:, :, 6:, 3:] = sigma
+    vals, vecs = _eigen(mats)
+    finite = np.isfinite(vals) & (np.abs(vals) < 1e12)
+    spurious = np.zeros_like(finite)
+    for sign in (1j, -1j):
+        dist = np.where(finite & ~spurious, np.abs(vals - sign), np.inf)
+        near = np.argsort(dist, axis=1)[:, :4]
+        np.put_along_axis(spurious, near, True, axis=1)
+    good = finite & ~spurious
+    phi3 = 2.0 * np.arctan(np.where(good, vals, 0.0))
+    real = good & (np.abs(phi3.imag) <= REAL_TOL)
+    # candidates
+    idx_n, idx_e = np.nonzero(real)
+    flat = vecs[idx_n, idx_e]  # (K, 12), normalized by the largest entry: real for a real root
+    flat = flat / flat[np.arange(len(flat)), np.argmax(np.abs(flat), axis=1)][:, None]
+    w = flat.reshape(-1, 4, 3)
+    phi = np.concatenate([phi3[idx_n, idx_e].real[:, None], _half_angle(w)], axis=1)
+    lhs = left.values(phi[:, 0], phi[:, 1], phi[:, 2])
+    pinv = np.swapaxes(vt[:, :8], 1, 2) @ (u[:, :, :8] / sv[:, None, :8]).transpose(0, 2, 1)
+    x_r = np.einsum("kij,kj->ki", pinv[idx_n], lhs - r0[idx_n])
+    theta = np.zeros((len(idx_n), 6))
+    theta[:, 0] = np.arctan2(x_r[:, 5], x_r[:, 2])
+    theta[:, 1] = np.arctan2(x_r[:, 1], x_r[:, 0])
+    theta[:, 2:5] = phi + np.array(ROTATIONS)
+    pre = _chain(left, theta)
+    a6 = _inv(pre[:, 5]) @ tp[idx_n] @ _inv(_dh(np.array(0.0), left.d[5], left.a[5], left.alpha[5]))
+    theta[:, 5] = np.arctan2(a6[:, 1, 0], a6[:, 0, 0])
+    theta = _polish(left, theta, tp[idx_n])
+    q = _wrap(theta - arm.offset)
+    ok = np.zeros(len(q), dtype=bool)
+    fk_err = np.full(len(q), np.inf)
+    if len(q):
+        dp, dr = _pose_errors(fk(q), targets[idx_n])
+        fk_err = np.maximum(dp / arm.scale, dr)
+        ok = fk_err <= FK_TOL
+    out = []
+    for k in range(n):
+        mine = idx_n == k
+        sols = _dedup(q[mine & ok])
+        n_finite = int(np.sum(good[k]))
+        n_real = int(np.sum(real[k]))
+        failed = mine & ~ok
+        # a failed candidate off the real axis is half of a complex pair close to it
+        pair = failed & (np.abs(phi3[idx_n, idx_e].imag) > 1e-7)
+        n_complex = n_finite - n_real + int(np.sum(pair))
+        n_rejected = int(np.sum(failed & ~pair))
+        count_ok = bool(rank_ok[k]) and n_finite == 16 and n_rejected == 0 and len(sols) + n_complex == 16
+        reason = ""
+        if not count_ok:
+            reason = (
+                f"count check failed: {n_finite} finite solutions (16 expected), {len(sols)} real verified, "
+                f"{n_complex} complex, {n_rejected} real candidates rejected by the FK check"
+                + ("" if rank_ok[k] else ", rank-deficient elimination (special geometry)")
+            )
+        elif not len(sols):
+            reason = "unreachable: all 16 solutions are complex"
+        err = float(np.max(fk_err[mine & ok])) if np.any(mine & ok) else 0.0
+        out.append(General6RSolutions(sols, n_finite, n_real, n_complex, n_rejected, err, count_ok, reason))
+    return out
+
+
+def solve_general_6r(
+    arm: Mechanism | General6R, target: Any
+) -> General6RSolutions | list[General6RSolutions]:
+    """All real IK solutions of a 6R arm with their count check.
+
+    Args:
+        arm: an optik `Mechanism` whose base-to-end-effector path has six revolute joints (any
+            geometry; meant for arms that no decomposable closed form covers), or a `General6R`.
+        target: a 4x4 end-effector pose, or ``(N, 4, 4)`` poses.
+
+    Returns:
+        A `General6RSolutions` (a list of ``N`` for stacked targets): ``q`` holds every real
+        solution, each Newton-polished and checked by the arm's own forward kinematics
+        (``m.fk`` for a mechanism) to `FK_TOL`; an unreachable pose gives an empty ``q`` and a
+        ``reason``, never an exception.
+
+    Raises:
+        InvalidArgumentError: ``arm`` is not a 6R serial chain, or a target is not a proper
+            4x4 transform (``ShapeError``, ``NonFiniteError``).
+    """
+    g = _arm(arm)
+    targets, single = _targets(g, target)
+    fk = arm.fk if isinstance(arm, Mechanism) else g.fk
+    out = _solve(g, targets, fk)
+    return out[0] if single else out
+
+
+def ik_general_6r(m: Mechanism, target: Any) -> list[np.ndarray]:
+    """All real IK solutions of a 6R mechanism for one 4x4 target, as a list of ``q`` (the
+    closed-form registry's solver contract ``(m, T) -> list[q]``; ``[]`` when unreachable).
+    `solve_general_6r` returns the same solutions with the count check and the reason."""
+    return list(solve_general_6r(m, target).q)

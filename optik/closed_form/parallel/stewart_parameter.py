@@ -1,0 +1,223 @@
+"""Stewart-Gough FK in 40 paths: a parameter homotopy from a generic complex start instance.
+
+The start instance (complex base and platform points ``b0, p0`` and leg constants ``c0``, see
+`optik.closed_form.parallel.study.study_matrices`) and its 40 solutions are computed once, by
+the 128-path total-degree homotopy, and shipped with the package (`START_FILE`; `generate`
+and ``scripts/make_stewart_start.py`` rebuild it). *Certificate:* 40 distinct nonsingular
+solutions, each Newton-refined to a residual at rounding level; 40 bounds the isolated
+nonsingular solutions of every instance of the family (the generic count), so none is missing.
+
+For a target ``(b, p, c)`` the parameters move on the line ``(b, p, c) + s (b0 - b, p0 - p,
+c0 - c)``, so the matrices are quadratic in ``s``: ``M(s) = C0 + s C1 + s^2 C2`` with
+``C0 = M(0)``, ``C1 = (M(1) - M(-1)) / 2``, ``C2 = (M(1) + M(-1)) / 2 - M(0)`` (exact: ``M`` is
+quadratic in ``s``). `optik.closed_form.parameter_homotopy.track` follows the 40 paths.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from optik.closed_form import homotopy, parameter_homotopy
+from optik.closed_form.parallel.study import study_matrices
+
+START_FILE = Path(__file__).resolve().parents[2] / "data" / "stewart_gough_start.json"
+"""The shipped start instance and its 40 solutions (JSON, real and imaginary parts)."""
+
+START_SEED = 2026
+"""Seed of the shipped start instance (`generate`)."""
+
+GENERAL_SOLUTIONS = 40
+"""Isolated solutions of a general (complex) Stewart-Gough instance."""
+
+SAME_POINT = 1e-7
+"""Two projective points are the same when ``1 - |<u, v>| / (|u| |v|)`` is below this."""
+
+SINGULAR_CONDITION = parameter_homotopy.SINGULAR_CONDITION
+"""End points whose Jacobian condition number exceeds this count as singular."""
+
+
+@dataclass(frozen=True)
+class StartInstance:
+    """A complex Stewart-Gough instance and all its solutions in Study's coordinates.
+
+    Attributes:
+        base: ``(6, 3)`` complex base points ``b0``.
+        platform: ``(6, 3)`` complex platform points ``p0``.
+        constants: ``(6,)`` complex leg constants ``c0`` (``|p|^2 + |b|^2 - rho^2``).
+        solutions: ``(40, 8)`` complex solutions ``z = (e, g)``, unit norm.
+        seed: seed it was drawn with.
+    """
+
+    base: np.ndarray
+    platform: np.ndarray
+    constants: np.ndarray
+    solutions: np.ndarray
+    seed: int
+
+    def residual(self) -> float:
+        """Largest ``|z^T M_j z|`` over the (unit) solutions and the 7 equations."""
+        mats = study_matrices(self.base, self.platform, self.constants)
+        return float(np.max(np.abs(np.einsum("kij,pi,pj->pk", mats, self.solutions, self.solutions))))
+
+
+def distinct(z: np.ndarray) -> np.ndarray:
+    """Indices of the rows of ``z`` that are distinct projective points (first of each group)."""
+    if len(z) == 0:
+        return np.zeros(0, dtype=int)
+    u = z / np.linalg.norm(z, axis=1, keepdims=True)
+    close = np.abs(np.conj(u) @ u.T) > 1 - SAME_POINT
+    keep: list[int] = []
+    for i in range(len(z)):
+        if not any(close[i, j] for j in keep):
+            keep.append(i)
+    return np.array(keep, dtype=int)
+
+
+def relative_residual(mats: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """``max_j |z^T M_j z| / |z|^2`` per row of ``z``."""
+    val = np.einsum("kij,pi,pj->pk", mats, z, z)
+    return np.max(np.abs(val), axis=1) / np.sum(np.abs(z) ** 2, axis=1)
+
+
+def _canonical(z: np.ndarray) -> np.ndarray:
+    """Unit norm, the largest coordinate real positive, rows in a fixed order."""
+    z = z / np.linalg.norm(z, axis=1, keepdims=True)
+    big = z[np.arange(len(z)), np.argmax(np.abs(z), axis=1)]
+    z = z * (np.abs(big) / big)[:, None]
+    return z[np.lexsort(np.round(z.real.T[::-1], 6))]
+
+
+def generate(seed: int = START_SEED, max_rounds: int = 20, time_limit: float = 60.0) -> StartInstance:
+    """Draw a generic complex instance and solve it by the 128-path total-degree homotopy
+    (rounds with fresh gamma and patch merged until 40 distinct nonsingular solutions).
+
+    Raises:
+        RuntimeError: 40 certified solutions were not found within ``max_rounds``.
+    """
+    rng = np.random.default_rng(seed)
+    b = (rng.normal(size=(6, 3)) + 1j * rng.normal(size=(6, 3))) / np.sqrt(2)
+    p = (rng.normal(size=(6, 3)) + 1j * rng.normal(size=(6, 3))) / np.sqrt(2)
+    c = rng.normal(size=6) + 1j * rng.normal(size=6)
+    mats = study_matrices(b, p, c)
+    scaled = mats / np.linalg.norm(mats, axis=(1, 2))[:, None, None]
+    sols = np.zeros((0, 8), dtype=complex)
+    for _ in range(max_rounds):
+        res = homotopy.track(scaled, rng, time_limit=time_limit)
+        z = homotopy.refine(mats, res.z, iters=6)
+        good = (relative_residual(mats, z) < 1e-13) & (parameter_homotopy.condition_numbers(mats, z) < 1e6)
+        sols = np.concatenate([sols, z[good]])
+        sols = sols[distinct(sols)]
+        if len(sols) >= GENERAL_SOLUTIONS:
+            break
+    if len(sols) != GENERAL_SOLUTIONS:
+        raise RuntimeError(f"found {len(sols)} certified solutions of the start instance, expected 40")
+    return StartInstance(b, p, c, _canonical(sols), seed)
+
+
+def write(instance: StartInstance, path: Path = START_FILE) -> None:
+    """Write ``instance`` as JSON (atomically: a temporary file renamed into place)."""
+
+    def parts(a: np.ndarray) -> dict[str, list]:
+        return {"re": a.real.tolist(), "im": a.imag.tolist()}
+
+    data = {
+        "description": "Generic complex Stewart-Gough start instance and its 40 solutions in Study's "
+        "coordinates z = (e, g); see optik.closed_form.parallel.stewart_parameter",
+        "seed": instance.seed,
+        "base": parts(instance.base),
+        "platform": parts(instance.platform),
+        "constants": parts(instance.constants),
+        "solutions": parts(instance.solutions),
+    }
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+    with os.fdopen(fd, "w") as f:
+        json.dump(data, f, indent=1)
+    os.replace(tmp, path)
+
+
+@lru_cache(maxsize=4)
+def load(path: Path = START_FILE) -> StartInstance:
+    """The start instance stored at ``path`` (cached)."""
+    data = json.loads(Path(path).read_text())
+
+    def arr(key: str) -> np.ndarray:
+        return np.array(data[key]["re"]) + 1j * np.array(data[key]["im"])
+
+    return StartInstance(arr("base"), arr("platform"), arr("constants"), arr("solutions"), int(data["seed"]))
+
+
+@dataclass(frozen=True)
+class ParameterSolve:
+    """Outcome of the 40-path parameter homotopy on one (scaled) instance.
+
+    Attributes:
+        solutions: distinct end points that solve the target (nonsingular ones first).
+        condition: condition number of each solution (below `SINGULAR_CONDITION`: nonsingular).
+        nonsingular: how many of them are nonsingular.
+        complete: the count check: 40 distinct nonsingular end points (all isolated solutions).
+        status: per path ``"regular"``, ``"endgame"`` or ``"failed"``.
+        steps: predictor-corrector steps.
+    """
+
+    solutions: np.ndarray
+    condition: np.ndarray
+    nonsingular: int
+    complete: bool
+    status: np.ndarray
+    steps: int
+
+
+DEGENERATE_STALL = 0.05
+"""A path that stalls near ``t = 0`` with ``|e| / |z|`` below this heads for the degenerate set
+``e = 0`` (where every leg quadric reduces to ``|g|^2 = 0``), which holds no posture; it skips
+the endgame."""
+
+
+def _degenerate(z: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(z[:, :4], axis=1) / np.linalg.norm(z, axis=1) < DEGENERATE_STALL
+
+
+def coefficients(
+    b: np.ndarray, p: np.ndarray, c: np.ndarray, start: StartInstance
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(C0, C1, C2)`` of ``M(s)`` on the line from the target ``(b, p, c)`` (``s = 0``) to the
+    start instance (``s = 1``)."""
+    db, dp, dc = start.base - b, start.platform - p, start.constants - c
+    m0 = study_matrices(b.astype(complex), p.astype(complex), c.astype(complex))
+    m_plus = study_matrices(b + db, p + dp, c + dc)
+    m_minus = study_matrices(b - db, p - dp, c - dc)
+    return m0, (m_plus - m_minus) / 2, (m_plus + m_minus) / 2 - m0
+
+
+def solve(
+    b: np.ndarray, p: np.ndarray, c: np.ndarray, rng: np.random.Generator, time_limit: float
+) -> ParameterSolve:
+    """All solutions of the (scaled) instance ``(b, p, c)`` by the 40-path parameter homotopy.
+
+    End points are refined by Newton on the target (`optik.closed_form.homotopy.refine`) and
+    kept when they solve it (relative residual below 1e-8); the count check asks for
+    `GENERAL_SOLUTIONS` distinct nonsingular ones (condition number below
+    `SINGULAR_CONDITION`).
+    """
+    start = load()
+    mats = coefficients(b, p, c, start)
+    res = parameter_homotopy.track(mats, start.solutions, rng, time_limit=time_limit, abandon=_degenerate)
+    ended = np.flatnonzero((res.status == "regular") | (res.status == "endgame"))
+    z = homotopy.refine(mats[0], res.z[ended])
+    solves = relative_residual(mats[0], z) < 1e-8
+    z, cond = z[solves], res.condition[ended][solves]
+    order = np.argsort(cond)  # nonsingular representatives first
+    z, cond = z[order], cond[order]
+    keep = distinct(z)
+    nonsingular = int(np.sum(cond[keep] < SINGULAR_CONDITION))
+    return ParameterSolve(
+        z[keep], cond[keep], nonsingular, nonsingular == GENERAL_SOLUTIONS, res.status, res.steps
+    )

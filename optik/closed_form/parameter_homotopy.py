@@ -1,0 +1,485 @@
+"""Compiled parameter homotopy for square systems of homogeneous quadrics, with a Cauchy endgame.
+
+A family of systems ``F_j(z; s) = z^T M_j(s) z = 0`` (``j = 1..k``, ``z`` in ``P^k``) whose
+matrices are quadratic in a complex parameter, ``M_j(s) = C0_j + s C1_j + s^2 C2_j``, is solved
+at ``s = 0`` (the target) from the known isolated solutions at ``s = 1`` (a generic start
+instance) along
+
+``s(t) = gamma t / (1 + (gamma - 1) t)``,  ``t: 1 -> 0``,
+
+a circular arc from 1 to 0 fixed by a random unit complex ``gamma`` (the gamma trick: with
+probability one the arc misses the finitely many parameters where solutions merge, so every
+path is nonsingular on ``(0, 1]``; by coefficient-parameter continuation, every isolated
+solution of the target is the end point of a path from the start solutions of a generic
+instance). Homogeneous coordinates are fixed on a random affine patch ``a^T z = 1``.
+
+*Tracking* (generated C, compiled once per machine by `optik.native.source_library`; one path
+at a time, no Python in the loop): fourth-order Runge-Kutta predictor on
+``dz/dt = -J^{-1} dH/dt`` with ``J = [2 M(s) z; a^T]``, Newton corrector (at most 3 steps,
+accepted when the last update is below ``tol (1 + |z|)`` and the corrected point stays within
+``JUMP_GUARD (1 + |z|)`` of the prediction), step halved on rejection and doubled after three
+acceptances. Paths run from ``t = 1`` to ``ENDGAME_RADIUS`` and then to ``0``; a path that
+stalls near ``t = 0`` (its step falls below ``stall t``: a singular end point, or a path to
+a positive-dimensional set) goes to the endgame.
+
+*Cauchy endgame* (paths that stall near ``t = 0`` or arrive at a singular end point, where
+Newton converges only linearly). Near ``t = 0`` a path is a convergent Puiseux series in
+``t^(1/c)`` (``c`` its winding number). Tracking around the circle ``|t| = r``
+(``r = ENDGAME_RADIUS``) returns to the start after ``c`` loops; the mean of the points at
+``m`` equally spaced angles over the ``c`` loops is the trapezoidal rule for the Cauchy
+integral ``(1 / 2 pi) int z dtheta``, the end point ``z(0)``, exact up to terms of order
+``m c`` of the series. The points are averaged on the patch ``conj(z_r)^T z = 1`` of the
+path's own point at ``t = r`` (the random tracking patch may have its pole inside the circle,
+which would spoil the series).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from optik.native import source_library
+
+ENDGAME_RADIUS = 0.1
+"""``|t|`` at which the endgame starts (paths are tracked from 1 to here, then to 0)."""
+
+ENDGAME_SAMPLES = 16
+"""Points per loop of the Cauchy endgame."""
+
+MAX_WINDING = 8
+"""Loops tried before the endgame gives up on a path."""
+
+GAMMA_ANGLE = np.pi / 4
+"""``gamma = exp(i theta)`` with ``theta`` uniform in ``[-GAMMA_ANGLE, GAMMA_ANGLE]``: any
+``theta`` but a measure-zero set makes the arc generic, and a small one keeps it short
+(``|s| <= 1 / cos(theta / 2)``; ``theta`` near ``pi`` sends ``s`` far away)."""
+
+PREDICTOR_TARGET = 1e-4
+"""Predictor error (corrector displacement relative to ``1 + |z|``) the step size aims at."""
+
+SINGULAR_CONDITION = 1e8
+"""End points whose Jacobian condition number (`condition_numbers`) exceeds this are singular:
+they go to the endgame even when the corrector converged at ``t = 0``."""
+
+JUMP_GUARD = 1e-3
+"""Largest accepted corrector displacement relative to ``1 + |z|`` (guards against path jumping)."""
+
+_C_SOURCE = r"""
+#include <complex.h>
+#include <math.h>
+#include <time.h>
+
+typedef double complex cplx;
+#define NMAX 16
+
+typedef struct { const long *ptr; const int *col; const cplx *val; } csr_t; /* rows j * n + r */
+
+typedef struct {
+    int k, n;
+    csr_t c[3]; /* C0, C1, C2: (k, n, n), symmetric, compressed sparse rows */
+    cplx gamma, ta, tb;       /* arc parameter and segment t(tau) = ta + tau (tb - ta) */
+    const cplx *patch;
+} sys_t;
+
+typedef struct { double max_step, min_step, tol, guard, stall, deadline, h0, target; long max_steps; } opts_t;
+
+static double now(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static double norm(int n, const cplx *z) {
+    double s = 0.0;
+    for (int i = 0; i < n; i++) s += creal(z[i]) * creal(z[i]) + cimag(z[i]) * cimag(z[i]);
+    return sqrt(s);
+}
+
+/* J = [2 M(s) z; a^T] (row-major), value [z^T M(s) z; a^T z - 1], dH/dtau */
+static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx *val, cplx *ht) {
+    const int n = q->n, k = q->k;
+    const cplx t = q->ta + tau * (q->tb - q->ta);
+    const cplx den = 1.0 + (q->gamma - 1.0) * t;
+    const cplx s = q->gamma * t / den, s2 = s * s;
+    const cplx ds = q->gamma / (den * den) * (q->tb - q->ta);
+    for (int j = 0; j < k; j++) {
+        cplx v = 0.0, w = 0.0;
+        for (int r = 0; r < n; r++) {
+            const long row = (long)j * n + r;
+            cplx y[3];
+            for (int m = 0; m < 3; m++) {
+                const csr_t *a = &q->c[m];
+                cplx acc = 0.0;
+                for (long e = a->ptr[row]; e < a->ptr[row + 1]; e++) acc += a->val[e] * z[a->col[e]];
+                y[m] = acc;
+            }
+            const cplx y0 = y[0], y1 = y[1], y2 = y[2];
+            const cplx my = y0 + s * y1 + s2 * y2;
+            jac[j * n + r] = 2.0 * my;
+            v += z[r] * my;
+            w += z[r] * (y1 + 2.0 * s * y2);
+        }
+        val[j] = v;
+        ht[j] = w * ds;
+    }
+    cplx pz = 0.0;
+    for (int c = 0; c < n; c++) {
+        jac[k * n + c] = q->patch[c];
+        pz += q->patch[c] * z[c];
+    }
+    val[k] = pz - 1.0;
+    ht[k] = 0.0;
+}
+
+/* a x = b and a y = c in place (b, c become x, y; c may be NULL), partial pivoting; 0 on success */
+static int solve2(int n, cplx *a, cplx *b, cplx *c) {
+    for (int col = 0; col < n; col++) {
+        int piv = col;
+        double best = fabs(creal(a[col * n + col])) + fabs(cimag(a[col * n + col]));
+        for (int r = col + 1; r < n; r++) {
+            double m = fabs(creal(a[r * n + col])) + fabs(cimag(a[r * n + col]));
+            if (m > best) { best = m; piv = r; }
+        }
+        if (!(best > 0.0)) return 1;
+        if (piv != col) {
+            for (int j = 0; j < n; j++) {
+                cplx x = a[col * n + j];
+                a[col * n + j] = a[piv * n + j];
+                a[piv * n + j] = x;
+            }
+            cplx x = b[col]; b[col] = b[piv]; b[piv] = x;
+            if (c) { x = c[col]; c[col] = c[piv]; c[piv] = x; }
+        }
+        const cplx inv = 1.0 / a[col * n + col];
+        for (int r = col + 1; r < n; r++) {
+            const cplx f = a[r * n + col] * inv;
+            for (int j = col + 1; j < n; j++) a[r * n + j] -= f * a[col * n + j];
+            b[r] -= f * b[col];
+            if (c) c[r] -= f * c[col];
+        }
+    }
+    for (int r = n - 1; r >= 0; r--) {
+        const cplx inv = 1.0 / a[r * n + r];
+        cplx x = b[r], y = c ? c[r] : 0.0;
+        for (int j = r + 1; j < n; j++) {
+            x -= a[r * n + j] * b[j];
+            if (c) y -= a[r * n + j] * c[j];
+        }
+        b[r] = x * inv;
+        if (!isfinite(creal(b[r])) || !isfinite(cimag(b[r]))) return 1;
+        if (c) {
+            c[r] = y * inv;
+            if (!isfinite(creal(c[r])) || !isfinite(cimag(c[r]))) return 1;
+        }
+    }
+    return 0;
+}
+
+static int tangent(const sys_t *q, const cplx *z, double tau, cplx *out) {
+    cplx jac[NMAX * NMAX], val[NMAX];
+    evaluate(q, z, tau, jac, val, out);
+    for (int i = 0; i < q->n; i++) out[i] = -out[i];
+    return solve2(q->n, jac, out, NULL);
+}
+
+/* status: 0 reached tau = 1, 1 step too small (stalled), 2 step or time budget exhausted */
+static int track_one(const sys_t *q, const opts_t *o, cplx *z, double *tau_out, long *steps_out) {
+    const int n = q->n;
+    cplx k1[NMAX], k2[NMAX], k3[NMAX], k4[NMAX], zt[NMAX], zp[NMAX], zc[NMAX];
+    cplx jac[NMAX * NMAX], val[NMAX], ht[NMAX];
+    const double seglen = cabs(q->tb - q->ta);
+    double tau = 0.0, h = o->h0;
+    int status = 0, have_k1 = 0;
+    long steps = 0;
+    while (tau < 1.0) {
+        if (steps >= o->max_steps || ((steps & 7) == 0 && now() > o->deadline)) { status = 2; break; }
+        steps++;
+        const double st = fmin(h, 1.0 - tau);
+        /* k1 is kept across a rejection (same point) and after an acceptance comes from the last
+           corrector iteration (at the point before its final update, at rounding distance) */
+        const int bad_k1 = have_k1 ? 0 : tangent(q, z, tau, k1);
+        int bad = bad_k1;
+        have_k1 = 0;
+        for (int i = 0; i < n; i++) zt[i] = z[i] + 0.5 * st * k1[i];
+        bad = bad || tangent(q, zt, tau + 0.5 * st, k2);
+        for (int i = 0; i < n; i++) zt[i] = z[i] + 0.5 * st * k2[i];
+        bad = bad || tangent(q, zt, tau + 0.5 * st, k3);
+        for (int i = 0; i < n; i++) zt[i] = z[i] + st * k3[i];
+        bad = bad || tangent(q, zt, tau + st, k4);
+        int ok = !bad;
+        double last = INFINITY;
+        if (ok) {
+            for (int i = 0; i < n; i++)
+                zc[i] = zp[i] = z[i] + st / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+            for (int it = 0; it < 3 && ok; it++) {
+                evaluate(q, zc, tau + st, jac, val, ht);
+                for (int i = 0; i < n; i++) ht[i] = -ht[i];
+                if (solve2(n, jac, val, ht)) { ok = 0; break; }
+                for (int i = 0; i < n; i++) zc[i] -= val[i];
+                last = norm(n, val);
+                if (last <= o->tol * (1.0 + norm(n, zc))) break;
+            }
+        }
+        double moved = INFINITY;
+        if (ok) {
+            const double scale = 1.0 + norm(n, zc);
+            for (int i = 0; i < n; i++) zt[i] = zc[i] - zp[i];
+            moved = norm(n, zt) / scale;
+            ok = last <= o->tol * scale && moved <= o->guard;
+        }
+        if (ok) {
+            tau += st;
+            for (int i = 0; i < n; i++) {
+                z[i] = zc[i];
+                k1[i] = ht[i];
+            }
+            have_k1 = 1;
+            /* the predictor error of RK4 is O(h^5): aim the next one at o->target */
+            const double grow = moved > 0.0 ? 0.9 * pow(o->target / moved, 0.2) : 2.0;
+            if (st >= h) h = fmin(h * fmin(fmax(grow, 0.5), 2.0), o->max_step);
+        } else {
+            have_k1 = !bad_k1;
+            h *= 0.5;
+            const double t_abs = cabs(q->ta + tau * (q->tb - q->ta));
+            const double floor = t_abs < 1e-2 ? fmax(o->min_step, o->stall * t_abs / seglen) : o->min_step;
+            if (h < floor) { status = 1; break; }
+        }
+    }
+    *tau_out = tau;
+    *steps_out = steps;
+    return status;
+}
+
+/* Track every path (rows of z, updated in place) along t: ta -> tb. opts: max_step, min_step,
+   tol, guard, stall, seconds, h0, max_steps, predictor target. Returns the number of paths not at tb. */
+int optik_track_paths(int paths, int k, int n, const long *ptr0, const int *col0, const cplx *val0,
+                      const long *ptr1, const int *col1, const cplx *val1,
+                      const long *ptr2, const int *col2, const cplx *val2,
+                      double g_re, double g_im, const cplx *patch, double ta_re, double ta_im,
+                      double tb_re, double tb_im, const double *opts, cplx *z, int *status,
+                      double *tau, long *steps) {
+    if (n > NMAX || k != n - 1) return -1;
+    sys_t q = {k, n, {{ptr0, col0, val0}, {ptr1, col1, val1}, {ptr2, col2, val2}},
+               g_re + I * g_im, ta_re + I * ta_im, tb_re + I * tb_im, patch};
+    opts_t o = {opts[0], opts[1], opts[2], opts[3], opts[4],
+                now() + opts[5], opts[6], opts[8], (long)opts[7]};
+    int left = 0;
+    for (int p = 0; p < paths; p++) {
+        status[p] = track_one(&q, &o, z + (long)p * n, tau + p, steps + p);
+        left += status[p] != 0;
+    }
+    return left;
+}
+"""
+
+_FLAGS = ("-fcx-limited-range",)
+"""Plain complex arithmetic (no C99 Annex G inf/nan recovery in products and quotients): the
+values tracked are finite and scaled, and the checks reject any non-finite step."""
+
+_LIB: list[ctypes.CDLL | None] = []
+
+
+def compiled() -> ctypes.CDLL | None:
+    """The compiled tracker (built on first use, cached on disk), or None without a C compiler."""
+    if not _LIB:
+        lib = source_library(_C_SOURCE, "optik_quadric_tracker", "auto", _FLAGS)
+        if lib is not None:
+            fn = lib.optik_track_paths
+            ptr, dbl, i32 = ctypes.c_void_p, ctypes.c_double, ctypes.c_int
+            fn.argtypes = [i32, i32, i32, *([ptr] * 9), dbl, dbl, ptr, dbl, dbl, dbl, dbl, *([ptr] * 5)]
+            fn.restype = i32
+        _LIB.append(lib)
+    return _LIB[0]
+
+
+def available() -> bool:
+    """True when the compiled tracker can be used (a working C compiler)."""
+    return compiled() is not None
+
+
+@dataclass(frozen=True)
+class ParameterTracking:
+    """End points of the paths of a parameter homotopy.
+
+    Attributes:
+        z: end points ``(paths, n)`` on the patch (``nan`` rows for unresolved paths).
+        status: per path ``"regular"`` (reached ``t = 0`` with a converged corrector),
+            ``"endgame"`` (stalled near 0, end point from the Cauchy endgame), ``"abandoned"``
+            (stalled near 0 where the caller's ``abandon`` test flagged it: ``z`` holds the
+            point where it stopped), ``"failed"`` (stalled before the endgame zone, endgame
+            not closing within `MAX_WINDING` loops, or the time limit; ``z`` is ``nan``).
+        winding: winding number found by the endgame (1 for regular paths, 0 otherwise).
+        condition: condition number of the Jacobian at the end point (`condition_numbers`;
+            ``inf`` for abandoned and failed paths).
+        steps: predictor-corrector steps, all paths and the endgame together.
+        solve_time: wall time (s).
+    """
+
+    z: np.ndarray
+    status: np.ndarray
+    winding: np.ndarray
+    condition: np.ndarray
+    steps: int
+    solve_time: float
+
+
+def _csr(c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Compressed sparse rows ``(row pointers, columns, values)`` of ``c`` as ``(k n, n)``;
+    entries below ``1e-14`` of the largest are rounding noise of structural zeros and dropped."""
+    rows = np.asarray(c, dtype=complex).reshape(-1, c.shape[-1])
+    keep = np.abs(rows) > 1e-14 * max(float(np.max(np.abs(rows), initial=0.0)), 1e-300)
+    ptr = np.concatenate([[0], np.cumsum(keep.sum(axis=1))]).astype(np.int64)
+    cols = np.nonzero(keep)[1].astype(np.int32)
+    return ptr, np.ascontiguousarray(cols), np.ascontiguousarray(rows[keep])
+
+
+class _Tracker:
+    """One call of the compiled tracker on a fixed system, gamma and patch."""
+
+    def __init__(
+        self, coefficients: tuple[np.ndarray, np.ndarray, np.ndarray], gamma: complex, patch: np.ndarray
+    ):
+        self.k, self.n = coefficients[0].shape[0], coefficients[0].shape[1]
+        self.c = [_csr(c) for c in coefficients]
+        self.gamma = complex(gamma)
+        self.patch = np.ascontiguousarray(patch, dtype=complex)
+        self.steps = 0
+
+    def segment(
+        self, z: np.ndarray, ta: complex, tb: complex, deadline: float, tol: float, max_step: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Track the rows of ``z`` from ``t = ta`` to ``tb``; (end points, status per path)."""
+        z = np.ascontiguousarray(z, dtype=complex).copy()
+        p = len(z)
+        status = np.zeros(p, dtype=np.int32)
+        tau = np.zeros(p)
+        steps = np.zeros(p, dtype=np.int64)
+        seconds = max(deadline - time.monotonic(), 0.0)
+        opts = np.array(
+            [max_step, 1e-14, tol, JUMP_GUARD, 1e-3, seconds, min(0.05, max_step), 1e6, PREDICTOR_TARGET]
+        )
+        left = compiled().optik_track_paths(
+            p, self.k, self.n, *(a.ctypes.data for c in self.c for a in c), self.gamma.real, self.gamma.imag,
+            self.patch.ctypes.data, complex(ta).real, complex(ta).imag, complex(tb).real, complex(tb).imag,
+            opts.ctypes.data, z.ctypes.data, status.ctypes.data, tau.ctypes.data, steps.ctypes.data,
+        )  # fmt: skip
+        if left < 0:
+            raise ValueError(f"the compiled tracker handles k = n - 1 <= 15, got k = {self.k}, n = {self.n}")
+        self.steps += int(steps.sum())
+        return z, status
+
+
+def track(
+    coefficients: tuple[np.ndarray, np.ndarray, np.ndarray],
+    starts: np.ndarray,
+    rng: np.random.Generator,
+    *,
+    time_limit: float = 1.0,
+    tol: float = 1e-8,
+    max_step: float = 0.25,
+    abandon: Callable[[np.ndarray], np.ndarray] | None = None,
+) -> ParameterTracking:
+    """Track the start solutions ``starts`` (rows, solutions of ``M(1) = C0 + C1 + C2``) to ``s = 0``.
+
+    Args:
+        coefficients: ``(C0, C1, C2)``, each ``(k, k + 1, k + 1)``, symmetric in the last two axes.
+        starts: ``(paths, k + 1)`` complex start solutions (any scaling: projective points).
+        rng: generator of ``gamma`` and the patch.
+        time_limit: wall-time budget (s); paths unfinished then are ``"failed"``.
+        tol: relative size of the last Newton update for a corrector to be accepted.
+        max_step: largest step in ``t``.
+        abandon: optional test ``z -> bool mask`` on the points where paths stalled near
+            ``t = 0``; flagged paths skip the endgame (e.g. paths that clearly entered a known
+            positive-dimensional set of no interest).
+
+    Raises:
+        SolverUnavailableError: no working C compiler (check `available` first).
+    """
+    start = time.perf_counter()
+    deadline = time.monotonic() + time_limit
+    if compiled() is None:
+        from optik.errors import SolverUnavailableError
+
+        raise SolverUnavailableError("the compiled path tracker needs a working C compiler")
+    n = coefficients[0].shape[1]
+    gamma = np.exp(1j * GAMMA_ANGLE * rng.uniform(-1, 1))
+    patch = rng.normal(size=n) + 1j * rng.normal(size=n)
+    tracker = _Tracker(coefficients, gamma, patch)
+    z0 = np.asarray(starts, dtype=complex)
+    z0 = z0 / (z0 @ patch)[:, None]
+    r = ENDGAME_RADIUS
+    z_r, st_r = tracker.segment(z0, 1.0, r, deadline, tol, max_step)
+    z_end, st_end = tracker.segment(z_r, r, 0.0, deadline, tol, max_step)
+    status = np.where(st_end == 0, "regular", "failed").astype(object)
+    status[st_r != 0] = "failed"
+    winding = np.where(status == "regular", 1, 0)
+    z_out = np.where((status == "regular")[:, None], z_end, np.nan)
+    condition = np.full(len(z0), np.inf)
+    arrived = np.flatnonzero(st_end == 0)
+    condition[arrived] = condition_numbers(coefficients[0], z_end[arrived])
+    # stalled near 0, or arrived at a singular end point (where Newton converges only linearly)
+    todo = np.flatnonzero((st_r == 0) & ((st_end == 1) | (condition > SINGULAR_CONDITION)))
+    if abandon is not None and len(todo):
+        gone = todo[abandon(z_end[todo])]
+        status[gone] = "abandoned"
+        z_out[gone] = z_end[gone]
+        todo = np.setdiff1d(todo, gone)
+    if len(todo):
+        points, loops = _cauchy(tracker, z_r[todo], r, deadline, tol)
+        ok = loops > 0
+        z_out[todo[ok]] = points[ok]
+        status[todo[ok]] = "endgame"
+        status[todo[~ok]] = "failed"
+        winding[todo[ok]] = loops[ok]
+        condition[todo] = np.inf
+        condition[todo[ok]] = condition_numbers(coefficients[0], points[ok])
+    z_out[status == "failed"] = np.nan
+    return ParameterTracking(
+        z_out, status.astype(str), winding, condition, tracker.steps, time.perf_counter() - start
+    )
+
+
+def _cauchy(tracker: _Tracker, z_r: np.ndarray, r: float, deadline: float, tol: float):
+    """Cauchy endgame from the points ``z_r`` at ``t = r``: ``(end points, winding numbers)``
+    (winding 0 where the loops did not close within `MAX_WINDING` or a segment failed)."""
+    m = ENDGAME_SAMPLES
+    ts = r * np.exp(2j * np.pi * np.arange(m + 1) / m)
+    active = np.arange(len(z_r))
+    z = z_r.copy()
+    sums = np.zeros_like(z_r)
+    points = np.full_like(z_r, np.nan)
+    loops = np.zeros(len(z_r), dtype=int)
+    for loop in range(1, MAX_WINDING + 1):
+        for j in range(m):
+            # averaged on the patch conj(z_r)^T z = 1 of the path's own start point: the tracking
+            # patch may have its pole (a^T z = 0) within the circle, this one stays far from it
+            za = z[active]
+            sums[active] += za / np.sum(np.conj(z_r[active]) * za, axis=1, keepdims=True)
+            z[active], st = tracker.segment(z[active], ts[j], ts[j + 1], deadline, tol, 1.0)
+            active = active[st == 0]
+            if len(active) == 0:
+                return points, loops
+        scale = 1 + np.linalg.norm(z_r[active], axis=1)
+        back = np.linalg.norm(z[active] - z_r[active], axis=1) <= 1e-8 * scale
+        closed = active[back]
+        points[closed] = sums[closed] / (m * loop)
+        points[closed] /= (points[closed] @ tracker.patch)[:, None]  # back on the tracking patch
+        loops[closed] = loop
+        active = active[~back]
+        if len(active) == 0:
+            break
+    return points, loops
+
+
+def condition_numbers(c0: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Condition numbers (1-norm) of ``[2 M(0) z / |z|; conj(z)^T / |z|]``, the Jacobian on the
+    patch normal to ``z`` (``inf`` where it is singular)."""
+    u = z / np.linalg.norm(z, axis=1, keepdims=True)
+    mz = np.einsum("kij,pj->pki", c0, u)
+    jac = np.concatenate([2 * mz, np.conj(u)[:, None, :]], axis=1)
+    with np.errstate(all="ignore"):
+        return np.nan_to_num(np.linalg.cond(jac, 1), nan=np.inf)

@@ -1,0 +1,195 @@
+"""General 6R IK (optik.closed_form.general_6r): round trips on random arms, the 16-solution
+count check, a certified 16-real-solution reference arm, completeness against a numerical
+multi-start, degenerate and malformed input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.optimize import least_squares
+
+from optik import catalog, spatial
+from optik.closed_form.general_6r import (
+    FK_TOL,
+    General6R,
+    General6RSolutions,
+    ik_general_6r,
+    solve_general_6r,
+)
+from optik.errors import InvalidArgumentError, NonFiniteError, ShapeError
+from optik.mechanism import Joint, Mechanism, dh_chain
+
+# A 6R arm and a pose with 16 real solutions (the most a 6R can have), found by a random search
+# over arms and poses with this solver (`optik benchmark general_6r --search-16`), parameters
+# rounded to two decimals; standard DH rows (d, a, alpha).
+REF_DH = [
+    (0.57, 1.40, -1.49),
+    (1.70, 0.36, -2.25),
+    (1.69, 0.77, 2.05),
+    (1.32, 1.61, -0.39),
+    (-0.96, 0.95, 1.99),
+    (0.35, 1.82, 2.35),
+]
+REF_Q = np.array([0.86, 0.99, -0.84, -2.66, -0.31, 0.22])
+
+
+def _angle_dist(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.max(np.abs((np.asarray(a) - b + np.pi) % (2 * np.pi) - np.pi)))
+
+
+def _random_arm(rng: np.random.Generator) -> Mechanism:
+    """Random standard DH rows: no two axes parallel or intersecting (with probability one)."""
+    rows = [(rng.uniform(-1, 1), rng.uniform(0.1, 1), rng.uniform(-np.pi, np.pi)) for _ in range(6)]
+    return dh_chain(rows, "standard")
+
+
+def _check_fk(m: Mechanism, sols: General6RSolutions, target: np.ndarray) -> None:
+    """Every returned q reproduces the target by the mechanism's own FK, recomputed here."""
+    for q in sols.q:
+        t = m.fk(q)
+        assert np.linalg.norm(t[:3, 3] - target[:3, 3]) <= FK_TOL * 2
+        assert spatial.angle_between(t[:3, :3], target[:3, :3]) <= FK_TOL
+        assert np.all(q > -np.pi) and np.all(q <= np.pi)
+
+
+def test_round_trips_on_random_arms() -> None:
+    rng = np.random.default_rng(12)
+    counts = []
+    for _ in range(12):
+        m = _random_arm(rng)
+        qs = rng.uniform(-np.pi, np.pi, (3, 6))
+        targets = m.fk(qs)
+        for q, target, sols in zip(qs, targets, solve_general_6r(m, targets), strict=True):
+            assert sols.count_ok, sols.reason
+            assert sols.n_finite == 16
+            assert len(sols.q) + sols.n_complex == 16
+            assert len(sols.q) % 2 == 0 and 2 <= len(sols.q) <= 16
+            assert min(_angle_dist(s, q) for s in sols.q) < 1e-8
+            _check_fk(m, sols, target)
+            # distinct solutions
+            assert all(_angle_dist(a, b) > 1e-6 for i, a in enumerate(sols.q) for b in sols.q[:i])
+            counts.append(len(sols.q))
+    assert len(set(counts)) >= 3  # the random arms really differ (2, 4, 6, ... real solutions)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_round_trip_property(seed: int) -> None:
+    """Random generic arms (a General6R, no mechanism) from a drawn seed: hypothesis shrinks
+    numbers toward special values (zero offsets, equal twists), which are not general arms."""
+    rng = np.random.default_rng(seed)
+    arm = General6R(a=rng.uniform(0.05, 2, 6), alpha=rng.uniform(-np.pi, np.pi, 6), d=rng.uniform(-2, 2, 6))
+    q = rng.uniform(-np.pi, np.pi, 6)
+    target = arm.fk(q)
+    sols = solve_general_6r(arm, target)
+    assert sols.count_ok, sols.reason
+    assert len(sols.q) <= 16 and len(sols.q) % 2 == 0
+    assert min(_angle_dist(s, q) for s in sols.q) < 1e-8
+    for s in sols.q:
+        dp = np.linalg.norm(arm.fk(s)[:3, 3] - target[:3, 3]) / arm.scale
+        assert dp <= FK_TOL and spatial.angle_between(arm.fk(s)[:3, :3], target[:3, :3]) <= FK_TOL
+
+
+def test_reference_arm_with_16_real_solutions() -> None:
+    m = dh_chain(REF_DH, "standard")
+    target = m.fk(REF_Q)
+    sols = solve_general_6r(m, target)
+    assert sols.count_ok and sols.n_complex == 0
+    assert len(sols.q) == 16  # 16 distinct verified real solutions: all of them (Bezout bound)
+    _check_fk(m, sols, target)
+    assert min(_angle_dist(a, b) for i, a in enumerate(sols.q) for b in sols.q[:i]) > 0.1
+    assert min(_angle_dist(s, REF_Q) for s in sols.q) < 1e-8
+
+
+def test_numerical_multistart_finds_nothing_more() -> None:
+    """Independent completeness evidence: Gauss-Newton from random starts on ``m.fk`` converges
+    only to solutions in the returned set."""
+    m = dh_chain(REF_DH, "standard")
+    target = m.fk(REF_Q)
+    sols = solve_general_6r(m, target).q
+    rng = np.random.default_rng(3)
+
+    def residual(q: np.ndarray) -> np.ndarray:
+        return spatial.pose_error(m.fk(q), target)
+
+    found = 0
+    for q0 in rng.uniform(-np.pi, np.pi, (25, 6)):
+        r = least_squares(residual, q0, xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=200)
+        if np.linalg.norm(r.fun) < 1e-10:
+            found += 1
+            assert min(_angle_dist(s, r.x) for s in sols) < 1e-6
+    assert found >= 5
+
+
+def test_general_joint_frames_base_and_tool() -> None:
+    """Axes in arbitrary directions through arbitrary points, a fixed joint in the chain, a tool
+    frame: the DH description is derived from the joint lines and reproduces m.fk."""
+    rng = np.random.default_rng(5)
+    joints, parent = [], "base"
+    for i in range(6):
+        origin = spatial.transform(
+            spatial.rpy_to_rot(*rng.uniform(-np.pi, np.pi, 3)), rng.uniform(-0.5, 0.5, 3)
+        )
+        joints.append(Joint(f"j{i}", "revolute", parent, f"b{i}", origin=origin, axis=rng.normal(size=3)))
+        parent = f"b{i}"
+        if i == 2:
+            joints.append(Joint("fix", "fixed", parent, "bf", origin=spatial.translation(0.1, 0.2, 0.3)))
+            parent = "bf"
+    tool = spatial.transform(spatial.rot_x(0.4), [0.1, 0.0, 0.2])
+    m = Mechanism(joints, frames={"tool": (parent, tool)}, ee="tool")
+    for q in rng.uniform(-np.pi, np.pi, (3, 6)):
+        target = m.fk(q)
+        sols = solve_general_6r(m, target)
+        assert sols.count_ok, sols.reason
+        assert min(_angle_dist(s, q) for s in sols.q) < 1e-8
+        _check_fk(m, sols, target)
+    assert isinstance(ik_general_6r(m, target), list)
+
+
+def test_batch_matches_single_targets() -> None:
+    m = _random_arm(np.random.default_rng(8))
+    targets = m.fk(np.random.default_rng(9).uniform(-np.pi, np.pi, (4, 6)))
+    batch = solve_general_6r(m, targets)
+    assert isinstance(batch, list) and len(batch) == 4
+    for t, b in zip(targets, batch, strict=True):
+        one = solve_general_6r(m, t)
+        assert len(one.q) == len(b.q)
+        assert all(min(_angle_dist(x, y) for y in b.q) < 1e-9 for x in one.q)
+
+
+def test_unreachable_pose_is_an_empty_answer_with_a_reason() -> None:
+    m = dh_chain(REF_DH, "standard")
+    far = spatial.translation(50.0, 0.0, 0.0)
+    sols = solve_general_6r(m, far)
+    assert len(sols.q) == 0 and sols.reason
+    assert ik_general_6r(m, far) == []
+
+
+def test_special_geometry_is_flagged_not_hidden() -> None:
+    """The seed's 6R arm (parallel and intersecting axes, 8 solutions by its closed form) is not
+    a general arm: the count check fails and says so; what is returned is still verified."""
+    m = catalog.seed_6r_arm()
+    target = m.fk([0.5, -0.8, -1.1, -1.0, 1.1, 0.8])
+    sols = solve_general_6r(m, target)
+    assert not sols.count_ok and "count check failed" in sols.reason
+    _check_fk(m, sols, target)
+
+
+def test_bad_input_raises_named_errors() -> None:
+    m = dh_chain(REF_DH, "standard")
+    with pytest.raises(ShapeError, match="target"):
+        solve_general_6r(m, np.eye(3))
+    bad = np.eye(4)
+    bad[0, 3] = np.nan
+    with pytest.raises(NonFiniteError, match="target"):
+        solve_general_6r(m, bad)
+    with pytest.raises(InvalidArgumentError, match="m"):
+        solve_general_6r(dh_chain(REF_DH[:5], "standard"), np.eye(4))
+    with pytest.raises(InvalidArgumentError, match="six revolute"):
+        solve_general_6r(dh_chain(REF_DH, "standard", types="RRPRRR"), np.eye(4))
+    with pytest.raises(InvalidArgumentError, match="arm"):
+        solve_general_6r("arm", np.eye(4))  # type: ignore[arg-type]
+    with pytest.raises(ShapeError, match="a"):
+        General6R(a=[1.0] * 5, alpha=[0.5] * 6, d=[0.0] * 6)

@@ -1,0 +1,141 @@
+"""The Stewart-Gough FK in 40 paths: shipped start instance, compiled parameter homotopy, Cauchy
+endgame, count check and the fall back to the total-degree method for special geometries."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import optik
+from optik.closed_form import parameter_homotopy
+from optik.closed_form.parallel import stewart_gough, stewart_parameter, stewart_poses, study
+
+pytestmark = pytest.mark.skipif(not parameter_homotopy.available(), reason="needs a C compiler")
+
+
+def _legs(b, p, r, t):
+    return np.linalg.norm(p @ r.T + t - b, axis=1)
+
+
+def _max_leg_error(b, p, rho, poses):
+    return max(float(np.max(np.abs(_legs(b, p, r, t) - rho))) for r, t in poses)
+
+
+def _pose(rng):
+    r = optik.spatial.so3_exp(0.4 * rng.normal(size=3))
+    return r, np.r_[0.2 * rng.normal(size=2), 1.0]
+
+
+def _general(rng):
+    return rng.normal(size=(6, 3)), 0.6 * rng.normal(size=(6, 3))
+
+
+def _same_postures(a, b):
+    def key(poses):
+        return sorted(np.r_[r.ravel(), t].round(6).tolist() for r, t in poses)
+
+    return len(a) == len(b) and np.allclose(key(a), key(b), atol=1e-5)
+
+
+def test_shipped_start_instance_is_certified():
+    start = stewart_parameter.load()
+    assert start.solutions.shape == (40, 8)
+    assert len(stewart_parameter.distinct(start.solutions)) == 40
+    assert start.residual() <= 1e-13
+    mats = study.study_matrices(start.base, start.platform, start.constants)
+    assert np.all(parameter_homotopy.condition_numbers(mats, start.solutions) < 1e6)
+
+
+def test_start_instance_regenerates_from_its_seed(tmp_path):
+    start = stewart_parameter.load()
+    again = stewart_parameter.generate(start.seed)
+    assert np.allclose(again.base, start.base) and np.allclose(again.constants, start.constants)
+    u = start.solutions / np.linalg.norm(start.solutions, axis=1, keepdims=True)
+    v = again.solutions / np.linalg.norm(again.solutions, axis=1, keepdims=True)
+    assert np.all(np.max(np.abs(np.conj(u) @ v.T), axis=1) > 1 - 1e-10)  # the same 40 points
+    stewart_parameter.write(again, tmp_path / "start.json")
+    back = stewart_parameter.load(tmp_path / "start.json")
+    assert np.array_equal(back.solutions, again.solutions)
+
+
+def test_general_6_6_in_40_paths_matches_the_total_method():
+    rng = np.random.default_rng(11)
+    for _ in range(4):
+        b, p = _general(rng)
+        r, t = _pose(rng)
+        rho = _legs(b, p, r, t)
+        fast = stewart_poses(b, p, rho, method="parameter", seed=rng)
+        assert fast.complete and fast.method == "parameter" and fast.paths == 40 and fast.rounds == 0
+        assert fast.complex_solutions == 40
+        assert any(np.allclose(x, r, atol=1e-9) and np.allclose(y, t, atol=1e-9) for x, y in fast.poses)
+        assert _max_leg_error(b, p, rho, fast.poses) <= 1e-12
+        total = stewart_poses(b, p, rho, method="total", seed=rng)
+        assert _same_postures(fast.poses, total.poses)
+        assert stewart_poses(b, p, rho, seed=rng).method == "parameter"  # auto needs no fall back
+
+
+def _catalog_special(kind):
+    m = optik.catalog.stewart_gough()
+    b, p = m.params["base"].copy(), m.params["platform"].copy()
+    if kind == "6-4":  # two pairs of platform points coincide
+        p[1], p[3] = p[0], p[2]
+    elif kind == "3-3":  # base and platform points pairwise coincide (octahedral)
+        b[1], b[3], b[5] = b[0], b[2], b[4]
+        p[1], p[3], p[5] = p[2], p[4], p[0]
+    return b, p
+
+
+@pytest.mark.parametrize("kind", ["planar", "6-4", "3-3"])
+def test_special_geometries_fall_back_and_stay_complete(kind):
+    b, p = _catalog_special(kind)
+    rng = np.random.default_rng(5)
+    r, t = _pose(rng)
+    rho = _legs(b, p, r, t)
+    auto = stewart_poses(b, p, rho, seed=1)
+    assert auto.complete and auto.method == "parameter+total"
+    assert any(np.allclose(x, r, atol=1e-9) and np.allclose(y, t, atol=1e-9) for x, y in auto.poses)
+    assert _max_leg_error(b, p, rho, auto.poses) <= 1e-12
+    assert _same_postures(auto.poses, stewart_poses(b, p, rho, method="total", seed=2).poses)
+    alone = stewart_poses(b, p, rho, method="parameter", seed=1)
+    assert not alone.complete  # the count check fails: fewer than 40 isolated solutions
+
+
+def test_complex_solutions_on_request_solve_the_unscaled_equations():
+    rng = np.random.default_rng(3)
+    b, p = _general(rng)
+    rho = _legs(b, p, *_pose(rng))
+    fk = stewart_poses(b, p, rho, keep_complex=True)
+    assert stewart_poses(b, p, rho).solutions is None
+    z = fk.solutions
+    assert z.shape == (40, 8)
+    mats = study.study_matrices(b, p, study.leg_constants(b, p, rho))
+    assert np.max(stewart_parameter.relative_residual(mats, z)) <= 1e-10
+    real = np.max(np.abs(z.imag), axis=1) <= 1e-8
+    assert np.sum(real) == len(fk.poses)
+
+
+def test_cauchy_endgame_finds_a_double_root_with_winding_number_two():
+    # z1^2 - s z0^2 = 0: roots z1 / z0 = +-sqrt(s) merge at s = 0 (a double root)
+    c0 = np.array([[[0.0, 0.0], [0.0, 1.0]]])
+    c1 = np.array([[[-1.0, 0.0], [0.0, 0.0]]])
+    res = parameter_homotopy.track(
+        (c0, c1, np.zeros_like(c0)), np.array([[1.0, 1.0], [1.0, -1.0]]), np.random.default_rng(0)
+    )
+    assert list(res.status) == ["endgame", "endgame"]
+    assert list(res.winding) == [2, 2]
+    assert np.all(np.abs(res.z[:, 1] / res.z[:, 0]) < 1e-10)
+
+
+def test_without_a_compiler_the_total_method_answers(monkeypatch):
+    monkeypatch.setattr(parameter_homotopy, "available", lambda: False)
+    m = optik.catalog.stewart_gough()
+    b, p = m.params["base"], m.params["platform"]
+    rho = _legs(b, p, np.eye(3), np.array([0.0, 0.0, 1.0]))
+    fk = stewart_gough.stewart_poses(b, p, rho)
+    assert fk.method == "total" and fk.complete
+
+
+def test_unknown_method_is_rejected():
+    m = optik.catalog.stewart_gough()
+    with pytest.raises(optik.OptikError, match="method"):
+        stewart_poses(m.params["base"], m.params["platform"], np.ones(6), method="fast")

@@ -34,7 +34,7 @@ import casadi as ca
 import numpy as np
 
 from optik import native
-from optik.closed_form import registry, spherical_wrist, three_parallel
+from optik.closed_form import general_6r, registry, spherical_wrist, three_parallel
 from optik.closed_form import vec3 as v3
 from optik.closed_form.spherical_wrist import Branch
 from optik.closed_form.structure import Axes, Structure, axes_of, detect
@@ -147,7 +147,7 @@ class DerivedIK:
         self, t: np.ndarray, q: np.ndarray, pos: np.ndarray, ori: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """Steps 2-4 for candidates ``q (N, 8, 6)`` with errors ``pos, ori (N, 8)``: polish the
-        inexact ones within :data:`POLISH_RANGE`, check, wrap, merge duplicates."""
+        inexact ones within `polish_range`, check, wrap, merge duplicates."""
         size = self.axes.size
         ok = (pos <= CHECK_TOL * size) & (ori <= CHECK_TOL)
         span = self.polish_range
@@ -368,4 +368,15 @@ def derived_rows(m: Mechanism) -> registry.IKSolver | None:
     return rows
 
 
+def general_rows(m: Mechanism) -> registry.IKSolver | None:
+    """Registry deriver after [`derived_rows`][optik.closed_form.derived.derived_rows]: a 6R
+    serial chain of no decomposable family gets the general 6R solver
+    ([`ik_general_6r`][optik.closed_form.general_6r.ik_general_6r], all 16 complex solutions'
+    real ones, each FK-checked)."""
+    if m.n_q != 6 or derive(m) is not None or chain_axes(m) is None:
+        return None
+    return general_6r.ik_general_6r
+
+
 registry.register_deriver(derived_rows)
+registry.register_deriver(general_rows)

@@ -122,17 +122,23 @@ def sp1(k: np.ndarray, p1: np.ndarray, p2: np.ndarray) -> tuple[np.ndarray, np.n
     return theta, err <= EXACT_TOL * scale
 
 
-def sp4(h: np.ndarray, k: np.ndarray, p: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def sp4(
+    h: np.ndarray, k: np.ndarray, p: np.ndarray, d: np.ndarray, scale: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Subproblem 4: ``theta`` with ``h . rot(k, theta) p = d`` (both roots, or the least-squares one twice).
+
+    Args:
+        scale: the magnitude the exactness test is relative to (default ``|h| |p| + |d|``).
 
     Returns:
         ``(theta (..., 2), exact (...))``: the ``+ acos`` root first.
     """
-    a, b, c = np.broadcast_arrays(*_sp4_terms(_split(h), _split(k), _split(p), np.asarray(d, dtype=float)))
+    d = np.asarray(d, dtype=float)
+    a, b, c = np.broadcast_arrays(*_sp4_terms(_split(h), _split(k), _split(p), d))
     r = np.hypot(a, b)
-    scale = np.broadcast_to(
-        np.maximum(np.linalg.norm(p, axis=-1) * np.linalg.norm(h, axis=-1), 1e-300), r.shape
-    )
+    if scale is None:
+        scale = np.linalg.norm(p, axis=-1) * np.linalg.norm(h, axis=-1) + np.abs(d)
+    scale = np.broadcast_to(np.maximum(scale, 1e-300), r.shape)
     exact = (np.abs(c) <= r + EXACT_TOL * scale) & (
         (r > EXACT_TOL * scale) | (np.abs(c) <= EXACT_TOL * scale)
     )
@@ -146,7 +152,7 @@ def sp3(k: np.ndarray, p1: np.ndarray, p2: np.ndarray, d: np.ndarray) -> tuple[n
         ``(theta (..., 2), exact (...))``.
     """
     rhs = 0.5 * (_dot(p1, p1) + _dot(p2, p2) - d * d)
-    return sp4(p2, k, p1, rhs)
+    return sp4(p2, k, p1, rhs, _dot(p1, p1) + _dot(p2, p2) + d * d)
 
 
 def sp2(

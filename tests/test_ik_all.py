@@ -154,3 +154,16 @@ def test_self_motion_samples_follow_the_swept_joint() -> None:
         for s in sols:
             assert s.q[2] == v
             np.testing.assert_allclose(m.fk(s.q), target, atol=1e-9)
+
+
+def test_closed_form_is_not_used_for_another_frame() -> None:
+    """The closed form solves for the end effector: another task frame takes the numerical
+    method by default and is refused by method="closed_form"."""
+    m = optik.catalog.puma560()
+    q = m.random_q(seed=2)
+    target = m.fk(q, "link5")
+    with pytest.raises(SolverUnavailableError, match="frame 'link5'"):
+        optik.solve_ik(m, target, method="closed_form", frame="link5")
+    res = optik.solve_ik(m, target, frame="link5", seed=0, time_limit=1.0)
+    assert res.method == "lm" and res.success
+    np.testing.assert_allclose(m.fk(res.q, "link5"), target, atol=1e-6)

@@ -184,10 +184,13 @@ class DerivedIK:
         return _Single(self)
 
     def compile(self) -> None:
-        """Compile the single-target kernel to C now (it is compiled by itself after
-        `COMPILE_AFTER` calls; without a C compiler CasADi's evaluator stays)."""
+        """Compile the single-target kernel to C now and wait for it (it is compiled in the
+        background by itself after `COMPILE_AFTER` calls; without a C compiler CasADi's
+        evaluator stays)."""
         with self._single.lock:
-            self._single.compile()
+            if self._single.calls < COMPILE_AFTER:
+                self._single.calls = COMPILE_AFTER  # no second build when it gets hot
+                self._single.compile(wait=True)
 
     def solve_one(self, t: np.ndarray) -> list[list[float]]:
         """The solutions for one target ``t (4, 4)`` as rows, the same as ``solve(t)`` but
@@ -203,7 +206,7 @@ class DerivedIK:
             one.call()
             one.calls += 1
             if one.calls == COMPILE_AFTER:
-                one.compile()
+                one.compile()  # in the background
             q, err, pairs = one.q.tolist(), one.err.tolist(), one.pairs.tolist()
         size_tol = CHECK_TOL * self.axes.size
         span = self.polish_range
@@ -288,12 +291,18 @@ class _Single:
         self.lock = threading.Lock()
         self.calls = 0
 
-    def compile(self) -> None:
-        """Switch ``call`` to the function compiled to C on the same buffers (no-op without a
-        working C compiler: CasADi's evaluator stays)."""
+    def compile(self, wait: bool = False) -> None:
+        """Switch ``call`` to the function compiled to C on the same buffers, built in the
+        background (`optik.native.library`; CasADi's evaluator answers until it is loaded, and
+        stays without a working C compiler). ``wait``: block until the build is done."""
         lib = native.library([self.function])
-        if lib is not None:
-            self.call = native.CCall(lib, self.function.name(), [self.t], [self.q, self.err, self.pairs])
+        if lib is None:
+            return
+        if wait:
+            lib.wait()
+        binding = native.Binding(lib, self.function.name(), [self.t], [self.q, self.err, self.pairs])
+        evaluate = self.call
+        self.call = lambda: binding(evaluate)
 
 
 def _components(t: np.ndarray) -> tuple[v3.Mat, v3.Vec]:

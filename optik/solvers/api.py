@@ -76,8 +76,10 @@ def solve_ik(
     """
     request = make_request(m, target, q0, task, frame, time_limit, tol, seed, options)
     multi = request.multi_target
+    own_frame = not multi and request.frame in (None, m.ee)  # closed forms solve for the end effector only
     if method is None:
-        name = pick_method(m, request.task, MULTI_TARGET_ORDER if multi else DEFAULT_ORDER, multi)
+        order = DEFAULT_ORDER if own_frame else tuple(n for n in DEFAULT_ORDER if n != "closed_form")
+        name = pick_method(m, request.task, MULTI_TARGET_ORDER if multi else order, multi)
     else:
         name = method
     info = get_method(name)
@@ -86,8 +88,9 @@ def solve_ik(
         raise SolverUnavailableError(
             f"method {name!r} solves one frame target; several targets at once: method one of {able}"
         )
-    if not info.applies(m, request.task):
+    if not info.applies(m, request.task) or (name == "closed_form" and not own_frame):
         raise SolverUnavailableError(
             f"method {name!r} does not apply to {m.name!r} with task {request.task!r}"
+            + ("" if own_frame else f" and frame {request.frame!r}")
         )
     return info.solve(request)

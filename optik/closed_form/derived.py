@@ -160,11 +160,16 @@ class DerivedIK:
             q[idx] = qq
             ok[idx] = good
         q = _wrap(q)
-        d = np.abs(q[:, :, None, :] - q[:, None, :, :])  # in [0, 2 pi): |wrap| = min(d, 2 pi - d)
-        diff = np.minimum(d, 2.0 * np.pi - d).max(axis=-1)  # (N, B, B)
-        close = (diff < SAME_TOL) & ok[:, :, None] & ok[:, None, :] & np.tri(q.shape[1], k=-1, dtype=bool)
-        if close.any():
-            self._merge(t, q, ok, diff, close)
+        # pairs (j, i), i < j, of kept candidates within SAME_TOL: screened on q1, then all of q
+        d0 = np.abs(q[:, :, None, 0] - q[:, None, :, 0])  # in [0, 2 pi): |wrap| = min(d, 2 pi - d)
+        screen = (np.minimum(d0, 2.0 * np.pi - d0) < SAME_TOL) & ok[:, :, None] & ok[:, None, :]
+        n, j, i = np.nonzero(screen & np.tri(q.shape[1], k=-1, dtype=bool))
+        if n.size:
+            d = np.abs(q[n, j] - q[n, i])
+            dist = np.minimum(d, 2.0 * np.pi - d).max(axis=-1)
+            near_pairs = dist < SAME_TOL
+            if near_pairs.any():
+                self._merge(t, q, ok, n[near_pairs], j[near_pairs], i[near_pairs], dist[near_pairs])
         return np.where(ok[..., None], q, 0.0), ok
 
     @cached_property
@@ -242,19 +247,22 @@ class DerivedIK:
         return q, (np.linalg.norm(res[..., :3], axis=-1) <= CHECK_TOL * self.axes.size) & (angle <= CHECK_TOL)
 
     def _merge(
-        self, t: np.ndarray, q: np.ndarray, ok: np.ndarray, diff: np.ndarray, close: np.ndarray
-    ) -> None:
-        """Drop (in ``ok``) each candidate that is the same solution as an earlier kept one, the
-        distance being tied to the accuracy of both (module docstring, step 4)."""
-        for n in np.unique(np.nonzero(close)[0]):
-            pose, jac = self.axes.jacobian(q[n])
-            norm = np.linalg.norm(_errors(pose, t[n])[0], axis=-1)
+        self, t: np.ndarray, q: np.ndarray, ok: np.ndarray, n: np.ndarray, j: np.ndarray, i: np.ndarray,
+        dist: np.ndarray,
+    ) -> None:  # fmt: skip
+        """Drop (in ``ok``) each candidate ``j`` that is the same solution as an earlier kept
+        ``i`` (pairs ``(n, j, i)`` at distance ``dist``), the distance being tied to the accuracy
+        of both (module docstring, step 4)."""
+        for target in np.unique(n):
+            pose, jac = self.axes.jacobian(q[target])
+            norm = np.linalg.norm(_errors(pose, t[target])[0], axis=-1)
             sigma = np.linalg.svd(jac, compute_uv=False)[..., -1]
             tol = np.minimum(SAME_TOL, 100.0 * norm / np.maximum(sigma, 1e-300) + 1e-9)
-            for j in range(1, q.shape[1]):
-                for i in range(j):
-                    if ok[n, i] and ok[n, j] and diff[n, j, i] < max(tol[i], tol[j]):
-                        ok[n, j] = False
+            sel = np.nonzero(n == target)[0]
+            for k in sel[np.lexsort((i[sel], j[sel]))]:  # by j, then i
+                a, b = j[k], i[k]
+                if ok[target, a] and ok[target, b] and dist[k] < max(tol[a], tol[b]):
+                    ok[target, a] = False
 
 
 @functools.cache

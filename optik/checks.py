@@ -161,3 +161,19 @@ def as_int(value: Any, name: str, minimum: int = 0) -> int:
     if v != int(v) or v < minimum:
         raise InvalidArgumentError(name, f"expected an integer >= {minimum}, got {value!r}")
     return int(v)
+
+
+def as_limits(value: Any, name: str, size: int) -> np.ndarray:
+    """``size`` joint limits: real numbers, where +-infinity means unbounded on that side.
+
+    Raises:
+        InvalidArgumentError: not real numbers.
+        ShapeError: not ``size`` values.
+        NonFiniteError: NaN.
+    """
+    a = real_array(value, name)
+    if a.shape != (size,):
+        raise ShapeError(name, f"expected {size} values, got shape {a.shape}")
+    if np.isnan(a).any():
+        raise NonFiniteError(name, f"contains NaN: {a}")
+    return a

@@ -2,29 +2,47 @@
 
 Calling a CasADi ``Function`` from Python costs tens to a hundred microseconds per call
 (argument conversion to ``DM`` and back), more than a whole IK iteration or QP step should take.
-`library` generates C code for a list of functions (``casadi.CodeGenerator``), compiles it
-once with the system C compiler into a shared library cached on disk (keyed by a hash of the
-source and the compiler, so each machine compiles a given model once) and loads it;
-`CCall` then calls one generated entry point through ``ctypes`` on preallocated numpy
-buffers, about 1 us of overhead per call. Both the IK solvers ([`optik.solvers.native`][optik.solvers.native])
-and differential IK (`optik.diffik._codegen`) use it.
+`optik.native.library` generates C code for a list of functions
+(``casadi.CodeGenerator``) and compiles it with the system C compiler into a shared library
+cached on disk (keyed by a hash of the source, the compiler and its flags, so each machine
+compiles a given model once); `optik.native.CCall` then calls one generated entry
+point through ``ctypes`` on preallocated numpy buffers, about 1 us of overhead per call
+(`optik.native.Binding`: the same once the library is ready). The IK solvers
+(`optik.solvers.native`, `optik.solvers.lm_kernel`), differential IK (`optik.diffik._codegen`)
+and `optik.batch` use it.
 
-Without a C compiler, with ``$OPTIK_NO_CODEGEN`` set, or with ``compile=False``, `library`
-returns None and the callers evaluate with CasADi's own evaluator (same numbers, slower).
+*No wait for the compiler.* Compiling a 7-joint arm's solver takes about half a second. With
+``compile="auto"`` (the default) a library that is not in the cache yet is built in a background
+(daemon) thread: until it is loaded, the callers evaluate the same functions with CasADi's own
+``SX`` virtual machine (same operations in the same order, so the same numbers to rounding, and
+the generated code is compiled with ``-ffp-contract=off`` so that no fused multiply-add changes
+them), then switch to the compiled entry points at their next call. A failed build is logged (logger
+``optik.native``) and the callers keep the virtual machine; nothing raises. A build still
+running when the interpreter exits is stopped and its temporary files removed (the next process
+starts it again). ``compile=True`` builds in the calling thread and raises when it cannot;
+`optik.native.wait` blocks until the background builds are done.
 
-The cache directory is ``$OPTIK_CACHE_DIR`` or ``~/.cache/optik``. A library is written under a
-temporary name and renamed into place (``os.replace``), so processes compiling the same source
-at once never load a half-written file.
+Without a C compiler, with ``$OPTIK_NO_CODEGEN`` set, or with ``compile=False``, there is no
+library and the callers always evaluate with CasADi's virtual machine (same numbers, slower).
+
+The cache directory is ``$OPTIK_CACHE_DIR`` or ``~/.cache/optik``. A library is compiled in a
+private temporary folder of the cache and renamed into place (``os.replace``), so processes and
+threads compiling the same source at once never load a half-written file.
 """
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import ctypes
 import hashlib
+import logging
 import os
 import shutil
 import subprocess
 import tempfile
+import threading
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -34,7 +52,18 @@ import numpy as np
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 
 _INT = ctypes.c_longlong  # casadi_int of the generated code (see c_source)
-_LIBS: dict[str, ctypes.CDLL] = {}  # loaded libraries by path
+_FLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off")
+"""Compiler flags; no contraction into fused multiply-adds, so C and the virtual machine agree."""
+_LOG = logging.getLogger(__name__)
+_BUILDS: dict[Path, Library] = {}  # every library this process loaded or built, by path
+_BUILDS_LOCK = threading.Lock()
+_RUNNING: dict[subprocess.Popen, Path] = {}  # compiler processes at work -> their temporary folder
+_RUNNING_LOCK = threading.Lock()
+EVALUATOR_BUDGET = 0.25
+"""Seconds of evaluation in CasADi's virtual machine, summed over the calls made while a library
+builds, after which the next call waits for the build instead: the first answers come at once, and
+a long computation started on a cold cache runs at most this long at the evaluator's speed."""
+_EXITING = threading.Event()  # set at interpreter exit: unfinished builds are stopped, not failures
 
 
 def compiler() -> str | None:
@@ -64,106 +93,252 @@ def c_source(functions: Sequence[ca.Function], extra_source: str = "") -> str:
     return gen.dump() + extra_source
 
 
-def compile_library(functions: Sequence[ca.Function], extra_source: str = "") -> Path:
-    """Compile ``functions`` (and ``extra_source``, see `c_source`) into one shared
-    library (once per source hash); its path.
+def _library_file(stem: str, source: str, cc: str, flags: Sequence[str]) -> Path:
+    """Cache path of the library of ``source`` compiled by ``cc`` with the flags (hash-keyed)."""
+    digest = hashlib.sha256("\0".join((source, cc, *_FLAGS, *flags)).encode()).hexdigest()[:20]
+    return cache_dir() / f"{stem}_{digest}.so"
+
+
+def _start(source: str, cc: str, lib: Path, flags: Sequence[str]) -> tuple[subprocess.Popen, Path]:
+    """Write ``source`` into a new temporary folder of the cache and start the compiler on it at a
+    lower scheduling priority (returns at once); the compiler process and the folder.
 
     Raises:
-        SolverUnavailableError: no C compiler, or the compilation failed.
-        OSError: the cache directory is not writable.
+        OSError: the cache directory is not writable, or the compiler cannot be started.
     """
-    return compile_source(c_source(functions, extra_source), functions[0].name())
+    tmp = Path(tempfile.mkdtemp(dir=lib.parent, prefix=".build-"))
+    try:
+        (tmp / "f.c").write_text(source)
+        with _RUNNING_LOCK:
+            proc = subprocess.Popen(
+                [cc, *_FLAGS, *flags, "-o", str(tmp / "f.so"), str(tmp / "f.c"), "-lm"],
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.PIPE,
+                text=True,
+            )
+            _RUNNING[proc] = tmp
+        with contextlib.suppress(OSError, AttributeError):  # a background job: let the solves go first
+            os.setpriority(os.PRIO_PROCESS, proc.pid, 10)
+    except OSError:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return proc, tmp
 
 
-def compile_source(source: str, stem: str, flags: Sequence[str] = ()) -> Path:
-    """Compile C ``source`` into a shared library ``<stem>_<hash>.so`` in `cache_dir` (once per
-    source, flags and compiler); its path. ``flags`` are extra compiler options (after ``-O2``).
+def _finish(proc: subprocess.Popen, tmp: Path, lib: Path) -> None:
+    """Wait for the compiler started by `_start`, rename its output to ``lib``, remove ``tmp``.
 
     Raises:
-        SolverUnavailableError: no C compiler, or the compilation failed.
-        OSError: the cache directory is not writable.
+        SolverUnavailableError: the compiler failed (its last error lines in the message).
+        OSError: the rename failed.
     """
-    cc = compiler()
-    if cc is None:
-        raise SolverUnavailableError("no C compiler found (set $CC or install gcc; unset $OPTIK_NO_CODEGEN)")
-    digest = hashlib.sha256((source + cc + " ".join(flags)).encode()).hexdigest()[:20]
-    folder = cache_dir()
-    lib = folder / f"{stem}_{digest}.so"
-    if lib.exists():
-        return lib
-    with tempfile.TemporaryDirectory(dir=folder) as tmp:
-        src = Path(tmp, "f.c")
-        src.write_text(source)
-        out = Path(tmp, "f.so")
-        proc = subprocess.run(
-            [cc, "-O2", *flags, "-fPIC", "-shared", "-o", str(out), str(src), "-lm"],
-            capture_output=True,
-            text=True,
-            check=False,
-        )
+    try:
+        try:
+            _, err = proc.communicate()
+        finally:
+            with _RUNNING_LOCK:
+                _RUNNING.pop(proc, None)
         if proc.returncode != 0:
-            raise SolverUnavailableError(f"compiling {stem} failed: {proc.stderr[-2000:]}")
-        os.replace(out, lib)  # atomic: concurrent processes may compile the same source
-    return lib
+            raise SolverUnavailableError(f"compiling {lib.name} failed: {err[-2000:]}")
+        os.replace(tmp / "f.so", lib)  # atomic: concurrent processes may compile the same source
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+@atexit.register
+def _stop_builds() -> None:
+    """Stop the compilers of unfinished background builds and remove their temporary folders."""
+    _EXITING.set()
+    with _RUNNING_LOCK:
+        running = list(_RUNNING.items())
+    for proc, tmp in running:
+        proc.kill()
+        proc.wait()
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+class Library:
+    """A shared library of generated C code: loaded, being built in the background, or failed.
+
+    Created by `optik.native.library` (one object per library file and process).
+
+    Attributes:
+        path: the library file in the cache.
+        error: why the build or the load failed (None otherwise).
+    """
+
+    def __init__(self, path: Path, flags: Sequence[str] = ()) -> None:
+        self.path = path
+        self.flags = tuple(flags)
+        self.error: str | None = None
+        self._cdll: ctypes.CDLL | None = None
+        self._done = threading.Event()
+        self._evaluated = 0.0  # seconds the callers spent in CasADi's evaluator while it builds
+
+    @property
+    def state(self) -> str:
+        """``"building"``, ``"ready"`` or ``"failed"``."""
+        if not self._done.is_set():
+            return "building"
+        return "ready" if self._cdll is not None else "failed"
+
+    def get(self) -> ctypes.CDLL | None:
+        """The loaded library when it is ready, else None; blocks until the build is done only
+        once the callers have spent `EVALUATOR_BUDGET` seconds in CasADi's evaluator meanwhile."""
+        if not self._done.is_set() and self._evaluated > EVALUATOR_BUDGET:
+            self._done.wait()
+        return self._cdll if self._done.is_set() else None
+
+    def evaluated(self, seconds: float) -> None:
+        """Account ``seconds`` spent evaluating in CasADi instead of this library (see `get`)."""
+        self._evaluated += seconds
+
+    def wait(self, timeout: float | None = None) -> ctypes.CDLL | None:
+        """Block until the build is done (at most ``timeout`` seconds); the loaded library or None."""
+        self._done.wait(timeout)
+        return self.get()
+
+    def _make(self, source: str, cc: str, background: bool) -> None:
+        """Load the cached file, or start the compiler and load its output: in a daemon thread that
+        waits for it when ``background``, else here. A failure is recorded (and logged), not raised."""
+        try:
+            if self.path.exists():
+                self._settle(None, None)
+                return
+            proc, tmp = _start(
+                source, cc, self.path, self.flags
+            )  # here: the thread does no Python work meanwhile
+            if not background:
+                self._settle(proc, tmp)
+                return
+            name = f"optik-build-{self.path.stem}"
+            threading.Thread(target=self._settle, args=(proc, tmp), name=name, daemon=True).start()
+        except Exception as exc:
+            self._fail(exc)
+            if not isinstance(exc, OSError):  # OSError: the compiler could not be started
+                raise
+
+    def _settle(self, proc: subprocess.Popen | None, tmp: Path | None) -> None:
+        """Finish the build (when ``proc`` runs) and load the library; record a failure."""
+        try:
+            if proc is not None and tmp is not None:
+                _finish(proc, tmp, self.path)
+            self._cdll = ctypes.CDLL(str(self.path))
+        except (SolverUnavailableError, OSError) as exc:  # broken toolchain, unwritable cache, bad file
+            self._fail(exc)
+        finally:
+            self._done.set()
+
+    def _fail(self, exc: Exception) -> None:
+        self.error = str(exc)
+        self._done.set()
+        if not _EXITING.is_set():
+            _LOG.warning(
+                "optik: no compiled code for %s, CasADi's evaluator is used: %s", self.path.name, exc
+            )
 
 
 def library(
     functions: Sequence[ca.Function], compile: bool | str = "auto", extra_source: str = ""
-) -> ctypes.CDLL | None:
-    """The loaded library of ``functions``, or None: evaluate them with CasADi instead.
+) -> Library | None:
+    """The compiled library of ``functions`` (possibly still building), or None: evaluate them
+    with CasADi instead.
 
     Args:
         functions: the functions to compile into one library.
-        compile: ``True`` compile (raise when impossible), ``False`` never compile (None),
-            ``"auto"`` compile when a C compiler exists and works, else None.
-        extra_source: C code appended to the generated code (see :func:`c_source`).
+        compile: ``True`` compile now in this thread (raise when impossible), ``False`` never
+            compile (None), ``"auto"`` load the cached library, or start the compiler and
+            return at once when it is not cached yet (a daemon thread waits for the compiler
+            and loads the library; None without a C compiler).
+        extra_source: C code appended to the generated code (see `c_source`).
 
     Raises:
         InvalidArgumentError: bad ``compile`` value.
         SolverUnavailableError: ``compile=True`` without a working compiler.
     """
-    return _load(lambda: compile_library(functions, extra_source), compile)
+    _check_compile(compile)
+    cc = compiler()
+    if compile is False or cc is None:
+        return _no_library(compile)
+    source = c_source(functions, extra_source)
+    return _library(source, functions[0].name(), cc, compile, compile == "auto", ())
 
 
 def source_library(
     source: str, stem: str, compile: bool | str = "auto", flags: Sequence[str] = ()
 ) -> ctypes.CDLL | None:
-    """The loaded library of hand-written C ``source`` (see `compile_source`), or None.
+    """The loaded library of hand-written C ``source``, compiled in this thread (blocking), or None.
 
     Args:
         source: C source text.
-        stem: file name stem of the library.
-        compile: as for `library`.
-        flags: extra compiler options.
+        stem: file name stem of the library (``<stem>_<hash>.so`` in `cache_dir`).
+        compile: as for `library`, except that ``"auto"`` waits for the compiler too (None when
+            it fails).
+        flags: extra compiler options (part of the cache key).
 
     Raises:
         InvalidArgumentError: bad ``compile`` value.
         SolverUnavailableError: ``compile=True`` without a working compiler.
     """
-    return _load(lambda: compile_source(source, stem, flags), compile)
+    _check_compile(compile)
+    cc = compiler()
+    if compile is False or cc is None:
+        return _no_library(compile)
+    lib = _library(source, stem, cc, compile, False, flags)
+    return None if lib is None else lib.wait()
 
 
-def _load(build: Callable[[], Path], compile: bool | str) -> ctypes.CDLL | None:
+def _check_compile(compile: bool | str) -> None:
     if compile not in (True, False, "auto"):
         raise InvalidArgumentError("compile", f"expected True, False or 'auto', got {compile!r}")
-    if compile is False or (compile == "auto" and compiler() is None):
-        return None
+
+
+def _no_library(compile: bool | str) -> None:
+    """None (no compiled code); raises for ``compile=True``."""
+    if compile is True:
+        raise SolverUnavailableError("no C compiler found (set $CC or install gcc; unset $OPTIK_NO_CODEGEN)")
+
+
+def _library(
+    source: str, stem: str, cc: str, compile: bool | str, background: bool, flags: Sequence[str]
+) -> Library | None:
+    """The `Library` of ``source`` (one per file and process): loaded from the cache, or built
+    here or, when ``background``, by the compiler started here and a daemon thread waiting for it."""
     try:
-        path = str(build())
-        if path not in _LIBS:
-            _LIBS[path] = ctypes.CDLL(path)
-        return _LIBS[path]
-    except (SolverUnavailableError, OSError):  # broken toolchain, unwritable cache, bad library
+        path = _library_file(stem, source, cc, flags)
+    except OSError as exc:  # the cache directory cannot be created
         if compile is True:
             raise
+        _LOG.warning("optik: no compiled code, the cache directory is not usable: %s", exc)
         return None
+    with _BUILDS_LOCK:
+        lib = _BUILDS.get(path)
+        fresh = lib is None
+        if fresh:
+            lib = _BUILDS[path] = Library(path, flags)
+    if fresh:
+        lib._make(source, cc, background)  # cached: loading takes a millisecond
+    if compile is True and lib.wait() is None:
+        raise SolverUnavailableError(lib.error or f"{path.name}: no library")
+    return lib
+
+
+def wait(timeout: float | None = None) -> bool:
+    """Wait until every background build of this process is done (at most ``timeout`` seconds
+    in all); True when none is left running."""
+    deadline = None if timeout is None else time.monotonic() + timeout
+    with _BUILDS_LOCK:
+        builds = list(_BUILDS.values())
+    for lib in builds:
+        lib.wait(None if deadline is None else max(0.0, deadline - time.monotonic()))
+    return all(lib.state != "building" for lib in builds)
 
 
 class CCall:
     """One generated function of a loaded library, bound to preallocated numpy buffers.
 
     Args:
-        lib: the library (from `library`) that holds ``name``.
+        lib: the loaded library (`Library.get`) that holds ``name``.
         name: the CasADi function's name.
         inputs: one contiguous float64 array per input (dense, column-major).
         outputs: one contiguous float64 array per output.
@@ -196,3 +371,54 @@ class CCall:
         """
         if self._fn(self._argv, self._resv, self._iw, self._w, 0) != 0:
             raise SolverUnavailableError(f"{self.name}: evaluation failed")
+
+
+class Binding:
+    """A `CCall` of a `Library` that may still be building: made at the first call after the
+    library is ready.
+
+    Args:
+        lib: the library that holds ``name`` (None: never compiled).
+        name, inputs, outputs: as for `CCall`.
+
+    While there is no compiled code (still building, failed or never compiled) a call runs the
+    caller's own evaluation instead.
+    """
+
+    def __init__(
+        self, lib: Library | None, name: str, inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray]
+    ) -> None:
+        self._lib = lib
+        self._args = (name, inputs, outputs)
+        self._call: CCall | None = None
+
+    @property
+    def compiled(self) -> bool:
+        """True once calls go to the compiled code."""
+        return self._call is not None or self._bind()
+
+    def _bind(self) -> bool:
+        """Make the `CCall` when the library has become ready; True when made."""
+        lib = self._lib
+        cdll = lib.get() if lib is not None else None
+        if cdll is None:
+            if lib is not None and lib.state == "failed":
+                self._lib = None  # stop asking
+            return False
+        self._call, self._lib = CCall(cdll, *self._args), None
+        return True
+
+    def __call__(self, evaluate: Callable[[], object]) -> None:
+        """Evaluate on the current input buffers: the compiled code when it is there, else
+        ``evaluate()`` (CasADi's evaluator writing the outputs), timed for `Library.get`.
+
+        Raises:
+            SolverUnavailableError: the generated code reported an error.
+        """
+        if self._call is None and not self._bind():
+            lib, start = self._lib, time.perf_counter()
+            evaluate()
+            if lib is not None:
+                lib.evaluated(time.perf_counter() - start)
+            return
+        self._call()

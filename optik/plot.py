@@ -338,7 +338,8 @@ def workspace_points(
         pts = m.fk(qs)[:, :3, 3] if n > 1 else m.fk(qs[0])[None, :3, 3]
         return pts, np.zeros(len(pts), dtype=int), int(n)
     idx = m.actuated_indices
-    samples = rng.uniform(m.lower[idx], m.upper[idx], size=(int(n), len(idx)))
+    lo, hi = m.sampling_bounds
+    samples = rng.uniform(lo[idx], hi[idx], size=(int(n), len(idx)))
     qs, modes = [], []
     for a in samples:
         for k, q in enumerate(assemble(m, a, numerical=not m.planar)):
@@ -392,11 +393,12 @@ def workspace(m: Mechanism, n: int = 2000, seed: int | np.random.Generator | Non
 def _first_assembly(m: Mechanism) -> np.ndarray | None:
     """An assembled configuration near the middle of the actuated limits (None if none found)."""
     idx = m.actuated_indices
-    mid = 0.5 * (m.lower[idx] + m.upper[idx])
+    lo, hi = m.sampling_bounds
+    mid = 0.5 * (lo[idx] + hi[idx])
     rng = np.random.default_rng(0)
     for scale in (0.0, 0.1, 0.3, 0.6):
         for _ in range(5):
-            a = mid + scale * (m.upper[idx] - m.lower[idx]) * rng.uniform(-0.5, 0.5, len(idx))
+            a = mid + scale * (hi[idx] - lo[idx]) * rng.uniform(-0.5, 0.5, len(idx))
             qs = assemble(m, a, numerical=not m.planar)
             if qs:
                 return qs[0]

@@ -500,7 +500,8 @@ class Problem:
 
     def _draw_actuated(self, m: Mechanism, rng: np.random.Generator) -> list[np.ndarray]:
         idx = m.actuated_indices
-        return assemble(m, rng.uniform(m.lower[idx], m.upper[idx]))
+        lo, hi = m.sampling_bounds
+        return assemble(m, rng.uniform(lo[idx], hi[idx]))
 
     def _draw_pose(self, m: Mechanism, rng: np.random.Generator) -> list[np.ndarray]:
         if not closed_form.has_ik(m):

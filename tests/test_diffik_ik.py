@@ -22,10 +22,10 @@ import optik
 )
 def test_round_trip_from_fk(method: str, name: str, make_target) -> None:
     m = getattr(optik.catalog, name)()
-    rng = np.random.default_rng(7)
-    for _ in range(3):
+    rng = np.random.default_rng(7)  # the targets do not depend on the restarts the solver draws
+    for k in range(3):
         q_true = m.random_q(seed=rng)
-        res = optik.solve_ik(m, make_target(m, q_true), method=method, time_limit=2.0, seed=rng)
+        res = optik.solve_ik(m, make_target(m, q_true), method=method, time_limit=2.0, seed=k)
         assert res.success, res.message
         assert res.method == method and res.limits_ok
         assert res.position_error <= 1e-6 and res.orientation_error <= 1e-6

@@ -167,6 +167,28 @@ def test_unreachable_pose_is_an_empty_answer_with_a_reason() -> None:
     assert ik_general_6r(m, far) == []
 
 
+@pytest.mark.parametrize("special", ["a1 = 0", "alpha1 = 0"])
+def test_first_axes_intersecting_or_parallel(special: str) -> None:
+    """Axes 1-2 intersecting or parallel make the elimination singular from the base end; the
+    solver then solves the inverse chain from the other end (count check passes there)."""
+    rng = np.random.default_rng(21)
+    for _ in range(3):
+        a, alpha, d = rng.uniform(0.1, 1, 6), rng.uniform(-np.pi, np.pi, 6), rng.uniform(-1, 1, 6)
+        (a if special == "a1 = 0" else alpha)[0] = 0.0
+        arm = General6R(a=a, alpha=alpha, d=d)
+        q = rng.uniform(-np.pi, np.pi, 6)
+        sols = solve_general_6r(arm, arm.fk(q))
+        assert sols.count_ok, sols.reason
+        assert min(_angle_dist(s, q) for s in sols.q) < 1e-8
+        assert sols.fk_error <= FK_TOL
+
+
+def test_reversed_chain_is_the_inverse() -> None:
+    arm = General6R(a=[0.3, 0.5, 0.2, 0.4, 0.1, 0.6], alpha=[1.0, -0.5, 2.0, 0.7, -1.2, 0.3], d=[0.1] * 6)
+    q = np.random.default_rng(2).uniform(-np.pi, np.pi, (4, 6))
+    assert np.allclose(arm.reversed.fk(q[:, ::-1]), np.linalg.inv(arm.fk(q)), atol=1e-12)
+
+
 def test_special_geometry_is_flagged_not_hidden() -> None:
     """The seed's 6R arm (parallel and intersecting axes, 8 solutions by its closed form) is not
     a general arm: the count check fails and says so; what is returned is still verified."""

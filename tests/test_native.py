@@ -1,6 +1,10 @@
-"""optik.native: one compile path and cache for the IK solvers and differential IK; the fallback."""
+"""optik.native: one compile path and cache for the IK solvers and differential IK; the CasADi
+evaluator while a library builds in the background, and for good without a compiler."""
 
 from __future__ import annotations
+
+import logging
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -9,9 +13,11 @@ import pytest
 import optik
 from optik import native
 from optik.diffik._codegen import CompiledFunction
+from optik.solvers import evaluation, lm_kernel
 from optik.solvers.native import NativeFunction, native_functions
 
 X = ca.SX.sym("x", 3)
+PANDA = Path(optik.__file__).parent / "data" / "urdf" / "panda.urdf"
 
 
 def test_native_function_compiled_and_interpreted_agree() -> None:
@@ -32,6 +38,7 @@ def test_native_function_compiled_and_interpreted_agree() -> None:
 def test_compiled_and_casadi_evaluation_agree(monkeypatch: pytest.MonkeyPatch) -> None:
     f = ca.Function("diffik_test_fun", [X], [ca.vertcat(ca.sin(X[0]) * X[1], X[2] ** 2), ca.mtimes(X, X.T)])
     compiled = CompiledFunction(f)
+    compiled.library.wait()
     monkeypatch.setenv("OPTIK_NO_CODEGEN", "1")
     fallback = CompiledFunction(f)
     assert compiled.compiled and not fallback.compiled
@@ -44,19 +51,71 @@ def test_compiled_and_casadi_evaluation_agree(monkeypatch: pytest.MonkeyPatch) -
 def test_library_is_compiled_once_into_the_cache(monkeypatch: pytest.MonkeyPatch, tmp_path) -> None:
     monkeypatch.setenv("OPTIK_CACHE_DIR", str(tmp_path))
     f = ca.Function("optik_test_cache", [X], [ca.cos(X)])
-    path = native.compile_library([f])
-    assert path.parent == tmp_path and path.exists()
-    assert list(tmp_path.iterdir()) == [path]  # the temporary build folder is gone
+    lib = native.library([f], True)
+    assert lib.state == "ready" and lib.path.parent == tmp_path
+    assert list(tmp_path.iterdir()) == [lib.path]  # the temporary build folder is gone
+    assert native.library([f]) is lib  # loaded once per process
 
     def no_compiler(*args, **kwargs):
         raise AssertionError("recompiled a cached library")
 
-    monkeypatch.setattr(native.subprocess, "run", no_compiler)
-    assert native.compile_library([f]) == path
-    assert native.library([f]) is native.library([f])  # loaded once per process
+    monkeypatch.setattr(native.subprocess, "Popen", no_compiler)
+    native._BUILDS.pop(lib.path)  # as in a new process: the cached file is loaded, not compiled
+    again = native.library([f], True)
+    assert again.path == lib.path and again.state == "ready"
     g = ca.Function("optik_test_cache", [X], [ca.sin(X)])  # same name, other source: other library
     with pytest.raises(AssertionError, match="recompiled"):
-        native.compile_library([g])
+        native.library([g], True)
+
+
+def test_first_calls_evaluate_while_the_library_builds_then_switch(
+    monkeypatch: pytest.MonkeyPatch, tmp_path
+) -> None:
+    monkeypatch.setenv("OPTIK_CACHE_DIR", str(tmp_path / "fresh"))  # not created yet
+    f = ca.Function("optik_test_switch", [X], [ca.sin(X) * ca.cos(X[1]) + X[2] ** 3])
+    fn = native_functions([f])[0]
+    assert fn.library.state == "building" and not fn.compiled
+    fn.inputs[0][:] = [0.3, -1.2, 2.0]
+    before = fn()[0].copy()  # answered by CasADi's virtual machine meanwhile
+    assert native.wait(timeout=60)
+    assert fn.library.state == "ready" and fn.compiled
+    np.testing.assert_array_equal(fn()[0], before)
+    assert [p.name for p in (tmp_path / "fresh").iterdir()] == [fn.library.path.name]  # no leftovers
+
+
+def test_calls_wait_for_the_build_once_the_evaluator_budget_is_spent(
+    monkeypatch: pytest.MonkeyPatch, tmp_path
+) -> None:
+    monkeypatch.setenv("OPTIK_CACHE_DIR", str(tmp_path))
+    f = ca.Function("optik_test_budget", [X], [ca.exp(X) - X[0]])
+    fn = native_functions([f])[0]
+    fn.inputs[0][:] = [0.1, 0.2, 0.3]
+    fn()
+    assert fn.library.state == "building" and 0 < fn.library._evaluated < native.EVALUATOR_BUDGET
+    fn.library.evaluated(native.EVALUATOR_BUDGET)  # as if long evaluations had been made meanwhile
+    out = fn()[0].copy()
+    assert fn.library.state == "ready" and fn.compiled  # that call waited for the compiler
+    np.testing.assert_allclose(out, np.exp([0.1, 0.2, 0.3]) - 0.1, rtol=0, atol=1e-15)
+
+
+def test_a_failed_background_build_is_logged_and_evaluation_goes_on(
+    monkeypatch: pytest.MonkeyPatch, tmp_path, caplog: pytest.LogCaptureFixture
+) -> None:
+    monkeypatch.setenv("OPTIK_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("CC", "false")  # a "compiler" that always fails
+    f = ca.Function("optik_test_failed", [X], [X * 3.0])
+    monkeypatch.setattr(native._LOG, "disabled", False)  # logging.config may disable it (dask does)
+    with caplog.at_level(logging.WARNING, logger="optik.native"):
+        fn = native_functions([f])[0]
+        fn.inputs[0][:] = [1.0, 2.0, 3.0]
+        np.testing.assert_array_equal(fn()[0], [3.0, 6.0, 9.0])
+        fn.library.wait(timeout=60)
+    assert fn.library.state == "failed" and not fn.compiled
+    assert "optik_test_failed" in caplog.text and "failed" in fn.library.error
+    np.testing.assert_array_equal(fn()[0], [3.0, 6.0, 9.0])
+    with pytest.raises(optik.SolverUnavailableError):
+        native.library([f], True)
+    assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.parametrize("env", [{"OPTIK_NO_CODEGEN": "1"}, {"CC": "false"}])
@@ -65,7 +124,6 @@ def test_fallback_without_a_working_compiler(monkeypatch: pytest.MonkeyPatch, tm
     for key, value in env.items():
         monkeypatch.setenv(key, value)
     f = ca.Function("optik_test_fallback", [X], [X * 2.0])
-    assert native.library([f], "auto") is None
     assert native.library([f], False) is None
     with pytest.raises(optik.SolverUnavailableError):
         native.library([f], True)
@@ -75,3 +133,47 @@ def test_fallback_without_a_working_compiler(monkeypatch: pytest.MonkeyPatch, tm
     np.testing.assert_array_equal(fn()[0], [2.0, 4.0, 6.0])
     assert not CompiledFunction(f).compiled
     assert not list(tmp_path.glob("*.so"))
+
+
+def _fresh_panda(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> optik.Mechanism:
+    """A Panda never compiled: empty cache directory, no solver function cached in the process."""
+    monkeypatch.setenv("OPTIK_CACHE_DIR", str(tmp_path))
+    lm_kernel.kernel.cache_clear()
+    evaluation._native_errors.cache_clear()
+    return optik.Mechanism.from_urdf(PANDA, "panda_link0", "panda_link8")
+
+
+def test_panda_ik_answers_the_same_before_and_after_the_switch(
+    monkeypatch: pytest.MonkeyPatch, tmp_path
+) -> None:
+    m = _fresh_panda(monkeypatch, tmp_path)
+    targets = [m.fk(q) for q in m.random_q(12, seed=7)]
+    first = optik.solve_ik(m, targets[0], method="lm", seed=0)
+    kernel = lm_kernel.kernel(m, "pose", None, 100.0, "auto")
+    assert kernel.library.state == "building" and not kernel.compiled  # answered without the C build
+    interpreted = [optik.solve_ik(m, t, method="lm", seed=0, compile=False) for t in targets]
+    assert native.wait(timeout=120)
+    compiled = [optik.solve_ik(m, t, method="lm", seed=0) for t in targets]
+    assert kernel.compiled and not lm_kernel.kernel(m, "pose", None, 100.0, False).compiled
+    assert first.success and np.array_equal(first.q, compiled[0].q)
+    for a, b in zip(interpreted, compiled, strict=True):
+        assert a.success and b.success and a.iterations == b.iterations
+        np.testing.assert_allclose(a.q, b.q, rtol=0, atol=1e-12)
+    assert len(list(tmp_path.glob("*.so"))) == 2  # the LM kernel and the error check
+
+
+def test_diffik_step_answers_the_same_before_and_after_the_switch(
+    monkeypatch: pytest.MonkeyPatch, tmp_path
+) -> None:
+    from optik import diffik
+
+    m = _fresh_panda(monkeypatch, tmp_path)
+    goal = m.fk(m.random_q(seed=3))
+    q0 = m.mid_q()
+    task = diffik.FrameTask(target=goal)
+    first = diffik.step(m, q0, [task], dt=0.01)
+    stack = next(iter(diffik.problem._STACKS[m].values()))
+    assert stack.function.library.state == "building" and not stack.function.compiled
+    assert native.wait(timeout=120) and stack.function.compiled
+    again = diffik.step(m, q0, [task], dt=0.01)
+    np.testing.assert_allclose(again.q, first.q, rtol=0, atol=1e-12)

@@ -373,3 +373,43 @@ def test_serial_closed_forms_pass_fk_at_any_proportion(lengths, q):
     m = catalog.planar_3r(lengths=lengths)
     for b in qs[0][ok[0]]:
         assert np.abs(m.fk(b)[:2, 3] - [x, y]).max() <= 1e-12 * scale
+
+
+# ------------------------------------------------------------------------------ DLS stays bounded
+def test_dls_tracking_beyond_reach_stays_bounded():
+    """planar 2R (1, 1) from (0.5, -1) along y = 0.05, x = 1.5 -> 2.2 (out of reach from x = 2),
+    141 steps of 10 ms: the elbow flipped every step at up to 326 rad/s. Now the arm follows the
+    path to the edge, then stays stretched towards the target (the closest configuration)."""
+    m = catalog.planar_2r(lengths=(1.0, 1.0))
+    xs = np.linspace(1.5, 2.2, 141)
+    r = diffik.track(m, [0.5, -1.0], [optik.Position(x, 0.05) for x in xs], 0.01, method="dls")
+    speed = np.abs(r.v).max(axis=1)
+    beyond = xs > 2.0 + 1e-3
+    assert speed[1:].max() < 15.0  # the first step closes the 6 cm start error
+    assert speed[beyond][1:].max() < 1.0  # out of reach: nearly still
+    elbow = r.q[1:, 1]
+    assert np.abs(elbow[beyond]).max() < 5e-3  # stretched (rad), no flip through the singularity
+    assert np.all(elbow[xs < 1.99] < 0)  # the elbow branch of the start is kept up to the edge
+    assert r.position_error[(xs > 1.52) & (xs < 1.99)].max() < 2e-3
+    closest = np.hypot(2.2, 0.05) - 2.0
+    assert abs(r.position_error[-1] - closest) < 1e-3
+    assert "shortened" in r.status
+
+
+def test_dls_step_at_a_stretched_arm_stays_put():
+    m = catalog.planar_2r(lengths=(1.0, 1.0))
+    task = diffik.PositionTask(target=optik.Position(3.0, 0.0), axes="xy")
+    res = diffik.step(m, [0.0, 0.0], [task], 0.01, method="dls")
+    np.testing.assert_allclose(res.q, [0.0, 0.0], atol=1e-12)
+    res = diffik.step(m, [0.0, 1e-3], [task], 0.01, method="dls")
+    assert np.abs(res.v).max() < 1.0 and res.q[1] >= 0.0  # straightens, does not flip
+
+
+def test_iterated_dls_converges_at_a_near_singular_solution():
+    """A seed 6R target with s5 = 0.03 (inside the adaptive damping's threshold): the damped
+    steps converged linearly and the method failed within its time limit from every seed."""
+    m = catalog.seed_6r_arm()
+    t = m.fk([-1.54, -0.345, 0.029, 0.336, 3.113, 1.839])
+    for seed in range(3):
+        res = optik.solve_ik(m, t, method="dls", time_limit=1.0, seed=seed)
+        assert res.success and res.iterations < 100, (res.iterations, res.position_error)

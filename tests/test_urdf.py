@@ -102,8 +102,11 @@ def test_mixed_chain_structure_and_limits():
     # fixed joints folded: no body for the links they lead to, but a frame for each
     assert set(m.topology.bodies) == {"world", "l1", "l2", "l3"}
     assert {"base", "l1b", "plate", "tcp"} <= set(m.frames)
-    np.testing.assert_array_equal(m.lower, [-1.0, -np.pi, 0.0])
-    np.testing.assert_array_equal(m.upper, [2.0, np.pi, 0.4])
+    np.testing.assert_array_equal(m.lower, [-1.0, -np.inf, 0.0])  # continuous: unbounded
+    np.testing.assert_array_equal(m.upper, [2.0, np.inf, 0.4])
+    assert m.unbounded.tolist() == [False, True, False]
+    np.testing.assert_array_equal(m.sampling_bounds[0], [-1.0, -np.pi, 0.0])
+    np.testing.assert_array_equal(m.mid_q(), [0.5, 0.0, 0.2])
     np.testing.assert_allclose(m.joints[1].axis, np.array([1, 1, 0]) / np.sqrt(2), atol=1e-15)
     np.testing.assert_allclose(m.joints[2].axis, [0, 0, 1], atol=1e-15)
     assert m.revolute_mask.tolist() == [True, True, False]
@@ -225,13 +228,13 @@ def test_errors_name_the_file_and_joint(tmp_path):
         ),
         (_joint("j", "revolute", "a", "b"), r"'j'.*needs <limit"),
         (_joint("j", "prismatic", "a", "b"), r"'j'.*prismatic joint needs <limit"),
-        (_joint("j", "floating", "a", "b"), r"'j'.*'floating' is not supported"),
+        (_joint("j", "floating", "a", "b"), r"'j'.*'floating' is not supported; .*base_link='b'"),
         (_joint("j", "planar", "a", "b"), r"'j'.*'planar' is not supported"),
         (_joint("j", "ball", "a", "b"), r"'j'.*'ball' is unknown"),
         (_joint("j", "fixed", "a", "b"), r"no moving joint between 'a' and 'b'"),
         (
-            _joint("j", "revolute", "a", "b", limit=(-1, 1), extra='<mimic joint="k"/>'),
-            r"'j' has <mimic>",
+            _joint("j", "revolute", "a", "b", limit=(-1, 1), extra='<mimic joint="k" multiplier="x"/>'),
+            r"'j' <mimic multiplier>",
         ),
     ],
 )

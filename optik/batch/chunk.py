@@ -56,6 +56,8 @@ def solve_chunk(
     )
     settings, closure_weight, compile = lm_settings(request)
     k = kernel(m, spec.task, spec.frame, closure_weight, compile)
+    if k.library is not None:
+        k.library.wait()  # a batch is worth the C build (the Python loop is far slower per target)
     out = k.run(target_rows(targets), q0, seeds, settings.conf(m))
     q, errors = out.q, out.errors
     # make_result's final step, vectorized: rows within the limits and in (-pi, pi) are kept,

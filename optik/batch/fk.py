@@ -34,7 +34,7 @@ class _MappedFK:
         if not hasattr(self._local, "call"):
             q = np.zeros((CHUNK, self.n_q))  # C order = n_q x CHUNK column-major
             out = np.zeros((CHUNK, 4, 4))  # C order of the 4 x 4 CHUNK output: each T transposed
-            self._local.call = (CCall(self.lib, self.name, [q], [out]), q, out)
+            self._local.call = (CCall(self.lib.get(), self.name, [q], [out]), q, out)
         return self._local.call
 
     def chunk(self, q: np.ndarray) -> np.ndarray:
@@ -57,7 +57,7 @@ def fk_batch(m: Mechanism, q: Any, frame: str | None = None, workers: int | None
 
     The same expressions as `optik.Mechanism.fk`, generated as C for chunks of `CHUNK`
     configurations and run on a thread pool (a ``ctypes`` call releases the GIL); without a C
-    compiler it is ``m.fk(q, frame)``.
+    compiler, and while the library is built in the background, it is ``m.fk(q, frame)``.
 
     Raises:
         ShapeError, NonFiniteError: bad ``q``.
@@ -66,7 +66,7 @@ def fk_batch(m: Mechanism, q: Any, frame: str | None = None, workers: int | None
     qb, _ = as_batch(q, "q", m.n_q)
     m._frame(frame)
     fk = _mapped(m, frame)
-    if fk.lib is None or len(qb) < CHUNK:
+    if fk.lib is None or fk.lib.get() is None or len(qb) < CHUNK:  # no compiler, or still building
         return m.fk(qb, frame).reshape(len(qb), 4, 4)
     starts = range(0, len(qb), CHUNK)
     used = workers or default_workers()

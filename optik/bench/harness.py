@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 import optik
-from optik import closed_form
+from optik import closed_form, native
 from optik.bench.peers import PeerUnavailable, load_peer
 from optik.bench.progress import Progress
 from optik.errors import InvalidArgumentError, OptikError
@@ -278,6 +278,7 @@ def run_problem(
             notes.append(f"{c.name} failed its warm-up call and was skipped ({status})")
         else:
             ready.append(c)
+    native.wait()  # C libraries still building in the background: time the compiled code
     runs = [SolverRun(c.name, c.kind) for c in ready]
     if progress is not None:
         progress.start(problem.name, len(targets) * len(ready))

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import optik
-from optik import diffik, spatial
+from optik import diffik, native, spatial
 
 Stepper = Callable[[np.ndarray, np.ndarray], Callable[[], np.ndarray]]
 """``(q0, goal) -> step()``: prepares a run to one goal; each ``step()`` returns the new ``q``."""
@@ -70,6 +70,7 @@ def run(
         t0 = time.perf_counter()
         make(m.mid_q(), goals[0])()
         row.setup = time.perf_counter() - t0
+    native.wait()  # the C library built in the background: time the compiled code
     for goal in goals:
         for row, (_, make) in zip(rows, configs, strict=True):
             do_step = make(m.mid_q(), goal)

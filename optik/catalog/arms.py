@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from optik import spatial
+from optik.checks import as_name
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism, dh_chain
 
@@ -123,8 +124,9 @@ def urdf_path(name: str) -> Path:
     ``optik.Mechanism.from_urdf(urdf_path(name), *URDF_CHAINS[name])``.
 
     Raises:
-        InvalidArgumentError: no shipped URDF of that name.
+        InvalidArgumentError: ``name`` is not a string or names no shipped URDF.
     """
+    as_name(name, "name")
     if name not in URDF_CHAINS:
         raise InvalidArgumentError("name", f"no shipped URDF {name!r}; available: {sorted(URDF_CHAINS)}")
     resource = resources.files("optik") / "data" / "urdf" / f"{name}.urdf"

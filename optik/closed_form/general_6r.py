@@ -38,6 +38,10 @@ of a designed arm, so that ``A`` is invertible and the eigenvectors are well sca
 solution lies exactly at the rotated pole (probability zero; then, and whenever ``A`` is badly
 conditioned, the ``24 x 24`` generalized eigenproblem is solved by QZ instead).
 
+When the count check fails, the inverse chain (`General6R.reversed`) is solved too: axes 1-2
+intersecting or parallel make ``M(x_3)`` singular for every ``x_3``, and the inverse chain has
+them at positions 5-6, where the elimination is regular.
+
 **Certification.** Every candidate whose eigenvalue is real to within :data:`REAL_TOL` is
 Newton-polished on the full pose residual (six equations, six unknowns), kept only when the
 final forward kinematics matches the target to :data:`FK_TOL` (position relative to the arm's
@@ -56,6 +60,7 @@ import math
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -224,6 +229,29 @@ class General6R:
         """Scaled ``(a, d)``: the arm at unit size."""
         return self.a / self.scale, self.d / self.scale
 
+    @cached_property
+    def _left(self) -> _Left:
+        """The arm-only part of the elimination (computed once)."""
+        return _Left(self)
+
+    @cached_property
+    def reversed(self) -> General6R:
+        """The inverse chain: ``T(q)^-1 = reversed.fk(q[::-1])``, as its own DH description.
+
+        In product-of-exponentials form ``T(q) = exp(xi_1 q_1) ... exp(xi_6 q_6) M``, so
+        ``T^-1 = exp(-xi'_6 q_6) ... exp(-xi'_1 q_1) M^-1`` with the joint lines ``xi'`` seen from
+        the end effector at ``q = 0``: the same arm solved from its other end.
+        """
+        home = self.fk(np.zeros(6))
+        pre = self.base.copy()
+        points, dirs = np.zeros((6, 3)), np.zeros((6, 3))
+        for i in range(6):
+            points[i], dirs[i] = pre[:3, 3], pre[:3, 2]
+            pre = pre @ _dh(np.array(self.offset[i]), self.d[i], self.a[i], self.alpha[i])
+        inv = _inv(home)
+        pts = (points @ inv[:3, :3].T + inv[:3, 3])[::-1]
+        return _dh_from_lines(pts, -(dirs @ inv[:3, :3].T)[::-1], inv)
+
 
 def _perpendicular(z: np.ndarray, hint: np.ndarray) -> np.ndarray:
     """A unit vector perpendicular to ``z``: ``hint`` made perpendicular, else any."""
@@ -346,7 +374,6 @@ class General6RSolutions:
 
 
 _ARMS: weakref.WeakKeyDictionary[Mechanism, General6R] = weakref.WeakKeyDictionary()
-_LEFTS: dict[int, tuple[General6R, _Left]] = {}
 
 
 def _arm(arm: Mechanism | General6R) -> General6R:
@@ -361,17 +388,6 @@ def _arm(arm: Mechanism | General6R) -> General6R:
     except KeyError:
         _ARMS[arm] = out = General6R.from_mechanism(arm)
         return out
-
-
-def _left(arm: General6R) -> _Left:
-    hit = _LEFTS.get(id(arm))
-    if hit is not None and hit[0] is arm:
-        return hit[1]
-    if len(_LEFTS) > 64:
-        _LEFTS.clear()
-    left = _Left(arm)
-    _LEFTS[id(arm)] = (arm, left)
-    return left
 
 
 def _targets(arm: General6R, target: Any) -> tuple[np.ndarray, bool]:
@@ -516,7 +532,7 @@ def _dedup(q: np.ndarray) -> np.ndarray:
 def _solve(arm: General6R, targets: np.ndarray, fk: Any) -> list[General6RSolutions]:
     """The eigenvalue solver on validated targets ``(N, 4, 4)``; ``fk`` is the independent
     forward kinematics used for the final check (``q (K, 6) -> (K, 4, 4)``)."""
-    left = _left(arm)
+    left = arm._left
     n = len(targets)
     tp = _inv(arm.base) @ targets @ _inv(arm.tool)
     tp[:, :3, 3] /= arm.scale
@@ -614,7 +630,32 @@ def solve_general_6r(
     targets, single = _targets(g, target)
     fk = arm.fk if isinstance(arm, Mechanism) else g.fk
     out = _solve(g, targets, fk)
+    bad = [k for k, s in enumerate(out) if not s.count_ok]
+    if bad:  # special geometry at the first axes: solve the inverse chain from the other end
+        back = _solve(g.reversed, _inv(targets[bad]), lambda q: _inv(fk(q[:, ::-1])))
+        for k, rev in zip(bad, back, strict=True):
+            out[k] = _merge(out[k], rev, targets[k], fk, g.scale)
     return out[0] if single else out
+
+
+def _merge(
+    fwd: General6RSolutions, rev: General6RSolutions, target: np.ndarray, fk: Any, scale: float
+) -> General6RSolutions:
+    """The answer of the reversed chain if its count check passed, else the union of both
+    verified sets (still flagged); the FK error is recomputed on the forward chain."""
+    q = rev.q[:, ::-1] if rev.count_ok else _dedup(np.vstack([fwd.q, rev.q[:, ::-1]]))
+    err = 0.0
+    if len(q):
+        dp, dr = _pose_errors(fk(q), target)
+        err = float(np.max(np.maximum(dp / scale, dr)))
+    if rev.count_ok:
+        return General6RSolutions(
+            q, rev.n_finite, rev.n_real_candidates, rev.n_complex, rev.n_rejected, err, True, rev.reason
+        )
+    reason = f"{fwd.reason}; from the other end: {rev.reason.removeprefix('count check failed: ')}"
+    return General6RSolutions(
+        q, fwd.n_finite, fwd.n_real_candidates, fwd.n_complex, fwd.n_rejected, err, False, reason
+    )
 
 
 def ik_general_6r(m: Mechanism, target: Any) -> list[np.ndarray]:

@@ -3,8 +3,9 @@
 A CasADi ``Function`` called from Python costs tens of microseconds per call (argument
 conversion to ``DM`` and back), more than a whole QP step should take. `CompiledFunction`
 flattens a function to one input and one output vector, compiles it through `optik.native`
-(generated C, cached on disk, called through ``ctypes`` on preallocated numpy buffers) and falls
-back to calling the CasADi function itself without a C compiler (same numbers, slower).
+(generated C, cached on disk, called through ``ctypes`` on preallocated numpy buffers) and calls
+the CasADi function itself while the C library is being built in the background and without a
+C compiler (same numbers, slower).
 
 Every input and output is dense and column-major (CasADi's storage), so a ``p x q`` output is
 returned as a numpy array of shape ``(p, q)``; vectors are returned 1-D.
@@ -15,7 +16,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from optik.native import CCall, library
+from optik.native import Binding, library
 
 
 class CompiledFunction:
@@ -28,9 +29,6 @@ class CompiledFunction:
 
     Args:
         f: a CasADi ``SX`` function whose inputs and outputs are dense.
-
-    Attributes:
-        compiled: True when the C code was compiled and is used; False for the CasADi fallback.
     """
 
     def __init__(self, f: ca.Function) -> None:
@@ -53,18 +51,24 @@ class CompiledFunction:
             start += r * c
         self._in = np.zeros(x.shape[0])
         self._out = np.zeros(start)
-        lib = library([self._flat])
-        self.compiled = lib is not None
-        self._call = CCall(lib, f.name(), [self._in], [self._out]) if lib is not None else None
+        self.library = library([self._flat])
+        self._native = Binding(self.library, f.name(), [self._in], [self._out])
+
+    @property
+    def compiled(self) -> bool:
+        """True when the compiled C code is used; False for CasADi's evaluator (while it builds,
+        or without a compiler)."""
+        return self._native.compiled
+
+    def _evaluate(self) -> None:
+        """CasADi's evaluator, into the output buffer."""
+        self._out[:] = np.asarray(self._flat(self._in), dtype=float).reshape(-1)
 
     def call_flat(self, x: np.ndarray) -> tuple[np.ndarray, ...]:
         """Evaluate on the concatenated (column-major) inputs."""
-        if self._call is not None:
-            self._in[:] = x
-            self._call()
-            out = self._out.copy()
-        else:
-            out = np.asarray(self._flat(x), dtype=float).reshape(-1)
+        self._in[:] = x
+        self._native(self._evaluate)
+        out = self._out.copy()
         return tuple([out[a:b] if c == 1 else out[a:b].reshape(c, r).T for a, b, r, c in self._bounds])
 
     def __call__(self, *inputs: np.ndarray) -> tuple[np.ndarray, ...]:

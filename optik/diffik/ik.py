@@ -12,7 +12,11 @@ with the best configuration found; compiling the task function on the first requ
 space (cached afterwards) does not count against the limit.
 
 Options (``solve_ik(..., method="dls", max_iterations=..., ...)``): ``max_iterations`` (per
-start, default 100), ``stall_iterations`` (default 10), ``damping`` and ``threshold`` (DLS) or
+start, default 100), ``stall_iterations`` (default 10), ``damping`` and ``threshold`` (DLS: the step
+uses the damping ``min(damping, ||e||)``, Levenberg-Marquardt damping proportional to the error, so
+that there is none at the solution and convergence stays quadratic at a solution close to a
+singularity, where the adaptive damping alone converged linearly: 14 iterations instead of failing
+within 1 s on a seed 6R target with ``s5 = 0.03``) or
 ``solver`` (QP backend) and ``lm_damping`` (QP, default [`LM_DAMPING`][optik.diffik.ik.LM_DAMPING]: the QP
 Hessian gets ``lm_damping ||e||^2 I``, which shortens the Gauss-Newton steps far from the target and vanishes
 at it; 40/40 Panda targets within 50 ms instead of 35/40 without).
@@ -27,7 +31,7 @@ import numpy as np
 from optik.diffik.base import positive
 from optik.diffik.limits import ConfigurationLimit
 from optik.diffik.problem import normalize_limits, stack_function
-from optik.diffik.step import step
+from optik.diffik.step import DLS_DAMPING, step
 from optik.diffik.track import tracking_task
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
@@ -81,9 +85,14 @@ def iterate(request: IKRequest, method: str) -> IKResult:
     best_q, best_err = q.copy(), np.inf
     iterations = restarts = since_start = since_better = 0
     last_err = np.inf
+    lam_max = positive(step_opts.get("damping", DLS_DAMPING), "damping")
+    e_norm = np.inf
     while True:
+        if method == "dls":  # damping lambda = min(lambda_max, |e|): none at the solution
+            step_opts["damping"] = min(lam_max, e_norm)
         res = step(m, q, [task], 1.0, "qp" if method == "qp" else "dls", solver, limits, **step_opts)
         e = res.problem.errors
+        e_norm = float(np.linalg.norm(e))
         pos, ori = _errors_of(task.rows, e)
         inside = bool(np.all(q >= m.lower) and np.all(q <= m.upper))
         err = max(pos / tol.position, ori / tol.orientation, res.closure_error / tol.closure)

@@ -41,7 +41,9 @@ class StepResult:
         status: ``"ok"``; ``"saturated"`` (pseudo-inverse methods that held coordinates at
             their bounds or scaled the task velocity down to fit them);
             ``"qp_infeasible_fallback"`` / ``"qp_failed_fallback"`` (the QP had no solution and
-            the DLS answer within the bounds was used).
+            the DLS answer within the bounds was used); ``"shortened"`` (``dls``: the
+            task-space part of the step was scaled down or dropped by `shorten`, beyond a fold
+            of the workspace).
         method: the method used; solver: the QP backend (None for the others).
         task_errors: norm of each task's error at the current ``q``, in task order.
         closure_error: max-norm of the loop-closure residual at the current ``q``.
@@ -90,6 +92,61 @@ def integrate(m: Mechanism, q: np.ndarray, v: np.ndarray, dt: float) -> np.ndarr
                 break
             q_next = np.clip(q_next - np.linalg.pinv(np.asarray(jc, dtype=float)) @ c, lo, hi)
     return q_next
+
+
+SHORTEN_HALVINGS = 12
+"""Halvings of the range-space part of a ``dls`` step before it is dropped (see `shorten`)."""
+
+
+def shorten(
+    m: Mechanism, problem: DiffIKProblem, dq: np.ndarray, tasks: Sequence[Task], rebuild: Any
+) -> tuple[np.ndarray, int]:
+    """Shorten a step that leaves the region where the task's linear model holds.
+
+    ``dq`` is split into its part ``dq_r = P dq`` in the row space of the priority-0 task rows
+    ``A = W J`` (``P = A^+ A``) and the null-space rest. The linear model predicts that ``dq_r``
+    reduces the weighted primary error ``E = ||W e||^2`` by ``pred = E - ||W e + A dq_r||^2``;
+    the step ``s dq_r + dq_n`` is kept for the largest ``s = 2^-k`` whose actual reduction
+    (evaluated at ``q + s dq_r``) is at least ``pred(s) / 2``, else ``s = 0``. This is the
+    acceptance test of a trust region, applied per step: beyond a fold of the workspace (a
+    stretched arm and a target out of reach) the damped step overshoots through the
+    singularity, the actual reduction is negative, and the step shrinks instead of flipping the
+    elbow at hundreds of rad/s; at a stretched arm the range step is 0 and the arm stays put.
+    The null-space part (secondary tasks) is not scaled: its effect on the primary error is of
+    second order and corrected by the next step.
+
+    Args:
+        m: the mechanism.
+        problem: the step's problem at ``q``.
+        dq: the step (within ``[lb, ub]``).
+        tasks: the tasks, in the problem's order.
+        rebuild: ``q -> DiffIKProblem`` at another configuration (same tasks, targets, limits).
+
+    Returns:
+        The (possibly shortened) step, clipped into ``[lb, ub]``, and the halvings made
+        (``SHORTEN_HALVINGS + 1`` when the range part was dropped).
+    """
+    rows = problem.levels()[0]
+    gains = [np.full(s.stop - s.start, t.gain) for s, t in zip(problem.slices, tasks, strict=True)]
+    alpha = np.concatenate(gains)[rows]
+    we = -problem.target[rows] / alpha
+    a = problem.jacobian[rows]
+    dq_r = np.linalg.pinv(a, rcond=1e-10) @ (a @ dq)
+    dq_n = dq - dq_r
+    e0 = float(we @ we)
+    lo, hi = np.minimum(m.lower, problem.q), np.maximum(m.upper, problem.q)
+    for k in range(SHORTEN_HALVINGS + 1):
+        s = 0.5**k
+        step_r = s * dq_r
+        predicted = we + a @ step_r
+        pred = e0 - float(predicted @ predicted)
+        if pred <= 1e-14 * e0 or pred <= 1e-30:  # nothing to gain along the range space
+            return np.clip(step_r + dq_n, problem.lb, problem.ub), k
+        new = rebuild(np.clip(problem.q + step_r, lo, hi))
+        we_new = -new.target[rows] / alpha
+        if e0 - float(we_new @ we_new) >= 0.5 * pred:
+            return np.clip(step_r + dq_n, problem.lb, problem.ub), k
+    return np.clip(dq_n, problem.lb, problem.ub), SHORTEN_HALVINGS + 1
 
 
 def _dls(problem: DiffIKProblem, method: str, options: dict[str, Any]) -> tuple[np.ndarray, int, float]:
@@ -186,6 +243,30 @@ def step(
         if n_sat or scale < 1.0:
             status = "saturated"
             message = f"{n_sat} coordinate(s) held at a bound, task velocity scaled by {scale:.3g}"
+        if method == "dls" and not m.is_closed:
+            task_list = [tasks] if isinstance(tasks, Task) else list(tasks)
+
+            def rebuild(q_trial: np.ndarray) -> DiffIKProblem:
+                return build_qp(
+                    m,
+                    q_trial,
+                    task_list,
+                    dt,
+                    limits,
+                    v_prev=v_prev,
+                    damping=qp_damping,
+                    closure_gain=closure_gain,
+                )
+
+            dq, halvings = shorten(m, problem, dq, task_list, rebuild)
+            if halvings:
+                status = "shortened"
+                kept = "dropped" if halvings > SHORTEN_HALVINGS else f"scaled by 2^-{halvings}"
+                message = (
+                    f"the task-space part of the step was {kept}: the full step would not reduce the task "
+                    "error as its linear model predicts (beyond a fold of the workspace, e.g. an "
+                    "unreachable target)" + (f"; {message}" if message else "")
+                )
     v = dq / problem.dt
     errors = np.sqrt(np.add.reduceat(problem.errors**2, problem.cache.starts)).tolist()
     closure = float(np.max(np.abs(problem.closure))) if problem.closure.size else 0.0

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from optik import spatial
-from optik.checks import as_name, as_transform, as_vector
+from optik.checks import as_limits, as_name, as_transform, as_vector
 from optik.errors import InvalidArgumentError
 from optik.mechanism.joint import Joint
 from optik.mechanism.mechanism import Mechanism
@@ -57,8 +57,8 @@ def planar_chain(
     if np.any(ls < 0):
         raise InvalidArgumentError("lengths", f"link lengths must be >= 0, got {ls}")
     n = len(types)
-    lo = [-np.pi if t == "R" else 0.0 for t in types] if lower is None else list(as_vector(lower, "lower", n))
-    hi = [np.pi if t == "R" else 2.0 for t in types] if upper is None else list(as_vector(upper, "upper", n))
+    lo = [-np.pi if t == "R" else 0.0 for t in types] if lower is None else list(as_limits(lower, "lower", n))
+    hi = [np.pi if t == "R" else 2.0 for t in types] if upper is None else list(as_limits(upper, "upper", n))
     joints = []
     prev = "base"
     origin = np.eye(4)
@@ -124,8 +124,8 @@ def dh_chain(
     types = ("R" * n if types is None else as_name(types, "types")).upper()
     if len(types) != n or set(types) - {"R", "P"}:
         raise InvalidArgumentError("types", f"expected {n} letters R/P, got {types!r}")
-    lo = None if lower is None else as_vector(lower, "lower", n)
-    hi = None if upper is None else as_vector(upper, "upper", n)
+    lo = None if lower is None else as_limits(lower, "lower", n)
+    hi = None if upper is None else as_limits(upper, "upper", n)
     joints: list[Joint] = []
     frames: dict[str, tuple[str, np.ndarray]] = {}
     prev, pending = "base", np.eye(4)

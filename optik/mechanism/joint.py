@@ -22,6 +22,14 @@ spherical    3    ``exp([q]x)``: q is a rotation vector (one chart covering SO(3
 
 When a joint closes a loop (a *cut* joint) it has no coordinates; instead it contributes
 loop-closure equations (see `optik.mechanism.closure`).
+
+A *mimic* joint (URDF ``<mimic>``) is a revolute or prismatic joint without a coordinate of its
+own: its value is ``q_mimic = multiplier * q_source + offset`` of another joint's coordinate
+(`Mimic`), so it counts ``dof = 0`` (it moves, but adds no freedom) and the Jacobians of the
+frames after it depend on ``q_source`` through the coupling.
+
+Limits may be infinite: ``Joint("j", "revolute", ..., lower=-inf, upper=inf)`` is an unbounded
+(URDF ``continuous``) joint, whose angle wraps instead of meeting a wall at +-pi.
 """
 
 from __future__ import annotations
@@ -33,7 +41,7 @@ import casadi as ca
 import numpy as np
 
 from optik import spatial
-from optik.checks import as_name, real_array
+from optik.checks import as_float, as_name, real_array
 from optik.errors import InvalidArgumentError, LimitsError
 
 JOINT_DOF = {"revolute": 1, "prismatic": 1, "fixed": 0, "universal": 2, "spherical": 3}
@@ -47,6 +55,30 @@ def _unit(v: Any, name: str) -> np.ndarray:
     if a.shape != (3,) or not np.all(np.isfinite(a)) or np.linalg.norm(a) < 1e-12:
         raise InvalidArgumentError(name, f"expected a finite non-zero 3-vector, got {v!r}")
     return a / np.linalg.norm(a)
+
+
+@dataclass(frozen=True)
+class Mimic:
+    """The coupling of a mimic joint: ``q_mimic = multiplier * q[joint] + offset``.
+
+    Args:
+        joint: name of the source joint (a revolute or prismatic joint with its own coordinate).
+        multiplier: the factor (URDF default 1).
+        offset: the offset, rad or m (URDF default 0).
+    """
+
+    joint: str
+    multiplier: float = 1.0
+    offset: float = 0.0
+
+    def __post_init__(self) -> None:
+        as_name(self.joint, "mimic.joint")
+        for key in ("multiplier", "offset"):
+            object.__setattr__(self, key, as_float(getattr(self, key), f"mimic.{key}"))
+
+    def value(self, q_source: Any) -> Any:
+        """``multiplier * q_source + offset`` (numbers, arrays or CasADi symbols)."""
+        return self.multiplier * q_source + self.offset
 
 
 def _limits(value: Any, name: str, joint: str, default: float, n: int) -> tuple[float, ...]:
@@ -96,6 +128,8 @@ class Joint:
         actuated: whether the joint's coordinates are driven (inputs of FK).
         child_offset: 4x4 pose of the joint frame in the child body frame.
         cut: force this joint to close a loop (no coordinates, closure equations instead).
+        mimic: make this revolute or prismatic joint follow another joint's coordinate
+            (`Mimic`); it then has no coordinate and no limits of its own.
     """
 
     name: str
@@ -110,6 +144,7 @@ class Joint:
     actuated: bool = True
     child_offset: np.ndarray = field(default_factory=lambda: np.eye(4))
     cut: bool = False
+    mimic: Mimic | None = None
 
     def __post_init__(self) -> None:
         as_name(self.type, "type", JOINT_DOF)
@@ -128,6 +163,16 @@ class Joint:
             object.__setattr__(self, key, t)
         object.__setattr__(self, "axis", _unit(self.axis, f"axis (joint {self.name!r})"))
         object.__setattr__(self, "axis2", _unit(self.axis2, f"axis2 (joint {self.name!r})"))
+        if self.mimic is not None:
+            if not isinstance(self.mimic, Mimic):
+                got = f"expected a Mimic, got {self.mimic!r}"
+                raise InvalidArgumentError("mimic", f"joint {self.name!r}: {got}")
+            if self.type not in ("revolute", "prismatic") or self.cut:
+                raise InvalidArgumentError(
+                    "mimic", f"joint {self.name!r}: only revolute and prismatic tree joints can mimic"
+                )
+            if self.mimic.joint == self.name:
+                raise InvalidArgumentError("mimic", f"joint {self.name!r} cannot mimic itself")
         n = self.dof
         default = _DEFAULT_LIMIT.get(self.type, 0.0)
         lo = _limits(self.lower, "lower", self.name, -default, n)
@@ -144,8 +189,9 @@ class Joint:
 
     @property
     def dof(self) -> int:
-        """Connectivity (number of coordinates when the joint is in the spanning tree)."""
-        return JOINT_DOF[self.type]
+        """Connectivity (number of coordinates when the joint is in the spanning tree); 0 for
+        a mimic joint, whose motion is a function of another joint's coordinate."""
+        return 0 if self.mimic is not None else JOINT_DOF[self.type]
 
     def coordinate_names(self) -> tuple[str, ...]:
         """Names of the joint's coordinates: the joint name, or ``name[i]`` for several."""

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from functools import cached_property
 from typing import Any
 
@@ -19,7 +20,7 @@ import casadi as ca
 import numpy as np
 
 from optik import spatial
-from optik.checks import as_batch, as_name, as_rng, as_vector
+from optik.checks import as_batch, as_limits, as_name, as_rng, as_vector
 from optik.errors import InvalidArgumentError, ModelError, UnknownFrameError
 from optik.mechanism.joint import Joint
 from optik.mechanism.topology import analyse, gruebler_kutzbach
@@ -127,6 +128,7 @@ class Mechanism:
         self.lower = np.array(lower, dtype=float)
         self.upper = np.array(upper, dtype=float)
         self.actuated: tuple[bool, ...] = tuple(actuated)
+        self._mimic_sources = self._mimic_coordinates()
         self.params: dict[str, Any] = {}
         """Catalog parameters (link lengths, base points, ...) the mechanism was built from."""
         self.kind: str | None = None
@@ -135,14 +137,40 @@ class Mechanism:
         self._fk_funs: dict[str, ca.Function] = {}
         self._jac_funs: dict[str, ca.Function] = {}
 
-    @classmethod
-    def from_urdf(cls, source: str | os.PathLike[str], base_link: str, tip_link: str) -> Mechanism:
-        """The serial chain of a URDF robot from ``base_link`` to ``tip_link``.
+    def _mimic_coordinates(self) -> dict[int, int]:
+        """``{mimic joint index: coordinate index of its source}``, checking every coupling."""
+        index = {j.name: i for i, j in enumerate(self.joints)}
+        out: dict[int, int] = {}
+        for i, j in enumerate(self.joints):
+            if j.mimic is None:
+                continue
+            src = index.get(j.mimic.joint)
+            if src is None:
+                raise ModelError(f"joint {j.name!r} mimics {j.mimic.joint!r}, which is not a joint here")
+            source = self.joints[src]
+            if source.mimic is not None or source.dof != 1 or src not in self._slices:
+                raise ModelError(
+                    f"joint {j.name!r} mimics {source.name!r}, which has no coordinate of its own "
+                    "(it must be a revolute or prismatic tree joint that mimics nothing)"
+                )
+            if i in self.topology.cuts:
+                raise ModelError(f"mimic joint {j.name!r} would have to close a loop")
+            out[i] = self._slices[src].start
+        return out
 
-        ``source`` is a URDF file path or the XML text. Coordinates are named after the URDF
-        joints and ``ee`` is ``tip_link``; the task is ``"pose"``; ``params`` holds what
-        `optik.mechanism.urdf.parse_urdf` read. See that function for what is supported and what
-        is raised.
+    @classmethod
+    def from_urdf(
+        cls, source: str | os.PathLike[str], base_link: str | None = None, tip_link: str | None = None
+    ) -> Mechanism:
+        """A URDF robot: the whole tree, the tree below ``base_link``, or one chain.
+
+        ``source`` is a URDF file path or the XML text. With neither link given the whole tree
+        is loaded (its root link is the base, every link is a named frame); with ``base_link``
+        only, the subtree below that link; with ``tip_link``, the chain from ``base_link`` (default
+        the root link) to ``tip_link``, which is then ``ee``. Coordinates are named after the URDF
+        joints; the task is ``"pose"``; ``params`` holds what `optik.mechanism.urdf.parse_urdf`
+        read (source, links, velocity limits, visuals). See that function for what is supported
+        and what is raised.
         """
         model = parse_urdf(source, base_link, tip_link)
         m = cls(model.joints, model.base, model.frames, model.ee, model.name, task="pose")
@@ -216,7 +244,8 @@ class Mechanism:
         poses: dict[str, Any] = {self.base: ca.SX.eye(4)}
         for edge in self.topology.order:
             j = self.joints[edge.joint]
-            m = j.motion(q[self._slices[edge.joint]])
+            source = self._mimic_sources.get(edge.joint)
+            m = j.motion(q[self._slices[edge.joint]] if source is None else [j.mimic.value(q[source])])
             if edge.reversed:
                 poses[j.parent] = ca.mtimes(
                     [poses[j.child], j.child_offset, spatial.inv_transform(ca.SX(m)), np.linalg.inv(j.origin)]
@@ -389,12 +418,42 @@ class Mechanism:
         return j.T @ f
 
     # ------------------------------------------------------------------ sampling and limits
+    @cached_property
+    def sampling_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Finite ``(lower, upper)`` for seeds and sampling: the limits where they are finite.
+
+        An unbounded side is replaced so that the interval spans ``2 pi`` for angles and
+        rotation vectors (one turn: ``[-pi, pi]`` when both sides are unbounded, ``[lo, lo + 2 pi]``
+        or ``[hi - 2 pi, hi]`` when one is) and ``2`` m for prismatic coordinates. The limits
+        themselves stay infinite: solvers never clip an unbounded coordinate.
+        """
+        span = np.full(self.n_q, 2.0 * np.pi)
+        for i in self.topology.tree:
+            if self.joints[i].type == "prismatic":
+                span[self._slices[i]] = 2.0
+        lo, hi = self.lower.copy(), self.upper.copy()
+        both = ~np.isfinite(lo) & ~np.isfinite(hi)
+        lo[both], hi[both] = -0.5 * span[both], 0.5 * span[both]
+        lo = np.where(np.isfinite(lo), lo, hi - span)
+        hi = np.where(np.isfinite(hi), hi, lo + span)
+        for a in (lo, hi):
+            a.flags.writeable = False  # cached and shared: read-only
+        return lo, hi
+
+    @property
+    def unbounded(self) -> np.ndarray:
+        """True for coordinates with an infinite limit on either side (e.g. URDF continuous joints)."""
+        return ~(np.isfinite(self.lower) & np.isfinite(self.upper))
+
     def mid_q(self) -> np.ndarray:
-        """The mid-limit configuration ``(lower + upper) / 2``."""
-        return 0.5 * (self.lower + self.upper)
+        """The mid-limit configuration ``(lower + upper) / 2`` of the
+        [`sampling_bounds`][optik.Mechanism.sampling_bounds] (0 for a coordinate unbounded on both sides)."""
+        lo, hi = self.sampling_bounds
+        return 0.5 * (lo + hi)
 
     def random_q(self, n: int | None = None, seed: int | np.random.Generator | None = None) -> np.ndarray:
-        """Coordinates drawn uniformly within limits (loop closures *not* enforced).
+        """Coordinates drawn uniformly within the [`sampling_bounds`][optik.Mechanism.sampling_bounds]
+        (the limits where finite; loop closures *not* enforced).
 
         Args:
             n: number of samples (None: one vector).
@@ -402,7 +461,8 @@ class Mechanism:
         """
         rng = as_rng(seed)
         shape = (self.n_q,) if n is None else (n, self.n_q)
-        return rng.uniform(self.lower, self.upper, size=shape)
+        lo, hi = self.sampling_bounds
+        return rng.uniform(lo, hi, size=shape)
 
     def within_limits(self, q: Any, tol: float = 0.0) -> bool:
         """True when ``lower - tol <= q <= upper + tol`` for every coordinate."""
@@ -443,25 +503,11 @@ class Mechanism:
         Raises:
             LimitsError: lower > upper or NaN.
         """
-        lo = self.lower if lower is None else as_vector(lower, "lower", self.n_q)
-        hi = self.upper if upper is None else as_vector(upper, "upper", self.n_q)
+        lo = self.lower if lower is None else as_limits(lower, "lower", self.n_q)
+        hi = self.upper if upper is None else as_limits(upper, "upper", self.n_q)
         joints = list(self.joints)
         for i, sl in self._slices.items():
-            j = joints[i]
-            joints[i] = Joint(
-                j.name,
-                j.type,
-                j.parent,
-                j.child,
-                j.origin,
-                j.axis,
-                j.axis2,
-                tuple(lo[sl]),
-                tuple(hi[sl]),
-                j.actuated,
-                j.child_offset,
-                j.cut,
-            )
+            joints[i] = replace(joints[i], lower=tuple(lo[sl]), upper=tuple(hi[sl]))
         return self._rebuild(joints)
 
     def _rebuild(self, joints: Sequence[Joint]) -> Mechanism:

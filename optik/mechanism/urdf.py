@@ -1,48 +1,62 @@
-"""URDF builder: the joints and frames of a URDF robot, for `Mechanism.from_urdf`.
+"""URDF builder: the joints, frames and visuals of a URDF robot, for `Mechanism.from_urdf`.
 
-`parse_urdf` reads a URDF file (or a URDF string), finds the path through the link tree
-from ``base_link`` down to ``tip_link`` and turns the joints on that path into
-`Joint` objects; branches off the path are ignored. It imports only the joint layer, so
-that `optik.mechanism.mechanism` can build on it without an import cycle.
+`parse_urdf` reads a URDF file or text (safely and as ROS tools do: see
+`optik.mechanism.urdf_xml`) and loads
 
-Supported, per joint on the path:
+* the **whole tree** when neither ``base_link`` nor ``tip_link`` is given: the root link (the
+  one link that is no joint's child) is the base and every link is a named frame;
+* the **subtree** below ``base_link`` when only that is given;
+* the **chain** from ``base_link`` (default: the root link) down to ``tip_link``, which becomes
+  the end effector; branches off the path are ignored.
+
+It imports only the joint layer, so that `optik.mechanism.mechanism` builds on it without an
+import cycle.
+
+Joints (coordinates in depth-first order from the base, children in document order, so a chain
+has them from base to tip):
 
 * ``revolute``: rotation about ``axis``, limits from ``<limit lower upper>`` (required);
-* ``continuous``: an unlimited revolute joint, modelled with limits ``[-pi, pi]`` since optik
-  reports angles wrapped to ``(-pi, pi]``, so that the whole circle is reachable;
+* ``continuous``: a revolute joint with infinite limits: its angle wraps (results are reported in
+  ``(-pi, pi]``) and no solver puts a wall at +-pi;
 * ``prismatic``: translation along ``axis``, limits required;
 * ``fixed``: no coordinate; its transform is folded into the origin of the next moving joint
   and the links it passes become named frames, so the model has one coordinate per moving joint
-  and no needless bodies.
+  and no needless bodies;
+* ``<mimic joint multiplier offset>`` on a revolute, continuous or prismatic joint: no coordinate
+  of its own, ``q = multiplier * q_source + offset`` (`Mimic`; defaults 1 and 0; a mimic of a
+  mimic is composed down to a joint with a coordinate). Its own ``<limit>`` is not enforced (as
+  in urdfdom-based solvers); the source joint must be part of what is loaded. A ``<mimic>``
+  naming no joint of the file is ignored, as MoveIt does, with a warning and a line in
+  ``params["notes"]``.
+* ``floating`` and ``planar`` joints are rejected (load the part below one with
+  ``base_link=<its child>``).
 
 ``<origin xyz rpy>`` places the joint frame in the parent link: ``T = Trans(xyz) R`` with
 URDF's ``R = Rot(z, yaw) Rot(y, pitch) Rot(x, roll)`` = `optik.spatial.rpy_to_rot`.
-``<axis xyz>`` (default ``1 0 0``) is normalized. ``<limit velocity>`` values, when every moving
-joint has a positive one, are kept in ``m.params["velocity_limits"]``. ``floating`` and ``planar`` joints and
-``<mimic>`` joints on the path are rejected with `ModelError`.
-
-Safety: the text is parsed with `xml.etree.ElementTree` only after a check that rejects any
-``<!DOCTYPE`` or ``<!ENTITY`` declaration, so no entity is ever expanded and no external
-resource is fetched (URDF never needs a DTD).
+``<axis xyz>`` (default ``1 0 0``) is normalized. ``<limit velocity>`` values, when every
+joint with a coordinate has a positive one, are kept in ``params["velocity_limits"]``. The
+``<visual>`` elements of the loaded links (meshes with ``package://`` or relative names, boxes,
+cylinders, spheres) are kept in ``params["visuals"]`` for drawing (`optik.mechanism.urdf_visuals`).
 """
 
 from __future__ import annotations
 
 import os
-import re
-import xml.etree.ElementTree as ET
+import warnings
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
+from lxml import etree
 
 from optik import spatial
-from optik.errors import InvalidArgumentError, ModelError, UnknownFrameError
-from optik.mechanism.joint import Joint
+from optik.checks import as_name
+from optik.errors import ModelError, UnknownFrameError
+from optik.mechanism.joint import Joint, Mimic
+from optik.mechanism.urdf_visuals import read_visuals
+from optik.mechanism.urdf_xml import UrdfXml, read_urdf_xml
 
 __all__ = ["UrdfModel", "parse_urdf"]
 
-_DTD = re.compile(r"<!\s*(DOCTYPE|ENTITY)", re.IGNORECASE)
 _MOVING = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic"}
 _REJECTED = ("floating", "planar")
 
@@ -54,11 +68,14 @@ class UrdfModel:
     Attributes:
         name: the ``<robot name>`` (``"urdf"`` when absent).
         base: the base link (the fixed body).
-        joints: one `Joint` per moving joint, in coordinate order.
+        joints: one `Joint` per moving joint (mimic joints included), in coordinate order.
         frames: links reached through fixed joints, ``{link: (body, 4x4 offset)}``.
-        ee: the end-effector link.
-        params: ``"urdf"`` (source label), ``"base_link"``, ``"tip_link"`` and, when every
-            moving joint has a positive ``<limit velocity>``, ``"velocity_limits"``.
+        ee: the end-effector link: ``tip_link``, or for a tree the deepest leaf (most moving
+            joints from the base; the first in depth-first order on a tie).
+        params: ``"urdf"`` (source label), ``"base_link"``, ``"tip_link"`` (None for a tree),
+            ``"visuals"`` (tuple of `Visual`), ``"notes"`` (what was ignored and why, when
+            anything was) and, when every joint with a coordinate has a
+            positive ``<limit velocity>``, ``"velocity_limits"`` (rad/s or m/s per coordinate).
     """
 
     name: str
@@ -69,49 +86,7 @@ class UrdfModel:
     params: dict[str, object] = field(default_factory=dict)
 
 
-@dataclass(frozen=True)
-class _Source:
-    """URDF text and the label that error messages use for it (the file path or ``<string>``)."""
-
-    text: str
-    label: str
-
-
-def _read(source: str | os.PathLike[str]) -> _Source:
-    """The URDF text: ``source`` is XML text when it contains ``<``, else a file path."""
-    if isinstance(source, str) and "<" in source:
-        return _Source(source, "<string>")
-    if not isinstance(source, (str, os.PathLike)):
-        raise InvalidArgumentError(
-            "source", f"expected a URDF path or XML string, got {type(source).__name__}"
-        )
-    path = Path(source)
-    if not path.is_file():
-        raise InvalidArgumentError("source", f"no URDF file {str(path)!r}")
-    try:
-        return _Source(path.read_text(encoding="utf-8"), str(path))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InvalidArgumentError("source", f"cannot read URDF file {str(path)!r}: {exc}") from exc
-
-
-def _parse_xml(src: _Source) -> ET.Element:
-    """Parse the text after rejecting DTDs (no entity expansion, no external entities)."""
-    m = _DTD.search(src.text)
-    if m:
-        raise ModelError(
-            f"{src.label}: URDF contains a <!{m.group(1).upper()} declaration; DTDs and entities are "
-            "rejected (no entity expansion)"
-        )
-    try:
-        root = ET.fromstring(src.text)
-    except ET.ParseError as exc:
-        raise ModelError(f"{src.label}: malformed XML: {exc}") from exc
-    if root.tag != "robot":
-        raise ModelError(f"{src.label}: root element is <{root.tag}>, expected <robot>")
-    return root
-
-
-def _floats(src: _Source, where: str, text: str | None, n: int, default: tuple[float, ...]) -> np.ndarray:
+def _floats(src: UrdfXml, where: str, text: str | None, n: int, default: tuple[float, ...]) -> np.ndarray:
     """``n`` finite floats from a whitespace-separated attribute (``default`` when absent)."""
     if text is None:
         return np.array(default, dtype=float)
@@ -127,9 +102,9 @@ def _floats(src: _Source, where: str, text: str | None, n: int, default: tuple[f
     return values
 
 
-def _origin(src: _Source, joint: ET.Element, where: str) -> np.ndarray:
-    """``Trans(xyz) Rot(z, yaw) Rot(y, pitch) Rot(x, roll)`` of a joint's ``<origin>``."""
-    el = joint.find("origin")
+def _origin(src: UrdfXml, element: etree._Element, where: str) -> np.ndarray:
+    """``Trans(xyz) Rot(z, yaw) Rot(y, pitch) Rot(x, roll)`` of an element's ``<origin>``."""
+    el = element.find("origin")
     if el is None:
         return np.eye(4)
     xyz = _floats(src, f"{where} <origin xyz>", el.get("xyz"), 3, (0.0, 0.0, 0.0))
@@ -137,7 +112,7 @@ def _origin(src: _Source, joint: ET.Element, where: str) -> np.ndarray:
     return spatial.transform(spatial.rpy_to_rot(*rpy), xyz)
 
 
-def _axis(src: _Source, joint: ET.Element, where: str) -> np.ndarray:
+def _axis(src: UrdfXml, joint: etree._Element, where: str) -> np.ndarray:
     """The unit joint axis (URDF default ``1 0 0``)."""
     el = joint.find("axis")
     a = _floats(src, f"{where} <axis xyz>", None if el is None else el.get("xyz"), 3, (1.0, 0.0, 0.0))
@@ -147,12 +122,13 @@ def _axis(src: _Source, joint: ET.Element, where: str) -> np.ndarray:
     return a / norm
 
 
-def _limits(src: _Source, joint: ET.Element, kind: str, where: str) -> tuple[float, float]:
-    """``(lower, upper)``: ``[-pi, pi]`` for continuous joints, else from ``<limit>`` (required)."""
+def _limits(src: UrdfXml, joint: etree._Element, kind: str, where: str) -> tuple[float, float]:
+    """``(lower, upper)``: unbounded for continuous joints, else from ``<limit>``, which is
+    required; a missing ``lower`` or ``upper`` attribute is 0, as in urdfdom."""
     if kind == "continuous":
-        return -np.pi, np.pi
+        return -np.inf, np.inf
     el = joint.find("limit")
-    if el is None or el.get("lower") is None or el.get("upper") is None:
+    if el is None:
         raise ModelError(f"{src.label}: {where}: a {kind} joint needs <limit lower=... upper=...>")
     lo = _floats(src, f"{where} <limit lower>", el.get("lower"), 1, (0.0,))[0]
     hi = _floats(src, f"{where} <limit upper>", el.get("upper"), 1, (0.0,))[0]
@@ -161,7 +137,7 @@ def _limits(src: _Source, joint: ET.Element, kind: str, where: str) -> tuple[flo
     return float(lo), float(hi)
 
 
-def _velocity(src: _Source, joint: ET.Element, where: str) -> float | None:
+def _velocity(src: UrdfXml, joint: etree._Element, where: str) -> float | None:
     """``<limit velocity>`` when given and positive, else None (zero often means "unspecified")."""
     el = joint.find("limit")
     text = None if el is None else el.get("velocity")
@@ -171,7 +147,7 @@ def _velocity(src: _Source, joint: ET.Element, where: str) -> float | None:
     return v if v > 0 else None
 
 
-def _link_of(src: _Source, joint: ET.Element, tag: str, where: str) -> str:
+def _link_of(src: UrdfXml, joint: etree._Element, tag: str, where: str) -> str:
     el = joint.find(tag)
     name = None if el is None else el.get("link")
     if not name:
@@ -179,18 +155,27 @@ def _link_of(src: _Source, joint: ET.Element, tag: str, where: str) -> str:
     return name
 
 
-def _chain(src: _Source, root: ET.Element, base_link: str, tip_link: str) -> list[tuple[ET.Element, str]]:
-    """Joints on the path from ``base_link`` down to ``tip_link`` as ``(element, child link)``."""
-    links = [el.get("name") for el in root.findall("link")]
-    if None in links or "" in links:
-        raise ModelError(f"{src.label}: a <link> has no name")
-    link_set = set(links)
-    for arg, link in (("base_link", base_link), ("tip_link", tip_link)):
-        if link not in link_set:
-            raise UnknownFrameError(arg, f"{src.label}: no link {link!r}; links: {sorted(link_set)}")
-    parent_joint: dict[str, tuple[ET.Element, str]] = {}
+@dataclass(frozen=True)
+class _Tree:
+    """The link tree of a document: links in document order, the joint above each child link
+    ``{child: (joint element, parent)}`` and the joints below each link, in document order."""
+
+    links: dict[str, etree._Element]
+    parent_joint: dict[str, tuple[etree._Element, str]]
+    children: dict[str, list[tuple[etree._Element, str]]]
+
+
+def _tree(src: UrdfXml) -> _Tree:
+    links: dict[str, etree._Element] = {}
+    for el in src.root.findall("link"):
+        name = el.get("name")
+        if not name:
+            raise ModelError(f"{src.label}: a <link> has no name")
+        links[name] = el
+    parent_joint: dict[str, tuple[etree._Element, str]] = {}
+    children: dict[str, list[tuple[etree._Element, str]]] = {name: [] for name in links}
     seen: set[str] = set()
-    for el in root.findall("joint"):
+    for el in src.root.findall("joint"):
         name = el.get("name")
         if not name:
             raise ModelError(f"{src.label}: a <joint> has no name")
@@ -200,7 +185,7 @@ def _chain(src: _Source, root: ET.Element, base_link: str, tip_link: str) -> lis
         where = f"joint {name!r}"
         parent, child = _link_of(src, el, "parent", where), _link_of(src, el, "child", where)
         for link in (parent, child):
-            if link not in link_set:
+            if link not in links:
                 raise ModelError(f"{src.label}: {where} refers to unknown link {link!r}")
         if child in parent_joint:
             raise ModelError(
@@ -208,90 +193,196 @@ def _chain(src: _Source, root: ET.Element, base_link: str, tip_link: str) -> lis
                 f"({parent_joint[child][0].get('name')!r} and {name!r}); URDF needs a tree"
             )
         parent_joint[child] = (el, parent)
-    path: list[tuple[ET.Element, str]] = []
-    link = tip_link
-    while link != base_link:
-        if link not in parent_joint or len(path) > len(parent_joint):
-            raise ModelError(
-                f"{src.label}: tip_link {tip_link!r} is not downstream of base_link {base_link!r}"
-            )
-        el, parent = parent_joint[link]
+        children[parent].append((el, child))
+    return _Tree(links, parent_joint, children)
+
+
+def _link(src: UrdfXml, tree: _Tree, link: object, argument: str) -> str:
+    name = as_name(link, argument)
+    if name not in tree.links:
+        raise UnknownFrameError(argument, f"{src.label}: no link {name!r}; links: {sorted(tree.links)}")
+    return name
+
+
+def _root(src: UrdfXml, tree: _Tree) -> str:
+    roots = [link for link in tree.links if link not in tree.parent_joint]
+    if len(roots) != 1:
+        what = f"several root links {roots}" if roots else "no root link (the joints form a cycle)"
+        if not tree.links:
+            what = "no <link>"
+        raise ModelError(f"{src.label}: {what}; pass base_link")
+    return roots[0]
+
+
+def _path(src: UrdfXml, tree: _Tree, base: str, tip: str) -> list[tuple[etree._Element, str]]:
+    """Joints from ``base`` down to ``tip`` as ``(element, child link)``."""
+    path: list[tuple[etree._Element, str]] = []
+    link = tip
+    while link != base:
+        if link not in tree.parent_joint or len(path) > len(tree.parent_joint):
+            raise ModelError(f"{src.label}: tip_link {tip!r} is not downstream of base_link {base!r}")
+        el, parent = tree.parent_joint[link]
         path.append((el, link))
         link = parent
     path.reverse()
     return path
 
 
-def parse_urdf(source: str | os.PathLike[str], base_link: str, tip_link: str) -> UrdfModel:
-    """The serial chain of a URDF robot from ``base_link`` to ``tip_link``.
+def _subtree(tree: _Tree, base: str) -> list[tuple[etree._Element, str]]:
+    """Every joint below ``base`` as ``(element, child link)``, depth first, children in
+    document order (an explicit stack: no recursion limit on deep trees)."""
+    out: list[tuple[etree._Element, str]] = []
+    stack = list(reversed(tree.children[base]))
+    while stack:
+        el, child = stack.pop()
+        out.append((el, child))
+        stack.extend(reversed(tree.children[child]))
+    return out
 
-    Every moving joint on the path becomes one coordinate named after the URDF joint; its pose
-    is ``T_child = T_parent @ F @ origin @ motion(q)`` where ``F`` is the product of the origins
+
+def _mimic(src: UrdfXml, el: etree._Element, where: str) -> Mimic | None:
+    m = el.find("mimic")
+    if m is None:
+        return None
+    source = m.get("joint")
+    if not source:
+        raise ModelError(f"{src.label}: {where} <mimic> has no joint=...")
+    mult = _floats(src, f"{where} <mimic multiplier>", m.get("multiplier"), 1, (1.0,))[0]
+    off = _floats(src, f"{where} <mimic offset>", m.get("offset"), 1, (0.0,))[0]
+    return Mimic(source, float(mult), float(off))
+
+
+def _resolve_mimics(src: UrdfXml, mimics: dict[str, Mimic | None]) -> dict[str, Mimic]:
+    """Each mimic composed down to a joint with a coordinate (``q_b = a q_c + b`` and
+    ``q_a = a' q_b + b'`` give ``q_a = a' a q_c + a' b + b'``)."""
+    out: dict[str, Mimic] = {}
+    for name, mimic in mimics.items():
+        if mimic is None:
+            continue
+        mult, off, source, seen = mimic.multiplier, mimic.offset, mimic.joint, {name}
+        while (nxt := mimics.get(source)) is not None:
+            if source in seen:
+                raise ModelError(
+                    f"{src.label}: joint {name!r}: the <mimic> joints form a cycle through {source!r}"
+                )
+            seen.add(source)
+            mult, off, source = mult * nxt.multiplier, mult * nxt.offset + off, nxt.joint
+        if source not in mimics:
+            raise ModelError(
+                f"{src.label}: joint {name!r} mimics {source!r}, which is not a moving joint of the loaded "
+                "part; load the whole tree or a part that holds both"
+            )
+        out[name] = Mimic(source, mult, off)
+    return out
+
+
+def _deepest_leaf(selected: list[tuple[etree._Element, str]], base: str) -> str:
+    depth = {base: 0}
+    parents = set()
+    for el, child in selected:
+        parent = el.find("parent").get("link")
+        parents.add(parent)
+        depth[child] = depth[parent] + (el.get("type") != "fixed")
+    leaves = [child for _, child in selected if child not in parents]
+    return max(leaves, key=lambda link: depth[link])  # max keeps the first of equal depth
+
+
+def parse_urdf(
+    source: str | os.PathLike[str], base_link: str | None = None, tip_link: str | None = None
+) -> UrdfModel:
+    """A URDF robot's whole tree, the subtree below ``base_link``, or the chain to ``tip_link``.
+
+    Every moving joint becomes a `Joint` named after the URDF joint; its pose is
+    ``T_child = T_parent @ F @ origin @ motion(q)`` where ``F`` is the product of the origins
     of the fixed joints just before it (identity if none). Links reached through fixed joints
-    become named frames on the last moving body, so ``m.fk(q, frame=link)`` works for every link
-    on the path.
+    become named frames on the last moving body, so ``m.fk(q, frame=link)`` works for every
+    loaded link.
 
     Args:
         source: path of a URDF file, or the URDF XML text itself (any string containing ``<``).
-        base_link: the fixed link; it becomes the mechanism's base body.
-        tip_link: the end-effector link; it becomes the frame ``m.ee``.
+        base_link: the fixed link, the mechanism's base body (default: the root link).
+        tip_link: the end-effector link (default: load the whole tree below ``base_link``).
 
     Returns:
-        The model named after the ``<robot name>``, coordinates named after the URDF joints,
-        limits from ``<limit>`` (``[-pi, pi]`` for continuous joints) and the parsed chain in
-        ``params`` (``"urdf"``: source label, ``"base_link"``, ``"tip_link"``, and
-        ``"velocity_limits"``, rad/s or m/s per coordinate, when every moving joint on the path
-        has a positive ``<limit velocity>``).
+        The model named after the ``<robot name>`` (see `UrdfModel`).
 
     Raises:
-        InvalidArgumentError: ``source`` is neither an existing file nor XML text.
+        InvalidArgumentError: ``source`` is neither an existing file nor XML text (or not valid
+            text); ``base_link`` or ``tip_link`` is not a string.
         UnknownFrameError: ``base_link`` or ``tip_link`` is not a link of the robot.
-        ModelError: a DOCTYPE/ENTITY declaration, malformed XML or numbers, a tip that is not
-            downstream of the base, a missing ``<limit>``, an unsupported (floating, planar,
-            mimic, unknown) joint on the path, or a path without any moving joint. The message
-            names the file and the joint.
+        ModelError: what `optik.mechanism.urdf_xml.read_urdf_xml` rejects, malformed numbers,
+            several root links (pass ``base_link``), a tip that is not downstream of the base, a
+            missing ``<limit>``, an unsupported (floating, planar, unknown) joint in the loaded
+            part, a mimic of a joint outside it, or no moving joint at all. The message names
+            the file and the joint.
     """
-    src = _read(source)
-    root = _parse_xml(src)
-    path = _chain(src, root, base_link, tip_link)
-    joints: list[Joint] = []
+    src = read_urdf_xml(source)
+    tree = _tree(src)
+    base = _root(src, tree) if base_link is None else _link(src, tree, base_link, "base_link")
+    tip = None if tip_link is None else _link(src, tree, tip_link, "tip_link")
+    selected = _subtree(tree, base) if tip is None else _path(src, tree, base, tip)
+    place: dict[str, tuple[str, np.ndarray]] = {base: (base, np.eye(4))}
+    specs: list[dict[str, object]] = []
+    mimics: dict[str, Mimic | None] = {}
     velocities: list[float | None] = []
     frames: dict[str, tuple[str, np.ndarray]] = {}
-    body, pending = base_link, np.eye(4)
-    for el, child in path:
-        name = el.get("name", "")
+    notes: list[str] = []
+    joint_names = {el.get("name") for el, _ in tree.parent_joint.values()}
+    for el, child in selected:
+        name = el.get("name")
         where = f"joint {name!r}"
         kind = el.get("type")
-        origin = _origin(src, el, where)
+        body, pending = place[el.find("parent").get("link")]
+        origin = pending @ _origin(src, el, where)
         if kind == "fixed":
-            pending = pending @ origin
-            frames[child] = (body, pending)
+            place[child] = frames[child] = (body, origin)
             continue
         if kind not in _MOVING:
-            why = "is not supported in a serial chain" if kind in _REJECTED else "is unknown"
-            raise ModelError(
-                f"{src.label}: {where}: joint type {kind!r} {why}; use revolute, continuous, prismatic, fixed"
+            why = (
+                f"is not supported; load the part below it with base_link={child!r}"
+                if kind in _REJECTED
+                else "is unknown; use revolute, continuous, prismatic, fixed"
             )
-        if el.find("mimic") is not None:
-            raise ModelError(f"{src.label}: {where} has <mimic>; coupled joints are not supported")
-        lo, hi = _limits(src, el, kind, where)
-        velocities.append(_velocity(src, el, where))
-        joints.append(
-            Joint(
-                name,
-                _MOVING[kind],
-                body,
-                child,
-                origin=pending @ origin,
-                axis=_axis(src, el, where),
-                lower=lo,
-                upper=hi,
+            raise ModelError(f"{src.label}: {where}: joint type {kind!r} {why}")
+        mimics[name] = _mimic(src, el, where)
+        if mimics[name] is not None and mimics[name].joint not in joint_names:
+            notes.append(
+                f"joint {name!r}: <mimic joint={mimics[name].joint!r}> names no joint of the file; the "
+                "mimic is ignored and the joint has its own coordinate"
             )
+            warnings.warn(f"{src.label}: {notes[-1]}", stacklevel=3)
+            mimics[name] = None
+        lo, hi = (None, None) if mimics[name] is not None else _limits(src, el, kind, where)
+        if mimics[name] is None:
+            velocities.append(_velocity(src, el, where))
+        specs.append(
+            {
+                "name": name,
+                "type": _MOVING[kind],
+                "parent": body,
+                "child": child,
+                "origin": origin,
+                "axis": _axis(src, el, where),
+                "lower": lo,
+                "upper": hi,
+            }
         )
-        body, pending = child, np.eye(4)
-    if not joints:
-        raise ModelError(f"{src.label}: no moving joint between {base_link!r} and {tip_link!r}")
-    params: dict[str, object] = {"urdf": src.label, "base_link": base_link, "tip_link": tip_link}
-    if all(v is not None for v in velocities):
+        place[child] = (child, np.eye(4))
+    if not specs:
+        where = f"between {base!r} and {tip!r}" if tip is not None else f"below {base!r}"
+        raise ModelError(f"{src.label}: no moving joint {where}")
+    resolved = _resolve_mimics(src, mimics)
+    joints = tuple(Joint(**spec, mimic=resolved.get(str(spec["name"]))) for spec in specs)
+    ee = tip if tip is not None else _deepest_leaf(selected, base)
+    visuals = read_visuals(
+        [tree.links[link] for link in place],
+        lambda el, where: _origin(src, el, where),
+        lambda where, text, n, default: _floats(src, where, text, n, default),
+        src.folder,
+    )
+    params: dict[str, object] = {"urdf": src.label, "base_link": base, "tip_link": tip, "visuals": visuals}
+    if notes:
+        params["notes"] = tuple(notes)
+    if velocities and all(v is not None for v in velocities):
         params["velocity_limits"] = np.array(velocities, dtype=float)
-    return UrdfModel(root.get("name") or "urdf", base_link, tuple(joints), frames, tip_link, params)
+    return UrdfModel(src.root.get("name") or "urdf", base, joints, frames, ee, params)

@@ -161,7 +161,7 @@ def _numeric_all(request: IKRequest, name: str, patience: int, max_solutions: in
             **({"max_restarts": 0} if name in RESTARTING else {}),
             **request.options,
         )
-        start = rng.uniform(m.lower, m.upper)
+        start = m.random_q(seed=rng)
         if not res.success:
             misses += 1
             continue

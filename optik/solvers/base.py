@@ -315,12 +315,13 @@ def method_options(request: IKRequest, defaults: dict[str, Any]) -> dict[str, An
 
 
 def start_points(request: IKRequest) -> Iterator[np.ndarray]:
-    """Multi-start sequence: ``q0`` first, then points drawn uniformly within the limits from
-    the request's generator (endless; the caller stops on success or at the time limit)."""
+    """Multi-start sequence: ``q0`` first, then points drawn uniformly within the limits (the
+    mechanism's ``sampling_bounds`` for unbounded joints) from the request's generator
+    (endless; the caller stops on success or at the time limit)."""
     m = request.mechanism
     yield request.q0.copy()
     while True:
-        yield request.rng.uniform(m.lower, m.upper)
+        yield m.random_q(seed=request.rng)
 
 
 def restart_stop(deadline: float, restarts: int, max_restarts: int | None) -> str | None:

@@ -23,6 +23,7 @@ import time
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -164,10 +165,8 @@ class LMKernel:
         task: task space.
         frame: task frame (None: end effector).
         closure_weight: weight of the loop-closure rows.
-        compile: as in `optik.native.library` (False: the Python loop).
-
-    Attributes:
-        compiled: True when `run` calls the compiled driver.
+        compile: as in `optik.native.library` (False: the Python loop; ``"auto"``: the
+            Python loop until the library built in the background is loaded).
     """
 
     def __init__(
@@ -181,13 +180,24 @@ class LMKernel:
             f"\n#define OPTIK_NQ {m.n_q}\n#define OPTIK_STEP {_STEP}\n#define OPTIK_STEP_WORK {_STEP}_work\n"
             f"#define OPTIK_ERRORS {_ERRORS}\n#define OPTIK_ERRORS_WORK {_ERRORS}_work\n"
         )
-        lib = library([self.step, self.errors], compile, defines + DRIVER.read_text())
-        self.compiled = lib is not None
-        if lib is not None:
-            fn = lib.optik_lm_chunk
-            fn.argtypes = [ctypes.c_longlong] + [_P] * 10
-            fn.restype = ctypes.c_int
-            self._fn = fn
+        self.library = library([self.step, self.errors], compile, defines + DRIVER.read_text())
+        self._fn: Any = None
+
+    @property
+    def compiled(self) -> bool:
+        """True when `run` calls the compiled driver (False while it is being built)."""
+        return self._driver() is not None
+
+    def _driver(self) -> Any:
+        """The driver's entry point once the library is loaded, else None."""
+        if self._fn is None and self.library is not None:
+            lib = self.library.get()
+            if lib is not None:
+                fn = lib.optik_lm_chunk
+                fn.argtypes = [ctypes.c_longlong] + [_P] * 10
+                fn.restype = ctypes.c_int
+                self._fn = fn
+        return self._fn
 
     def run(self, targets: np.ndarray, q0: np.ndarray, seeds: np.ndarray, conf: np.ndarray) -> Output:
         """Solve ``N`` targets.
@@ -207,14 +217,18 @@ class LMKernel:
             np.empty(n, dtype=np.int64),
             np.empty(n),
         )
-        if not self.compiled:
+        fn = self._driver()
+        if fn is None:
+            start = time.perf_counter()
             self._run_python(targets, q0, seeds, conf, out)
+            if self.library is not None:  # still building: account the time (see optik.native)
+                self.library.evaluated(time.perf_counter() - start)
             return out
         pairs = ((targets, float), (q0, float), (seeds, np.uint64))
         ins = [np.ascontiguousarray(a, dtype=t) for a, t in pairs]
         conf = np.ascontiguousarray(conf, dtype=float)
         bufs = [*ins, conf, out.q, out.errors, out.iterations, out.restarts, out.status, out.solve_time]
-        if self._fn(n, *[b.ctypes.data for b in bufs]) != 0:
+        if fn(n, *[b.ctypes.data for b in bufs]) != 0:
             from optik.errors import SolverUnavailableError
 
             raise SolverUnavailableError("optik_lm_chunk: evaluation of the generated code failed")

@@ -3,19 +3,17 @@
 The IK methods that iterate in compiled code (``lm``, the error checks of ``nlp``) call their
 CasADi functions through [`NativeFunction`][optik.solvers.native.NativeFunction]: generated C code compiled
 and loaded by `optik.native` (about 1 us of overhead per call instead of about 100 us through CasADi's Python
-interface), or, without a compiler (or with ``compile=False``), the same interface over CasADi's own
-evaluator.
+interface), or the same interface over CasADi's own evaluator: while the library is still being built in
+the background, without a compiler, or with ``compile=False``.
 """
 
 from __future__ import annotations
-
-import ctypes
 
 import casadi as ca
 import numpy as np
 
 from optik.errors import InvalidArgumentError
-from optik.native import CCall, library
+from optik.native import Binding, Library, library
 
 
 def native_functions(functions: list[ca.Function], compile: bool | str = "auto") -> list[NativeFunction]:
@@ -24,8 +22,9 @@ def native_functions(functions: list[ca.Function], compile: bool | str = "auto")
 
     Args:
         functions: functions with dense column inputs and outputs.
-        compile: ``True`` compile (raise when impossible), ``False`` use CasADi's evaluator,
-            ``"auto"`` compile when a C compiler exists and works, else use the evaluator.
+        compile: ``True`` compile now (raise when impossible), ``False`` use CasADi's evaluator,
+            ``"auto"`` use the cached library, or CasADi's evaluator while it is built in the
+            background (and for good when there is no working C compiler).
 
     Raises:
         InvalidArgumentError: bad ``compile`` value or non-dense inputs/outputs.
@@ -54,28 +53,31 @@ class NativeFunction:
 
     Args:
         f: the function; every input and output must be a dense column or scalar.
-        library: loaded library holding ``f`` (`optik.native.library`; None: CasADi's
-            evaluator).
-
-    Attributes:
-        compiled: True when calls go to generated, compiled C code.
+        library: library holding ``f`` (`optik.native.library`; None: CasADi's evaluator).
+            Until it is ready the calls go to CasADi's evaluator, then to the C code.
     """
 
-    def __init__(self, f: ca.Function, library: ctypes.CDLL | None = None) -> None:
+    def __init__(self, f: ca.Function, library: Library | None = None) -> None:
         _check_dense(f)
         self.function = f
         self.inputs = [np.zeros(f.size1_in(i)) for i in range(f.n_in())]
         self.outputs = [np.zeros(f.size1_out(i)) for i in range(f.n_out())]
-        self.compiled = library is not None
-        self._call = CCall(library, f.name(), self.inputs, self.outputs) if library is not None else None
+        self.library = library
+        self._native = Binding(library, f.name(), self.inputs, self.outputs)
+
+    @property
+    def compiled(self) -> bool:
+        """True when calls go to generated, compiled C code (False while it is being built)."""
+        return self._native.compiled
 
     def __call__(self) -> list[np.ndarray]:
         """Evaluate on the current contents of `inputs`; returns `outputs`."""
-        if self._call is not None:
-            self._call()
-            return self.outputs
+        self._native(self._evaluate)
+        return self.outputs
+
+    def _evaluate(self) -> None:
+        """CasADi's evaluator, into :attr:`outputs`."""
         res = self.function(*self.inputs)
         res = res if isinstance(res, (list, tuple)) else [res]
         for buf, val in zip(self.outputs, res, strict=True):
             buf[:] = np.asarray(val, dtype=float).reshape(-1)
-        return self.outputs

@@ -137,4 +137,5 @@ register_method(
     "lm",
     solve_lm,
     description="bounded Levenberg-Marquardt compiled to C, random restarts until the time limit",
+    multi_target=True,
 )

@@ -103,6 +103,10 @@ def solve_ik_all(
             the method does not know.
     """
     request = make_request(m, target, q0, task, frame, time_limit, tol, seed, options)
+    if request.multi_target:
+        raise InvalidArgumentError(
+            "target", "solve_ik_all takes one frame target; several frame targets at once: optik.solve_ik"
+        )
     patience = positive_int(patience, "patience")
     max_solutions = positive_int(max_solutions, "max_solutions")
     if fixed is not None:

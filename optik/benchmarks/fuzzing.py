@@ -151,8 +151,10 @@ KNOWN: tuple[Known, ...] = (
     Known("parallelfk", "five-bar branches at extreme lengths", _has("five_bar_extreme", "closed_form")),
     Known(
         "parallelfk",
-        "3-RPR closed-form FK of leg lengths whose squares overflow",
-        _has("planar_3rpr", "IndexError"),
+        "3-RPR / Stewart-Gough closed-form FK of leg lengths whose squares overflow",
+        lambda call, detail: any(n in call.label for n in ("planar_3rpr", "stewart_gough"))
+        and any(call.label.startswith(e) for e in ("closed_form.fk", "solve_fk_all"))
+        and any(e in detail for e in ("IndexError", "LinAlgError")),
     ),
     Known(
         "parallelfk",

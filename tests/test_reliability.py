@@ -448,3 +448,22 @@ def test_iterated_ik_of_a_huge_target_is_a_failure_not_an_svd_error(method):
         m, m.mid_q(), [diffik.PositionTask(target=optik.Position(1e300, 0.0), axes="xy")], 0.01
     )
     assert step.status == "overflow" and np.isfinite(step.q).all()
+
+
+def test_track_time_step_as_a_huge_int():
+    """track(..., dt=10**30) leaked OverflowError from np.arange(n) * dt."""
+    m = catalog.planar_3r()
+    res = diffik.track(m, m.mid_q(), [optik.Position(1.0, 0.5), optik.Position(1.1, 0.5)], 10**30)
+    assert np.isfinite(res.q).all() and res.t[-1] == 2e30
+
+
+def test_problem_file_number_beyond_the_float_range(tmp_path):
+    """A TOML integer of 21 digits leaked a TypeError from np.isfinite."""
+    text = _FIVE_BAR.format(
+        constructor="five_bar", params="lengths = [1, 1, 1, 999999999999999999999999999999999]", n=1
+    )
+    problem = load_problem(_problem_file(tmp_path, text=text))  # params go to the constructor
+    assert problem.params["lengths"][3] == 999999999999999999999999999999999
+    text = text.replace("[targets]", "[tolerances]\nposition = 1" + "0" * 400 + "\n[targets]")
+    with pytest.raises(optik.ProblemFileError, match=r"tolerances\.position: expected a finite number"):
+        load_problem(_problem_file(tmp_path, text=text))

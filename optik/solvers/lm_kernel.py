@@ -127,10 +127,12 @@ class Settings:
     q_ref: np.ndarray
 
     def conf(self, m: Mechanism) -> np.ndarray:
-        """The driver's ``conf`` vector (layout in ``lm_chunk.c``)."""
+        """The driver's ``conf`` vector (layout in ``lm_chunk.c``); its box is the restarts' box,
+        the mechanism's `sampling_bounds` (finite for continuous joints, whose limits are not)."""
         scalars = [self.block, self.max_iter, self.max_restarts, self.time_limit, self.mu0, self.stall]
         scalars += [*self.stop, self.gain, *self.weights]
-        return np.concatenate([scalars, m.lower, m.upper, self.q_ref]).astype(float)
+        lo, hi = m.sampling_bounds
+        return np.concatenate([scalars, lo, hi, self.q_ref]).astype(float)
 
 
 @dataclass

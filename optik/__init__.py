@@ -23,7 +23,7 @@ from optik.mechanism import Joint, Mechanism, dh_chain, planar_chain
 from optik.problem import IKProblem, build_ik_problem
 from optik.reach import reach
 from optik.results import FKModes, FKResult, IKResult
-from optik.solvers import Tolerances, solve_ik, solve_ik_all
+from optik.solvers import Tolerances, self_motion, solve_ik, solve_ik_all
 from optik.solvers.fk import solve_fk, solve_fk_all
 from optik.targets import Pose2D, Position
 from optik.view import view
@@ -59,6 +59,7 @@ __all__ = [
     "fk_batch",
     "planar_chain",
     "reach",
+    "self_motion",
     "solve_fk",
     "solve_fk_all",
     "solve_ik",

@@ -186,6 +186,10 @@ def test_not_decomposable_or_not_6r_gives_no_derived_solver() -> None:
     ]
     general = dh_chain(rows, "standard", name="general_6r", task="pose")
     assert closed_form.derive(general) is None
+    # ... but the general 6R solver is registered for it: solve_ik_all answers by it alone
+    q = general.random_q(seed=1)
+    sols = optik.solve_ik_all(general, general.fk(q))
+    assert sols.method == "closed_form" and min(joint_distance(general, s.q, q) for s in sols) < 1e-9
     assert closed_form.derive(optik.catalog.panda()) is None  # 7 joints
     assert closed_form.derive(optik.catalog.five_bar()) is None  # closed chain
     assert closed_form.derive(optik.catalog.planar_3r()) is None  # pose2d task
@@ -224,3 +228,9 @@ def test_every_eaik_solution_is_found(name: str) -> None:
         assert len(ours) >= len(theirs)
         for s in theirs:
             assert min(joint_distance(m, s, o) for o in ours) < 1e-4  # EAIK's accuracy near singular poses
+
+
+def test_all_solutions_benchmark_runs_and_agrees_with_eaik() -> None:
+    from optik.benchmarks import bench_all_solutions
+
+    assert bench_all_solutions.main(["--n", "3"]) == 0

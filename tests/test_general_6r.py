@@ -15,6 +15,7 @@ from optik.closed_form.general_6r import (
     FK_TOL,
     General6R,
     General6RSolutions,
+    covers,
     ik_general_6r,
     solve_general_6r,
 )
@@ -165,6 +166,68 @@ def test_unreachable_pose_is_an_empty_answer_with_a_reason() -> None:
     sols = solve_general_6r(m, far)
     assert len(sols.q) == 0 and sols.reason
     assert ik_general_6r(m, far) == []
+
+
+@pytest.mark.parametrize("special", ["a1 = 0", "alpha1 = 0"])
+def test_first_axes_intersecting_or_parallel(special: str) -> None:
+    """Axes 1-2 intersecting or parallel make the elimination singular from the base end; the
+    solver then solves the inverse chain from the other end (count check passes there)."""
+    rng = np.random.default_rng(21)
+    for _ in range(3):
+        a, alpha, d = rng.uniform(0.1, 1, 6), rng.uniform(-np.pi, np.pi, 6), rng.uniform(-1, 1, 6)
+        (a if special == "a1 = 0" else alpha)[0] = 0.0
+        arm = General6R(a=a, alpha=alpha, d=d)
+        q = rng.uniform(-np.pi, np.pi, 6)
+        sols = solve_general_6r(arm, arm.fk(q))
+        assert sols.count_ok, sols.reason
+        assert min(_angle_dist(s, q) for s in sols.q) < 1e-8
+        assert sols.fk_error <= FK_TOL
+
+
+def test_nearly_parallel_axes_are_polished_on_the_mechanism() -> None:
+    """Axes 1-2 at 1e-4 rad from parallel (large DH offsets on the common normal, and the
+    inverse chain's DH description loses digits): every drawn q comes back to 1e-8, checked by
+    ``m.fk``."""
+    rng = np.random.default_rng(31)
+    rows = [(rng.uniform(-1, 1), rng.uniform(0.1, 1), rng.uniform(-np.pi, np.pi)) for _ in range(6)]
+    rows[0] = (rows[0][0], rows[0][1], 1e-4)
+    m = dh_chain(rows, "standard")
+    for q in rng.uniform(-np.pi, np.pi, (4, 6)):
+        sols = solve_general_6r(m, m.fk(q))
+        assert sols.count_ok, sols.reason
+        assert min(_angle_dist(s, q) for s in sols.q) < 1e-8
+        _check_fk(m, sols, m.fk(q))
+
+
+def test_both_ends_special_is_flagged() -> None:
+    """Axes 1-2 and 5-6 intersecting (a Jaco-like arm without a spherical wrist): the
+    elimination is singular from both ends; the answer is flagged, and what it holds is verified."""
+    rng = np.random.default_rng(41)
+    a, alpha, d = rng.uniform(0.1, 1, 6), rng.uniform(-np.pi, np.pi, 6), rng.uniform(-1, 1, 6)
+    a[[0, 4]] = 0.0
+    arm = General6R(a=a, alpha=alpha, d=d)
+    target = arm.fk(rng.uniform(-np.pi, np.pi, 6))
+    sols = solve_general_6r(arm, target)
+    assert not sols.count_ok and "singular 12 x 12" in sols.reason and "other end" in sols.reason
+    assert sols.fk_error <= FK_TOL
+    assert not covers(arm)
+
+
+def test_covers() -> None:
+    rng = np.random.default_rng(43)
+    assert covers(_random_arm(rng))
+    a, alpha, d = rng.uniform(0.1, 1, 6), rng.uniform(-np.pi, np.pi, 6), rng.uniform(-1, 1, 6)
+    a[0] = 0.0  # one special end: the other end is regular
+    assert covers(General6R(a=a, alpha=alpha, d=d))
+    alpha[[3, 4]] = 0.0  # and axes 4, 5, 6 parallel at the other
+    assert not covers(General6R(a=a, alpha=alpha, d=d))
+    assert not covers(dh_chain(REF_DH[:5], "standard"))  # not a 6R chain: False, no exception
+
+
+def test_reversed_chain_is_the_inverse() -> None:
+    arm = General6R(a=[0.3, 0.5, 0.2, 0.4, 0.1, 0.6], alpha=[1.0, -0.5, 2.0, 0.7, -1.2, 0.3], d=[0.1] * 6)
+    q = np.random.default_rng(2).uniform(-np.pi, np.pi, (4, 6))
+    assert np.allclose(arm.reversed.fk(q[:, ::-1]), np.linalg.inv(arm.fk(q)), atol=1e-12)
 
 
 def test_special_geometry_is_flagged_not_hidden() -> None:

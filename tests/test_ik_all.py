@@ -89,3 +89,81 @@ def test_cli_all_uses_the_method_asked_for(argv: list[str], method: str, capsys)
     lines = [line for line in out.out.splitlines() if line.startswith("[")]
     assert lines and all(f"] {method}:" in line for line in lines)
     assert f"by {method}" in out.out
+
+
+@pytest.mark.parametrize(("arm", "joint"), [("panda", "q7"), ("iiwa14", "q3"), ("panda", "q4")])
+def test_locked_joint_gives_every_analytic_solution(arm: str, joint: str) -> None:
+    m = getattr(optik.catalog, arm)()
+    k = m.coordinate_names.index(joint)
+    for seed in range(5):
+        q_true = m.random_q(seed=seed)
+        target = m.fk(q_true)
+        sols = optik.solve_ik_all(m, target, fixed={joint: q_true[k]})
+        assert sols.method == "closed_form" and {s.method for s in sols} == {"closed_form"}
+        assert min(joint_distance(m, s.q, q_true) for s in sols) < 1e-9
+        for s in sols:  # independent check on the 7-DOF model
+            assert s.q[k] == q_true[k] and m.within_limits(s.q)
+            np.testing.assert_allclose(m.fk(s.q), target, atol=1e-9)
+        pairs = [(a, b) for i, a in enumerate(sols) for b in sols[i + 1 :]]
+        assert all(joint_distance(m, a.q, b.q) >= 1e-6 for a, b in pairs)
+
+
+def test_locked_joint_finds_every_eaik_solution() -> None:
+    eaik = pytest.importorskip("eaik.pybindings.EAIK")
+    from optik.closed_form.derived import chain_axes
+
+    m = optik.catalog.panda()
+    ax = chain_axes(m)
+    offsets = np.vstack([ax.r[0], np.diff(ax.r, axis=0), ax.home[:3, 3] - ax.r[-1]])
+    for seed in range(10):
+        q_true = m.random_q(seed=seed)
+        target = m.fk(q_true)
+        robot = eaik.Robot(ax.h.T, offsets.T, ax.home[:3, :3], [(6, float(q_true[6]))], True)
+        theirs = [
+            s for s in np.asarray(robot.calculate_IK(target).Q) if np.abs(m.fk(s) - target).max() < 1e-8
+        ]
+        sols = optik.solve_ik_all(m, target, fixed={"q7": q_true[6]})
+        assert len(sols) + len(sols.outside_limits) >= len(theirs)
+        for s in theirs:
+            if m.within_limits(s):
+                assert min(joint_distance(m, s, r.q) for r in sols) < 1e-4
+
+
+def test_locked_joint_input_checks_and_fallback() -> None:
+    m = optik.catalog.panda()
+    target = m.fk(m.mid_q())
+    for bad in ({}, {"q9": 0.0}, {"q4": 0.5}, {"q1": float("nan")}, [("q1", 0.0)]):
+        with pytest.raises(InvalidArgumentError, match=r"^fixed"):
+            optik.solve_ik_all(m, target, fixed=bad)
+    with pytest.raises(SolverUnavailableError, match="no derived closed form"):
+        optik.solve_ik_all(m, target, method="closed_form", fixed={"q1": 0.0})
+    # no closed form for q1 locked: the numerical search with q1 pinned
+    sols = optik.solve_ik_all(m, target, fixed={"q1": 0.0}, time_limit=1.0, patience=3, seed=0)
+    assert sols and all(s.q[0] == 0.0 and s.method == "lm" for s in sols)
+    for s in sols:
+        np.testing.assert_allclose(m.fk(s.q), target, atol=1e-6)
+
+
+def test_self_motion_samples_follow_the_swept_joint() -> None:
+    m = optik.catalog.iiwa14()
+    target = m.fk(m.random_q(seed=7))
+    values = np.linspace(-1.0, 1.0, 5)
+    samples = optik.self_motion(m, target, "q3", values)
+    assert len(samples) == len(values) and all(len(s) > 0 for s in samples)
+    for v, sols in zip(values, samples, strict=True):
+        for s in sols:
+            assert s.q[2] == v
+            np.testing.assert_allclose(m.fk(s.q), target, atol=1e-9)
+
+
+def test_closed_form_is_not_used_for_another_frame() -> None:
+    """The closed form solves for the end effector: another task frame takes the numerical
+    method by default and is refused by method="closed_form"."""
+    m = optik.catalog.puma560()
+    q = m.random_q(seed=2)
+    target = m.fk(q, "link5")
+    with pytest.raises(SolverUnavailableError, match="frame 'link5'"):
+        optik.solve_ik(m, target, method="closed_form", frame="link5")
+    res = optik.solve_ik(m, target, frame="link5", seed=0, time_limit=1.0)
+    assert res.method == "lm" and res.success
+    np.testing.assert_allclose(m.fk(res.q, "link5"), target, atol=1e-6)

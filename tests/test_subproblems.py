@@ -162,3 +162,29 @@ def test_sp5_every_triple_solves_and_the_true_triple_is_found() -> None:
     assert np.all(np.linalg.norm(lhs - rhs, axis=-1)[ok] < 1e-7)
     found = ok & (np.abs(wrap_angle(a - t1[:, None])) < 1e-6) & (np.abs(wrap_angle(c - t3[:, None])) < 1e-6)
     assert found.any(axis=1).all()
+
+
+def test_zero_length_and_parallel_axes_are_documented_degenerate_cases() -> None:
+    rng = np.random.default_rng(8)
+    k, h, p = _units(rng, 20), _units(rng, 20), rng.normal(size=(20, 3))
+    zero = np.zeros((20, 3))
+    # SP1 with p1 = 0: every angle maps 0 to 0 (exact, 0 returned) and nothing else (least squares)
+    theta, exact = sp.sp1(k, zero, zero)
+    assert exact.all() and np.all(theta == 0.0)
+    assert not sp.sp1(k, zero, p)[1].any()
+    # SP4 with p = 0: h . rot(k, t) 0 = 0 for every angle; exact only for d = 0
+    theta4, exact4 = sp.sp4(h, k, zero, np.zeros(20))
+    assert exact4.all() and np.all(np.isfinite(theta4))
+    assert not sp.sp4(h, k, zero, np.ones(20))[1].any()
+    # SP3 with p1 = 0: |0 - p2| = d holds for every angle exactly when d = |p2|
+    assert sp.sp3(k, zero, p, np.linalg.norm(p, axis=1))[1].all()
+    assert not sp.sp3(k, zero, p, np.linalg.norm(p, axis=1) + 0.1)[1].any()
+    # SP2 with parallel axes: rot(k, t1) p1 = rot(k, t2) p2 has a one-parameter family when
+    # consistent; the pair returned solves it, and an inconsistent instance is not exact
+    t = rng.uniform(-np.pi, np.pi, 20)
+    a, b, exact2 = sp.sp2(k, p, k, sp.rot(k, t, p))
+    lhs = sp.rot(k[:, None], a, p[:, None])
+    rhs = sp.rot(k[:, None], b, sp.rot(k, t, p)[:, None])
+    np.testing.assert_allclose(lhs, rhs, atol=1e-9)
+    assert exact2.all()
+    assert not sp.sp2(k, p, k, sp.rot(k, t, p) + 0.5 * k)[2].any()

@@ -217,3 +217,33 @@ def test_view_help(capsys):
     assert info.value.code == 0
     out = capsys.readouterr().out
     assert "usage: optik view" in out and "127.0.0.1" in out
+
+
+def _pose(handle) -> np.ndarray:
+    from optik.view.shapes import rotation
+
+    return spatial.transform(rotation(handle.wxyz), np.asarray(handle.position, dtype=float))
+
+
+@pytest.mark.parametrize("name", ["panda", "stewart_gough"])
+def test_scene_nodes_compose_to_the_model_poses(open_viewer, name):
+    """Each body node sits at T_b(q); a joint frame drawn as the child node ``origin_j`` of its parent
+    body lands on A_j(q) = T_parent(q) origin_j, the end-effector frame on FK(q)."""
+    from optik.view.scene import poses
+
+    m = getattr(catalog, name)()
+    v = open_viewer(m)
+    q = v.q if m.is_closed else m.random_q(seed=2)
+    v.set_q(q)
+    p = poses(m, q)
+    nodes = v.robot._bodies
+    for body, t in p.bodies.items():
+        np.testing.assert_allclose(_pose(nodes[body]) if body != m.base else np.eye(4), t, atol=1e-9)
+    for k, j in enumerate(m.joints):
+        np.testing.assert_allclose(
+            _pose(nodes[j.parent]) @ j.origin if j.parent != m.base else j.origin,
+            p.joint_frames[k],
+            atol=1e-9,
+        )
+    body, offset = m.frames[m.ee]
+    np.testing.assert_allclose(_pose(nodes[body]) @ offset, m.fk(q), atol=1e-9)

@@ -24,6 +24,11 @@ the share of the eigenvalue solver's solutions they found and the solutions they
 eigenvalue solver did not (a completeness check of the latter).
 Times: mean / median / p95 per target and the ratio of means to ``optik general_6r``.
 
+Then, on ``--special`` random arms per case, the same round trips on special geometries that no
+decomposable family covers (one or two pairs of consecutive axes intersecting or parallel):
+the share of arms that `covers` accepts, and of targets that pass the count check and the round
+trip.
+
 ``--search-16`` instead searches random arms and poses (then local perturbations of the best)
 for a pose with 16 real solutions and prints it: the reference instance of
 ``tests/test_general_6r.py`` was found this way (seed 7, under a minute), then rounded to two
@@ -49,7 +54,7 @@ from dataclasses import dataclass, field  # noqa: E402
 import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
-from optik.closed_form.general_6r import General6R, solve_general_6r  # noqa: E402
+from optik.closed_form.general_6r import General6R, covers, solve_general_6r  # noqa: E402
 from optik.closed_form.structure import axes_of  # noqa: E402
 from optik.mechanism import Mechanism, dh_chain  # noqa: E402
 
@@ -206,6 +211,45 @@ def _plot(counts: Counter[int], n: int, path: str) -> None:
     print(f"figure: {save_figure(fig, path)}")
 
 
+SPECIAL = {
+    "axes 1-2 intersect (a1 = 0)": {"a": [0]},
+    "axes 1-2 parallel (alpha1 = 0)": {"alpha": [0]},
+    "axes 5-6 intersect (a5 = 0)": {"a": [4]},
+    "axes 2-3 intersect, 4-5 parallel": {"a": [1], "alpha": [3]},
+    "axes 1-2 and 5-6 intersect": {"a": [0, 4]},
+    "axes 1-2 intersect, 5-6 parallel": {"a": [0], "alpha": [4]},
+    "axes 1, 2, 3 parallel": {"alpha": [0, 1]},
+    "axes 4, 5, 6 parallel": {"alpha": [3, 4]},
+}
+"""Special geometries (none a decomposable family): DH entries set to zero in random arms."""
+
+
+def special(arms: int, poses: int, seed: int) -> None:
+    """Count check and round trips on random arms with one or two special axis pairs."""
+    rng = np.random.default_rng(seed)
+    print(f"\n## Special geometry: {arms} random arms x {poses} poses per case\n")
+    print("| geometry | covers(arm) % | count check passed % | round trip % | real solutions / target |")
+    print("|---|--:|--:|--:|--:|")
+    for label, zero in SPECIAL.items():
+        ok = trips = found = covered = 0
+        for _ in range(arms):
+            a, alpha, d = rng.uniform(0.1, 1, 6), rng.uniform(-np.pi, np.pi, 6), rng.uniform(-1, 1, 6)
+            a[zero.get("a", [])] = 0.0
+            alpha[zero.get("alpha", [])] = 0.0
+            arm = General6R(a=a, alpha=alpha, d=d)
+            covered += covers(arm)
+            qs = rng.uniform(-np.pi, np.pi, (poses, 6))
+            for q, sols in zip(qs, solve_general_6r(arm, arm.fk(qs)), strict=True):
+                ok += sols.count_ok
+                trips += any(_angle_dist(s, q) < 1e-8 for s in sols.q)
+                found += len(sols.q)
+        n = arms * poses
+        print(
+            f"| {label} | {100.0 * covered / arms:.0f} | {100.0 * ok / n:.1f} | "
+            f"{100.0 * trips / n:.1f} | {found / n:.2f} |"
+        )
+
+
 def search_16(seed: int, budget: float) -> int:
     """Random search, then local perturbations of the best, for a pose with 16 real solutions."""
     rng = np.random.default_rng(seed)
@@ -240,6 +284,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--multistart-arms", type=int, default=20, help="arms also solved by solve_ik_all")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--plot", default=None, help="write the histogram of real-solution counts here")
+    ap.add_argument("--special", type=int, default=20, help="arms per special geometry (0: skip)")
     ap.add_argument("--search-16", action="store_true", help="search for a pose with 16 real solutions")
     ap.add_argument("--budget", type=float, default=300.0, help="time budget of --search-16 (s)")
     args = ap.parse_args(argv)
@@ -247,7 +292,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         ap.error("--arms and --poses must be >= 1, --multistart-arms >= 0")
     if args.search_16:
         return search_16(args.seed, args.budget)
-    return run(args.arms, args.poses, min(args.multistart_arms, args.arms), args.seed, args.plot)
+    code = run(args.arms, args.poses, min(args.multistart_arms, args.arms), args.seed, args.plot)
+    if args.special > 0:
+        special(args.special, args.poses, args.seed)
+    return code
 
 
 if __name__ == "__main__":

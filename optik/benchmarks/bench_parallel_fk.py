@@ -10,19 +10,23 @@ Thread pools are pinned to 1 before numpy is imported (the machine has 2 cores).
    Random geometries are used as well as the catalog default (which only ever has 2 or 4
    real modes), so that 6-mode cases occur; each new mechanism is solved once untimed first
    (building its CasADi functions is set-up, not solving).
-2. Stewart-Gough, all real postures by homotopy continuation: random general 6-6 geometries and
-   the catalog geometry (planar hexagons); time per call, histogram of real postures, complex
-   solutions found (40 for a general 6-6), recall of the drawn pose. A heavier check repeats
-   each case with 3 independent rounds (fresh gamma and patch each) and counts postures that
-   the single run missed.
-3. Numerical ``optik.solve_fk`` on every closed catalog chain: tracking from a closed ``q0``
+2. Closed-form FK per call (``closed_form.fk``, all modes): five-bar, slider-crank, 3-RPR.
+3. Stewart-Gough, all real postures: the 40-path parameter homotopy (``method="auto"``, the
+   default) beside the 128-path total-degree method on the same random general 6-6 platforms
+   (random orientation and position), interleaved platform by platform: round trips (pose ->
+   leg lengths -> FK contains the pose), real postures, complex solutions, time per call, the
+   largest leg-length residual of any real posture, the median time ratio; a union check against
+   extra independent 128-path runs; the planar catalog geometry (where the count check fails and
+   the total method completes the set).
+4. Numerical ``optik.solve_fk`` on every closed catalog chain: tracking from a closed ``q0``
    whose actuators are moved by a small step, and a cold start from mid-limit: success rate
    and time per call.
 
 No peer library solves the FK of closed chains, so the comparisons are internal (closed form vs
 numeric on the same inputs).
 
-Run: ``optik benchmark parallel_fk [--n-rpr 500] [--n-sg 10] [--n-fk 200] [--seed 0]``.
+Run: ``optik benchmark parallel_fk [--n-rpr 500] [--n-sg 1000] [--n-total 1000] [--n-catalog 20]
+[--heavy 3] [--n-fk 200] [--seed 0]``.
 """
 
 from __future__ import annotations
@@ -87,58 +91,150 @@ def bench_3rpr(n: int, rng: np.random.Generator) -> None:
     print(f"\nreal modes (closed form) 0..6: {hist.tolist()}")
 
 
-def bench_stewart(n: int, rng: np.random.Generator, heavy: int) -> None:
-    """Homotopy continuation on random general and catalog geometries."""
-    print(f"\n## Stewart-Gough: all real postures ({n} random general 6-6 + {n} catalog cases)\n")
-    print(
-        "| geometry | recall | postures (mean) | complex | rounds | mean s | median s | p95 s | max s "
-        f"| missed vs {heavy}-round union |"
+def _sg_case(rng: np.random.Generator) -> tuple[np.ndarray, ...]:
+    """A random general 6-6 platform, a random pose (any orientation) and its leg lengths."""
+    b, p = rng.normal(size=(6, 3)), 0.6 * rng.normal(size=(6, 3))
+    r = parallel.quat_to_rot(rng.normal(size=4))
+    t = np.array([0.0, 0.0, 1.0]) + 0.2 * rng.normal(size=3)
+    return b, p, r, t, np.linalg.norm(p @ r.T + t - b, axis=1)
+
+
+def _has(poses, r, t, tol: float = 1e-8) -> bool:
+    return any(np.allclose(r2, r, atol=tol) and np.allclose(t2, t, atol=tol) for r2, t2 in poses)
+
+
+def _leg_residual(b, p, rho, poses) -> float:
+    return max(
+        (float(np.max(np.abs(np.linalg.norm(p @ r.T + t - b, axis=1) - rho))) for r, t in poses), default=0.0
     )
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    sg = optik.catalog.stewart_gough()
-    per_case = {}
-    for label in ("random 6-6", "catalog"):
-        times, hits, counts, cplx, rounds, missed = [], 0, [], [], [], 0
-        for i in range(n):
-            if label == "catalog":
-                b, p = sg.params["base"], sg.params["platform"]
-            else:
-                b, p = rng.normal(size=(6, 3)), 0.6 * rng.normal(size=(6, 3))
-            r = (
-                parallel.quat_to_rot(rng.normal(size=4))
-                if label != "catalog"
-                else optik.spatial.rpy_to_rot(*rng.uniform(-0.4, 0.4, 3))
+
+
+def bench_stewart(n: int, n_total: int, rng: np.random.Generator, heavy: int, n_catalog: int) -> None:
+    """40-path parameter homotopy (default ``method="auto"``) beside the 128-path total-degree
+    method on the same random general 6-6 platforms, interleaved platform by platform."""
+    n_total = min(n_total, n)
+    print(f"\n## Stewart-Gough: all real postures, {n} random general 6-6 platforms\n")
+    print(
+        f"The 128-path method runs on the first {n_total} of them (same platforms, same process, the "
+        "two methods alternating which goes first).\n"
+    )
+    cases = [_sg_case(rng) for _ in range(n)]
+    for method in ("auto", "total"):  # untimed: compile / load the tracker, the start instance
+        parallel.stewart_poses(*cases[0][:2], cases[0][4], method=method)
+    rows = {"auto": [], "total": []}
+    for i, (b, p, r, t, rho) in enumerate(cases):
+        order = ("auto", "total") if i % 2 == 0 else ("total", "auto")
+        for method in order:
+            if method == "total" and i >= n_total:
+                continue
+            start = time.perf_counter()
+            fk = parallel.stewart_poses(b, p, rho, method=method, seed=i)
+            elapsed = time.perf_counter() - start
+            rows[method].append(
+                {
+                    "time": elapsed,
+                    "poses": fk.poses,
+                    "found": _has(fk.poses, r, t),
+                    "residual": _leg_residual(b, p, rho, fk.poses),
+                    "complex": fk.complex_solutions,
+                    "complete": fk.complete,
+                    "method": fk.method,
+                }
             )
-            t = np.array([0.0, 0.0, 1.0]) + 0.2 * rng.normal(size=3)
-            rho = np.linalg.norm(p @ r.T + t - b, axis=1)
-            fk = parallel.stewart_poses(b, p, rho, seed=i)
-            times.append(fk.solve_time)
-            counts.append(len(fk.poses))
-            cplx.append(fk.complex_solutions)
-            rounds.append(fk.rounds)
-            hits += any(
-                np.allclose(r2, r, atol=1e-8) and np.allclose(t2, t, atol=1e-8) for r2, t2 in fk.poses
-            )
-            if heavy > 1 and i < max(2, n // 3):
-                union = list(fk.poses)
-                for k in range(1, heavy):
-                    extra = parallel.stewart_poses(b, p, rho, seed=1000 * k + i, max_rounds=1)
-                    for r2, t2 in extra.poses:
-                        if not any(
-                            np.allclose(r2, r3, atol=1e-7) and np.allclose(t2, t3, atol=1e-7)
-                            for r3, t3 in union
-                        ):
-                            union.append((r2, t2))
-                missed += len(union) - len(fk.poses)
-        tt = np.asarray(times)
+    print(
+        "| method | platforms | round trips | missed | complete | real postures mean (max) | complex | "
+        "median ms | mean ms | p95 ms | max ms | max leg residual |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    labels = {"auto": "40-path parameter (auto)", "total": "128-path total degree"}
+    for method, res in rows.items():
+        tt = np.array([x["time"] for x in res]) * 1e3
+        counts = [len(x["poses"]) for x in res]
+        found = sum(x["found"] for x in res)
         print(
-            f"| {label} | {100 * hits / n:5.1f}% | {np.mean(counts):5.2f} (max {max(counts)}) "
-            f"| {np.mean(cplx):5.1f} | {np.mean(rounds):4.2f} | {tt.mean():6.2f} | {np.median(tt):6.2f} "
-            f"| {np.percentile(tt, 95):6.2f} | {tt.max():6.2f} | {missed} |"
+            f"| {labels[method]} | {len(res)} | {found}/{len(res)} | {len(res) - found} "
+            f"| {sum(x['complete'] for x in res)} | {np.mean(counts):.2f} ({max(counts)}) "
+            f"| {np.mean([x['complex'] for x in res]):.1f} | {np.median(tt):.2f} | {tt.mean():.2f} "
+            f"| {np.percentile(tt, 95):.2f} | {tt.max():.2f} | {max(x['residual'] for x in res):.1e} |"
         )
-        per_case[label] = counts
-    for label, counts in per_case.items():
-        print(f"\n{label}: real postures per case {counts}")
+    new, old = rows["auto"][:n_total], rows["total"]
+    ratio = np.median([x["time"] for x in old]) / np.median([x["time"] for x in new])
+    fewer = sum(len(a["poses"]) < len(o["poses"]) for a, o in zip(new, old, strict=True))
+    more = sum(len(a["poses"]) > len(o["poses"]) for a, o in zip(new, old, strict=True))
+    used = {m: sum(x["method"] == m for x in rows["auto"]) for m in ("parameter", "parameter+total", "total")}
+    print(
+        f"\nSame {n_total} platforms: median time ratio 128-path / 40-path = {ratio:.1f}; "
+        f"platforms where the 40-path method found fewer real postures than the 128-path one: {fewer}, "
+        f"more: {more}"
+    )
+    print(f"methods used by auto: {used}")
+    hist = np.bincount([len(x["poses"]) for x in rows["auto"]], minlength=11)
+    print(f"real postures per platform (40-path), counts of 0..{len(hist) - 1}: {hist.tolist()}")
+    checked = max(1, min(n, n // 50))
+    missed = 0
+    for b, p, _r, _t, rho in cases[:checked]:
+        union = list(parallel.stewart_poses(b, p, rho).poses)
+        for k in range(1, heavy):
+            for r2, t2 in parallel.stewart_poses(
+                b, p, rho, method="total", seed=1000 * k, max_rounds=1
+            ).poses:
+                if not _has(union, r2, t2, 1e-7):
+                    union.append((r2, t2))
+                    missed += 1
+    print(
+        f"union check on {checked} platforms ({heavy - 1} extra independent 128-path runs each): "
+        f"postures the 40-path run missed: {missed}"
+    )
+    if n_catalog:
+        sg = optik.catalog.stewart_gough()
+        b, p = sg.params["base"], sg.params["platform"]
+        print(
+            f"\n### Catalog geometry (planar hexagons: 28 complex solutions, the count check fails), "
+            f"{n_catalog} poses\n"
+        )
+        print("| method | round trips | median ms | methods used |")
+        print("|---|---|---|---|")
+        poses = [
+            (
+                optik.spatial.rpy_to_rot(*rng.uniform(-0.4, 0.4, 3)),
+                np.array([0.0, 0.0, 1.0]) + 0.2 * rng.normal(size=3),
+            )
+            for _ in range(n_catalog)
+        ]
+        for method in ("auto", "total"):
+            times, found, used_c = [], 0, set()
+            for i, (r, t) in enumerate(poses):
+                rho = np.linalg.norm(p @ r.T + t - b, axis=1)
+                start = time.perf_counter()
+                fk = parallel.stewart_poses(b, p, rho, method=method, seed=i)
+                times.append(time.perf_counter() - start)
+                found += _has(fk.poses, r, t)
+                used_c.add(fk.method)
+            print(f"| {method} | {found}/{n_catalog} | {1e3 * np.median(times):.1f} | {sorted(used_c)} |")
+
+
+def bench_closed_form_fk(n: int, rng: np.random.Generator) -> None:
+    """Per-call time of the closed-form FK (all modes, full coordinates) of the planar chains."""
+    print(f"\n## Closed-form FK per call (all modes, `closed_form.fk`, {n} random inputs each)\n")
+    print(f"| mechanism | modes (mean) | {'mean ms':>9} | {'median':>9} | {'p95':>9} |")
+    print("|---|---|---|---|---|")
+    inputs = {
+        "five_bar": lambda m: rng.uniform(-np.pi, np.pi, 2),
+        "slider_crank": lambda m: rng.uniform(-np.pi, np.pi, 1),
+        "planar_3rpr": lambda m: closed_form.ik(
+            m, optik.Pose2D(*rng.uniform([0.6, 0.4, -np.pi], [1.4, 1.1, np.pi]))
+        )[0][m.actuated_indices],
+    }
+    for name, draw in inputs.items():
+        m = getattr(optik.catalog, name)()
+        cases = [draw(m) for _ in range(n)]
+        closed_form.fk(m, cases[0])
+        times, modes = [], []
+        for a in cases:
+            start = time.perf_counter()
+            modes.append(len(closed_form.fk(m, a, respect_limits=False)))
+            times.append(time.perf_counter() - start)
+        print(f"| {name} | {np.mean(modes):.2f} | {_stats(times)} |")
 
 
 def bench_solve_fk(n: int, rng: np.random.Generator) -> None:
@@ -180,16 +276,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the three benchmarks and print their tables (markdown); returns 0."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n-rpr", type=int, default=500, help="3-RPR cases per geometry kind")
-    ap.add_argument("--n-sg", type=int, default=10, help="Stewart-Gough cases per geometry kind")
+    ap.add_argument("--n-sg", type=int, default=1000, help="random general 6-6 Stewart-Gough platforms")
+    ap.add_argument(
+        "--n-total",
+        type=int,
+        default=1000,
+        help="of those, how many the 128-path method solves too (the first ones)",
+    )
+    ap.add_argument(
+        "--n-catalog", type=int, default=20, help="Stewart-Gough poses on the planar catalog geometry"
+    )
     ap.add_argument("--heavy", type=int, default=3, help="independent runs in the completeness check")
     ap.add_argument("--n-fk", type=int, default=200, help="solve_fk cases per mechanism")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
-    if min(args.n_rpr, args.n_sg, args.n_fk, args.heavy) < 1:
-        ap.error("--n-rpr, --n-sg, --n-fk and --heavy must be >= 1")
+    if min(args.n_rpr, args.n_sg, args.n_fk, args.heavy, args.n_total) < 1 or args.n_catalog < 0:
+        ap.error("--n-rpr, --n-sg, --n-total, --n-fk and --heavy must be >= 1, --n-catalog >= 0")
     rng = np.random.default_rng(args.seed)
     bench_3rpr(args.n_rpr, rng)
-    bench_stewart(args.n_sg, rng, args.heavy)
+    bench_closed_form_fk(args.n_rpr, rng)
+    bench_stewart(args.n_sg, args.n_total, rng, args.heavy, args.n_catalog)
     bench_solve_fk(args.n_fk, rng)
     return 0
 

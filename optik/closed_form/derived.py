@@ -24,27 +24,40 @@ every mechanism with a detected family and no catalog closed form gets one: ``cl
 
 from __future__ import annotations
 
+import threading
 import weakref
 from dataclasses import dataclass
+from functools import cached_property
+from typing import Any
 
+import casadi as ca
 import numpy as np
 
-from optik.closed_form import registry, spherical_wrist, three_parallel
+from optik import native
+from optik.closed_form import general_6r, registry, spherical_wrist, three_parallel
+from optik.closed_form import vec3 as v3
+from optik.closed_form.spherical_wrist import Branch
 from optik.closed_form.structure import Axes, Structure, axes_of, detect
 from optik.mechanism import Mechanism
 
-POLISH_STEPS = 2
-"""Gauss-Newton steps applied to every candidate."""
+POLISH_STEPS = 3
+"""Gauss-Newton steps applied to an inexact candidate."""
+POLISH_RANGE = (1e-7, 1e-3)
+"""Bounds of `DerivedIK.polish_range`: candidates with errors above `CHECK_TOL` but within
+the polish range (times the arm's size for the position, rad for the orientation) are polished;
+those beyond are no solution (least-squares answers of subproblems without a real one)."""
+COMPILE_AFTER = 64
+"""Single-target calls of one kernel after which it is compiled to C (`optik.native`)."""
 CHECK_TOL = 1e-9
 """FK check: largest position error (times the arm's size) and orientation error (rad) kept."""
 SAME_TOL = 1e-4
 """Upper bound of the distance under which two candidates are one solution."""
 
 _KERNELS = {
-    "spherical_wrist": spherical_wrist.candidates,
-    "spherical_base": spherical_wrist.candidates,
-    "three_parallel": three_parallel.candidates,
-    "three_parallel_reversed": three_parallel.candidates,
+    "spherical_wrist": spherical_wrist.branches,
+    "spherical_base": spherical_wrist.branches,
+    "three_parallel": three_parallel.branches,
+    "three_parallel_reversed": three_parallel.branches,
 }
 
 
@@ -80,17 +93,41 @@ class DerivedIK:
     axes: Axes
     structure: Structure
 
+    @property
+    def chain(self) -> Axes:
+        """The chain the kernel works on: ``axes``, or its inverse for the reversed families."""
+        return self.axes.reversed() if self.structure.reversed else self.axes
+
+    def branches(self, rt: v3.Mat, pt: v3.Vec, ops: v3.Ops) -> list[Branch]:
+        """The 8 candidate branches (component tuples) for the target rotation ``rt`` and
+        position ``pt`` (components as numpy arrays or CasADi symbols, see ``ops``)."""
+        kernel = _KERNELS[self.structure.family]
+        chain = self.chain
+        if self.structure.reversed:  # solve T^-1 on the inverse chain, q = -reverse(q')
+            rt, pt = v3.transpose(rt), v3.scale(-1.0, v3.mat_t_vec(rt, pt))
+        rel = v3.mat_mul(rt, tuple(v3.vec(row) for row in chain.home[:3, :3].T))
+        out = kernel(chain, self.structure.position, rel, pt, ops)
+        if self.structure.reversed:
+            out = [tuple(-a for a in b[::-1]) for b in out]
+        return out
+
     def candidates(self, t: np.ndarray) -> np.ndarray:
         """Unchecked candidates ``(N, 8, 6)`` of the decomposition for targets ``t (N, 4, 4)``."""
-        kernel = _KERNELS[self.structure.family]
-        if not self.structure.reversed:
-            return kernel(self.axes, self.structure.position, t)
-        inv = np.zeros_like(t)
-        rt = np.swapaxes(t[:, :3, :3], -1, -2)
-        inv[:, :3, :3] = rt
-        inv[:, :3, 3] = -np.einsum("nij,nj->ni", rt, t[:, :3, 3])
-        inv[:, 3, 3] = 1.0
-        return -kernel(self.axes.reversed(), self.structure.position, inv)[..., ::-1]
+        rt, pt = _components(t)
+        rows = [
+            np.stack(np.broadcast_arrays(*b, pt[0]), axis=-1)[:, :6] for b in self.branches(rt, pt, v3.NUMPY)
+        ]
+        return np.stack(rows, axis=1)
+
+    def errors_c(self, q: Branch, rt: v3.Mat, pt: v3.Vec, ops: v3.Ops) -> tuple[Any, Any]:
+        """Position and orientation (geodesic angle) errors of the branch ``q`` against the
+        target ``(rt, pt)``, on components."""
+        rr, p = self.axes.fk_c(q, ops)
+        dp = v3.sub(p, pt)
+        m = v3.mat_mul(rr, v3.transpose(rt))
+        skew = (m[2][1] - m[1][2], m[0][2] - m[2][0], m[1][0] - m[0][1])
+        angle = ops.atan2(0.5 * v3.norm(skew, ops), 0.5 * (m[0][0] + m[1][1] + m[2][2] - 1.0))
+        return v3.norm(dp, ops), angle
 
     def solve(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every solution for targets ``t (N, 4, 4)`` (steps 1-4 of the module docstring).
@@ -102,26 +139,176 @@ class DerivedIK:
         t = np.asarray(t, dtype=float).reshape(-1, 4, 4)
         q = self.candidates(t)
         q = np.where(np.isfinite(q), q, 0.0)
-        tt = t[:, None]
+        rt, pt = _components(t[:, None])
+        pos, ori = self.errors_c(tuple(q[..., i] for i in range(6)), rt, pt, v3.NUMPY)
+        return self.finish(t, q, pos, ori)
+
+    def finish(
+        self, t: np.ndarray, q: np.ndarray, pos: np.ndarray, ori: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Steps 2-4 for candidates ``q (N, 8, 6)`` with errors ``pos, ori (N, 8)``: polish the
+        inexact ones within `polish_range`, check, wrap, merge duplicates."""
+        size = self.axes.size
+        ok = (pos <= CHECK_TOL * size) & (ori <= CHECK_TOL)
+        span = self.polish_range
+        near = ~ok & (pos <= span * size) & (ori <= span)
+        if near.any():
+            idx = np.nonzero(near)
+            qq, good = self._polish(q[idx], t[idx[0]])
+            q[idx] = qq
+            ok[idx] = good
+        q = _wrap(q)
+        d = np.abs(q[:, :, None, :] - q[:, None, :, :])  # in [0, 2 pi): |wrap| = min(d, 2 pi - d)
+        diff = np.minimum(d, 2.0 * np.pi - d).max(axis=-1)  # (N, 8, 8)
+        close = (diff < SAME_TOL) & ok[:, :, None] & ok[:, None, :] & _LOWER
+        if close.any():
+            self._merge(t, q, ok, diff, close)
+        return np.where(ok[..., None], q, 0.0), ok
+
+    @cached_property
+    def polish_range(self) -> float:
+        """How inexact a candidate may be and still be polished: 1000 times the model's defect
+        (the largest error of the candidate nearest the generating configuration over 16 seeded
+        FK targets: rounding for exact models, the mismatch of the detected relations for models
+        read from rounded URDF numbers), within `POLISH_RANGE`."""
+        q = np.random.default_rng(0).uniform(-np.pi, np.pi, (16, 6))
+        t = self.axes.fk(q)
+        cand = self.candidates(t)
+        rt, pt = _components(t[:, None])
+        pos, ori = self.errors_c(tuple(cand[..., i] for i in range(6)), rt, pt, v3.NUMPY)
+        defect = float(np.max(np.min(np.maximum(pos / self.axes.size, ori), axis=1)))
+        return min(max(1e3 * defect, POLISH_RANGE[0]), POLISH_RANGE[1])
+
+    @cached_property
+    def _single(self) -> _Single:
+        return _Single(self)
+
+    def compile(self) -> None:
+        """Compile the single-target kernel to C now and wait for it (it is compiled in the
+        background by itself after `COMPILE_AFTER` calls; without a C compiler CasADi's
+        evaluator stays)."""
+        with self._single.lock:
+            if self._single.calls < COMPILE_AFTER:
+                self._single.calls = COMPILE_AFTER  # no second build when it gets hot
+                self._single.compile(wait=True)
+
+    def solve_one(self, t: np.ndarray) -> list[list[float]]:
+        """The solutions for one target ``t (4, 4)`` as rows, the same as ``solve(t)`` but
+        through the symbolic kernel (`_Single`): about a hundred times cheaper per call than the
+        numpy kernel on one target. Targets with a candidate to polish or two close candidates
+        take the numpy path (`finish`); the others return
+        [`CheckedRows`][optik.closed_form.registry.CheckedRows] carrying the kernel's FK check
+        of each row (the product-of-exponentials model, equal to the mechanism's FK to
+        rounding: `axes_of` checks it)."""
+        one = self._single
+        with one.lock:
+            one.t[:] = t.reshape(16)
+            one.call()
+            one.calls += 1
+            if one.calls == COMPILE_AFTER:
+                one.compile()  # in the background
+            q, err, pairs = one.q.tolist(), one.err.tolist(), one.pairs.tolist()
+        size_tol = CHECK_TOL * self.axes.size
+        span = self.polish_range
+        ok = [err[2 * i] <= size_tol and err[2 * i + 1] <= CHECK_TOL for i in range(8)]
+        pos_span = span * self.axes.size
+        near = [not ok[i] and err[2 * i] <= pos_span and err[2 * i + 1] <= span for i in range(8)]
+        close = any(ok[i] and ok[j] and pairs[k] < SAME_TOL for k, (i, j) in enumerate(_PAIRS))
+        if any(near) or close:
+            qa = np.array(q).reshape(1, 8, 6)
+            e = np.array(err).reshape(1, 8, 2)
+            qa, oka = self.finish(np.asarray(t, dtype=float).reshape(1, 4, 4), qa, e[..., 0], e[..., 1])
+            return qa[0][oka[0]].tolist()
+        keep = [i for i in range(8) if ok[i]]
+        return registry.CheckedRows(
+            [q[6 * i : 6 * i + 6] for i in keep], [(err[2 * i], err[2 * i + 1]) for i in keep]
+        )
+
+    def _polish(self, q: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Gauss-Newton on ``q (K, 6)`` for targets ``t (K, 4, 4)``; which pass the check."""
         for _ in range(POLISH_STEPS):
             pose, jac = self.axes.jacobian(q)
-            res, _ = _errors(pose, tt)
-            q = q - _solve_steps(jac, res)
-        pose, jac = self.axes.jacobian(q)
-        res, angle = _errors(pose, tt)
-        pos = np.linalg.norm(res[..., :3], axis=-1)
-        ok = (pos <= CHECK_TOL * self.axes.size) & (angle <= CHECK_TOL)
-        q = _wrap(q)
-        sigma = np.linalg.svd(jac, compute_uv=False)[..., -1]
-        norm = np.linalg.norm(res, axis=-1)
-        tol = np.minimum(SAME_TOL, 100.0 * norm / np.maximum(sigma, 1e-300) + 1e-9)
-        diff = np.abs(_wrap(q[:, :, None, :] - q[:, None, :, :])).max(axis=-1)  # (N, 8, 8)
-        same = diff < np.maximum(tol[:, :, None], tol[:, None, :])
-        earlier = np.tril(np.ones((8, 8), dtype=bool), -1)
-        for j in range(1, 8):  # drop j when an earlier kept candidate is the same solution
-            dup = np.any(same[:, j, :j] & ok[:, :j] & earlier[j, :j], axis=-1)
-            ok[:, j] &= ~dup
-        return np.where(ok[..., None], q, 0.0), ok
+            q = q - _solve_steps(jac, _errors(pose, t)[0])
+        res, angle = _errors(self.axes.fk(q), t)
+        return q, (np.linalg.norm(res[..., :3], axis=-1) <= CHECK_TOL * self.axes.size) & (angle <= CHECK_TOL)
+
+    def _merge(
+        self, t: np.ndarray, q: np.ndarray, ok: np.ndarray, diff: np.ndarray, close: np.ndarray
+    ) -> None:
+        """Drop (in ``ok``) each candidate that is the same solution as an earlier kept one, the
+        distance being tied to the accuracy of both (module docstring, step 4)."""
+        for n in np.unique(np.nonzero(close)[0]):
+            pose, jac = self.axes.jacobian(q[n])
+            norm = np.linalg.norm(_errors(pose, t[n])[0], axis=-1)
+            sigma = np.linalg.svd(jac, compute_uv=False)[..., -1]
+            tol = np.minimum(SAME_TOL, 100.0 * norm / np.maximum(sigma, 1e-300) + 1e-9)
+            for j in range(1, 8):
+                for i in range(j):
+                    if ok[n, i] and ok[n, j] and diff[n, j, i] < max(tol[i], tol[j]):
+                        ok[n, j] = False
+
+
+_PAIRS = [(i, j) for j in range(8) for i in range(j)]
+_LOWER = np.tri(8, k=-1, dtype=bool)
+"""Pairs ``(j, i)`` with ``i < j`` of the 8 candidates."""
+
+
+class _Single:
+    """The kernel of a `DerivedIK` as one CasADi function of a single target, evaluated on
+    preallocated buffers (``Function.buffer``): 16 target entries (row-major) in; the 8
+    branches wrapped to ``[-pi, pi]`` (48), their position and orientation errors (16) and the
+    wrapped max-norm distances of the 28 pairs out. Guarded by a lock (the buffers are shared)."""
+
+    def __init__(self, solver: DerivedIK) -> None:
+        t = ca.SX.sym("t", 16)
+        rt = tuple(tuple(t[4 * i + j] for j in range(3)) for i in range(3))
+        pt = (t[3], t[7], t[11])
+        ops = v3.CASADI
+        raw = solver.branches(rt, pt, ops)
+        two_pi = 2.0 * np.pi
+        wrapped = [[a - two_pi * ca.floor((a + np.pi) / two_pi) for a in b] for b in raw]  # [-pi, pi)
+        errs = [e for b in raw for e in solver.errors_c(b, rt, pt, ops)]
+        pairs = []
+        for i, j in _PAIRS:
+            dist = 0.0
+            for a, b in zip(wrapped[i], wrapped[j], strict=True):
+                d = ca.fabs(a - b)
+                dist = ops.fmax(dist, ops.fmin(d, two_pi - d))
+            pairs.append(dist)
+        self.function = f = ca.Function(
+            "derived_ik",
+            [t],
+            [ca.vertcat(*[a for b in wrapped for a in b]), ca.vertcat(*errs), ca.vertcat(*pairs)],
+        )
+        self.t = np.zeros(16)
+        self.q = np.zeros(48)
+        self.err = np.zeros(16)
+        self.pairs = np.zeros(len(_PAIRS))
+        self.buffer, self.call = f.buffer()
+        self.buffer.set_arg(0, memoryview(self.t))
+        for k, out in enumerate((self.q, self.err, self.pairs)):
+            self.buffer.set_res(k, memoryview(out))
+        self.lock = threading.Lock()
+        self.calls = 0
+
+    def compile(self, wait: bool = False) -> None:
+        """Switch ``call`` to the function compiled to C on the same buffers, built in the
+        background (`optik.native.library`; CasADi's evaluator answers until it is loaded, and
+        stays without a working C compiler). ``wait``: block until the build is done."""
+        lib = native.library([self.function])
+        if lib is None:
+            return
+        if wait:
+            lib.wait()
+        binding = native.Binding(lib, self.function.name(), [self.t], [self.q, self.err, self.pairs])
+        evaluate = self.call
+        self.call = lambda: binding(evaluate)
+
+
+def _components(t: np.ndarray) -> tuple[v3.Mat, v3.Vec]:
+    """Rotation and position of transforms ``t (..., 4, 4)`` as component tuples."""
+    rt = tuple(tuple(t[..., i, j] for j in range(3)) for i in range(3))
+    return rt, (t[..., 0, 3], t[..., 1, 3], t[..., 2, 3])  # type: ignore[return-value]
 
 
 def _solve_steps(jac: np.ndarray, res: np.ndarray) -> np.ndarray:
@@ -138,7 +325,19 @@ def derive_axes(axes: Axes) -> DerivedIK | None:
     return None if structure is None else DerivedIK(axes, structure)
 
 
+_AXES: weakref.WeakKeyDictionary[Mechanism, Axes | None] = weakref.WeakKeyDictionary()
 _CACHE: weakref.WeakKeyDictionary[Mechanism, DerivedIK | None] = weakref.WeakKeyDictionary()
+
+
+def chain_axes(m: Mechanism) -> Axes | None:
+    """`axes_of` of a mechanism with task ``"pose"``, cached per mechanism (None otherwise)."""
+    try:
+        return _AXES[m]
+    except KeyError:
+        pass
+    axes = axes_of(m) if m.task == "pose" else None
+    _AXES[m] = axes
+    return axes
 
 
 def derive(m: Mechanism) -> DerivedIK | None:
@@ -148,10 +347,22 @@ def derive(m: Mechanism) -> DerivedIK | None:
         return _CACHE[m]
     except KeyError:
         pass
-    axes = axes_of(m) if m.task == "pose" and m.n_q == 6 else None
+    axes = chain_axes(m) if m.n_q == 6 else None
     solver = None if axes is None else derive_axes(axes)
     _CACHE[m] = solver
     return solver
+
+
+def derive_locked(m: Mechanism, locked: dict[int, float]) -> DerivedIK | None:
+    """The derived IK of the 6R chain left when the coordinates ``locked`` (index -> value) of a
+    serial revolute chain are fixed (`Axes.lock`, highest index first), or None when that chain
+    is not decomposable (or ``m`` is not such a chain, or it does not leave 6 joints)."""
+    axes = chain_axes(m)
+    if axes is None or axes.n - len(locked) != 6:
+        return None
+    for index in sorted(locked, reverse=True):
+        axes = axes.lock(index, locked[index])
+    return derive_axes(axes)
 
 
 def derived_rows(m: Mechanism) -> registry.IKSolver | None:
@@ -161,10 +372,20 @@ def derived_rows(m: Mechanism) -> registry.IKSolver | None:
         return None
 
     def rows(_: Mechanism, t: np.ndarray) -> list[list[float]]:
-        q, ok = solver.solve(t[None])
-        return q[0][ok[0]].tolist()
+        return solver.solve_one(t)
 
     return rows
 
 
+def general_rows(m: Mechanism) -> registry.IKSolver | None:
+    """Registry deriver after [`derived_rows`][optik.closed_form.derived.derived_rows]: a 6R
+    serial chain of no decomposable family gets the general 6R solver
+    ([`ik_general_6r`][optik.closed_form.general_6r.ik_general_6r], all 16 complex solutions'
+    real ones, each FK-checked)."""
+    if m.n_q != 6 or derive(m) is not None or chain_axes(m) is None:
+        return None
+    return general_6r.ik_general_6r
+
+
 registry.register_deriver(derived_rows)
+registry.register_deriver(general_rows)

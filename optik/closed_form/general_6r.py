@@ -38,6 +38,10 @@ of a designed arm, so that ``A`` is invertible and the eigenvectors are well sca
 solution lies exactly at the rotated pole (probability zero; then, and whenever ``A`` is badly
 conditioned, the ``24 x 24`` generalized eigenproblem is solved by QZ instead).
 
+When the count check fails, the inverse chain (`General6R.reversed`) is solved too: axes 1-2
+intersecting or parallel make ``M(x_3)`` singular for every ``x_3``, and the inverse chain has
+them at positions 5-6, where the elimination is regular.
+
 **Certification.** Every candidate whose eigenvalue is real to within :data:`REAL_TOL` is
 Newton-polished on the full pose residual (six equations, six unknowns), kept only when the
 final forward kinematics matches the target to :data:`FK_TOL` (position relative to the arm's
@@ -56,6 +60,7 @@ import math
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -72,6 +77,7 @@ __all__ = [
     "ROTATIONS",
     "General6R",
     "General6RSolutions",
+    "covers",
     "ik_general_6r",
     "solve_general_6r",
 ]
@@ -89,6 +95,9 @@ ROTATIONS = (0.7853981633974483 + 0.2718281828, -0.5772156649, 0.4142135624)
 NEWTON_ITERATIONS = 12
 """Newton iterations on the pose residual per candidate (converged candidates stop early)."""
 
+_EXACT = 1e-14
+"""FK error (relative position, rad) below which a polished solution counts as exact."""
+
 _SAME = 1e-6
 """Two polished solutions closer than this (rad, modulo 2 pi) are the same."""
 
@@ -97,6 +106,13 @@ _DFT_TOL = 1e-9
 
 _COND_QZ = 1e10
 """Condition number of the leading matrix ``A`` above which QZ replaces the companion matrix."""
+
+_PROBES = np.array([[1.0, 0.5773502692, 0.3333333333], [1.0, -1.7320508076, 3.0]])
+"""``(1, x, x^2)`` at two test points where ``M(x)`` is checked for being nonsingular."""
+
+_SINGULAR_PENCIL = 1e-10
+"""``M(x)`` is singular for every ``x`` when its smallest singular value relative to its largest
+is below this at both test points."""
 
 # (1 + x^2) e^{i k phi} = (1 + i x)^(1 + k) (1 - i x)^(1 - k), k = -1, 0, 1 -> powers x^0, x^1, x^2
 _HALF = np.array([[1.0, 1.0, 1.0], [-2j, 0.0, 2j], [-1.0, 1.0, -1.0]])
@@ -224,6 +240,41 @@ class General6R:
         """Scaled ``(a, d)``: the arm at unit size."""
         return self.a / self.scale, self.d / self.scale
 
+    @cached_property
+    def _left(self) -> _Left:
+        """The arm-only part of the elimination (computed once)."""
+        return _Left(self)
+
+    @cached_property
+    def covered(self) -> bool:
+        """Whether the eigenvalue method covers this geometry: at three seeded random poses the
+        elimination is regular (``Q`` of full rank and ``M(x_3)`` not singular for every
+        ``x_3``) from at least one end of the chain. False for e.g. axes 1-2 and 5-6 both
+        intersecting, three consecutive parallel axes at an end, and most decomposable families;
+        a router should send only covered arms to `solve_general_6r`."""
+        targets = self.fk(np.random.default_rng(0).uniform(-np.pi, np.pi, (3, 6)))
+        fwd = _matrices(self, targets)
+        back = _matrices(self.reversed, _inv(targets))
+        return bool(np.all((fwd[6] & fwd[7]) | (back[6] & back[7])))
+
+    @cached_property
+    def reversed(self) -> General6R:
+        """The inverse chain: ``T(q)^-1 = reversed.fk(q[::-1])``, as its own DH description.
+
+        In product-of-exponentials form ``T(q) = exp(xi_1 q_1) ... exp(xi_6 q_6) M``, so
+        ``T^-1 = exp(-xi'_6 q_6) ... exp(-xi'_1 q_1) M^-1`` with the joint lines ``xi'`` seen from
+        the end effector at ``q = 0``: the same arm solved from its other end.
+        """
+        home = self.fk(np.zeros(6))
+        pre = self.base.copy()
+        points, dirs = np.zeros((6, 3)), np.zeros((6, 3))
+        for i in range(6):
+            points[i], dirs[i] = pre[:3, 3], pre[:3, 2]
+            pre = pre @ _dh(np.array(self.offset[i]), self.d[i], self.a[i], self.alpha[i])
+        inv = _inv(home)
+        pts = (points @ inv[:3, :3].T + inv[:3, 3])[::-1]
+        return _dh_from_lines(pts, -(dirs @ inv[:3, :3].T)[::-1], inv)
+
 
 def _perpendicular(z: np.ndarray, hint: np.ndarray) -> np.ndarray:
     """A unit vector perpendicular to ``z``: ``hint`` made perpendicular, else any."""
@@ -346,7 +397,6 @@ class General6RSolutions:
 
 
 _ARMS: weakref.WeakKeyDictionary[Mechanism, General6R] = weakref.WeakKeyDictionary()
-_LEFTS: dict[int, tuple[General6R, _Left]] = {}
 
 
 def _arm(arm: Mechanism | General6R) -> General6R:
@@ -361,17 +411,6 @@ def _arm(arm: Mechanism | General6R) -> General6R:
     except KeyError:
         _ARMS[arm] = out = General6R.from_mechanism(arm)
         return out
-
-
-def _left(arm: General6R) -> _Left:
-    hit = _LEFTS.get(id(arm))
-    if hit is not None and hit[0] is arm:
-        return hit[1]
-    if len(_LEFTS) > 64:
-        _LEFTS.clear()
-    left = _Left(arm)
-    _LEFTS[id(arm)] = (arm, left)
-    return left
 
 
 def _targets(arm: General6R, target: Any) -> tuple[np.ndarray, bool]:
@@ -513,10 +552,11 @@ def _dedup(q: np.ndarray) -> np.ndarray:
     return np.array(keep).reshape(-1, 6)
 
 
-def _solve(arm: General6R, targets: np.ndarray, fk: Any) -> list[General6RSolutions]:
-    """The eigenvalue solver on validated targets ``(N, 4, 4)``; ``fk`` is the independent
-    forward kinematics used for the final check (``q (K, 6) -> (K, 4, 4)``)."""
-    left = _left(arm)
+def _matrices(arm: General6R, targets: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Steps 1-3 for targets ``(N, 4, 4)``: the unit-scale targets, the SVD ``u, sv, vt`` of
+    ``Q``, the constants ``r0``, the coefficients ``(C, B, A)`` of ``M(x_3)`` (``(N, 3, 12, 12)``)
+    and the masks ``rank_ok`` (``Q`` of rank 8) and ``regular`` (``M`` not singular for all x)."""
+    left = arm._left
     n = len(targets)
     tp = _inv(arm.base) @ targets @ _inv(arm.tool)
     tp[:, :3, 3] /= arm.scale
@@ -530,6 +570,20 @@ def _solve(arm: General6R, targets: np.ndarray, fk: Any) -> list[General6RSoluti
     mats = np.zeros((n, 3, 12, 12))
     mats[:, :, :6, :9] = sigma
     mats[:, :, 6:, 3:] = sigma
+    # a singular pencil (det M(x) = 0 for every x: special geometry) has meaningless eigenvalues
+    probe = np.einsum("nkab,pk->npab", mats, _PROBES)
+    probe_sv = np.linalg.svd(probe, compute_uv=False)
+    regular = np.max(probe_sv[..., -1] / probe_sv[..., 0], axis=1) > _SINGULAR_PENCIL
+    return tp, u, sv, vt, r0, mats, rank_ok, regular
+
+
+def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[General6RSolutions]:
+    """The eigenvalue solver on validated targets ``(N, 4, 4)``; ``fk`` is the independent
+    forward kinematics used for the final check (``q (K, 6) -> (K, 4, 4)``), ``refine`` the
+    last polish of the candidates on the exact model (``(q, target index) -> q``)."""
+    left = arm._left
+    n = len(targets)
+    tp, u, sv, vt, r0, mats, rank_ok, regular = _matrices(arm, targets)
     vals, vecs = _eigen(mats)
     finite = np.isfinite(vals) & (np.abs(vals) < 1e12)
     spurious = np.zeros_like(finite)
@@ -557,7 +611,7 @@ def _solve(arm: General6R, targets: np.ndarray, fk: Any) -> list[General6RSoluti
     a6 = _inv(pre[:, 5]) @ tp[idx_n] @ _inv(_dh(np.array(0.0), left.d[5], left.a[5], left.alpha[5]))
     theta[:, 5] = np.arctan2(a6[:, 1, 0], a6[:, 0, 0])
     theta = _polish(left, theta, tp[idx_n])
-    q = _wrap(theta - arm.offset)
+    q = refine(_wrap(theta - arm.offset), idx_n)
     ok = np.zeros(len(q), dtype=bool)
     fk_err = np.full(len(q), np.inf)
     if len(q):
@@ -575,13 +629,19 @@ def _solve(arm: General6R, targets: np.ndarray, fk: Any) -> list[General6RSoluti
         pair = failed & (np.abs(phi3[idx_n, idx_e].imag) > 1e-7)
         n_complex = n_finite - n_real + int(np.sum(pair))
         n_rejected = int(np.sum(failed & ~pair))
-        count_ok = bool(rank_ok[k]) and n_finite == 16 and n_rejected == 0 and len(sols) + n_complex == 16
+        count_ok = (
+            bool(rank_ok[k] and regular[k])
+            and n_finite == 16
+            and n_rejected == 0
+            and len(sols) + n_complex == 16
+        )
         reason = ""
         if not count_ok:
             reason = (
                 f"count check failed: {n_finite} finite solutions (16 expected), {len(sols)} real verified, "
                 f"{n_complex} complex, {n_rejected} real candidates rejected by the FK check"
                 + ("" if rank_ok[k] else ", rank-deficient elimination (special geometry)")
+                + ("" if regular[k] else ", singular 12 x 12 matrix for every x_3 (special geometry)")
             )
         elif not len(sols):
             reason = "unreachable: all 16 solutions are complex"
@@ -613,12 +673,82 @@ def solve_general_6r(
     g = _arm(arm)
     targets, single = _targets(g, target)
     fk = arm.fk if isinstance(arm, Mechanism) else g.fk
-    out = _solve(g, targets, fk)
+
+    def refine(q: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        return _refine(g, arm if isinstance(arm, Mechanism) else None, q, targets[idx])
+
+    out = _solve(g, targets, fk, refine)
+    bad = [k for k, s in enumerate(out) if not s.count_ok]
+    if bad:  # special geometry at the first axes: solve the inverse chain from the other end
+        back = _solve(
+            g.reversed,
+            _inv(targets[bad]),
+            lambda q: _inv(fk(q[:, ::-1])),
+            lambda q, idx: refine(q[:, ::-1], np.asarray(bad, dtype=int)[idx])[:, ::-1],
+        )
+        for k, rev in zip(bad, back, strict=True):
+            out[k] = _merge(out[k], rev, targets[k], fk, g.scale)
     return out[0] if single else out
+
+
+def _refine(g: General6R, m: Mechanism | None, q: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """The last Newton polish on the exact model: the DH model ``g`` (exact for a `General6R`;
+    candidates of the inverse chain come from its own, less accurate, DH description), then for
+    a mechanism a few steps on ``m.fk`` and ``m.jacobian`` wherever the FK error is still above
+    rounding (the DH description of near-parallel axes loses digits)."""
+    if not len(q):
+        return q
+    tp = _inv(g.base) @ targets @ _inv(g.tool)
+    tp[:, :3, 3] /= g.scale
+    q = _wrap(_polish(g._left, q + g.offset, tp) - g.offset)
+    if m is None:
+        return q
+    for _ in range(3):
+        pose = m.fk(q).reshape(-1, 4, 4)
+        dp, dr = _pose_errors(pose, targets)
+        todo = np.flatnonzero(np.maximum(dp / g.scale, dr) > _EXACT)
+        if not len(todo):
+            break
+        for k in todo:
+            rot = pose[k, :3, :3] @ targets[k, :3, :3].T
+            err = np.concatenate([pose[k, :3, 3] - targets[k, :3, 3], 0.5 * _skew(rot)])
+            q[k] = q[k] - np.linalg.lstsq(m.jacobian(q[k]), err, rcond=None)[0]
+    return _wrap(q)
+
+
+def _merge(
+    fwd: General6RSolutions, rev: General6RSolutions, target: np.ndarray, fk: Any, scale: float
+) -> General6RSolutions:
+    """The answer of the reversed chain if its count check passed, else the union of both
+    verified sets (still flagged); the FK error is recomputed on the forward chain."""
+    q = rev.q[:, ::-1] if rev.count_ok else _dedup(np.vstack([fwd.q, rev.q[:, ::-1]]))
+    err = 0.0
+    if len(q):
+        dp, dr = _pose_errors(fk(q), target)
+        err = float(np.max(np.maximum(dp / scale, dr)))
+    if rev.count_ok:
+        return General6RSolutions(
+            q, rev.n_finite, rev.n_real_candidates, rev.n_complex, rev.n_rejected, err, True, rev.reason
+        )
+    reason = f"{fwd.reason}; from the other end: {rev.reason.removeprefix('count check failed: ')}"
+    return General6RSolutions(
+        q, fwd.n_finite, fwd.n_real_candidates, fwd.n_complex, fwd.n_rejected, err, False, reason
+    )
+
+
+def covers(arm: Mechanism | General6R) -> bool:
+    """Whether `solve_general_6r` covers the arm's geometry (`General6R.covered`): False for
+    chains that are not 6R (no exception) and for special geometry where the elimination is
+    singular from both ends, whose answers would fail the count check."""
+    try:
+        return _arm(arm).covered
+    except InvalidArgumentError:
+        return False
 
 
 def ik_general_6r(m: Mechanism, target: Any) -> list[np.ndarray]:
     """All real IK solutions of a 6R mechanism for one 4x4 target, as a list of ``q`` (the
     closed-form registry's solver contract ``(m, T) -> list[q]``; ``[]`` when unreachable).
-    `solve_general_6r` returns the same solutions with the count check and the reason."""
+    `solve_general_6r` returns the same solutions with the count check and the reason; route
+    only arms for which `covers` is True here, since this list cannot carry the flag."""
     return list(solve_general_6r(m, target).q)

@@ -158,6 +158,16 @@ def within_limits(m: Mechanism, rows: list[list[float]]) -> list[list[float]]:
     return [row for row in rows if len(row) == len(lo) and all([lo[k] <= row[k] <= hi[k] for k in n])]
 
 
+class CheckedRows(list):
+    """Rows an IK solver returns together with the FK check it made of each: ``errors[i]`` is
+    the ``(position, orientation)`` error of row ``i`` against the target (m, rad). The solvers
+    layer then reports those errors instead of evaluating the FK of every row again."""
+
+    def __init__(self, rows: Sequence[Sequence[float]], errors: Sequence[tuple[float, float]]) -> None:
+        super().__init__(rows)
+        self.errors = list(errors)
+
+
 def branches(m: Mechanism, t: np.ndarray) -> list[list[float]]:
     """All closed-form IK branches for a validated 4x4 target ``t``, wrapped by
     [`wrap_rows`][optik.closed_form.registry.wrap_rows], without the limit filter (``[]`` when unreachable).
@@ -168,7 +178,9 @@ def branches(m: Mechanism, t: np.ndarray) -> list[list[float]]:
     solver = ik_solver(m)
     if solver is None:
         raise SolverUnavailableError(f"no closed-form IK for mechanism {m.name!r} (kind {m.kind!r})")
-    return wrap_rows(m, solver(m, t))
+    rows = solver(m, t)
+    wrapped = wrap_rows(m, rows)
+    return CheckedRows(wrapped, rows.errors) if isinstance(rows, CheckedRows) else wrapped
 
 
 def _finish(m: Mechanism, rows: list[list[float]], respect_limits: bool) -> list[np.ndarray]:

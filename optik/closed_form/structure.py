@@ -29,10 +29,14 @@ Families (IK-Geo / EAIK naming), tried in this order:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
+from typing import Any
 
 import numpy as np
 
+from optik.closed_form import vec3 as v3
 from optik.closed_form.subproblems import rot
 from optik.mechanism import Mechanism
 
@@ -64,26 +68,34 @@ class Axes:
         """Number of joints."""
         return self.h.shape[0]
 
-    @property
+    @cached_property
     def size(self) -> float:
         """A length scale of the arm: the largest distance of an axis point or the end effector
         from the base origin (at least 1e-3)."""
         pts = np.vstack([self.r, self.home[:3, 3]])
         return max(float(np.max(np.linalg.norm(pts, axis=1))), 1e-3)
 
+    def fk_c(self, q: Sequence[Any], ops: v3.Ops) -> tuple[v3.Mat, v3.Vec]:
+        """FK on components (`optik.closed_form.vec3`): ``(R, p)`` for joint values ``q``
+        (numpy arrays or CasADi symbols): ``p = E_1(E_2(... E_n(p_M)))``, ``R = R_1 ... R_n R_M``."""
+        rr: v3.Mat = tuple(v3.vec(row) for row in self.home[:3, :3])  # type: ignore[assignment]
+        p = v3.vec(self.home[:3, 3])
+        for i in range(self.n - 1, -1, -1):
+            ri = v3.rot_mat(v3.vec(self.h[i]), ops.cos(q[i]), ops.sin(q[i]))
+            r = v3.vec(self.r[i])
+            p = v3.add(r, v3.mat_vec(ri, v3.sub(p, r)))
+            rr = v3.mat_mul(ri, rr)
+        return rr, p
+
     def fk(self, q: np.ndarray) -> np.ndarray:
         """End-effector poses ``(..., 4, 4)`` for ``q (..., n)``."""
         q = np.asarray(q, dtype=float)
-        rr = np.broadcast_to(np.eye(3), (*q.shape[:-1], 3, 3)).copy()
-        p = np.broadcast_to(self.home[:3, 3], (*q.shape[:-1], 3)).copy()
-        # T = E_1 ... E_n M: apply E_n first to the home pose
-        for i in range(self.n - 1, -1, -1):
-            ri = _rotation(self.h[i], q[..., i])
-            p = self.r[i] + np.einsum("...ij,...j->...i", ri, p - self.r[i])
-            rr = ri @ rr
+        rr, p = self.fk_c([q[..., i] for i in range(self.n)], v3.NUMPY)
         out = np.zeros((*q.shape[:-1], 4, 4))
-        out[..., :3, :3] = rr @ self.home[:3, :3]
-        out[..., :3, 3] = p
+        for i in range(3):
+            out[..., i, 3] = p[i]
+            for j in range(3):
+                out[..., i, j] = rr[i][j]
         out[..., 3, 3] = 1.0
         return out
 

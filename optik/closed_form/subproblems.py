@@ -39,7 +39,11 @@ by two Newton steps on the real equation.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+
+from optik.closed_form import vec3 as v3
 
 __all__ = ["rot", "sp1", "sp2", "sp3", "sp4", "sp5", "sp6", "trig_quartic"]
 
@@ -62,44 +66,83 @@ def rot(k: np.ndarray, theta: np.ndarray, p: np.ndarray) -> np.ndarray:
     return p * c + np.cross(k, p) * s + k * (kp * (1.0 - c))
 
 
+def _split(a: np.ndarray) -> v3.Vec:
+    a = np.asarray(a, dtype=float)
+    return (a[..., 0], a[..., 1], a[..., 2])
+
+
+# --------------------------------------------------- component form (numpy arrays or CasADi SX)
+def sp1_c(k: v3.Vec, p1: v3.Vec, p2: v3.Vec, ops: v3.Ops) -> Any:
+    """SP1 on component vectors: ``atan2(k . (p1 x p2), p1 . p2 - (k . p1)(k . p2))``."""
+    return ops.atan2(v3.dot(v3.cross(k, p1), p2), v3.dot(p1, p2) - v3.dot(k, p1) * v3.dot(k, p2))
+
+
+def _sp4_terms(h: v3.Vec, k: v3.Vec, p: v3.Vec, d: Any) -> tuple[Any, Any, Any]:
+    """``(a, b, c)`` of ``a cos(theta) + b sin(theta) = c`` (see the module docstring)."""
+    kp = v3.dot(k, p)
+    hk = v3.dot(h, k)
+    return v3.dot(h, p) - hk * kp, v3.dot(h, v3.cross(k, p)), d - hk * kp
+
+
+def _sp4_roots(a: Any, b: Any, c: Any, ops: v3.Ops) -> tuple[Any, Any]:
+    phi = ops.atan2(b, a)
+    r = ops.sqrt(a * a + b * b)
+    delta = ops.acos(ops.fmax(-1.0, ops.fmin(1.0, c / ops.fmax(r, 1e-300))))
+    return phi + delta, phi - delta
+
+
+def sp4_c(h: v3.Vec, k: v3.Vec, p: v3.Vec, d: Any, ops: v3.Ops) -> tuple[Any, Any]:
+    """SP4 on component vectors: the two roots (the least-squares one twice when there is none)."""
+    return _sp4_roots(*_sp4_terms(h, k, p, d), ops)
+
+
+def sp3_c(k: v3.Vec, p1: v3.Vec, p2: v3.Vec, d: Any, ops: v3.Ops) -> tuple[Any, Any]:
+    """SP3 on component vectors (the SP4 of the module docstring)."""
+    return sp4_c(p2, k, p1, 0.5 * (v3.dot(p1, p1) + v3.dot(p2, p2) - d * d), ops)
+
+
+def sp2_c(k1: v3.Vec, p1: v3.Vec, k2: v3.Vec, p2: v3.Vec, ops: v3.Ops) -> list[tuple[Any, Any]]:
+    """SP2 on component vectors: the two pairs ``(theta1, theta2)``."""
+    pairs = []
+    for t1 in sp4_c(k2, k1, p1, v3.dot(k2, p2), ops):
+        pairs.append((t1, sp1_c(k2, p2, v3.rot(k1, ops.cos(t1), ops.sin(t1), p1), ops)))
+    return pairs
+
+
+# -------------------------------------------------------------- array form (with exactness flags)
 def sp1(k: np.ndarray, p1: np.ndarray, p2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Subproblem 1: ``theta`` with ``rot(k, theta) p1 = p2`` (least squares when impossible).
 
     Returns:
         ``(theta (...), exact (...))``.
     """
-    kxp = np.cross(k, p1)
-    y = _dot(kxp, p2)  # |p1_perp| |p2_perp| sin(theta)
-    x = _dot(p1, p2) - _dot(k, p1) * _dot(k, p2)  # |p1_perp| |p2_perp| cos(theta)
-    theta = np.arctan2(y, x)
+    theta = sp1_c(_split(k), _split(p1), _split(p2), v3.NUMPY)
     err = np.linalg.norm(rot(k, theta, p1) - p2, axis=-1)
     scale = np.maximum(np.linalg.norm(p1, axis=-1) + np.linalg.norm(p2, axis=-1), 1e-300)
     return theta, err <= EXACT_TOL * scale
 
 
-def sp4(h: np.ndarray, k: np.ndarray, p: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def sp4(
+    h: np.ndarray, k: np.ndarray, p: np.ndarray, d: np.ndarray, scale: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Subproblem 4: ``theta`` with ``h . rot(k, theta) p = d`` (both roots, or the least-squares one twice).
+
+    Args:
+        scale: the magnitude the exactness test is relative to (default ``|h| |p| + |d|``).
 
     Returns:
         ``(theta (..., 2), exact (...))``: the ``+ acos`` root first.
     """
-    kp = _dot(k, p)
-    hk = _dot(h, k)
-    a = _dot(h, p) - hk * kp
-    b = _dot(h, np.cross(k, p))
-    c = d - hk * kp
-    a, b, c = np.broadcast_arrays(a, b, c)
+    d = np.asarray(d, dtype=float)
+    a, b, c = np.broadcast_arrays(*_sp4_terms(_split(h), _split(k), _split(p), d))
     r = np.hypot(a, b)
-    phi = np.arctan2(b, a)
-    scale = np.broadcast_to(
-        np.maximum(np.linalg.norm(p, axis=-1) * np.linalg.norm(h, axis=-1), 1e-300), r.shape
+    if scale is None:
+        scale = np.linalg.norm(p, axis=-1) * np.linalg.norm(h, axis=-1) + np.abs(d)
+    scale = np.broadcast_to(np.maximum(scale, 1e-300), r.shape)
+    exact = (np.abs(c) <= r + EXACT_TOL * scale) & (
+        (r > EXACT_TOL * scale) | (np.abs(c) <= EXACT_TOL * scale)
     )
-    ratio = np.divide(c, r, out=np.zeros_like(r), where=r > EXACT_TOL * scale)
-    exact = np.abs(ratio) <= 1.0 + EXACT_TOL
-    exact &= (r > EXACT_TOL * scale) | (np.abs(c) <= EXACT_TOL * scale)
-    delta = np.arccos(np.clip(ratio, -1.0, 1.0))
-    theta = np.stack([phi + delta, phi - delta], axis=-1)
-    return theta, exact
+    return np.stack(_sp4_roots(a, b, c, v3.NUMPY), axis=-1), exact
 
 
 def sp3(k: np.ndarray, p1: np.ndarray, p2: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -109,7 +152,7 @@ def sp3(k: np.ndarray, p1: np.ndarray, p2: np.ndarray, d: np.ndarray) -> tuple[n
         ``(theta (..., 2), exact (...))``.
     """
     rhs = 0.5 * (_dot(p1, p1) + _dot(p2, p2) - d * d)
-    return sp4(p2, k, p1, rhs)
+    return sp4(p2, k, p1, rhs, _dot(p1, p1) + _dot(p2, p2) + d * d)
 
 
 def sp2(
@@ -121,10 +164,14 @@ def sp2(
         ``(theta1 (..., 2), theta2 (..., 2), exact (...))``: pair ``j`` is
         ``(theta1[..., j], theta2[..., j])``.
     """
-    t1, exact = sp4(k2, k1, p1, _dot(k2, p2))
-    q1 = rot(k1[..., None, :], t1, p1[..., None, :])
-    t2, exact2 = sp1(k2[..., None, :], p2[..., None, :], q1)
-    return t1, t2, exact & np.all(exact2, axis=-1)
+    pairs = sp2_c(_split(k1), _split(p1), _split(k2), _split(p2), v3.NUMPY)
+    t1 = np.stack(np.broadcast_arrays(*(a for a, _ in pairs)), axis=-1)
+    t2 = np.stack(np.broadcast_arrays(*(b for _, b in pairs)), axis=-1)
+    _, exact = sp4(k2, k1, p1, _dot(k2, p2))
+    lhs = rot(np.asarray(k1)[..., None, :], t1, np.asarray(p1)[..., None, :])
+    err = np.linalg.norm(lhs - rot(np.asarray(k2)[..., None, :], t2, np.asarray(p2)[..., None, :]), axis=-1)
+    scale = np.maximum(np.linalg.norm(p1, axis=-1) + np.linalg.norm(p2, axis=-1), 1e-300)[..., None]
+    return t1, t2, exact & np.all(err <= EXACT_TOL * scale, axis=-1)
 
 
 def trig_quartic(coef: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

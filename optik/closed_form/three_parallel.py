@@ -1,4 +1,4 @@
-"""IK candidates of a 6R chain whose axes 2, 3, 4 are parallel (UR arms, the seed 6R arm).
+"""IK branches of a 6R chain whose axes 2, 3, 4 are parallel (UR arms, the seed 6R arm).
 
 Notation of `optik.closed_form.structure`; ``h = h2 = h3 = h4``, ``R = R_T R_M^T`` (so that
 ``rot(h1, q1) ... rot(h6, q6) = R``) and ``P6 = R (r6 - p_M) + p_T`` the target position of the
@@ -8,82 +8,91 @@ point ``r6`` of axis 6 (which joint 6 does not move). Rotations about axes paral
 * position: ``h . rot(h1, -q1) (P6 - r1) - h . rot(h5, q5) (r6 - r5) = h . (r5 - r1)``;
 * orientation: ``h . rot(h1, -q1) R h6 - h . rot(h5, q5) h6 = 0``.
 
-This is an SP6 in ``(-q1, q5)`` (up to four pairs). When axes 5 and 6 intersect, ``r5 = r6`` is
-their common point and the equations decouple: an SP4 in ``-q1``, then an SP4 in ``q5`` (up to
-2 x 2 pairs). Then ``rot(h6, -q6) rot(h5, -q5) h = R^T rot(h1, q1) h`` is an SP1 in ``-q6``,
-``theta = q2 + q3 + q4`` the SP1 of ``rot(h, theta) = rot(h1, q1)^T R rot(h6, q6)^T rot(h5, q5)^T``,
-and with ``Y = E_1^-1(P6)``, ``z = E_5(r6)`` the planar two-link problem
-``E_2 E_3 (r4) = Y - rot(h, theta) (z - r4) =: Y'``: ``|E_3(r4) - r2| = |Y' - r2|`` is an SP3
-in ``q3``, ``rot(h, q2) (E_3(r4) - r2) = Y' - r2`` an SP1 in ``q2``, and
-``q4 = theta - q2 - q3``. Up to 8 candidates; each is checked by the caller.
+This is an SP6 in ``(-q1, q5)`` (up to four pairs; numpy only). When axes 5 and 6 intersect,
+``r5 = r6`` is their common point and the equations decouple: an SP4 in ``-q1``, then an SP4 in
+``q5`` (2 x 2 pairs). Then ``rot(h6, -q6) rot(h5, -q5) h = R^T rot(h1, q1) h`` is an SP1 in
+``-q6``, ``theta = q2 + q3 + q4`` the SP1 of
+``rot(h, theta) = rot(h1, q1)^T R rot(h6, q6)^T rot(h5, q5)^T``, and with ``Y = E_1^-1(P6)``,
+``z = E_5(r6)`` the planar two-link problem ``E_2 E_3 (r4) = Y - rot(h, theta) (z - r4) =: Y'``:
+``|E_3(r4) - r2| = |Y' - r2|`` is an SP3 in ``q3``, ``rot(h, q2) (E_3(r4) - r2) = Y' - r2`` an
+SP1 in ``q2``, and ``q4 = theta - q2 - q3``. Up to 8 branches, as component tuples
+(`optik.closed_form.vec3`); each is checked by the caller.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from typing import Any
+
 import numpy as np
 
 from optik.closed_form import subproblems as sp
+from optik.closed_form import vec3 as v3
+from optik.closed_form.spherical_wrist import Branch
 from optik.closed_form.structure import Axes, intersection
 
 
-def _mats(k: np.ndarray, t: np.ndarray) -> np.ndarray:
-    return np.swapaxes(sp.rot(k, t[..., None], np.eye(3)), -1, -2)
+def _points(axes: Axes, case: str) -> tuple[list[v3.Vec], list[v3.Vec]]:
+    """Axes and points as tuples, ``r5 = r6`` = the common point of axes 5, 6 when they meet."""
+    r = list(axes.r)
+    if case == "5-6 intersecting":
+        r[4] = r[5] = intersection(axes, 4, 5)
+    return [v3.vec(a) for a in axes.h], [v3.vec(a) for a in r]
 
 
-def _perpendicular(k: np.ndarray) -> np.ndarray:
+def _pairs_decoupled(
+    h: list[v3.Vec], r: list[v3.Vec], p6: v3.Vec, rh6: v3.Vec, ops: v3.Ops
+) -> Iterator[tuple[Any, Any]]:
+    """The four ``(q1, q5)`` when axes 5 and 6 intersect (two SP4)."""
+    for mq1 in sp.sp4_c(h[1], h[0], v3.sub(p6, r[0]), v3.dot(h[1], v3.sub(r[4], r[0])), ops):
+        lhs = v3.dot(h[1], v3.rot(h[0], ops.cos(mq1), ops.sin(mq1), rh6))
+        for q5 in sp.sp4_c(h[1], h[4], h[5], lhs, ops):
+            yield -mq1, q5
+
+
+def _pairs_sp6(h: list[v3.Vec], r: list[v3.Vec], p6: v3.Vec, rh6: v3.Vec) -> Iterator[tuple[Any, Any]]:
+    """The four ``(q1, q5)`` of the general case by SP6 (numpy arrays)."""
+    a = [np.asarray(v, dtype=float) for v in (h[0], h[1], h[4], h[5], r[0], r[4], r[5])]
+    h1, hh, h5, h6, r1, r5, r6 = a
+    p6a = np.stack(np.broadcast_arrays(*p6), axis=-1)
+    rh6a = np.stack(np.broadcast_arrays(*rh6), axis=-1)
+    ones = np.ones_like(p6a)
+    n = p6a.shape[:-1]
+    d = np.stack([np.full(n, hh @ (r5 - r1)), np.zeros(n)], axis=-1)
+    hs = np.stack([hh * ones, -hh * ones, hh * ones, -hh * ones])
+    ps = np.stack([p6a - r1, (r6 - r5) * ones, rh6a, h6 * ones])
+    mq1, q5, _ = sp.sp6(hs, h1, h5, ps, d)
+    for j in range(4):
+        yield -mq1[..., j], q5[..., j]
+
+
+def _rest(
+    h: list[v3.Vec], r: list[v3.Vec], rel: v3.Mat, p6: v3.Vec, q1: Any, q5: Any, ops: v3.Ops
+) -> Iterator[Branch]:
+    """The two branches completing ``(q1, q5)``."""
+    k = h[1]
+    r01 = v3.rot_mat(h[0], ops.cos(q1), ops.sin(q1))
+    r45 = v3.rot_mat(h[4], ops.cos(q5), ops.sin(q5))
+    q6 = -sp.sp1_c(h[5], v3.mat_t_vec(r45, k), v3.mat_t_vec(rel, v3.mat_vec(r01, k)), ops)
+    r56 = v3.rot_mat(h[5], ops.cos(q6), ops.sin(q6))
+    r14 = v3.mat_mul(v3.mat_mul(v3.transpose(r01), rel), v3.transpose(v3.mat_mul(r45, r56)))
     x = np.cross(k, np.eye(3)[int(np.argmin(np.abs(k)))])
-    return x / np.linalg.norm(x)
+    x = v3.vec(x / np.linalg.norm(x))
+    theta = sp.sp1_c(k, x, v3.mat_vec(r14, x), ops)
+    y = v3.add(r[0], v3.mat_t_vec(r01, v3.sub(p6, r[0])))
+    z = v3.add(r[4], v3.mat_vec(r45, v3.sub(r[5], r[4])))
+    yp = v3.sub(y, v3.rot(k, ops.cos(theta), ops.sin(theta), v3.sub(z, r[3])))
+    r4_r3 = v3.sub(r[3], r[2])
+    for q3 in sp.sp3_c(k, r4_r3, v3.sub(r[1], r[2]), v3.norm(v3.sub(yp, r[1]), ops), ops):
+        e3 = v3.add(r[2], v3.rot(k, ops.cos(q3), ops.sin(q3), r4_r3))
+        q2 = sp.sp1_c(k, v3.sub(e3, r[1]), v3.sub(yp, r[1]), ops)
+        yield q1, q2, q3, theta - q2 - q3, q5, q6
 
 
-def candidates(axes: Axes, case: str, t: np.ndarray) -> np.ndarray:
-    """IK candidates ``(N, 8, 6)`` for targets ``t (N, 4, 4)``."""
-    h1, h, h5, h6 = axes.h[0], axes.h[1], axes.h[4], axes.h[5]
-    r1, r2, r3, r4 = axes.r[0], axes.r[1], axes.r[2], axes.r[3]
-    r5, r6 = axes.r[4], axes.r[5]
-    if case == "5-6 intersecting":
-        r5 = r6 = intersection(axes, 4, 5)
-    rm, pm = axes.home[:3, :3], axes.home[:3, 3]
-    n = t.shape[0]
-    rel = t[:, :3, :3] @ rm.T
-    p6 = np.einsum("nij,j->ni", rel, r6 - pm) + t[:, :3, 3]
-    rh6 = rel @ h6  # (N, 3)
-    if case == "5-6 intersecting":
-        mq1, _ = sp.sp4(h, h1, p6 - r1, np.full(n, h @ (r5 - r1)))  # (N, 2)
-        lhs = np.sum(h * sp.rot(h1, mq1, rh6[:, None]), axis=-1)  # (N, 2)
-        q5, _ = sp.sp4(h, h5, h6, lhs)  # (N, 2, 2)
-        mq1 = np.repeat(mq1, 2, axis=1)
-        q5 = q5.reshape(n, 4)
-    else:
-        hh = np.stack(np.broadcast_arrays(h, -h, h, -h, p6))[:4]
-        pp = np.stack(np.broadcast_arrays(p6 - r1, r6 - r5, rh6, h6))
-        d = np.stack([np.full(n, h @ (r5 - r1)), np.zeros(n)], axis=-1)
-        mq1, q5, _ = sp.sp6(hh, h1, h5, pp, d)  # (N, 4)
-    q1 = -mq1
-    r01 = _mats(h1, q1)  # (N, 4, 3, 3)
-    r45 = _mats(h5, q5)
-    lhs = np.einsum("nkji,j->nki", r45, h)  # rot(h5, -q5) h
-    rhs = np.einsum("nji,nkjl,l->nki", rel, r01, h)  # R^T rot(h1, q1) h
-    mq6, _ = sp.sp1(h6, lhs, rhs)
-    q6 = -mq6
-    r14 = (
-        np.swapaxes(r01, -1, -2)
-        @ rel[:, None]
-        @ np.swapaxes(_mats(h6, q6), -1, -2)
-        @ np.swapaxes(r45, -1, -2)
-    )
-    x = _perpendicular(h)
-    theta, _ = sp.sp1(h, x, r14 @ x)  # (N, 4)
-    y = r1 + np.einsum("nkji,nj->nki", r01, p6 - r1)  # E_1^-1(P6)
-    z = r5 + np.einsum("nkij,j->nki", r45, r6 - r5)
-    yp = y - np.einsum("nkij,nkj->nki", _mats(h, theta), z - r4)
-    q3, _ = sp.sp3(h, r4 - r3, r2 - r3, np.linalg.norm(yp - r2, axis=-1))  # (N, 4, 2)
-    e3 = r3 + sp.rot(h, q3, r4 - r3)  # (N, 4, 2, 3)
-    q2, _ = sp.sp1(h, e3 - r2, yp[:, :, None] - r2)
-    out = np.empty((n, 4, 2, 6))
-    out[..., 0] = q1[..., None]
-    out[..., 1] = q2
-    out[..., 2] = q3
-    out[..., 3] = theta[..., None] - q2 - q3
-    out[..., 4] = q5[..., None]
-    out[..., 5] = q6[..., None]
-    return out.reshape(n, 8, 6)
+def branches(axes: Axes, case: str, rel: v3.Mat, pt: v3.Vec, ops: v3.Ops) -> list[Branch]:
+    """The 8 IK branches for the relative target rotation ``rel = R_T R_M^T`` and position ``pt``."""
+    h, r = _points(axes, case)
+    p6 = v3.add(v3.mat_vec(rel, v3.vec(np.asarray(r[5]) - axes.home[:3, 3])), pt)
+    rh6 = v3.mat_vec(rel, h[5])
+    pairs = _pairs_decoupled(h, r, p6, rh6, ops) if case == "5-6 intersecting" else _pairs_sp6(h, r, p6, rh6)
+    return [b for q1, q5 in pairs for b in _rest(h, r, rel, p6, q1, q5, ops)]

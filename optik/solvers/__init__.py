@@ -4,8 +4,17 @@
 from optik.solvers import closed as _closed  # noqa: F401  (registers "closed_form")
 from optik.solvers import lm as _lm  # noqa: F401  (registers "lm")
 from optik.solvers import nlp as _nlp  # noqa: F401  (registers "nlp")
-from optik.solvers.all import solve_ik_all
+from optik.solvers.all import self_motion, solve_ik_all
 from optik.solvers.api import pick_method, solve_ik
 from optik.solvers.base import IKRequest, Tolerances, methods, register_method
 
-__all__ = ["IKRequest", "Tolerances", "methods", "pick_method", "register_method", "solve_ik", "solve_ik_all"]
+__all__ = [
+    "IKRequest",
+    "Tolerances",
+    "methods",
+    "pick_method",
+    "register_method",
+    "self_motion",
+    "solve_ik",
+    "solve_ik_all",
+]

@@ -23,11 +23,14 @@ Solutions outside the joint limits are never returned; the returned
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
+from optik.checks import as_vector
 from optik.closed_form import registry
+from optik.closed_form.derived import derive_locked
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.results import IKResult, IKSolutions
@@ -39,7 +42,7 @@ from optik.solvers.base import (
     make_result,
     positive_int,
 )
-from optik.solvers.closed import closed_form_applies
+from optik.solvers.closed import _compiled_errors, closed_form_applies, row_distance
 from optik.solvers.polish import polish, same_point_tol
 
 NUMERIC_ORDER = ("lm", "nlp")
@@ -62,6 +65,7 @@ def solve_ik_all(
     patience: int = 50,
     max_solutions: int = 64,
     closed_form: bool = True,
+    fixed: Mapping[str, float] | None = None,
     **options: Any,
 ) -> IKSolutions:
     """Every distinct IK solution within the joint limits.
@@ -82,6 +86,11 @@ def solve_ik_all(
         patience: stop after this many consecutive starts without a new solution.
         max_solutions: stop after this many solutions.
         closed_form: with ``method=None``, False skips the closed form (numerical search only).
+        fixed: coordinates locked at given values, ``{name: value}`` (e.g. one joint of a 7-DOF
+            arm): the solutions of the remaining joints, by the closed form derived for the chain
+            they leave when its structure allows (Panda, iiwa with one joint locked), else by the
+            numerical search with those coordinates' limits pinned to the values. Sample the
+            self-motion of a redundant arm by sweeping the value (`self_motion`).
         **options: options of the numerical method (the closed form takes none).
 
     Returns:
@@ -96,6 +105,8 @@ def solve_ik_all(
     request = make_request(m, target, q0, task, frame, time_limit, tol, seed, options)
     patience = positive_int(patience, "patience")
     max_solutions = positive_int(max_solutions, "max_solutions")
+    if fixed is not None:
+        return _locked_all(request, _locks(m, fixed), method, patience, max_solutions)
     applies = closed_form_applies(m, request.task) and frame in (None, m.ee)
     if method == "closed_form":
         if not applies:
@@ -103,37 +114,149 @@ def solve_ik_all(
                 f"method 'closed_form' does not apply to {m.name!r} with task {request.task!r}"
                 + ("" if frame in (None, m.ee) else f" and frame {frame!r}")
             )
-        found = _closed_form_all(request)
-    elif method is None and closed_form and applies:
-        found = _closed_form_all(request)
-    else:
-        name = method or pick_method(m, request.task, NUMERIC_ORDER)
-        found = _numeric_all(request, name, patience, max_solutions)
+        return _closed_form_all(request)
+    if method is None and closed_form and applies:
+        return _closed_form_all(request)
+    name = method or pick_method(m, request.task, NUMERIC_ORDER)
+    found = _numeric_all(request, name, patience, max_solutions)
     found.sort(key=lambda r: joint_distance(m, r.q, request.q0))
     return found
 
 
 def _closed_form_all(request: IKRequest) -> IKSolutions:
-    """Every closed-form branch within limits, each FK-checked (polished or dropped)."""
+    """Every closed-form branch within limits, each FK-checked (polished or dropped), sorted by
+    the distance to ``q0``."""
+    _no_options(request)
+    return _from_rows(request, registry.branches(request.mechanism, request.target))
+
+
+def _no_options(request: IKRequest) -> None:
     if request.options:
         name = sorted(request.options)[0]
         raise InvalidArgumentError(name, "unknown option for method 'closed_form'; it takes no options")
+
+
+def _from_rows(request: IKRequest, rows: list[list[float]]) -> IKSolutions:
+    """Results of closed-form rows (wrapped): the ones within limits, checked by the
+    mechanism's compiled FK, nearest ``q0`` first.
+
+    Lean on purpose (one closed-form call per target is the hot path of branch selection):
+    results are built directly from the compiled FK check (``closed._compiled_errors``) instead
+    of the generic [`make_result`][optik.solvers.base.make_result], which only the rare branch
+    that needs polishing goes through."""
     m = request.mechanism
-    rows = registry.branches(m, request.target)
     inside = registry.within_limits(m, rows)
-    outside = [np.array(r) for r in rows if r not in inside]
+    outside = [np.array(r) for r in rows if r not in inside] if len(inside) < len(rows) else []
+    checked = {}
+    if isinstance(rows, registry.CheckedRows) and request.task == m.task == "pose" and not m.is_closed:
+        checked = {id(row): err for row, err in zip(rows, rows.errors, strict=True)}
+    errors = _compiled_errors(request)
+    tol = request.tol
+    mask = registry.angle_mask(m)
+    start = request.q0.tolist()
+    inside.sort(key=lambda row: row_distance(mask, row, start))
     kept: list[IKResult] = []
     failed = 0
     for row in inside:
-        res = make_result(request, np.array(row), "closed_form", 0)
-        if not res.success:
-            q, _, _ = polish(m, request, res.q)
-            res = make_result(request, q, "closed_form", 0)
-            if not res.success:
-                failed += 1
-                continue
-        kept.append(res)
+        q = np.array(row)
+        pos, ori, clo = (*checked[id(row)], 0.0) if id(row) in checked else errors(q)
+        if pos <= tol.position and ori <= tol.orientation and clo <= tol.closure:
+            kept.append(IKResult(q, True, pos, ori, clo, True, 0, request.elapsed(), "closed_form", "solved"))
+            continue
+        res = make_result(request, polish(m, request, q)[0], "closed_form", 0)
+        if res.success:
+            kept.append(res)
+        else:
+            failed += 1
     return IKSolutions(kept, outside, failed, "closed_form")
+
+
+def _locks(m: Mechanism, fixed: Mapping[str, float]) -> dict[int, float]:
+    """``fixed`` as ``{coordinate index: value}``, checked (known names, finite values within
+    the limits)."""
+    if not isinstance(fixed, Mapping) or not fixed:
+        raise InvalidArgumentError(
+            "fixed", f"expected a non-empty mapping {{coordinate name: value}}, got {fixed!r}"
+        )
+    locks: dict[int, float] = {}
+    for name, value in fixed.items():
+        if name not in m.coordinate_names:
+            raise InvalidArgumentError(
+                "fixed", f"unknown coordinate {name!r}; known: {list(m.coordinate_names)}"
+            )
+        k = m.coordinate_names.index(name)
+        v = float(as_vector(value, "fixed", 1)[0])
+        if not m.lower[k] <= v <= m.upper[k]:
+            raise InvalidArgumentError(
+                "fixed", f"{name} = {v} is outside its limits [{m.lower[k]}, {m.upper[k]}]"
+            )
+        locks[k] = v
+    return locks
+
+
+def _locked_all(
+    request: IKRequest, locks: dict[int, float], method: str | None, patience: int, max_solutions: int
+) -> IKSolutions:
+    """Solutions with the coordinates ``locks`` fixed: the derived closed form of the remaining
+    6R chain, else the numerical search with those limits pinned."""
+    m = request.mechanism
+    solver = None
+    if method in (None, "closed_form") and request.task == "pose" and request.frame in (None, m.ee):
+        solver = derive_locked(m, locks)
+    if solver is not None:
+        _no_options(request)
+        q, ok = solver.solve(request.target)
+        free = [k for k in range(m.n_q) if k not in locks]
+        rows = []
+        for sol in q[0][ok[0]].tolist():
+            row = [0.0] * m.n_q
+            for k, v in zip(free, sol, strict=True):
+                row[k] = v
+            rows.append(row)
+        rows = registry.wrap_rows(m, rows)
+        for row in rows:  # exactly the locked values (within limits: checked)
+            for k, v in locks.items():
+                row[k] = v
+        return _from_rows(request, rows)
+    if method == "closed_form":
+        raise SolverUnavailableError(
+            f"method 'closed_form' does not apply to {m.name!r} with "
+            f"{sorted(m.coordinate_names[k] for k in locks)} locked: the remaining chain has no "
+            "derived closed form"
+        )
+    lower, upper = m.lower.copy(), m.upper.copy()
+    for k, v in locks.items():
+        lower[k] = upper[k] = v
+    pinned = m.with_limits(lower=lower, upper=upper)
+    q0 = np.clip(request.q0, lower, upper)
+    r = request
+    sub = make_request(pinned, r.target, q0, r.task, r.frame, r.time_limit, r.tol, r.seed, r.options)
+    name = method or pick_method(pinned, request.task, NUMERIC_ORDER)
+    found = _numeric_all(sub, name, patience, max_solutions)
+    found.sort(key=lambda r: joint_distance(m, r.q, request.q0))
+    return found
+
+
+def self_motion(m: Mechanism, target: Any, joint: str, values: Any, **options: Any) -> list[IKSolutions]:
+    """Samples of the self-motion of a redundant arm: ``solve_ik_all(m, target, fixed={joint: v})``
+    for each ``v`` of ``values`` (e.g. ``np.linspace(lower, upper, 50)`` of that joint).
+
+    Each sample holds the solutions with the joint at that value (for a 7-DOF arm with a
+    decomposable 6R remainder: every analytic branch); following one branch over the samples
+    traces one self-motion manifold.
+
+    Args:
+        m: the mechanism.
+        target: the target.
+        joint: the swept coordinate's name.
+        values: its sample values (within its limits).
+        **options: further arguments of `solve_ik_all`.
+
+    Returns:
+        One [`IKSolutions`][optik.results.IKSolutions] per value, in order.
+    """
+    vals = as_vector(values, "values")
+    return [solve_ik_all(m, target, fixed={joint: float(v)}, **options) for v in vals]
 
 
 def _numeric_all(request: IKRequest, name: str, patience: int, max_solutions: int) -> IKSolutions:

@@ -60,10 +60,13 @@ def solve_ik(
         OptikError: malformed input (named argument), unknown or inapplicable method.
     """
     request = make_request(m, target, q0, task, frame, time_limit, tol, seed, options)
-    name = pick_method(m, request.task) if method is None else method
+    own_frame = request.frame in (None, m.ee)  # closed forms solve for the end effector only
+    order = DEFAULT_ORDER if own_frame else tuple(n for n in DEFAULT_ORDER if n != "closed_form")
+    name = pick_method(m, request.task, order) if method is None else method
     info = get_method(name)
-    if not info.applies(m, request.task):
+    if not info.applies(m, request.task) or (name == "closed_form" and not own_frame):
         raise SolverUnavailableError(
             f"method {name!r} does not apply to {m.name!r} with task {request.task!r}"
+            + ("" if own_frame else f" and frame {request.frame!r}")
         )
     return info.solve(request)

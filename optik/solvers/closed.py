@@ -47,29 +47,31 @@ def nearest(m: Mechanism, qs: list[np.ndarray], q0: np.ndarray) -> np.ndarray:
     return min(qs, key=lambda q: joint_distance(m, q, q0))
 
 
+def row_distance(mask: tuple[bool, ...], row: list[float], start: list[float]) -> float:
+    """[`joint_distance`][optik.solvers.base.joint_distance] of two rows of floats (``mask``:
+    the angle coordinates, [`registry.angle_mask`][optik.closed_form.registry.angle_mask])."""
+    pi, two_pi = np.pi, 2.0 * np.pi
+    worst = 0.0
+    for a, b, ang in zip(row, start, mask, strict=True):
+        d = a - b
+        if ang:  # registry.wrap_angle_one, inlined
+            d = (d + pi) % two_pi - pi
+            if d <= -pi:
+                d += two_pi
+        if d < 0.0:
+            d = -d
+        if d > worst:
+            worst = d
+    return worst
+
+
 def _nearest_row(m: Mechanism, rows: list[list[float]], q0: np.ndarray) -> np.ndarray:
-    """[`nearest`][optik.solvers.closed.nearest] over rows of floats (the first of equally near ones), as an
-    array."""
+    """[`nearest`][optik.solvers.closed.nearest] over rows of floats (the first of equally near
+    ones), as an array."""
     if len(rows) > 1:
         mask = registry.angle_mask(m)
         start = q0.tolist()
-        pi, two_pi = np.pi, 2.0 * np.pi
-
-        def distance(row: list[float]) -> float:
-            worst = 0.0
-            for a, b, ang in zip(row, start, mask, strict=True):
-                d = a - b
-                if ang:  # registry.wrap_angle_one, inlined
-                    d = (d + pi) % two_pi - pi
-                    if d <= -pi:
-                        d += two_pi
-                if d < 0.0:
-                    d = -d
-                if d > worst:
-                    worst = d
-            return worst
-
-        rows = [min(rows, key=distance)]
+        rows = [min(rows, key=lambda row: row_distance(mask, row, start))]
     return np.array(rows[0])
 
 

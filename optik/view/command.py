@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import signal
+import threading
 import time
 import webbrowser
 from pathlib import Path
@@ -18,6 +19,9 @@ from types import FrameType
 from typing import Any
 
 __all__ = ["add_parser", "run"]
+
+CLOSE_WAIT = 2.0
+"""Seconds ``optik view`` waits for the server to stop before it exits anyway."""
 
 
 def add_parser(sub: Any) -> None:
@@ -78,6 +82,9 @@ def run(args: argparse.Namespace) -> int:
         pass
     finally:
         signal.signal(signal.SIGTERM, previous)
-        viewer.close()
+        # viser's stop may wait seconds for idle browser sockets; the process exit ends them
+        closing = threading.Thread(target=viewer.close, name="optik-view-close", daemon=True)
+        closing.start()
+        closing.join(CLOSE_WAIT)
     print("optik view: stopped", flush=True)
     return 0

@@ -100,12 +100,17 @@ class Style:
         radius: link radius (m).
     """
 
-    link: tuple[int, int, int] = (70, 130, 180)
+    link: tuple[int, int, int] = (90, 150, 210)
     ground: tuple[int, int, int] = (120, 120, 120)
     slide: tuple[int, int, int] = (200, 90, 60)
     opacity: float = 1.0
     frames: bool = True
     radius: float = 0.02
+
+
+def _safe(name: str) -> str:
+    """A body or joint name as one scene-node path segment."""
+    return name.replace("/", "_")
 
 
 _ACTUATED = (235, 130, 20)
@@ -128,7 +133,9 @@ class RobotDrawing:
         p = poses(m, q)
         g = p.geometry()
         r = style.radius
-        self._links: dict[str, Any] = {}
+        # one scene node per body, moved by T_b(q); its link mesh and the joint frames it carries
+        # are children with constant poses, so an update sends one pose per moving body
+        self._bodies = {b: scene.add_frame(self._node(b), show_axes=False) for b in m.topology.bodies}
         for body in m.topology.bodies:
             pts = body_points(m, g, body)
             if body == m.base and len(pts) == 1:
@@ -139,26 +146,36 @@ class RobotDrawing:
             local = (inv[:3, :3] @ np.array(pts).T).T + inv[:3, 3]
             mesh = self._link_mesh(local, r, body == m.base)
             color = style.ground if body == m.base else style.link
-            self._links[body] = self._mesh(f"{name}/links/{body}", mesh, color)
+            self._mesh(f"{self._node(body)}/link", mesh, color)
         self._slides = [k for k, j in enumerate(m.joints) if j.type == "prismatic" and not j.cut]
         self._slide_handles: dict[int, Any] = {}
         self._visible = True
-        self._frames = []
         if style.frames:
-            size = 4 * r
+            size = 2.5 * r
             for j in m.joints:
                 color = _ACTUATED if j.actuated and not j.cut else _PASSIVE
-                self._frames.append(
-                    scene.add_frame(
-                        f"{name}/joints/{j.name}",
-                        axes_length=size,
-                        axes_radius=0.12 * size,
-                        origin_radius=1.6 * r,
-                        origin_color=color,
-                    )
+                scene.add_frame(
+                    f"{self._node(j.parent)}/joint_{_safe(j.name)}",
+                    axes_length=size,
+                    axes_radius=0.12 * size,
+                    origin_radius=1.6 * r,
+                    origin_color=color,
+                    position=j.origin[:3, 3],
+                    wxyz=wxyz(j.origin[:3, :3]),
                 )
-            self._ee = scene.add_frame(f"{name}/ee", axes_length=8 * r, axes_radius=0.6 * r)
+            body, offset = m.frames[m.ee]
+            scene.add_frame(
+                f"{self._node(body)}/ee",
+                axes_length=8 * r,
+                axes_radius=0.6 * r,
+                position=offset[:3, 3],
+                wxyz=wxyz(offset[:3, :3]),
+            )
+        self._moving = [b for b in m.topology.bodies if b != m.base]
         self.update(q)
+
+    def _node(self, body: str) -> str:
+        return f"{self.name}/{_safe(body)}"
 
     @staticmethod
     def _link_mesh(local: np.ndarray, r: float, ground: bool) -> Mesh:
@@ -172,23 +189,28 @@ class RobotDrawing:
     def _mesh(self, node: str, mesh: Mesh, color: tuple[int, int, int], visible: bool = True) -> Any:
         opacity = None if self.style.opacity >= 1 else self.style.opacity
         return self.scene.add_mesh_simple(
-            node, mesh[0], mesh[1], color=color, opacity=opacity, side="double", visible=visible
+            node,
+            mesh[0],
+            mesh[1],
+            color=color,
+            opacity=opacity,
+            side="double",
+            visible=visible,
+            cast_shadow=False,
+            receive_shadow=False,
         )
 
     def update(self, q: Any) -> Poses:
         """Move the drawing to configuration ``q``; returns its poses."""
         p = poses(self.m, q)
-        for body, handle in self._links.items():
-            t = p.bodies[body]
-            handle.position, handle.wxyz = t[:3, 3], wxyz(t[:3, :3])
+        t = np.array([p.bodies[b] for b in self._moving]).reshape(-1, 4, 4)
+        for body, position, quaternion in zip(self._moving, t[:, :3, 3], wxyz(t[:, :3, :3]), strict=True):
+            handle = self._bodies[body]
+            handle.position, handle.wxyz = position, quaternion
         for k in self._slides:
             mesh = cylinder(p.joint_frames[k, :3, 3], p.child_side[k], 0.7 * self.style.radius)
-            node = f"{self.name}/slides/{self.m.joints[k].name}"
+            node = f"{self.name}/slides/{_safe(self.m.joints[k].name)}"
             self._slide_handles[k] = self._mesh(node, mesh, self.style.slide, self._visible)
-        for handle, t in zip(self._frames, p.joint_frames, strict=False):
-            handle.position, handle.wxyz = t[:3, 3], wxyz(t[:3, :3])
-        if self.style.frames:
-            self._ee.position, self._ee.wxyz = p.ee[:3, 3], wxyz(p.ee[:3, :3])
         return p
 
     def set_visible(self, visible: bool) -> None:
@@ -203,8 +225,7 @@ class RobotDrawing:
         return self._visible
 
     def _handles(self) -> list[Any]:
-        ee = [self._ee] if self.style.frames else []
-        return [*self._links.values(), *self._slide_handles.values(), *self._frames, *ee]
+        return [*self._bodies.values(), *self._slide_handles.values()]
 
     def remove(self) -> None:
         """Remove the drawing from the scene."""

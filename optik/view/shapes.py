@@ -24,9 +24,9 @@ _SECTIONS = 16
 
 
 def wxyz(rotation: np.ndarray) -> np.ndarray:
-    """Unit quaternion ``(w, x, y, z)`` of a 3x3 rotation matrix."""
-    x, y, z, w = Rotation.from_matrix(np.asarray(rotation, dtype=float)).as_quat()
-    return np.array([w, x, y, z])
+    """Unit quaternion ``(w, x, y, z)`` of a 3x3 rotation matrix, or ``(n, 4)`` of ``(n, 3, 3)``."""
+    xyzw = Rotation.from_matrix(np.asarray(rotation, dtype=float)).as_quat()
+    return np.roll(xyzw, 1, axis=-1)
 
 
 def rotation(q_wxyz: np.ndarray) -> np.ndarray:

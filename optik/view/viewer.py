@@ -45,6 +45,8 @@ from optik.view.shapes import rotation, wxyz
 __all__ = ["Viewer", "view"]
 
 PLANAR_TASKS = ("pose2d", "position2d")
+RADIUS = 0.03
+"""Link radius as a fraction of the mechanism's size."""
 GHOST = Style(link=(120, 170, 230), ground=(120, 120, 120), slide=(230, 150, 120), opacity=0.3, frames=False)
 
 
@@ -73,8 +75,8 @@ class Viewer:
 
     Args:
         m: the mechanism.
-        q: first configuration (default: mid-limit; for a closed chain, the first assembly mode
-            of the mid-limit actuated values).
+        q: first configuration (default: mid-limit; for a closed chain, the assembly mode of the
+            mid-limit actuated values nearest to the mid-limit configuration).
         host: interface to bind (default ``127.0.0.1``: this machine only; ``0.0.0.0`` exposes
             the page to the network).
         port: TCP port (viser takes the next free one when it is busy; see `Viewer.url`).
@@ -148,13 +150,20 @@ class Viewer:
         if not self.m.is_closed:
             return mid
         modes = solve_fk_all(self.m, mid[self.m.actuated_indices], time_limit=self.all_time_limit)
-        if modes:
-            return np.asarray(modes[0].q, dtype=float)
+        if modes:  # the assembly mode nearest to the mid-limit configuration
+            return np.asarray(min(modes, key=lambda r: joint_distance(self.m, r.q, mid)).q, dtype=float)
         return np.asarray(solve_fk(self.m, mid[self.m.actuated_indices]).q, dtype=float)
 
     def _draw_scene(self) -> None:
         scene, size = self.server.scene, self.size
         scene.set_up_direction("+z")
+        # No image-based lighting: prefiltering the HDRI costs ~10 s per page load in a software
+        # WebGL renderer (headless Chromium); a key light, a fill light and ambient light instead.
+        scene.configure_environment_map(None)
+        scene.configure_default_lights(False)
+        scene.add_light_ambient("/lights/ambient", intensity=1.2)
+        scene.add_light_hemisphere("/lights/sky", ground_color=(110, 110, 130), intensity=1.5)
+        scene.add_light_directional("/lights/key", intensity=2.0, position=(0.0, 0.0, 0.0))
         center = poses(self.m, self._q).geometry().points().mean(axis=0)
         cell = 10 ** math.floor(math.log10(size / 2))
         scene.add_grid(
@@ -165,7 +174,7 @@ class Viewer:
             section_size=10 * cell,
             position=(center[0], center[1], 0.0),
         )
-        self.robot = RobotDrawing(scene, self.m, self._q, "/robot", Style(radius=0.02 * size))
+        self.robot = RobotDrawing(scene, self.m, self._q, "/robot", Style(radius=RADIUS * size))
         planar = self.task in PLANAR_TASKS
         self.gizmo = scene.add_transform_controls(
             "/target",
@@ -178,7 +187,7 @@ class Viewer:
         camera = self.server.initial_camera
         view_dir = np.array([0.0, -0.55, 1.0]) if self.m.planar else np.array([1.3, -1.5, 0.9])
         camera.look_at = tuple(center)
-        camera.position = tuple(center + 1.6 * size * view_dir / np.linalg.norm(view_dir) * 1.4)
+        camera.position = tuple(center + 1.7 * size * view_dir / np.linalg.norm(view_dir))
         camera.up = (0.0, 0.0, 1.0)
 
     # ------------------------------------------------------------------ properties
@@ -325,14 +334,15 @@ class Viewer:
                 self.panel.show_modes(0, None)
             return [q.copy() for q in self.modes]
 
-    def show_mode(self, index: int) -> np.ndarray:
-        """Show assembly mode ``index`` of `modes` (the others as ghosts); returns it."""
+    def show_mode(self, index: int, others: bool = True) -> np.ndarray:
+        """Show assembly mode ``index`` of `modes` (and the others as ghosts when ``others``);
+        returns it."""
         if not 0 <= int(index) < len(self.modes):
             raise InvalidArgumentError("index", f"expected 0 <= index < {len(self.modes)}, got {index!r}")
         with self._lock:
             k = int(index)
             self.set_q(self.modes[k])
-            self._show_ghosts([q for i, q in enumerate(self.modes) if i != k])
+            self._show_ghosts([q for i, q in enumerate(self.modes) if i != k] if others else [])
             self.panel.show_modes(len(self.modes), k)
             return self.modes[k].copy()
 
@@ -342,7 +352,7 @@ class Viewer:
                 self._ghosts[k].update(q)
                 self._ghosts[k].set_visible(True)
             else:
-                style = Style(**{**GHOST.__dict__, "radius": 0.02 * self.size})
+                style = Style(**{**GHOST.__dict__, "radius": RADIUS * self.size})
                 self._ghosts.append(RobotDrawing(self.server.scene, self.m, q, f"/ghosts/{k}", style))
         for ghost in self._ghosts[len(qs) :]:
             if ghost.visible:
@@ -392,10 +402,10 @@ class Viewer:
 
     # ------------------------------------------------------------------ lifetime
     def close(self) -> None:
-        """Stop the server (the page disconnects)."""
+        """Stop the server (the page disconnects). viser waits up to 6 s for sockets a browser
+        opened but never used (Chromium pre-connects) to time out."""
         self.panel.stop()
-        with contextlib.redirect_stdout(io.StringIO()):  # viser's "Server stopped"
-            self.server.stop()
+        self.server.stop()
 
     def __enter__(self) -> Viewer:
         return self

@@ -73,21 +73,29 @@ def coordinate_row(m: Mechanism, values: Mapping[str, float]) -> list[float]:
 
 def circle_intersections(c1: np.ndarray, r1: float, c2: np.ndarray, r2: float) -> list[np.ndarray]:
     """Intersection points of two circles (two, one when tangent, none when apart or concentric)."""
-    d_vec = np.asarray(c2, dtype=float) - c1
-    d = float(np.linalg.norm(d_vec))
+    (x1, y1), (x2, y2) = np.asarray(c1, dtype=float).tolist(), np.asarray(c2, dtype=float).tolist()
+    return [np.array(pt) for pt in circle_points(x1, y1, float(r1), x2, y2, float(r2))]
+
+
+def circle_points(
+    x1: float, y1: float, r1: float, x2: float, y2: float, r2: float
+) -> list[tuple[float, float]]:
+    """`circle_intersections` on floats: along the centre line at ``a = (d^2 + r1^2 - r2^2) / 2d``
+    from ``c1``, then ``+-h`` across it with ``h^2 = (r1 - a)(r1 + a)``."""
+    dx, dy = x2 - x1, y2 - y1
+    d = math.hypot(dx, dy)
     if d < CIRCLE_TOL * max(r1, r2, 1.0):
         return []
     a = (d * d + r1 * r1 - r2 * r2) / (2 * d)
     h2 = (r1 - a) * (r1 + a)
     if h2 < -CIRCLE_TOL * max(r1 * r1, 1.0):
         return []
-    u = d_vec / d
-    base = c1 + a * u
+    ux, uy = dx / d, dy / d
+    bx, by = x1 + a * ux, y1 + a * uy
     if h2 <= CIRCLE_TOL * max(r1 * r1, 1.0):
-        return [base]
-    h = np.sqrt(h2)
-    perp = np.array([-u[1], u[0]])
-    return [base + h * perp, base - h * perp]
+        return [(bx, by)]
+    h = math.sqrt(h2)
+    return [(bx - h * uy, by + h * ux), (bx + h * uy, by - h * ux)]
 
 
 def newton_step(jac: np.ndarray, f: np.ndarray) -> np.ndarray:

@@ -6,14 +6,7 @@ import math
 
 import numpy as np
 
-from optik.closed_form.parallel.common import (
-    angle,
-    assemble,
-    circle_intersections,
-    coordinate_row,
-    direction,
-    two_link_one,
-)
+from optik.closed_form.parallel.common import circle_points, coordinate_row, two_link_one
 from optik.closed_form.registry import register
 from optik.mechanism import Mechanism
 
@@ -69,19 +62,20 @@ def _five_bar_rows(m: Mechanism, target: np.ndarray) -> list[list[float]]:
     return out
 
 
-def five_bar_fk(m: Mechanism, actuated: np.ndarray) -> list[np.ndarray]:
+def five_bar_fk(m: Mechanism, actuated: np.ndarray) -> list[list[float]]:
     """Five-bar FK: the 2 assembly modes, ``P`` on both circles ``|P - B1| = l3``, ``|P - B2| = l4``
-    (each checked like the IK branches)."""
-    b = m.params["base"]
+    (floats; each checked like the IK branches)."""
+    (a1x, a1y), (a2x, a2y) = m.params["base"].tolist()
     l1, l2, l3, l4 = m.params["lengths"]
     th1, th2 = (float(v) for v in actuated)
-    b1, b2 = b[0] + l1 * direction(th1), b[1] + l2 * direction(th2)
+    b1x, b1y = a1x + l1 * math.cos(th1), a1y + l1 * math.sin(th1)
+    b2x, b2y = a2x + l2 * math.cos(th2), a2y + l2 * math.sin(th2)
     tol = BRANCH_CHECK * five_bar_size(m)
     out = []
-    for p in circle_intersections(b1, l3, b2, l4):
-        psi1, psi2 = angle(p - b1) - th1, angle(p - b2) - th2
+    for px, py in circle_points(b1x, b1y, l3, b2x, b2y, l4):
+        psi1, psi2 = math.atan2(py - b1y, px - b1x) - th1, math.atan2(py - b2y, px - b2x) - th2
         if _errors(m, th1, th2, psi1, psi2)[0] <= tol:
-            out.append(assemble(m, {"theta1": th1, "theta2": th2, "psi1": psi1, "psi2": psi2}))
+            out.append(coordinate_row(m, {"theta1": th1, "theta2": th2, "psi1": psi1, "psi2": psi2}))
     return out
 
 

@@ -6,34 +6,17 @@ import math
 
 import numpy as np
 
-from optik import spatial
 from optik.closed_form.parallel.common import (
     QUADRATIC_STOP,
-    angle,
-    assemble,
     coordinate_row,
     direction,
-    newton_step,
     rot2,
 )
-from optik.closed_form.registry import register
+from optik.closed_form.registry import register, wrap_angle_one
 from optik.mechanism import Mechanism
 
 CONTINUUM_SAMPLES = 12
 """Representatives returned where the assembly modes form a continuum (architecture singularity)."""
-
-
-def _rpr_q(m: Mechanism, pos: np.ndarray, phi: float) -> np.ndarray:
-    b, p = m.params["base"], m.params["platform"]
-    pts = pos + p @ rot2(phi).T
-    legs = pts - b
-    th = [angle(v) for v in legs]
-    rho = np.linalg.norm(legs, axis=1)
-    values = {"pin1": phi - th[0]}
-    for i in range(3):
-        values[f"theta{i + 1}"] = th[i]
-        values[f"rho{i + 1}"] = float(rho[i])
-    return assemble(m, values)
 
 
 def planar_3rpr_ik(m: Mechanism, target: np.ndarray) -> list[np.ndarray]:
@@ -44,8 +27,14 @@ def planar_3rpr_ik(m: Mechanism, target: np.ndarray) -> list[np.ndarray]:
 
 def _planar_3rpr_rows(m: Mechanism, target: np.ndarray) -> list[list[float]]:
     """`planar_3rpr_ik` as lists of floats (registered: the registry works on floats)."""
-    tx, ty = float(target[0, 3]), float(target[1, 3])
     phi = math.atan2(target[1, 0], target[0, 0])
+    return [_pose_row(m, float(target[0, 3]), float(target[1, 3]), phi)]
+
+
+def _pose_row(m: Mechanism, tx: float, ty: float, phi: float) -> list[float]:
+    """Full coordinates (floats) of the platform pose ``(tx, ty, phi)``: leg vectors
+    ``l_i = t + R(phi) p_i - b_i``, ``theta_i = atan2(l_i)``, ``rho_i = |l_i|``,
+    ``pin1 = phi - theta1``."""
     c, s = math.cos(phi), math.sin(phi)
     values = {}
     for i, ((bx, by), (px, py)) in enumerate(
@@ -55,21 +44,7 @@ def _planar_3rpr_rows(m: Mechanism, target: np.ndarray) -> list[list[float]]:
         values[f"theta{i + 1}"] = math.atan2(ly, lx)
         values[f"rho{i + 1}"] = math.sqrt(lx * lx + ly * ly)
     values["pin1"] = phi - values["theta1"]
-    return [coordinate_row(m, values)]
-
-
-def _rpr_residual(b: np.ndarray, p: np.ndarray, rho: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, ...]:
-    r = rot2(x[2])
-    rp = p @ r.T
-    v = x[:2] + rp - b
-    f = np.sum(v * v, axis=1) - rho * rho
-    jac = 2 * np.column_stack([v, _cross2(rp, v)])
-    return f, jac
-
-
-def _cross2(a: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``v . (d/dphi R p) = v . (-(Rp)_y, (Rp)_x)`` row-wise."""
-    return -v[:, 0] * a[:, 1] + v[:, 1] * a[:, 0]
+    return coordinate_row(m, values)
 
 
 def rpr_polynomial(b: np.ndarray, p: np.ndarray, rho: np.ndarray) -> np.ndarray:
@@ -82,35 +57,57 @@ def rpr_polynomial(b: np.ndarray, p: np.ndarray, rho: np.ndarray) -> np.ndarray:
     in ``u``. Cramer's rule gives ``u = N(phi) / D(phi)`` with ``N = adj(W) k``, ``D = 2 det W``,
     and ``F = |N|^2 - rho_1^2 D^2``. ``F`` has degree 4 in ``(cos phi, sin phi)``, but its
     ``e^{+-4 i phi}`` terms cancel (the circular points), which leaves degree 3: ``e^{3 i phi} F``
-    is the degree-6 polynomial in ``z = e^{i phi}``. The coefficients are read off exactly from
-    16 samples by the FFT.
+    is the degree-6 polynomial in ``z = e^{i phi}``. The coefficients are computed exactly by
+    products of Laurent polynomials in ``z``.
     """
     return _rpr_coefficients(b, p, rho)[0]
 
 
 def _rpr_coefficients(b: np.ndarray, p: np.ndarray, rho: np.ndarray) -> tuple[np.ndarray, float]:
-    """`rpr_polynomial` and the magnitude ``max(|N|^2 + rho_1^2 D^2)`` of its two terms
-    over the samples (to tell an identically vanishing ``F`` from a small one)."""
-    phis = 2 * np.pi * np.arange(16) / 16
-    d, e = p[1:] - p[0], b[1:] - b[0]
-    c, s = np.cos(phis), np.sin(phis)
-    rd = np.stack(
-        [c[:, None] * d[:, 0] - s[:, None] * d[:, 1], s[:, None] * d[:, 0] + c[:, None] * d[:, 1]], -1
-    )
-    w = rd - e  # (16, 2, 2): sample, leg, xy
-    k = rho[1:] ** 2 - rho[0] ** 2 - np.sum(w * w, axis=2)
-    det = w[:, 0, 0] * w[:, 1, 1] - w[:, 0, 1] * w[:, 1, 0]
-    nx = w[:, 1, 1] * k[:, 0] - w[:, 0, 1] * k[:, 1]
-    ny = -w[:, 1, 0] * k[:, 0] + w[:, 0, 0] * k[:, 1]
-    f = nx * nx + ny * ny - rho[0] ** 2 * (2 * det) ** 2
-    magnitude = float(np.max(nx * nx + ny * ny + rho[0] ** 2 * (2 * det) ** 2))
-    coef = np.fft.fft(f) / 16  # coef[k % 16] multiplies e^{i k phi}
-    return np.array([coef[k % 16] for k in range(-3, 4)]), magnitude
+    """`rpr_polynomial` and the magnitude of its two terms (the larger coefficient sum of
+    ``|N|^2`` and ``rho_1^2 D^2``, to tell an identically vanishing ``F`` from a small one).
+
+    Exact products of Laurent polynomials in ``z = e^{i phi}`` on floats (``cos phi =
+    (z + 1/z) / 2``, ``sin phi = (z - 1/z) / 2i``): ``w_i`` and ``k_i`` have degree 1, ``det W``
+    and ``N`` degree 2, ``F`` degree 4 before the cancellation of its outer terms.
+    """
+    (b0x, b0y), (p0x, p0y) = b[0].tolist(), p[0].tolist()
+    r0 = float(rho[0])
+    w, k = [], []
+    for i in (1, 2):
+        dx, dy = float(p[i][0]) - p0x, float(p[i][1]) - p0y
+        ex, ey = float(b[i][0]) - b0x, float(b[i][1]) - b0y
+        rdx = [0.5 * dx - 0.5j * dy, 0j, 0.5 * dx + 0.5j * dy]  # (R d)_x; powers -1, 0, 1
+        rdy = [0.5 * dy + 0.5j * dx, 0j, 0.5 * dy - 0.5j * dx]  # (R d)_y
+        w.append(([rdx[0], -ex, rdx[2]], [rdy[0], -ey, rdy[2]]))
+        e_rd = 2 * (ex * rdx[0] + ey * rdy[0])  # 2 e . R d, power -1 (power 1: its conjugate)
+        base = float(rho[i]) ** 2 - r0 * r0 - dx * dx - dy * dy - ex * ex - ey * ey
+        k.append([e_rd, base + 0j, e_rd.conjugate()])
+    (w1x, w1y), (w2x, w2y) = w
+    det2 = [2 * (u - v) for u, v in zip(_mul(w1x, w2y), _mul(w1y, w2x), strict=True)]
+    nx = [u - v for u, v in zip(_mul(w2y, k[0]), _mul(w1y, k[1]), strict=True)]
+    ny = [u - v for u, v in zip(_mul(w1x, k[1]), _mul(w2x, k[0]), strict=True)]
+    n2 = [u + v for u, v in zip(_mul(nx, nx), _mul(ny, ny), strict=True)]
+    d2 = [r0 * r0 * v for v in _mul(det2, det2)]
+    coef = np.array([u - v for u, v in zip(n2[1:8], d2[1:8], strict=True)])  # powers -3..3
+    return coef, max(sum(abs(v) for v in n2), sum(abs(v) for v in d2))
+
+
+def _mul(a: list[complex], b: list[complex]) -> list[complex]:
+    """Product of two Laurent polynomials given by centred coefficient lists."""
+    out = [0j] * (len(a) + len(b) - 1)
+    for i, x in enumerate(a):
+        for j, y in enumerate(b):
+            out[i + j] += x * y
+    return out
 
 
 def _cluster_means(roots: np.ndarray, radius: float = 1e-3) -> np.ndarray:
     """Centroids of clusters of roots closer than ``radius``: a root of multiplicity ``k``
     splits by ``O(eps^(1/k))`` under rounding, but the centroid of the cluster stays accurate."""
+    gaps = np.abs(roots[:, None] - roots[None, :]) + np.eye(len(roots)) * radius
+    if len(roots) < 2 or np.min(gaps) >= radius:
+        return np.zeros(0, dtype=complex)  # the usual case: simple, separated roots
     means = []
     for z in roots:
         near = roots[np.abs(roots - z) < radius]
@@ -119,6 +116,26 @@ def _cluster_means(roots: np.ndarray, radius: float = 1e-3) -> np.ndarray:
             if not any(abs(mean - w) < 1e-12 for w in means):
                 means.append(mean)
     return np.array(means, dtype=complex)
+
+
+def _cramer_one(bl: list, pl: list, rho: list, phi: float) -> tuple[float, float] | None:
+    """``P_1`` for a heading by Cramer's rule on ``2 W u = k`` in floats (see `rpr_polynomial`);
+    None when ``W`` vanishes or is (nearly) singular."""
+    c, s = math.cos(phi), math.sin(phi)
+    (b0x, b0y), (p0x, p0y) = bl[0], pl[0]
+    w, k = [], []
+    for i in (1, 2):
+        dx, dy = pl[i][0] - p0x, pl[i][1] - p0y
+        wx, wy = c * dx - s * dy - (bl[i][0] - b0x), s * dx + c * dy - (bl[i][1] - b0y)
+        w.append((wx, wy))
+        k.append(rho[i] * rho[i] - rho[0] * rho[0] - wx * wx - wy * wy)
+    (w1x, w1y), (w2x, w2y) = w
+    det = w1x * w2y - w1y * w2x
+    w2 = w1x * w1x + w1y * w1y + w2x * w2x + w2y * w2y
+    e_max = max(abs(v - o) for row in bl[1:] for v, o in zip(row, bl[0], strict=True))
+    if w2 <= (1e-12 * (1 + e_max)) ** 2 or not abs(det) > 1e-9 * w2:
+        return None  # W = 0 (a continuum) or singular: `_rpr_candidates` handles both
+    return b0x + (w2y * k[0] - w1y * k[1]) / (2 * det), b0y + (w1x * k[1] - w2x * k[0]) / (2 * det)
 
 
 def _rpr_candidates(b: np.ndarray, p: np.ndarray, rho: np.ndarray, phi: float) -> list[np.ndarray]:
@@ -159,16 +176,44 @@ def polish_planar_3rpr(
 
     Returns the polished pose and the max leg-length error ``max_i | |t + R p_i - b_i| - rho_i |``.
     """
+    out = _polish_one(b.tolist(), p.tolist(), np.asarray(rho, dtype=float).tolist(), *map(float, x), iters)
+    return np.array(out[:3]), out[3]
+
+
+def _polish_one(
+    bl: list, pl: list, rho: list, tx: float, ty: float, phi: float, iters: int = 8
+) -> tuple[float, float, float, float]:
+    """`polish_planar_3rpr` on floats: ``f_i = |v_i|^2 - rho_i^2``, ``v_i = t + R p_i - b_i``,
+    rows ``2 [v_x, v_y, v . (d R p_i / d phi)]``, the 3x3 step by Cramer's rule (a singular
+    Jacobian, e.g. at points of a continuum, ends the iteration)."""
+    stop = 1e-15 * (1 + max(rho) ** 2)
     for _ in range(iters):
-        f, jac = _rpr_residual(b, p, rho, x)
-        if np.max(np.abs(f)) <= 1e-15 * (1 + np.max(rho) ** 2):
+        c, s = math.cos(phi), math.sin(phi)
+        rows, f = [], []
+        for (bx, by), (px, py), r in zip(bl, pl, rho, strict=True):
+            rx, ry = c * px - s * py, s * px + c * py
+            vx, vy = tx + rx - bx, ty + ry - by
+            f.append(vx * vx + vy * vy - r * r)
+            rows.append((2 * vx, 2 * vy, 2 * (vy * rx - vx * ry)))
+        if max(abs(v) for v in f) <= stop:
             break  # already exact (also keeps points of a continuum, where J is singular)
-        step = newton_step(jac, f)
-        x = x - step
-        if np.max(np.abs(step)) < QUADRATIC_STOP * (1 + np.max(np.abs(x))):
+        (a1, a2, a3), (b1, b2, b3), (c1, c2, c3) = rows
+        det = a1 * (b2 * c3 - b3 * c2) - a2 * (b1 * c3 - b3 * c1) + a3 * (b1 * c2 - b2 * c1)
+        if det == 0.0 or not math.isfinite(det):
             break
-    v = x[:2] + p @ rot2(x[2]).T - b
-    return x, float(np.max(np.abs(np.linalg.norm(v, axis=1) - rho)))
+        f1, f2, f3 = f
+        dx = (f1 * (b2 * c3 - b3 * c2) - a2 * (f2 * c3 - b3 * f3) + a3 * (f2 * c2 - b2 * f3)) / det
+        dy = (a1 * (f2 * c3 - b3 * f3) - f1 * (b1 * c3 - b3 * c1) + a3 * (b1 * f3 - f2 * c1)) / det
+        dp = (a1 * (b2 * f3 - f2 * c2) - a2 * (b1 * f3 - f2 * c1) + f1 * (b1 * c2 - b2 * c1)) / det
+        tx, ty, phi = tx - dx, ty - dy, phi - dp
+        if max(abs(dx), abs(dy), abs(dp)) < QUADRATIC_STOP * (1 + max(abs(tx), abs(ty), abs(phi))):
+            break
+    c, s = math.cos(phi), math.sin(phi)
+    err = max(
+        abs(math.hypot(tx + c * px - s * py - bx, ty + s * px + c * py - by) - r)
+        for (bx, by), (px, py), r in zip(bl, pl, rho, strict=True)
+    )
+    return tx, ty, phi, err
 
 
 def planar_3rpr_poses(b: np.ndarray, p: np.ndarray, rho: np.ndarray, tol: float = 1e-9) -> list[np.ndarray]:
@@ -196,31 +241,36 @@ def planar_3rpr_poses(b: np.ndarray, p: np.ndarray, rho: np.ndarray, tol: float 
         trimmed = coef[nz[0] : nz[-1] + 1]
         roots = np.roots(trimmed[::-1]) if len(trimmed) > 1 else np.zeros(0)
         roots = np.concatenate([roots, _cluster_means(roots)])
+    bl, pl, rl = b.tolist(), p.tolist(), np.asarray(rho, dtype=float).tolist()
     size = float(np.max(np.abs(b)) + np.max(np.abs(p)) + np.max(rho))
-    poses: list[np.ndarray] = []
-    for z in roots:
-        if abs(np.log(abs(z))) > 1e-3:
+    accept = tol * max(size, 1.0)
+    poses: list[tuple[float, float, float]] = []
+    for z in roots.tolist():
+        if abs(math.log(abs(z))) > 1e-3:
             continue
-        phi = float(np.angle(z))
-        p1 = p[0] @ rot2(phi).T
-        for u in _rpr_candidates(b, p, rho, phi):
-            x, err = polish_planar_3rpr(b, p, rho, np.array([*(u - p1), phi]))
-            if err > tol * max(size, 1.0):
+        phi = math.atan2(z.imag, z.real)
+        u = _cramer_one(bl, pl, rl, phi)
+        starts = [u] if u is not None else [tuple(v) for v in _rpr_candidates(b, p, rho, phi)]
+        c, s = math.cos(phi), math.sin(phi)
+        (p0x, p0y) = pl[0]
+        for ux, uy in starts:
+            tx, ty, ph, err = _polish_one(bl, pl, rl, ux - (c * p0x - s * p0y), uy - (s * p0x + c * p0y), phi)
+            if err > accept:
                 continue
-            x[2] = float(spatial.wrap_angle(x[2]))
+            ph = wrap_angle_one(ph)
             if all(
-                np.linalg.norm(x[:2] - y[:2]) > 1e-7 * size or abs(spatial.wrap_angle(x[2] - y[2])) > 1e-7
-                for y in poses
+                math.hypot(tx - x, ty - y) > 1e-7 * size or abs(wrap_angle_one(ph - a)) > 1e-7
+                for x, y, a in poses
             ):
-                poses.append(x)
-    return poses
+                poses.append((tx, ty, ph))
+    return [np.array(x) for x in poses]
 
 
-def planar_3rpr_fk(m: Mechanism, actuated: np.ndarray) -> list[np.ndarray]:
-    """3-RPR FK: every real assembly mode (see `planar_3rpr_poses`) as a full ``q``."""
+def planar_3rpr_fk(m: Mechanism, actuated: np.ndarray) -> list[list[float]]:
+    """3-RPR FK: every real assembly mode (see `planar_3rpr_poses`) as a full ``q`` (floats)."""
     rho = np.asarray(actuated, dtype=float)
     poses = planar_3rpr_poses(m.params["base"], m.params["platform"], rho)
-    return [_rpr_q(m, x[:2], float(x[2])) for x in poses]
+    return [_pose_row(m, *x.tolist()) for x in poses]
 
 
 register("planar_3rpr", ik=_planar_3rpr_rows, fk=planar_3rpr_fk)

@@ -1,0 +1,249 @@
+"""Every IK solution of 6-axis arms: optik's derived closed forms against EAIK, pose by pose.
+
+Method (DESIGN.md): per arm, ``--n`` joint vectors drawn uniformly within the limits (seeded),
+targets by the mechanism's own FK (``m.fk``); then, target by target in one process (thread pools
+pinned to 1 before numpy is imported), interleaved:
+
+* ``optik``: ``optik.solve_ik_all(m, T)``, the public call (validation, the derived or catalog
+  closed form, the FK check of every branch by the mechanism's compiled FK, the joint-limit
+  filter, results sorted by distance to the mid-limit start);
+* ``EAIK`` (the ``eaik`` package, where installed): ``Robot.calculate_IK(T)``, built once per arm
+  from the same joint axes and points at ``q = 0`` (``H``, ``P`` and the end-effector rotation).
+
+Arms: the UR5 and UR10 URDFs of example-robot-data (``*_joint_limited_robot.urdf``, base
+``base_link``, tip ``tool0``; skipped with a note when example-robot-data is not installed), the
+PUMA 560 of the catalog (spherical wrist, standard DH) and the seed's 6R arm (hand-written closed
+form; its derived one is timed in the vectorized column).
+
+Checks (each recomputed here from the returned ``q``): an EAIK solution counts when its FK by
+``m.fk`` matches the target (position and orientation error <= 1e-6) and it lies within the limits
+after the 2 pi shift of ``m.wrap``; it is *found* when an optik solution lies within 1e-4 rad of
+it (max-norm, angles modulo 2 pi). Every optik solution must pass the same FK and limit check;
+*duplicates* are pairs of optik solutions of one target closer than 1e-4 rad; *extra* are optik
+solutions that no valid EAIK solution matches.
+
+Before timing, each arm's single-target kernel is built and compiled to C (untimed; in use it
+compiles itself after its first calls). Times: mean / median / p95 per pose of both, the ratio
+of means and medians (optik / EAIK), and optik's vectorized throughput (``DerivedIK.solve`` on
+all ``--n`` targets at once: every branch, FK-checked and deduplicated, no limit filter) in
+targets per second.
+
+Run: ``optik benchmark all_solutions [--n 1000] [--seed 0] [--out report.md]`` (or
+``python -m optik.benchmarks.bench_all_solutions``).
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from collections.abc import Sequence  # noqa: E402
+from dataclasses import dataclass, field  # noqa: E402
+from importlib import metadata  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+import optik  # noqa: E402
+from optik.closed_form.derived import chain_axes, derive, derive_axes  # noqa: E402
+from optik.mechanism import Mechanism  # noqa: E402
+from optik.solvers.base import joint_distance  # noqa: E402
+
+try:  # an optional peer
+    import eaik.pybindings.EAIK as eaik
+except ImportError:  # pragma: no cover - depends on the environment
+    eaik = None
+
+SAME = 1e-4
+"""Joint distance under which two solutions are the same (DESIGN's same-branch rule)."""
+FK_TOL = 1e-6
+"""FK check of a solution: position (m) and orientation (rad) errors at most this."""
+UR_DIR = "cmeel.prefix/share/example-robot-data/robots/ur_description/urdf"
+
+
+def _ur(name: str) -> tuple[Mechanism | None, str]:
+    """A UR arm of example-robot-data (``optik.catalog.robot`` where it exists), or a note."""
+    robot = getattr(optik.catalog, "robot", None)
+    if robot is not None:
+        try:
+            return robot(name), ""
+        except optik.OptikError:
+            pass
+    try:
+        dist = metadata.distribution("example-robot-data")
+    except metadata.PackageNotFoundError:
+        return None, f"{name}: skipped, example-robot-data is not installed (pip install optik[robots])"
+    path = Path(str(dist.locate_file(f"{UR_DIR}/{name}_joint_limited_robot.urdf")))
+    if not path.exists():
+        return None, f"{name}: skipped, {path} not found"
+    m = Mechanism.from_urdf(path, "base_link", "tool0")
+    m.name = name
+    return m, ""
+
+
+def _arms() -> tuple[list[Mechanism], list[str]]:
+    arms, notes = [], []
+    for name in ("ur5", "ur10"):
+        m, note = _ur(name)
+        if m is None:
+            notes.append(note)
+        else:
+            arms.append(m)
+    arms += [optik.catalog.puma560(), optik.catalog.seed_6r_arm()]
+    return arms, notes
+
+
+def _eaik_robot(m: Mechanism) -> object:
+    ax = chain_axes(m)
+    offsets = np.vstack([ax.r[0], np.diff(ax.r, axis=0), ax.home[:3, 3] - ax.r[-1]])
+    return eaik.Robot(ax.h.T, offsets.T, ax.home[:3, :3], [], True)
+
+
+def _valid(m: Mechanism, qs: Sequence[np.ndarray], target: np.ndarray) -> list[np.ndarray]:
+    """The ``qs`` (shifted into the limits by ``m.wrap``) passing the FK and limit check."""
+    out = []
+    for q in qs:
+        w = m.wrap(np.asarray(q, dtype=float))
+        t = m.fk(w)
+        rel = t[:3, :3].T @ target[:3, :3]
+        angle = np.arccos(np.clip(0.5 * (np.trace(rel) - 1.0), -1.0, 1.0))
+        if np.linalg.norm(t[:3, 3] - target[:3, 3]) <= FK_TOL and angle <= FK_TOL and m.within_limits(w):
+            out.append(w)
+    return out
+
+
+@dataclass
+class Row:
+    """The tallies of one arm."""
+
+    name: str
+    family: str
+    n: int
+    optik_times: list[float] = field(default_factory=list)
+    eaik_times: list[float] = field(default_factory=list)
+    eaik_valid: int = 0
+    found: int = 0
+    optik_solutions: int = 0
+    optik_failed_check: int = 0
+    duplicates: int = 0
+    extra: int = 0
+    outside_limits: int = 0
+    throughput: float = 0.0
+
+
+def _stats(times: list[float]) -> tuple[float, float, float]:
+    a = np.asarray(times) * 1e6
+    return float(a.mean()), float(np.median(a)), float(np.percentile(a, 95))
+
+
+def run_arm(m: Mechanism, n: int, seed: int) -> Row:
+    solver = derive(m) or derive_axes(chain_axes(m))
+    family = solver.structure.name if solver is not None else "none"
+    row = Row(m.name, family, n)
+    targets = m.fk(m.random_q(n, seed=seed))
+    robot = _eaik_robot(m) if eaik is not None else None
+    optik.solve_ik_all(m, targets[0])  # builds the cached kernel and FK evaluator (untimed)
+    if derive(m) is not None:
+        derive(m).compile()  # as after its first calls (it compiles itself when hot)
+    for t in targets:
+        t0 = time.perf_counter()
+        sols = optik.solve_ik_all(m, t)
+        row.optik_times.append(time.perf_counter() - t0)
+        if robot is not None:
+            t0 = time.perf_counter()
+            theirs = robot.calculate_IK(t)
+            row.eaik_times.append(time.perf_counter() - t0)
+            valid = _valid(m, np.asarray(theirs.Q), t)
+        else:
+            valid = []
+        ours = [s.q for s in sols]
+        row.optik_solutions += len(ours)
+        row.outside_limits += len(sols.outside_limits)
+        row.optik_failed_check += len(ours) - len(_valid(m, ours, t))
+        pairs = [(a, b) for i, a in enumerate(ours) for b in ours[i + 1 :]]
+        row.duplicates += sum(joint_distance(m, a, b) < SAME for a, b in pairs)
+        row.eaik_valid += len(valid)
+        row.found += sum(any(joint_distance(m, v, o) < SAME for o in ours) for v in valid)
+        if robot is not None:
+            row.extra += sum(all(joint_distance(m, o, v) >= SAME for v in valid) for o in ours)
+    if solver is not None:
+        solver.solve(targets[:10])
+        t0 = time.perf_counter()
+        solver.solve(targets)
+        row.throughput = n / (time.perf_counter() - t0)
+    return row
+
+
+def report(rows: list[Row], notes: list[str], command: str) -> str:
+    lines = [
+        f"`{command}` (one process, targets interleaved pose by pose; times per pose in us)",
+        "",
+        "| arm | family | poses | EAIK solutions in limits | found by optik | optik solutions | duplicates "
+        "| failed FK/limit check | extra | optik mean / median / p95 | EAIK mean / median / p95 "
+        "| ratio of means / medians | vectorized (targets/s) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        om, omed, op95 = _stats(r.optik_times)
+        if r.eaik_times:
+            em, emed, ep95 = _stats(r.eaik_times)
+            peer = f"{em:.1f} / {emed:.1f} / {ep95:.1f}"
+            ratio = f"{om / em:.1f} / {omed / emed:.1f}"
+            found = f"{r.found} ({100.0 * r.found / max(r.eaik_valid, 1):.1f} %)"
+        else:
+            peer, ratio, found = "EAIK not installed", "-", "-"
+        lines.append(
+            f"| {r.name} | {r.family} | {r.n} | {r.eaik_valid if r.eaik_times else '-'} | {found} "
+            f"| {r.optik_solutions} | {r.duplicates} | {r.optik_failed_check} "
+            f"| {r.extra if r.eaik_times else '-'} "
+            f"| {om:.1f} / {omed:.1f} / {op95:.1f} | {peer} | {ratio} | {r.throughput:,.0f} |"
+        )
+    lines += ["", *(f"- {note}" for note in notes)]
+    lines.append(
+        f"- optik left out {sum(r.outside_limits for r in rows)} solutions outside the joint limits "
+        "(reported in `IKSolutions.outside_limits`, not in the counts above)"
+    )
+    return "\n".join(lines) + "\n"
+
+
+def _write(path: Path, text: str) -> None:
+    """Write ``text`` atomically (temporary file in the same folder, then ``os.replace``)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.NamedTemporaryFile("w", dir=path.parent, delete=False, suffix=".tmp") as f:
+        f.write(text)
+    os.replace(f.name, path)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="optik benchmark all_solutions", description=__doc__.splitlines()[0]
+    )
+    parser.add_argument("--n", type=int, default=1000, help="random poses per arm (default: %(default)s)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of joint vectors (default: %(default)s)")
+    parser.add_argument("--out", type=Path, help="also write the report (markdown) to this file")
+    args = parser.parse_args(argv)
+    if args.n < 1:
+        parser.error("--n must be >= 1")
+    arms, notes = _arms()
+    if eaik is None:
+        notes.append("EAIK not installed (pip install optik[peers]): optik alone")
+    rows = []
+    for m in arms:
+        rows.append(run_arm(m, args.n, args.seed))
+        print(f"{m.name}: done", flush=True)
+    command = "optik benchmark all_solutions " + " ".join(argv or [])
+    text = report(rows, notes, command.strip())
+    print(text)
+    if args.out is not None:
+        _write(args.out, text)
+    ok = all(r.found == r.eaik_valid and r.duplicates == 0 and r.optik_failed_check == 0 for r in rows)
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,190 @@
+"""The viewer in a real browser: headless Chromium (software WebGL) loads the page served by
+``optik view`` and by ``optik.view(...)``; screenshots must show a drawn scene, a target moved
+from Python must move the arm in the page, and Ctrl-C must stop the command cleanly.
+
+The documentation screenshots are taken here too, on request (each page costs seconds of
+software rendering): ``OPTIK_VIEW_SHOTS=docs/img python3 -m pytest tests/test_view_browser.py -k
+screenshots`` writes them into docs/img.
+
+Each test starts its own browser and closes it before the viewer's server: the server's stop
+waits for the sockets a browser keeps open.
+"""
+
+from __future__ import annotations
+
+import os
+import queue
+import signal
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("viser", reason="the view extra (viser) is not installed")
+pytest.importorskip("websockets", reason="the view extra (websockets) is not installed")
+
+from test_view import free_port
+
+import optik
+from optik import catalog, closed_form
+from optik.plot import write_atomic
+from optik.view.browser import Chromium, coloured_pixels, find_chromium
+
+CHROMIUM = find_chromium()
+pytestmark = pytest.mark.skipif(
+    CHROMIUM is None, reason="no Chromium on the PATH: .ci/run installs Debian's chromium package"
+)
+
+WIDTH, HEIGHT = 1280, 800
+CANVAS = (80, 0, WIDTH - 360, HEIGHT - 80)
+"""The 3-D view without the control panel (right) and the orientation widget (bottom left)."""
+PANEL = (WIDTH - 330, 60, WIDTH - 20, 400)
+"""The control panel (its sliders and buttons are blue)."""
+DRAWN = 2000
+"""Coloured pixels in `CANVAS` that make a drawn scene (the white page, the grey grid and the
+panel's text have none; the Panda alone has about 10,000)."""
+
+
+def drawn(png: bytes) -> bool:
+    return coloured_pixels(png, CANVAS) > DRAWN
+
+
+def complete(png: bytes) -> bool:
+    """A drawn scene and a populated control panel."""
+    return drawn(png) and coloured_pixels(png, PANEL) > 300
+
+
+@pytest.fixture
+def browser():
+    chromium = Chromium(CHROMIUM, WIDTH, HEIGHT)
+    yield chromium
+    chromium.close()
+
+
+def test_a_blank_page_is_not_a_drawn_scene(browser):
+    png = browser.screenshot("data:text/html,<html><body><h1>optik</h1></body></html>")
+    assert coloured_pixels(png) == 0 and not drawn(png)
+
+
+@pytest.fixture
+def served():
+    """``optik view panda --no-browser`` in a subprocess on a free port; killed if still running."""
+    port = free_port()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "optik.cli", "view", "panda", "--no-browser", "--port", str(port)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+    )
+    lines: queue.Queue[str] = queue.Queue()
+    reader = threading.Thread(target=lambda: [lines.put(x) for x in proc.stdout], daemon=True)
+    reader.start()
+    yield proc, lines, reader
+    if proc.poll() is None:
+        proc.kill()
+    proc.wait(10)
+
+
+def test_optik_view_serves_a_drawn_page_and_stops_on_ctrl_c(browser, served):
+    proc, lines, reader = served
+    first = lines.get(timeout=60)  # "optik view: panda at http://127.0.0.1:PORT (Ctrl-C to stop)"
+    assert "http://127.0.0.1:" in first, first
+    url = first.split(" at ")[1].split()[0]
+    png = browser.screenshot(url, ready=complete, timeout=30)
+    assert drawn(png)
+    assert len(np.unique(np.frombuffer(png, dtype=np.uint8))) > 100  # a rendered image, not a flat fill
+    proc.send_signal(signal.SIGINT)
+    proc.wait(20)
+    err = proc.stderr.read()
+    assert proc.returncode in (0, 130), err
+    assert "Traceback" not in err, err
+    reader.join(5)
+    assert "optik view: stopped" in "".join(lines.queue)
+
+
+def test_a_target_set_from_python_moves_the_arm_in_the_page(browser):
+    m = catalog.panda()
+    with optik.view(m, port=free_port()) as v, browser, browser.open(v.url) as page:
+        before = page.screenshot(drawn, timeout=30)
+        assert len(v.server.get_clients()) == 1  # the page is connected to this viewer
+        target = m.fk(np.array([1.2, 0.5, 0.3, -1.2, 0.4, 2.0, 0.0]))
+        res = v.set_target(target)
+        assert res.success
+        shown = m.fk(v.q)  # the configuration sent to the page solves the target
+        assert np.linalg.norm(shown[:3, 3] - target[:3, 3]) < 1e-6
+        assert np.linalg.norm(shown[:3, :3] - target[:3, :3]) < 1e-6
+
+        def moved(png: bytes) -> bool:
+            return drawn(png) and _changed(before, png) > 3000
+
+        after = page.screenshot(moved, timeout=20)
+        assert _changed(before, after) > 3000
+
+
+def _changed(a: bytes, b: bytes) -> int:
+    """Pixels of `CANVAS` that differ between two screenshots."""
+    import io
+
+    from PIL import Image
+
+    left, top, right, bottom = CANVAS
+    x, y = (np.asarray(Image.open(io.BytesIO(p)).convert("RGB"), dtype=int) for p in (a, b))
+    x, y = x[top:bottom, left:right], y[top:bottom, left:right]
+    return int(np.count_nonzero(np.abs(x - y).sum(axis=2) > 60))
+
+
+def _panda(v):
+    q = np.array([0.3, -0.4, 0.2, -2.2, 0.1, 1.9, 0.8])
+    target = v.m.fk(q)
+    target[:3, 3] += (0.08, 0.1, 0.05)
+    assert v.set_target(target).success
+
+
+def _five_bar(mode):
+    def setup(v):
+        modes = v.set_actuated([2.0, 1.2])
+        assert len(modes) == 2 == len(closed_form.fk(v.m, [2.0, 1.2]))
+        v.show_mode(mode)
+
+    return setup
+
+
+def _stewart(v):
+    modes = v.set_actuated([1.2, 1.1, 1.15, 1.25, 1.2, 1.1])
+    assert len(modes) >= 2
+    upright = int(np.argmax([v.m.fk(q)[2, 3] for q in modes]))  # the highest platform
+    v.show_mode(upright, others=False)
+
+
+def _branches(v):
+    target = v.m.fk(v.m.random_q(seed=193))  # a target with all 8 branches within the limits
+    v.set_target(target)
+    assert len(v.show_all_solutions(True)) == len(closed_form.ik(v.m, target)) == 8
+
+
+SHOTS = {
+    "view_panda": (catalog.panda, _panda),
+    "view_five_bar_mode1": (catalog.five_bar, _five_bar(0)),
+    "view_five_bar_mode2": (catalog.five_bar, _five_bar(1)),
+    "view_stewart_gough": (catalog.stewart_gough, _stewart),
+    "view_puma560_branches": (catalog.puma560, _branches),
+}
+
+
+@pytest.mark.skipif(
+    not os.environ.get("OPTIK_VIEW_SHOTS"),
+    reason="set OPTIK_VIEW_SHOTS=DIR to take the documentation screenshots",
+)
+@pytest.mark.parametrize("name", SHOTS)
+def test_documentation_screenshots(name):
+    build, setup = SHOTS[name]
+    with optik.view(build(), port=free_port()) as v:
+        setup(v)
+        with Chromium(CHROMIUM, WIDTH, HEIGHT) as browser:
+            png = browser.screenshot(v.url, ready=complete, timeout=30)
+    assert drawn(png)
+    write_atomic(Path(os.environ["OPTIK_VIEW_SHOTS"]) / f"{name}.png", lambda tmp: Path(tmp).write_bytes(png))

@@ -32,8 +32,14 @@ The NLP ([`IKProblem`][optik.IKProblem]) is::
                 c(q) = 0                                           loop closures (closed chains)
 
 with the target, the weights and ``q_ref`` as NLP parameters: a new target or weight never
-rebuilds anything. [`build_ik_problem`][optik.build_ik_problem] returns the problem, cached per mechanism,
-task, frame and secondary-objective selection.
+rebuilds anything. [`build_ik_problem`][optik.build_ik_problem] returns the problem, cached per
+mechanism, task, frame and secondary-objective selection.
+
+*Several frame targets* (a tree: both hands of a humanoid, two tools of a dual-arm robot): with
+``frame`` a tuple of frames and ``task`` a tuple of task spaces, one per frame, the residual
+blocks are stacked, ``r_p = [r_p,1; ...; r_p,k]`` and ``r_o = [r_o,1; ...; r_o,k]``, the target
+parameters are the frames' 12 parameters one after the other, and the errors of the success
+check are the largest over the frames (`frame_tasks` pairs them).
 """
 
 from __future__ import annotations
@@ -55,8 +61,15 @@ __all__ = [
     "IKProblem",
     "angle_from_residual",
     "build_ik_problem",
+    "frame_tasks",
     "target_parameters",
 ]
+
+Frames = str | None | tuple[str, ...]
+"""A task frame (None: the end effector), or several frames for several targets at once."""
+
+Tasks = str | tuple[str, ...]
+"""A task space, or one per frame of a several-target problem."""
 
 SECONDARY_OBJECTIVES = ("posture", "manipulability", "limits")
 """Secondary objectives the NLP can include (posture is always present, weight 0 disables it)."""
@@ -70,9 +83,24 @@ def angle_from_residual(norm: Any) -> Any:
 
 
 def target_parameters(target: np.ndarray) -> np.ndarray:
-    """The 12 target parameters ``[vec(R*) (column-major); p*]`` of a 4x4 transform."""
+    """The 12 target parameters ``[vec(R*) (column-major); p*]`` of a 4x4 transform, or the
+    ``12 k`` parameters of a ``(k, 4, 4)`` stack (several frame targets), frame after frame."""
     t = np.asarray(target, dtype=float)
+    if t.ndim == 3:
+        return np.concatenate([target_parameters(ti) for ti in t])
     return np.concatenate([t[:3, :3].reshape(-1, order="F"), t[:3, 3]])
+
+
+def frame_tasks(frame: Frames, task: Tasks) -> tuple[tuple[str | None, str], ...]:
+    """``((frame, task), ...)``: one pair for a single frame, one per frame for a tuple of frames
+    (``task`` a tuple of the same length, or one task space for every frame)."""
+    frames = frame if isinstance(frame, tuple) else (frame,)
+    tasks = task if isinstance(task, tuple) else (task,) * len(frames)
+    if len(tasks) != len(frames):
+        raise InvalidArgumentError(
+            "task", f"expected {len(frames)} task spaces, one per frame, got {len(tasks)}"
+        )
+    return tuple(zip(frames, tasks, strict=True))
 
 
 def _task_blocks(task: str, t: ca.SX, target: ca.SX) -> tuple[ca.SX, ca.SX]:
@@ -99,11 +127,12 @@ class IKProblem:
 
     Attributes:
         mechanism: the model.
-        task: task space (a key of [`optik.mechanism.TASK_ROWS`][optik.mechanism.TASK_ROWS]).
-        frame: task frame (None: end effector).
+        task: task space (a key of [`optik.mechanism.TASK_ROWS`][optik.mechanism.TASK_ROWS]), or one per
+            frame when ``frame`` is a tuple.
+        frame: task frame (None: end effector), or a tuple of frames (several targets at once).
         secondary: the secondary objectives included besides posture.
         q: decision variables (``SX``, ``n_q`` x 1).
-        target: target parameters ``[vec(R*); p*]`` (``SX``, 12 x 1).
+        target: target parameters ``[vec(R*); p*]`` (``SX``, 12 x 1; ``12 k`` x 1 for ``k`` frames).
         weights: task weights ``[w_p, w_o]`` (``SX``, 2 x 1).
         q_ref: reference posture (``SX``, ``n_q`` x 1).
         secondary_weights: ``[w_post, w_manip, w_lim]`` (``SX``, 3 x 1).
@@ -117,8 +146,8 @@ class IKProblem:
     """
 
     mechanism: Mechanism
-    task: str
-    frame: str | None
+    task: Tasks
+    frame: Frames
     secondary: tuple[str, ...]
     q: ca.SX
     target: ca.SX
@@ -217,23 +246,35 @@ class IKProblem:
         directly (not from the residual): the Euclidean distance of the origins (x-y only for planar tasks),
         the geodesic angle ``atan2(|vee(M - M^T)| / 2, (tr M - 1) / 2)`` of ``M = R*^T R`` for ``pose`` and
         ``orientation``, ``|wrap(phi - phi*)|`` for ``pose2d``, and 0 where a task has no such part.
+        With several frames the position and orientation errors are the largest over the frames.
         """
-        t = self.mechanism.frame_expr(self.frame)
-        r_star = ca.reshape(self.target[:9], 3, 3)
-        dp = t[:3, 3] - self.target[9:12]
-        zero = ca.SX.zeros(1, 1)
-        planar = self.task in ("pose2d", "position2d")
-        pos = zero if self.task == "orientation" else ca.norm_2(dp[:2] if planar else dp)
-        if self.task in ("pose", "orientation"):
-            ori = spatial.angle_between(r_star, t[:3, :3])
-        elif self.task == "pose2d":
-            dphi = ca.atan2(t[1, 0], t[0, 0]) - ca.atan2(r_star[1, 0], r_star[0, 0])
-            ori = ca.fabs(spatial.wrap_angle(dphi))
-        else:
-            ori = zero
+        per_frame = self.frame_error_expressions()
+        pos = per_frame[0][0] if len(per_frame) == 1 else ca.mmax(ca.vertcat(*(p for p, _ in per_frame)))
+        ori = per_frame[0][1] if len(per_frame) == 1 else ca.mmax(ca.vertcat(*(o for _, o in per_frame)))
         c = self.closure
-        clo = ca.mmax(ca.fabs(c)) if c.shape[0] else zero
+        clo = ca.mmax(ca.fabs(c)) if c.shape[0] else ca.SX.zeros(1, 1)
         return pos, ori, clo
+
+    def frame_error_expressions(self) -> list[tuple[ca.SX, ca.SX]]:
+        """Position and orientation error of each frame (see `error_expressions`), in frame order."""
+        out = []
+        for i, (frame, task) in enumerate(frame_tasks(self.frame, self.task)):
+            t = self.mechanism.frame_expr(frame)
+            target = self.target[12 * i : 12 * i + 12]
+            r_star = ca.reshape(target[:9], 3, 3)
+            dp = t[:3, 3] - target[9:12]
+            zero = ca.SX.zeros(1, 1)
+            planar = task in ("pose2d", "position2d")
+            pos = zero if task == "orientation" else ca.norm_2(dp[:2] if planar else dp)
+            if task in ("pose", "orientation"):
+                ori = spatial.angle_between(r_star, t[:3, :3])
+            elif task == "pose2d":
+                dphi = ca.atan2(t[1, 0], t[0, 0]) - ca.atan2(r_star[1, 0], r_star[0, 0])
+                ori = ca.fabs(spatial.wrap_angle(dphi))
+            else:
+                ori = zero
+            out.append((pos, ori))
+        return out
 
     def residual_function(self, closure_weight: float | None = None) -> ca.Function:
         """``(q, target, weights) -> (e, de/dq)`` with ``e = [w_p r_p; w_o r_o; w_c c]``.
@@ -262,16 +303,17 @@ _CACHE: weakref.WeakKeyDictionary[Mechanism, dict[tuple, IKProblem]] = weakref.W
 
 def build_ik_problem(
     m: Mechanism,
-    task: str | None = None,
-    frame: str | None = None,
+    task: Tasks | None = None,
+    frame: Frames = None,
     secondary: tuple[str, ...] = (),
 ) -> IKProblem:
     """The IK problem of a mechanism for a task space and frame (built once, then cached).
 
     Args:
         m: the mechanism.
-        task: task space (default ``m.task``).
-        frame: task frame (default: the end effector).
+        task: task space (default ``m.task``); with several frames, one per frame or one for all.
+        frame: task frame (default: the end effector), or a tuple of frames: one problem for
+            several targets at once.
         secondary: extra objectives from ``("manipulability", "limits")``; posture
             regularization is always part of the objective (its weight is a parameter).
 
@@ -279,14 +321,17 @@ def build_ik_problem(
         InvalidArgumentError: unknown task or secondary objective.
         UnknownFrameError: unknown frame.
     """
-    tk = m._task(task)  # raises on an unknown task
+    pairs = frame_tasks(frame, task)
+    tasks = tuple(m._task(t) for _, t in pairs)  # raises on an unknown task
+    for f, _ in pairs:
+        m._frame(f)
+    tk = tasks if isinstance(frame, tuple) else tasks[0]
     extra = tuple(sorted(set(secondary) - {"posture"}))
     for s in extra:
         if s not in SECONDARY_OBJECTIVES:
             raise InvalidArgumentError(
                 "secondary", f"unknown secondary objective {s!r}; use some of {SECONDARY_OBJECTIVES}"
             )
-    m._frame(frame)
     key = (tk, frame, extra)
     per_mechanism = _CACHE.setdefault(m, {})
     if key not in per_mechanism:
@@ -294,18 +339,22 @@ def build_ik_problem(
     return per_mechanism[key]
 
 
-def _build(m: Mechanism, task: str, frame: str | None, secondary: tuple[str, ...]) -> IKProblem:
+def _build(m: Mechanism, task: Tasks, frame: Frames, secondary: tuple[str, ...]) -> IKProblem:
     q = m.q_sym
-    target = ca.SX.sym("target", 12)
+    pairs = frame_tasks(frame, task)
+    target = ca.SX.sym("target", 12 * len(pairs))
     weights = ca.SX.sym("weights", 2)
     q_ref = ca.SX.sym("q_ref", m.n_q)
     sec = ca.SX.sym("secondary_weights", 3)
-    r_p, r_o = _task_blocks(task, m.frame_expr(frame), target)
+    blocks = [
+        _task_blocks(t, m.frame_expr(f), target[12 * i : 12 * i + 12]) for i, (f, t) in enumerate(pairs)
+    ]
+    r_p, r_o = ca.vertcat(*(b[0] for b in blocks)), ca.vertcat(*(b[1] for b in blocks))
     f = 0.5 * (weights[0] ** 2 * ca.sumsqr(r_p) + weights[1] ** 2 * ca.sumsqr(r_o))
     f += 0.5 * sec[0] * ca.sumsqr(q - q_ref)
     f_sec = ca.SX(0)
     if "manipulability" in secondary:
-        jt = m.jacobian_expr(frame)[list(TASK_ROWS[task]), :]
+        jt = ca.vertcat(*(m.jacobian_expr(f)[list(TASK_ROWS[t]), :] for f, t in pairs))
         f_sec -= sec[1] * ca.log(ca.det(ca.mtimes(jt, jt.T)) + _MANIP_EPS)
     if "limits" in secondary:
         span = np.maximum(m.upper - m.lower, 1e-12)

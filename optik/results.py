@@ -24,6 +24,11 @@ class IKResult:
         status: short machine-readable status (``"solved"``, ``"unreachable"``, ``"time_limit"``...).
         message: human-readable explanation, in particular why a solve failed.
         restarts: number of restarts used.
+        extra: method-specific details (e.g. ``"setup_time"``).
+        frame_errors: ``{frame: (position error, orientation error)}`` of a several-target solve
+            (`optik.solve_ik` with a ``{frame: target}`` dict), each from that frame's own FK;
+            ``position_error`` and ``orientation_error`` are then the largest of them. Empty for
+            one target.
     """
 
     q: np.ndarray
@@ -39,6 +44,7 @@ class IKResult:
     message: str = ""
     restarts: int = 0
     extra: dict = field(default_factory=dict)
+    frame_errors: dict[str, tuple[float, float]] = field(default_factory=dict)
 
 
 @dataclass

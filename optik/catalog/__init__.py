@@ -4,7 +4,7 @@ Every constructor returns an [`optik.Mechanism`][optik.Mechanism] whose ``kind``
 that [`optik.closed_form`][optik.closed_form] can find the analytic solvers of that mechanism.
 """
 
-from optik.catalog.arms import URDF_CHAINS, iiwa14, panda, urdf_path
+from optik.catalog.arms import URDF_CHAINS, URDF_TREES, dual_panda, iiwa14, panda, urdf_path
 from optik.catalog.closed_chains import doggy, five_bar, planar_3rpr, slider_crank, stewart_gough
 from optik.catalog.industrial import puma560
 from optik.catalog.robots import robot, robot_names
@@ -12,7 +12,9 @@ from optik.catalog.serial import planar_2r, planar_3r, pp_arm, rp_arm, seed_6r_a
 
 __all__ = [
     "URDF_CHAINS",
+    "URDF_TREES",
     "doggy",
+    "dual_panda",
     "five_bar",
     "iiwa14",
     "panda",

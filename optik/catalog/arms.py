@@ -10,6 +10,9 @@ Both describe the same robots as the URDF files shipped in ``optik/data/urdf`` (
 [`URDF_CHAINS`][optik.catalog.arms.URDF_CHAINS]): for every ``q``, ``panda().fk(q) ==
 Mechanism.from_urdf(urdf_path("panda"), "panda_link0", "panda_link8").fk(q)`` and likewise for the iiwa
 (tested to 1e-12).
+
+* [`dual_panda`][optik.catalog.arms.dual_panda]: two of those Pandas on a turning torso, a URDF tree
+  (``dual_panda.urdf``, in [`URDF_TREES`][optik.catalog.arms.URDF_TREES]) with two tool frames.
 """
 
 from __future__ import annotations
@@ -29,6 +32,10 @@ URDF_CHAINS: dict[str, tuple[str, str]] = {
     "iiwa14": ("iiwa_link_0", "iiwa_link_ee"),
 }
 """``{robot: (base_link, tip_link)}`` of the URDF files shipped with optik."""
+
+URDF_TREES: dict[str, str] = {"dual_panda": "world"}
+"""``{robot: root link}`` of the shipped URDF trees (several end effectors): load the whole tree
+with ``optik.Mechanism.from_urdf(urdf_path(name))``."""
 
 _PI2 = np.pi / 2
 
@@ -118,16 +125,33 @@ def iiwa14() -> Mechanism:
 
 
 def urdf_path(name: str) -> Path:
-    """Path of a URDF file shipped with optik (``"panda"`` or ``"iiwa14"``).
+    """Path of a URDF file shipped with optik (``"panda"``, ``"iiwa14"`` or ``"dual_panda"``).
 
-    The base and tip links of each file's arm are ``URDF_CHAINS[name]``; load the chain with
-    ``optik.Mechanism.from_urdf(urdf_path(name), *URDF_CHAINS[name])``.
+    The base and tip links of each arm's file are ``URDF_CHAINS[name]``; load the chain with
+    ``optik.Mechanism.from_urdf(urdf_path(name), *URDF_CHAINS[name])``. The trees of
+    `URDF_TREES` load whole: ``optik.Mechanism.from_urdf(urdf_path("dual_panda"))``.
 
     Raises:
         InvalidArgumentError: ``name`` is not a string or names no shipped URDF.
     """
     as_name(name, "name")
-    if name not in URDF_CHAINS:
-        raise InvalidArgumentError("name", f"no shipped URDF {name!r}; available: {sorted(URDF_CHAINS)}")
+    if name not in URDF_CHAINS and name not in URDF_TREES:
+        known = sorted([*URDF_CHAINS, *URDF_TREES])
+        raise InvalidArgumentError("name", f"no shipped URDF {name!r}; available: {known}")
     resource = resources.files("optik") / "data" / "urdf" / f"{name}.urdf"
     return Path(str(resource))
+
+
+def dual_panda() -> Mechanism:
+    """Two Panda arms on a turning torso, from the shipped ``dual_panda.urdf``: a tree of 15
+    revolute joints (``torso_joint``, then ``left_panda_joint1..7`` and ``right_panda_joint1..7``).
+
+    The torso turns about z at 0.2 m; each arm is the Panda of `panda` (same joints and limits),
+    based 0.3 m left / right of the torso axis and 0.6 m up, tilted 0.5 rad outwards about x.
+    The frames ``left_tool`` and ``right_tool`` sit 0.1034 m beyond each flange, turned
+    ``-pi/4`` about z (the Panda hand's TCP); every link is a frame and ``ee`` is ``left_tool``.
+    Made for several targets at once: ``optik.solve_ik(m, {"left_tool": T1, "right_tool": T2})``.
+    """
+    m = Mechanism.from_urdf(urdf_path("dual_panda"))
+    m.kind = "dual_panda"
+    return m

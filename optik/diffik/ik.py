@@ -9,7 +9,9 @@ the top level / equality constraint. The error is checked before each step; afte
 without a 1 % improvement, or ``max_iterations`` steps from one start, the method restarts from a random
 configuration within the limits (``request.rng``). It returns within the request's time limit (plus one step)
 with the best configuration found; compiling the task function on the first request of a mechanism and task
-space (cached afterwards) does not count against the limit.
+space (cached afterwards) does not count against the limit. Several frame targets (a ``{frame: target}`` dict)
+are one frame task each, stacked with equal weight in the same step; the error checked is the largest over
+the frames.
 
 Options (``solve_ik(..., method="dls", max_iterations=..., ...)``): ``max_iterations`` (per
 start, default 100), ``stall_iterations`` (default 10), ``damping`` and ``threshold`` (DLS: the step
@@ -72,13 +74,16 @@ def iterate(request: IKRequest, method: str) -> IKResult:
     stall = _int_option(opts, "stall_iterations", 10)
     step_opts = {k: opts[k] for k in ("damping", "threshold") if k in opts}
     solver = opts.get("solver")
-    task = tracking_task(m, request.task, request.frame)
-    task.set_target(request.target)
-    if method == "qp":
-        task.lm_damping = positive(opts.get("lm_damping", LM_DAMPING), "lm_damping")
+    tasks = []
+    for frame, space, target in request.frame_targets():  # one frame task per target
+        task = tracking_task(m, space, frame)
+        task.set_target(target)
+        if method == "qp":
+            task.lm_damping = positive(opts.get("lm_damping", LM_DAMPING), "lm_damping")
+        tasks.append(task)
     limits = [ConfigurationLimit()]
     build_start = time.perf_counter()
-    stack_function(m, [task], normalize_limits(m, limits), 1.0)  # compiled once per structure
+    stack_function(m, tasks, normalize_limits(m, limits), 1.0)  # compiled once per structure
     request.start += time.perf_counter() - build_start  # setup does not count against the time limit
     tol = request.tol
     q = request.q0.copy()
@@ -90,10 +95,11 @@ def iterate(request: IKRequest, method: str) -> IKResult:
     while True:
         if method == "dls":  # damping lambda = min(lambda_max, |e|): none at the solution
             step_opts["damping"] = min(lam_max, e_norm)
-        res = step(m, q, [task], 1.0, "qp" if method == "qp" else "dls", solver, limits, **step_opts)
+        res = step(m, q, tasks, 1.0, "qp" if method == "qp" else "dls", solver, limits, **step_opts)
         e = res.problem.errors
         e_norm = float(np.linalg.norm(e))
-        pos, ori = _errors_of(task.rows, e)
+        per_task = [_errors_of(t.rows, et) for t, et in zip(tasks, res.problem.task_errors(), strict=True)]
+        pos, ori = max(p for p, _ in per_task), max(o for _, o in per_task)
         inside = bool(np.all(q >= m.lower) and np.all(q <= m.upper))
         err = max(pos / tol.position, ori / tol.orientation, res.closure_error / tol.closure)
         if inside and err < best_err:
@@ -135,9 +141,11 @@ def register() -> None:
         "dls",
         solve_dls,
         description="iterated differential IK, damped least squares with adaptive damping and restarts",
+        multi_target=True,
     )
     register_method(
         "qp",
         solve_qp,
         description="iterated differential IK, one QP per step (joint limits as bounds) with restarts",
+        multi_target=True,
     )

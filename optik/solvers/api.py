@@ -15,11 +15,21 @@ DEFAULT_ORDER = ("closed_form", "lm", "nlp")
 """Preference of ``method=None``: the first registered method that applies."""
 
 
-def pick_method(m: Mechanism, task: str, order: tuple[str, ...] = DEFAULT_ORDER) -> str:
-    """The first method of ``order`` that is registered and applies to a mechanism and task."""
+MULTI_TARGET_ORDER = ("lm", "nlp")
+"""Preference of ``method=None`` for several frame targets at once."""
+
+
+def pick_method(
+    m: Mechanism,
+    task: str | tuple[str, ...],
+    order: tuple[str, ...] = DEFAULT_ORDER,
+    multi_target: bool = False,
+) -> str:
+    """The first method of ``order`` that is registered and applies to a mechanism and task
+    (and solves several frame targets at once, when ``multi_target``)."""
     known = methods()
     for name in order:
-        if name in known and known[name].applies(m, task):
+        if name in known and (known[name].multi_target or not multi_target) and known[name].applies(m, task):
             return name
     raise SolverUnavailableError(f"no IK method applies to {m.name!r} with task {task!r}")
 
@@ -41,12 +51,17 @@ def solve_ik(
 
     Args:
         m: the mechanism.
-        target: 4x4 transform, [`Pose2D`][optik.Pose2D] or [`Position`][optik.Position].
+        target: 4x4 transform, [`Pose2D`][optik.Pose2D] or [`Position`][optik.Position]; or a
+            ``{frame: target}`` dict of several frame targets solved at once (e.g. both hands of a
+            tree model), each a 4x4, `Pose2D` or `Position`, with ``lm``, ``nlp``, ``dls`` or ``qp``.
+            The result's ``frame_errors`` then holds each frame's errors and ``position_error`` /
+            ``orientation_error`` are their maxima; success needs every frame within tolerance.
         q0: start configuration (default: mid-limit).
         method: ``"closed_form"``, ``"lm"``, ``"nlp"``, ``"dls"``, ``"qp"``; None picks the best
             available (closed form where the catalog has one, else ``"lm"``).
-        task: task space (default from the target type and the mechanism).
-        frame: task frame (default: the end effector).
+        task: task space (default from the target type and the mechanism); with a target dict,
+            one space for every frame or a ``{frame: task}`` dict.
+        frame: task frame (default: the end effector); None with a target dict.
         time_limit: wall-time budget in seconds (default 0.1).
         tol: tolerances (float: position and orientation) or [`Tolerances`][optik.Tolerances].
         seed: seed or Generator for restarts.
@@ -60,10 +75,19 @@ def solve_ik(
         OptikError: malformed input (named argument), unknown or inapplicable method.
     """
     request = make_request(m, target, q0, task, frame, time_limit, tol, seed, options)
-    own_frame = request.frame in (None, m.ee)  # closed forms solve for the end effector only
-    order = DEFAULT_ORDER if own_frame else tuple(n for n in DEFAULT_ORDER if n != "closed_form")
-    name = pick_method(m, request.task, order) if method is None else method
+    multi = request.multi_target
+    own_frame = not multi and request.frame in (None, m.ee)  # closed forms solve for the end effector only
+    if method is None:
+        order = DEFAULT_ORDER if own_frame else tuple(n for n in DEFAULT_ORDER if n != "closed_form")
+        name = pick_method(m, request.task, MULTI_TARGET_ORDER if multi else order, multi)
+    else:
+        name = method
     info = get_method(name)
+    if multi and not info.multi_target:
+        able = sorted(k for k, v in methods().items() if v.multi_target)
+        raise SolverUnavailableError(
+            f"method {name!r} solves one frame target; several targets at once: method one of {able}"
+        )
     if not info.applies(m, request.task) or (name == "closed_form" and not own_frame):
         raise SolverUnavailableError(
             f"method {name!r} does not apply to {m.name!r} with task {request.task!r}"

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import operator
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
@@ -23,6 +23,7 @@ from optik import spatial
 from optik.checks import as_float, as_name, as_rng, as_vector
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
+from optik.problem import Frames, Tasks, frame_tasks
 from optik.results import IKResult
 from optik.targets import Pose2D, Position, target_transform
 
@@ -75,9 +76,11 @@ class IKRequest:
 
     Attributes:
         mechanism: the model.
-        target: 4x4 target transform of ``frame``.
-        task: task space: ``"pose"``, ``"position"``, ``"orientation"``, ``"pose2d"``, ``"position2d"``.
-        frame: task frame name (None: end effector).
+        target: 4x4 target transform of ``frame`` (``(k, 4, 4)``: one per frame of ``frame``).
+        task: task space: ``"pose"``, ``"position"``, ``"orientation"``, ``"pose2d"``, ``"position2d"``
+            (a tuple, one per frame, for several targets).
+        frame: task frame name (None: end effector), or a tuple of ``k >= 2`` frame names when
+            several frame targets are solved at once (`multi_target`).
         q0: start configuration (mid-limit when the user gave none).
         time_limit: wall-time budget (s); every method must return within it (plus one iteration).
         tol: success tolerances.
@@ -91,8 +94,8 @@ class IKRequest:
 
     mechanism: Mechanism
     target: np.ndarray
-    task: str
-    frame: str | None
+    task: Tasks
+    frame: Frames
     q0: np.ndarray
     time_limit: float
     tol: Tolerances
@@ -100,6 +103,18 @@ class IKRequest:
     options: dict[str, Any] = field(default_factory=dict)
     start: float = field(default_factory=time.perf_counter)
     setup_time: float = 0.0
+
+    @property
+    def multi_target(self) -> bool:
+        """True when the request holds several frame targets (``frame`` is a tuple)."""
+        return isinstance(self.frame, tuple)
+
+    def frame_targets(self) -> tuple[tuple[str | None, str, np.ndarray], ...]:
+        """``((frame, task, 4x4 target), ...)``: one triple per frame target."""
+        targets = self.target if self.multi_target else self.target[None]
+        return tuple(
+            (f, t, tt) for (f, t), tt in zip(frame_tasks(self.frame, self.task), targets, strict=True)
+        )
 
     @cached_property
     def rng(self) -> np.random.Generator:
@@ -222,6 +237,9 @@ def make_result(
     m = request.mechanism
     if type(q) is not np.ndarray or q.dtype != np.float64:
         q = np.asarray(q, dtype=float)
+    if request.multi_target:
+        qq, err, frame_errors = _multi_target_errors(request, q)
+        return _result(request, qq, err, method, iterations, restarts, status, message, frame_errors)
     lower, upper = m.lower, m.upper
     # already wrapped and within limits: m.wrap would return q itself
     if q.shape == lower.shape:
@@ -250,16 +268,37 @@ def make_result(
     else:
         pos, ori, clo = errors(qq)
         err = Errors(float(pos), float(ori), float(clo), inside)
+    return _result(request, qq, err, method, iterations, restarts, status, message, {})
+
+
+def _result(
+    request: IKRequest,
+    qq: np.ndarray,
+    err: Errors,
+    method: str,
+    iterations: int,
+    restarts: int,
+    status: str | None,
+    message: str,
+    frame_errors: dict[str, tuple[float, float]],
+) -> IKResult:
+    """The [`IKResult`][optik.IKResult] of a final ``qq`` and its errors (status and message as
+    [`make_result`][optik.solvers.base.make_result] describes)."""
     success = err.ok(request.tol)
     if success:
         status, message = "solved", ""
     elif status is None or status == "solved":
         status = "not_converged"
     if not success and not message:
+        if frame_errors:
+            each = ", ".join(f"{f}: {p:.3g} m, {o:.3g} rad" for f, (p, o) in frame_errors.items())
+            errors_text, what = f"errors per frame {each}", "the targets may be unreachable together"
+        else:
+            errors_text = f"position error {err.position:.3g} m, orientation error {err.orientation:.3g} rad"
+            what = "the target may be unreachable"
         message = (
-            f"tolerances not met within the time limit ({request.time_limit:g} s): position error "
-            f"{err.position:.3g} m, orientation error {err.orientation:.3g} rad, closure "
-            f"{err.closure:.3g}; the target may be unreachable within the joint limits"
+            f"tolerances not met within the time limit ({request.time_limit:g} s): {errors_text}, "
+            f"closure {err.closure:.3g}; {what} within the joint limits"
         )
     return IKResult(
         q=qq,
@@ -275,7 +314,28 @@ def make_result(
         message=message,
         restarts=restarts,
         extra={"setup_time": request.setup_time} if request.setup_time else {},
+        frame_errors=frame_errors,
     )
+
+
+def _multi_target_errors(request: IKRequest, q: np.ndarray) -> tuple[np.ndarray, Errors, dict]:
+    """``(q, errors, frame_errors)`` of a several-target request: ``q`` wrapped and clipped, each
+    frame's errors from its own FK, the overall position and orientation errors the largest."""
+    m = request.mechanism
+    finite = bool(np.all(np.isfinite(q)))
+    qq = np.clip(m.wrap(q), m.lower, m.upper) if finite else q
+    inside = bool((qq >= m.lower).all() and (qq <= m.upper).all())
+    if finite:
+        frame_errors = {
+            f: task_errors(task, np.asarray(m.fk_function(f)(qq)), t)
+            for f, task, t in request.frame_targets()
+        }
+        clo = float(np.max(np.abs(m.closure(qq)))) if m.is_closed else 0.0
+    else:
+        frame_errors = {f: (math.inf, math.inf) for f, _, _ in request.frame_targets()}
+        clo = math.inf
+    pos, ori = max(p for p, _ in frame_errors.values()), max(o for _, o in frame_errors.values())
+    return qq, Errors(pos, ori, clo, inside), frame_errors
 
 
 BRANCH_TOL = 1e-4
@@ -294,6 +354,8 @@ def joint_distance(m: Mechanism, qa: np.ndarray, qb: np.ndarray) -> float:
 def positive_int(value: Any, name: str) -> int:
     """``value`` as an integer >= 1 (else [`InvalidArgumentError`][optik.InvalidArgumentError] naming
     ``name``)."""
+    if type(value) is int and value >= 1:  # the common case, without the generic validation
+        return value
     v = float(as_vector(value, name, 1)[0])
     if v < 1 or v != int(v):
         raise InvalidArgumentError(name, f"expected a positive integer, got {value!r}")
@@ -339,12 +401,14 @@ IKMethod = Callable[[IKRequest], IKResult]
 
 @dataclass(frozen=True)
 class MethodInfo:
-    """A registered method: its solve function and a predicate saying whether it applies."""
+    """A registered method: its solve function, a predicate saying whether it applies, and
+    whether it solves several frame targets at once (``multi_target``)."""
 
     name: str
     solve: IKMethod
     applies: Callable[[Mechanism, str], bool]
     description: str
+    multi_target: bool = False
 
 
 _METHODS: dict[str, MethodInfo] = {}
@@ -355,9 +419,13 @@ def register_method(
     solve: IKMethod,
     applies: Callable[[Mechanism, str], bool] = lambda m, task: True,
     description: str = "",
+    multi_target: bool = False,
 ) -> None:
-    """Register an IK method under ``name`` (replacing a previous registration)."""
-    _METHODS[name] = MethodInfo(name, solve, applies, description)
+    """Register an IK method under ``name`` (replacing a previous registration).
+
+    ``multi_target=True`` says that ``solve`` handles requests with several frame targets
+    (`IKRequest.multi_target`; ``applies`` is then called with the tuple of task spaces)."""
+    _METHODS[name] = MethodInfo(name, solve, applies, description, multi_target)
 
 
 def methods() -> dict[str, MethodInfo]:
@@ -386,11 +454,39 @@ def default_task(m: Mechanism, target: Any) -> str:
     return m.task
 
 
+def _frame_targets(
+    m: Mechanism, targets: Mapping[Any, Any], task: Any, frame: Any
+) -> tuple[np.ndarray, Tasks, Frames]:
+    """``(targets, tasks, frames)`` of a ``{frame: target}`` request: one 4x4 and a tuple of
+    task spaces and frames for two or more frames, the plain single-target request for one."""
+    if frame is not None:
+        raise InvalidArgumentError(
+            "frame", "give frame=None with a {frame: target} dict (its keys are the frames)"
+        )
+    if not targets:
+        raise InvalidArgumentError("target", "an empty {frame: target} dict")
+    frames = tuple(targets)
+    for f in frames:
+        if not isinstance(f, str):
+            raise InvalidArgumentError("target", f"the keys of a target dict are frame names, got {f!r}")
+        m._frame(f)
+    if isinstance(task, Mapping):
+        if set(task) != set(frames):
+            raise InvalidArgumentError("task", f"give one task space per frame of the target: {list(frames)}")
+        tasks = tuple(m._task(task[f]) for f in frames)
+    else:
+        tasks = tuple(m._task(default_task(m, targets[f]) if task is None else task) for f in frames)
+    stack = np.array([target_transform(targets[f], f"target[{f!r}]") for f in frames])
+    if len(frames) == 1:
+        return stack[0], tasks[0], frames[0]
+    return stack, tasks, frames
+
+
 def make_request(
     m: Mechanism,
     target: Any,
     q0: Any = None,
-    task: str | None = None,
+    task: str | Mapping[str, str] | None = None,
     frame: str | None = None,
     time_limit: float | None = None,
     tol: float | Tolerances | None = None,
@@ -399,13 +495,20 @@ def make_request(
 ) -> IKRequest:
     """Validate user input and build an [`IKRequest`][optik.solvers.base.IKRequest].
 
+    ``target`` may be a ``{frame: target}`` dict (several frame targets at once, ``frame=None``);
+    ``task`` is then one task space for every frame, a ``{frame: task}`` dict, or None (each
+    frame's task from its target's type).
+
     Raises:
         OptikError: a subclass naming the bad argument (target, q0, task, frame, time_limit, tol, seed).
     """
     start = time.perf_counter()
-    t = target_transform(target)
-    tk = m._task(default_task(m, target) if task is None else task)  # raises on an unknown task
-    m._frame(frame)  # raises UnknownFrameError naming the frame
+    if isinstance(target, Mapping):
+        t, tk, frame = _frame_targets(m, target, task, frame)
+    else:
+        t = target_transform(target)
+        tk = m._task(default_task(m, target) if task is None else task)  # raises on an unknown task
+        m._frame(frame)  # raises UnknownFrameError naming the frame
     q_start = m.mid_q() if q0 is None else m.check_q(q0, "q0")
     if seed is not None and not isinstance(seed, np.random.Generator):
         as_rng(seed)  # validates the seed now (the generator itself is made on first use)

@@ -2,7 +2,8 @@
  *
  * Compiled together with the CasADi-generated functions OPTIK_STEP (one LM iteration) and
  * OPTIK_ERRORS (the success check's errors); optik/solvers/lm_kernel.py defines OPTIK_NQ,
- * OPTIK_STEP and OPTIK_ERRORS before this file and documents the algorithm. Every target runs
+ * OPTIK_NT (target parameters per target: 12 per frame target), OPTIK_STEP and OPTIK_ERRORS
+ * before this file and documents the algorithm. Every target runs
  * its own multi-start loop: the start q0, then starts drawn uniformly within the limits from
  * a splitmix64 stream seeded with the target's seed; iterations until the errors are below the
  * stop thresholds, a block of iterations stalls, max_iter iterations, or the target's time
@@ -66,7 +67,7 @@ CASADI_SYMBOL_EXPORT int optik_lm_chunk(casadi_int n_targets, const double *targ
   int rc = 0;
   for (casadi_int t = 0; t < n_targets; ++t) {
     const double t0 = optik_now(), deadline = t0 + time_limit;
-    const double *target = targets + 12 * t;
+    const double *target = targets + OPTIK_NT * t;
     unsigned long long rng = seeds[t];
     double q[N], q_new[N], best[N], mu, mu_new, cost, pos, ori, clo, accept;
     double best_cost = INFINITY, e3[3];

@@ -9,7 +9,8 @@ which releases the GIL, so threads solve chunks on every core (`optik.batch`) an
 `optik.solve_ik` runs a chunk of one target: both give the same answer for the same seed.
 
 Restarts are drawn from a splitmix64 stream seeded with the target's seed:
-``u = (x >> 11) 2^-53`` in ``[0, 1)`` and ``q_j = lo_j + (hi_j - lo_j) u`` per coordinate.
+``u = (x >> 11) 2^-53`` in ``[0, 1)`` and ``q_j = lo_j + (hi_j - lo_j) u`` per coordinate, over the
+mechanism's ``sampling_bounds`` (its limits where finite).
 `target_seeds` derives the seed of target ``i`` of a batch from the batch seed: the
 ``(i + 1)``-th output of splitmix64 started at that seed, shifted right by one bit. Without a C
 compiler (or with ``compile=False``) `LMKernel.run` runs the same loop in Python over
@@ -19,6 +20,7 @@ CasADi's evaluator, with the same generator (same answers, slower).
 from __future__ import annotations
 
 import ctypes
+import threading
 import time
 from dataclasses import dataclass
 from functools import lru_cache
@@ -127,11 +129,10 @@ class Settings:
     q_ref: np.ndarray
 
     def conf(self, m: Mechanism) -> np.ndarray:
-        """The driver's ``conf`` vector (layout in ``lm_chunk.c``); its box is the restarts' box,
-        the mechanism's `sampling_bounds` (finite for continuous joints, whose limits are not)."""
+        """The driver's ``conf`` vector (layout in ``lm_chunk.c``)."""
         scalars = [self.block, self.max_iter, self.max_restarts, self.time_limit, self.mu0, self.stall]
         scalars += [*self.stop, self.gain, *self.weights]
-        lo, hi = m.sampling_bounds
+        lo, hi = m.sampling_bounds  # restarts are drawn over finite bounds (one turn when unbounded)
         return np.concatenate([scalars, lo, hi, self.q_ref]).astype(float)
 
 
@@ -179,11 +180,25 @@ class LMKernel:
         self.step = lm_iteration_function(problem, closure_weight)
         self.errors = error_function(problem)
         defines = (
-            f"\n#define OPTIK_NQ {m.n_q}\n#define OPTIK_STEP {_STEP}\n#define OPTIK_STEP_WORK {_STEP}_work\n"
+            f"\n#define OPTIK_NQ {m.n_q}\n#define OPTIK_NT {problem.target.shape[0]}\n"
+            f"#define OPTIK_STEP {_STEP}\n#define OPTIK_STEP_WORK {_STEP}_work\n"
             f"#define OPTIK_ERRORS {_ERRORS}\n#define OPTIK_ERRORS_WORK {_ERRORS}_work\n"
         )
         self.library = library([self.step, self.errors], compile, defines + DRIVER.read_text())
         self._fn: Any = None
+        self._local = threading.local()  # per-thread error evaluators
+
+    def final_errors(self, q: np.ndarray, target: np.ndarray) -> tuple[float, float, float]:
+        """Position, orientation and closure errors of ``q`` against target parameters
+        ``target`` (12,), by the kernel's own error function (compiled once the driver is):
+        the check of answers changed after the kernel (wrapped into canonical angles)."""
+        fn = getattr(self._local, "errors", None)
+        if fn is None:
+            fn = self._local.errors = NativeFunction(self.errors, self.library)
+        fn.inputs[0][:] = q
+        fn.inputs[1][:] = target
+        pos, ori, clo = fn()
+        return float(pos[0]), float(ori[0]), float(clo[0])
 
     @property
     def compiled(self) -> bool:
@@ -205,7 +220,8 @@ class LMKernel:
         """Solve ``N`` targets.
 
         Args:
-            targets: target parameters ``(N, 12)`` (`optik.problem.target_parameters`).
+            targets: target parameters ``(N, 12)``, ``(N, 12 k)`` for ``k`` frame targets each
+                (`optik.problem.target_parameters`).
             q0: first start of each target ``(N, n)``.
             seeds: restart seeds (uint64, ``(N,)``).
             conf: `Settings.conf`.

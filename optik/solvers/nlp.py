@@ -438,4 +438,5 @@ register_method(
     "nlp",
     solve_nlp,
     description="CasADi nlpsol (IPOPT or sqpmethod) on the IK NLP, multi-start until the time limit",
+    multi_target=True,
 )

@@ -42,7 +42,7 @@ from optik.solvers.base import (
     make_result,
     positive_int,
 )
-from optik.solvers.closed import _compiled_errors, closed_form_applies, row_distance
+from optik.solvers.closed import _compiled_errors, closed_form_applies
 from optik.solvers.polish import polish, same_point_tol
 
 NUMERIC_ORDER = ("lm", "nlp")
@@ -156,9 +156,12 @@ def _from_rows(request: IKRequest, rows: list[list[float]]) -> IKSolutions:
         checked = {id(row): err for row, err in zip(rows, rows.errors, strict=True)}
     errors = _compiled_errors(request)
     tol = request.tol
-    mask = registry.angle_mask(m)
-    start = request.q0.tolist()
-    inside.sort(key=lambda row: row_distance(mask, row, start))
+    if len(inside) > 1:  # nearest q0 first: joint_distance of every row at once
+        d = np.asarray(inside) - request.q0
+        ang = m.revolute_mask
+        d[:, ang] = (d[:, ang] + np.pi) % (2.0 * np.pi) - np.pi
+        order = np.argsort(np.abs(d).max(axis=1), kind="stable").tolist()
+        inside = [inside[k] for k in order]
     kept: list[IKResult] = []
     failed = 0
     for row in inside:

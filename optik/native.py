@@ -231,11 +231,11 @@ class Library:
 
     def _fail(self, exc: Exception) -> None:
         self.error = str(exc)
-        self._done.set()
-        if not _EXITING.is_set():
+        if not _EXITING.is_set():  # logged before the waiters wake, so they find the record
             _LOG.warning(
                 "optik: no compiled code for %s, CasADi's evaluator is used: %s", self.path.name, exc
             )
+        self._done.set()
 
 
 def library(

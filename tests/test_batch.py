@@ -47,6 +47,10 @@ def test_answers_do_not_depend_on_chunks_or_threads() -> None:
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
     c = solve_ik_batch(PANDA, targets, q0, tol=1e-6, seed=10, workers=2)
     assert not np.array_equal(a.seed, c.seed)
+    # a slice solved again with its own seeds gives the same rows
+    part = solve_ik_batch(PANDA, targets[20:30], q0[20:30], tol=1e-6, seed=a.seed[20:30])
+    np.testing.assert_array_equal(part.q, a.q[20:30])
+    assert part.base_seed is None and a.base_seed == 9
 
 
 def test_unreachable_targets_fail_within_their_time_limit() -> None:
@@ -108,6 +112,8 @@ def test_table_records_and_concatenation() -> None:
         ({"bogus": 1}, optik.InvalidArgumentError, "bogus"),
         ({"workers": 0}, optik.InvalidArgumentError, "workers"),
         ({"seed": -1}, optik.InvalidArgumentError, "seed"),
+        ({"seed": [1, 2, 3]}, optik.ShapeError, "seed"),
+        ({"seed": [1, -2]}, optik.InvalidArgumentError, "seed"),
         ({"time_limit": 0.0}, optik.InvalidArgumentError, "time_limit"),
         ({"scheduler": 3}, optik.InvalidArgumentError, "scheduler"),
     ],

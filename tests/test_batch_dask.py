@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import threading
+import time
+
 import numpy as np
 import pytest
 
@@ -43,3 +48,29 @@ def test_cluster_answers_equal_the_local_run(client) -> None:
         )
         == who
     )
+
+
+def test_chunks_of_a_lost_worker_are_rerun(client) -> None:
+    m = optik.catalog.panda()
+    targets = fk_batch(m, m.random_q(300, seed=8))
+    local = solve_ik_batch(m, targets, tol=1e-5, seed=4)
+    solve_ik_batch(m, targets[:4], scheduler=client)  # ship the mechanism first
+    pids = client.run(os.getpid)
+    box: dict = {}
+    run = threading.Thread(
+        target=lambda: box.update(
+            res=solve_ik_batch(m, targets, tol=1e-5, seed=4, scheduler=client, chunk_size=1)
+        )
+    )
+    before = set(client.nthreads())
+    run.start()
+    time.sleep(0.5)
+    assert run.is_alive()  # the kill lands in the middle of the run
+    victim = sorted(before)[0]
+    os.kill(pids[victim], signal.SIGKILL)
+    run.join(timeout=120)
+    assert not run.is_alive()
+    np.testing.assert_array_equal(box["res"].q, local.q)
+    np.testing.assert_array_equal(box["res"].iterations, local.iterations)
+    client.wait_for_workers(2, timeout=60)
+    assert victim not in set(client.nthreads())  # the nanny started a new worker

@@ -203,6 +203,7 @@ def test_latest_runs_the_newest_request_and_drops_the_stale_ones():
         (["view", "robot.urdf", "--no-browser"], "--base"),
         (["view", "planar_3r", "--no-browser", "--method", "warp"], "method"),
         (["view", "planar_3r", "--no-browser", "--port", "70000"], "--port"),
+        (["view", "planar_3r", "--no-browser", "--reach", "no/such/map"], "source"),
     ],
 )
 def test_view_command_errors_exit_2_naming_the_argument(argv, argument, capsys):
@@ -247,3 +248,67 @@ def test_scene_nodes_compose_to_the_model_poses(open_viewer, name):
         )
     body, offset = m.frames[m.ee]
     np.testing.assert_allclose(_pose(nodes[body]) @ offset, m.fk(q), atol=1e-9)
+
+
+def test_capability_map_is_a_point_cloud_coloured_by_the_index(open_viewer, tmp_path):
+    from matplotlib import colormaps
+
+    m = catalog.planar_2r()
+    rmap = optik.reach(m, resolution=0.25, orientations=4, samples=2000, workers=1, out=tmp_path)
+    v = open_viewer(m)
+    assert v.show_reach(rmap) == len(rmap.centers) == int(np.isfinite(rmap.index).sum())
+    np.testing.assert_allclose(v._reach.points, rmap.centers, atol=1e-3)  # float16 on the wire
+    k = int(np.argmax(rmap.index))
+    np.testing.assert_array_equal(
+        v._reach.colors[k], (255 * np.asarray(colormaps["viridis"](rmap.index[k]))[:3]).astype(np.uint8)
+    )
+    assert "mean reachability index" in v.panel.reach_text.content and not v.panel.reach.disabled
+    assert v.show_reach(tmp_path) == len(rmap.centers)  # the saved reach.npz (its folder)
+    v.set_reach_visible(False)
+    assert not v._reach.visible
+    with pytest.raises(optik.InvalidArgumentError, match=r"^source"):
+        v.show_reach(tmp_path / "nothing")
+    (tmp_path / "bad.npz").write_bytes(b"not a map")
+    with pytest.raises(optik.InvalidArgumentError, match=r"^source"):
+        v.show_reach(tmp_path / "bad.npz")
+
+
+URDF = """<robot name="two">
+  <link name="base"><visual><geometry><box size="0.2 0.2 0.1"/></geometry></visual></link>
+  <link name="upper">
+    <visual><origin xyz="0 0 0.25"/><geometry><mesh filename="upper.stl"/></geometry></visual>
+  </link>
+  <link name="lower"><visual><geometry><mesh filename="missing.stl"/></geometry></visual></link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="upper"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="upper"/><child link="lower"/><origin xyz="0 0 0.5"/>
+    <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+</robot>
+"""
+
+
+def test_urdf_visuals_are_drawn_where_their_files_resolve(open_viewer, tmp_path):
+    import trimesh
+
+    trimesh.creation.cylinder(radius=0.04, height=0.5).export(tmp_path / "upper.stl")
+    (tmp_path / "two.urdf").write_text(URDF)
+    m = optik.Mechanism.from_urdf(tmp_path / "two.urdf", "base", "lower")
+    v = open_viewer(m)
+    assert v.robot.visual_bodies == ("base", "upper")  # the box and the STL; lower is a capsule chain
+    assert len(v.notes) == 1 and "missing.stl: file not found" in v.notes[0]
+    assert "1 URDF visuals not drawn" in v.panel.notes.content
+
+
+def test_urdf_meshes_of_example_robot_data_resolve():
+    from test_urdf_ros import _robots_dir
+
+    from optik.view.visuals import body_visuals
+
+    path = _robots_dir() / "panda_description" / "urdf" / "panda.urdf"
+    m = optik.Mechanism.from_urdf(path, "panda_link0", "panda_hand")
+    meshes, notes = body_visuals(m)
+    assert notes == []
+    visuals = m.params["visuals"]
+    assert len(visuals) == 9  # link0..link7 and the hand (on the body of link7: fixed joints)
+    assert set(meshes) == {m.frames[v.link][0] for v in visuals}
+    assert all(len(mesh.faces) > 1000 for mesh in meshes.values())

@@ -18,6 +18,7 @@ import signal
 import subprocess
 import sys
 import threading
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -55,6 +56,19 @@ def drawn(png: bytes) -> bool:
 def complete(png: bytes) -> bool:
     """A drawn scene and a populated control panel."""
     return drawn(png) and coloured_pixels(png, PANEL) > 300
+
+
+def settled() -> Callable[[bytes], bool]:
+    """A `complete` page that looks the same in two captures in a row (meshes still arriving
+    change it)."""
+    last: list[bytes] = []
+
+    def ready(png: bytes) -> bool:
+        same = bool(last) and last[-1] == png
+        last[:] = [png]
+        return same and complete(png)
+
+    return ready
 
 
 @pytest.fixture
@@ -166,12 +180,29 @@ def _branches(v):
     assert len(v.show_all_solutions(True)) == len(closed_form.ik(v.m, target)) == 8
 
 
+def _erd_panda():
+    """The Panda of example-robot-data, with its visual meshes (the robots extra)."""
+    from test_urdf_ros import _robots_dir
+
+    return optik.Mechanism.from_urdf(
+        _robots_dir() / "panda_description/urdf/panda.urdf", "panda_link0", "panda_hand"
+    )
+
+
+def _reach(v):
+    rmap = optik.reach(v.m, resolution=0.1, orientations=8, samples=20000)
+    assert v.show_reach(rmap) == len(rmap.centers)
+    v.set_target(optik.Pose2D(1.2, 0.8, 0.5))
+
+
 SHOTS = {
-    "view_panda": (catalog.panda, _panda),
+    "view_panda": (_erd_panda, _panda),
+    "view_panda_capsules": (catalog.panda, _panda),
     "view_five_bar_mode1": (catalog.five_bar, _five_bar(0)),
     "view_five_bar_mode2": (catalog.five_bar, _five_bar(1)),
     "view_stewart_gough": (catalog.stewart_gough, _stewart),
     "view_puma560_branches": (catalog.puma560, _branches),
+    "view_planar_3r_reach": (lambda: catalog.planar_3r(lengths=(1.0, 0.8, 0.5)), _reach),
 }
 
 
@@ -185,6 +216,6 @@ def test_documentation_screenshots(name):
     with optik.view(build(), port=free_port()) as v:
         setup(v)
         with Chromium(CHROMIUM, WIDTH, HEIGHT) as browser:
-            png = browser.screenshot(v.url, ready=complete, timeout=30)
+            png = browser.screenshot(v.url, ready=settled(), timeout=60)
     assert drawn(png)
     write_atomic(Path(os.environ["OPTIK_VIEW_SHOTS"]) / f"{name}.png", lambda tmp: Path(tmp).write_bytes(png))

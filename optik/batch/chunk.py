@@ -15,7 +15,6 @@ from optik.batch.result import BatchResult
 from optik.mechanism import Mechanism
 from optik.solvers import solve_ik
 from optik.solvers.base import Tolerances, make_request
-from optik.solvers.evaluation import errors_against
 from optik.solvers.lm import lm_settings
 from optik.solvers.lm_kernel import STATUS, kernel
 
@@ -58,7 +57,8 @@ def solve_chunk(
     k = kernel(m, spec.task, spec.frame, closure_weight, compile)
     if k.library is not None:
         k.library.wait()  # a batch is worth the C build (the Python loop is far slower per target)
-    out = k.run(target_rows(targets), q0, seeds, settings.conf(m))
+    rows = target_rows(targets)
+    out = k.run(rows, q0, seeds, settings.conf(m))
     q, errors = out.q, out.errors
     # make_result's final step, vectorized: rows within the limits and in (-pi, pi) are kept,
     # others are wrapped and clipped, and their errors recomputed where that changed them
@@ -70,7 +70,7 @@ def solve_chunk(
         for i, row in zip(redo, fixed, strict=True):
             if not np.array_equal(row, q[i]):
                 q[i] = row
-                errors[i] = errors_against(m, spec.task, spec.frame, targets[i], compile)(row)
+                errors[i] = k.final_errors(row, rows[i])
     tol = spec.tol
     success = (
         (errors[:, 0] <= tol.position)

@@ -7,10 +7,12 @@ from typing import Any
 
 import numpy as np
 
-from optik.checks import as_batch, as_rng
+from optik.checks import as_batch
 from optik.errors import InvalidArgumentError, NonFiniteError, ShapeError
 from optik.mechanism import Mechanism
 from optik.solvers.base import default_task
+from optik.solvers.lm import request_seed
+from optik.solvers.lm_kernel import target_seeds
 from optik.targets import Pose2D, Position, target_transform
 
 _ORTHO = 1e-5
@@ -88,13 +90,29 @@ def as_starts(m: Mechanism, q0: Any, n: int) -> np.ndarray:
     return np.ascontiguousarray(q)
 
 
-def base_seed(seed: int | np.random.Generator | None) -> int:
-    """The batch seed: None is 0 (as for `optik.solve_ik`); a Generator gives one draw.
+def target_seed_array(seed: Any, n: int) -> tuple[np.ndarray, int | None]:
+    """The seeds of ``n`` targets (uint64) and the batch seed they derive from.
+
+    ``seed`` is the batch seed (None is 0, as for `optik.solve_ik`; a Generator gives one draw):
+    target ``i`` gets ``target_seeds(seed, 0, n)[i]``. Or ``seed`` is a sequence of ``n`` ints,
+    one per target (e.g. ``result.seed[rows]`` of an earlier batch); the batch seed is then None.
 
     Raises:
-        InvalidArgumentError: not an int >= 0 or a Generator.
+        InvalidArgumentError, ShapeError: naming ``seed``.
     """
-    if isinstance(seed, np.random.Generator):
-        return int(seed.integers(0, 2**63))
-    as_rng(seed)  # validates
-    return 0 if seed is None else int(seed)
+    if isinstance(seed, np.random.Generator) or seed is None:
+        base = request_seed(seed)
+        return target_seeds(base, 0, n), base
+    if np.ndim(seed) == 0:
+        return target_seeds(_seed_int(seed), 0, n), _seed_int(seed)
+    values = [_seed_int(s) for s in np.asarray(seed, dtype=object).reshape(-1)]
+    if np.ndim(seed) != 1 or len(values) != n:
+        raise ShapeError("seed", f"expected one int or {n} ints (one per target), got shape {np.shape(seed)}")
+    return np.array(values, dtype=np.uint64), None
+
+
+def _seed_int(value: Any) -> int:
+    integer = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+    if not integer or not 0 <= value < 2**64:
+        raise InvalidArgumentError("seed", f"expected ints in [0, 2^64) or a numpy Generator, got {value!r}")
+    return int(value)

@@ -44,7 +44,7 @@ class BatchResult:
         seed: the seed of each target's solve: ``solve_ik(m, targets[i], q0[i], seed=seed[i])``
             gives the same answer.
         method: the IK method.
-        base_seed: the batch's seed (None was 0).
+        base_seed: the batch's seed (None was 0; None here when the seeds were given per target).
         wall_time: seconds of the whole batch call.
         workers: threads (local) or Dask workers that solved it.
     """
@@ -60,7 +60,7 @@ class BatchResult:
     status: np.ndarray
     seed: np.ndarray
     method: str = "lm"
-    base_seed: int = 0
+    base_seed: int | None = 0
     wall_time: float = 0.0
     workers: int = 1
     extra: dict[str, Any] = field(default_factory=dict)

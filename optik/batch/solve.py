@@ -13,20 +13,19 @@ the chunks are Dask tasks (`optik.batch.distributed`).
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from typing import Any
 
 import numpy as np
 
 from optik.batch.chunk import ChunkSpec, chunk_bounds, default_workers, solve_chunk
-from optik.batch.inputs import as_starts, as_targets, base_seed
+from optik.batch.inputs import as_starts, as_targets, target_seed_array
 from optik.batch.result import BatchResult
 from optik.bench.progress import Progress
 from optik.mechanism import Mechanism
 from optik.solvers.base import Tolerances, get_method, make_request, positive_int
 from optik.solvers.lm import lm_settings
-from optik.solvers.lm_kernel import target_seeds
 
 
 def solve_ik_batch(
@@ -39,7 +38,7 @@ def solve_ik_batch(
     frame: str | None = None,
     time_limit: float | None = None,
     tol: float | Tolerances | None = None,
-    seed: int | np.random.Generator | None = None,
+    seed: int | np.random.Generator | Sequence[int] | np.ndarray | None = None,
     workers: int | None = None,
     scheduler: Any = None,
     chunk_size: int | None = None,
@@ -60,7 +59,8 @@ def solve_ik_batch(
         time_limit: seconds per target (default 0.1, as `optik.solve_ik`).
         tol: tolerances (float: position and orientation) or `optik.Tolerances`.
         seed: batch seed (None: 0) or a Generator (one draw); target ``i`` is solved with seed
-            ``result.seed[i]``.
+            ``result.seed[i]``. Or one int per target (e.g. ``result.seed[rows]`` of an earlier
+            batch, to solve some of its targets again with their own seeds).
         workers: threads of the local pool (default: the cores available); ignored with
             ``scheduler``.
         scheduler: a ``dask.distributed.Client`` (or a scheduler address) to solve the chunks
@@ -81,7 +81,7 @@ def solve_ik_batch(
     transforms, implied = as_targets(m, targets)
     n = len(transforms)
     starts = as_starts(m, q0, n)
-    seed0 = base_seed(seed)
+    seeds, seed0 = target_seed_array(seed, n)
     request = make_request(
         m,
         transforms[0] if n else np.eye(4),
@@ -90,7 +90,7 @@ def solve_ik_batch(
         frame,
         time_limit,
         tol,
-        seed0,
+        0,
         options,
     )
     spec = ChunkSpec(method, request.task, frame, request.time_limit, request.tol, dict(options))
@@ -98,7 +98,6 @@ def solve_ik_batch(
         lm_settings(request)  # unknown options and bad values raise here, not in a worker
     else:
         get_method(method)
-    seeds = target_seeds(seed0, 0, n)
     if workers is not None:
         workers = positive_int(workers, "workers")
     if chunk_size is not None:

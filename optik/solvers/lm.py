@@ -48,7 +48,6 @@ from optik.errors import InvalidArgumentError
 from optik.problem import target_parameters
 from optik.results import IKResult
 from optik.solvers.base import IKRequest, make_result, method_options, positive_int, register_method
-from optik.solvers.evaluation import errors_against
 from optik.solvers.lm_kernel import STATUS, Settings, kernel
 from optik.solvers.options import check_floats, check_max_restarts
 
@@ -116,15 +115,21 @@ def solve_lm(request: IKRequest) -> IKResult:
     m = request.mechanism
     setup = time.perf_counter()
     k = kernel(m, request.task, request.frame, closure_weight, compile)
-    errors = errors_against(m, request.task, request.frame, request.target, compile)
     request.exclude_setup(setup)
     conf = settings.conf(m)
     conf[3] = max(request.remaining(), 0.0)
     seed = np.array([request_seed(request.seed) & (2**64 - 1)], dtype=np.uint64)
-    out = k.run(target_parameters(request.target)[None], request.q0[None], seed, conf)
+    params = target_parameters(request.target)
+    out = k.run(params[None], request.q0[None], seed, conf)
     status = None if out.status[0] == 0 else STATUS[int(out.status[0])]
     return make_result(
-        request, out.q[0], "lm", int(out.iterations[0]), int(out.restarts[0]), status, errors=errors
+        request,
+        out.q[0],
+        "lm",
+        int(out.iterations[0]),
+        int(out.restarts[0]),
+        status,
+        errors=lambda q: k.final_errors(q, params),  # the kernel's own check, as the batch's
     )
 
 

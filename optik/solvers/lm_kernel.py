@@ -20,6 +20,7 @@ CasADi's evaluator, with the same generator (same answers, slower).
 from __future__ import annotations
 
 import ctypes
+import threading
 import time
 from dataclasses import dataclass
 from functools import lru_cache
@@ -185,6 +186,19 @@ class LMKernel:
         )
         self.library = library([self.step, self.errors], compile, defines + DRIVER.read_text())
         self._fn: Any = None
+        self._local = threading.local()  # per-thread error evaluators
+
+    def final_errors(self, q: np.ndarray, target: np.ndarray) -> tuple[float, float, float]:
+        """Position, orientation and closure errors of ``q`` against target parameters
+        ``target`` (12,), by the kernel's own error function (compiled once the driver is):
+        the check of answers changed after the kernel (wrapped into canonical angles)."""
+        fn = getattr(self._local, "errors", None)
+        if fn is None:
+            fn = self._local.errors = NativeFunction(self.errors, self.library)
+        fn.inputs[0][:] = q
+        fn.inputs[1][:] = target
+        pos, ori, clo = fn()
+        return float(pos[0]), float(ori[0]), float(clo[0])
 
     @property
     def compiled(self) -> bool:

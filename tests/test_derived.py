@@ -85,7 +85,7 @@ def _check_all(m: optik.Mechanism, n: int = 60, seed: int = 0) -> tuple[np.ndarr
     qs = m.random_q(n, seed=seed)
     targets = m.fk(qs)
     q, ok = solver.solve(targets)
-    assert q.shape == (n, 8, 6) and ok.shape == (n, 8)
+    assert q.shape[0] == n and q.shape[2] == 6 and ok.shape == q.shape[:2] and q.shape[1] in (8, 16)
     for i in range(n):
         sols = q[i][ok[i]]
         assert len(sols) >= 1
@@ -234,3 +234,19 @@ def test_all_solutions_benchmark_runs_and_agrees_with_eaik() -> None:
     from optik.benchmarks import bench_all_solutions
 
     assert bench_all_solutions.main(["--n", "3"]) == 0
+
+
+@pytest.mark.parametrize("name", ["tp_56_intersecting", "tp_general", "tp_reversed"])
+def test_three_parallel_wrist_singularity_has_representatives(name: str) -> None:
+    """Axis 6 parallel to axes 2-4 (q5 = 0 on a UR arm): only theta + q6 is fixed, and the
+    representative must keep the two-link target reachable (it missed every branch before)."""
+    m = dh_chain(ARMS[name], "standard", name=name, task="pose")
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        q = rng.uniform(-np.pi, np.pi, 6)
+        q[4 if name != "tp_reversed" else 1] = 0.0
+        target = m.fk(q)
+        sols = optik.solve_ik_all(m, target)
+        assert len(sols) >= 1
+        for s in sols:
+            np.testing.assert_allclose(m.fk(s.q), target, atol=1e-9)

@@ -203,6 +203,7 @@ def test_latest_runs_the_newest_request_and_drops_the_stale_ones():
         (["view", "robot.urdf", "--no-browser"], "--base"),
         (["view", "planar_3r", "--no-browser", "--method", "warp"], "method"),
         (["view", "planar_3r", "--no-browser", "--port", "70000"], "--port"),
+        (["view", "planar_3r", "--no-browser", "--reach", "no/such/map"], "source"),
     ],
 )
 def test_view_command_errors_exit_2_naming_the_argument(argv, argument, capsys):
@@ -247,3 +248,128 @@ def test_scene_nodes_compose_to_the_model_poses(open_viewer, name):
         )
     body, offset = m.frames[m.ee]
     np.testing.assert_allclose(_pose(nodes[body]) @ offset, m.fk(q), atol=1e-9)
+
+
+def test_capability_map_is_a_point_cloud_coloured_by_the_index(open_viewer, tmp_path):
+    from matplotlib import colormaps
+
+    m = catalog.planar_2r()
+    rmap = optik.reach(m, resolution=0.25, orientations=4, samples=2000, workers=1, out=tmp_path)
+    v = open_viewer(m)
+    assert v.show_reach(rmap) == len(rmap.centers) == int(np.isfinite(rmap.index).sum())
+    np.testing.assert_allclose(v._reach.points, rmap.centers, atol=1e-3)  # float16 on the wire
+    k = int(np.argmax(rmap.index))
+    np.testing.assert_array_equal(
+        v._reach.colors[k], (255 * np.asarray(colormaps["viridis"](rmap.index[k]))[:3]).astype(np.uint8)
+    )
+    assert "mean reachability index" in v.panel.reach_text.content and not v.panel.reach.disabled
+    assert v.show_reach(tmp_path) == len(rmap.centers)  # the saved reach.npz (its folder)
+    v.set_reach_visible(False)
+    assert not v._reach.visible
+    with pytest.raises(optik.InvalidArgumentError, match=r"^source"):
+        v.show_reach(tmp_path / "nothing")
+    (tmp_path / "bad.npz").write_bytes(b"not a map")
+    with pytest.raises(optik.InvalidArgumentError, match=r"^source"):
+        v.show_reach(tmp_path / "bad.npz")
+
+
+URDF = """<robot name="two">
+  <link name="base"><visual><geometry><box size="0.2 0.2 0.1"/></geometry></visual></link>
+  <link name="upper">
+    <visual><origin xyz="0 0 0.25"/><geometry><mesh filename="upper.stl"/></geometry></visual>
+  </link>
+  <link name="lower"><visual><geometry><mesh filename="missing.stl"/></geometry></visual></link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="upper"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="upper"/><child link="lower"/><origin xyz="0 0 0.5"/>
+    <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+</robot>
+"""
+
+
+def test_urdf_visuals_are_drawn_where_their_files_resolve(open_viewer, tmp_path):
+    import trimesh
+
+    trimesh.creation.cylinder(radius=0.04, height=0.5).export(tmp_path / "upper.stl")
+    (tmp_path / "two.urdf").write_text(URDF)
+    m = optik.Mechanism.from_urdf(tmp_path / "two.urdf", "base", "lower")
+    v = open_viewer(m)
+    assert v.robot.visual_bodies == ("base", "upper")  # the box and the STL; lower is a capsule chain
+    assert len(v.notes) == 1 and "missing.stl: file not found" in v.notes[0]
+    assert "1 URDF visuals not drawn" in v.panel.notes.content
+
+
+def test_urdf_meshes_of_example_robot_data_resolve():
+    from test_urdf_ros import _robots_dir
+
+    from optik.view.visuals import body_visuals
+
+    path = _robots_dir() / "panda_description" / "urdf" / "panda.urdf"
+    m = optik.Mechanism.from_urdf(path, "panda_link0", "panda_hand")
+    meshes, notes = body_visuals(m)
+    assert notes == []
+    visuals = m.params["visuals"]
+    assert len(visuals) == 9  # link0..link7 and the hand (on the body of link7: fixed joints)
+    assert set(meshes) == {m.frames[v.link][0] for v in visuals}
+    assert all(len(mesh.faces) > 1000 for mesh in meshes.values())
+
+
+def test_method_dropdown_selects_the_solver(open_viewer):
+    m = catalog.panda()
+    v = open_viewer(m)
+    target = m.fk(m.random_q(seed=9))
+    for name in ("nlp", "dls", "lm"):
+        v.method = name
+        res = v.set_target(target)
+        assert res.method == name and f"**{name}**" in v.panel.status.content
+        if res.success:
+            assert np.linalg.norm(m.fk(v.q)[:3, 3] - target[:3, 3]) < 1e-6
+    with pytest.raises(optik.SolverUnavailableError):
+        v.method = "closed_form"
+
+
+def test_gizmo_ik_of_a_closed_chain_keeps_its_loops_closed(open_viewer):
+    m = catalog.five_bar()
+    v = open_viewer(m)
+    res = v.set_target(optik.Position([0.6, 1.3, 0.0]))
+    assert res.success
+    np.testing.assert_allclose(m.fk(v.q)[:2, 3], (0.6, 1.3), atol=1e-6)
+    assert np.max(np.abs(m.closure(v.q))) < 1e-9 and "closure error" in v.panel.status.content
+
+
+def test_play_runs_through_the_tracked_path(open_viewer):
+    m = catalog.planar_3r(lengths=(1.0, 0.8, 0.5))
+    v = open_viewer(m)
+    v.set_q([0.3, 0.8, -0.6])
+    result = v.track(dt=0.001)
+    v.panel._play()
+    v.panel._player.join(10)
+    np.testing.assert_allclose(v.q, result.q[-1])
+    assert v.panel.sample.value == len(result.q) - 1
+
+
+def test_optik_view_stops_on_sigterm():
+    import os
+    import select
+    import signal
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "optik.cli", "view", "planar_2r", "--no-browser", "--port", str(free_port())],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+    )
+    try:
+        assert select.select([proc.stdout], [], [], 60)[0], "optik view printed nothing within 60 s"
+        assert "http://127.0.0.1:" in proc.stdout.readline()
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(10)
+    assert proc.returncode == 0 and "Traceback" not in err, err
+    assert "optik view: stopped" in out

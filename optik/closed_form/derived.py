@@ -4,7 +4,8 @@
 detects its family (`optik.closed_form.structure.detect`) and returns a ``DerivedIK`` that
 solves many targets at once:
 
-1. the family's subproblem decomposition gives up to 8 candidates per target
+1. the family's subproblem decomposition gives ``B`` candidates per target (8, or 16 with the
+   wrist-singularity representatives of `optik.closed_form.three_parallel`)
    (`optik.closed_form.spherical_wrist`, `optik.closed_form.three_parallel`; chains of the
    reversed families are solved as their inverse chain, ``q = -reverse(q')``);
 2. every candidate is polished by ``POLISH_STEPS`` vectorized Gauss-Newton steps on the exact
@@ -24,6 +25,7 @@ every mechanism with a detected family and no catalog closed form gets one: ``cl
 
 from __future__ import annotations
 
+import functools
 import threading
 import weakref
 from dataclasses import dataclass
@@ -42,7 +44,7 @@ from optik.mechanism import Mechanism
 
 POLISH_STEPS = 3
 """Gauss-Newton steps applied to an inexact candidate."""
-POLISH_RANGE = (1e-7, 1e-3)
+POLISH_RANGE = (1e-5, 1e-3)
 """Bounds of `DerivedIK.polish_range`: candidates with errors above `CHECK_TOL` but within
 the polish range (times the arm's size for the position, rad for the orientation) are polished;
 those beyond are no solution (least-squares answers of subproblems without a real one)."""
@@ -99,7 +101,7 @@ class DerivedIK:
         return self.axes.reversed() if self.structure.reversed else self.axes
 
     def branches(self, rt: v3.Mat, pt: v3.Vec, ops: v3.Ops) -> list[Branch]:
-        """The 8 candidate branches (component tuples) for the target rotation ``rt`` and
+        """The ``B`` candidate branches (component tuples) for the target rotation ``rt`` and
         position ``pt`` (components as numpy arrays or CasADi symbols, see ``ops``)."""
         kernel = _KERNELS[self.structure.family]
         chain = self.chain
@@ -112,7 +114,7 @@ class DerivedIK:
         return out
 
     def candidates(self, t: np.ndarray) -> np.ndarray:
-        """Unchecked candidates ``(N, 8, 6)`` of the decomposition for targets ``t (N, 4, 4)``."""
+        """Unchecked candidates ``(N, B, 6)`` of the decomposition for targets ``t (N, 4, 4)``."""
         rt, pt = _components(t)
         rows = [
             np.stack(np.broadcast_arrays(*b, pt[0]), axis=-1)[:, :6] for b in self.branches(rt, pt, v3.NUMPY)
@@ -133,7 +135,7 @@ class DerivedIK:
         """Every solution for targets ``t (N, 4, 4)`` (steps 1-4 of the module docstring).
 
         Returns:
-            ``q (N, 8, 6)`` wrapped to ``(-pi, pi]`` and ``ok (N, 8)``: True for the kept,
+            ``q (N, B, 6)`` wrapped to ``(-pi, pi]`` and ``ok (N, B)``: True for the kept,
             distinct solutions (rows where ``ok`` is False are finite placeholders).
         """
         t = np.asarray(t, dtype=float).reshape(-1, 4, 4)
@@ -146,7 +148,7 @@ class DerivedIK:
     def finish(
         self, t: np.ndarray, q: np.ndarray, pos: np.ndarray, ori: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Steps 2-4 for candidates ``q (N, 8, 6)`` with errors ``pos, ori (N, 8)``: polish the
+        """Steps 2-4 for candidates ``q (N, B, 6)`` with errors ``pos, ori (N, B)``: polish the
         inexact ones within `polish_range`, check, wrap, merge duplicates."""
         size = self.axes.size
         ok = (pos <= CHECK_TOL * size) & (ori <= CHECK_TOL)
@@ -158,11 +160,16 @@ class DerivedIK:
             q[idx] = qq
             ok[idx] = good
         q = _wrap(q)
-        d = np.abs(q[:, :, None, :] - q[:, None, :, :])  # in [0, 2 pi): |wrap| = min(d, 2 pi - d)
-        diff = np.minimum(d, 2.0 * np.pi - d).max(axis=-1)  # (N, 8, 8)
-        close = (diff < SAME_TOL) & ok[:, :, None] & ok[:, None, :] & _LOWER
-        if close.any():
-            self._merge(t, q, ok, diff, close)
+        # pairs (j, i), i < j, of kept candidates within SAME_TOL: screened on q1, then all of q
+        d0 = np.abs(q[:, :, None, 0] - q[:, None, :, 0])  # in [0, 2 pi): |wrap| = min(d, 2 pi - d)
+        screen = (np.minimum(d0, 2.0 * np.pi - d0) < SAME_TOL) & ok[:, :, None] & ok[:, None, :]
+        n, j, i = np.nonzero(screen & np.tri(q.shape[1], k=-1, dtype=bool))
+        if n.size:
+            d = np.abs(q[n, j] - q[n, i])
+            dist = np.minimum(d, 2.0 * np.pi - d).max(axis=-1)
+            near_pairs = dist < SAME_TOL
+            if near_pairs.any():
+                self._merge(t, q, ok, n[near_pairs], j[near_pairs], i[near_pairs], dist[near_pairs])
         return np.where(ok[..., None], q, 0.0), ok
 
     @cached_property
@@ -187,6 +194,8 @@ class DerivedIK:
         """Compile the single-target kernel to C now and wait for it (it is compiled in the
         background by itself after `COMPILE_AFTER` calls; without a C compiler CasADi's
         evaluator stays)."""
+        if self.structure.position == "general":
+            return
         with self._single.lock:
             if self._single.calls < COMPILE_AFTER:
                 self._single.calls = COMPILE_AFTER  # no second build when it gets hot
@@ -196,10 +205,14 @@ class DerivedIK:
         """The solutions for one target ``t (4, 4)`` as rows, the same as ``solve(t)`` but
         through the symbolic kernel (`_Single`): about a hundred times cheaper per call than the
         numpy kernel on one target. Targets with a candidate to polish or two close candidates
-        take the numpy path (`finish`); the others return
+        take the numpy path (`finish`), as do the families solved by SP5 / SP6 (``general``
+        position case: eigenvalues, numpy only); the others return
         [`CheckedRows`][optik.closed_form.registry.CheckedRows] carrying the kernel's FK check
         of each row (the product-of-exponentials model, equal to the mechanism's FK to
         rounding: `axes_of` checks it)."""
+        if self.structure.position == "general":  # SP5 / SP6 eigenvalues: numpy only
+            q, ok = self.solve(t)
+            return q[0][ok[0]].tolist()
         one = self._single
         with one.lock:
             one.t[:] = t.reshape(16)
@@ -210,16 +223,17 @@ class DerivedIK:
             q, err, pairs = one.q.tolist(), one.err.tolist(), one.pairs.tolist()
         size_tol = CHECK_TOL * self.axes.size
         span = self.polish_range
-        ok = [err[2 * i] <= size_tol and err[2 * i + 1] <= CHECK_TOL for i in range(8)]
+        b = len(q) // 6
+        ok = [err[2 * i] <= size_tol and err[2 * i + 1] <= CHECK_TOL for i in range(b)]
         pos_span = span * self.axes.size
-        near = [not ok[i] and err[2 * i] <= pos_span and err[2 * i + 1] <= span for i in range(8)]
-        close = any(ok[i] and ok[j] and pairs[k] < SAME_TOL for k, (i, j) in enumerate(_PAIRS))
+        near = [not ok[i] and err[2 * i] <= pos_span and err[2 * i + 1] <= span for i in range(b)]
+        close = any(ok[i] and ok[j] and pairs[k] < SAME_TOL for k, (i, j) in enumerate(_pairs(b)))
         if any(near) or close:
-            qa = np.array(q).reshape(1, 8, 6)
-            e = np.array(err).reshape(1, 8, 2)
+            qa = np.array(q).reshape(1, b, 6)
+            e = np.array(err).reshape(1, b, 2)
             qa, oka = self.finish(np.asarray(t, dtype=float).reshape(1, 4, 4), qa, e[..., 0], e[..., 1])
             return qa[0][oka[0]].tolist()
-        keep = [i for i in range(8) if ok[i]]
+        keep = [i for i in range(b) if ok[i]]
         return registry.CheckedRows(
             [q[6 * i : 6 * i + 6] for i in keep], [(err[2 * i], err[2 * i + 1]) for i in keep]
         )
@@ -233,31 +247,36 @@ class DerivedIK:
         return q, (np.linalg.norm(res[..., :3], axis=-1) <= CHECK_TOL * self.axes.size) & (angle <= CHECK_TOL)
 
     def _merge(
-        self, t: np.ndarray, q: np.ndarray, ok: np.ndarray, diff: np.ndarray, close: np.ndarray
-    ) -> None:
-        """Drop (in ``ok``) each candidate that is the same solution as an earlier kept one, the
-        distance being tied to the accuracy of both (module docstring, step 4)."""
-        for n in np.unique(np.nonzero(close)[0]):
-            pose, jac = self.axes.jacobian(q[n])
-            norm = np.linalg.norm(_errors(pose, t[n])[0], axis=-1)
+        self, t: np.ndarray, q: np.ndarray, ok: np.ndarray, n: np.ndarray, j: np.ndarray, i: np.ndarray,
+        dist: np.ndarray,
+    ) -> None:  # fmt: skip
+        """Drop (in ``ok``) each candidate ``j`` that is the same solution as an earlier kept
+        ``i`` (pairs ``(n, j, i)`` at distance ``dist``), the distance being tied to the accuracy
+        of both (module docstring, step 4)."""
+        for target in np.unique(n):
+            pose, jac = self.axes.jacobian(q[target])
+            norm = np.linalg.norm(_errors(pose, t[target])[0], axis=-1)
             sigma = np.linalg.svd(jac, compute_uv=False)[..., -1]
             tol = np.minimum(SAME_TOL, 100.0 * norm / np.maximum(sigma, 1e-300) + 1e-9)
-            for j in range(1, 8):
-                for i in range(j):
-                    if ok[n, i] and ok[n, j] and diff[n, j, i] < max(tol[i], tol[j]):
-                        ok[n, j] = False
+            sel = np.nonzero(n == target)[0]
+            for k in sel[np.lexsort((i[sel], j[sel]))]:  # by j, then i
+                a, b = j[k], i[k]
+                if ok[target, a] and ok[target, b] and dist[k] < max(tol[a], tol[b]):
+                    ok[target, a] = False
 
 
-_PAIRS = [(i, j) for j in range(8) for i in range(j)]
-_LOWER = np.tri(8, k=-1, dtype=bool)
-"""Pairs ``(j, i)`` with ``i < j`` of the 8 candidates."""
+@functools.cache
+def _pairs(b: int) -> list[tuple[int, int]]:
+    """Pairs ``(i, j)``, ``i < j``, of ``b`` candidates."""
+    return [(i, j) for j in range(b) for i in range(j)]
 
 
 class _Single:
     """The kernel of a `DerivedIK` as one CasADi function of a single target, evaluated on
-    preallocated buffers (``Function.buffer``): 16 target entries (row-major) in; the 8
-    branches wrapped to ``[-pi, pi]`` (48), their position and orientation errors (16) and the
-    wrapped max-norm distances of the 28 pairs out. Guarded by a lock (the buffers are shared)."""
+    preallocated buffers (``Function.buffer``): 16 target entries (row-major) in; the ``B``
+    branches wrapped to ``[-pi, pi]`` (``6 B``), their position and orientation errors (``2 B``)
+    and the wrapped max-norm distances of the ``B (B - 1) / 2`` pairs out. Guarded by a lock
+    (the buffers are shared)."""
 
     def __init__(self, solver: DerivedIK) -> None:
         t = ca.SX.sym("t", 16)
@@ -269,7 +288,7 @@ class _Single:
         wrapped = [[a - two_pi * ca.floor((a + np.pi) / two_pi) for a in b] for b in raw]  # [-pi, pi)
         errs = [e for b in raw for e in solver.errors_c(b, rt, pt, ops)]
         pairs = []
-        for i, j in _PAIRS:
+        for i, j in _pairs(len(raw)):
             dist = 0.0
             for a, b in zip(wrapped[i], wrapped[j], strict=True):
                 d = ca.fabs(a - b)
@@ -281,9 +300,9 @@ class _Single:
             [ca.vertcat(*[a for b in wrapped for a in b]), ca.vertcat(*errs), ca.vertcat(*pairs)],
         )
         self.t = np.zeros(16)
-        self.q = np.zeros(48)
-        self.err = np.zeros(16)
-        self.pairs = np.zeros(len(_PAIRS))
+        self.q = np.zeros(6 * len(raw))
+        self.err = np.zeros(2 * len(raw))
+        self.pairs = np.zeros(len(pairs))
         self.buffer, self.call = f.buffer()
         self.buffer.set_arg(0, memoryview(self.t))
         for k, out in enumerate((self.q, self.err, self.pairs)):

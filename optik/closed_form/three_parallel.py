@@ -15,8 +15,8 @@ This is an SP6 in ``(-q1, q5)`` (up to four pairs; numpy only). When axes 5 and 
 ``rot(h, theta) = rot(h1, q1)^T R rot(h6, q6)^T rot(h5, q5)^T``, and with ``Y = E_1^-1(P6)``,
 ``z = E_5(r6)`` the planar two-link problem ``E_2 E_3 (r4) = Y - rot(h, theta) (z - r4) =: Y'``:
 ``|E_3(r4) - r2| = |Y' - r2|`` is an SP3 in ``q3``, ``rot(h, q2) (E_3(r4) - r2) = Y' - r2`` an
-SP1 in ``q2``, and ``q4 = theta - q2 - q3``. Up to 8 branches, as component tuples
-(`optik.closed_form.vec3`); each is checked by the caller.
+SP1 in ``q2``, and ``q4 = theta - q2 - q3``. Up to 8 branches, and 8 more candidates for the wrist singularity
+(`_rest`), as component tuples (`optik.closed_form.vec3`); each is checked by the caller.
 """
 
 from __future__ import annotations
@@ -66,27 +66,67 @@ def _pairs_sp6(h: list[v3.Vec], r: list[v3.Vec], p6: v3.Vec, rh6: v3.Vec) -> Ite
         yield -mq1[..., j], q5[..., j]
 
 
-def _rest(
-    h: list[v3.Vec], r: list[v3.Vec], rel: v3.Mat, p6: v3.Vec, q1: Any, q5: Any, ops: v3.Ops
-) -> Iterator[Branch]:
-    """The two branches completing ``(q1, q5)``."""
-    k = h[1]
-    r01 = v3.rot_mat(h[0], ops.cos(q1), ops.sin(q1))
-    r45 = v3.rot_mat(h[4], ops.cos(q5), ops.sin(q5))
-    q6 = -sp.sp1_c(h[5], v3.mat_t_vec(r45, k), v3.mat_t_vec(rel, v3.mat_vec(r01, k)), ops)
-    r56 = v3.rot_mat(h[5], ops.cos(q6), ops.sin(q6))
-    r14 = v3.mat_mul(v3.mat_mul(v3.transpose(r01), rel), v3.transpose(v3.mat_mul(r45, r56)))
+def _perpendicular(k: np.ndarray) -> v3.Vec:
     x = np.cross(k, np.eye(3)[int(np.argmin(np.abs(k)))])
-    x = v3.vec(x / np.linalg.norm(x))
-    theta = sp.sp1_c(k, x, v3.mat_vec(r14, x), ops)
-    y = v3.add(r[0], v3.mat_t_vec(r01, v3.sub(p6, r[0])))
-    z = v3.add(r[4], v3.mat_vec(r45, v3.sub(r[5], r[4])))
+    return v3.vec(x / np.linalg.norm(x))
+
+
+def _planar(
+    k: v3.Vec, r: list[v3.Vec], y: v3.Vec, z: v3.Vec, theta: Any, ops: v3.Ops
+) -> Iterator[tuple[Any, Any, Any]]:
+    """``(q2, q3, q4)`` of the two-link problem for ``theta = q2 + q3 + q4``."""
     yp = v3.sub(y, v3.rot(k, ops.cos(theta), ops.sin(theta), v3.sub(z, r[3])))
     r4_r3 = v3.sub(r[3], r[2])
     for q3 in sp.sp3_c(k, r4_r3, v3.sub(r[1], r[2]), v3.norm(v3.sub(yp, r[1]), ops), ops):
         e3 = v3.add(r[2], v3.rot(k, ops.cos(q3), ops.sin(q3), r4_r3))
         q2 = sp.sp1_c(k, v3.sub(e3, r[1]), v3.sub(yp, r[1]), ops)
-        yield q1, q2, q3, theta - q2 - q3, q5, q6
+        yield q2, q3, theta - q2 - q3
+
+
+def _mid_reach(k: v3.Vec, r: list[v3.Vec]) -> float:
+    """The squared distance ``|E_3(r4) - r2|^2`` in the middle of its range over ``q3``:
+    ``(u_h - w_h)^2 + |u_perp|^2 + |w_perp|^2`` for ``u = r4 - r3``, ``w = r2 - r3``."""
+    kk = np.asarray(k)
+    u = np.subtract(r[3], r[2])
+    w = np.subtract(r[1], r[2])
+    uh, wh = kk @ u, kk @ w
+    return float((uh - wh) ** 2 + (u @ u - uh * uh) + (w @ w - wh * wh))
+
+
+def _rest(
+    h: list[v3.Vec], r: list[v3.Vec], rel: v3.Mat, p6: v3.Vec, q1: Any, q5: Any, ops: v3.Ops
+) -> Iterator[Branch]:
+    """The four candidates completing ``(q1, q5)``: two regular ones and two for the wrist
+    singularity.
+
+    Regular: ``q6`` by SP1, ``theta`` from the orientation. When ``rot(h5, -q5) h`` is parallel
+    to ``h6`` (axis 6 parallel to axes 2-4) every ``q6`` fits the SP1 and only ``theta + q6``
+    is fixed: the representative then takes ``theta`` so that the two-link target lies in the
+    middle of its reach, ``(Y - r2) . rot(h, theta) (z - r4) = (|Y - r2|^2 + |z - r4|^2 - rho^2)
+    / 2`` (an SP4, ``rho^2`` from `_mid_reach`), and ``q6`` from
+    ``rot(h6, q6) = (rot(h1, q1) rot(h, theta) rot(h5, q5))^T R``. Away from the singularity
+    these two fail the FK check and are dropped."""
+    k = h[1]
+    r01 = v3.rot_mat(h[0], ops.cos(q1), ops.sin(q1))
+    r45 = v3.rot_mat(h[4], ops.cos(q5), ops.sin(q5))
+    y = v3.add(r[0], v3.mat_t_vec(r01, v3.sub(p6, r[0])))
+    z = v3.add(r[4], v3.mat_vec(r45, v3.sub(r[5], r[4])))
+    x = _perpendicular(np.asarray(k))
+    q6 = -sp.sp1_c(h[5], v3.mat_t_vec(r45, k), v3.mat_t_vec(rel, v3.mat_vec(r01, k)), ops)
+    r56 = v3.rot_mat(h[5], ops.cos(q6), ops.sin(q6))
+    r14 = v3.mat_mul(v3.mat_mul(v3.transpose(r01), rel), v3.transpose(v3.mat_mul(r45, r56)))
+    theta = sp.sp1_c(k, x, v3.mat_vec(r14, x), ops)
+    for q234 in _planar(k, r, y, z, theta, ops):
+        yield q1, *q234, q5, q6
+    a = v3.sub(y, r[1])
+    v = v3.sub(z, r[3])
+    theta_s = sp.sp4_c(a, k, v, 0.5 * (v3.dot(a, a) + v3.dot(v, v) - _mid_reach(k, r)), ops)[0]
+    r14_s = v3.rot_mat(k, ops.cos(theta_s), ops.sin(theta_s))
+    r56_s = v3.mat_mul(v3.transpose(v3.mat_mul(v3.mat_mul(r01, r14_s), r45)), rel)
+    x6 = _perpendicular(np.asarray(h[5]))
+    q6_s = sp.sp1_c(h[5], x6, v3.mat_vec(r56_s, x6), ops)
+    for q234 in _planar(k, r, y, z, theta_s, ops):
+        yield q1, *q234, q5, q6_s
 
 
 def branches(axes: Axes, case: str, rel: v3.Mat, pt: v3.Vec, ops: v3.Ops) -> list[Branch]:

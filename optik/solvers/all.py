@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from optik.checks import as_vector
+from optik.checks import as_name, as_vector
 from optik.closed_form import registry
 from optik.closed_form.derived import derive_locked
 from optik.errors import InvalidArgumentError, SolverUnavailableError
@@ -42,7 +42,7 @@ from optik.solvers.base import (
     make_result,
     positive_int,
 )
-from optik.solvers.closed import _compiled_errors, closed_form_applies, row_distance
+from optik.solvers.closed import _compiled_errors, closed_form_applies
 from optik.solvers.polish import polish, same_point_tol
 
 NUMERIC_ORDER = ("lm", "nlp")
@@ -109,6 +109,10 @@ def solve_ik_all(
         )
     patience = positive_int(patience, "patience")
     max_solutions = positive_int(max_solutions, "max_solutions")
+    if method is not None:
+        as_name(method, "method")
+    if not isinstance(closed_form, bool):
+        raise InvalidArgumentError("closed_form", f"expected True or False, got {closed_form!r}")
     if fixed is not None:
         return _locked_all(request, _locks(m, fixed), method, patience, max_solutions)
     applies = closed_form_applies(m, request.task) and frame in (None, m.ee)
@@ -156,9 +160,12 @@ def _from_rows(request: IKRequest, rows: list[list[float]]) -> IKSolutions:
         checked = {id(row): err for row, err in zip(rows, rows.errors, strict=True)}
     errors = _compiled_errors(request)
     tol = request.tol
-    mask = registry.angle_mask(m)
-    start = request.q0.tolist()
-    inside.sort(key=lambda row: row_distance(mask, row, start))
+    if len(inside) > 1:  # nearest q0 first: joint_distance of every row at once
+        d = np.asarray(inside) - request.q0
+        ang = m.revolute_mask
+        d[:, ang] = (d[:, ang] + np.pi) % (2.0 * np.pi) - np.pi
+        order = np.argsort(np.abs(d).max(axis=1), kind="stable").tolist()
+        inside = [inside[k] for k in order]
     kept: list[IKResult] = []
     failed = 0
     for row in inside:

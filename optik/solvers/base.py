@@ -354,6 +354,8 @@ def joint_distance(m: Mechanism, qa: np.ndarray, qb: np.ndarray) -> float:
 def positive_int(value: Any, name: str) -> int:
     """``value`` as an integer >= 1 (else [`InvalidArgumentError`][optik.InvalidArgumentError] naming
     ``name``)."""
+    if type(value) is int and value >= 1:  # the common case, without the generic validation
+        return value
     v = float(as_vector(value, name, 1)[0])
     if v < 1 or v != int(v):
         raise InvalidArgumentError(name, f"expected a positive integer, got {value!r}")

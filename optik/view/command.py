@@ -41,6 +41,9 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--port", type=int, default=8080, help="TCP port (default: %(default)s, or the next free)")
     p.add_argument("--host", default="127.0.0.1", help="interface to bind (default: %(default)s)")
     p.add_argument("--method", help="IK method of the gizmo (default: the best available)")
+    p.add_argument(
+        "--reach", metavar="PATH", help="capability map to draw: a reach.npz or its folder (optik reach)"
+    )
     p.add_argument("--no-browser", action="store_true", help="do not open a browser window")
     p.add_argument("--problems-dir", metavar="DIR", help="directory of problem files (default: problems/)")
     p.set_defaults(func=run)
@@ -51,6 +54,7 @@ def _viewer(args: argparse.Namespace) -> Any:
     from optik.mechanism import Mechanism
     from optik.problem_files import find_problem
     from optik.view import Viewer
+    from optik.view.viewer import reach_points
 
     if not 0 <= args.port <= 65535:
         raise InvalidArgumentError("--port", f"expected 0..65535, got {args.port}")
@@ -61,7 +65,12 @@ def _viewer(args: argparse.Namespace) -> Any:
     else:
         problem = find_problem(args.source, args.problems_dir)
         m, task, tol = problem.mechanism(), problem.mechanism_task, problem.tolerances
-    return Viewer(m, host=args.host, port=args.port, task=task, tol=tol, method=args.method)
+    if args.reach is not None:
+        reach_points(args.reach)  # a bad map is a usage error before the server starts
+    viewer = Viewer(m, host=args.host, port=args.port, task=task, tol=tol, method=args.method)
+    if args.reach is not None:
+        viewer.show_reach(args.reach)
+    return viewer
 
 
 def _interrupt(signum: int, frame: FrameType | None) -> None:
@@ -74,6 +83,8 @@ def run(args: argparse.Namespace) -> int:
     previous = signal.signal(signal.SIGTERM, _interrupt)
     try:
         print(f"optik view: {viewer.m.name} at {viewer.url} (Ctrl-C to stop)", flush=True)
+        for note in viewer.notes:
+            print(f"note: URDF visual not drawn: {note}", flush=True)
         if not args.no_browser:
             webbrowser.open(viewer.url)
         while True:

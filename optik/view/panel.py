@@ -43,6 +43,12 @@ class Panel:
             self.all.on_update(self._user(lambda: viewer.show_all_solutions(self.all.value)))
             self.status = gui.add_markdown("Drag the target gizmo: IK follows.")
             self.branches = gui.add_markdown("")
+        self.notes = None
+        if viewer.notes:
+            shown = "; ".join(viewer.notes[:3]) + ("; ..." if len(viewer.notes) > 3 else "")
+            self.notes = gui.add_markdown(
+                f"**{len(viewer.notes)} URDF visuals not drawn** (capsules instead): {shown}"
+            )
         self.index = m.actuated_indices if m.is_closed else np.arange(m.n_q)
         title = "Actuators: every assembly mode" if m.is_closed else "Joints: FK"
         with gui.add_folder(title):
@@ -66,6 +72,10 @@ class Panel:
             self.play = gui.add_button("play", disabled=True)
             self.play.on_click(self._user(self._play))
             self.path_text = gui.add_markdown("")
+        with gui.add_folder("Capability map: optik.reach", expand_by_default=False):
+            self.reach = gui.add_checkbox("capability map", True, disabled=True)
+            self.reach.on_update(self._user(lambda: viewer.set_reach_visible(self.reach.value)))
+            self.reach_text = gui.add_markdown("Load one with `--reach DIR` or `Viewer.show_reach`.")
 
     # ------------------------------------------------------------------ callbacks
     def _guarded(self, action: Callable[..., Any]) -> Callable[..., None]:
@@ -161,6 +171,15 @@ class Panel:
             self.modes.content = "**does not assemble** for these actuator values"
         else:
             self.modes.content = f"**{count}** assembly mode{'s' if count != 1 else ''}; showing {shown + 1}"
+
+    def show_reach(self, drawn: int, pending: int, mean: float) -> None:
+        """Enable the capability-map box and summarize the map."""
+        self.reach.disabled = False
+        self.reach.value = True
+        text = f"{drawn} voxels, mean reachability index {mean:.2f} (viridis: 0 blue, 1 yellow)"
+        self.reach_text.content = text + (
+            f"; {pending} voxels not computed yet, not drawn" if pending else ""
+        )
 
     def show_path(self, result: TrackResult) -> None:
         """Enable playback of a tracked path and summarize it."""

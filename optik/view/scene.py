@@ -126,9 +126,13 @@ class RobotDrawing:
         q: first configuration.
         name: scene-node prefix (e.g. ``"/robot"``, ``"/ghosts/3"``).
         style: colours, opacity, sizes.
+        visuals: ``{body: mesh in body coordinates}`` drawn instead of the capsule chain of those
+            bodies (`optik.view.visuals.body_visuals`: URDF visuals).
     """
 
-    def __init__(self, scene: Any, m: Mechanism, q: Any, name: str, style: Style) -> None:
+    def __init__(
+        self, scene: Any, m: Mechanism, q: Any, name: str, style: Style, visuals: dict[str, Any] | None = None
+    ) -> None:
         self.scene, self.m, self.name, self.style = scene, m, name, style
         p = poses(m, q)
         g = p.geometry()
@@ -136,7 +140,14 @@ class RobotDrawing:
         # one scene node per body, moved by T_b(q); its link mesh and the joint frames it carries
         # are children with constant poses, so an update sends one pose per moving body
         self._bodies = {b: scene.add_frame(self._node(b), show_axes=False) for b in m.topology.bodies}
+        self.visual_bodies = tuple(b for b in m.topology.bodies if visuals and b in visuals)
+        """Bodies drawn with their URDF visuals (the others are capsule chains)."""
         for body in m.topology.bodies:
+            if body in self.visual_bodies:
+                scene.add_mesh_trimesh(
+                    f"{self._node(body)}/visual", visuals[body], cast_shadow=False, receive_shadow=False
+                )
+                continue
             pts = body_points(m, g, body)
             if body == m.base and len(pts) == 1:
                 pts = [np.zeros(3), *pts]  # a pedestal from the base origin to the first joint

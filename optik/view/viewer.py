@@ -14,6 +14,7 @@ joint sliders             `Viewer.set_q` (FK)
 actuator sliders          `Viewer.set_actuated` (closed chains: every assembly mode)
 "next assembly mode"      `Viewer.show_mode`
 "track a circle", time    `Viewer.track`, `Viewer.show_path_sample`
+"capability map" box      `Viewer.show_reach`, `Viewer.set_reach_visible`
 ========================  ==================================================================
 """
 
@@ -22,10 +23,13 @@ from __future__ import annotations
 import contextlib
 import io
 import math
+import os
 import threading
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib import colormaps
 
 from optik import spatial
 from optik.checks import as_vector
@@ -41,13 +45,43 @@ from optik.targets import target_transform
 from optik.view.latest import Latest
 from optik.view.scene import RobotDrawing, Style, extent, poses
 from optik.view.shapes import rotation, wxyz
+from optik.view.visuals import body_visuals
 
-__all__ = ["Viewer", "view"]
+__all__ = ["Viewer", "reach_points", "view"]
 
 PLANAR_TASKS = ("pose2d", "position2d")
 RADIUS = 0.03
 """Link radius as a fraction of the mechanism's size."""
 GHOST = Style(link=(120, 170, 230), ground=(120, 120, 120), slide=(230, 150, 120), opacity=0.3, frames=False)
+
+
+def reach_points(source: Any) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(centers (V, 3), index (V,), resolution)`` of a capability map: a `optik.reach.ReachMap`
+    or the ``reach.npz`` it is saved as (a file or its folder).
+
+    Raises:
+        InvalidArgumentError: not a map, no such file, or a file without those arrays.
+    """
+    if all(hasattr(source, k) for k in ("centers", "index", "resolution")):
+        return np.asarray(source.centers, float), np.asarray(source.index, float), float(source.resolution)
+    if not isinstance(source, (str, os.PathLike)):
+        raise InvalidArgumentError(
+            "source", f"expected a ReachMap or a reach.npz path, got {type(source).__name__}"
+        )
+    path = Path(source)
+    if path.is_dir():
+        path = path / "reach.npz"
+    if not path.is_file():
+        raise InvalidArgumentError("source", f"no capability map at {path}")
+    try:
+        with np.load(path) as data:
+            return (
+                np.asarray(data["centers"], float).reshape(-1, 3),
+                np.asarray(data["index"], float).reshape(-1),
+                float(data["resolution"]),
+            )
+    except (OSError, ValueError, KeyError) as exc:
+        raise InvalidArgumentError("source", f"{path} is not a reach.npz capability map ({exc})") from None
 
 
 def _viser() -> Any:
@@ -125,7 +159,10 @@ class Viewer:
         """The assembly modes of the last actuator values (closed chains)."""
         self.path: TrackResult | None = None
         """The last tracked path."""
+        self.notes: list[str] = []
+        """URDF visuals that are not drawn, with the reason (their bodies are capsule chains)."""
         self._all = False
+        self._reach: Any = None
         self._q = self._first_q(q)
         with contextlib.redirect_stdout(io.StringIO()):  # viser prints a banner; `url` tells the address
             self.server = viser.ViserServer(host=host, port=int(port), label=f"optik: {m.name}")
@@ -174,7 +211,8 @@ class Viewer:
             section_size=10 * cell,
             position=(center[0], center[1], 0.0),
         )
-        self.robot = RobotDrawing(scene, self.m, self._q, "/robot", Style(radius=RADIUS * size))
+        visuals, self.notes = body_visuals(self.m)
+        self.robot = RobotDrawing(scene, self.m, self._q, "/robot", Style(radius=RADIUS * size), visuals)
         planar = self.task in PLANAR_TASKS
         self.gizmo = scene.add_transform_controls(
             "/target",
@@ -399,6 +437,45 @@ class Viewer:
             self._show_q(q)
             self._move_gizmo(self._path_targets[max(int(k) - 1, 0)])
             return q.copy()
+
+    # ------------------------------------------------------------------ capability map
+    def show_reach(self, source: Any, visible: bool = True) -> int:
+        """Draw a capability map of `optik.reach` as a point cloud: one point per workspace voxel
+        centre, coloured by its reachability index (viridis: 0 dark blue, 1 yellow).
+
+        Args:
+            source: a `optik.reach.ReachMap`, or a ``reach.npz`` written by ``optik reach`` /
+                ``optik.reach(out=DIR)`` (or its folder).
+            visible: show the cloud (the panel's "capability map" box toggles it).
+
+        Returns:
+            The number of points drawn (voxels whose index is not computed yet are left out,
+            and the panel says how many).
+
+        Raises:
+            InvalidArgumentError: ``source`` is neither a map nor a readable ``reach.npz``.
+        """
+        centers, index, resolution = reach_points(source)
+        done = np.isfinite(index)
+        colors = (255 * colormaps["viridis"](index[done])[:, :3]).astype(np.uint8)
+        with self._lock:
+            self._reach = self.server.scene.add_point_cloud(
+                "/reach",
+                centers[done],
+                colors,
+                point_size=0.5 * resolution,
+                point_shape="circle",
+                visible=visible,
+            )
+            self.panel.show_reach(
+                int(done.sum()), int((~done).sum()), float(np.mean(index[done])) if done.any() else 0.0
+            )
+        return int(done.sum())
+
+    def set_reach_visible(self, visible: bool) -> None:
+        """Show or hide the capability map drawn by `show_reach`."""
+        if self._reach is not None:
+            self._reach.visible = bool(visible)
 
     # ------------------------------------------------------------------ lifetime
     def close(self) -> None:

@@ -156,7 +156,7 @@ KNOWN: tuple[Known, ...] = (
         "3-RPR / Stewart-Gough closed-form FK of leg lengths whose squares overflow",
         lambda call, detail: any(n in call.label for n in ("planar_3rpr", "stewart_gough"))
         and any(call.label.startswith(e) for e in ("closed_form.fk", "solve_fk_all"))
-        and any(e in detail for e in ("IndexError", "LinAlgError")),
+        and any(e in detail for e in ("IndexError", "LinAlgError", "OverflowError")),
     ),
     Known(
         "parallelfk",

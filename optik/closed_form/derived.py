@@ -400,8 +400,9 @@ def general_rows(m: Mechanism) -> registry.IKSolver | None:
     """Registry deriver after [`derived_rows`][optik.closed_form.derived.derived_rows]: a 6R
     serial chain of no decomposable family gets the general 6R solver
     ([`ik_general_6r`][optik.closed_form.general_6r.ik_general_6r], all 16 complex solutions'
-    real ones, each FK-checked)."""
-    if m.n_q != 6 or derive(m) is not None or chain_axes(m) is None:
+    real ones, each FK-checked) when it covers the geometry
+    ([`covers`][optik.closed_form.general_6r.covers]: no certified answer otherwise)."""
+    if m.n_q != 6 or derive(m) is not None or chain_axes(m) is None or not general_6r.covers(m):
         return None
     return general_6r.ik_general_6r
 

@@ -10,6 +10,7 @@ from optik.batch import BatchResult, fk_batch, solve_ik_batch
 from optik.errors import (
     InvalidArgumentError,
     LimitsError,
+    MissingExtraError,
     ModelError,
     NonFiniteError,
     OptikError,
@@ -39,6 +40,7 @@ __all__ = [
     "Joint",
     "LimitsError",
     "Mechanism",
+    "MissingExtraError",
     "ModelError",
     "NonFiniteError",
     "OptikError",

@@ -151,15 +151,20 @@ def as_name(value: Any, name: str, choices: Any = None) -> str:
     return value
 
 
-def as_int(value: Any, name: str, minimum: int = 0) -> int:
-    """An integer ``>= minimum``; integral floats (``3.0``) are accepted, bools are not.
+MAX_COORDINATES = 10_000
+"""Most coordinates a task sized by an ``n_q`` argument accepts (its arrays are ``n_q`` long)."""
+
+
+def as_int(value: Any, name: str, minimum: int = 0, maximum: int | None = None) -> int:
+    """An integer in ``[minimum, maximum]``; integral floats (``3.0``) are accepted, bools are not.
 
     Raises:
-        InvalidArgumentError: not an integer (NaN, 2.5, a string ...) or below ``minimum``.
+        InvalidArgumentError: not an integer (NaN, 2.5, a string ...) or out of the range.
     """
     v = as_float(value, name)
-    if v != int(v) or v < minimum:
-        raise InvalidArgumentError(name, f"expected an integer >= {minimum}, got {value!r}")
+    if v != int(v) or v < minimum or (maximum is not None and v > maximum):
+        bound = f">= {minimum}" if maximum is None else f"in [{minimum}, {maximum}]"
+        raise InvalidArgumentError(name, f"expected an integer {bound}, got {value!r}")
     return int(v)
 
 

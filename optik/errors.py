@@ -52,5 +52,9 @@ class SolverUnavailableError(OptikError):
     """A requested solver or backend is not installed or does not apply to the problem."""
 
 
+class MissingExtraError(OptikError, ImportError):
+    """An optional part of optik is not installed (the message says which pip extra brings it)."""
+
+
 class ProblemFileError(OptikError):
     """A problem file (TOML) is malformed; the message names the file and the key."""

@@ -184,6 +184,21 @@ def test_first_axes_intersecting_or_parallel(special: str) -> None:
         assert sols.fk_error <= FK_TOL
 
 
+def test_batch_through_the_inverse_chain() -> None:
+    """Stacked targets on a mechanism whose axes 1-2 intersect: every target goes through the
+    inverse chain, and each answer belongs to its own target."""
+    rng = np.random.default_rng(23)
+    rows = [(rng.uniform(-1, 1), rng.uniform(0.1, 1), rng.uniform(-np.pi, np.pi)) for _ in range(6)]
+    rows[0] = (rows[0][0], 0.0, rows[0][2])
+    m = dh_chain(rows, "standard")
+    qs = rng.uniform(-np.pi, np.pi, (5, 6))
+    targets = m.fk(qs)
+    for q, target, sols in zip(qs, targets, solve_general_6r(m, targets), strict=True):
+        assert sols.count_ok, sols.reason
+        assert min(_angle_dist(s, q) for s in sols.q) < 1e-8
+        _check_fk(m, sols, target)
+
+
 def test_nearly_parallel_axes_are_polished_on_the_mechanism() -> None:
     """Axes 1-2 at 1e-4 rad from parallel (large DH offsets on the common normal, and the
     inverse chain's DH description loses digits): every drawn q comes back to 1e-8, checked by

@@ -165,3 +165,11 @@ def test_talos_both_grippers_placed():
     targets = {f: m.fk(q, f) for f in ("gripper_left_base_link", "gripper_right_base_link")}
     res = optik.solve_ik(m, targets, method="nlp", time_limit=2.0)
     _check(m, res, targets)
+
+
+def test_two_hands_benchmark_runs(capsys):
+    from optik.benchmarks import bench_two_hands
+
+    assert bench_two_hands.main(["--n", "2", "--time-limit", "0.02", "--methods", "lm,qp"]) == 0
+    out = capsys.readouterr().out
+    assert "| optik lm |" in out and "| optik qp |" in out and "Pink" in out

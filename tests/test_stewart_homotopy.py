@@ -139,3 +139,11 @@ def test_unknown_method_is_rejected():
     m = optik.catalog.stewart_gough()
     with pytest.raises(optik.OptikError, match="method"):
         stewart_poses(m.params["base"], m.params["platform"], np.ones(6), method="fast")
+
+
+def test_tracker_rejects_malformed_systems():
+    c = np.zeros((1, 2, 2))
+    with pytest.raises(optik.OptikError, match="coefficients"):
+        parameter_homotopy.track((c, c, np.zeros((1, 3, 3))), np.ones((2, 2)), np.random.default_rng(0))
+    with pytest.raises(optik.OptikError, match="starts"):
+        parameter_homotopy.track((c, c, c), np.ones((2, 3)), np.random.default_rng(0))

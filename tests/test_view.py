@@ -312,3 +312,64 @@ def test_urdf_meshes_of_example_robot_data_resolve():
     assert len(visuals) == 9  # link0..link7 and the hand (on the body of link7: fixed joints)
     assert set(meshes) == {m.frames[v.link][0] for v in visuals}
     assert all(len(mesh.faces) > 1000 for mesh in meshes.values())
+
+
+def test_method_dropdown_selects_the_solver(open_viewer):
+    m = catalog.panda()
+    v = open_viewer(m)
+    target = m.fk(m.random_q(seed=9))
+    for name in ("nlp", "dls", "lm"):
+        v.method = name
+        res = v.set_target(target)
+        assert res.method == name and f"**{name}**" in v.panel.status.content
+        if res.success:
+            assert np.linalg.norm(m.fk(v.q)[:3, 3] - target[:3, 3]) < 1e-6
+    with pytest.raises(optik.SolverUnavailableError):
+        v.method = "closed_form"
+
+
+def test_gizmo_ik_of_a_closed_chain_keeps_its_loops_closed(open_viewer):
+    m = catalog.five_bar()
+    v = open_viewer(m)
+    res = v.set_target(optik.Position([0.6, 1.3, 0.0]))
+    assert res.success
+    np.testing.assert_allclose(m.fk(v.q)[:2, 3], (0.6, 1.3), atol=1e-6)
+    assert np.max(np.abs(m.closure(v.q))) < 1e-9 and "closure error" in v.panel.status.content
+
+
+def test_play_runs_through_the_tracked_path(open_viewer):
+    m = catalog.planar_3r(lengths=(1.0, 0.8, 0.5))
+    v = open_viewer(m)
+    v.set_q([0.3, 0.8, -0.6])
+    result = v.track(dt=0.001)
+    v.panel._play()
+    v.panel._player.join(10)
+    np.testing.assert_allclose(v.q, result.q[-1])
+    assert v.panel.sample.value == len(result.q) - 1
+
+
+def test_optik_view_stops_on_sigterm():
+    import os
+    import select
+    import signal
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "optik.cli", "view", "planar_2r", "--no-browser", "--port", str(free_port())],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+    )
+    try:
+        assert select.select([proc.stdout], [], [], 60)[0], "optik view printed nothing within 60 s"
+        assert "http://127.0.0.1:" in proc.stdout.readline()
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(10)
+    assert proc.returncode == 0 and "Traceback" not in err, err
+    assert "optik view: stopped" in out

@@ -18,6 +18,7 @@ import signal
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -30,7 +31,7 @@ pytest.importorskip("websockets", reason="the view extra (websockets) is not ins
 from test_view import free_port
 
 import optik
-from optik import catalog, closed_form
+from optik import catalog, closed_form, spatial
 from optik.plot import write_atomic
 from optik.view.browser import Chromium, coloured_pixels, find_chromium
 
@@ -137,6 +138,69 @@ def test_a_target_set_from_python_moves_the_arm_in_the_page(browser):
 
         after = page.screenshot(moved, timeout=20)
         assert _changed(before, after) > 3000
+
+
+def _pixel(client, point: np.ndarray) -> tuple[float, float]:
+    """Where the page's camera (viser: OpenCV axes, vertical field of view ``fov``) shows a point."""
+    from optik.view.shapes import rotation
+
+    cam = client.camera
+    p = rotation(cam.wxyz).T @ (point - np.asarray(cam.position))
+    f = (HEIGHT / 2) / np.tan(cam.fov / 2)
+    return WIDTH / 2 + f * p[0] / p[2], HEIGHT / 2 + f * p[1] / p[2]
+
+
+def test_a_mouse_drag_of_the_gizmo_in_the_page_re_solves_ik(browser):
+    m = catalog.panda()
+    with optik.view(m, port=free_port()) as v, browser, browser.open(v.url) as page:
+        v.set_q([0.0, -0.3, 0.0, -2.0, 0.0, 1.8, 0.8])
+        page.screenshot(complete, timeout=30)
+        (client,) = v.server.get_clients().values()
+        start, axis = v.target[:3, 3].copy(), v.target[:3, 0]
+        moved = False
+        for frac in (0.75, 0.6, 0.9):  # press on the gizmo's x arrow, drag 40 px, release
+            x, y = _pixel(client, start + frac * 0.3 * v.size * axis)
+            page.call("Input.dispatchMouseEvent", type="mouseMoved", x=x, y=y)
+            page.call(
+                "Input.dispatchMouseEvent",
+                type="mousePressed",
+                x=x,
+                y=y,
+                button="left",
+                buttons=1,
+                clickCount=1,
+            )
+            for k in range(1, 11):
+                page.call(
+                    "Input.dispatchMouseEvent",
+                    type="mouseMoved",
+                    x=x - 4 * k,
+                    y=y + k,
+                    button="left",
+                    buttons=1,
+                )
+                time.sleep(0.05)
+            page.call(
+                "Input.dispatchMouseEvent",
+                type="mouseReleased",
+                x=x - 40,
+                y=y + 10,
+                button="left",
+                clickCount=1,
+            )
+            deadline = time.monotonic() + 10
+            while v.result is None and time.monotonic() < deadline:
+                time.sleep(0.1)
+            if v.result is not None:
+                moved = True
+                break
+        assert moved, "no gizmo event reached the viewer"
+        time.sleep(0.5)  # the last events of the drag
+        assert np.linalg.norm(v.target[:3, 3] - start) > 0.005  # the drag moved the target
+        assert v.result.success
+        shown = m.fk(v.q)  # the arm followed: FK of the displayed q is the dragged target
+        assert np.linalg.norm(shown[:3, 3] - v.target[:3, 3]) < 1e-6
+        assert spatial.angle_between(shown[:3, :3], v.target[:3, :3]) < 1e-6
 
 
 def _changed(a: bytes, b: bytes) -> int:

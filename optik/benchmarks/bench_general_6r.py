@@ -31,7 +31,7 @@ trip.
 
 ``--search-16`` instead searches random arms and poses (then local perturbations of the best)
 for a pose with 16 real solutions and prints it: the reference instance of
-``tests/test_general_6r.py`` was found this way (seed 7, under a minute), then rounded to two
+``tests/test_general_6r.py`` was found this way (``--seed 7``: 1-2 minutes), then rounded to two
 decimals and re-checked.
 
 Run: ``optik benchmark general_6r [--arms 200] [--poses 5] [--multistart-arms 20]
@@ -271,7 +271,9 @@ def search_16(seed: int, budget: float) -> int:
             best = (found[i], x, qs[i])
     count, x, q = best
     print(f"best: {count} real solutions after {time.perf_counter() - start:.1f} s")
-    print("DH rows (d, a, alpha):", [tuple(np.round((x[12 + i], x[i], x[6 + i]), 4)) for i in range(6)])
+    print(
+        "DH rows (d, a, alpha):", [tuple(np.round((x[12 + i], x[i], x[6 + i]), 4).tolist()) for i in range(6)]
+    )
     print("q:", np.round(q, 4).tolist())
     return 0 if count == 16 else 1
 

@@ -295,7 +295,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     rng = np.random.default_rng(args.seed)
     bench_3rpr(args.n_rpr, rng)
     bench_closed_form_fk(args.n_rpr, rng)
-    bench_stewart(args.n_sg, args.n_total, rng, args.heavy, args.n_catalog)
+    bench_stewart(args.n_sg, args.n_total, rng, args.heavy, min(args.n_catalog, args.n_sg))
     bench_solve_fk(args.n_fk, rng)
     return 0
 

@@ -353,8 +353,11 @@ class _Left:
             c = np.moveaxis(np.tensordot(_HALF, c, axes=([1], [ax])), 0, ax)
         self.coef = c.real  # (14, p3, p4, p5): (1 + x3^2)(1 + x4^2)(1 + x5^2) * left side
         # the last columns of A6^-1 (independent of theta_6)
-        inv6 = _inv(_dh(np.array(0.0), d[5], a[5], arm.alpha[5]))
-        self.l6, self.p6 = inv6[:, 2], inv6[:, 3]
+        self.inv6 = _inv(_dh(np.array(0.0), d[5], a[5], arm.alpha[5]))
+        self.l6, self.p6 = self.inv6[:, 2], self.inv6[:, 3]
+        g1, g2 = np.meshgrid(_GRID, _GRID, indexing="ij")
+        self.grid12 = _inv(_dh(g2, d[1], a[1], arm.alpha[1])) @ _inv(_dh(g1, d[0], a[0], arm.alpha[0]))
+        """``A2^-1 A1^-1`` on the ``5 x 5`` grid of ``(theta_1, theta_2)``."""
 
     def values(self, phi3: np.ndarray, phi4: np.ndarray, phi5: np.ndarray) -> np.ndarray:
         """The 14 left sides at ``theta_k = phi_k + delta_k``: shape ``phi.shape + (14,)``."""
@@ -423,14 +426,10 @@ def _targets(arm: General6R, target: Any) -> tuple[np.ndarray, bool]:
     return np.stack([as_transform(ti, f"target[{i}]") for i, ti in enumerate(t)]), False
 
 
-def _right(arm: General6R, left: _Left, tp: np.ndarray) -> np.ndarray:
+def _right(left: _Left, tp: np.ndarray) -> np.ndarray:
     """Real coefficients ``(N, 14, 3, 3)`` of the 14 right sides in ``(1, c1, s1) (x) (1, c2, s2)``
     for the unit-scale targets ``tp = B^-1 T E^-1``."""
-    a, d, al = left.a, left.d, left.alpha
-    g1, g2 = np.meshgrid(_GRID, _GRID, indexing="ij")
-    inv1 = _inv(_dh(g1, d[0], a[0], al[0]))  # (5, 5, 4, 4)
-    inv2 = _inv(_dh(g2, d[1], a[1], al[1]))
-    m = inv2 @ inv1  # A2^-1 A1^-1 on the grid
+    m = left.grid12
     lv = tp @ left.l6  # (N, 4)
     pv = tp @ left.p6
     l = np.einsum("ijab,nb->nija", m, lv)[..., :3]
@@ -560,7 +559,7 @@ def _matrices(arm: General6R, targets: np.ndarray) -> tuple[np.ndarray, ...]:
     n = len(targets)
     tp = _inv(arm.base) @ targets @ _inv(arm.tool)
     tp[:, :3, 3] /= arm.scale
-    rhs = _right(arm, left, tp)
+    rhs = _right(left, tp)
     q_mat, r0 = rhs.reshape(n, 14, 9)[:, :, 1:], rhs[:, :, 0, 0]
     u, sv, vt = np.linalg.svd(q_mat)
     rank_ok = sv[:, 7] > 1e-11 * sv[:, 0]
@@ -608,7 +607,7 @@ def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[Ge
     theta[:, 1] = np.arctan2(x_r[:, 1], x_r[:, 0])
     theta[:, 2:5] = phi + np.array(ROTATIONS)
     pre = _chain(left, theta)
-    a6 = _inv(pre[:, 5]) @ tp[idx_n] @ _inv(_dh(np.array(0.0), left.d[5], left.a[5], left.alpha[5]))
+    a6 = _inv(pre[:, 5]) @ tp[idx_n] @ left.inv6
     theta[:, 5] = np.arctan2(a6[:, 1, 0], a6[:, 0, 0])
     theta = _polish(left, theta, tp[idx_n])
     q = refine(_wrap(theta - arm.offset), idx_n)

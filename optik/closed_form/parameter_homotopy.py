@@ -42,6 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.native import source_library
 
 ENDGAME_RADIUS = 0.1
@@ -362,13 +363,11 @@ class _Tracker:
         opts = np.array(
             [max_step, 1e-14, tol, JUMP_GUARD, 1e-3, seconds, min(0.05, max_step), 1e6, PREDICTOR_TARGET]
         )
-        left = compiled().optik_track_paths(
+        compiled().optik_track_paths(
             p, self.k, self.n, *(a.ctypes.data for c in self.c for a in c), self.gamma.real, self.gamma.imag,
             self.patch.ctypes.data, complex(ta).real, complex(ta).imag, complex(tb).real, complex(tb).imag,
             opts.ctypes.data, z.ctypes.data, status.ctypes.data, tau.ctypes.data, steps.ctypes.data,
         )  # fmt: skip
-        if left < 0:
-            raise ValueError(f"the compiled tracker handles k = n - 1 <= 15, got k = {self.k}, n = {self.n}")
         self.steps += int(steps.sum())
         return z, status
 
@@ -397,13 +396,21 @@ def track(
             positive-dimensional set of no interest).
 
     Raises:
+        InvalidArgumentError: coefficients not three ``(k, k + 1, k + 1)`` arrays with
+            ``k + 1 <= 16``, or starts not ``(paths, k + 1)``.
         SolverUnavailableError: no working C compiler (check `available` first).
     """
     start = time.perf_counter()
     deadline = time.monotonic() + time_limit
+    shapes = {np.shape(c) for c in coefficients}
+    k = coefficients[0].shape[0] if len(coefficients) == 3 and len(shapes) == 1 else -1
+    if k < 1 or shapes != {(k, k + 1, k + 1)} or k + 1 > 16:
+        raise InvalidArgumentError(
+            "coefficients", f"need three (k, k + 1, k + 1) arrays, k + 1 <= 16; got {shapes}"
+        )
+    if np.ndim(starts) != 2 or np.shape(starts)[1] != k + 1:
+        raise InvalidArgumentError("starts", f"need shape (paths, {k + 1}), got {np.shape(starts)}")
     if compiled() is None:
-        from optik.errors import SolverUnavailableError
-
         raise SolverUnavailableError("the compiled path tracker needs a working C compiler")
     n = coefficients[0].shape[1]
     gamma = np.exp(1j * GAMMA_ANGLE * rng.uniform(-1, 1))

@@ -11,6 +11,7 @@ closure residual.
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from functools import cached_property
@@ -34,6 +35,12 @@ TASK_ROWS: dict[str, tuple[int, ...]] = {
     "position2d": (0, 1),
 }
 """Rows of the 6-row geometric Jacobian ``[v; w]`` that each task space uses."""
+
+
+def _function_name(prefix: str, frame: str) -> str:
+    """A valid CasADi function name for a frame (letters, digits, single underscores): link names
+    such as ``flying_arm_5__gripper`` or ``link-1`` are not."""
+    return "_".join([prefix, *(p for p in re.split(r"[^A-Za-z0-9]+", frame) if p)])
 
 
 def _is_planar_transform(t: np.ndarray) -> bool:
@@ -318,7 +325,8 @@ class Mechanism:
         try:
             return self._fk_funs[key]
         except (KeyError, TypeError):  # TypeError: an unhashable frame, rejected by _frame
-            f = self._fk_funs[key] = ca.Function(f"fk_{key}", [self.q_sym], [self.frame_expr(key)])
+            expr = self.frame_expr(key)  # raises for an unknown frame
+            f = self._fk_funs[key] = ca.Function(_function_name("fk", key), [self.q_sym], [expr])
             return f
 
     def jacobian_function(self, frame: str | None = None) -> ca.Function:
@@ -327,7 +335,8 @@ class Mechanism:
         try:
             return self._jac_funs[key]
         except (KeyError, TypeError):  # TypeError: an unhashable frame, rejected by _frame
-            f = self._jac_funs[key] = ca.Function(f"jac_{key}", [self.q_sym], [self.jacobian_expr(key)])
+            expr = self.jacobian_expr(key)
+            f = self._jac_funs[key] = ca.Function(_function_name("jac", key), [self.q_sym], [expr])
             return f
 
     @cached_property

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from optik.checks import as_vector
+from optik.checks import as_name, as_vector
 from optik.closed_form import registry
 from optik.closed_form.derived import derive_locked
 from optik.errors import InvalidArgumentError, SolverUnavailableError
@@ -109,6 +109,10 @@ def solve_ik_all(
         )
     patience = positive_int(patience, "patience")
     max_solutions = positive_int(max_solutions, "max_solutions")
+    if method is not None:
+        as_name(method, "method")
+    if not isinstance(closed_form, bool):
+        raise InvalidArgumentError("closed_form", f"expected True or False, got {closed_form!r}")
     if fixed is not None:
         return _locked_all(request, _locks(m, fixed), method, patience, max_solutions)
     applies = closed_form_applies(m, request.task) and frame in (None, m.ee)

@@ -9,6 +9,7 @@ instead, both to stop their iterations and to check their final answer in
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from functools import lru_cache
 
@@ -31,22 +32,27 @@ def error_function(problem: IKProblem) -> ca.Function:
 
 
 @lru_cache(maxsize=64)
-def _native_errors(m: Mechanism, task: str, frame: str | None, compile: bool | str) -> NativeFunction:
-    return native_functions([error_function(build_ik_problem(m, task, frame))], compile)[0]
+def _native_errors(
+    m: Mechanism, task: str, frame: str | None, compile: bool | str
+) -> tuple[NativeFunction, threading.Lock]:
+    """The shared error function and the lock that serializes its buffers."""
+    return native_functions([error_function(build_ik_problem(m, task, frame))], compile)[0], threading.Lock()
 
 
 def errors_against(
     m: Mechanism, task: str, frame: str | None, target: np.ndarray, compile: bool | str = "auto"
 ) -> ErrorFn:
     """A fast ``q -> (position, orientation, closure)`` error function for one target (the
-    compiled function is shared per mechanism, task and frame; not thread-safe)."""
-    fn = _native_errors(m, task, frame, compile)
+    compiled function is shared per mechanism, task and frame; calls from several threads, as
+    `optik.batch` makes them, take turns on its buffers)."""
+    fn, lock = _native_errors(m, task, frame, compile)
     params = target_parameters(target)
 
     def errors(q: np.ndarray) -> tuple[float, float, float]:
-        fn.inputs[0][:] = q
-        fn.inputs[1][:] = params
-        pos, ori, clo = fn()
-        return float(pos[0]), float(ori[0]), float(clo[0])
+        with lock:
+            fn.inputs[0][:] = q
+            fn.inputs[1][:] = params
+            pos, ori, clo = fn()
+            return float(pos[0]), float(ori[0]), float(clo[0])
 
     return errors

@@ -158,10 +158,15 @@ def _levenberg_marquardt(cm: _Compiled, qs: np.ndarray, tol: float, max_iter: in
 def _residual_and_condition(cm: _Compiled, q: np.ndarray) -> tuple[float, float]:
     """Max-norm of the closure and condition number of ``dc/dx`` at ``q`` (one evaluation)."""
     c, jac = cm.evaluate(q[None])
-    residual = float(np.max(np.abs(c[0]), initial=0.0))
-    if jac[0].size == 0:
+    return _measures(c[0], jac[0])
+
+
+def _measures(c: np.ndarray, jac: np.ndarray) -> tuple[float, float]:
+    """Max-norm of the closure ``c`` and condition number of its passive Jacobian ``jac``."""
+    residual = float(np.max(np.abs(c), initial=0.0))
+    if jac.size == 0:
         return residual, 1.0
-    s = np.linalg.svd(jac[0], compute_uv=False)
+    s = np.linalg.svd(jac, compute_uv=False)
     return residual, float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
 
 
@@ -213,12 +218,14 @@ def _result(
     start: float,
     singular_condition: float,
     note: str = "",
+    measured: tuple[float, float] | None = None,
     **extra: Any,
 ) -> FKResult:
     """An [`FKResult`][optik.FKResult] for ``q``: residual, success, limits (which coordinates
-    are out), condition number, message."""
+    are out), condition number, message. ``measured``: ``(residual, condition)`` at ``q``
+    when already known (they do not change under the 2 pi shifts of `Mechanism.wrap`)."""
     qq = m.wrap(q)
-    residual, cond = _residual_and_condition(cm, qq)
+    residual, cond = measured if measured is not None else _residual_and_condition(cm, qq)
     closed = residual <= tol
     bad = _violations(m, qq)
     messages = [note] if note else []
@@ -422,12 +429,18 @@ def solve_fk_all(
     cm = _compiled(m)
     use_closed = method == "closed_form" or (method is None and closed_form.has_fk(m))
     found: list[np.ndarray] = []
+    measured: list[tuple[float, float] | None] = []
     if use_closed:
         for q_exact in closed_form.fk(m, a, respect_limits=False):
-            # a no-op (one evaluation) unless the closed form lost digits, e.g. near a singularity
-            q = _levenberg_marquardt(cm, q_exact, tol_c, max_iter, start + limit).q[0]
+            c, jac = cm.evaluate(q_exact[None])
+            known = _measures(c[0], jac[0])
+            if known[0] <= tol_c * 1e-3:
+                q = q_exact  # the usual case: the closed form is exact to rounding
+            else:  # the closed form lost digits, e.g. near a singularity: polish
+                q, known = _levenberg_marquardt(cm, q_exact, tol_c, max_iter, start + limit).q[0], None
             if not any(same_mode(m, q, f) for f in found):
                 found.append(q)
+                measured.append(known)
         label = "closed_form"
     else:
         rng = as_rng(seed)
@@ -440,13 +453,14 @@ def solve_fk_all(
                 q = m.wrap(q_raw)
                 if res <= tol_c and not any(same_mode(m, q, f) for f in found):
                     found.append(q)
+                    measured.append(None)
                     idle = 0
                 else:
                     idle += 1
         label = "numeric"
     kept, dropped, unclosed = [], [], 0
-    for q in found:
-        res = _result(m, cm, q, tol_c, start, singular_condition, method=label)
+    for q, known in zip(found, measured, strict=True):
+        res = _result(m, cm, q, tol_c, start, singular_condition, measured=known, method=label)
         if res.residual > tol_c:
             unclosed += 1  # not a mode: a closed-form candidate that the polish could not close
             continue

@@ -7,11 +7,10 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from optik.checks import as_int
+from optik.checks import MAX_COORDINATES, as_int
 from optik.diffik.base import Task
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
-from optik.solvers.base import positive_int
 
 
 class JointLimitTask(Task):
@@ -41,7 +40,7 @@ class JointLimitTask(Task):
         k = as_int(exponent, "exponent", 1)
         if k % 2 == 0:
             raise InvalidArgumentError("exponent", f"must be an odd integer >= 1, got {exponent!r}")
-        self.dim = positive_int(n_q, "n_q")
+        self.dim = as_int(n_q, "n_q", 1, MAX_COORDINATES)
         self.exponent = k
         super().__init__(cost, gain, lm_damping, priority)
 

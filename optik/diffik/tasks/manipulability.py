@@ -7,10 +7,9 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from optik.checks import as_name
+from optik.checks import MAX_COORDINATES, as_int, as_name
 from optik.diffik.base import Task
 from optik.mechanism import TASK_ROWS, Mechanism
-from optik.solvers.base import positive_int
 
 
 class ManipulabilityTask(Task):
@@ -44,7 +43,7 @@ class ManipulabilityTask(Task):
         priority: int = 0,
     ) -> None:
         as_name(space, "space", TASK_ROWS)
-        self.dim = positive_int(n_q, "n_q")
+        self.dim = as_int(n_q, "n_q", 1, MAX_COORDINATES)
         super().__init__(cost, gain, lm_damping, priority)
         self.frame = None if frame is None else as_name(frame, "frame")
         self.space = space

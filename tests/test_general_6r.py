@@ -206,6 +206,7 @@ def test_nearly_parallel_axes_are_polished_on_the_mechanism() -> None:
     rng = np.random.default_rng(31)
     rows = [(rng.uniform(-1, 1), rng.uniform(0.1, 1), rng.uniform(-np.pi, np.pi)) for _ in range(6)]
     rows[0] = (rows[0][0], rows[0][1], 1e-4)
+    rows[4] = (rows[4][0], rows[4][1], 1e-7)  # and axes 5-6 within 1e-7 (a URDF's rounding)
     m = dh_chain(rows, "standard")
     for q in rng.uniform(-np.pi, np.pi, (4, 6)):
         sols = solve_general_6r(m, m.fk(q))
@@ -237,6 +238,22 @@ def test_covers() -> None:
     alpha[[3, 4]] = 0.0  # and axes 4, 5, 6 parallel at the other
     assert not covers(General6R(a=a, alpha=alpha, d=d))
     assert not covers(dh_chain(REF_DH[:5], "standard"))  # not a 6R chain: False, no exception
+
+
+@pytest.mark.parametrize("twist", [1e-4, 1e-6, 1e-8])
+def test_nearly_parallel_axes_at_both_ends(twist: float) -> None:
+    """Axes 1-2 and 5-6 within 1e-4 rad of parallel: the DH frames stay orthonormal (building
+    the inverse chain raised before), the inverse chain's DH description is only approximate,
+    and every returned solution is still polished on the arm itself and verified."""
+    rng = np.random.default_rng(51)
+    a, alpha, d = rng.uniform(0.1, 1, 6), rng.uniform(-np.pi, np.pi, 6), rng.uniform(-1, 1, 6)
+    alpha[[0, 4]] = twist
+    arm = General6R(a=a, alpha=alpha, d=d)
+    q = rng.uniform(-np.pi, np.pi, (4, 6))
+    assert np.allclose(arm.reversed.fk(q[:, ::-1]), np.linalg.inv(arm.fk(q)), atol=1e-3)
+    sols = solve_general_6r(arm, arm.fk(q))
+    assert all(s.fk_error <= FK_TOL for s in sols)
+    assert all(min(_angle_dist(s, qi) for s in sol.q) < 1e-8 for qi, sol in zip(q, sols, strict=True))
 
 
 def test_reversed_chain_is_the_inverse() -> None:

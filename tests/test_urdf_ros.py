@@ -219,3 +219,74 @@ def test_whole_trees_match_pinocchio_on_every_link(relative):
         for name in names:
             got = m.fk(q, frame=name)
             np.testing.assert_allclose(got, data.oMf[model.getFrameId(name)].homogeneous, atol=1e-12)
+
+
+# ------------------------------------------------------------------ visuals and meshes
+
+
+VISUALS = """<robot name="v">
+  <link name="base"><visual><origin xyz="0 0 0.1" rpy="0 0 1.0"/>
+    <geometry><mesh filename="meshes/base.stl" scale="0.001 0.001 0.001"/></geometry></visual></link>
+  <link name="arm">
+    <visual><geometry><mesh filename="package://my_robot/meshes/arm.dae"/></geometry></visual>
+    <visual><geometry><box size="0.1 0.2 0.3"/></geometry></visual>
+    <visual><geometry><cylinder radius="0.05" length="0.4"/></geometry></visual>
+    <visual><geometry><sphere radius="0.02"/></geometry></visual>
+    <visual><geometry><mesh filename="package://elsewhere/missing.stl"/></geometry></visual>
+    <collision><geometry><box size="1 1 1"/></geometry></collision>
+  </link>
+  <link name="tool"><visual><geometry><capsule radius="1" length="2"/></geometry></visual></link>
+  <joint name="j" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1"/></joint>
+  <joint name="f" type="fixed"><parent link="arm"/><child link="tool"/><origin xyz="0.5 0 0"/></joint>
+</robot>"""
+
+
+def test_visuals_keep_geometry_and_resolve_mesh_paths(tmp_path, monkeypatch):
+    pkg = tmp_path / "share" / "my_robot"
+    (pkg / "urdf").mkdir(parents=True)
+    (pkg / "meshes").mkdir()
+    (pkg / "urdf" / "meshes").mkdir()
+    for f in (pkg / "meshes" / "arm.dae", pkg / "urdf" / "meshes" / "base.stl"):
+        f.write_text("mesh", encoding="utf-8")
+    urdf = pkg / "urdf" / "v.urdf"
+    urdf.write_text(VISUALS, encoding="utf-8")
+    monkeypatch.delenv("ROS_PACKAGE_PATH", raising=False)
+    m = optik.Mechanism.from_urdf(urdf)
+    vis = m.params["visuals"]
+    assert [(v.link, v.geometry) for v in vis] == [
+        ("base", "mesh"),
+        ("arm", "mesh"),
+        ("arm", "box"),
+        ("arm", "cylinder"),
+        ("arm", "sphere"),
+        ("arm", "mesh"),
+    ]  # collisions and unknown geometries (capsule) draw nothing
+    base, arm, box, cyl, sphere, missing = vis
+    assert base.filename == "meshes/base.stl" and base.path == pkg / "urdf" / "meshes" / "base.stl"
+    assert base.scale == (0.001, 0.001, 0.001)
+    np.testing.assert_allclose(
+        base.origin, optik.spatial.translation(0, 0, 0.1) @ optik.spatial.transform(optik.spatial.rot_z(1.0))
+    )
+    assert arm.filename == "package://my_robot/meshes/arm.dae" and arm.path == pkg / "meshes" / "arm.dae"
+    assert box.size == (0.1, 0.2, 0.3) and cyl.size == (0.05, 0.4) and sphere.size == (0.02,)
+    assert missing.path is None and missing.filename == "package://elsewhere/missing.stl"
+    other = tmp_path / "ros" / "elsewhere"
+    other.mkdir(parents=True)
+    (other / "missing.stl").write_text("mesh", encoding="utf-8")
+    monkeypatch.setenv("ROS_PACKAGE_PATH", str(tmp_path / "ros"))
+    assert optik.Mechanism.from_urdf(urdf).params["visuals"][-1].path == other / "missing.stl"
+    # from text, relative names cannot be located; the names are kept
+    assert optik.Mechanism.from_urdf(VISUALS).params["visuals"][0].path is None
+    with pytest.raises(ModelError, match=r"link 'arm' <visual> 1 <box size>"):
+        optik.Mechanism.from_urdf(VISUALS.replace('size="0.1 0.2 0.3"', 'size="0.1 0.2"'))
+
+
+@pytest.mark.peers
+def test_example_robot_data_meshes_are_found():
+    m = optik.Mechanism.from_urdf(_robots_dir() / "talos_data" / "robots" / "talos_full_v2.urdf")
+    meshes = [v for v in m.params["visuals"] if v.geometry == "mesh"]
+    # TALOS writes package:///example-robot-data/... (three slashes): the same package
+    assert len(meshes) >= 40 and all(v.filename.startswith("package:///example-robot-data/") for v in meshes)
+    assert all(v.path is not None and v.path.is_file() for v in meshes)
+    assert all(v.link in m.frames for v in m.params["visuals"])

@@ -98,6 +98,16 @@ NEWTON_ITERATIONS = 12
 _EXACT = 1e-14
 """FK error (relative position, rad) below which a polished solution counts as exact."""
 
+_PARALLEL = 1e-5
+"""Consecutive axes with ``|h_i x h_j|`` below this get a DH frame as if they were parallel.
+The DH description of nearly parallel axes is ill-conditioned either way (a common normal of
+length ``~ 1 / |h_i x h_j|``, or a model off by ``~ |h_i x h_j|``); it only generates the
+candidates, which are polished on the exact model."""
+
+_MODEL_TOL = 1e-4
+"""Largest accepted mismatch (relative to the arm's size) between a mechanism and its DH
+description (rounding, or axes within `_PARALLEL` of parallel)."""
+
 _SAME = 1e-6
 """Two polished solutions closer than this (rad, modulo 2 pi) are the same."""
 
@@ -202,7 +212,8 @@ class General6R:
         direction per axis in the base frame, checked against ``m.fk``) give the common normals
         of consecutive axes; parallel axes take the normal through the previous frame's origin
         (``d_i = 0``), intersecting axes ``x_i = z_{i-1} x z_i``. The DH model is checked
-        against ``m.fk`` at seeded random ``q`` too.
+        against ``m.fk`` at seeded random ``q`` too, to `_MODEL_TOL` (it generates candidates;
+        the solutions are polished on ``m.fk`` itself).
 
         Raises:
             InvalidArgumentError: (argument ``m``) not a serial chain of six revolute joints,
@@ -216,7 +227,7 @@ class General6R:
         arm = _dh_from_lines(axes.r, axes.h, axes.home)
         q = np.random.default_rng(0).uniform(-np.pi, np.pi, size=(4, 6))
         err = float(np.max(np.abs(arm.fk(q) - m.fk(q))))
-        if err > 1e-9 * max(1.0, arm.scale):
+        if err > _MODEL_TOL * max(1.0, arm.scale):
             raise InvalidArgumentError(
                 "m", f"{m.name!r}: its DH description does not reproduce m.fk ({err:.1e})"
             )
@@ -294,7 +305,7 @@ def _frame(x: np.ndarray, z: np.ndarray, o: np.ndarray) -> np.ndarray:
 def _dh_from_lines(points: np.ndarray, dirs: np.ndarray, ee: np.ndarray) -> General6R:
     """Standard DH parameters of six joint lines (frame ``i`` has ``z_i`` on axis ``i + 1`` and
     ``x_i`` on the common normal of axes ``i`` and ``i + 1``; frame 6 = frame 5 turned by
-    ``theta_6``)."""
+    ``theta_6``). Exact up to rounding except for axes within `_PARALLEL` of parallel."""
     u = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
     scale = max(1.0, float(np.max(np.abs(points))))
     feet, origins, xs = [], [], []
@@ -302,30 +313,24 @@ def _dh_from_lines(points: np.ndarray, dirs: np.ndarray, ee: np.ndarray) -> Gene
     for i in range(5):  # common normal of axis i (u[i]) and axis i + 1
         p1, u1, p2, u2 = points[i], u[i], points[i + 1], u[i + 1]
         n = np.cross(u1, u2)
-        if np.linalg.norm(n) > 1e-9:
+        if np.linalg.norm(n) > _PARALLEL:
             w, b = p2 - p1, u1 @ u2
-            den = 1.0 - b * b
+            den = n @ n  # 1 - b^2 without the cancellation
             s, t = (u1 @ w - b * (u2 @ w)) / den, (b * (u1 @ w) - u2 @ w) / den
             f, o = p1 + s * u1, p2 + t * u2
-            x = (
-                (o - f) / np.linalg.norm(o - f)
-                if np.linalg.norm(o - f) > 1e-12 * scale
-                else n / np.linalg.norm(n)
-            )
+            x = n / np.linalg.norm(n)  # exactly normal to both axes, even nearly parallel ones
+            if (o - f) @ x < 0:
+                x = -x
         else:  # parallel: the normal through the previous origin
             f = p1 + ((prev_origin - p1) @ u1) * u1
             o = p2 + ((f - p2) @ u2) * u2
-            x = (
-                (o - f) / np.linalg.norm(o - f)
-                if np.linalg.norm(o - f) > 1e-12 * scale
-                else _perpendicular(u1, prev_x)
-            )
+            x = _perpendicular(u2, o - f if np.linalg.norm(o - f) > 1e-12 * scale else prev_x)
         feet.append(f)
         origins.append(o)
         xs.append(x)
         prev_origin, prev_x = o, x
     z = [*u, u[5]]  # z_0 .. z_6
-    x_all = [xs[0], *xs, xs[4]]  # x_0 .. x_6
+    x_all = [_perpendicular(u[0], xs[0]), *xs, xs[4]]  # x_0 .. x_6
     o_all = [feet[0], *origins, origins[4]]  # o_0 .. o_6
     f_all = [*feet, origins[4]]  # foot of x_i on axis i, i = 1..6
     a, alpha, d, off = (np.zeros(6) for _ in range(4))

@@ -62,7 +62,8 @@ def resolve_mesh(filename: str, folder: Path | None) -> Path | None:
     if filename.startswith("file://"):
         candidates = [Path(filename[len("file://") :])]
     elif filename.startswith("package://"):
-        package, _, rest = filename[len("package://") :].partition("/")
+        # "package:///pkg/..." (an extra slash, e.g. TALOS in example-robot-data) names pkg too
+        package, _, rest = filename[len("package://") :].lstrip("/").partition("/")
         roots = [Path(p) for p in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if p]
         if folder is not None:
             roots += [folder, *folder.parents]

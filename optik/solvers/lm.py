@@ -48,7 +48,7 @@ from optik.errors import InvalidArgumentError
 from optik.problem import target_parameters
 from optik.results import IKResult
 from optik.solvers.base import IKRequest, make_result, method_options, positive_int, register_method
-from optik.solvers.lm_kernel import STATUS, Settings, kernel
+from optik.solvers.lm_kernel import STATUS, LMKernel, Settings, kernel
 from optik.solvers.options import check_floats, check_max_restarts
 
 DEFAULTS: dict[str, Any] = {
@@ -109,14 +109,41 @@ def request_seed(seed: int | np.random.Generator | None) -> int:
     return 0 if seed is None else int(seed)
 
 
+_PREPARED: dict[tuple[Any, ...], tuple[LMKernel, np.ndarray]] = {}
+_PREPARED_MAX = 256
+
+
+def _prepare(request: IKRequest) -> tuple[LMKernel, np.ndarray]:
+    """The kernel and the driver's ``conf`` of a request, cached per mechanism, task, frame,
+    tolerances and option values when those are hashable (validation costs more than a solve)."""
+    try:
+        key: tuple[Any, ...] | None = (
+            request.mechanism,
+            request.task,
+            request.frame,
+            request.tol,
+            tuple(sorted(request.options.items())),
+        )
+        hit = _PREPARED.get(key)  # type: ignore[arg-type]
+    except TypeError:  # an unhashable option value (an array q_ref): validate every time
+        key, hit = None, None
+    if hit is None:
+        settings, closure_weight, compile = lm_settings(request)
+        setup = time.perf_counter()
+        k = kernel(request.mechanism, request.task, request.frame, closure_weight, compile)
+        request.exclude_setup(setup)
+        hit = (k, settings.conf(request.mechanism))
+        if key is not None:
+            if len(_PREPARED) >= _PREPARED_MAX:
+                _PREPARED.clear()
+            _PREPARED[key] = hit
+    return hit
+
+
 def solve_lm(request: IKRequest) -> IKResult:
     """Solve an IK request by bounded LM with random restarts (see the module docstring)."""
-    settings, closure_weight, compile = lm_settings(request)
-    m = request.mechanism
-    setup = time.perf_counter()
-    k = kernel(m, request.task, request.frame, closure_weight, compile)
-    request.exclude_setup(setup)
-    conf = settings.conf(m)
+    k, base = _prepare(request)
+    conf = base.copy()
     conf[3] = max(request.remaining(), 0.0)
     seed = np.array([request_seed(request.seed) & (2**64 - 1)], dtype=np.uint64)
     params = target_parameters(request.target)

@@ -140,8 +140,9 @@ class _Key:
 
 
 def _number(v: Any) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
-        raise ValueError(f"expected a finite number, got {v!r}")
+    # TOML integers are unbounded: one beyond the float range is not a finite number either
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not abs(v) <= sys.float_info.max:
+        raise ValueError(f"expected a finite number, got {v!r:.40}")
     return float(v)
 
 

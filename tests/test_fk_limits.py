@@ -111,3 +111,22 @@ def test_five_bar_branches_all_pass_their_closure_check(lengths):
 def test_within_limits_must_be_a_bool():
     with pytest.raises(optik.OptikError, match="within_limits"):
         optik.solve_fk_all(optik.catalog.five_bar(), [0.1, 0.2], within_limits="no")
+
+
+def test_stewart_general_platform_every_real_posture_within_the_catalog_limits():
+    """A general 6-6 with 10 real postures, some with legs pointing down: all come back."""
+    rng = np.random.default_rng(0)
+    b, p = rng.normal(size=(6, 3)), 0.6 * rng.normal(size=(6, 3))
+    r = optik.closed_form.parallel.quat_to_rot(rng.normal(size=4))
+    t = np.r_[0.0, 0.0, 1.0] + 0.2 * rng.normal(size=3)
+    rho = np.linalg.norm(p @ r.T + t - b, axis=1)
+    poses = optik.closed_form.parallel.stewart_poses(b, p, rho).poses
+    assert len(poses) == 10
+    assert any(np.any((p @ r2.T + t2 - b)[:, 2] < 0) for r2, t2 in poses)  # a leg points down
+    m = optik.catalog.stewart_gough(b, p, leg_limits=(0.0, 100.0))
+    modes = optik.solve_fk_all(m, rho)
+    assert len(modes) == 10 and modes.dropped == [] and modes.message == ""
+    assert all(r.limits_ok and r.success and r.residual <= 1e-9 for r in modes)
+    assert any(
+        np.allclose(x.pose[:3, :3], r, atol=1e-9) and np.allclose(x.pose[:3, 3], t, atol=1e-9) for x in modes
+    )

@@ -413,3 +413,57 @@ def test_iterated_dls_converges_at_a_near_singular_solution():
     for seed in range(3):
         res = optik.solve_ik(m, t, method="dls", time_limit=1.0, seed=seed)
         assert res.success and res.iterations < 100, (res.iterations, res.position_error)
+
+
+# --------------------------------------------------------------------- found by the fuzz suite
+def test_task_sizes_are_capped():
+    """ManipulabilityTask(1e9) allocated 8 GB for its cost vector."""
+    _raises("n_q", diffik.ManipulabilityTask, 1e9)
+    _raises("n_q", diffik.JointLimitTask, 10**6)
+
+
+@pytest.mark.parametrize("dt", [5e-324, 0.0, float("nan"), "0.01"])
+def test_step_time_step_is_a_finite_float_of_at_least_a_nanosecond(dt):
+    """dt = 5e-324 gave v = inf (and a path of NaN in track)."""
+    m = catalog.planar_2r()
+    task = diffik.PositionTask(target=optik.Position(1, 0.5), axes="xy")
+    _raises("dt", diffik.step, m, m.mid_q(), [task], dt)
+
+
+def test_step_time_step_as_a_huge_int():
+    """dt = 10**30, an int numpy cannot convert, leaked a TypeError from np.isfinite."""
+    m = catalog.planar_2r()
+    res = diffik.step(m, m.mid_q(), [diffik.PositionTask(target=optik.Position(1, 0.5), axes="xy")], 10**30)
+    assert np.isfinite(res.q).all() and m.within_limits(res.q)
+
+
+@pytest.mark.parametrize("method", ["qp", "dls"])
+def test_iterated_ik_of_a_huge_target_is_a_failure_not_an_svd_error(method):
+    """slider_crank, Position(1e300, 0), qp: the QP Hessian overflowed and the DLS fallback's SVD
+    raised LinAlgError."""
+    m = catalog.slider_crank()
+    res = optik.solve_ik(m, optik.Position(1e300, 0.0), method=method, time_limit=0.02)
+    assert not res.success and np.isfinite(res.q).all()
+    step = diffik.step(
+        m, m.mid_q(), [diffik.PositionTask(target=optik.Position(1e300, 0.0), axes="xy")], 0.01
+    )
+    assert step.status == "overflow" and np.isfinite(step.q).all()
+
+
+def test_track_time_step_as_a_huge_int():
+    """track(..., dt=10**30) leaked OverflowError from np.arange(n) * dt."""
+    m = catalog.planar_3r()
+    res = diffik.track(m, m.mid_q(), [optik.Position(1.0, 0.5), optik.Position(1.1, 0.5)], 10**30)
+    assert np.isfinite(res.q).all() and res.t[-1] == 2e30
+
+
+def test_problem_file_number_beyond_the_float_range(tmp_path):
+    """A TOML integer of 21 digits leaked a TypeError from np.isfinite."""
+    text = _FIVE_BAR.format(
+        constructor="five_bar", params="lengths = [1, 1, 1, 999999999999999999999999999999999]", n=1
+    )
+    problem = load_problem(_problem_file(tmp_path, text=text))  # params go to the constructor
+    assert problem.params["lengths"][3] == 999999999999999999999999999999999
+    text = text.replace("[targets]", "[tolerances]\nposition = 1" + "0" * 400 + "\n[targets]")
+    with pytest.raises(optik.ProblemFileError, match=r"tolerances\.position: expected a finite number"):
+        load_problem(_problem_file(tmp_path, text=text))

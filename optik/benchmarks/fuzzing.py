@@ -101,8 +101,10 @@ class Call:
         limit: the call's time limit (s); ``overtime`` past ``3 limit + 0.5``.
         label: short description of the arguments (for the failure report).
         key: what the call may build on first use (mechanism, method, task, frame...); the first
-            call of each key gets `FIRST_CALL_GRACE` more seconds (first-time code generation
-            and compilation do not count against time limits), None for calls that build nothing.
+            calls of each key get `FIRST_CALL_GRACE` more seconds until one of them returned a
+            result (first-time code generation and compilation do not count against time
+            limits; a call rejected before it built anything does not use up the grace); None
+            for calls that build nothing.
     """
 
     entry: str
@@ -151,8 +153,10 @@ KNOWN: tuple[Known, ...] = (
     Known("parallelfk", "five-bar branches at extreme lengths", _has("five_bar_extreme", "closed_form")),
     Known(
         "parallelfk",
-        "3-RPR closed-form FK of leg lengths whose squares overflow",
-        _has("planar_3rpr", "IndexError"),
+        "3-RPR / Stewart-Gough closed-form FK of leg lengths whose squares overflow",
+        lambda call, detail: any(n in call.label for n in ("planar_3rpr", "stewart_gough"))
+        and any(call.label.startswith(e) for e in ("closed_form.fk", "solve_fk_all"))
+        and any(e in detail for e in ("IndexError", "LinAlgError")),
     ),
     Known(
         "parallelfk",
@@ -191,8 +195,6 @@ def classify(call: Call, hard_factor: float = 10.0) -> Outcome:
 
 def _classify(call: Call, hard_factor: float) -> Outcome:
     first = call.key is not None and call.key not in _SEEN_KEYS
-    if call.key is not None:
-        _SEEN_KEYS.add(call.key)
     grace = FIRST_CALL_GRACE if first else 0.0
     watch = hasattr(signal, "setitimer") and _main_thread()
     if watch:
@@ -224,6 +226,8 @@ def _classify(call: Call, hard_factor: float) -> Outcome:
         tb = traceback.extract_tb(exc.__traceback__)
         where = f" at {Path(tb[-1].filename).name}:{tb[-1].lineno}" if tb else ""
         kind, detail = "leak", f"{type(exc).__name__}: {exc}"[:300] + where
+    if kind == "ok" and call.key is not None:  # built by now (a call rejected early built nothing)
+        _SEEN_KEYS.add(call.key)
     if kind in ("ok", "optik_error") and seconds - setup > 3.0 * call.limit + 0.5 + grace:
         kind, detail = "overtime", f"{seconds:.3f} s (setup {setup:.3f} s) for a limit of {call.limit:g} s"
     owned = next((k for k in KNOWN if kind in FAILURES and k.matches(call, detail)), None)

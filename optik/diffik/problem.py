@@ -17,6 +17,7 @@ term is one compiled CasADi function per mechanism and task structure (see
 from __future__ import annotations
 
 import itertools
+import math
 import weakref
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
@@ -25,9 +26,9 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from optik.checks import as_vector
+from optik.checks import as_float, as_vector
 from optik.diffik._codegen import CompiledFunction
-from optik.diffik.base import Limit, Task, intersect, positive
+from optik.diffik.base import Limit, Task, intersect
 from optik.diffik.limits import ClosureConstraint, ConfigurationLimit, VelocityLimit
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
@@ -191,14 +192,15 @@ _ZEROS: dict[int, np.ndarray] = {}
 _DEFAULT_LIMITS: weakref.WeakKeyDictionary[Mechanism, list[Limit]] = weakref.WeakKeyDictionary()
 
 
+MIN_DT = 1e-9
+"""Shortest time step (s): ``v = dq / dt`` of a shorter one can overflow."""
+
+
 def _positive_float(value: Any, name: str, strict: bool = False) -> float:
     """``value`` as a float ``>= 0`` (``> 0`` when ``strict``), else an error naming ``name``."""
-    if isinstance(value, (float, int)) and np.isfinite(value) and (value > 0 or (value == 0 and not strict)):
-        return float(value)
-    v = positive(value, name)
-    if strict and v == 0:
-        raise InvalidArgumentError(name, "must be > 0")
-    return v
+    if type(value) is float and math.isfinite(value) and (value > 0 or (value == 0 and not strict)):
+        return value
+    return as_float(value, name, 0.0, strict=strict)
 
 
 def _as_list(items: Any, name: str, kind: str) -> list:
@@ -252,7 +254,7 @@ def build_qp(
         m: the mechanism.
         q: current coordinates (may lie outside the limits; the bounds then lead back in).
         tasks: the tasks (a single task is accepted).
-        dt: time step (s), ``> 0``.
+        dt: time step (s), at least `MIN_DT`.
         limits: limits on the step (default: the mechanism's velocity limits if known, and its
             position limits; a [`ConfigurationLimit`][optik.diffik.problem.ConfigurationLimit] is always
             added).
@@ -270,7 +272,7 @@ def build_qp(
     """
     qq = m.check_q(q)  # raises the error naming q
     task_list = _check_tasks(tasks)
-    step = _positive_float(dt, "dt", strict=True)
+    step = as_float(dt, "dt", MIN_DT)
     lims = normalize_limits(m, limits)
     vp = _ZEROS.setdefault(m.n_q, np.zeros(m.n_q)) if v_prev is None else as_vector(v_prev, "v_prev", m.n_q)
     stack = stack_function(m, task_list, lims, _positive_float(closure_gain, "closure_gain"))

@@ -3,6 +3,7 @@ priority hierarchy, with a result that says what happened."""
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -41,7 +42,9 @@ class StepResult:
         status: ``"ok"``; ``"saturated"`` (pseudo-inverse methods that held coordinates at
             their bounds or scaled the task velocity down to fit them);
             ``"qp_infeasible_fallback"`` / ``"qp_failed_fallback"`` (the QP had no solution and
-            the DLS answer within the bounds was used); ``"shortened"`` (``dls``: the
+            the DLS answer within the bounds was used); ``"overflow"`` (task errors so large,
+            e.g. a target 1e300 away, that the step's equations overflow: the step is the point
+            of the bounds nearest 0); ``"shortened"`` (``dls``: the
             task-space part of the step was scaled down or dropped by `shorten`, beyond a fold
             of the workspace).
         method: the method used; solver: the QP backend (None for the others).
@@ -134,6 +137,8 @@ def shorten(
     dq_r = np.linalg.pinv(a, rcond=1e-10) @ (a @ dq)
     dq_n = dq - dq_r
     e0 = float(we @ we)
+    if not math.isfinite(e0):  # errors so large that their square overflows: no model to test
+        return dq, 0
     lo, hi = np.minimum(m.lower, problem.q), np.maximum(m.upper, problem.q)
     for k in range(SHORTEN_HALVINGS + 1):
         s = 0.5**k
@@ -227,7 +232,11 @@ def step(
     qp_damping = 1e-12 if damping is None or method != "qp" else damping
     problem = build_qp(m, q, tasks, dt, limits, v_prev=v_prev, damping=qp_damping, closure_gain=closure_gain)
     status, message, used = "ok", "", None
-    if method == "qp":
+    if not all(np.isfinite(a).all() for a in (problem.H, problem.c, problem.jacobian, problem.target)):
+        # finite task errors whose products overflow (a target 1e300 away): no step to take
+        dq = np.clip(np.zeros(problem.n), problem.lb, problem.ub)
+        status, message = "overflow", "the task errors overflow the step's equations; no step taken"
+    elif method == "qp":
         used = default_solver() if solver is None else solver
         out = solve_qp(problem, used, **options)
         if out.dq is not None:

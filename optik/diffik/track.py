@@ -9,8 +9,9 @@ from typing import Any
 
 import numpy as np
 
-from optik.checks import as_transform, real_array
+from optik.checks import as_float, as_transform, real_array
 from optik.diffik.base import Limit, Task
+from optik.diffik.problem import MIN_DT
 from optik.diffik.step import StepResult, step
 from optik.diffik.tasks import FrameTask, OrientationTask, Pose2DTask, PositionTask
 from optik.diffik.tasks.frame_rows import FrameRowsTask
@@ -148,6 +149,7 @@ def track(
     """
     targets, implied = path_targets(m, path)
     q = m.check_q(q0, "q0")
+    dt = as_float(dt, "dt", MIN_DT)
     space_name = implied if space is None else space
     main = tracking_task(m, space_name, frame)
     all_tasks = [main, *tasks]

@@ -90,9 +90,10 @@ def test_other_methods_loop_over_solve_ik() -> None:
         np.testing.assert_array_equal(optik.solve_ik(arm, targets[i], method="closed_form").q, res.q[i])
 
 
-def test_table_records_and_concatenation() -> None:
+def test_table_records_and_concatenation(capsys: pytest.CaptureFixture) -> None:
     targets, _ = _panda_targets(3, 5)
-    res = solve_ik_batch(PANDA, targets)
+    res = solve_ik_batch(PANDA, targets, progress=True)
+    assert "100%  3/3" in capsys.readouterr().err
     rows = res.records()
     assert len(rows) == 3 and rows[1]["status"] == res.status[1] and rows[1]["q"] == res.q[1].tolist()
     both = BatchResult.concatenate([res, res])

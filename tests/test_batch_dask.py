@@ -74,3 +74,30 @@ def test_chunks_of_a_lost_worker_are_rerun(client) -> None:
     np.testing.assert_array_equal(box["res"].iterations, local.iterations)
     client.wait_for_workers(2, timeout=60)
     assert victim not in set(client.nthreads())  # the nanny started a new worker
+
+
+def test_capability_map_on_the_cluster_equals_the_local_one(client, tmp_path) -> None:
+    arm = optik.catalog.planar_3r(lengths=(1.0, 0.8, 0.5))
+    settings = {"resolution": 0.3, "orientations": 4, "samples": 10_000, "time_limit": 1.0}
+    local = optik.reach(arm, **settings)
+    remote = optik.reach(arm, **settings, scheduler=client)
+    np.testing.assert_array_equal(remote.success, local.success)
+    # the command line connects to a scheduler address
+    from optik.cli import main
+
+    args = ["reach", "planar_3r", "--resolution", "0.3", "--orientations", "4", "--samples", "10000"]
+    assert main([*args, "--time-limit", "1.0", "--out", str(tmp_path), "--no-progress"]) == 0
+    again = tmp_path / "again"
+    out = [
+        *args,
+        "--time-limit",
+        "1.0",
+        "--out",
+        str(again),
+        "--no-progress",
+        "--scheduler",
+        client.scheduler.address,
+    ]
+    assert main(out) == 0
+    with np.load(tmp_path / "reach.npz") as a, np.load(again / "reach.npz") as b:
+        np.testing.assert_array_equal(a["success"], b["success"])

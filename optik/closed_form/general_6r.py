@@ -73,6 +73,7 @@ from optik.mechanism import Mechanism
 
 __all__ = [
     "FK_TOL",
+    "PERTURBATION",
     "REAL_TOL",
     "ROTATIONS",
     "General6R",
@@ -91,6 +92,9 @@ polishing and the FK check then decide."""
 
 ROTATIONS = (0.7853981633974483 + 0.2718281828, -0.5772156649, 0.4142135624)
 """The fixed rotations ``delta_3, delta_4, delta_5`` (rad) of the eliminated angles."""
+
+PERTURBATION = 1e-4
+"""Relative size of the change that makes a special arm generic (`General6R.perturbed`)."""
 
 NEWTON_ITERATIONS = 12
 """Newton iterations on the pose residual per candidate (converged candidates stop early)."""
@@ -267,6 +271,24 @@ class General6R:
         fwd = _matrices(self, targets)
         back = _matrices(self.reversed, _inv(targets))
         return bool(np.all((fwd[6] & fwd[7]) | (back[6] & back[7])))
+
+    @cached_property
+    def perturbed(self) -> General6R:
+        """A generic arm near this one: every DH length moved by `PERTURBATION` times the arm's
+        size and every twist by `PERTURBATION` rad, in fixed pseudo-random directions. Its real
+        solutions, polished on this arm, recover the nonsingular real solutions of special
+        geometry that the elimination cannot treat (no certificate: the count check stays
+        failed)."""
+        r = np.random.default_rng(0).normal(size=(3, 6))
+        step = PERTURBATION * self.scale
+        return General6R(
+            self.a + step * r[0],
+            self.alpha + PERTURBATION * r[1],
+            self.d + step * r[2],
+            self.offset,
+            self.base,
+            self.tool,
+        )
 
     @cached_property
     def reversed(self) -> General6R:
@@ -676,10 +698,24 @@ def solve_general_6r(
     """
     g = _arm(arm)
     targets, single = _targets(g, target)
-    fk = arm.fk if isinstance(arm, Mechanism) else g.fk
+    m = arm if isinstance(arm, Mechanism) else None
+    fk = arm.fk if m is not None else g.fk
+    out = _both_ends(g, targets, fk, m)
+    bad = [k for k, s in enumerate(out) if not s.count_ok]
+    if bad:  # special geometry at both ends: candidates from a nearby generic arm
+        near = _both_ends(g.perturbed, targets[bad], g.perturbed.fk, None)
+        for k, sol in zip(bad, near, strict=True):
+            q = _refine(g, m, sol.q.copy(), np.repeat(targets[k][None], len(sol.q), axis=0))
+            out[k] = _add(out[k], q, targets[k], fk, g.scale)
+    return out[0] if single else out
+
+
+def _both_ends(g: General6R, targets: np.ndarray, fk: Any, m: Mechanism | None) -> list[General6RSolutions]:
+    """The eigenvalue solver on ``g``, then on its inverse chain for the targets whose count
+    check failed (``m``: the mechanism whose ``m.fk`` polishes the solutions last, or None)."""
 
     def refine(q: np.ndarray, idx: np.ndarray) -> np.ndarray:
-        return _refine(g, arm if isinstance(arm, Mechanism) else None, q, targets[idx])
+        return _refine(g, m, q, targets[idx])
 
     out = _solve(g, targets, fk, refine)
     bad = [k for k, s in enumerate(out) if not s.count_ok]
@@ -692,7 +728,32 @@ def solve_general_6r(
         )
         for k, rev in zip(bad, back, strict=True):
             out[k] = _merge(out[k], rev, targets[k], fk, g.scale)
-    return out[0] if single else out
+    return out
+
+
+def _add(
+    sols: General6RSolutions, q: np.ndarray, target: np.ndarray, fk: Any, scale: float
+) -> General6RSolutions:
+    """``sols`` (flagged) with the candidates ``q`` that pass the FK check added (deduplicated)."""
+    err = np.zeros(0)
+    if len(q):
+        dp, dr = _pose_errors(fk(q), target)
+        err = np.maximum(dp / scale, dr)
+        q = q[err <= FK_TOL]
+    merged = _dedup(np.vstack([sols.q, q]))
+    added = len(merged) - len(sols.q)
+    fk_error = max(sols.fk_error, float(np.max(err[err <= FK_TOL], initial=0.0)))
+    reason = f"{sols.reason}; {added} more from a generic arm {PERTURBATION:g} away (not certified)"
+    return General6RSolutions(
+        merged,
+        sols.n_finite,
+        sols.n_real_candidates,
+        sols.n_complex,
+        sols.n_rejected,
+        fk_error,
+        False,
+        reason,
+    )
 
 
 def _refine(g: General6R, m: Mechanism | None, q: np.ndarray, targets: np.ndarray) -> np.ndarray:

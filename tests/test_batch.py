@@ -60,7 +60,7 @@ def test_unreachable_targets_fail_within_their_time_limit() -> None:
     res = solve_ik_batch(PANDA, far, time_limit=0.02, workers=2, chunk_size=1)
     assert res.success.tolist() == [False, False, True]
     assert res.status.tolist()[:2] == ["time_limit", "time_limit"]
-    assert (res.solve_time[:2] >= 0.02).all() and (res.solve_time[:2] < 0.08).all()
+    assert (res.solve_time[:2] >= 0.02).all() and (res.solve_time[:2] < 0.15).all()
     assert (res.position_error[:2] > 0.5).all()
     capped = solve_ik_batch(PANDA, far[:1], max_restarts=2)
     assert capped.status.tolist() == ["max_restarts"] and capped.restarts.tolist() == [2]

@@ -16,17 +16,20 @@ from optik.batch import fk_batch, solve_ik_batch
 distributed = pytest.importorskip("distributed", reason="needs the dist extra (pip install 'optik[dist]')")
 
 
-@pytest.fixture(scope="module")
-def client():
+def test_two_process_cluster(tmp_path) -> None:
+    """One cluster for every check (pytest-xdist would start one per test process otherwise):
+    answers, one kernel per worker, capability maps, then a worker killed mid-run."""
     cluster = distributed.LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=40
     )
-    with distributed.Client(cluster) as c:
-        yield c
+    with distributed.Client(cluster) as client:
+        _answers_equal_the_local_run(client)
+        _capability_map_equals_the_local_one(client, tmp_path)
+        _chunks_of_a_lost_worker_are_rerun(client)
     cluster.close()
 
 
-def test_cluster_answers_equal_the_local_run(client) -> None:
+def _answers_equal_the_local_run(client) -> None:
     m = optik.catalog.panda()
     targets = fk_batch(m, m.random_q(300, seed=5))
     q0 = m.random_q(300, seed=6)
@@ -50,7 +53,7 @@ def test_cluster_answers_equal_the_local_run(client) -> None:
     )
 
 
-def test_chunks_of_a_lost_worker_are_rerun(client) -> None:
+def _chunks_of_a_lost_worker_are_rerun(client) -> None:
     m = optik.catalog.panda()
     targets = fk_batch(m, m.random_q(300, seed=8))
     local = solve_ik_batch(m, targets, tol=1e-5, seed=4)
@@ -76,7 +79,7 @@ def test_chunks_of_a_lost_worker_are_rerun(client) -> None:
     assert victim not in set(client.nthreads())  # the nanny started a new worker
 
 
-def test_capability_map_on_the_cluster_equals_the_local_one(client, tmp_path) -> None:
+def _capability_map_equals_the_local_one(client, tmp_path) -> None:
     arm = optik.catalog.planar_3r(lengths=(1.0, 0.8, 0.5))
     settings = {"resolution": 0.3, "orientations": 4, "samples": 10_000, "time_limit": 1.0}
     local = optik.reach(arm, **settings)

@@ -166,9 +166,13 @@ class CheckedRows(list):
     the ``(position, orientation)`` error of row ``i`` against the target (m, rad). The solvers
     layer then reports those errors instead of evaluating the FK of every row again."""
 
-    def __init__(self, rows: Sequence[Sequence[float]], errors: Sequence[tuple[float, float]]) -> None:
+    def __init__(
+        self, rows: Sequence[Sequence[float]], errors: Sequence[tuple[float, float]], wrapped: bool = False
+    ) -> None:
         super().__init__(rows)
         self.errors = list(errors)
+        self.wrapped = wrapped
+        """True when every angle is already in ``(-pi, pi]``."""
 
 
 def branches(m: Mechanism, t: np.ndarray) -> list[list[float]]:
@@ -182,8 +186,22 @@ def branches(m: Mechanism, t: np.ndarray) -> list[list[float]]:
     if solver is None:
         raise SolverUnavailableError(f"no closed-form IK for mechanism {m.name!r} (kind {m.kind!r})")
     rows = solver(m, t)
-    wrapped = wrap_rows(m, rows)
-    return CheckedRows(wrapped, rows.errors) if isinstance(rows, CheckedRows) else wrapped
+    if isinstance(rows, CheckedRows):
+        if rows.wrapped and _covers_half_turns(m):  # wrap_rows would return the same numbers
+            return rows
+        return CheckedRows(wrap_rows(m, rows), rows.errors)
+    return wrap_rows(m, rows)
+
+
+def _covers_half_turns(m: Mechanism) -> bool:
+    """Every angle coordinate of ``m`` has limits containing ``(-pi, pi]`` (so that
+    [`wrap_rows`][optik.closed_form.registry.wrap_rows] leaves wrapped angles unchanged) and
+    there are no spherical joints."""
+    mask, spherical, angles = _coordinates(m)
+    lo, hi = m.lower.tolist(), m.upper.tolist()
+    return (
+        len(angles) == len(mask) and not spherical and all(lo[k] <= -np.pi and hi[k] >= np.pi for k in angles)
+    )
 
 
 def _finish(m: Mechanism, rows: list[list[float]], respect_limits: bool) -> list[np.ndarray]:

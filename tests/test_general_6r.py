@@ -230,6 +230,21 @@ def test_both_ends_special_is_flagged() -> None:
     assert not covers(arm)
 
 
+def test_registry_routes_only_covered_arms() -> None:
+    """The closed-form registry answers a generic 6R arm by this solver, and leaves an arm with
+    special geometry at both ends (no certified answer) to the numerical methods."""
+    rng = np.random.default_rng(47)
+    generic = _random_arm(rng)
+    assert closed_form.has_ik(generic)
+    q = rng.uniform(-np.pi, np.pi, 6)
+    assert min(_angle_dist(s, q) for s in closed_form.ik(generic, generic.fk(q), respect_limits=False)) < 1e-8
+    rows = [(rng.uniform(-1, 1), rng.uniform(0.1, 1), rng.uniform(-np.pi, np.pi)) for _ in range(6)]
+    rows[0], rows[4] = (rows[0][0], 0.0, rows[0][2]), (rows[4][0], 0.0, rows[4][2])  # 1-2, 5-6 meet
+    special = dh_chain(rows, "standard")
+    assert closed_form.derive(special) is None and not covers(special)
+    assert not closed_form.has_ik(special)
+
+
 def test_covers() -> None:
     rng = np.random.default_rng(43)
     assert covers(_random_arm(rng))

@@ -122,10 +122,11 @@ def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]
     """[`Mechanism.wrap`][optik.Mechanism.wrap] of every row (branches of one target: a few short rows).
 
     Plain floats: for a handful of branches this is several times cheaper than numpy calls on
-    tiny arrays. Same arithmetic as ``m.wrap`` (angles to ``(-pi, pi]``, then the first of the
-    shifts ``2 pi, -2 pi, 4 pi, -4 pi`` that lands within the limits of a coordinate outside
-    them; rotation vectors of spherical joints as ``m.wrap`` does); falls back to ``m.wrap`` for
-    rows of the wrong length and non-finite rows (which ``m.wrap`` rejects with its own error)."""
+    tiny arrays. Same arithmetic as ``m.wrap`` (angles to ``(-pi, pi]``; a coordinate that this
+    takes out of its limits keeps its value when that is within them, else takes the first of
+    the shifts ``2 pi, -2 pi, 4 pi, -4 pi`` that lands within them; rotation vectors of
+    spherical joints as ``m.wrap`` does); falls back to ``m.wrap`` for rows of the wrong length
+    and non-finite rows (which ``m.wrap`` rejects with its own error)."""
     mask, spherical, angles = _coordinates(m)
     out = [row.tolist() if isinstance(row, np.ndarray) else [float(v) for v in row] for row in rows]
     # a non-finite sum flags NaN / infinity (and, harmlessly, overflow: m.wrap then decides)
@@ -141,7 +142,9 @@ def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]
             w = (row[k] + pi) % two_pi - pi  # wrap_angle_one, inlined
             if w <= -pi:
                 w += two_pi
-            if not lo[k] <= w <= hi[k]:
+            if not lo[k] <= w <= hi[k] and lo[k] <= row[k] <= hi[k]:
+                w = row[k]  # within the limits already (a shift back could round it outside)
+            elif not lo[k] <= w <= hi[k]:
                 for shift in _SHIFTS:
                     if lo[k] <= w + shift <= hi[k]:
                         w += shift

@@ -41,14 +41,15 @@ def test_batch_equals_solve_ik_with_each_targets_seed() -> None:
 
 def test_answers_do_not_depend_on_chunks_or_threads() -> None:
     targets, q0 = _panda_targets(60, 21)
-    a = solve_ik_batch(PANDA, targets, q0, tol=1e-6, seed=9, workers=1)
-    b = solve_ik_batch(PANDA, targets, q0, tol=1e-6, seed=9, workers=2, chunk_size=7)
+    T = 2.0  # no target may stop on the clock: under load a 5 ms limit would make answers timing-dependent
+    a = solve_ik_batch(PANDA, targets, q0, tol=1e-6, seed=9, workers=1, time_limit=T)
+    b = solve_ik_batch(PANDA, targets, q0, tol=1e-6, seed=9, workers=2, chunk_size=7, time_limit=T)
     for name in ("q", "success", "iterations", "restarts", "status", "seed", "position_error"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
     c = solve_ik_batch(PANDA, targets, q0, tol=1e-6, seed=10, workers=2)
     assert not np.array_equal(a.seed, c.seed)
     # a slice solved again with its own seeds gives the same rows
-    part = solve_ik_batch(PANDA, targets[20:30], q0[20:30], tol=1e-6, seed=a.seed[20:30])
+    part = solve_ik_batch(PANDA, targets[20:30], q0[20:30], tol=1e-6, seed=a.seed[20:30], time_limit=T)
     np.testing.assert_array_equal(part.q, a.q[20:30])
     assert part.base_seed is None and a.base_seed == 9
 
@@ -60,7 +61,7 @@ def test_unreachable_targets_fail_within_their_time_limit() -> None:
     res = solve_ik_batch(PANDA, far, time_limit=0.02, workers=2, chunk_size=1)
     assert res.success.tolist() == [False, False, True]
     assert res.status.tolist()[:2] == ["time_limit", "time_limit"]
-    assert (res.solve_time[:2] >= 0.02).all() and (res.solve_time[:2] < 0.08).all()
+    assert (res.solve_time[:2] >= 0.02).all() and (res.solve_time[:2] < 0.15).all()
     assert (res.position_error[:2] > 0.5).all()
     capped = solve_ik_batch(PANDA, far[:1], max_restarts=2)
     assert capped.status.tolist() == ["max_restarts"] and capped.restarts.tolist() == [2]
@@ -90,9 +91,10 @@ def test_other_methods_loop_over_solve_ik() -> None:
         np.testing.assert_array_equal(optik.solve_ik(arm, targets[i], method="closed_form").q, res.q[i])
 
 
-def test_table_records_and_concatenation() -> None:
+def test_table_records_and_concatenation(capsys: pytest.CaptureFixture) -> None:
     targets, _ = _panda_targets(3, 5)
-    res = solve_ik_batch(PANDA, targets)
+    res = solve_ik_batch(PANDA, targets, progress=True)
+    assert "100%  3/3" in capsys.readouterr().err
     rows = res.records()
     assert len(rows) == 3 and rows[1]["status"] == res.status[1] and rows[1]["q"] == res.q[1].tolist()
     both = BatchResult.concatenate([res, res])

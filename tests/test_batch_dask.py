@@ -16,22 +16,25 @@ from optik.batch import fk_batch, solve_ik_batch
 distributed = pytest.importorskip("distributed", reason="needs the dist extra (pip install 'optik[dist]')")
 
 
-@pytest.fixture(scope="module")
-def client():
+def test_two_process_cluster(tmp_path) -> None:
+    """One cluster for every check (pytest-xdist would start one per test process otherwise):
+    answers, one kernel per worker, capability maps, then a worker killed mid-run."""
     cluster = distributed.LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=40
     )
-    with distributed.Client(cluster) as c:
-        yield c
+    with distributed.Client(cluster) as client:
+        _answers_equal_the_local_run(client)
+        _capability_map_equals_the_local_one(client, tmp_path)
+        _chunks_of_a_lost_worker_are_rerun(client)
     cluster.close()
 
 
-def test_cluster_answers_equal_the_local_run(client) -> None:
+def _answers_equal_the_local_run(client) -> None:
     m = optik.catalog.panda()
     targets = fk_batch(m, m.random_q(300, seed=5))
     q0 = m.random_q(300, seed=6)
-    local = solve_ik_batch(m, targets, q0, tol=1e-5, seed=2)
-    remote = solve_ik_batch(m, targets, q0, tol=1e-5, seed=2, scheduler=client, chunk_size=16)
+    local = solve_ik_batch(m, targets, q0, tol=1e-5, seed=2, time_limit=2.0)
+    remote = solve_ik_batch(m, targets, q0, tol=1e-5, seed=2, scheduler=client, chunk_size=16, time_limit=2.0)
     assert remote.workers == 2 and remote.success.all()
     for name in ("q", "success", "iterations", "restarts", "status", "seed", "position_error"):
         np.testing.assert_array_equal(getattr(remote, name), getattr(local, name))
@@ -40,7 +43,7 @@ def test_cluster_answers_equal_the_local_run(client) -> None:
         lambda: __import__("optik.solvers.lm_kernel").solvers.lm_kernel.kernel.cache_info().currsize
     )
     assert sorted(who.values()) == [1, 1]
-    again = solve_ik_batch(m, targets[:20], q0[:20], tol=1e-5, seed=2, scheduler=client)
+    again = solve_ik_batch(m, targets[:20], q0[:20], tol=1e-5, seed=2, scheduler=client, time_limit=2.0)
     np.testing.assert_array_equal(again.q, local.q[:20])
     assert (
         client.run(
@@ -50,16 +53,16 @@ def test_cluster_answers_equal_the_local_run(client) -> None:
     )
 
 
-def test_chunks_of_a_lost_worker_are_rerun(client) -> None:
+def _chunks_of_a_lost_worker_are_rerun(client) -> None:
     m = optik.catalog.panda()
     targets = fk_batch(m, m.random_q(300, seed=8))
-    local = solve_ik_batch(m, targets, tol=1e-5, seed=4)
+    local = solve_ik_batch(m, targets, tol=1e-5, seed=4, time_limit=2.0)
     solve_ik_batch(m, targets[:4], scheduler=client)  # ship the mechanism first
     pids = client.run(os.getpid)
     box: dict = {}
     run = threading.Thread(
         target=lambda: box.update(
-            res=solve_ik_batch(m, targets, tol=1e-5, seed=4, scheduler=client, chunk_size=1)
+            res=solve_ik_batch(m, targets, tol=1e-5, seed=4, scheduler=client, chunk_size=1, time_limit=2.0)
         )
     )
     before = set(client.nthreads())
@@ -74,3 +77,30 @@ def test_chunks_of_a_lost_worker_are_rerun(client) -> None:
     np.testing.assert_array_equal(box["res"].iterations, local.iterations)
     client.wait_for_workers(2, timeout=60)
     assert victim not in set(client.nthreads())  # the nanny started a new worker
+
+
+def _capability_map_equals_the_local_one(client, tmp_path) -> None:
+    arm = optik.catalog.planar_3r(lengths=(1.0, 0.8, 0.5))
+    settings = {"resolution": 0.3, "orientations": 4, "samples": 10_000, "time_limit": 1.0}
+    local = optik.reach(arm, **settings)
+    remote = optik.reach(arm, **settings, scheduler=client)
+    np.testing.assert_array_equal(remote.success, local.success)
+    # the command line connects to a scheduler address
+    from optik.cli import main
+
+    args = ["reach", "planar_3r", "--resolution", "0.3", "--orientations", "4", "--samples", "10000"]
+    assert main([*args, "--time-limit", "1.0", "--out", str(tmp_path), "--no-progress"]) == 0
+    again = tmp_path / "again"
+    out = [
+        *args,
+        "--time-limit",
+        "1.0",
+        "--out",
+        str(again),
+        "--no-progress",
+        "--scheduler",
+        client.scheduler.address,
+    ]
+    assert main(out) == 0
+    with np.load(tmp_path / "reach.npz") as a, np.load(again / "reach.npz") as b:
+        np.testing.assert_array_equal(a["success"], b["success"])

@@ -111,3 +111,24 @@ def test_benchmark_runs_a_script_of_benchmarks_folder(capsys):
     assert main(argv) == 0
     out = capsys.readouterr().out
     assert "planar_3rpr" in out and "stewart_gough" in out
+
+
+def test_problems_dir_overrides_the_shipped_problems(tmp_path, capsys):
+    mine = tmp_path / "problems"
+    mine.mkdir()
+    (mine / "mine.toml").write_text(
+        '[problem]\ndescription = "a long 2R"\ndefault = true\n[mechanism]\nconstructor = "planar_2r"\n'
+        "[mechanism.params]\nlengths = [3.0, 2.0]\n",
+        encoding="utf-8",
+    )
+    assert main(["solve", "mine", "--problems-dir", str(mine), "--target", "4.0", "1.5"]) == 0
+    assert "mine: IK of" in capsys.readouterr().out  # reachable with these lengths only
+    assert main(["solve", "mine", "--target", "4.0", "1.5"]) == 2  # not a shipped problem
+    assert "unknown problem 'mine'" in capsys.readouterr().err
+    out = tmp_path / "out"
+    argv = ["bench", "--problems-dir", str(mine), "--quick", "--n", "2", "--solvers", "lm", "--out", str(out)]
+    assert main([*argv, "--no-progress"]) == 0
+    data = json.loads((out / "results.json").read_text(encoding="utf-8"))
+    assert [p["problem"]["name"] for p in data["problems"]] == ["mine"]
+    assert main(["solve", "mine", "--problems-dir", str(tmp_path / "absent"), "--target", "1", "1"]) == 2
+    assert "no problem directory" in capsys.readouterr().err

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import least_squares
 
-from optik import catalog, spatial
+from optik import catalog, closed_form, spatial
 from optik.closed_form.general_6r import (
     FK_TOL,
     General6R,
@@ -225,8 +225,24 @@ def test_both_ends_special_is_flagged() -> None:
     target = arm.fk(rng.uniform(-np.pi, np.pi, 6))
     sols = solve_general_6r(arm, target)
     assert not sols.count_ok and "singular 12 x 12" in sols.reason and "other end" in sols.reason
+    assert "from a generic arm" in sols.reason
     assert sols.fk_error <= FK_TOL
     assert not covers(arm)
+
+
+def test_registry_routes_only_covered_arms() -> None:
+    """The closed-form registry answers a generic 6R arm by this solver, and leaves an arm with
+    special geometry at both ends (no certified answer) to the numerical methods."""
+    rng = np.random.default_rng(47)
+    generic = _random_arm(rng)
+    assert closed_form.has_ik(generic)
+    q = rng.uniform(-np.pi, np.pi, 6)
+    assert min(_angle_dist(s, q) for s in closed_form.ik(generic, generic.fk(q), respect_limits=False)) < 1e-8
+    rows = [(rng.uniform(-1, 1), rng.uniform(0.1, 1), rng.uniform(-np.pi, np.pi)) for _ in range(6)]
+    rows[0], rows[4] = (rows[0][0], 0.0, rows[0][2]), (rows[4][0], 0.0, rows[4][2])  # 1-2, 5-6 meet
+    special = dh_chain(rows, "standard")
+    assert closed_form.derive(special) is None and not covers(special)
+    assert not closed_form.has_ik(special)
 
 
 def test_covers() -> None:
@@ -262,14 +278,20 @@ def test_reversed_chain_is_the_inverse() -> None:
     assert np.allclose(arm.reversed.fk(q[:, ::-1]), np.linalg.inv(arm.fk(q)), atol=1e-12)
 
 
-def test_special_geometry_is_flagged_not_hidden() -> None:
-    """The seed's 6R arm (parallel and intersecting axes, 8 solutions by its closed form) is not
-    a general arm: the count check fails and says so; what is returned is still verified."""
+def test_special_geometry_is_flagged_and_matches_the_closed_form() -> None:
+    """The seed's 6R arm (parallel axes 2-3-4 and a spherical wrist: 8 solutions) is not a
+    general arm: the count check fails and says so. The solutions continued from a nearby
+    generic arm are exactly the branches of the seed's closed form (an independent reference)."""
     m = catalog.seed_6r_arm()
-    target = m.fk([0.5, -0.8, -1.1, -1.0, 1.1, 0.8])
-    sols = solve_general_6r(m, target)
-    assert not sols.count_ok and "count check failed" in sols.reason
-    _check_fk(m, sols, target)
+    rng = np.random.default_rng(0)
+    for q in rng.uniform(-np.pi, np.pi, (4, 6)):
+        target = m.fk(q)
+        sols = solve_general_6r(m, target)
+        assert not sols.count_ok and "count check failed" in sols.reason and "not certified" in sols.reason
+        _check_fk(m, sols, target)
+        ref = closed_form.ik(m, target, respect_limits=False)
+        assert len(sols.q) == len(ref)
+        assert all(min(_angle_dist(s, r) for s in sols.q) < 1e-8 for r in ref)
 
 
 def test_bad_input_raises_named_errors() -> None:

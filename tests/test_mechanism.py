@@ -11,6 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from optik import catalog, spatial
+from optik.batch import chunk
+from optik.closed_form import registry
 from optik.errors import (
     InvalidArgumentError,
     LimitsError,
@@ -21,6 +23,7 @@ from optik.errors import (
     UnknownFrameError,
 )
 from optik.mechanism import Joint, Mechanism, dh_chain, planar_chain
+from optik.solvers import solve_ik
 
 
 def _catalog_names() -> list[str]:
@@ -345,6 +348,21 @@ def test_limits_wrap_and_within_limits():
     assert w[0] == pytest.approx(2 * np.pi - 0.5) and m.within_limits(w)
     assert not m.within_limits(np.array([0.1, 1.5]))
     assert m.kind == "planar_2r" and m.params == built("planar_2r").params
+
+
+def test_wrap_keeps_an_angle_on_a_limit_beyond_pi():
+    """-3.9 (PR2's upper-arm roll lower limit) wraps to 2.383 and back to -3.9 - 4e-16, just
+    outside the limit: it used to be left at 2.383 and clipped to the upper limit (another pose)."""
+    m = built("planar_2r").with_limits(lower=[-3.9, -1.0], upper=[0.8, 1.0])
+    w = m.wrap(np.array([-3.9, 0.2]))
+    assert w[0] == -3.9 and w[1] == pytest.approx(0.2, abs=1e-15)
+    rows = np.array([[-3.9, 0.2], [0.8, -1.0], [5.0, 0.3], [-6.0, 0.9]])
+    expected = np.array([m.wrap(r) for r in rows])
+    np.testing.assert_array_equal(registry.wrap_rows(m, rows), expected)  # the vectorized twins
+    np.testing.assert_array_equal(chunk.wrap_rows(m, rows), expected)
+    target = m.fk(np.array([-3.9, 0.2]))
+    res = solve_ik(m, target, q0=[-3.85, 0.1], method="lm", compile=False)
+    assert res.success and np.allclose(m.fk(res.q), target, atol=1e-6)
 
 
 def test_fk_of_an_empty_batch_and_unhashable_frame_names():

@@ -86,6 +86,7 @@ def test_cli_stops_resumes_and_keeps_chunks_on_ctrl_c(tmp_path: Path, capsys: py
     slow = tmp_path / "slow"
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parent.parent)}
     cmd = [sys.executable, "-m", "optik.cli", *args[:2], "--resolution", "0.05", "--orientations", "16"]
+    cmd += ["--samples", "20000"]
     proc = subprocess.Popen(
         [*cmd, "--out", str(slow), "--no-progress"], env=env, stdout=subprocess.PIPE, text=True
     )

@@ -113,6 +113,9 @@ def wrap_rows(m: Mechanism, q: np.ndarray) -> np.ndarray:
     for k in np.flatnonzero(ang):
         lo, hi = m.lower[k], m.upper[k]
         todo = ~((lo <= w[:, k]) & (w[:, k] <= hi))
+        keep = todo & (lo <= q[:, k]) & (q[:, k] <= hi)  # as m.wrap: within the limits already
+        w[keep, k] = q[keep, k]
+        todo &= ~keep
         for shift in (2 * np.pi, -2 * np.pi, 4 * np.pi, -4 * np.pi):
             moved = w[:, k] + shift
             hit = todo & (lo <= moved) & (moved <= hi)

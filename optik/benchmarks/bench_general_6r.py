@@ -12,7 +12,8 @@ target in the same process (thread pools pinned to 1 before numpy is imported):
   2-D search over two joint angles), where installed: built once per arm from the same joint
   lines; its answers are approximate, so a solution counts when its FK error is <= 1e-3 and the
   round trip at 1e-2 rad (the number within 1e-6 is printed too);
-* ``optik solve_ik_all`` (multi-start ``lm`` with its default ``patience=50``, 1 s time limit) on
+* ``optik solve_ik_all`` with ``closed_form=False`` (multi-start ``lm`` only, with its default
+  ``patience=50``, 1 s time limit; with the closed form it would return this solver's answer) on
   the targets of the first ``--multistart-arms`` arms, after one untimed call per arm that
   builds and compiles its problem.
 
@@ -134,7 +135,7 @@ def run(arms: int, poses: int, multistart_arms: int, seed: int, plot: str | None
         robot = _ik_geo_robot(m) if ik_geo is not None else None
         multistart = k < multistart_arms
         if multistart:
-            optik.solve_ik_all(m, targets[0], time_limit=1.0)  # untimed: builds the lm problem
+            optik.solve_ik_all(m, targets[0], time_limit=1.0, closed_form=False)  # untimed: builds lm
         for q, target, batch in zip(qs, targets, stacked, strict=True):
             start = time.perf_counter()
             sols = solve_general_6r(m, target)
@@ -158,7 +159,7 @@ def run(arms: int, poses: int, multistart_arms: int, seed: int, plot: str | None
                 )
             if multistart:
                 start = time.perf_counter()
-                res = optik.solve_ik_all(m, target, time_limit=1.0)
+                res = optik.solve_ik_all(m, target, time_limit=1.0, closed_form=False)
                 dt = time.perf_counter() - start
                 found = [r.q for r in res if r.success]
                 tallies["optik solve_ik_all (lm)"].add(dt, found, q, ours, 1e-4)

@@ -220,23 +220,18 @@ class DerivedIK:
             one.calls += 1
             if one.calls == COMPILE_AFTER:
                 one.compile()  # in the background
-            q, err, pairs = one.q.tolist(), one.err.tolist(), one.pairs.tolist()
-        size_tol = CHECK_TOL * self.axes.size
-        span = self.polish_range
-        b = len(q) // 6
-        ok = [err[2 * i] <= size_tol and err[2 * i + 1] <= CHECK_TOL for i in range(b)]
-        pos_span = span * self.axes.size
-        near = [not ok[i] and err[2 * i] <= pos_span and err[2 * i + 1] <= span for i in range(b)]
-        close = any(ok[i] and ok[j] and pairs[k] < SAME_TOL for k, (i, j) in enumerate(_pairs(b)))
-        if any(near) or close:
-            qa = np.array(q).reshape(1, b, 6)
-            e = np.array(err).reshape(1, b, 2)
-            qa, oka = self.finish(np.asarray(t, dtype=float).reshape(1, 4, 4), qa, e[..., 0], e[..., 1])
-            return qa[0][oka[0]].tolist()
-        keep = [i for i in range(b) if ok[i]]
-        return registry.CheckedRows(
-            [q[6 * i : 6 * i + 6] for i in keep], [(err[2 * i], err[2 * i + 1]) for i in keep]
-        )
+            flags = one.flags.tolist()
+            if flags[0] > 0.0 or flags[1] < SAME_TOL:  # a candidate to polish, or two close ones
+                qa = one.q.reshape(1, -1, 6).copy()
+                e = one.err.reshape(1, -1, 2).copy()
+            else:
+                q, err, ok = one.q.tolist(), one.err.tolist(), one.ok.tolist()
+                keep = [i for i, flag in enumerate(ok) if flag]
+                return registry.CheckedRows(
+                    [q[6 * i : 6 * i + 6] for i in keep], [(err[2 * i], err[2 * i + 1]) for i in keep], True
+                )
+        qa, oka = self.finish(np.asarray(t, dtype=float).reshape(1, 4, 4), qa, e[..., 0], e[..., 1])
+        return qa[0][oka[0]].tolist()
 
     def _polish(self, q: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Gauss-Newton on ``q (K, 6)`` for targets ``t (K, 4, 4)``; which pass the check."""
@@ -273,10 +268,11 @@ def _pairs(b: int) -> list[tuple[int, int]]:
 
 class _Single:
     """The kernel of a `DerivedIK` as one CasADi function of a single target, evaluated on
-    preallocated buffers (``Function.buffer``): 16 target entries (row-major) in; the ``B``
-    branches wrapped to ``[-pi, pi]`` (``6 B``), their position and orientation errors (``2 B``)
-    and the wrapped max-norm distances of the ``B (B - 1) / 2`` pairs out. Guarded by a lock
-    (the buffers are shared)."""
+    preallocated buffers (``Function.buffer``): 16 target entries (row-major) in; out the ``B``
+    branches wrapped to ``(-pi, pi]`` (``6 B``), their position and orientation errors (``2 B``),
+    whether each passes the FK check (``B``), and two flags: the number of candidates to polish
+    and the smallest wrapped max-norm distance between two passing ones. Guarded by a lock (the
+    buffers are shared)."""
 
     def __init__(self, solver: DerivedIK) -> None:
         t = ca.SX.sym("t", 16)
@@ -285,27 +281,37 @@ class _Single:
         ops = v3.CASADI
         raw = solver.branches(rt, pt, ops)
         two_pi = 2.0 * np.pi
-        wrapped = [[a - two_pi * ca.floor((a + np.pi) / two_pi) for a in b] for b in raw]  # [-pi, pi)
-        errs = [e for b in raw for e in solver.errors_c(b, rt, pt, ops)]
-        pairs = []
+        wrapped = [[a - two_pi * ca.ceil((a - np.pi) / two_pi) for a in b] for b in raw]  # (-pi, pi]
+        errs = [solver.errors_c(b, rt, pt, ops) for b in raw]
+        # the FK check and the two reasons for the numpy path, decided in the same function
+        size, span = solver.axes.size, solver.polish_range
+        ok = [(pos <= CHECK_TOL * size) * (ori <= CHECK_TOL) for pos, ori in errs]
+        near = sum(
+            (1 - k) * (pos <= span * size) * (ori <= span) for k, (pos, ori) in zip(ok, errs, strict=True)
+        )
+        closest = ca.inf
         for i, j in _pairs(len(raw)):
             dist = 0.0
             for a, b in zip(wrapped[i], wrapped[j], strict=True):
                 d = ca.fabs(a - b)
                 dist = ops.fmax(dist, ops.fmin(d, two_pi - d))
-            pairs.append(dist)
-        self.function = f = ca.Function(
-            "derived_ik",
-            [t],
-            [ca.vertcat(*[a for b in wrapped for a in b]), ca.vertcat(*errs), ca.vertcat(*pairs)],
-        )
+            closest = ops.fmin(closest, ops.where(ok[i] * ok[j], dist, ca.inf))
+        outs = [
+            ca.vertcat(*[a for b in wrapped for a in b]),
+            ca.vertcat(*[e for pair in errs for e in pair]),
+            ca.vertcat(*ok),
+            ca.vertcat(near, closest),
+        ]
+        self.function = f = ca.Function("derived_ik", [t], outs)
         self.t = np.zeros(16)
         self.q = np.zeros(6 * len(raw))
         self.err = np.zeros(2 * len(raw))
-        self.pairs = np.zeros(len(pairs))
+        self.ok = np.zeros(len(raw))
+        self.flags = np.zeros(2)
+        self.outputs = [self.q, self.err, self.ok, self.flags]
         self.buffer, self.call = f.buffer()
         self.buffer.set_arg(0, memoryview(self.t))
-        for k, out in enumerate((self.q, self.err, self.pairs)):
+        for k, out in enumerate(self.outputs):
             self.buffer.set_res(k, memoryview(out))
         self.lock = threading.Lock()
         self.calls = 0
@@ -319,7 +325,7 @@ class _Single:
             return
         if wait:
             lib.wait()
-        binding = native.Binding(lib, self.function.name(), [self.t], [self.q, self.err, self.pairs])
+        binding = native.Binding(lib, self.function.name(), [self.t], self.outputs)
         evaluate = self.call
         self.call = lambda: binding(evaluate)
 
@@ -400,8 +406,9 @@ def general_rows(m: Mechanism) -> registry.IKSolver | None:
     """Registry deriver after [`derived_rows`][optik.closed_form.derived.derived_rows]: a 6R
     serial chain of no decomposable family gets the general 6R solver
     ([`ik_general_6r`][optik.closed_form.general_6r.ik_general_6r], all 16 complex solutions'
-    real ones, each FK-checked)."""
-    if m.n_q != 6 or derive(m) is not None or chain_axes(m) is None:
+    real ones, each FK-checked) when it covers the geometry
+    ([`covers`][optik.closed_form.general_6r.covers]: no certified answer otherwise)."""
+    if m.n_q != 6 or derive(m) is not None or chain_axes(m) is None or not general_6r.covers(m):
         return None
     return general_6r.ik_general_6r
 

@@ -6,7 +6,7 @@ Any chain of six revolute joints is first written in standard Denavit-Hartenberg
 ``T(q) = B A1(theta_1) ... A6(theta_6) E``,  ``A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)``,
 ``theta_i = q_i + o_i``,
 
-from its joint lines at ``q = 0`` (:meth:`General6R.from_mechanism`; the common normals of
+from its joint lines at ``q = 0`` (`General6R.from_mechanism`; the common normals of
 consecutive axes give ``a_i, alpha_i, d_i`` and the offsets ``o_i``). With ``T' = B^-1 T E^-1``:
 
 1. **Fourteen equations.** ``A3 A4 A5 = A2^-1 A1^-1 T' A6^-1``; the third and fourth columns of
@@ -32,7 +32,7 @@ consecutive axes give ``a_i, alpha_i, d_i`` and the offsets ``o_i``). With ``T' 
    (``theta_1, theta_2`` from its ``c, s`` entries), ``theta_6`` from ``A6 = (A1..A5)^-1 T'``.
 
 The angles in steps 1-3 are ``phi_k = theta_k - delta_k`` for fixed pseudo-random rotations
-``delta_3, delta_4, delta_5`` (:data:`ROTATIONS`): a real Moebius change of the half-angle
+``delta_3, delta_4, delta_5`` (`ROTATIONS`): a real Moebius change of the half-angle
 variables that keeps ``+-i`` fixed and moves the poles ``x_k = inf`` away from any special angle
 of a designed arm, so that ``A`` is invertible and the eigenvectors are well scaled unless a
 solution lies exactly at the rotated pole (probability zero; then, and whenever ``A`` is badly
@@ -40,17 +40,22 @@ conditioned, the ``24 x 24`` generalized eigenproblem is solved by QZ instead).
 
 When the count check fails, the inverse chain (`General6R.reversed`) is solved too: axes 1-2
 intersecting or parallel make ``M(x_3)`` singular for every ``x_3``, and the inverse chain has
-them at positions 5-6, where the elimination is regular.
+them at positions 5-6, where the elimination is regular. When both ends fail, the real solutions
+of a nearby generic arm (`General6R.perturbed`) are polished on the arm and added, without a
+certificate (the count check stays failed). `covers` tells beforehand whether an arm's geometry
+is covered (regular from one end).
 
-**Certification.** Every candidate whose eigenvalue is real to within :data:`REAL_TOL` is
-Newton-polished on the full pose residual (six equations, six unknowns), kept only when the
-final forward kinematics matches the target to :data:`FK_TOL` (position relative to the arm's
+**Certification.** Every candidate whose eigenvalue is real to within `REAL_TOL` is
+Newton-polished on the full pose residual (six equations, six unknowns) of the DH model and,
+for a mechanism, on ``m.fk`` / ``m.jacobian`` where still needed, kept only when the
+final forward kinematics matches the target to `FK_TOL` (position relative to the arm's
 size, orientation in radians) and deduplicated (1e-6 rad, angles modulo 2 pi). The count check:
 a generic arm has exactly 16 finite solutions in complex space, so the result reports the number
 of finite eigenvalues (``n_finite``, 16 expected), of real and of complex ones, and flags
 (``count_ok = False``) any instance where the verified real solutions and the complex
-eigenvalues do not add up to 16, where fewer than 16 finite eigenvalues were found, or where a
-real candidate failed its check: the arm or the pose is then degenerate (special geometry, a
+eigenvalues do not add up to 16, where fewer than 16 finite eigenvalues were found, where
+``M(x_3)`` is singular at two test points (a singular pencil, whose eigenvalues mean nothing),
+or where a real candidate failed its check: the arm or the pose is then degenerate (special geometry, a
 pose on a singular boundary) and solutions may be missing.
 """
 
@@ -73,6 +78,7 @@ from optik.mechanism import Mechanism
 
 __all__ = [
     "FK_TOL",
+    "PERTURBATION",
     "REAL_TOL",
     "ROTATIONS",
     "General6R",
@@ -91,6 +97,9 @@ polishing and the FK check then decide."""
 
 ROTATIONS = (0.7853981633974483 + 0.2718281828, -0.5772156649, 0.4142135624)
 """The fixed rotations ``delta_3, delta_4, delta_5`` (rad) of the eliminated angles."""
+
+PERTURBATION = 1e-4
+"""Relative size of the change that makes a special arm generic (`General6R.perturbed`)."""
 
 NEWTON_ITERATIONS = 12
 """Newton iterations on the pose residual per candidate (converged candidates stop early)."""
@@ -267,6 +276,24 @@ class General6R:
         fwd = _matrices(self, targets)
         back = _matrices(self.reversed, _inv(targets))
         return bool(np.all((fwd[6] & fwd[7]) | (back[6] & back[7])))
+
+    @cached_property
+    def perturbed(self) -> General6R:
+        """A generic arm near this one: every DH length moved by `PERTURBATION` times the arm's
+        size and every twist by `PERTURBATION` rad, in fixed pseudo-random directions. Its real
+        solutions, polished on this arm, recover the nonsingular real solutions of special
+        geometry that the elimination cannot treat (no certificate: the count check stays
+        failed)."""
+        r = np.random.default_rng(0).normal(size=(3, 6))
+        step = PERTURBATION * self.scale
+        return General6R(
+            self.a + step * r[0],
+            self.alpha + PERTURBATION * r[1],
+            self.d + step * r[2],
+            self.offset,
+            self.base,
+            self.tool,
+        )
 
     @cached_property
     def reversed(self) -> General6R:
@@ -676,10 +703,24 @@ def solve_general_6r(
     """
     g = _arm(arm)
     targets, single = _targets(g, target)
-    fk = arm.fk if isinstance(arm, Mechanism) else g.fk
+    m = arm if isinstance(arm, Mechanism) else None
+    fk = arm.fk if m is not None else g.fk
+    out = _both_ends(g, targets, fk, m)
+    bad = [k for k, s in enumerate(out) if not s.count_ok]
+    if bad:  # special geometry at both ends: candidates from a nearby generic arm
+        near = _both_ends(g.perturbed, targets[bad], g.perturbed.fk, None)
+        for k, sol in zip(bad, near, strict=True):
+            q = _refine(g, m, sol.q.copy(), np.repeat(targets[k][None], len(sol.q), axis=0))
+            out[k] = _add(out[k], q, targets[k], fk, g.scale)
+    return out[0] if single else out
+
+
+def _both_ends(g: General6R, targets: np.ndarray, fk: Any, m: Mechanism | None) -> list[General6RSolutions]:
+    """The eigenvalue solver on ``g``, then on its inverse chain for the targets whose count
+    check failed (``m``: the mechanism whose ``m.fk`` polishes the solutions last, or None)."""
 
     def refine(q: np.ndarray, idx: np.ndarray) -> np.ndarray:
-        return _refine(g, arm if isinstance(arm, Mechanism) else None, q, targets[idx])
+        return _refine(g, m, q, targets[idx])
 
     out = _solve(g, targets, fk, refine)
     bad = [k for k, s in enumerate(out) if not s.count_ok]
@@ -692,7 +733,32 @@ def solve_general_6r(
         )
         for k, rev in zip(bad, back, strict=True):
             out[k] = _merge(out[k], rev, targets[k], fk, g.scale)
-    return out[0] if single else out
+    return out
+
+
+def _add(
+    sols: General6RSolutions, q: np.ndarray, target: np.ndarray, fk: Any, scale: float
+) -> General6RSolutions:
+    """``sols`` (flagged) with the candidates ``q`` that pass the FK check added (deduplicated)."""
+    err = np.zeros(0)
+    if len(q):
+        dp, dr = _pose_errors(fk(q), target)
+        err = np.maximum(dp / scale, dr)
+        q = q[err <= FK_TOL]
+    merged = _dedup(np.vstack([sols.q, q]))
+    added = len(merged) - len(sols.q)
+    fk_error = max(sols.fk_error, float(np.max(err[err <= FK_TOL], initial=0.0)))
+    reason = f"{sols.reason}; {added} more from a generic arm {PERTURBATION:g} away (not certified)"
+    return General6RSolutions(
+        merged,
+        sols.n_finite,
+        sols.n_real_candidates,
+        sols.n_complex,
+        sols.n_rejected,
+        fk_error,
+        False,
+        reason,
+    )
 
 
 def _refine(g: General6R, m: Mechanism | None, q: np.ndarray, targets: np.ndarray) -> np.ndarray:

@@ -127,10 +127,11 @@ def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]
     """[`Mechanism.wrap`][optik.Mechanism.wrap] of every row (branches of one target: a few short rows).
 
     Plain floats: for a handful of branches this is several times cheaper than numpy calls on
-    tiny arrays. Same arithmetic as ``m.wrap`` (angles to ``(-pi, pi]``, then the first of the
-    shifts ``2 pi, -2 pi, 4 pi, -4 pi`` that lands within the limits of a coordinate outside
-    them; rotation vectors of spherical joints as ``m.wrap`` does); falls back to ``m.wrap`` for
-    rows of the wrong length and non-finite rows (which ``m.wrap`` rejects with its own error)."""
+    tiny arrays. Same arithmetic as ``m.wrap`` (angles to ``(-pi, pi]``; a coordinate that this
+    takes out of its limits keeps its value when that is within them, else takes the first of
+    the shifts ``2 pi, -2 pi, 4 pi, -4 pi`` that lands within them; rotation vectors of
+    spherical joints as ``m.wrap`` does); falls back to ``m.wrap`` for rows of the wrong length
+    and non-finite rows (which ``m.wrap`` rejects with its own error)."""
     mask, spherical, angles = _coordinates(m)
     out = [row.tolist() if isinstance(row, np.ndarray) else [float(v) for v in row] for row in rows]
     # a non-finite sum flags NaN / infinity (and, harmlessly, overflow: m.wrap then decides)
@@ -146,7 +147,9 @@ def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]
             w = (row[k] + pi) % two_pi - pi  # wrap_angle_one, inlined
             if w <= -pi:
                 w += two_pi
-            if not lo[k] <= w <= hi[k]:
+            if not lo[k] <= w <= hi[k] and lo[k] <= row[k] <= hi[k]:
+                w = row[k]  # within the limits already (a shift back could round it outside)
+            elif not lo[k] <= w <= hi[k]:
                 for shift in _SHIFTS:
                     if lo[k] <= w + shift <= hi[k]:
                         w += shift
@@ -168,9 +171,13 @@ class CheckedRows(list):
     the ``(position, orientation)`` error of row ``i`` against the target (m, rad). The solvers
     layer then reports those errors instead of evaluating the FK of every row again."""
 
-    def __init__(self, rows: Sequence[Sequence[float]], errors: Sequence[tuple[float, float]]) -> None:
+    def __init__(
+        self, rows: Sequence[Sequence[float]], errors: Sequence[tuple[float, float]], wrapped: bool = False
+    ) -> None:
         super().__init__(rows)
         self.errors = list(errors)
+        self.wrapped = wrapped
+        """True when every angle is already in ``(-pi, pi]``."""
 
 
 def branches(m: Mechanism, t: np.ndarray) -> list[list[float]]:
@@ -184,8 +191,22 @@ def branches(m: Mechanism, t: np.ndarray) -> list[list[float]]:
     if solver is None:
         raise SolverUnavailableError(f"no closed-form IK for mechanism {m.name!r} (kind {m.kind!r})")
     rows = solver(m, t)
-    wrapped = wrap_rows(m, rows)
-    return CheckedRows(wrapped, rows.errors) if isinstance(rows, CheckedRows) else wrapped
+    if isinstance(rows, CheckedRows):
+        if rows.wrapped and _covers_half_turns(m):  # wrap_rows would return the same numbers
+            return rows
+        return CheckedRows(wrap_rows(m, rows), rows.errors)
+    return wrap_rows(m, rows)
+
+
+def _covers_half_turns(m: Mechanism) -> bool:
+    """Every angle coordinate of ``m`` has limits containing ``(-pi, pi]`` (so that
+    [`wrap_rows`][optik.closed_form.registry.wrap_rows] leaves wrapped angles unchanged) and
+    there are no spherical joints."""
+    mask, spherical, angles = _coordinates(m)
+    lo, hi = m.lower.tolist(), m.upper.tolist()
+    return (
+        len(angles) == len(mask) and not spherical and all(lo[k] <= -np.pi and hi[k] >= np.pi for k in angles)
+    )
 
 
 def _finish(m: Mechanism, rows: list[list[float]], respect_limits: bool) -> list[np.ndarray]:

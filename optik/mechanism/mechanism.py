@@ -500,6 +500,9 @@ class Mechanism:
         for k in np.flatnonzero(ang):
             if self.lower[k] <= w[k] <= self.upper[k]:
                 continue
+            if self.lower[k] <= qq[k] <= self.upper[k]:  # e.g. on a limit beyond pi: wrapping and
+                w[k] = qq[k]  # shifting back by 2 pi can round it just outside
+                continue
             for shift in (2 * np.pi, -2 * np.pi, 4 * np.pi, -4 * np.pi):
                 if self.lower[k] <= w[k] + shift <= self.upper[k]:
                     w[k] += shift

@@ -295,13 +295,12 @@ class Viewer:
                 self.m, t, self._q, self._method, task=self.task, time_limit=self.time_limit, tol=self.tol
             )
             self.result = res
-            if np.all(np.isfinite(res.q)):
-                self._show_q(np.asarray(res.q, dtype=float))
-            self.panel.show_result(res)
-            if self._all:
-                self._solve_all(t)
-            else:
-                self._show_ghosts([])
+            q = np.asarray(res.q, dtype=float) if np.all(np.isfinite(res.q)) else self._q
+            branches = self._branches(t, q) if self._all else None
+            with self.server.atomic():  # the page applies the whole update at once
+                self._show_q(q)
+                self.panel.show_result(res)
+                self._draw_branches(branches)
             return res
 
     def show_all_solutions(self, on: bool = True) -> list[IKResult]:
@@ -310,28 +309,27 @@ class Viewer:
         with self._lock:
             self._all = bool(on)
             self.panel.set_all(self._all)
-            if not self._all:
-                self.solutions = []
-                self._show_ghosts([])
-                return []
-            return self._solve_all(self._gizmo_pose())
+            self._draw_branches(self._branches(self._gizmo_pose(), self._q) if self._all else None)
+            return list(self.solutions)
 
-    def _solve_all(self, t: np.ndarray) -> list[IKResult]:
-        sols = solve_ik_all(
+    def _branches(self, t: np.ndarray, q0: np.ndarray) -> list[IKResult]:
+        return solve_ik_all(
             self.m,
             t,
-            self._q,
+            q0,
             task=self.task,
             time_limit=self.all_time_limit,
             tol=self.tol,
             max_solutions=self.max_ghosts,
         )
-        self.solutions = [r for r in sols if r.success]
+
+    def _draw_branches(self, branches: list[IKResult] | None) -> None:
+        """Ghosts of the successful ``branches`` (None: "all solutions" is off, no ghosts)."""
+        self.solutions = [r for r in branches or () if r.success]
         self._show_ghosts([r.q for r in self.solutions])
-        self.panel.show_branches(
-            len(self.solutions), len(sols) - len(self.solutions), len(sols) >= self.max_ghosts
-        )
-        return self.solutions
+        if branches is not None:
+            failed = len(branches) - len(self.solutions)
+            self.panel.show_branches(len(self.solutions), failed, len(branches) >= self.max_ghosts)
 
     # ------------------------------------------------------------------ FK
     def _show_q(self, q: np.ndarray) -> None:
@@ -343,7 +341,7 @@ class Viewer:
         """Show configuration ``q`` (what the joint sliders do) and put the target on its end
         effector; returns the end-effector pose."""
         q = self.m.check_q(q)
-        with self._lock:
+        with self._lock, self.server.atomic():
             self._show_q(q)
             pose = self.m.fk(q)
             self._move_gizmo(pose)
@@ -377,7 +375,7 @@ class Viewer:
         returns it."""
         if not 0 <= int(index) < len(self.modes):
             raise InvalidArgumentError("index", f"expected 0 <= index < {len(self.modes)}, got {index!r}")
-        with self._lock:
+        with self._lock, self.server.atomic():
             k = int(index)
             self.set_q(self.modes[k])
             self._show_ghosts([q for i, q in enumerate(self.modes) if i != k] if others else [])
@@ -432,7 +430,7 @@ class Viewer:
         n = len(self.path.q)
         if not 0 <= int(k) < n:
             raise InvalidArgumentError("k", f"expected 0 <= k < {n}, got {k!r}")
-        with self._lock:
+        with self._lock, self.server.atomic():
             q = self.path.q[int(k)]
             self._show_q(q)
             self._move_gizmo(self._path_targets[max(int(k) - 1, 0)])

@@ -41,14 +41,15 @@ def test_batch_equals_solve_ik_with_each_targets_seed() -> None:
 
 def test_answers_do_not_depend_on_chunks_or_threads() -> None:
     targets, q0 = _panda_targets(60, 21)
-    a = solve_ik_batch(PANDA, targets, q0, tol=1e-6, seed=9, workers=1)
-    b = solve_ik_batch(PANDA, targets, q0, tol=1e-6, seed=9, workers=2, chunk_size=7)
+    T = 2.0  # no target may stop on the clock: under load a 5 ms limit would make answers timing-dependent
+    a = solve_ik_batch(PANDA, targets, q0, tol=1e-6, seed=9, workers=1, time_limit=T)
+    b = solve_ik_batch(PANDA, targets, q0, tol=1e-6, seed=9, workers=2, chunk_size=7, time_limit=T)
     for name in ("q", "success", "iterations", "restarts", "status", "seed", "position_error"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
     c = solve_ik_batch(PANDA, targets, q0, tol=1e-6, seed=10, workers=2)
     assert not np.array_equal(a.seed, c.seed)
     # a slice solved again with its own seeds gives the same rows
-    part = solve_ik_batch(PANDA, targets[20:30], q0[20:30], tol=1e-6, seed=a.seed[20:30])
+    part = solve_ik_batch(PANDA, targets[20:30], q0[20:30], tol=1e-6, seed=a.seed[20:30], time_limit=T)
     np.testing.assert_array_equal(part.q, a.q[20:30])
     assert part.base_seed is None and a.base_seed == 9
 

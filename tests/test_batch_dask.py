@@ -33,8 +33,8 @@ def _answers_equal_the_local_run(client) -> None:
     m = optik.catalog.panda()
     targets = fk_batch(m, m.random_q(300, seed=5))
     q0 = m.random_q(300, seed=6)
-    local = solve_ik_batch(m, targets, q0, tol=1e-5, seed=2)
-    remote = solve_ik_batch(m, targets, q0, tol=1e-5, seed=2, scheduler=client, chunk_size=16)
+    local = solve_ik_batch(m, targets, q0, tol=1e-5, seed=2, time_limit=2.0)
+    remote = solve_ik_batch(m, targets, q0, tol=1e-5, seed=2, scheduler=client, chunk_size=16, time_limit=2.0)
     assert remote.workers == 2 and remote.success.all()
     for name in ("q", "success", "iterations", "restarts", "status", "seed", "position_error"):
         np.testing.assert_array_equal(getattr(remote, name), getattr(local, name))
@@ -43,7 +43,7 @@ def _answers_equal_the_local_run(client) -> None:
         lambda: __import__("optik.solvers.lm_kernel").solvers.lm_kernel.kernel.cache_info().currsize
     )
     assert sorted(who.values()) == [1, 1]
-    again = solve_ik_batch(m, targets[:20], q0[:20], tol=1e-5, seed=2, scheduler=client)
+    again = solve_ik_batch(m, targets[:20], q0[:20], tol=1e-5, seed=2, scheduler=client, time_limit=2.0)
     np.testing.assert_array_equal(again.q, local.q[:20])
     assert (
         client.run(
@@ -56,13 +56,13 @@ def _answers_equal_the_local_run(client) -> None:
 def _chunks_of_a_lost_worker_are_rerun(client) -> None:
     m = optik.catalog.panda()
     targets = fk_batch(m, m.random_q(300, seed=8))
-    local = solve_ik_batch(m, targets, tol=1e-5, seed=4)
+    local = solve_ik_batch(m, targets, tol=1e-5, seed=4, time_limit=2.0)
     solve_ik_batch(m, targets[:4], scheduler=client)  # ship the mechanism first
     pids = client.run(os.getpid)
     box: dict = {}
     run = threading.Thread(
         target=lambda: box.update(
-            res=solve_ik_batch(m, targets, tol=1e-5, seed=4, scheduler=client, chunk_size=1)
+            res=solve_ik_batch(m, targets, tol=1e-5, seed=4, scheduler=client, chunk_size=1, time_limit=2.0)
         )
     )
     before = set(client.nthreads())

@@ -6,7 +6,7 @@ Any chain of six revolute joints is first written in standard Denavit-Hartenberg
 ``T(q) = B A1(theta_1) ... A6(theta_6) E``,  ``A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)``,
 ``theta_i = q_i + o_i``,
 
-from its joint lines at ``q = 0`` (:meth:`General6R.from_mechanism`; the common normals of
+from its joint lines at ``q = 0`` (`General6R.from_mechanism`; the common normals of
 consecutive axes give ``a_i, alpha_i, d_i`` and the offsets ``o_i``). With ``T' = B^-1 T E^-1``:
 
 1. **Fourteen equations.** ``A3 A4 A5 = A2^-1 A1^-1 T' A6^-1``; the third and fourth columns of
@@ -32,7 +32,7 @@ consecutive axes give ``a_i, alpha_i, d_i`` and the offsets ``o_i``). With ``T' 
    (``theta_1, theta_2`` from its ``c, s`` entries), ``theta_6`` from ``A6 = (A1..A5)^-1 T'``.
 
 The angles in steps 1-3 are ``phi_k = theta_k - delta_k`` for fixed pseudo-random rotations
-``delta_3, delta_4, delta_5`` (:data:`ROTATIONS`): a real Moebius change of the half-angle
+``delta_3, delta_4, delta_5`` (`ROTATIONS`): a real Moebius change of the half-angle
 variables that keeps ``+-i`` fixed and moves the poles ``x_k = inf`` away from any special angle
 of a designed arm, so that ``A`` is invertible and the eigenvectors are well scaled unless a
 solution lies exactly at the rotated pole (probability zero; then, and whenever ``A`` is badly
@@ -40,17 +40,22 @@ conditioned, the ``24 x 24`` generalized eigenproblem is solved by QZ instead).
 
 When the count check fails, the inverse chain (`General6R.reversed`) is solved too: axes 1-2
 intersecting or parallel make ``M(x_3)`` singular for every ``x_3``, and the inverse chain has
-them at positions 5-6, where the elimination is regular.
+them at positions 5-6, where the elimination is regular. When both ends fail, the real solutions
+of a nearby generic arm (`General6R.perturbed`) are polished on the arm and added, without a
+certificate (the count check stays failed). `covers` tells beforehand whether an arm's geometry
+is covered (regular from one end).
 
-**Certification.** Every candidate whose eigenvalue is real to within :data:`REAL_TOL` is
-Newton-polished on the full pose residual (six equations, six unknowns), kept only when the
-final forward kinematics matches the target to :data:`FK_TOL` (position relative to the arm's
+**Certification.** Every candidate whose eigenvalue is real to within `REAL_TOL` is
+Newton-polished on the full pose residual (six equations, six unknowns) of the DH model and,
+for a mechanism, on ``m.fk`` / ``m.jacobian`` where still needed, kept only when the
+final forward kinematics matches the target to `FK_TOL` (position relative to the arm's
 size, orientation in radians) and deduplicated (1e-6 rad, angles modulo 2 pi). The count check:
 a generic arm has exactly 16 finite solutions in complex space, so the result reports the number
 of finite eigenvalues (``n_finite``, 16 expected), of real and of complex ones, and flags
 (``count_ok = False``) any instance where the verified real solutions and the complex
-eigenvalues do not add up to 16, where fewer than 16 finite eigenvalues were found, or where a
-real candidate failed its check: the arm or the pose is then degenerate (special geometry, a
+eigenvalues do not add up to 16, where fewer than 16 finite eigenvalues were found, where
+``M(x_3)`` is singular at two test points (a singular pencil, whose eigenvalues mean nothing),
+or where a real candidate failed its check: the arm or the pose is then degenerate (special geometry, a
 pose on a singular boundary) and solutions may be missing.
 """
 

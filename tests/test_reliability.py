@@ -467,3 +467,14 @@ def test_problem_file_number_beyond_the_float_range(tmp_path):
     text = text.replace("[targets]", "[tolerances]\nposition = 1" + "0" * 400 + "\n[targets]")
     with pytest.raises(optik.ProblemFileError, match=r"tolerances\.position: expected a finite number"):
         load_problem(_problem_file(tmp_path, text=text))
+
+
+@pytest.mark.parametrize("name", ["planar_3rpr", "stewart_gough", "five_bar"])
+def test_closed_form_fk_of_overflowing_actuated_values(name):
+    """planar_3rpr with a leg of 1e300: OverflowError / IndexError inside the solver."""
+    m = getattr(catalog, name)()
+    a = m.mid_q()[m.actuated_indices]
+    a[0] = 1e300
+    _raises("actuated", optik.closed_form.fk, m, a)
+    a[0] = 1e40  # huge but within the range: cannot assemble
+    assert optik.closed_form.fk(m, a) == []

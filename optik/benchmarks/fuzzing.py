@@ -156,7 +156,7 @@ KNOWN: tuple[Known, ...] = (
         "3-RPR / Stewart-Gough closed-form FK of leg lengths whose squares overflow",
         lambda call, detail: any(n in call.label for n in ("planar_3rpr", "stewart_gough"))
         and any(call.label.startswith(e) for e in ("closed_form.fk", "solve_fk_all"))
-        and any(e in detail for e in ("IndexError", "LinAlgError")),
+        and any(e in detail for e in ("IndexError", "LinAlgError", "OverflowError")),
     ),
     Known(
         "parallelfk",
@@ -359,6 +359,19 @@ def _implied_task(m: optik.Mechanism, target: Any, task: str | None) -> str:
     return m.task
 
 
+def _each(one: Callable[[Any], str | None]) -> Callable[[Any], str | None]:
+    """A check of a result or a list of results (``solve_ik_all``, ``solve_fk_all``) by ``one``."""
+
+    def check(result: Any) -> str | None:
+        for r in result if isinstance(result, list) else [result]:
+            problem = one(r)
+            if problem:
+                return problem
+        return None
+
+    return check
+
+
 def check_ik(m: optik.Mechanism, target: Any, task: str | None, frame: str | None, tol: Any) -> Callable:
     """The check of an ``IKResult`` (or a list of them): status agrees with success; a success is
     within the limits, meets the tolerances by FK recomputed from ``q`` and closes its loops."""
@@ -385,14 +398,7 @@ def check_ik(m: optik.Mechanism, target: Any, task: str | None, frame: str | Non
             return f"claimed success: position {pos:.3g}, orientation {ori:.3g}, closure {clo:.3g} ({space})"
         return None
 
-    def check(result: Any) -> str | None:
-        for r in result if isinstance(result, list) else [result]:
-            problem = one(r)
-            if problem:
-                return problem
-        return None
-
-    return check
+    return _each(one)
 
 
 def check_fk(m: optik.Mechanism, actuated: np.ndarray, tol: Any) -> Callable:
@@ -423,14 +429,7 @@ def check_fk(m: optik.Mechanism, actuated: np.ndarray, tol: Any) -> Callable:
             return "pose is not fk(q)"
         return None
 
-    def check(result: Any) -> str | None:
-        for r in result if isinstance(result, list) else [result]:
-            problem = one(r)
-            if problem:
-                return problem
-        return None
-
-    return check
+    return _each(one)
 
 
 def _angle_diff(m: optik.Mechanism, d: np.ndarray, idx: Sequence[int]) -> np.ndarray:

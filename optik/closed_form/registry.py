@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from optik.checks import as_vector
-from optik.errors import SolverUnavailableError
+from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.spatial import wrap_rotation_vector
 from optik.targets import target_transform
@@ -87,6 +87,11 @@ def has_fk(m: Mechanism) -> bool:
 
 _Coordinates = tuple[tuple[bool, ...], tuple[slice, ...], tuple[int, ...]]
 _COORDS: weakref.WeakKeyDictionary[Mechanism, _Coordinates] = weakref.WeakKeyDictionary()
+
+MAX_ACTUATED = 1e50
+"""Largest actuated value (leg length, angle) the closed-form FK accepts: the assembly
+polynomials raise them to powers up to 6, which overflows beyond (the 3-RPR and Stewart-Gough
+solvers raised OverflowError, IndexError or LinAlgError there)."""
 
 _TWO_PI = 2.0 * np.pi
 _SHIFTS = (2 * np.pi, -2 * np.pi, 4 * np.pi, -4 * np.pi)
@@ -236,8 +241,13 @@ def fk(m: Mechanism, actuated: Any, respect_limits: bool = True) -> list[np.ndar
 
     Raises:
         SolverUnavailableError: no closed-form FK is registered for ``m.kind``.
+        InvalidArgumentError: an actuated value beyond `MAX_ACTUATED` in magnitude.
     """
     if m.kind not in _FK:
         raise SolverUnavailableError(f"no closed-form FK for mechanism {m.name!r} (kind {m.kind!r})")
     a = as_vector(actuated, "actuated", len(m.actuated_indices))
+    if a.size and not float(np.abs(a).max()) <= MAX_ACTUATED:
+        raise InvalidArgumentError(
+            "actuated", f"values beyond {MAX_ACTUATED:g} in magnitude overflow the closed forms, got {a}"
+        )
     return _finish(m, wrap_rows(m, _FK[m.kind](m, a)), respect_limits)

@@ -14,8 +14,8 @@ import pytest
 from optik import problem_files
 from optik.bench import run_bench, run_problem
 from optik.bench.harness import Call, SolverRun
-from optik.bench.progress import Progress
 from optik.errors import InvalidArgumentError
+from optik.progress import Progress
 
 
 def call(t, ok=True, cf=0.0, ref=0.0):

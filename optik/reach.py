@@ -34,19 +34,19 @@ import time
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.figure import Figure
-from matplotlib.ticker import MaxNLocator
 
 from optik.batch import fk_batch, solve_ik_batch
-from optik.bench.progress import Progress
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
-from optik.plot import save_figure, write_atomic
+from optik.progress import Progress
 from optik.solvers.base import positive_int
 from optik.solvers.lm_kernel import target_seeds
+
+if TYPE_CHECKING:  # matplotlib and optik.plot are imported on first use: slow to import
+    from matplotlib.figure import Figure
 
 __all__ = ["ReachMap", "reach", "so3_samples"]
 
@@ -293,6 +293,8 @@ def _now() -> str:
 
 
 def _write_json(path: Path, data: dict[str, Any]) -> Path:
+    from optik.plot import write_atomic
+
     return write_atomic(path, lambda tmp: Path(tmp).write_text(json.dumps(data, indent=2) + "\n"))
 
 
@@ -328,6 +330,8 @@ def _load_chunk(folder: Path | None, k: int) -> dict[str, np.ndarray] | None:
 
 
 def _save_npz(path: Path, **arrays: np.ndarray) -> Path:
+    from optik.plot import write_atomic
+
     def write(tmp: str) -> None:
         buf = io.BytesIO()
         np.savez_compressed(buf, **arrays)
@@ -347,6 +351,8 @@ def _save_chunk(folder: Path, k: int, res: Any, n_vox: int, n_rot: int) -> None:
 
 
 def _write_outputs(folder: Path, rmap: ReachMap) -> list[Path]:
+    from optik.plot import save_figure
+
     files = [
         _save_npz(
             folder / "reach.npz",
@@ -369,6 +375,8 @@ def _write_outputs(folder: Path, rmap: ReachMap) -> list[Path]:
 def plot_slices(rmap: ReachMap, n: int = 4) -> Figure:
     """The index on ``n`` horizontal slices (z levels through the workspace) and on the
     vertical x-z slice through the base (y = 0)."""
+    from matplotlib.figure import Figure
+
     g = rmap.grid()
     fig = Figure(figsize=(3.2 * (n + 1), 3.4), layout="constrained")
     lo = rmap.origin
@@ -406,6 +414,9 @@ def plot_slices(rmap: ReachMap, n: int = 4) -> Figure:
 def plot_scatter(rmap: ReachMap) -> Figure:
     """3-D scatter of the voxels with a nonzero index, coloured by it, cut open at y = 0 (the
     half y <= 0 is drawn, so that the inside shows)."""
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
+
     fig = Figure(figsize=(6.5, 5.5), layout="constrained")
     ax = fig.add_subplot(projection="3d")
     keep = (rmap.index > 0) & (rmap.centers[:, 1] <= 0.5 * rmap.resolution)

@@ -14,8 +14,8 @@ import pytest
 from optik import problem_files
 from optik.bench import run_bench, run_problem
 from optik.bench.harness import Call, SolverRun
-from optik.bench.progress import Progress
 from optik.errors import InvalidArgumentError
+from optik.progress import Progress
 
 
 def call(t, ok=True, cf=0.0, ref=0.0):
@@ -134,7 +134,7 @@ def test_run_bench_rejects_bad_arguments(tmp_path):
 def test_peers_run_on_the_panda():
     pytest.importorskip("pytracik")
     p = problem_files.find_problem("panda")
-    res = run_problem(p, n=3, time_limit=0.05, only=["trac_ik"])
+    res = run_problem(p, n=3, time_limit=0.5, only=["trac_ik"])  # 0.05 s failed all 3 under load
     assert [r.name for r in res.runs] == ["trac_ik"], res.notes
     s = res.summary()[0]
     assert s["kind"] == "peer" and s["success_pct"] > 0

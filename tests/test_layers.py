@@ -2,7 +2,7 @@
 modules import each other (directly or around a loop), lazy imports inside functions included.
 
 Layers, bottom to top: errors; checks, native; spatial, targets, results; mechanism; catalog;
-closed_form; problem; solvers; diffik; applications (problem_files, batch, reach, plot, bench,
+closed_form; problem; solvers; diffik; applications (problem_files, progress, batch, reach, plot, bench,
 benchmarks, view, cli). A package's ``__init__`` may import its own submodules (it re-exports them).
 """
 
@@ -25,7 +25,7 @@ LAYERS = [
     {"problem"},
     {"solvers"},
     {"diffik"},
-    {"problem_files", "batch", "reach", "plot", "bench", "benchmarks", "view", "cli"},
+    {"problem_files", "progress", "batch", "reach", "plot", "bench", "benchmarks", "view", "cli"},
 ]
 LEVEL = {name: i for i, layer in enumerate(LAYERS) for name in layer}
 

@@ -51,7 +51,7 @@ def test_a_target_just_across_pi_is_reached_without_going_around(method):
     t = _arm().fk(q_true)
     target = Pose2D(t[0, 3], t[1, 3], np.arctan2(t[1, 0], t[0, 0]))
     opts = {"max_restarts": 0} if method in ("lm", "nlp") else {}
-    res = optik.solve_ik(_arm(), target, q0=q0, method=method, **opts)
+    res = optik.solve_ik(_arm(), target, q0=q0, method=method, time_limit=1.0, **opts)
     assert res.success, res.message
     assert -np.pi < res.q[0] <= np.pi  # reported wrapped
     np.testing.assert_allclose(_arm().fk(res.q), t, atol=1e-6)  # checked independently
@@ -65,7 +65,7 @@ def test_a_target_just_across_pi_is_reached_without_going_around(method):
 def test_unbounded_ik_with_restarts_and_unreachable_targets(method):
     m = _arm()
     t = m.fk([2.5, -1.0])
-    reachable = optik.solve_ik(m, Pose2D(t[0, 3], t[1, 3], 1.5), method=method, seed=3)  # from (0, 0)
+    reachable = optik.solve_ik(m, Pose2D(t[0, 3], t[1, 3], 1.5), method=method, seed=3, time_limit=1.0)
     assert reachable.success and np.isfinite(reachable.q).all()
     np.testing.assert_allclose(m.fk(reachable.q), t, atol=1e-6)
     far = optik.solve_ik(m, Pose2D(5.0, 0.0, 0.0), method=method, time_limit=0.05)  # restarts drawn

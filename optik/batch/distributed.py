@@ -1,8 +1,10 @@
 """Batch IK on a Dask cluster (``pip install optik[dist]``).
 
 Each chunk of targets is one Dask task running `optik.batch.solve.solve_chunk` on a worker.
-The mechanism is scattered once to every worker (``Client.scatter(..., broadcast=True)``, the
-definition only: see ``Mechanism.__reduce__``), so a worker unpickles it once and its compiled
+The mechanism is shipped once per cluster as the result of a small task (the definition only:
+see ``Mechanism.__reduce__``), not as scattered data: the scheduler keeps the task, so when the
+worker holding the mechanism dies Dask recomputes it elsewhere (scattered data would be lost
+with its worker, and every chunk with it). Each worker fetches it once, unpickles it once and its compiled
 kernel, built on the first chunk into the worker machine's cache
 (``$OPTIK_CACHE_DIR`` or ``~/.cache/optik``), serves every later chunk. Results are gathered in
 input order; a chunk whose worker dies is rerun by Dask on another worker (``retries``). The
@@ -23,8 +25,8 @@ from optik.batch.result import BatchResult
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 
-_SCATTERED: weakref.WeakKeyDictionary[Mechanism, dict[str, Any]] = weakref.WeakKeyDictionary()
-"""Scattered mechanisms per client id (ship a mechanism once per cluster)."""
+_SHIPPED: weakref.WeakKeyDictionary[Mechanism, dict[str, Any]] = weakref.WeakKeyDictionary()
+"""The future of each shipped mechanism per client id (ship a mechanism once per cluster)."""
 
 _ON_WORKER: dict[str, Mechanism] = {}
 """In a worker process: the first copy of each shipped mechanism by its key, so that every
@@ -51,12 +53,16 @@ def client_of(scheduler: Any) -> Any:
     )
 
 
-def scattered(client: Any, m: Mechanism) -> Any:
-    """The future of ``(key, m)`` on every worker of ``client`` (scattered on first use; the
-    key names this mechanism on the workers)."""
-    per_client = _SCATTERED.setdefault(m, {})
+def _ship(key: str, m: Mechanism) -> tuple[str, Mechanism]:
+    return key, m
+
+
+def shipped(client: Any, m: Mechanism) -> Any:
+    """The future of ``(key, m)`` on ``client``'s cluster: a task's result, so Dask recomputes it
+    when its worker is lost (made on first use; the key names this mechanism on the workers)."""
+    per_client = _SHIPPED.setdefault(m, {})
     if client.id not in per_client:
-        per_client[client.id] = client.scatter((uuid.uuid4().hex, m), broadcast=True, hash=False)
+        per_client[client.id] = client.submit(_ship, uuid.uuid4().hex, m, pure=False)
     return per_client[client.id]
 
 
@@ -95,7 +101,7 @@ def solve_on_cluster(
     n = len(targets)
     size = chunk_size or max(1, min(4096, -(-n // (8 * threads))))
     bounds = chunk_bounds(n, threads, size)
-    mf = scattered(client, m)
+    mf = shipped(client, m)
     futures = [
         client.submit(
             solve_shipped, mf, spec, targets[a:b], starts[a:b], seeds[a:b], retries=retries, pure=False

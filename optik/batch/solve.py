@@ -22,8 +22,8 @@ import numpy as np
 from optik.batch.chunk import ChunkSpec, chunk_bounds, default_workers, solve_chunk
 from optik.batch.inputs import as_starts, as_targets, target_seed_array
 from optik.batch.result import BatchResult
-from optik.bench.progress import Progress
 from optik.mechanism import Mechanism
+from optik.progress import Progress
 from optik.solvers.base import Tolerances, get_method, make_request, positive_int
 from optik.solvers.lm import lm_settings
 

@@ -30,10 +30,10 @@ import numpy as np
 import optik
 from optik import closed_form, native
 from optik.bench.peers import PeerUnavailable, load_peer
-from optik.bench.progress import Progress
 from optik.errors import InvalidArgumentError, OptikError
 from optik.mechanism import Mechanism
 from optik.problem_files import PEERS, Problem, TargetSet
+from optik.progress import Progress
 from optik.solvers import methods
 from optik.solvers.base import BRANCH_TOL, evaluate, joint_distance
 

@@ -11,10 +11,10 @@ from pathlib import Path
 from typing import TextIO
 
 from optik.bench.harness import ProblemRun, known_solvers, run_problems
-from optik.bench.progress import Progress
 from optik.bench.report import format_table, machine_info, write_outputs
 from optik.errors import InvalidArgumentError
 from optik.problem_files import Problem, default_problems, find_problem
+from optik.progress import Progress
 
 __all__ = ["BenchOutcome", "run_bench", "select_problems"]
 

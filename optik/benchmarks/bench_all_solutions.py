@@ -1,6 +1,6 @@
 """Every IK solution of 6-axis arms: optik's derived closed forms against EAIK, pose by pose.
 
-Method (DESIGN.md): per arm, ``--n`` joint vectors drawn uniformly within the limits (seeded),
+Method (docs/benchmarks.md): per arm, ``--n`` joint vectors drawn uniformly within the limits (seeded),
 targets by the mechanism's own FK (``m.fk``); then, target by target in one process (thread pools
 pinned to 1 before numpy is imported), interleaved:
 
@@ -60,7 +60,7 @@ except ImportError:  # pragma: no cover - depends on the environment
     eaik = None
 
 SAME = 1e-4
-"""Joint distance under which two solutions are the same (DESIGN's same-branch rule)."""
+"""Joint distance under which two solutions are the same (the same-branch rule)."""
 FK_TOL = 1e-6
 """FK check of a solution: position (m) and orientation (rad) errors at most this."""
 UR_DIR = "cmeel.prefix/share/example-robot-data/robots/ur_description/urdf"

@@ -1,6 +1,6 @@
 """General 6R inverse kinematics, all solutions: the eigenvalue solver against two peers.
 
-Method (DESIGN.md): random arms (standard DH rows ``d ~ U(-1, 1)``, ``a ~ U(0.1, 1)``,
+Method (docs/benchmarks.md): random arms (standard DH rows ``d ~ U(-1, 1)``, ``a ~ U(0.1, 1)``,
 ``alpha ~ U(-pi, pi)``: no two axes parallel or intersecting), random joint vectors
 ``q ~ U(-pi, pi)^6`` per arm, targets by the mechanism's own FK (``m.fk``), then, target by
 target in the same process (thread pools pinned to 1 before numpy is imported):

@@ -69,7 +69,6 @@ from functools import cached_property
 from typing import Any
 
 import numpy as np
-import scipy.linalg
 
 from optik.checks import as_transform, as_vector
 from optik.closed_form.structure import axes_of
@@ -475,6 +474,8 @@ def _right(left: _Left, tp: np.ndarray) -> np.ndarray:
 def _eigen(m_poly: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Eigenvalues ``(N, 24)`` and the ``w`` parts ``(N, 24, 12)`` of the eigenvectors of
     ``(A x^2 + B x + C) w = 0`` for ``m_poly = (C, B, A)`` of shape ``(N, 3, 12, 12)``."""
+    import scipy.linalg  # QZ for a badly conditioned A; imported on first use: slow to import
+
     n = len(m_poly)
     c, b, a = m_poly[:, 0], m_poly[:, 1], m_poly[:, 2]
     vals = np.empty((n, 24), dtype=complex)

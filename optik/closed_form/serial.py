@@ -106,7 +106,7 @@ def _wrap(a: np.ndarray) -> None:
 
 
 def _cos_slack(l1: float, l2: float, extent: Any) -> Any:
-    """How far ``1 +- c2`` may fall below 0 for a reachable target: :data:`COS_TOL` plus the
+    """How far ``1 +- c2`` may fall below 0 for a reachable target: `COS_TOL` plus the
     rounding of ``(x, y)``. Coordinates formed from terms of magnitude ``extent`` (e.g.
     ``|x| + |y| + l3`` for the 3R wrist point) are off by ``delta = 4 eps extent``, which moves
     ``1 +- c2 = +-(r^2 - (l1 -+ l2)^2) / (2 l1 l2)`` by up to ``delta (l1 + l2 + delta) / (l1 l2)``:
@@ -126,7 +126,7 @@ def _two_link(
         x, y: target of the second link's tip, any shape ``S``.
         out: array of shape ``S + (2, k)``, ``k >= 2``; branch ``b`` is ``sigma = 1 - 2 b``.
         extent: magnitude of the terms ``x`` and ``y`` were computed from (default
-            ``|x| + |y|``), for the rounding slack of :func:`_cos_slack`.
+            ``|x| + |y|``), for the rounding slack of `_cos_slack`.
 
     Returns:
         Reachability mask of shape ``S`` (``1 + c2`` and ``1 - c2`` both ``>= -slack``).

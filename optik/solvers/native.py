@@ -76,7 +76,7 @@ class NativeFunction:
         return self.outputs
 
     def _evaluate(self) -> None:
-        """CasADi's evaluator, into :attr:`outputs`."""
+        """CasADi's evaluator, into `outputs`."""
         res = self.function(*self.inputs)
         res = res if isinstance(res, (list, tuple)) else [res]
         for buf, val in zip(self.outputs, res, strict=True):

@@ -47,7 +47,7 @@ from optik.view.scene import RobotDrawing, Style, extent, poses
 from optik.view.shapes import rotation, wxyz
 from optik.view.visuals import body_visuals
 
-__all__ = ["Viewer", "reach_points", "view"]
+__all__ = ["Viewer", "reach_points"]
 
 PLANAR_TASKS = ("pose2d", "position2d")
 RADIUS = 0.03
@@ -490,10 +490,3 @@ class Viewer:
 
     def __repr__(self) -> str:
         return f"Viewer({self.m.name!r}, url={self.url!r})"
-
-
-def view(m: Mechanism, q: Any = None, **options: Any) -> Viewer:
-    """Show ``m`` in a local web page and return the `Viewer` without blocking (scripts,
-    notebooks): ``v = optik.view(m); v.set_target(T); v.q; v.close()``. ``options`` are those of
-    `Viewer` (``port``, ``host``, ``method``...). Open `Viewer.url` in a browser."""
-    return Viewer(m, q, **options)

@@ -201,3 +201,15 @@ def test_hand_built_mechanism_uses_the_numeric_multistart():
     assert len(modes) == len(exact) == 2
     assert all(any(same_mode(m, r.q, q) for r in modes) for q in exact)
     assert all(r.extra["method"] == "numeric" for r in modes)
+
+
+def test_stewart_fk_all_honours_its_time_limit():
+    """The homotopy behind the Stewart-Gough closed form gets solve_fk_all's budget: a short one
+    ends in time and says that completeness was not certified (it ran 0.7-3.7 s at 0.02 s)."""
+    sg = optik.catalog.stewart_gough()
+    legs = [1.2, 1.1, 1.15, 1.25, 1.2, 1.1]
+    optik.solve_fk_all(sg, legs)  # builds the compiled tracker
+    start = time.perf_counter()
+    with pytest.warns(RuntimeWarning, match="completeness not certified"):
+        optik.solve_fk_all(sg, legs, time_limit=0.005)
+    assert time.perf_counter() - start < 3 * 0.005 + 0.5

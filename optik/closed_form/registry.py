@@ -16,6 +16,7 @@ target.
 
 from __future__ import annotations
 
+import inspect
 import math
 import weakref
 from collections.abc import Callable, Sequence
@@ -34,14 +35,19 @@ FKSolver = Callable[[Mechanism, np.ndarray], Sequence[Sequence[float]]]
 
 _IK: dict[str, IKSolver] = {}
 _FK: dict[str, FKSolver] = {}
+_TIMED_FK: set[str] = set()
+"""Kinds whose FK can run long (iterative: homotopy) and takes a ``time_limit`` keyword."""
 
 
 def register(kind: str, ik: IKSolver | None = None, fk: FKSolver | None = None) -> None:
-    """Register the closed-form IK and/or FK of a catalog kind."""
+    """Register the closed-form IK and/or FK of a catalog kind. An FK solver that can run long
+    declares a ``time_limit`` keyword (seconds); [`fk`][optik.closed_form.registry.fk] passes it on."""
     if ik is not None:
         _IK[kind] = ik
     if fk is not None:
         _FK[kind] = fk
+        if "time_limit" in inspect.signature(fk).parameters:
+            _TIMED_FK.add(kind)
 
 
 Deriver = Callable[[Mechanism], IKSolver | None]
@@ -233,8 +239,18 @@ def ik(m: Mechanism, target: Any, respect_limits: bool = True) -> list[np.ndarra
     return _finish(m, branches(m, target_transform(target)), respect_limits)
 
 
-def fk(m: Mechanism, actuated: Any, respect_limits: bool = True) -> list[np.ndarray]:
+def fk(
+    m: Mechanism, actuated: Any, respect_limits: bool = True, time_limit: float | None = None
+) -> list[np.ndarray]:
     """All closed-form assembly modes for given actuated coordinates.
+
+    Args:
+        m: a catalog mechanism with a registered closed-form FK.
+        actuated: values of the actuated coordinates.
+        respect_limits: drop modes outside the joint limits.
+        time_limit: wall-time budget (s) of the FK solvers that can run long (the Stewart-Gough
+            homotopy, which warns when it could not certify completeness in time); None: their
+            default. The algebraic closed forms finish in microseconds and need none.
 
     Returns:
         One full coordinate vector per assembly mode; ``[]`` when the inputs cannot assemble.
@@ -250,4 +266,5 @@ def fk(m: Mechanism, actuated: Any, respect_limits: bool = True) -> list[np.ndar
         raise InvalidArgumentError(
             "actuated", f"values beyond {MAX_ACTUATED:g} in magnitude overflow the closed forms, got {a}"
         )
-    return _finish(m, wrap_rows(m, _FK[m.kind](m, a)), respect_limits)
+    options = {"time_limit": time_limit} if time_limit is not None and m.kind in _TIMED_FK else {}
+    return _finish(m, wrap_rows(m, _FK[m.kind](m, a, **options)), respect_limits)

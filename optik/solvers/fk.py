@@ -380,7 +380,7 @@ def solve_fk_all(
     *,
     within_limits: bool = True,
     method: str | None = None,
-    time_limit: float = DEFAULT_TIME_LIMIT,
+    time_limit: float | None = None,
     tol: float | Tolerances | None = None,
     seed: int | np.random.Generator | None = None,
     patience: int = 64,
@@ -398,7 +398,10 @@ def solve_fk_all(
             ``limits_violated`` (``success`` stays False for a mode outside the limits).
         method: ``"closed_form"`` (needs a registered closed form), ``"numeric"`` (multi-start), or
             None: the closed form when registered, else numeric.
-        time_limit: wall-time budget of the multi-start (s).
+        time_limit: wall-time budget (s) of the multi-start and of the closed forms that can
+            run long (the Stewart-Gough homotopy, which warns when completeness is not certified
+            in time). None: 1 s for the multi-start (`DEFAULT_TIME_LIMIT`), the closed form's own
+            default (5 s for the homotopy, whose median is tens of milliseconds).
         tol: closure tolerance (max-norm, default 1e-9).
         seed: seed or Generator of the multi-start.
         patience: the multi-start stops after this many consecutive starts without a new mode.
@@ -418,7 +421,7 @@ def solve_fk_all(
     start = time.perf_counter()
     a = _check_inputs(m, actuated)
     tol_c = _closure_tol(tol)
-    limit = _positive(time_limit, "time_limit")
+    limit = DEFAULT_TIME_LIMIT if time_limit is None else _positive(time_limit, "time_limit")
     patience = positive_int(patience, "patience")
     max_iter = positive_int(max_iter, "max_iter")
     singular_condition = _positive(singular_condition, "singular_condition")
@@ -431,7 +434,8 @@ def solve_fk_all(
     found: list[np.ndarray] = []
     measured: list[tuple[float, float] | None] = []
     if use_closed:
-        for q_exact in closed_form.fk(m, a, respect_limits=False):
+        remaining = None if time_limit is None else max(limit - (time.perf_counter() - start), 1e-3)
+        for q_exact in closed_form.fk(m, a, respect_limits=False, time_limit=remaining):
             c, jac = cm.evaluate(q_exact[None])
             known = _measures(c[0], jac[0])
             if known[0] <= tol_c * 1e-3:

@@ -313,13 +313,15 @@ def _real_poses(
     return poses
 
 
-def stewart_gough_fk(m: Mechanism, actuated: np.ndarray) -> list[np.ndarray]:
-    """Stewart-Gough FK: every real posture (`stewart_poses`) as a full ``q``.
+def stewart_gough_fk(m: Mechanism, actuated: np.ndarray, time_limit: float = 5.0) -> list[np.ndarray]:
+    """Stewart-Gough FK: every real posture (`stewart_poses`, within ``time_limit`` seconds) as a
+    full ``q``.
 
     Warns (``RuntimeWarning``) when the homotopy could not certify completeness within its
     time limit, so that a possibly missing posture never goes unnoticed.
     """
-    fk = stewart_poses(m.params["base"], m.params["platform"], np.asarray(actuated, dtype=float))
+    rho = np.asarray(actuated, dtype=float)
+    fk = stewart_poses(m.params["base"], m.params["platform"], rho, time_limit=time_limit)
     if not fk.complete:
         warnings.warn(
             f"Stewart-Gough FK: completeness not certified after {fk.rounds} homotopy round(s) "

@@ -134,7 +134,8 @@ def test_run_bench_rejects_bad_arguments(tmp_path):
 def test_peers_run_on_the_panda():
     pytest.importorskip("pytracik")
     p = problem_files.find_problem("panda")
-    res = run_problem(p, n=20, time_limit=0.5, only=["trac_ik"])  # ~1/3 of its answers overshoot a float32 limit
+    # about a third of TRAC-IK's answers overshoot a limit it stores as float32
+    res = run_problem(p, n=20, time_limit=0.5, only=["trac_ik"])
     assert [r.name for r in res.runs] == ["trac_ik"], res.notes
     s = res.summary()[0]
     assert s["kind"] == "peer" and s["success_pct"] > 0

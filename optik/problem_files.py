@@ -95,12 +95,14 @@ __all__ = [
     "SAMPLING",
     "Problem",
     "TargetSet",
+    "add_source_arguments",
     "assemble",
     "constructors",
     "default_problems",
     "find_problem",
     "list_problems",
     "load_problem",
+    "load_source",
     "problem_summary",
 ]
 
@@ -657,6 +659,33 @@ def find_problem(name: str, directory: str | Path | None = None) -> Problem:
             return problem
     known = sorted(p.stem for p in d.glob("*.toml"))
     raise InvalidArgumentError("problem", f"unknown problem {name!r}; known problems: {known}")
+
+
+def add_source_arguments(parser: Any) -> None:
+    """The arguments of a command that loads one mechanism (``optik view``, ``optik reach``):
+    ``PROBLEM|URDF``, ``--base`` / ``--tip`` (a URDF chain) and ``--problems-dir``; read back by
+    [`load_source`][optik.problem_files.load_source]."""
+    parser.add_argument("source", metavar="PROBLEM|URDF", help="problem name or .toml file, or a .urdf file")
+    parser.add_argument("--base", help="base link of a URDF chain")
+    parser.add_argument("--tip", help="tip link of a URDF chain")
+    parser.add_argument("--problems-dir", metavar="DIR", help="directory of problem files")
+
+
+def load_source(
+    source: str, base: str | None, tip: str | None, problems_dir: str | Path | None = None
+) -> tuple[Mechanism, Problem | None]:
+    """The mechanism of a command's ``PROBLEM|URDF`` argument, and its problem (None for a URDF).
+
+    Raises:
+        InvalidArgumentError: a URDF file without both ``--base`` and ``--tip``; an unknown problem.
+        ProblemFileError: the problem file is invalid.
+    """
+    if Path(source).suffix.lower() == ".urdf":
+        if base is None or tip is None:
+            raise InvalidArgumentError("--base", "a URDF file needs --base and --tip (the chain's end links)")
+        return Mechanism.from_urdf(source, base, tip), None
+    problem = find_problem(source, problems_dir)
+    return problem.mechanism(), problem
 
 
 def problem_summary(problem: Problem) -> dict[str, Any]:

@@ -41,6 +41,7 @@ import numpy as np
 from optik.batch import fk_batch, solve_ik_batch
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
+from optik.problem_files import add_source_arguments, load_source
 from optik.progress import Progress
 from optik.solvers.base import positive_int
 from optik.solvers.lm_kernel import target_seeds
@@ -458,9 +459,7 @@ def add_parser(sub: Any) -> None:
             "PNG figures; resumable (rerun the same command), Ctrl-C keeps every finished chunk."
         ),
     )
-    p.add_argument("source", metavar="PROBLEM|URDF", help="problem name or .toml file, or a .urdf file")
-    p.add_argument("--base", help="base link of a URDF chain")
-    p.add_argument("--tip", help="tip link of a URDF chain")
+    add_source_arguments(p)
     p.add_argument("--resolution", type=float, default=0.05, help="voxel edge in m (default: %(default)s)")
     p.add_argument(
         "--orientations", type=int, default=32, help="orientations per voxel (default: %(default)s)"
@@ -479,24 +478,13 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--workers", type=int, help="local threads (default: the cores available)")
     p.add_argument("--max-chunks", type=int, help="stop after this many chunks (rerun to continue)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("--problems-dir", metavar="DIR", help="directory of problem files")
     p.set_defaults(func=run)
-
-
-def _mechanism(args: argparse.Namespace) -> Mechanism:
-    from optik.problem_files import find_problem
-
-    if Path(args.source).suffix.lower() == ".urdf":
-        if args.base is None or args.tip is None:
-            raise InvalidArgumentError("--base", "a URDF file needs --base and --tip (the chain's end links)")
-        return Mechanism.from_urdf(args.source, args.base, args.tip)
-    return find_problem(args.source, args.problems_dir).mechanism()
 
 
 def run(args: argparse.Namespace) -> int:
     """Body of ``optik reach``: 0 when the map is complete, 1 when stopped early (``--max-chunks``),
     130 on Ctrl-C (the finished chunks are kept)."""
-    m = _mechanism(args)
+    m = load_source(args.source, args.base, args.tip, args.problems_dir)[0]
     client = None
     if args.scheduler:
         from optik.batch.distributed import client_of

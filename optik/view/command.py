@@ -14,9 +14,10 @@ import signal
 import threading
 import time
 import webbrowser
-from pathlib import Path
 from types import FrameType
 from typing import Any
+
+from optik.problem_files import add_source_arguments, load_source
 
 __all__ = ["add_parser", "run"]
 
@@ -35,9 +36,7 @@ def add_parser(sub: Any) -> None:
             "closed chain), track a path. Binds to 127.0.0.1 unless --host says otherwise; Ctrl-C stops."
         ),
     )
-    p.add_argument("source", metavar="PROBLEM|URDF", help="problem name or .toml file, or a .urdf file")
-    p.add_argument("--base", help="base link of a URDF chain")
-    p.add_argument("--tip", help="tip link of a URDF chain")
+    add_source_arguments(p)
     p.add_argument("--port", type=int, default=8080, help="TCP port (default: %(default)s, or the next free)")
     p.add_argument("--host", default="127.0.0.1", help="interface to bind (default: %(default)s)")
     p.add_argument("--method", help="IK method of the gizmo (default: the best available)")
@@ -45,26 +44,18 @@ def add_parser(sub: Any) -> None:
         "--reach", metavar="PATH", help="capability map to draw: a reach.npz or its folder (optik reach)"
     )
     p.add_argument("--no-browser", action="store_true", help="do not open a browser window")
-    p.add_argument("--problems-dir", metavar="DIR", help="directory of problem files (default: problems/)")
     p.set_defaults(func=run)
 
 
 def _viewer(args: argparse.Namespace) -> Any:
     from optik.errors import InvalidArgumentError
-    from optik.mechanism import Mechanism
-    from optik.problem_files import find_problem
     from optik.view import Viewer
     from optik.view.viewer import reach_points
 
     if not 0 <= args.port <= 65535:
         raise InvalidArgumentError("--port", f"expected 0..65535, got {args.port}")
-    if Path(args.source).suffix.lower() == ".urdf":
-        if args.base is None or args.tip is None:
-            raise InvalidArgumentError("--base", "a URDF file needs --base and --tip (the chain's end links)")
-        m, task, tol = Mechanism.from_urdf(args.source, args.base, args.tip), None, None
-    else:
-        problem = find_problem(args.source, args.problems_dir)
-        m, task, tol = problem.mechanism(), problem.mechanism_task, problem.tolerances
+    m, problem = load_source(args.source, args.base, args.tip, args.problems_dir)
+    task, tol = (problem.mechanism_task, problem.tolerances) if problem is not None else (None, None)
     if args.reach is not None:
         reach_points(args.reach)  # a bad map is a usage error before the server starts
     viewer = Viewer(m, host=args.host, port=args.port, task=task, tol=tol, method=args.method)

@@ -1,6 +1,6 @@
 """The long fuzz run of the public API: every entry point of `optik.benchmarks.fuzzing`, valid
-and corrupted arguments mixed, each outcome classified (ok, OptikError, known, leak, false
-success, overtime), with the counts per class and entry and the peak memory.
+and corrupted arguments mixed, each outcome classified (ok, OptikError, leak, false success,
+overtime), with the counts per class and entry and the peak memory.
 
 Method: hypothesis draws the calls (``--seed``: the same seed gives the same calls) in chunks of
 ``--chunk`` examples, each chunk a fresh hypothesis run seeded ``seed * 100003 + chunk`` (no

@@ -11,9 +11,6 @@ is classified as one of [`CLASSES`][optik.benchmarks.fuzzing.CLASSES]:
   ``atan2(|vee(R - R^T)| / 2, (tr R - 1) / 2)`` of ``R = R_fk^T R_target``, planar heading
   difference), closure residual by ``m.closure``, limits by exact comparisons;
 * ``optik_error``: an [`OptikError`][optik.OptikError] (the expected answer to corrupted input);
-* ``known``: a failure of a case another part of the project owns (see
-  [`KNOWN`][optik.benchmarks.fuzzing.KNOWN]; counted apart so that the suite stays green and
-  the cases stay visible);
 * ``leak``: any other exception (the failure the promise excludes);
 * ``false_success``: a claimed success that fails the independent check;
 * ``overtime``: the call took longer than ``3 x its time limit + 0.5 s`` (first-time setup
@@ -52,7 +49,7 @@ import optik
 from optik import catalog, closed_form, diffik, spatial
 from optik.errors import OptikError
 
-CLASSES = ("ok", "optik_error", "known", "leak", "false_success", "overtime")
+CLASSES = ("ok", "optik_error", "leak", "false_success", "overtime")
 """Outcome classes, in the order of the reports."""
 
 FAILURES = ("leak", "false_success", "overtime")
@@ -133,47 +130,6 @@ class Outcome:
     label: str = ""
 
 
-@dataclass(frozen=True)
-class Known:
-    """A failure owned elsewhere in the project: ``matches(call, detail)`` recognises it."""
-
-    owner: str
-    description: str
-    matches: Callable[[Call, str], bool]
-
-
-def _has(*words: str) -> Callable[[Call, str], bool]:
-    return lambda call, detail: all(w in call.label + " " + detail for w in words)
-
-
-KNOWN: tuple[Known, ...] = (
-    Known(
-        "parallelfk", "Stewart-Gough IK with a zero-length leg", _has("stewart_gough", "ZeroDivisionError")
-    ),
-    Known("parallelfk", "five-bar branches at extreme lengths", _has("five_bar_extreme", "closed_form")),
-    Known(
-        "parallelfk",
-        "3-RPR / Stewart-Gough closed-form FK of leg lengths whose squares overflow",
-        lambda call, detail: any(n in call.label for n in ("planar_3rpr", "stewart_gough"))
-        and any(call.label.startswith(e) for e in ("closed_form.fk", "solve_fk_all"))
-        and any(e in detail for e in ("IndexError", "LinAlgError", "OverflowError")),
-    ),
-    Known(
-        "parallelfk",
-        "solve_fk_all of the Stewart-Gough platform (homotopy) does not honour time_limit",
-        _has("solve_fk_all stewart_gough", "for a limit"),
-    ),
-    Known("allsol", "solve_ik_all(..., method='closed_form')", _has("solve_ik_all", "method='closed_form'")),
-    Known("allsol", "optik solve --method lm --all", _has("--all", "--method")),
-    Known("robots-urdf", "URDF text with lone surrogates", _has("from_urdf", "surrogate")),
-    Known("robots-urdf", "link names as lists in from_urdf", _has("from_urdf", "unhashable")),
-    Known("robots-urdf", "catalog.urdf_path(['panda'])", _has("urdf_path", "unhashable")),
-    Known("robots-urdf", "Joint(lower=-inf, upper=inf)", _has("Joint", "inf")),
-)
-"""Failures other engineers own (issue 9's list); a call that fails in one of these ways is
-classified ``known``, not as a failure."""
-
-
 class CallTimeout(BaseException):
     """Raised by the watchdog in a call that runs far past its limit (a hang)."""
 
@@ -230,9 +186,6 @@ def _classify(call: Call, hard_factor: float) -> Outcome:
         _SEEN_KEYS.add(call.key)
     if kind in ("ok", "optik_error") and seconds - setup > 3.0 * call.limit + 0.5 + grace:
         kind, detail = "overtime", f"{seconds:.3f} s (setup {setup:.3f} s) for a limit of {call.limit:g} s"
-    owned = next((k for k in KNOWN if kind in FAILURES and k.matches(call, detail)), None)
-    if owned is not None:
-        kind, detail = "known", f"{owned.description} ({owned.owner}): {detail}"
     return Outcome(call.entry, kind, seconds, detail, call.label)
 
 
@@ -256,7 +209,6 @@ class Tally:
     counts: Counter = field(default_factory=Counter)
     per_entry: dict[str, Counter] = field(default_factory=dict)
     failures: list[Outcome] = field(default_factory=list)
-    known: Counter = field(default_factory=Counter)
     slowest: dict[str, float] = field(default_factory=dict)
     seconds: Counter = field(default_factory=Counter)
     max_failures: int = 200
@@ -268,8 +220,6 @@ class Tally:
         self.seconds[outcome.entry] += outcome.seconds
         if outcome.kind in FAILURES and len(self.failures) < self.max_failures:
             self.failures.append(outcome)
-        if outcome.kind == "known":
-            self.known[outcome.detail.split(":")[0]] += 1
 
     @property
     def calls(self) -> int:
@@ -290,8 +240,6 @@ class Tally:
             cells = "  ".join(f"{c[k]:>13}" for k in CLASSES)
             mean = 1e3 * self.seconds[entry] / max(sum(c.values()), 1)
             lines.append(f"{entry:<{width}}  {cells}   {mean:7.1f}  {self.slowest[entry]:9.3f}")
-        for text, n in sorted(self.known.items()):
-            lines.append(f"known (owned elsewhere): {n} x {text}")
         for f in self.failures[:50]:
             lines.append(f"FAILURE {f.kind} {f.entry} [{f.label[:160]}]: {f.detail}")
         return "\n".join(lines)

@@ -242,3 +242,32 @@ def test_compiled_path_validates_like_the_general_path() -> None:
         optik.solve_ik_all(m, t, time_limit=-1.0)
     sols = optik.solve_ik_all(m, t, list(m.mid_q()))  # a list start: the same answer
     np.testing.assert_array_equal(sols.q, optik.solve_ik_all(m, t, m.mid_q()).q)
+
+
+def test_driver_through_ctypes_equals_its_python_binding(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without the Python headers the driver is called through ctypes buffers: the same answers
+    as through its Python binding (any layout of the arrays: the targets of m.fk are views)."""
+    from optik.closed_form import ik_all
+
+    m = optik.catalog.seed_6r_arm()
+    solver = closed_form.derive(m)
+    solver.compile()
+    binding = solver.driver()
+    if binding is None or binding.fast is None:
+        pytest.skip("no C compiler or no Python headers: nothing to compare")
+    monkeypatch.setattr(ik_all, "python_flags", lambda: ())
+    one = solver._single
+    with one.lock:
+        one.driver = None
+        plain = one.compile()
+        one.driver = binding  # the solver keeps its binding
+    plain.library.wait()
+    assert plain.ready and plain.fast is None
+    qs = m.random_q(30, seed=4)
+    qs[:5, 4] = 0.0
+    for t, q0 in zip(m.fk(qs), m.random_q(30, seed=5), strict=True):
+        for start, sort in ((q0, True), (None, True), (None, False)):
+            a, b = binding(t, start, m.lower, m.upper, sort), plain(t, start, m.lower, m.upper, sort)
+            assert (a is None) == (b is None)
+            for x, y in zip(a or (), b or (), strict=True):
+                np.testing.assert_array_equal(x, y)

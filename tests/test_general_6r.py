@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from scipy.optimize import least_squares
 
 from optik import catalog, closed_form, spatial
+from optik.closed_form import derived, search_1d
 from optik.closed_form.general_6r import (
     FK_TOL,
     General6R,
@@ -231,8 +232,9 @@ def test_both_ends_special_is_flagged() -> None:
 
 
 def test_registry_routes_only_covered_arms() -> None:
-    """The closed-form registry answers a generic 6R arm by this solver, and leaves an arm with
-    special geometry at both ends (no certified answer) to the numerical methods."""
+    """The closed-form registry answers a generic 6R arm by this solver, and not an arm with
+    special geometry at both ends (no certified answer): that one gets the 1-D search
+    (`optik.closed_form.search_1d`, tests/test_search_1d.py)."""
     rng = np.random.default_rng(47)
     generic = _random_arm(rng)
     assert closed_form.has_ik(generic)
@@ -242,7 +244,7 @@ def test_registry_routes_only_covered_arms() -> None:
     rows[0], rows[4] = (rows[0][0], 0.0, rows[0][2]), (rows[4][0], 0.0, rows[4][2])  # 1-2, 5-6 meet
     special = dh_chain(rows, "standard")
     assert closed_form.derive(special) is None and not covers(special)
-    assert not closed_form.has_ik(special)
+    assert derived.general_rows(special) is None and search_1d.search_rows(special) is not None
 
 
 def test_covers() -> None:

@@ -10,6 +10,7 @@ from optik.closed_form import parallel
 from optik.closed_form.derived import DerivedIK, derive
 from optik.closed_form.general_6r import General6R, ik_general_6r, solve_general_6r
 from optik.closed_form.registry import fk, has_fk, has_ik, ik, register
+from optik.closed_form.search_1d import Search1D, solve_search_1d
 from optik.closed_form.serial import ik_planar_2r, ik_planar_3r, ik_pp, ik_rp, ik_seed_6r
 from optik.spatial import rot_to_rpy_all as rpy_all
 from optik.spatial import rot_to_zyz_all as zyz_all
@@ -17,6 +18,7 @@ from optik.spatial import rot_to_zyz_all as zyz_all
 __all__ = [
     "DerivedIK",
     "General6R",
+    "Search1D",
     "derive",
     "fk",
     "has_fk",
@@ -32,5 +34,6 @@ __all__ = [
     "register",
     "rpy_all",
     "solve_general_6r",
+    "solve_search_1d",
     "zyz_all",
 ]

@@ -100,6 +100,9 @@ class FKModes(list):
         return f"FKModes({list.__repr__(self)}, dropped={len(self.dropped)}, message={self.message!r})"
 
 
+_new = object.__new__
+
+
 class IKSolutions(Sequence[IKResult]):
     """The solutions that ``optik.solve_ik_all`` returns: a sequence of ``IKResult``, one per
     distinct solution (indexing, slicing, iteration, ``len``), with what was left out and why.
@@ -115,6 +118,8 @@ class IKSolutions(Sequence[IKResult]):
         method: how the solutions were found (``"closed_form"`` or the numerical method).
         message: a sentence summarizing the counts.
     """
+
+    __slots__ = ("_arrays", "_outside", "_results", "failed_check", "method")
 
     def __init__(
         self,
@@ -136,9 +141,12 @@ class IKSolutions(Sequence[IKResult]):
         """Successful solutions given as arrays: ``q (K, n)``, their ``(position, orientation)``
         errors ``(K, 2)`` (no loop closure, every limit met: the results' ``closure_error`` is 0
         and ``limits_ok`` True), ``outside_limits (L, n)``, the method and the call's wall time."""
-        out = cls((), outside_limits, 0, method)
+        out = _new(cls)
         out._results = None
         out._arrays = (q, errors, solve_time)
+        out._outside = outside_limits
+        out.failed_check = 0
+        out.method = method
         return out
 
     @property

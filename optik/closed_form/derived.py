@@ -343,7 +343,7 @@ class _Single:
         rt = tuple(tuple(t[4 * i + j] for j in range(3)) for i in range(3))
         pt = (t[3], t[7], t[11])
         ops = v3.CASADI
-        raw = solver.branches(rt, pt, ops)
+        raw = solver.branches(rt, pt, v3.remembering(ops))
         two_pi = 2.0 * np.pi
         wrapped = [[_wrap_sx(a) for a in b] for b in raw]  # (-pi, pi]
         errs = [solver.errors_c(b, rt, pt, ops) for b in raw]
@@ -394,7 +394,7 @@ class _Single:
             t = ca.SX.sym("t", 16)
             rt = tuple(tuple(t[4 * i + j] for j in range(3)) for i in range(3))
             pt = (t[3], t[7], t[11])
-            raw = solver.branches(rt, pt, v3.CASADI)
+            raw = solver.branches(rt, pt, v3.remembering(v3.CASADI))
             q = ca.SX.sym("q", 6)
             err = solver.errors_c(tuple(q[i] for i in range(6)), rt, pt, v3.CASADI)
             size, span = solver.axes.size, solver.polish_range

@@ -35,6 +35,8 @@ FKSolver = Callable[[Mechanism, np.ndarray], Sequence[Sequence[float]]]
 
 _IK: dict[str, IKSolver] = {}
 _FK: dict[str, FKSolver] = {}
+_GENERATION = [0]
+"""Bumped by every registration: caches of what `ik_solver` answered compare it (`generation`)."""
 _PREFER_EXACT_DERIVED: set[str] = set()
 """Kinds whose registered IK gives way to a derived one that is exact (``exact`` attribute)."""
 _TIMED_FK: set[str] = set()
@@ -50,6 +52,8 @@ def register(
     [`register_deriver`][optik.closed_form.registry.register_deriver]) whose ``exact`` attribute is
     True answers for the kind instead of ``ik`` (the hand-written one then answers for the
     geometries the derived one only approximates)."""
+    _GENERATION[0] += 1
+    _DERIVED.clear()
     if ik is not None:
         _IK[kind] = ik
         if prefer_exact_derived:
@@ -71,6 +75,14 @@ def register_deriver(deriver: Deriver) -> None:
     IK; the first answer is cached per mechanism."""
     _DERIVERS.append(deriver)
     _DERIVED.clear()
+    _GENERATION[0] += 1
+
+
+def generation() -> int:
+    """A number that changes with every registration (of a kind's solvers or a deriver): what
+    [`ik_solver`][optik.closed_form.registry.ik_solver] answers for a mechanism holds while it
+    stays the same."""
+    return _GENERATION[0]
 
 
 def ik_solver(m: Mechanism) -> IKSolver | None:

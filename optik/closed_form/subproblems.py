@@ -89,8 +89,16 @@ def sp4_roots_c(a: Any, b: Any, c: Any, ops: v3.Ops) -> tuple[Any, Any]:
     argument clipped into ``[-1, 1]``: the least-squares root twice when there is none)."""
     phi = ops.atan2(b, a)
     r = ops.sqrt(a * a + b * b)
-    delta = ops.acos(ops.fmax(-1.0, ops.fmin(1.0, c / ops.fmax(r, 1e-300))))
-    return phi + delta, phi - delta
+    cd = ops.fmax(-1.0, ops.fmin(1.0, c / ops.fmax(r, 1e-300)))
+    delta = ops.acos(cd)
+    if not ops.remembers:
+        return phi + delta, phi - delta
+    # cos and sin of the roots by the sum formulas, for the backends that remember them
+    cp, sp_, sd = ops.cos(phi), ops.sin(phi), ops.sqrt((1.0 - cd) * (1.0 + cd))
+    return (
+        ops.known(phi + delta, cp * cd - sp_ * sd, sp_ * cd + cp * sd),
+        ops.known(phi - delta, cp * cd + sp_ * sd, sp_ * cd - cp * sd),
+    )
 
 
 def sp4_c(h: v3.Vec, k: v3.Vec, p: v3.Vec, d: Any, ops: v3.Ops) -> tuple[Any, Any]:

@@ -66,7 +66,7 @@ def _pairs_decoupled(
     for mq1 in sp.sp4_roots_c(*terms, ops):
         lhs = v3.dot(k, v3.rot(h[0], ops.cos(mq1), ops.sin(mq1), rh6))
         for q5 in sp.sp4_c(k, h[4], h[5], lhs, ops):
-            yield -mq1, q5
+            yield v3.neg(mq1, ops), q5
 
 
 def _pairs_sp6(h: list[v3.Vec], r: list[v3.Vec], p6: v3.Vec, rh6: v3.Vec) -> Iterator[tuple[Any, Any]]:
@@ -131,7 +131,7 @@ def _rest(
     y = v3.add(r[0], v3.mat_t_vec(r01, v3.sub(p6, r[0])))
     z = v3.add(r[4], v3.mat_vec(r45, v3.sub(r[5], r[4])))
     x = _perpendicular(np.asarray(k))
-    q6 = -sp.sp1_c(h[5], v3.mat_t_vec(r45, k), v3.mat_t_vec(rel, v3.mat_vec(r01, k)), ops)
+    q6 = v3.neg(sp.sp1_c(h[5], v3.mat_t_vec(r45, k), v3.mat_t_vec(rel, v3.mat_vec(r01, k)), ops), ops)
     r56 = v3.rot_mat(h[5], ops.cos(q6), ops.sin(q6))
     r14 = v3.mat_mul(v3.mat_mul(v3.transpose(r01), rel), v3.transpose(v3.mat_mul(r45, r56)))
     theta = sp.sp1_c(k, x, v3.mat_vec(r14, x), ops)

@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping
+import weakref
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -155,24 +156,44 @@ def _compiled_all(m: Mechanism, target: Any, q0: Any, time_limit: Any) -> IKSolu
     (`optik.closed_form.derived`), answered by the compiled driver of
     [`optik.closed_form.ik_all`][optik.closed_form.ik_all] in one C call: the same solutions,
     errors and order as `_closed_form_all`, which answers instead (None here) when the driver is
-    not built yet, the target or ``q0`` is not a float64 array of its shape or not valid (it then
-    raises the named error), a candidate needs polishing or two candidates are close (the numpy
-    path decides), or the default tolerances are tighter than the derived FK check."""
+    not built yet (or has no Python binding), the target or ``q0`` is not a float64 array of its
+    shape or not valid (it then raises the named error), a candidate needs polishing or two
+    candidates are close (the numpy path decides), or the default tolerances are tighter than
+    the derived FK check."""
     start = time.perf_counter()
-    if type(target) is not np.ndarray or target.dtype != np.float64 or target.shape != (4, 4):
-        return None
-    if q0 is not None and (type(q0) is not np.ndarray or q0.dtype != np.float64 or q0.shape != (6,)):
-        return None
     if time_limit is not None and not (type(time_limit) is float and 0.0 < time_limit < math.inf):
         return None
+    entry = _BINDINGS.get(id(m))
+    if entry is None or entry[0]() is not m or entry[1] != registry.generation():
+        fast = _binding(m)
+        if fast is None:
+            return None
+    else:
+        fast = entry[2]
+    got = fast(target, q0, m.lower, m.upper, True)
+    if got is None:
+        return None
+    return IKSolutions.from_arrays(*got, "closed_form", time.perf_counter() - start)
+
+
+_BINDINGS: dict[int, tuple[weakref.ref, int, Callable[..., Any]]] = {}
+"""``id(m) -> (weak reference to m, registry generation, the driver's Python binding)``."""
+
+
+def _binding(m: Mechanism) -> Callable[..., Any] | None:
+    """The Python binding of the compiled driver of ``m``'s derived closed form, kept in
+    `_BINDINGS` once it is loaded; None while it builds, without one, or when ``m``'s closed form
+    is not a derived one that the default tolerances admit."""
     rows = registry.ik_solver(m)
     if type(rows) is not DerivedRows or m.task != "pose" or rows.solver.check_position > _TOL.position:
         return None
     driver = rows.solver.driver()
-    got = None if driver is None else driver(target, q0, m.lower, m.upper)
-    if got is None:
+    if driver is None or driver.fast is None:
         return None
-    return IKSolutions.from_arrays(*got, "closed_form", time.perf_counter() - start)
+    key = id(m)
+    alive = weakref.ref(m, lambda _, key=key: _BINDINGS.pop(key, None))
+    _BINDINGS[key] = (alive, registry.generation(), driver.fast)
+    return driver.fast
 
 
 def _closed_form_all(request: IKRequest) -> IKSolutions:

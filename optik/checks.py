@@ -65,8 +65,11 @@ def as_batch(value: Any, name: str, size: int) -> tuple[np.ndarray, bool]:
     return a, single
 
 
-_ORTHO_DIAG = 1e-6 + 1e-5
-_ORTHO_OFF = 1e-6
+ORTHO_DIAG = 1e-6 + 1e-5
+"""Tolerance of `as_transform` on each diagonal entry of ``R^T R - I`` (``np.allclose``:
+atol 1e-6, rtol 1e-5)."""
+ORTHO_OFF = 1e-6
+"""Tolerance of `as_transform` on each off-diagonal entry of ``R^T R``."""
 
 
 def as_transform(value: Any, name: str) -> np.ndarray:
@@ -91,12 +94,12 @@ def as_transform(value: Any, name: str) -> np.ndarray:
         raise InvalidArgumentError(name, f"last row must be [0, 0, 0, 1], got {t[3]}")
     # R^T R = I entry by entry (column dot products), then det R = c0 . (c1 x c2) >= 0
     if not (
-        abs(r00 * r00 + r10 * r10 + r20 * r20 - 1.0) <= _ORTHO_DIAG
-        and abs(r01 * r01 + r11 * r11 + r21 * r21 - 1.0) <= _ORTHO_DIAG
-        and abs(r02 * r02 + r12 * r12 + r22 * r22 - 1.0) <= _ORTHO_DIAG
-        and abs(r00 * r01 + r10 * r11 + r20 * r21) <= _ORTHO_OFF
-        and abs(r00 * r02 + r10 * r12 + r20 * r22) <= _ORTHO_OFF
-        and abs(r01 * r02 + r11 * r12 + r21 * r22) <= _ORTHO_OFF
+        abs(r00 * r00 + r10 * r10 + r20 * r20 - 1.0) <= ORTHO_DIAG
+        and abs(r01 * r01 + r11 * r11 + r21 * r21 - 1.0) <= ORTHO_DIAG
+        and abs(r02 * r02 + r12 * r12 + r22 * r22 - 1.0) <= ORTHO_DIAG
+        and abs(r00 * r01 + r10 * r11 + r20 * r21) <= ORTHO_OFF
+        and abs(r00 * r02 + r10 * r12 + r20 * r22) <= ORTHO_OFF
+        and abs(r01 * r02 + r11 * r12 + r21 * r22) <= ORTHO_OFF
         and r00 * (r11 * r22 - r21 * r12) - r10 * (r01 * r22 - r21 * r02) + r20 * (r01 * r12 - r11 * r02)
         >= 0.0
     ):

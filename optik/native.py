@@ -239,7 +239,10 @@ class Library:
 
 
 def library(
-    functions: Sequence[ca.Function], compile: bool | str = "auto", extra_source: str = ""
+    functions: Sequence[ca.Function],
+    compile: bool | str = "auto",
+    extra_source: str = "",
+    flags: Sequence[str] = (),
 ) -> Library | None:
     """The compiled library of ``functions`` (possibly still building), or None: evaluate them
     with CasADi instead.
@@ -251,6 +254,7 @@ def library(
             return at once when it is not cached yet (a daemon thread waits for the compiler
             and loads the library; None without a C compiler).
         extra_source: C code appended to the generated code (see `c_source`).
+        flags: extra compiler options (e.g. include directories; part of the cache key).
 
     Raises:
         InvalidArgumentError: bad ``compile`` value.
@@ -261,7 +265,7 @@ def library(
     if compile is False or cc is None:
         return _no_library(compile)
     source = c_source(functions, extra_source)
-    return _library(source, functions[0].name(), cc, compile, compile == "auto", ())
+    return _library(source, functions[0].name(), cc, compile, compile == "auto", flags)
 
 
 def source_library(

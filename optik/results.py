@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
+from typing import Any, overload
 
 import numpy as np
 
@@ -98,9 +100,15 @@ class FKModes(list):
         return f"FKModes({list.__repr__(self)}, dropped={len(self.dropped)}, message={self.message!r})"
 
 
-class IKSolutions(list):
-    """The list of ``IKResult`` that ``optik.solve_ik_all`` returns, one per distinct
-    solution, with what was left out and why.
+_new = object.__new__
+
+
+class IKSolutions(Sequence[IKResult]):
+    """The solutions that ``optik.solve_ik_all`` returns: a sequence of ``IKResult``, one per
+    distinct solution (indexing, slicing, iteration, ``len``), with what was left out and why.
+
+    The compiled closed forms return their solutions as arrays (`from_arrays`): `q` is then the
+    ``(K, n)`` array itself and each ``IKResult`` is made when it is first read.
 
     Attributes:
         outside_limits: configurations that solve the target but lie outside the joint limits
@@ -111,23 +119,93 @@ class IKSolutions(list):
         message: a sentence summarizing the counts.
     """
 
+    __slots__ = ("_arrays", "_outside", "_results", "failed_check", "method")
+
     def __init__(
         self,
-        results: list[IKResult] = (),  # type: ignore[assignment]
-        outside_limits: list[np.ndarray] | None = None,
+        results: Iterable[IKResult] = (),
+        outside_limits: Iterable[np.ndarray] | None = None,
         failed_check: int = 0,
         method: str = "",
     ) -> None:
-        super().__init__(results)
-        self.outside_limits: list[np.ndarray] = list(outside_limits or [])
+        self._results: list[IKResult] | None = list(results)
+        self._arrays: tuple[np.ndarray, np.ndarray, float] | None = None
+        self._outside: Any = outside_limits if outside_limits is not None else ()
         self.failed_check = failed_check
         self.method = method
+
+    @classmethod
+    def from_arrays(
+        cls, q: np.ndarray, errors: np.ndarray, outside_limits: np.ndarray, method: str, solve_time: float
+    ) -> IKSolutions:
+        """Successful solutions given as arrays: ``q (K, n)``, their ``(position, orientation)``
+        errors ``(K, 2)`` (no loop closure, every limit met: the results' ``closure_error`` is 0
+        and ``limits_ok`` True), ``outside_limits (L, n)``, the method and the call's wall time."""
+        out = _new(cls)
+        out._results = None
+        out._arrays = (q, errors, solve_time)
+        out._outside = outside_limits
+        out.failed_check = 0
+        out.method = method
+        return out
+
+    @property
+    def q(self) -> np.ndarray:
+        """The solutions' coordinates as one ``(K, n)`` array, in order (``(0, 0)`` when empty)."""
+        if self._arrays is not None:
+            return self._arrays[0]
+        rows = [r.q for r in self._list()]
+        return np.array(rows) if rows else np.zeros((0, 0))
+
+    @property
+    def outside_limits(self) -> list[np.ndarray]:
+        """Solutions of the target outside the joint limits (not in the sequence)."""
+        if not isinstance(self._outside, list):
+            self._outside = list(self._outside)
+        return self._outside
+
+    def _list(self) -> list[IKResult]:
+        if self._results is None:
+            q, errors, elapsed = self._arrays  # type: ignore[misc]
+            self._results = [
+                IKResult(row, True, e[0], e[1], 0.0, True, 0, elapsed, self.method, "solved")
+                for row, e in zip(q, errors.tolist(), strict=True)
+            ]
+        return self._results
+
+    def __len__(self) -> int:
+        return len(self._arrays[0]) if self._results is None else len(self._results)  # type: ignore[index]
+
+    @overload
+    def __getitem__(self, index: int) -> IKResult: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> list[IKResult]: ...
+
+    def __getitem__(self, index: int | slice) -> IKResult | list[IKResult]:
+        return self._list()[index]
+
+    def __iter__(self) -> Iterator[IKResult]:
+        return iter(self._list())
+
+    def __eq__(self, other: object) -> bool:
+        """Equal to a sequence of the same results in the same order (a list, another
+        ``IKSolutions``)."""
+        if isinstance(other, (IKSolutions, list, tuple)):
+            return self._list() == list(other)
+        return NotImplemented
+
+    __hash__ = None  # type: ignore[assignment]  # mutable, like a list
+
+    def __repr__(self) -> str:
+        outside = len(self.outside_limits)
+        return f"IKSolutions({self._list()!r}, outside_limits={outside}, method={self.method!r})"
 
     @property
     def message(self) -> str:
         """E.g. ``"6 solutions by closed_form; 2 outside the joint limits left out"``."""
         text = f"{len(self)} solution(s) by {self.method or 'no method'}"
-        if self.outside_limits:
+        if len(self.outside_limits):
             text += f"; {len(self.outside_limits)} outside the joint limits left out"
         if self.failed_check:
             text += f"; {self.failed_check} candidate(s) failing the FK check dropped"

@@ -13,7 +13,7 @@ import pytest
 
 import optik
 from optik import catalog, closed_form, spatial
-from optik.closed_form import ik_planar_2r, ik_planar_3r, ik_pp, ik_rp, ik_seed_6r, registry
+from optik.closed_form import ik_planar_2r, ik_planar_3r, ik_pp, ik_rp, registry
 from optik.solvers.base import evaluate, joint_distance, make_request
 
 SAME_BRANCH = 1e-4
@@ -23,8 +23,9 @@ RAW = {
     "planar_3r": lambda m, t: ik_planar_3r(m.params["lengths"], *spatial.planar_pose_of(t)),
     "rp_arm": lambda m, t: ik_rp(t[0, 3], t[1, 3]),
     "pp_arm": lambda m, t: ik_pp(t[0, 3], t[1, 3]),
-    "seed_6r_arm": lambda m, t: ik_seed_6r(m.params["d2"], m.params["d3"], m.params["d4"], t),
 }
+"""The scalar single-target kernels and their vectorized twins (the seed 6R arm's registered closed
+form is the derived one, cross-checked against ``ik_seed_6r`` in tests/test_derived.py)."""
 
 
 def arms():
@@ -35,8 +36,6 @@ def arms():
         catalog.planar_3r((1.0, 0.8, 0.5)),
         catalog.rp_arm(),
         catalog.pp_arm(),
-        catalog.seed_6r_arm(),
-        catalog.seed_6r_arm(0.5, 1.2, 0.3),
     ]
     shifted = []
     for m in out:
@@ -63,22 +62,11 @@ def reference_branches(m, t, respect_limits):
 
 
 def targets(m, rng, n):
-    """Reachable targets (FK of random q), random ones (some unreachable) and singular ones."""
+    """Reachable targets (FK of random q), random ones (some unreachable) and the base singularity."""
     ts = [m.fk(q) for q in rng.uniform(m.lower, m.upper, size=(n, m.n_q))]
-    if m.planar:
-        reach = 1.2 * sum(m.params.get("lengths", (1.0, 1.0)))
-        ts += [spatial.planar_pose(*xy, phi) for *xy, phi in rng.uniform(-reach, reach, size=(n, 3))]
-        ts.append(spatial.planar_pose(0.0, 0.0, 0.3))  # base singularity
-    else:
-        for q in rng.uniform(m.lower, m.upper, size=(n, m.n_q)):
-            q[4] = 0.0  # wrist singularity
-            ts.append(m.fk(q))
-        q = m.mid_q()
-        q[1], q[2], q[3] = np.pi / 2, 0.0, 0.0  # stretched up: shoulder singularity (p_x = p_y = 0)
-        ts.append(m.fk(q))
-        t = m.fk(rng.uniform(m.lower, m.upper))
-        t[:3, 3] *= 5.0  # out of reach
-        ts.append(t)
+    reach = 1.2 * sum(m.params.get("lengths", (1.0, 1.0)))
+    ts += [spatial.planar_pose(*xy, phi) for *xy, phi in rng.uniform(-reach, reach, size=(n, 3))]
+    ts.append(spatial.planar_pose(0.0, 0.0, 0.3))  # base singularity
     return ts
 
 

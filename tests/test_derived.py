@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.optimize import brentq
 
 import optik
 from optik import closed_form
@@ -106,16 +107,28 @@ def test_each_family_is_detected_and_solved(name: str) -> None:
 
 
 def test_seed_6r_derived_solver_agrees_with_the_hand_written_one() -> None:
+    """The seed arm's registered closed form is the derived one; the hand-written vectorized
+    kernel (ik_seed_6r) cross-checks it: the same solution sets on regular targets, and at the
+    wrist singularity (q5 = 0) every returned branch reaches the target."""
     m = optik.catalog.seed_6r_arm()
+    d = [m.params[k] for k in ("d2", "d3", "d4")]
     solver = closed_form.derive(m)
     assert solver.structure.name == "three_parallel (5-6 intersecting)"
-    qs, q, ok = _check_all(m, n=40, seed=3)
+    assert isinstance(closed_form.registry.ik_solver(m), closed_form.derived.DerivedRows)
+    qs, _, ok = _check_all(m, n=40, seed=3)
+    hand_q, hand_ok = closed_form.ik_seed_6r(*d, m.fk(qs))
     for i in range(len(qs)):
-        hand = closed_form.ik(m, m.fk(qs[i]), respect_limits=False)
-        derived = q[i][ok[i]]
-        assert len(hand) == len(derived)
+        registered = closed_form.ik(m, m.fk(qs[i]), respect_limits=False)
+        hand = hand_q[i][hand_ok[i]]
+        assert len(hand) == len(registered) == ok[i].sum()
         for a in hand:
-            assert min(joint_distance(m, a, b) for b in derived) < 1e-9
+            assert min(joint_distance(m, a, b) for b in registered) < 1e-9
+    singular = m.random_q(20, seed=5)
+    singular[:, 4] = 0.0
+    for target in m.fk(singular):
+        got = closed_form.ik(m, target, respect_limits=False)
+        assert got
+        np.testing.assert_allclose(m.fk(np.array(got)), np.broadcast_to(target, (len(got), 4, 4)), atol=1e-9)
 
 
 def test_puma560_catalog_arm_has_a_derived_closed_form() -> None:
@@ -251,3 +264,29 @@ def test_three_parallel_wrist_singularity_has_representatives(name: str) -> None
         assert len(sols) >= 1
         for s in sols:
             np.testing.assert_allclose(m.fk(s.q), target, atol=1e-9)
+
+
+def test_seed_6r_shoulder_singularity_has_a_representative() -> None:
+    """Wrist point on axis 1 (q1 free for the position): the three-parallel solver's
+    representative (three_parallel._pairs_decoupled) still answers, every branch exact."""
+    m = optik.catalog.seed_6r_arm()
+    rng = np.random.default_rng(0)
+    grid = np.linspace(-np.pi, np.pi, 73)
+    answered = 0
+    for q in rng.uniform(-np.pi, np.pi, (40, 6)):
+
+        def radial(a: float, q: np.ndarray = q) -> float:
+            t = m.fk(np.r_[q[0], a, q[2:]])
+            return t[0, 3] * np.cos(q[0]) + t[1, 3] * np.sin(q[0])
+
+        values = [radial(a) for a in grid]
+        k = next(i for i in range(72) if values[i] * values[i + 1] < 0)
+        q[1] = brentq(radial, grid[k], grid[k + 1], xtol=1e-15)
+        target = m.fk(q)
+        assert np.hypot(target[0, 3], target[1, 3]) < 1e-9
+        target[:2, 3] = 0.0  # exactly on axis 1
+        got = closed_form.ik(m, target, respect_limits=False)
+        assert got
+        np.testing.assert_allclose(m.fk(np.array(got)), np.broadcast_to(target, (len(got), 4, 4)), atol=1e-9)
+        answered += 1
+    assert answered == 40

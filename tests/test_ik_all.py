@@ -167,3 +167,107 @@ def test_closed_form_is_not_used_for_another_frame() -> None:
     res = optik.solve_ik(m, target, frame="link5", seed=0, time_limit=1.0)
     assert res.method == "lm" and res.success
     np.testing.assert_allclose(m.fk(res.q, "link5"), target, atol=1e-6)
+
+
+def _compiled_arms() -> list[optik.Mechanism]:
+    """Arms whose closed form is derived, with limits that need the 2 pi shift (seed arm in
+    [0, 2 pi] and [-3 pi, -pi]) or drop solutions (PUMA 560)."""
+    seed = optik.catalog.seed_6r_arm()
+    lo, hi = np.zeros(6), np.full(6, 2 * np.pi)
+    lo[1], hi[1] = -3 * np.pi, -np.pi
+    return [optik.catalog.puma560(), seed, seed.with_limits(lo, hi)]
+
+
+@pytest.mark.parametrize("m", _compiled_arms(), ids=["puma560", "seed_6r_arm", "seed_6r_arm_shifted"])
+def test_compiled_path_equals_the_general_path(m: optik.Mechanism, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The compiled driver (optik.closed_form.ik_all) gives exactly what the general closed-form
+    path gives: the same solutions in the same order, the same errors, the same solutions
+    outside the limits; every solution passes an independent FK and limit check."""
+    from optik.solvers import all as all_module
+    from optik.solvers.base import make_request
+
+    solver = closed_form.derive(m)
+    solver.compile()
+    if solver.driver() is None:
+        pytest.skip("no C compiler: the compiled driver is not built")
+    rng = np.random.default_rng(2)
+    qs = rng.uniform(-np.pi, np.pi, (40, 6))
+    qs[:8, 4] = 0.0  # wrist singularity (stand-ins, close candidates)
+    targets = list(m.fk(qs))
+    far = m.fk(qs[0])
+    far[:3, 3] *= 10.0  # unreachable
+    targets.append(far)
+    general = all_module._closed_form_all
+    answered = 0
+    for t in targets:
+        q0 = rng.uniform(-np.pi, np.pi, 6)
+        want = general(make_request(m, t, q0, None, None, 1.0, None, None, {}))
+        monkeypatch.setattr(all_module, "_closed_form_all", None)  # the compiled path or a TypeError
+        try:
+            got = optik.solve_ik_all(m, t, q0)
+            answered += 1
+        except TypeError:
+            got = want  # sent to the general path: a candidate to polish or two close ones
+        monkeypatch.setattr(all_module, "_closed_form_all", general)
+        assert len(got) == len(want)
+        np.testing.assert_array_equal(got.q.reshape(-1, 6), np.array([r.q for r in want]).reshape(-1, 6))
+        np.testing.assert_array_equal(np.array(got.outside_limits).reshape(-1, 6),
+                                      np.array(want.outside_limits).reshape(-1, 6))  # fmt: skip
+        for a, b in zip(got, want, strict=True):
+            assert (a.position_error, a.orientation_error, a.success, a.method) == (
+                b.position_error, b.orientation_error, b.success, b.method)  # fmt: skip
+            assert m.within_limits(a.q)
+            np.testing.assert_allclose(m.fk(a.q), t, atol=1e-9)
+    assert answered >= 30  # the regular targets take the compiled path
+
+
+def test_compiled_path_validates_like_the_general_path() -> None:
+    """Bad targets and starts raise the same named errors through the compiled path."""
+    m = optik.catalog.puma560()
+    closed_form.derive(m).compile()
+    t = m.fk(m.mid_q())
+    bad = t.copy()
+    bad[0, 0] = np.nan
+    with pytest.raises(optik.errors.NonFiniteError, match=r"^target"):
+        optik.solve_ik_all(m, bad)
+    skew = t.copy()
+    skew[:3, :3] *= 1.1
+    with pytest.raises(InvalidArgumentError, match=r"^target"):
+        optik.solve_ik_all(m, skew)
+    with pytest.raises(optik.errors.NonFiniteError, match=r"^q0"):
+        optik.solve_ik_all(m, t, np.full(6, np.inf))
+    with pytest.raises(optik.errors.ShapeError, match=r"^q0"):
+        optik.solve_ik_all(m, t, np.zeros(5))
+    with pytest.raises(InvalidArgumentError, match=r"^time_limit"):
+        optik.solve_ik_all(m, t, time_limit=-1.0)
+    sols = optik.solve_ik_all(m, t, list(m.mid_q()))  # a list start: the same answer
+    np.testing.assert_array_equal(sols.q, optik.solve_ik_all(m, t, m.mid_q()).q)
+
+
+def test_driver_through_ctypes_equals_its_python_binding(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without the Python headers the driver is called through ctypes buffers: the same answers
+    as through its Python binding (any layout of the arrays: the targets of m.fk are views)."""
+    from optik.closed_form import ik_all
+
+    m = optik.catalog.seed_6r_arm()
+    solver = closed_form.derive(m)
+    solver.compile()
+    binding = solver.driver()
+    if binding is None or binding.fast is None:
+        pytest.skip("no C compiler or no Python headers: nothing to compare")
+    monkeypatch.setattr(ik_all, "python_flags", lambda: ())
+    one = solver._single
+    with one.lock:
+        one.driver = None
+        plain = one.compile()
+        one.driver = binding  # the solver keeps its binding
+    plain.library.wait()
+    assert plain.ready and plain.fast is None
+    qs = m.random_q(30, seed=4)
+    qs[:5, 4] = 0.0
+    for t, q0 in zip(m.fk(qs), m.random_q(30, seed=5), strict=True):
+        for start, sort in ((q0, True), (None, True), (None, False)):
+            a, b = binding(t, start, m.lower, m.upper, sort), plain(t, start, m.lower, m.upper, sort)
+            assert (a is None) == (b is None)
+            for x, y in zip(a or (), b or (), strict=True):
+                np.testing.assert_array_equal(x, y)

@@ -4,16 +4,19 @@ Method (docs/benchmarks.md): per arm, ``--n`` joint vectors drawn uniformly with
 targets by the mechanism's own FK (``m.fk``); then, target by target in one process (thread pools
 pinned to 1 before numpy is imported), interleaved:
 
-* ``optik``: ``optik.solve_ik_all(m, T)``, the public call (validation, the derived or catalog
-  closed form, the FK check of every branch by the mechanism's compiled FK, the joint-limit
-  filter, results sorted by distance to the mid-limit start);
+* ``optik``: ``optik.solve_ik_all(m, T).q``, the public call and its solutions as one array
+  (validation, the derived closed form's compiled driver: every branch, its FK check, the 2 pi
+  shift and the joint-limit filter, sorted by distance to the mid-limit start; see
+  ``optik.closed_form.ik_all``), the counterpart of EAIK's ``calculate_IK(T).Q``; the
+  ``IKResult`` of each solution is made when first read, and that cost is timed apart
+  (``list(solutions)``, column "IKResult objects");
 * ``EAIK`` (the ``eaik`` package, where installed): ``Robot.calculate_IK(T)``, built once per arm
   from the same joint axes and points at ``q = 0`` (``H``, ``P`` and the end-effector rotation).
 
 Arms: the UR5 and UR10 URDFs of example-robot-data (``*_joint_limited_robot.urdf``, base
 ``base_link``, tip ``tool0``; skipped with a note when example-robot-data is not installed), the
-PUMA 560 of the catalog (spherical wrist, standard DH) and the seed's 6R arm (hand-written closed
-form; its derived one is timed in the vectorized column).
+PUMA 560 of the catalog (spherical wrist, standard DH) and the seed's 6R arm (its derived closed
+form; the hand-written one is its cross-check in the tests).
 
 Checks (each recomputed here from the returned ``q``): an EAIK solution counts when its FK by
 ``m.fk`` matches the target (position and orientation error <= 1e-6) and it lies within the limits
@@ -125,6 +128,7 @@ class Row:
     family: str
     n: int
     optik_times: list[float] = field(default_factory=list)
+    results_times: list[float] = field(default_factory=list)
     eaik_times: list[float] = field(default_factory=list)
     eaik_valid: int = 0
     found: int = 0
@@ -153,7 +157,11 @@ def run_arm(m: Mechanism, n: int, seed: int) -> Row:
     for t in targets:
         t0 = time.perf_counter()
         sols = optik.solve_ik_all(m, t)
+        assert sols.q.shape[0] == len(sols)  # the solutions as one array, like EAIK.Q
         row.optik_times.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        list(sols)
+        row.results_times.append(time.perf_counter() - t0)
         if robot is not None:
             t0 = time.perf_counter()
             theirs = robot.calculate_IK(t)
@@ -185,8 +193,8 @@ def report(rows: list[Row], notes: list[str], command: str) -> str:
         "",
         "| arm | family | poses | EAIK solutions in limits | found by optik | optik solutions | duplicates "
         "| failed FK/limit check | extra | optik mean / median / p95 | EAIK mean / median / p95 "
-        "| ratio of means / medians | vectorized (targets/s) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| ratio of means / medians | IKResult objects (mean) | vectorized (targets/s) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         om, omed, op95 = _stats(r.optik_times)
@@ -201,7 +209,8 @@ def report(rows: list[Row], notes: list[str], command: str) -> str:
             f"| {r.name} | {r.family} | {r.n} | {r.eaik_valid if r.eaik_times else '-'} | {found} "
             f"| {r.optik_solutions} | {r.duplicates} | {r.optik_failed_check} "
             f"| {r.extra if r.eaik_times else '-'} "
-            f"| {om:.1f} / {omed:.1f} / {op95:.1f} | {peer} | {ratio} | {r.throughput:,.0f} |"
+            f"| {om:.1f} / {omed:.1f} / {op95:.1f} | {peer} | {ratio} | {_stats(r.results_times)[0]:.1f} "
+            f"| {r.throughput:,.0f} |"
         )
     lines += ["", *(f"- {note}" for note in notes)]
     lines.append(

@@ -311,7 +311,7 @@ def _each(one: Callable[[Any], str | None]) -> Callable[[Any], str | None]:
     """A check of a result or a list of results (``solve_ik_all``, ``solve_fk_all``) by ``one``."""
 
     def check(result: Any) -> str | None:
-        for r in result if isinstance(result, list) else [result]:
+        for r in result if isinstance(result, (list, optik.results.IKSolutions)) else [result]:
             problem = one(r)
             if problem:
                 return problem

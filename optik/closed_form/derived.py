@@ -35,9 +35,9 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from optik import native
 from optik.closed_form import general_6r, registry, spherical_wrist, three_parallel
 from optik.closed_form import vec3 as v3
+from optik.closed_form.ik_all import AllSolutionsKernel
 from optik.closed_form.spherical_wrist import Branch
 from optik.closed_form.structure import Axes, Structure, axes_of, detect
 from optik.mechanism import Mechanism
@@ -49,11 +49,15 @@ POLISH_RANGE = (1e-5, 1e-3)
 the polish range (times the arm's size for the position, rad for the orientation) are polished;
 those beyond are no solution (least-squares answers of subproblems without a real one)."""
 COMPILE_AFTER = 64
-"""Single-target calls of one kernel after which it is compiled to C (`optik.native`)."""
+"""Single-target calls of one kernel after which its driver is compiled to C (`optik.closed_form.ik_all`)."""
 CHECK_TOL = 1e-9
 """FK check: largest position error (times the arm's size) and orientation error (rad) kept."""
+EXACT_TOL = 1e-12
+"""A derived model is exact (`DerivedIK.exact`) when its defect is at most this: the exact
+candidates of real arms are within about 1e-13."""
 SAME_TOL = 1e-4
 """Upper bound of the distance under which two candidates are one solution."""
+_NO_LIMIT, _NO_LIMIT_UP = np.full(6, -np.inf), np.full(6, np.inf)
 
 _KERNELS = {
     "spherical_wrist": spherical_wrist.branches,
@@ -61,6 +65,7 @@ _KERNELS = {
     "three_parallel": three_parallel.branches,
     "three_parallel_reversed": three_parallel.branches,
 }
+_STAND_INS = {"three_parallel": three_parallel.stand_ins, "three_parallel_reversed": three_parallel.stand_ins}
 
 
 def _wrap(a: np.ndarray) -> np.ndarray:
@@ -113,6 +118,13 @@ class DerivedIK:
             out = [tuple(-a for a in b[::-1]) for b in out]
         return out
 
+    def stand_ins(self, count: int) -> tuple[int, ...]:
+        """For each of the ``count`` candidates, the candidate it stands in for at a
+        singularity (-1: none; `optik.closed_form.three_parallel.stand_ins`): it is dropped
+        when that one passes the FK check."""
+        family = _STAND_INS.get(self.structure.family)
+        return family(count) if family is not None else (-1,) * count
+
     def candidates(self, t: np.ndarray) -> np.ndarray:
         """Unchecked candidates ``(N, B, 6)`` of the decomposition for targets ``t (N, 4, 4)``."""
         rt, pt = _components(t)
@@ -154,6 +166,12 @@ class DerivedIK:
         ok = (pos <= CHECK_TOL * size) & (ori <= CHECK_TOL)
         span = self.polish_range
         near = ~ok & (pos <= span * size) & (ori <= span)
+        stand = np.asarray(self.stand_ins(q.shape[1]))
+        if (stand >= 0).any():  # a stand-in is dropped when its regular candidate passes
+            idx = np.flatnonzero(stand >= 0)
+            taken = ok[:, stand[idx]]
+            ok[:, idx] &= ~taken
+            near[:, idx] &= ~taken
         if near.any():
             idx = np.nonzero(near)
             qq, good = self._polish(q[idx], t[idx[0]])
@@ -172,54 +190,78 @@ class DerivedIK:
                 self._merge(t, q, ok, n[near_pairs], j[near_pairs], i[near_pairs], dist[near_pairs])
         return np.where(ok[..., None], q, 0.0), ok
 
+    @property
+    def check_position(self) -> float:
+        """Largest position error the FK check keeps: `CHECK_TOL` times the arm's size (m)."""
+        return CHECK_TOL * self.axes.size
+
     @cached_property
-    def polish_range(self) -> float:
-        """How inexact a candidate may be and still be polished: 1000 times the model's defect
-        (the largest error of the candidate nearest the generating configuration over 16 seeded
-        FK targets: rounding for exact models, the mismatch of the detected relations for models
-        read from rounded URDF numbers), within `POLISH_RANGE`."""
+    def defect(self) -> float:
+        """The model's defect: the largest error (position over the arm's size, or
+        orientation) of the candidate nearest the generating configuration over 16 seeded FK
+        targets; rounding for an exact model, the mismatch of the detected relations for models
+        whose structure holds only within the detection tolerances (rounded URDF numbers,
+        links far shorter than the arm)."""
         q = np.random.default_rng(0).uniform(-np.pi, np.pi, (16, 6))
         t = self.axes.fk(q)
         cand = self.candidates(t)
         rt, pt = _components(t[:, None])
         pos, ori = self.errors_c(tuple(cand[..., i] for i in range(6)), rt, pt, v3.NUMPY)
-        defect = float(np.max(np.min(np.maximum(pos / self.axes.size, ori), axis=1)))
-        return min(max(1e3 * defect, POLISH_RANGE[0]), POLISH_RANGE[1])
+        return float(np.max(np.min(np.maximum(pos / self.axes.size, ori), axis=1)))
+
+    @property
+    def exact(self) -> bool:
+        """True when the candidates are exact to rounding (`defect` at most `EXACT_TOL`); False
+        when the detected structure holds only within the detection tolerances (the candidates
+        then pass the check within `CHECK_TOL`, or are polished)."""
+        return self.defect <= EXACT_TOL
+
+    @cached_property
+    def polish_range(self) -> float:
+        """How inexact a candidate may be and still be polished: 1000 times the `defect`,
+        within `POLISH_RANGE`."""
+        return min(max(1e3 * self.defect, POLISH_RANGE[0]), POLISH_RANGE[1])
 
     @cached_property
     def _single(self) -> _Single:
         return _Single(self)
 
     def compile(self) -> None:
-        """Compile the single-target kernel to C now and wait for it (it is compiled in the
-        background by itself after `COMPILE_AFTER` calls; without a C compiler CasADi's
-        evaluator stays)."""
+        """Compile the single-target driver to C now and wait for it (`optik.closed_form.ik_all`;
+        it is built in the background by itself after `COMPILE_AFTER` calls; without a C
+        compiler CasADi's evaluator stays)."""
         if self.structure.position == "general":
             return
-        with self._single.lock:
-            if self._single.calls < COMPILE_AFTER:
-                self._single.calls = COMPILE_AFTER  # no second build when it gets hot
-                self._single.compile(wait=True)
+        one = self._single
+        with one.lock:
+            one.calls = max(one.calls, COMPILE_AFTER)  # no second build when it gets hot
+            driver = one.compile()
+        if driver.library is not None:
+            driver.library.wait()
 
     def solve_one(self, t: np.ndarray) -> list[list[float]]:
         """The solutions for one target ``t (4, 4)`` as rows, the same as ``solve(t)`` but
-        through the symbolic kernel (`_Single`): about a hundred times cheaper per call than the
-        numpy kernel on one target. Targets with a candidate to polish or two close candidates
-        take the numpy path (`finish`), as do the families solved by SP5 / SP6 (``general``
-        position case: eigenvalues, numpy only); the others return
+        through the compiled driver (`optik.closed_form.ik_all`) or, until it is built or
+        without a C compiler, the symbolic kernel (`_Single`): about a hundred times cheaper
+        per call than the numpy kernel on one target. Targets with a candidate to polish or two
+        close candidates take the numpy path (`finish`), as do the families solved by SP5 / SP6
+        (``general`` position case: eigenvalues, numpy only); the others return
         [`CheckedRows`][optik.closed_form.registry.CheckedRows] carrying the kernel's FK check
         of each row (the product-of-exponentials model, equal to the mechanism's FK to
         rounding: `axes_of` checks it)."""
         if self.structure.position == "general":  # SP5 / SP6 eigenvalues: numpy only
             q, ok = self.solve(t)
             return q[0][ok[0]].tolist()
+        driver = self.driver()
+        if driver is not None:
+            got = driver(t, None, _NO_LIMIT, _NO_LIMIT_UP, sort=False)
+            if got is not None:
+                return registry.CheckedRows(got[0].tolist(), [tuple(e) for e in got[1].tolist()], True)
+            return self._solve_numpy(t)
         one = self._single
         with one.lock:
             one.t[:] = t.reshape(16)
-            one.call()
-            one.calls += 1
-            if one.calls == COMPILE_AFTER:
-                one.compile()  # in the background
+            one.function_call()
             flags = one.flags.tolist()
             if flags[0] > 0.0 or flags[1] < SAME_TOL:  # a candidate to polish, or two close ones
                 qa = one.q.reshape(1, -1, 6).copy()
@@ -232,6 +274,27 @@ class DerivedIK:
                 )
         qa, oka = self.finish(np.asarray(t, dtype=float).reshape(1, 4, 4), qa, e[..., 0], e[..., 1])
         return qa[0][oka[0]].tolist()
+
+    def _solve_numpy(self, t: np.ndarray) -> list[list[float]]:
+        q, ok = self.solve(t)
+        return q[0][ok[0]].tolist()
+
+    def driver(self) -> AllSolutionsKernel | None:
+        """The compiled single-target driver once it is loaded, else None (counting the call:
+        the build starts in the background at the `COMPILE_AFTER`-th). None always for the
+        ``general`` position case (SP5 / SP6 eigenvalues: numpy only)."""
+        if self.structure.position == "general":
+            return None
+        one = self._single
+        driver = one.driver
+        if driver is not None and driver.ready:
+            return driver
+        if driver is None:
+            with one.lock:
+                one.calls += 1
+                if one.calls >= COMPILE_AFTER and one.driver is None:
+                    one.compile()
+        return None
 
     def _polish(self, q: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Gauss-Newton on ``q (K, 6)`` for targets ``t (K, 4, 4)``; which pass the check."""
@@ -272,22 +335,27 @@ class _Single:
     branches wrapped to ``(-pi, pi]`` (``6 B``), their position and orientation errors (``2 B``),
     whether each passes the FK check (``B``), and two flags: the number of candidates to polish
     and the smallest wrapped max-norm distance between two passing ones. Guarded by a lock (the
-    buffers are shared)."""
+    buffers are shared). CasADi's evaluator runs it until the compiled driver of the same steps
+    (`driver`, `optik.closed_form.ik_all`) is loaded, and always without a C compiler."""
 
     def __init__(self, solver: DerivedIK) -> None:
         t = ca.SX.sym("t", 16)
         rt = tuple(tuple(t[4 * i + j] for j in range(3)) for i in range(3))
         pt = (t[3], t[7], t[11])
         ops = v3.CASADI
-        raw = solver.branches(rt, pt, ops)
+        raw = solver.branches(rt, pt, v3.remembering(ops))
         two_pi = 2.0 * np.pi
-        wrapped = [[a - two_pi * ca.ceil((a - np.pi) / two_pi) for a in b] for b in raw]  # (-pi, pi]
+        wrapped = [[_wrap_sx(a) for a in b] for b in raw]  # (-pi, pi]
         errs = [solver.errors_c(b, rt, pt, ops) for b in raw]
         # the FK check and the two reasons for the numpy path, decided in the same function
         size, span = solver.axes.size, solver.polish_range
-        ok = [(pos <= CHECK_TOL * size) * (ori <= CHECK_TOL) for pos, ori in errs]
+        passed = [(pos <= CHECK_TOL * size) * (ori <= CHECK_TOL) for pos, ori in errs]
+        # a stand-in counts only when its regular candidate fails (DerivedIK.stand_ins)
+        free = [1 if s < 0 else 1 - passed[s] for s in solver.stand_ins(len(raw))]
+        ok = [p * f for p, f in zip(passed, free, strict=True)]
         near = sum(
-            (1 - k) * (pos <= span * size) * (ori <= span) for k, (pos, ori) in zip(ok, errs, strict=True)
+            f * (1 - p) * (pos <= span * size) * (ori <= span)
+            for p, f, (pos, ori) in zip(passed, free, errs, strict=True)
         )
         closest = ca.inf
         for i, j in _pairs(len(raw)):
@@ -309,25 +377,46 @@ class _Single:
         self.ok = np.zeros(len(raw))
         self.flags = np.zeros(2)
         self.outputs = [self.q, self.err, self.ok, self.flags]
-        self.buffer, self.call = f.buffer()
+        self.buffer, self.function_call = f.buffer()
         self.buffer.set_arg(0, memoryview(self.t))
         for k, out in enumerate(self.outputs):
             self.buffer.set_res(k, memoryview(out))
         self.lock = threading.Lock()
         self.calls = 0
+        self.driver: AllSolutionsKernel | None = None
+        self._solver = solver
 
-    def compile(self, wait: bool = False) -> None:
-        """Switch ``call`` to the function compiled to C on the same buffers, built in the
-        background (`optik.native.library`; CasADi's evaluator answers until it is loaded, and
-        stays without a working C compiler). ``wait``: block until the build is done."""
-        lib = native.library([self.function])
-        if lib is None:
-            return
-        if wait:
-            lib.wait()
-        binding = native.Binding(lib, self.function.name(), [self.t], self.outputs)
-        evaluate = self.call
-        self.call = lambda: binding(evaluate)
+    def compile(self) -> AllSolutionsKernel:
+        """Start the build of the compiled driver (`optik.closed_form.ik_all`, in the
+        background) and keep it in `driver`; hold `lock`."""
+        if self.driver is None:
+            solver = self._solver
+            t = ca.SX.sym("t", 16)
+            rt = tuple(tuple(t[4 * i + j] for j in range(3)) for i in range(3))
+            pt = (t[3], t[7], t[11])
+            raw = solver.branches(rt, pt, v3.remembering(v3.CASADI))
+            q = ca.SX.sym("q", 6)
+            err = solver.errors_c(tuple(q[i] for i in range(6)), rt, pt, v3.CASADI)
+            size, span = solver.axes.size, solver.polish_range
+            self.driver = AllSolutionsKernel(
+                ca.Function("optik_ik_branches", [t], [ca.vertcat(*[a for b in raw for a in b])]),
+                ca.Function("optik_ik_check", [q, t], [ca.vertcat(*err)]),
+                solver.stand_ins(len(raw)),
+                (CHECK_TOL * size, CHECK_TOL),
+                (span * size, span),
+                SAME_TOL,
+            )
+        return self.driver
+
+
+def _wrap_sx(a: ca.SX) -> ca.SX:
+    """``a`` to ``(-pi, pi]`` with the arithmetic of `_wrap` and
+    [`Mechanism.wrap`][optik.Mechanism.wrap] (numpy's ``remainder``: ``fmod``, then ``+ 2 pi``
+    for a negative remainder), so that every path gives the same numbers."""
+    two_pi = 2.0 * np.pi
+    r = ca.fmod(a + np.pi, two_pi)
+    w = ca.if_else(r < 0, r + two_pi, r) - np.pi
+    return ca.if_else(w <= -np.pi, w + two_pi, w)
 
 
 def _components(t: np.ndarray) -> tuple[v3.Mat, v3.Vec]:
@@ -337,10 +426,14 @@ def _components(t: np.ndarray) -> tuple[v3.Mat, v3.Vec]:
 
 
 def _solve_steps(jac: np.ndarray, res: np.ndarray) -> np.ndarray:
-    """Damped Gauss-Newton steps ``(J^T J + mu I)^-1 J^T r`` (``mu`` tiny, for singular poses)."""
+    """Damped Gauss-Newton steps ``(J^T J + mu I)^-1 J^T r``, ``mu`` 1e-12 times the mean
+    diagonal of ``J^T J`` (relative, so that singular poses and arms with links of very
+    different lengths stay solvable in floating point)."""
     jt = np.swapaxes(jac, -1, -2)
     a = jt @ jac
-    a = a + 1e-12 * np.eye(a.shape[-1])
+    n = a.shape[-1]
+    mu = 1e-12 * np.maximum(np.trace(a, axis1=-2, axis2=-1) / n, 1e-300)
+    a = a + mu[..., None, None] * np.eye(n)
     return np.linalg.solve(a, np.einsum("...ij,...j->...i", jt, res)[..., None])[..., 0]
 
 
@@ -390,16 +483,29 @@ def derive_locked(m: Mechanism, locked: dict[int, float]) -> DerivedIK | None:
     return derive_axes(axes)
 
 
+class DerivedRows:
+    """The registry solver ``(m, T) -> rows`` of a `DerivedIK`
+    ([`DerivedIK.solve_one`][optik.closed_form.derived.DerivedIK.solve_one]); ``solver`` lets
+    callers reach the derived solver itself (`optik.solve_ik_all` calls its compiled driver)."""
+
+    def __init__(self, solver: DerivedIK) -> None:
+        self.solver = solver
+
+    @property
+    def exact(self) -> bool:
+        """[`DerivedIK.exact`][optik.closed_form.derived.DerivedIK.exact]: read by
+        [`optik.closed_form.registry.ik_solver`][optik.closed_form.registry.ik_solver] for the
+        kinds that prefer an exact derived solver to their own."""
+        return self.solver.exact
+
+    def __call__(self, _: Mechanism, t: np.ndarray) -> list[list[float]]:
+        return self.solver.solve_one(t)
+
+
 def derived_rows(m: Mechanism) -> registry.IKSolver | None:
-    """Registry deriver: ``(m, T) -> rows`` of every derived solution, or None."""
+    """Registry deriver: ``(m, T) -> rows`` of every derived solution (a `DerivedRows`), or None."""
     solver = derive(m)
-    if solver is None:
-        return None
-
-    def rows(_: Mechanism, t: np.ndarray) -> list[list[float]]:
-        return solver.solve_one(t)
-
-    return rows
+    return None if solver is None else DerivedRows(solver)
 
 
 def general_rows(m: Mechanism) -> registry.IKSolver | None:

@@ -35,15 +35,29 @@ FKSolver = Callable[[Mechanism, np.ndarray], Sequence[Sequence[float]]]
 
 _IK: dict[str, IKSolver] = {}
 _FK: dict[str, FKSolver] = {}
+_GENERATION = [0]
+"""Bumped by every registration: caches of what `ik_solver` answered compare it (`generation`)."""
+_PREFER_EXACT_DERIVED: set[str] = set()
+"""Kinds whose registered IK gives way to a derived one that is exact (``exact`` attribute)."""
 _TIMED_FK: set[str] = set()
 """Kinds whose FK can run long (iterative: homotopy) and takes a ``time_limit`` keyword."""
 
 
-def register(kind: str, ik: IKSolver | None = None, fk: FKSolver | None = None) -> None:
+def register(
+    kind: str, ik: IKSolver | None = None, fk: FKSolver | None = None, prefer_exact_derived: bool = False
+) -> None:
     """Register the closed-form IK and/or FK of a catalog kind. An FK solver that can run long
-    declares a ``time_limit`` keyword (seconds); [`fk`][optik.closed_form.registry.fk] passes it on."""
+    declares a ``time_limit`` keyword (seconds); [`fk`][optik.closed_form.registry.fk] passes it on.
+    With ``prefer_exact_derived``, a solver derived from the model (see
+    [`register_deriver`][optik.closed_form.registry.register_deriver]) whose ``exact`` attribute is
+    True answers for the kind instead of ``ik`` (the hand-written one then answers for the
+    geometries the derived one only approximates)."""
+    _GENERATION[0] += 1
+    _DERIVED.clear()
     if ik is not None:
         _IK[kind] = ik
+        if prefer_exact_derived:
+            _PREFER_EXACT_DERIVED.add(kind)
     if fk is not None:
         _FK[kind] = fk
         if "time_limit" in inspect.signature(fk).parameters:
@@ -61,22 +75,34 @@ def register_deriver(deriver: Deriver) -> None:
     IK; the first answer is cached per mechanism."""
     _DERIVERS.append(deriver)
     _DERIVED.clear()
+    _GENERATION[0] += 1
+
+
+def generation() -> int:
+    """A number that changes with every registration (of a kind's solvers or a deriver): what
+    [`ik_solver`][optik.closed_form.registry.ik_solver] answers for a mechanism holds while it
+    stays the same."""
+    return _GENERATION[0]
 
 
 def ik_solver(m: Mechanism) -> IKSolver | None:
-    """The closed-form IK of ``m``: the one registered for its kind, else the first derived one
-    (see [`register_deriver`][optik.closed_form.registry.register_deriver]), else None."""
-    solver = _IK.get(m.kind) if m.kind is not None else None
-    if solver is not None:
-        return solver
+    """The closed-form IK of ``m``: the one registered for its kind (unless the kind prefers an
+    exact derived one and there is one), else the first derived one (see
+    [`register_deriver`][optik.closed_form.registry.register_deriver]), else None."""
+    own = _IK.get(m.kind) if m.kind is not None else None
+    if own is not None and m.kind not in _PREFER_EXACT_DERIVED:
+        return own
     try:
         return _DERIVED[m]
     except KeyError:
         pass
+    solver = None
     for deriver in _DERIVERS:
         solver = deriver(m)
         if solver is not None:
             break
+    if own is not None and not getattr(solver, "exact", False):
+        solver = own
     _DERIVED[m] = solver
     return solver
 

@@ -24,13 +24,17 @@ Mathematics (seed ``000``/``001`` notation):
   ``phi - theta1 + theta2``, a typo that fails the FK round trip).
 * **R-P** (seed 001, theta-r): ``(theta, r) = (atan2(y, x), sqrt(x^2 + y^2))`` and
   ``(theta + pi, -r)``; **P-P**: ``(q1, q2) = (x, y)``.
-* **Seed 6R arm**: see [`ik_seed_6r`][optik.closed_form.serial.ik_seed_6r].
+* **Seed 6R arm**: see [`ik_seed_6r`][optik.closed_form.serial.ik_seed_6r]. It is the cross-check of
+  the arm's closed form derived from its joint axes
+  ([`optik.closed_form.derived`][optik.closed_form.derived]: axes 2-4 parallel, 5 and 6
+  intersecting), which answers for the arm when it is exact; this kernel answers (one target at a
+  time) for the proportions where it is not (a link below the detection tolerance).
 
 The kernels run over blocks of [`BLOCK`][optik.closed_form.serial.BLOCK] targets so that temporaries stay in
 cache (``optik benchmark closed_form``: the 3R arm solves several million targets per second on one core).
-[`optik.closed_form.ik`][optik.closed_form.ik] solves one target at a time; it calls scalar twins of the
-kernels (``_*_one``, plain ``math`` on floats, the same operations in the same order), since a numpy call on a
-one-element array costs about as much as the whole scalar solve.
+[`optik.closed_form.ik`][optik.closed_form.ik] solves one target at a time; for the planar arms it calls
+scalar twins of the kernels (``_*_one``, plain ``math`` on floats, the same operations in the same order),
+since a numpy call on a one-element array costs about as much as the whole scalar solve.
 
 Exactly degenerate targets have a defined representative: a two-link target at the origin with
 ``l1 = l2`` gives ``theta1 = 0``, ``theta2 = pi`` (``atan2(0, 0) = 0``); the R-P target at the
@@ -389,12 +393,6 @@ def _triangle_angle(r: np.ndarray, d: float, c: float) -> np.ndarray:
     return 2.0 * np.arcsin(np.sqrt(np.clip(h, 0.0, 1.0)))
 
 
-def _triangle_angle_one(r: float, d: float, c: float) -> float:
-    """`_triangle_angle` of floats."""
-    gap = abs(r - d)
-    return 2.0 * math.asin(math.sqrt(_clip_one(_safe_one((c - gap) * (c + gap), 4.0 * r * d, 0.0), 0.0, 1.0)))
-
-
 def _reachable_wrist(
     th234: np.ndarray, s5_abs: np.ndarray, beta: np.ndarray, r: np.ndarray, d: tuple[float, float, float]
 ) -> np.ndarray:
@@ -538,82 +536,6 @@ def _seed_6r_block(
     ok_out.reshape(n_t, 2, 2, 2)[:] = ok[..., None]
 
 
-def _safe_one(num: float, den: float, default: float) -> float:
-    """`_safe_ratio` of floats."""
-    return num / den if den != 0 else default
-
-
-def _clip_one(a: float, lo: float, hi: float) -> float:
-    """``np.clip`` of a float (``hi`` wins when ``lo > hi``)."""
-    return min(max(a, lo), hi)
-
-
-def _reachable_wrist_one(
-    th234: float, s5_abs: float, beta: float, r: float, d: tuple[float, float, float]
-) -> float:
-    """`_reachable_wrist` for one candidate."""
-    d2, d3, d4 = d
-    lo = _triangle_angle_one(r, d4, abs(d2 - d3))
-    hi = _triangle_angle_one(r, d4, d2 + d3)
-    psi = _wrap_one(th234 - beta)
-    inside = _clip_one(abs(psi), lo, hi)
-    moved = beta + (inside if psi >= 0.0 else -inside)
-    cheap = lo <= hi and s5_abs * abs(math.sin(moved - th234)) <= SINGULAR_TOL
-    return moved if cheap else th234
-
-
-def _seed_6r_one(d2: float, d3: float, d4: float, t: np.ndarray) -> list[list[float]]:
-    """The reachable branches of [`ik_seed_6r`][optik.closed_form.serial.ik_seed_6r] for one target, in branch
-    order: the same steps as `_seed_6r_block` on floats."""
-    (nx, ox, ax, px), (ny, oy, ay, py), (nz, oz, az, pz) = t[:3].tolist()
-    mid = max(d2, d3)
-    scale = SINGULAR_TOL * (d2 + d3 + d4)
-    extent = abs(px) + abs(py) + abs(pz) + d4
-
-    # 1. shoulder, with the representative of the shoulder singularity
-    if math.hypot(px, py) <= scale:
-        h = math.hypot(ax, ay)
-        s_star = _clip_one(_safe_one(pz * pz + d4 * d4 - mid * mid, 2.0 * d4 * pz, 0.0), -1.0, 1.0)
-        ratio = _safe_one(abs(az) * math.sqrt(1.0 - s_star * s_star), abs(s_star) * h, math.inf)
-        th1_base = math.atan2(ay, ax) + math.acos(min(ratio, 1.0))
-    else:
-        th1_base = math.atan2(py, px)
-    c5_sign = 1.0 if ax * math.sin(th1_base) - ay * math.cos(th1_base) >= 0.0 else -1.0
-    th1_orient = math.atan2(c5_sign * ax, -c5_sign * ay)
-    c1o, s1o = math.cos(th1_orient), math.sin(th1_orient)
-    if math.hypot(ax * c1o + ay * s1o, az) <= SINGULAR_TOL and abs(py * c1o - px * s1o) <= scale:
-        th1_base = th1_orient
-    out: list[list[float]] = []
-    for th1 in (_wrap_one(th1_base), _wrap_one(th1_base + np.pi)):
-        c1, s1 = math.cos(th1), math.sin(th1)
-        # 2. wrist, with the representative of the wrist singularity
-        u = ax * c1 + ay * s1
-        rho = px * c1 + py * s1
-        r = math.hypot(rho, pz)
-        beta = math.atan2(pz, rho)
-        s5_abs = math.hypot(u, az)
-        if s5_abs <= SINGULAR_TOL:
-            acos_k = _triangle_angle_one(r, d4, mid)
-        c5 = ax * s1 - ay * c1
-        nr = nx * c1 + ny * s1
-        orr = ox * c1 + oy * s1
-        for sigma in (1.0, -1.0):
-            singular = s5_abs <= SINGULAR_TOL
-            th234 = beta + sigma * acos_k if singular else math.atan2(sigma * az, sigma * u)
-            th234 = _reachable_wrist_one(th234, s5_abs, beta, r, (d2, d3, d4))
-            c234, s234 = math.cos(th234), math.sin(th234)
-            # 3. elbow
-            ok, t2a, t2b, t3 = _two_link_one(d2, d3, rho - d4 * c234, pz - d4 * s234, extent)
-            if not ok:
-                continue
-            # 4. wrist angles from M = R_04^T R
-            th5 = math.atan2(c234 * u + s234 * az, c5)
-            th6 = math.atan2(c234 * nz - s234 * nr, c234 * oz - s234 * orr)
-            out.append([th1, t2a, t3, _wrap_one(th234 - t2a - t3), th5, th6])
-            out.append([th1, t2b, -t3, _wrap_one(th234 - t2b + t3), th5, th6])
-    return out
-
-
 # ---------------------------------------------------------------------------- registry adapters
 def _distinct_rows(m: Mechanism, rows: list[list[float]]) -> list[list[float]]:
     """The reachable branches of one target (rows, in branch order) without repeats of an
@@ -674,7 +596,14 @@ register("planar_2r", ik=_adapter(lambda l1, l2, x, y, phi: _planar_2r_one(l1, l
 register("planar_3r", ik=_adapter(_planar_3r_one, "lengths"))
 register("rp_arm", ik=_adapter(lambda x, y, phi: _rp_one(x, y)))
 register("pp_arm", ik=_adapter(lambda x, y, phi: [[x, y]]))
-register(
-    "seed_6r_arm",
-    ik=lambda m, t: _distinct_rows(m, _seed_6r_one(m.params["d2"], m.params["d3"], m.params["d4"], t)),
-)
+
+
+def _seed_6r_rows(m: Mechanism, t: np.ndarray) -> list[list[float]]:
+    """The branches of [`ik_seed_6r`][optik.closed_form.serial.ik_seed_6r] for one target: the
+    seed arm's closed form where its derived one is not exact (links so short against the arm
+    that the structure holds only within the detection tolerance)."""
+    q, ok = ik_seed_6r(m.params["d2"], m.params["d3"], m.params["d4"], t)
+    return _distinct_rows(m, q[0][ok[0]].tolist())
+
+
+register("seed_6r_arm", ik=_seed_6r_rows, prefer_exact_derived=True)

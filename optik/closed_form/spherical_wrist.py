@@ -51,21 +51,21 @@ def _position(axes: Axes, case: str, wc: v3.Vec, ops: v3.Ops) -> Iterator[tuple[
         for q3 in sp.sp3_c(h[2], w_r3, v3.sub(s, r[2]), v3.norm(v3.sub(wc, s), ops), ops):
             v = v3.add(v3.sub(r[2], s), v3.rot(h[2], ops.cos(q3), ops.sin(q3), w_r3))
             for q2, mq1 in sp.sp2_c(h[1], v, h[0], v3.sub(wc, s), ops):
-                yield -mq1, q2, q3
+                yield v3.neg(mq1, ops), q2, q3
     elif case == "2-3 parallel":
         wc_r1 = v3.sub(wc, r[0])
         for mq1 in sp.sp4_c(h[1], h[0], wc_r1, v3.dot(h[1], v3.sub(w, r[0])), ops):
             w1 = v3.add(r[0], v3.rot(h[0], ops.cos(mq1), ops.sin(mq1), wc_r1))
             for q3 in sp.sp3_c(h[2], w_r3, v3.sub(r[1], r[2]), v3.norm(v3.sub(w1, r[1]), ops), ops):
                 e3 = v3.add(r[2], v3.rot(h[2], ops.cos(q3), ops.sin(q3), w_r3))
-                yield -mq1, sp.sp1_c(h[1], v3.sub(e3, r[1]), v3.sub(w1, r[1]), ops), q3
+                yield v3.neg(mq1, ops), sp.sp1_c(h[1], v3.sub(e3, r[1]), v3.sub(w1, r[1]), ops), q3
     elif case == "2-3 intersecting":
         s = v3.vec(intersection(axes, 1, 2))
         wc_r1 = v3.sub(wc, r[0])
         for mq1 in sp.sp3_c(h[0], wc_r1, v3.sub(s, r[0]), float(np.linalg.norm(np.subtract(w, s))), ops):
             w1 = v3.add(r[0], v3.rot(h[0], ops.cos(mq1), ops.sin(mq1), wc_r1))
             for q3, mq2 in sp.sp2_c(h[2], v3.sub(w, s), h[1], v3.sub(w1, s), ops):
-                yield -mq1, -mq2, q3
+                yield v3.neg(mq1, ops), v3.neg(mq2, ops), q3
     elif case == "1-2 parallel":
         wc_r1 = v3.sub(wc, r[0])
         d3 = v3.dot(h[0], wc_r1) - v3.dot(h[0], v3.sub(r[2], r[0]))
@@ -111,7 +111,7 @@ def _wrist(
         r45 = v3.mat_mul(
             v3.rot_mat(h[3], ops.cos(mq4), -ops.sin(mq4)), v3.rot_mat(h[4], ops.cos(q5), ops.sin(q5))
         )
-        yield -mq4, q5, sp.sp1_c(h[5], x, v3.mat_t_vec(r45, r36x), ops)
+        yield v3.neg(mq4, ops), q5, sp.sp1_c(h[5], x, v3.mat_t_vec(r45, r36x), ops)
 
 
 def branches(axes: Axes, case: str, rel: v3.Mat, pt: v3.Vec, ops: v3.Ops) -> list[Branch]:

@@ -77,23 +77,33 @@ def sp1_c(k: v3.Vec, p1: v3.Vec, p2: v3.Vec, ops: v3.Ops) -> Any:
     return ops.atan2(v3.dot(v3.cross(k, p1), p2), v3.dot(p1, p2) - v3.dot(k, p1) * v3.dot(k, p2))
 
 
-def _sp4_terms(h: v3.Vec, k: v3.Vec, p: v3.Vec, d: Any) -> tuple[Any, Any, Any]:
+def sp4_terms_c(h: v3.Vec, k: v3.Vec, p: v3.Vec, d: Any) -> tuple[Any, Any, Any]:
     """``(a, b, c)`` of ``a cos(theta) + b sin(theta) = c`` (see the module docstring)."""
     kp = v3.dot(k, p)
     hk = v3.dot(h, k)
     return v3.dot(h, p) - hk * kp, v3.dot(h, v3.cross(k, p)), d - hk * kp
 
 
-def _sp4_roots(a: Any, b: Any, c: Any, ops: v3.Ops) -> tuple[Any, Any]:
+def sp4_roots_c(a: Any, b: Any, c: Any, ops: v3.Ops) -> tuple[Any, Any]:
+    """The roots ``atan2(b, a) +- acos(c / sqrt(a^2 + b^2))`` of ``a cos + b sin = c`` (the
+    argument clipped into ``[-1, 1]``: the least-squares root twice when there is none)."""
     phi = ops.atan2(b, a)
     r = ops.sqrt(a * a + b * b)
-    delta = ops.acos(ops.fmax(-1.0, ops.fmin(1.0, c / ops.fmax(r, 1e-300))))
-    return phi + delta, phi - delta
+    cd = ops.fmax(-1.0, ops.fmin(1.0, c / ops.fmax(r, 1e-300)))
+    delta = ops.acos(cd)
+    if not ops.remembers:
+        return phi + delta, phi - delta
+    # cos and sin of the roots by the sum formulas, for the backends that remember them
+    cp, sp_, sd = ops.cos(phi), ops.sin(phi), ops.sqrt((1.0 - cd) * (1.0 + cd))
+    return (
+        ops.known(phi + delta, cp * cd - sp_ * sd, sp_ * cd + cp * sd),
+        ops.known(phi - delta, cp * cd + sp_ * sd, sp_ * cd - cp * sd),
+    )
 
 
 def sp4_c(h: v3.Vec, k: v3.Vec, p: v3.Vec, d: Any, ops: v3.Ops) -> tuple[Any, Any]:
     """SP4 on component vectors: the two roots (the least-squares one twice when there is none)."""
-    return _sp4_roots(*_sp4_terms(h, k, p, d), ops)
+    return sp4_roots_c(*sp4_terms_c(h, k, p, d), ops)
 
 
 def sp3_c(k: v3.Vec, p1: v3.Vec, p2: v3.Vec, d: Any, ops: v3.Ops) -> tuple[Any, Any]:
@@ -134,7 +144,7 @@ def sp4(
         ``(theta (..., 2), exact (...))``: the ``+ acos`` root first.
     """
     d = np.asarray(d, dtype=float)
-    a, b, c = np.broadcast_arrays(*_sp4_terms(_split(h), _split(k), _split(p), d))
+    a, b, c = np.broadcast_arrays(*sp4_terms_c(_split(h), _split(k), _split(p), d))
     r = np.hypot(a, b)
     if scale is None:
         scale = np.linalg.norm(p, axis=-1) * np.linalg.norm(h, axis=-1) + np.abs(d)
@@ -142,7 +152,7 @@ def sp4(
     exact = (np.abs(c) <= r + EXACT_TOL * scale) & (
         (r > EXACT_TOL * scale) | (np.abs(c) <= EXACT_TOL * scale)
     )
-    return np.stack(_sp4_roots(a, b, c, v3.NUMPY), axis=-1), exact
+    return np.stack(sp4_roots_c(a, b, c, v3.NUMPY), axis=-1), exact
 
 
 def sp3(k: np.ndarray, p1: np.ndarray, p2: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

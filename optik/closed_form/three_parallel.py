@@ -31,6 +31,10 @@ from optik.closed_form import vec3 as v3
 from optik.closed_form.spherical_wrist import Branch
 from optik.closed_form.structure import Axes, intersection
 
+VOID_TOL = 1e-12
+"""The position SP4 of q1 is void (``P6`` on axis 1) when its ``sqrt(a^2 + b^2)`` is below this
+times the arm's size (`_pairs_decoupled`)."""
+
 
 def _points(axes: Axes, case: str) -> tuple[list[v3.Vec], list[v3.Vec]]:
     """Axes and points as tuples, ``r5 = r6`` = the common point of axes 5, 6 when they meet."""
@@ -41,13 +45,28 @@ def _points(axes: Axes, case: str) -> tuple[list[v3.Vec], list[v3.Vec]]:
 
 
 def _pairs_decoupled(
-    h: list[v3.Vec], r: list[v3.Vec], p6: v3.Vec, rh6: v3.Vec, ops: v3.Ops
+    h: list[v3.Vec], r: list[v3.Vec], p6: v3.Vec, rh6: v3.Vec, size: float, ops: v3.Ops
 ) -> Iterator[tuple[Any, Any]]:
-    """The four ``(q1, q5)`` when axes 5 and 6 intersect (two SP4)."""
-    for mq1 in sp.sp4_c(h[1], h[0], v3.sub(p6, r[0]), v3.dot(h[1], v3.sub(r[4], r[0])), ops):
-        lhs = v3.dot(h[1], v3.rot(h[0], ops.cos(mq1), ops.sin(mq1), rh6))
-        for q5 in sp.sp4_c(h[1], h[4], h[5], lhs, ops):
-            yield -mq1, q5
+    """The four ``(q1, q5)`` when axes 5 and 6 intersect (two SP4).
+
+    When ``P6`` lies on axis 1 and the position SP4 is void (its ``a = b = 0``: every ``q1``
+    or none meets the position), ``q1`` takes a representative: ``theta = q2 + q3 + q4`` is
+    chosen so that the two-link target is in the middle of its reach (as in `_rest`, with
+    ``Y = P6`` and ``z = r5``), and ``q1`` so that this ``theta`` fits the orientation:
+    ``rot(h, -theta) rot(h1, -q1) R h6`` must make the angle of ``h5`` and ``h6`` with ``h5``,
+    the SP4 ``(rot(h, theta) h5) . rot(h1, -q1) R h6 = h5 . h6``."""
+    k = h[1]
+    a, b, c = sp.sp4_terms_c(k, h[0], v3.sub(p6, r[0]), v3.dot(k, v3.sub(r[4], r[0])))
+    y, v = v3.sub(p6, r[1]), v3.sub(r[4], r[3])
+    theta = sp.sp4_c(y, k, v, 0.5 * (v3.dot(y, y) + v3.dot(v, v) - _mid_reach(k, r)), ops)[0]
+    h5_theta = v3.rot(k, ops.cos(theta), ops.sin(theta), h[4])
+    void = a * a + b * b <= (VOID_TOL * size) ** 2
+    mid = sp.sp4_terms_c(h5_theta, h[0], rh6, v3.dot(h[4], h[5]))
+    terms = [ops.where(void, m, t) for m, t in zip(mid, (a, b, c), strict=True)]
+    for mq1 in sp.sp4_roots_c(*terms, ops):
+        lhs = v3.dot(k, v3.rot(h[0], ops.cos(mq1), ops.sin(mq1), rh6))
+        for q5 in sp.sp4_c(k, h[4], h[5], lhs, ops):
+            yield v3.neg(mq1, ops), q5
 
 
 def _pairs_sp6(h: list[v3.Vec], r: list[v3.Vec], p6: v3.Vec, rh6: v3.Vec) -> Iterator[tuple[Any, Any]]:
@@ -112,7 +131,7 @@ def _rest(
     y = v3.add(r[0], v3.mat_t_vec(r01, v3.sub(p6, r[0])))
     z = v3.add(r[4], v3.mat_vec(r45, v3.sub(r[5], r[4])))
     x = _perpendicular(np.asarray(k))
-    q6 = -sp.sp1_c(h[5], v3.mat_t_vec(r45, k), v3.mat_t_vec(rel, v3.mat_vec(r01, k)), ops)
+    q6 = v3.neg(sp.sp1_c(h[5], v3.mat_t_vec(r45, k), v3.mat_t_vec(rel, v3.mat_vec(r01, k)), ops), ops)
     r56 = v3.rot_mat(h[5], ops.cos(q6), ops.sin(q6))
     r14 = v3.mat_mul(v3.mat_mul(v3.transpose(r01), rel), v3.transpose(v3.mat_mul(r45, r56)))
     theta = sp.sp1_c(k, x, v3.mat_vec(r14, x), ops)
@@ -129,10 +148,22 @@ def _rest(
         yield q1, *q234, q5, q6_s
 
 
+def stand_ins(count: int) -> tuple[int, ...]:
+    """For each of the ``count`` candidates of `branches`, the index of the regular candidate
+    that it stands in for at the wrist singularity, or -1 for a regular one: `_rest` yields
+    the two regular candidates of a ``(q1, q5)`` pair, then their two representatives. A
+    representative is only needed when its regular candidate fails the FK check (when both
+    pass, they are two points of the same one-parameter family of solutions)."""
+    return tuple(-1 if k % 4 < 2 else k - 2 for k in range(count))
+
+
 def branches(axes: Axes, case: str, rel: v3.Mat, pt: v3.Vec, ops: v3.Ops) -> list[Branch]:
     """The 8 IK branches for the relative target rotation ``rel = R_T R_M^T`` and position ``pt``."""
     h, r = _points(axes, case)
     p6 = v3.add(v3.mat_vec(rel, v3.vec(np.asarray(r[5]) - axes.home[:3, 3])), pt)
     rh6 = v3.mat_vec(rel, h[5])
-    pairs = _pairs_decoupled(h, r, p6, rh6, ops) if case == "5-6 intersecting" else _pairs_sp6(h, r, p6, rh6)
+    if case == "5-6 intersecting":
+        pairs = _pairs_decoupled(h, r, p6, rh6, axes.size, ops)
+    else:
+        pairs = _pairs_sp6(h, r, p6, rh6)
     return [b for q1, q5 in pairs for b in _rest(h, r, rel, p6, q1, q5, ops)]

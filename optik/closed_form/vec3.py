@@ -32,10 +32,52 @@ class Ops:
     fmin: Callable[[Any, Any], Any]
     fmax: Callable[[Any, Any], Any]
     where: Callable[[Any, Any, Any], Any]
+    known: Callable[[Any, Any, Any], Any] = lambda angle, c, s: angle
+    """``known(angle, c, s)``: ``angle``, whose cosine and sine are ``c`` and ``s`` (a backend
+    that remembers them, `remembering`, returns them from ``cos`` and ``sin``)."""
+    remembers: bool = False
+    """True for `remembering` backends (the kernels then form the cosines and sines of the
+    angles they make, for `known`)."""
 
 
 NUMPY = Ops(np.arctan2, np.arccos, np.sqrt, np.cos, np.sin, np.minimum, np.maximum, np.where)
 CASADI = Ops(ca.atan2, ca.acos, ca.sqrt, ca.cos, ca.sin, ca.fmin, ca.fmax, ca.if_else)
+
+
+def remembering(base: Ops) -> Ops:
+    """``base`` that remembers the cosine and sine of the angles it makes, for a kernel that
+    rotates by them next: ``atan2(y, x)`` records ``(x / r, y / r)``, ``r = sqrt(x^2 + y^2)``
+    (``(1, 0)`` for ``r = 0``, as ``atan2(0, 0) = 0``), ``known`` records given ones, and ``cos``
+    and ``sin`` of a recorded angle return them instead of evaluating the trigonometric functions
+    (the compiled kernels spend most of their time in those). Angles are recorded by identity
+    (each with a reference to itself, so no identity is reused while the record lives); use one
+    per kernel construction."""
+    memo: dict[int, tuple[Any, Any, Any]] = {}
+
+    def known(angle: Any, c: Any, s: Any) -> Any:
+        memo[id(angle)] = (angle, c, s)
+        return angle
+
+    def atan2(y: Any, x: Any) -> Any:
+        r = base.sqrt(x * x + y * y)
+        some = r > 0.0
+        inv = 1.0 / base.where(some, r, 1.0)
+        return known(base.atan2(y, x), base.where(some, x * inv, 1.0), y * inv)
+
+    def cos(angle: Any) -> Any:
+        hit = memo.get(id(angle))
+        return hit[1] if hit is not None and hit[0] is angle else base.cos(angle)
+
+    def sin(angle: Any) -> Any:
+        hit = memo.get(id(angle))
+        return hit[2] if hit is not None and hit[0] is angle else base.sin(angle)
+
+    return Ops(atan2, base.acos, base.sqrt, cos, sin, base.fmin, base.fmax, base.where, known, True)
+
+
+def neg(angle: Any, ops: Ops) -> Any:
+    """``-angle``, its cosine and sine known to ``ops`` (``cos``, ``-sin`` of ``angle``)."""
+    return ops.known(-angle, ops.cos(angle), -ops.sin(angle)) if ops.remembers else -angle
 
 
 def vec(a: Any) -> Vec:

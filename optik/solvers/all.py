@@ -22,21 +22,24 @@ Solutions outside the joint limits are never returned; the returned
 
 from __future__ import annotations
 
+import math
 import time
-from collections.abc import Mapping
+import weakref
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
 
 from optik.checks import as_name, as_vector
 from optik.closed_form import registry
-from optik.closed_form.derived import derive_locked
+from optik.closed_form.derived import DerivedRows, derive_locked
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.results import IKResult, IKSolutions
 from optik.solvers.api import pick_method, solve_ik
 from optik.solvers.base import (
     IKRequest,
+    Tolerances,
     joint_distance,
     make_request,
     make_result,
@@ -45,6 +48,8 @@ from optik.solvers.base import (
 from optik.solvers.closed import _compiled_errors, closed_form_applies
 from optik.solvers.polish import polish, same_point_tol
 
+_TOL = Tolerances.from_arg(None)
+"""The default tolerances (the compiled closed-form path answers for them)."""
 NUMERIC_ORDER = ("lm", "nlp")
 """Numerical methods ``solve_ik_all`` may use, in order of preference."""
 RESTARTING = ("lm", "nlp")
@@ -102,6 +107,23 @@ def solve_ik_all(
         OptikError: malformed input (named argument), unknown or inapplicable method, an option
             the method does not know.
     """
+    if (
+        (method is None or (type(method) is str and method == "closed_form"))
+        and closed_form is True
+        and fixed is None
+        and task is None
+        and frame is None
+        and tol is None
+        and seed is None
+        and not options
+        and type(patience) is int
+        and type(max_solutions) is int
+        and patience > 0
+        and max_solutions > 0
+    ):
+        found = _compiled_all(m, target, q0, time_limit)
+        if found is not None:
+            return found
     request = make_request(m, target, q0, task, frame, time_limit, tol, seed, options)
     if request.multi_target:
         raise InvalidArgumentError(
@@ -126,9 +148,52 @@ def solve_ik_all(
     if method is None and closed_form and applies:
         return _closed_form_all(request)
     name = method or pick_method(m, request.task, NUMERIC_ORDER)
-    found = _numeric_all(request, name, patience, max_solutions)
-    found.sort(key=lambda r: joint_distance(m, r.q, request.q0))
-    return found
+    return _numeric_all(request, name, patience, max_solutions, request.q0)
+
+
+def _compiled_all(m: Mechanism, target: Any, q0: Any, time_limit: Any) -> IKSolutions | None:
+    """The plain call ``solve_ik_all(m, T[, q0])`` of an arm whose closed form is derived
+    (`optik.closed_form.derived`), answered by the compiled driver of
+    [`optik.closed_form.ik_all`][optik.closed_form.ik_all] in one C call: the same solutions,
+    errors and order as `_closed_form_all`, which answers instead (None here) when the driver is
+    not built yet (or has no Python binding), the target or ``q0`` is not a float64 array of its
+    shape or not valid (it then raises the named error), a candidate needs polishing or two
+    candidates are close (the numpy path decides), or the default tolerances are tighter than
+    the derived FK check."""
+    start = time.perf_counter()
+    if time_limit is not None and not (type(time_limit) is float and 0.0 < time_limit < math.inf):
+        return None
+    entry = _BINDINGS.get(id(m))
+    if entry is None or entry[0]() is not m or entry[1] != registry.generation():
+        fast = _binding(m)
+        if fast is None:
+            return None
+    else:
+        fast = entry[2]
+    got = fast(target, q0, m.lower, m.upper, True)
+    if got is None:
+        return None
+    return IKSolutions.from_arrays(*got, "closed_form", time.perf_counter() - start)
+
+
+_BINDINGS: dict[int, tuple[weakref.ref, int, Callable[..., Any]]] = {}
+"""``id(m) -> (weak reference to m, registry generation, the driver's Python binding)``."""
+
+
+def _binding(m: Mechanism) -> Callable[..., Any] | None:
+    """The Python binding of the compiled driver of ``m``'s derived closed form, kept in
+    `_BINDINGS` once it is loaded; None while it builds, without one, or when ``m``'s closed form
+    is not a derived one that the default tolerances admit."""
+    rows = registry.ik_solver(m)
+    if type(rows) is not DerivedRows or m.task != "pose" or rows.solver.check_position > _TOL.position:
+        return None
+    driver = rows.solver.driver()
+    if driver is None or driver.fast is None:
+        return None
+    key = id(m)
+    alive = weakref.ref(m, lambda _, key=key: _BINDINGS.pop(key, None))
+    _BINDINGS[key] = (alive, registry.generation(), driver.fast)
+    return driver.fast
 
 
 def _closed_form_all(request: IKRequest) -> IKSolutions:
@@ -243,9 +308,7 @@ def _locked_all(
     r = request
     sub = make_request(pinned, r.target, q0, r.task, r.frame, r.time_limit, r.tol, r.seed, r.options)
     name = method or pick_method(pinned, request.task, NUMERIC_ORDER)
-    found = _numeric_all(sub, name, patience, max_solutions)
-    found.sort(key=lambda r: joint_distance(m, r.q, request.q0))
-    return found
+    return _numeric_all(sub, name, patience, max_solutions, request.q0)
 
 
 def self_motion(m: Mechanism, target: Any, joint: str, values: Any, **options: Any) -> list[IKSolutions]:
@@ -270,8 +333,11 @@ def self_motion(m: Mechanism, target: Any, joint: str, values: Any, **options: A
     return [solve_ik_all(m, target, fixed={joint: float(v)}, **options) for v in vals]
 
 
-def _numeric_all(request: IKRequest, name: str, patience: int, max_solutions: int) -> IKSolutions:
-    """Single starts of method ``name`` until ``patience`` starts in a row add nothing."""
+def _numeric_all(
+    request: IKRequest, name: str, patience: int, max_solutions: int, near: np.ndarray
+) -> IKSolutions:
+    """Single starts of method ``name`` until ``patience`` starts in a row add nothing; the
+    solutions nearest ``near`` first."""
     m = request.mechanism
     found: list[tuple[IKResult, float]] = []  # (result, same-point tolerance)
     misses = 0
@@ -307,7 +373,8 @@ def _numeric_all(request: IKRequest, name: str, patience: int, max_solutions: in
             continue
         found.append((res, same))
         misses = 0
-    return IKSolutions([r for r, _ in found], method=name)
+    kept = sorted((r for r, _ in found), key=lambda r: joint_distance(m, r.q, near))
+    return IKSolutions(kept, method=name)
 
 
 def _polished(request: IKRequest, res: IKResult, q: np.ndarray) -> IKResult:

@@ -1,0 +1,281 @@
+/* optik: every solution of one IK target of a derived closed form, in one call.
+ *
+ * Compiled together with two CasADi-generated functions: OPTIK_BRANCHES (the 16 entries of a
+ * row-major 4x4 target -> the OPTIK_B candidate branches, 6 angles each) and OPTIK_CHECK (one
+ * candidate q and the target -> its position and orientation errors on the
+ * product-of-exponentials model). optik/closed_form/ik_all.py defines OPTIK_B, OPTIK_BRANCHES,
+ * OPTIK_CHECK, the work sizes OPTIK_IW, OPTIK_W and the table optik_stand_in before this file and
+ * documents the algorithm. Reentrant: all memory is on the stack.
+ */
+#include <math.h>
+#include <string.h>
+
+/* in: [t (16, row-major), q0 (6), lower (6), upper (6), conf (OPTIK_NCONF)] */
+enum { OPTIK_T = 0, OPTIK_Q0 = 16, OPTIK_LO = 22, OPTIK_HI = 28, OPTIK_CONF = 34 };
+/* conf: [check position, check orientation, polish position, polish orientation, same,
+ *        ortho diagonal, ortho off-diagonal, sort: 0 candidate order, 1 by the distance to q0,
+ *        2 by the distance to the middle of the limits (Mechanism.mid_q: an infinite side is
+ *        replaced so that the interval spans 2 pi)] */
+/* out: [status, n within, n outside, q within (6 n within), q outside (6 n outside),
+ *       errors within (2 n within)], packed
+ * status: 0 answered; 1 the target is not a valid transform; 2 a candidate to polish or two
+ * candidates closer than `same` (the caller's numpy path decides). */
+
+static const double OPTIK_PI = 3.14159265358979323846;
+static const double OPTIK_TWO_PI = 6.28318530717958647692;
+
+/* a to (-pi, pi] with the arithmetic of numpy's remainder (and the symbolic kernel's):
+ * r = fmod(a + pi, 2 pi), + 2 pi when negative, - pi, then + 2 pi when at -pi */
+static double optik_wrap(double a) {
+  double r = fmod(a + OPTIK_PI, OPTIK_TWO_PI);
+  double w = (r < 0.0 ? r + OPTIK_TWO_PI : r) - OPTIK_PI;
+  return w <= -OPTIK_PI ? w + OPTIK_TWO_PI : w;
+}
+
+/* |a - b| modulo 2 pi (in [0, pi]) as the symbolic kernel: min(d, 2 pi - d), d = |a - b| */
+static double optik_gap(double a, double b) {
+  double d = fabs(a - b);
+  return fmin(d, OPTIK_TWO_PI - d);
+}
+
+/* |d| with d wrapped as Python's (d + pi) % (2 pi) - pi (the distance to q0 of the solvers) */
+static double optik_turn_gap(double d) {
+  double m = fmod(d + OPTIK_PI, OPTIK_TWO_PI);
+  if (m < 0.0) m += OPTIK_TWO_PI;
+  return fabs(m - OPTIK_PI);
+}
+
+/* the checks of optik.checks.as_transform: finite, last row [0, 0, 0, 1], proper rotation */
+static int optik_valid_transform(const double *t, double diag, double off) {
+  for (int k = 0; k < 16; ++k)
+    if (!isfinite(t[k])) return 0;
+  if (!(fabs(t[12]) <= 1e-9 && fabs(t[13]) <= 1e-9 && fabs(t[14]) <= 1e-9 &&
+        fabs(t[15] - 1.0) <= 1e-9 + 1e-5))
+    return 0;
+  const double r00 = t[0], r01 = t[1], r02 = t[2], r10 = t[4], r11 = t[5], r12 = t[6];
+  const double r20 = t[8], r21 = t[9], r22 = t[10];
+  return fabs(r00 * r00 + r10 * r10 + r20 * r20 - 1.0) <= diag &&
+         fabs(r01 * r01 + r11 * r11 + r21 * r21 - 1.0) <= diag &&
+         fabs(r02 * r02 + r12 * r12 + r22 * r22 - 1.0) <= diag &&
+         fabs(r00 * r01 + r10 * r11 + r20 * r21) <= off &&
+         fabs(r00 * r02 + r10 * r12 + r20 * r22) <= off &&
+         fabs(r01 * r02 + r11 * r12 + r21 * r22) <= off &&
+         r00 * (r11 * r22 - r21 * r12) - r10 * (r01 * r22 - r21 * r02) +
+                 r20 * (r01 * r12 - r11 * r02) >=
+             0.0;
+}
+
+/* max-norm distance of two wrapped angle rows modulo 2 pi */
+static double optik_distance(const double *a, const double *b) {
+  double worst = 0.0;
+  for (int k = 0; k < 6; ++k) worst = fmax(worst, optik_gap(a[k], b[k]));
+  return worst;
+}
+
+/* max-norm distance of a row to q0, angles modulo 2 pi */
+static double optik_distance_q0(const double *q, const double *q0) {
+  double worst = 0.0;
+  for (int k = 0; k < 6; ++k) {
+    double d = optik_turn_gap(q[k] - q0[k]);
+    if (d > worst) worst = d;
+  }
+  return worst;
+}
+
+CASADI_SYMBOL_EXPORT int optik_ik_all(const double *in, double *out) {
+  enum { B = OPTIK_B };
+  const double *t = in + OPTIK_T, *q0 = in + OPTIK_Q0, *lo = in + OPTIK_LO, *hi = in + OPTIK_HI;
+  const double *conf = in + OPTIK_CONF;
+  double mid[6];
+  if (conf[7] == 2.0) {
+    for (int k = 0; k < 6; ++k) {
+      double a = lo[k], b = hi[k];
+      if (!isfinite(a) && !isfinite(b)) {
+        a = -OPTIK_PI;
+        b = OPTIK_PI;
+      } else if (!isfinite(a)) {
+        a = b - OPTIK_TWO_PI;
+      } else if (!isfinite(b)) {
+        b = a + OPTIK_TWO_PI;
+      }
+      mid[k] = 0.5 * (a + b);
+    }
+    q0 = mid;
+  }
+  double q_out[6 * B];
+  out[0] = out[1] = out[2] = 0.0;
+  for (int k = 0; k < 6; ++k)
+    if (!isfinite(q0[k])) {
+      out[0] = 1.0;
+      return 0;
+    }
+  if (!optik_valid_transform(t, conf[5], conf[6])) {
+    out[0] = 1.0;
+    return 0;
+  }
+  casadi_int iw[OPTIK_IW + 1];
+  double w[OPTIK_W + 1], raw[6 * B], kept[6 * B], err[2 * B], e[2];
+  const double *arg[2] = {t, 0};
+  double *res[1] = {raw};
+  if (OPTIK_BRANCHES(arg, res, iw, w, 0)) return -1;
+  int n = 0, passed[B];
+  for (int b = 0; b < B; ++b) {
+    const double *q = raw + 6 * b;
+    passed[b] = 0;
+    if (optik_stand_in[b] >= 0 && passed[optik_stand_in[b]]) continue;
+    int finite = 1;
+    for (int k = 0; k < 6; ++k) finite &= isfinite(q[k]);
+    if (!finite) continue;
+    const double *carg[2] = {q, t};
+    double *cres[1] = {e};
+    if (OPTIK_CHECK(carg, cres, iw, w, 0)) return -1;
+    if (e[0] <= conf[0] && e[1] <= conf[1]) {
+      passed[b] = 1;
+      for (int k = 0; k < 6; ++k) kept[6 * n + k] = optik_wrap(q[k]);
+      err[2 * n] = e[0];
+      err[2 * n + 1] = e[1];
+      ++n;
+    } else if (e[0] <= conf[2] && e[1] <= conf[3]) {
+      out[0] = 2.0; /* inexact: the numpy path polishes it */
+      return 0;
+    }
+  }
+  for (int j = 1; j < n; ++j)
+    for (int i = 0; i < j; ++i)
+      if (optik_distance(kept + 6 * i, kept + 6 * j) < conf[4]) {
+        out[0] = 2.0; /* two close solutions: the numpy path merges them by their accuracy */
+        return 0;
+      }
+  /* the 2 pi shift into the limits (closed_form.registry.wrap_rows), then the limit split */
+  int order[B], n_in = 0, n_out = 0;
+  double dist[B];
+  for (int s = 0; s < n; ++s) {
+    double *q = kept + 6 * s;
+    int inside = 1;
+    for (int k = 0; k < 6; ++k) {
+      if (!(lo[k] <= q[k] && q[k] <= hi[k])) {
+        const double shifts[4] = {OPTIK_TWO_PI, -OPTIK_TWO_PI, 2.0 * OPTIK_TWO_PI, -2.0 * OPTIK_TWO_PI};
+        for (int r = 0; r < 4; ++r)
+          if (lo[k] <= q[k] + shifts[r] && q[k] + shifts[r] <= hi[k]) {
+            q[k] += shifts[r];
+            break;
+          }
+      }
+      inside &= lo[k] <= q[k] && q[k] <= hi[k];
+    }
+    if (!inside) {
+      for (int k = 0; k < 6; ++k) q_out[6 * n_out + k] = q[k];
+      ++n_out;
+      continue;
+    }
+    /* nearest q0 first: insertion into the order, stable (ties keep the candidate order) */
+    double d = conf[7] != 0.0 ? optik_distance_q0(q, q0) : 0.0; /* 0: candidate order */
+    int at = n_in;
+    while (at > 0 && dist[at - 1] > d) {
+      order[at] = order[at - 1];
+      dist[at] = dist[at - 1];
+      --at;
+    }
+    order[at] = s;
+    dist[at] = d;
+    ++n_in;
+  }
+  double *q_in = out + 3, *q_outside = q_in + 6 * n_in, *e_in = q_outside + 6 * n_out;
+  for (int r = 0; r < n_in; ++r) {
+    const int s = order[r];
+    for (int k = 0; k < 6; ++k) q_in[6 * r + k] = kept[6 * s + k];
+    e_in[2 * r] = err[2 * s];
+    e_in[2 * r + 1] = err[2 * s + 1];
+  }
+  for (int k = 0; k < 6 * n_out; ++k) q_outside[k] = q_out[k];
+  out[1] = (double)n_in;
+  out[2] = (double)n_out;
+  return 0;
+}
+
+#ifdef OPTIK_PYTHON
+/* The Python binding: optik_ik_all_function() (called once, through ctypes.PyDLL) returns a
+ * builtin function ik_all(t, q0, lower, upper, sort) -> (q within, errors, q outside) or None,
+ * taking float64 arrays (any strides): t (4, 4), q0 (6,) or None, lower and upper (6,); with
+ * sort true the solutions are ordered by their distance to q0, or to the middle of the limits
+ * when q0 is None (sort 2 of conf). None: status 1 or 2, or an argument of another type, shape
+ * or layout (the caller's general path decides). */
+#include <Python.h>
+#define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
+#include <numpy/arrayobject.h>
+
+/* copy a float64 array of shape (4, 4) (ndim 2) or (6,) (ndim 1), any strides, into dst */
+static int optik_py_copy(PyObject *obj, int ndim, double *dst) {
+  if (!PyArray_Check(obj)) return 0;
+  PyArrayObject *a = (PyArrayObject *)obj;
+  if (PyArray_TYPE(a) != NPY_DOUBLE || PyArray_NDIM(a) != ndim || !PyArray_ISALIGNED(a) ||
+      !PyArray_ISNOTSWAPPED(a))
+    return 0;
+  const char *base = (const char *)PyArray_DATA(a);
+  const npy_intp *st = PyArray_STRIDES(a);
+  if (ndim == 1) {
+    if (PyArray_DIM(a, 0) != 6) return 0;
+    for (int k = 0; k < 6; ++k) dst[k] = *(const double *)(base + k * st[0]);
+    return 1;
+  }
+  if (PyArray_DIM(a, 0) != 4 || PyArray_DIM(a, 1) != 4) return 0;
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) dst[4 * i + j] = *(const double *)(base + i * st[0] + j * st[1]);
+  return 1;
+}
+
+static PyObject *optik_py_rows(const double *data, npy_intp rows, npy_intp cols) {
+  npy_intp dims[2] = {rows, cols};
+  PyObject *a = PyArray_SimpleNew(2, dims, NPY_DOUBLE);
+  if (a && rows) memcpy(PyArray_DATA((PyArrayObject *)a), data, sizeof(double) * (size_t)(rows * cols));
+  return a;
+}
+
+static PyObject *optik_py_ik_all(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+  (void)self;
+  if (nargs != 5) {
+    PyErr_SetString(PyExc_TypeError, "ik_all(t, q0, lower, upper, sort)");
+    return NULL;
+  }
+  double in[OPTIK_CONF + 8], out[3 + 14 * OPTIK_B];
+  int q0_given = args[1] != Py_None;
+  int sort = PyObject_IsTrue(args[4]);
+  if (!optik_py_copy(args[0], 2, in + OPTIK_T) || !optik_py_copy(args[2], 1, in + OPTIK_LO) ||
+      !optik_py_copy(args[3], 1, in + OPTIK_HI) || (q0_given && !optik_py_copy(args[1], 1, in + OPTIK_Q0)) ||
+      sort < 0) {
+    PyErr_Clear();
+    Py_RETURN_NONE;
+  }
+  if (!q0_given) memset(in + OPTIK_Q0, 0, sizeof(double) * 6);
+  memcpy(in + OPTIK_CONF, optik_conf, sizeof(double) * 7);
+  in[OPTIK_CONF + 7] = sort ? (q0_given ? 1.0 : 2.0) : 0.0;
+  if (optik_ik_all(in, out) != 0) {
+    PyErr_SetString(PyExc_RuntimeError, "optik_ik_all: evaluation of the generated code failed");
+    return NULL;
+  }
+  if (out[0] != 0.0) Py_RETURN_NONE;
+  const npy_intp n_in = (npy_intp)out[1], n_out = (npy_intp)out[2];
+  PyObject *q_in = optik_py_rows(out + 3, n_in, 6);
+  PyObject *q_out = optik_py_rows(out + 3 + 6 * n_in, n_out, 6);
+  PyObject *err = optik_py_rows(out + 3 + 6 * (n_in + n_out), n_in, 2);
+  if (!q_in || !q_out || !err) {
+    Py_XDECREF(q_in);
+    Py_XDECREF(q_out);
+    Py_XDECREF(err);
+    return NULL;
+  }
+  PyObject *res = PyTuple_Pack(3, q_in, err, q_out);
+  Py_DECREF(q_in);
+  Py_DECREF(q_out);
+  Py_DECREF(err);
+  return res;
+}
+
+static PyMethodDef optik_py_def = {"ik_all", (PyCFunction)(void (*)(void))optik_py_ik_all, METH_FASTCALL,
+                                   "Every solution of one target (optik.closed_form.ik_all)."};
+
+CASADI_SYMBOL_EXPORT PyObject *optik_ik_all_function(void) {
+  if (PyArray_API == NULL && _import_array() < 0) return NULL;
+  return PyCFunction_New(&optik_py_def, NULL);
+}
+#endif

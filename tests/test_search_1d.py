@@ -110,22 +110,27 @@ def test_agrees_with_derived_closed_forms() -> None:
             assert all(np.min(_angle_dist(sols.q, r)) < 1e-8 for r in ref)
 
 
-def test_search_finds_what_the_perturbation_fallback_finds() -> None:
-    """On arms special at both ends, the general 6R solver's uncertified answer (a nearby generic
-    arm's solutions polished on the arm) holds no solution the search misses on these targets,
-    and the search recovers the drawn configuration at least as often."""
+def test_search_against_the_perturbation_fallback() -> None:
+    """On arms special at both ends, compared with the general 6R solver's uncertified answer (a
+    nearby generic arm's solutions polished on the arm) on the same targets: the search
+    recovers the drawn configuration at least as often, and misses at most 2 % of the
+    fallback's verified solutions (each method finds a few that the other misses:
+    ``optik benchmark search_1d`` counts them on 1000 targets per geometry)."""
     rng = np.random.default_rng(5)
-    trips_search = trips_fallback = 0
-    for case in ("1-2 and 5-6 intersecting", "1-2 and 5-6 parallel"):
+    trips_search = trips_fallback = fallback_only = fallback_total = 0
+    for case in CASES:
         m = special_arm(rng, CASES[case])
-        qs = rng.uniform(-np.pi, np.pi, (10, 6))
+        qs = rng.uniform(-np.pi, np.pi, (12, 6))
         targets = m.fk(qs)
         for q, s, g in zip(qs, solve_search_1d(m, targets), solve_general_6r(m, targets), strict=True):
             assert not g.count_ok
-            assert all(np.min(_angle_dist(s.q, x)) < 1e-6 for x in g.q)
-            trips_search += bool(np.min(_angle_dist(s.q, q)) < 1e-6)
+            _check(m, s.q, m.fk(q))
+            fallback_total += len(g.q)
+            fallback_only += sum(not len(s.q) or bool(np.min(_angle_dist(s.q, x)) >= 1e-6) for x in g.q)
+            trips_search += bool(len(s.q)) and bool(np.min(_angle_dist(s.q, q)) < 1e-6)
             trips_fallback += bool(len(g.q)) and bool(np.min(_angle_dist(g.q, q)) < 1e-6)
     assert trips_search >= trips_fallback
+    assert fallback_only <= 0.02 * fallback_total, (fallback_only, fallback_total)
 
 
 def test_solve_ik_all_answers_by_the_search() -> None:
@@ -142,7 +147,7 @@ def test_flag_reason_and_unreachable() -> None:
     m = special_arm(rng, CASES["1-2 and 5-6 parallel"])
     sols = solve_search_1d(m, m.fk(np.zeros(6)))
     assert not sols.certified and "not certified" in sols.reason
-    assert f"{2 * np.pi / search_1d.SAMPLES:.1e}" in sols.reason
+    assert f"spacing {2 * np.pi / search_1d.SAMPLES:.1e} rad" in sols.reason
     far = solve_search_1d(m, spatial.translation(50.0, 0.0, 0.0))
     assert len(far.q) == 0 and not far.certified
 

@@ -33,18 +33,24 @@ targets and angles.
 
 **The search** (`Search1D.solve`), per target, all targets at once:
 
-1. ``e`` and the branches (all six angles) at `SAMPLES` angles ``theta_k`` evenly spaced on the
-   circle (spacing ``h = 2 pi / SAMPLES``); a branch is valid where its subproblems hold to
+1. ``e`` and the branches (all six angles) at `SAMPLES` angles evenly spaced on the circle
+   (spacing ``h = 2 pi / SAMPLES``); a branch is valid where its subproblems hold to
    `VALID_TOL` (times the arm's size);
-2. the branches at ``theta_k`` and ``theta_{k+1}`` are matched by the permutation with the
-   smallest total joint distance; a matched pair closer than `JUMP` rad continues a branch;
+2. the branches of neighbouring samples are matched by the permutation with the smallest total
+   joint distance; a matched pair closer than `JUMP` rad continues a branch;
 3. candidates: every sign change of ``e`` along a continued branch (a bracket, refined by
    `REFINE_STEPS` Illinois steps that re-solve the subproblems at the new angle and follow the
    branch nearest the interpolated one); two close zeros that a parabola through three samples
    of one branch predicts (same signs at the samples, vertex beyond zero); and the ends of
    branches where two branches of opposite signs of ``e`` end (or begin) together (a zero near
    the turning point where they merge);
-4. every candidate is polished by up to `POLISH_STEPS` damped Gauss-Newton steps on the exact
+4. the intervals where something may hide are sampled again at `SUBDIVISIONS` sub-intervals,
+   `LEVELS` times (finest spacing ``h / SUBDIVISIONS^LEVELS``), and step 2-3 run on them: where
+   a branch ends, begins or jumps; where a continued branch comes within one interval of a
+   zero without a sign change (a near tangency); and where the smallest residual of the invalid
+   branches has a local minimum below `NEAR_TOL` (a branch may exist on an island of the swept
+   angle shorter than the spacing);
+5. every candidate is polished by up to `POLISH_STEPS` damped Gauss-Newton steps on the exact
    pose residual ``[p - p*; log(R R*^T)]``, kept when its FK error is at most ``CHECK_TOL``
    (`optik.closed_form.derived`: 1e-9 times the arm's size, 1e-9 rad), wrapped to
    ``(-pi, pi]`` and deduplicated (max-norm distance below `SAME_TOL`, angles modulo 2 pi). At
@@ -52,20 +58,22 @@ targets and angles.
    reason says so).
 
 **What it guarantees, and what not.** Every answer is a verified solution. Completeness is
-*not* certified: a zero of ``e`` is found when it is simple and either the only one of its
-branch within one sample interval (``h = 2 pi / SAMPLES = 6.1e-3`` rad with the default 1024
-samples: the smallest separation of the swept angle between two zeros on one branch that the
-sign test resolves), or one of a pair that the parabola test catches, or at a turning point of
-two branches; zeros closer than that, double zeros (the target on a boundary of the workspace)
-and zeros where a branch jumps by more than `JUMP` between samples can be missed. The measured
-recovery of the generating configuration over random arms and targets is in the docs page
-(``docs/solvers/search_1d.md``) and in ``optik benchmark search_1d``. `solve_search_1d` returns
-this with every answer (`Search1DSolutions.certified` is always False, ``reason`` names the
-family and the resolution).
+*not* certified. A simple zero of ``e`` is found when it is the only one on its branch within
+one sample interval (``h = 2 pi / 256 = 2.5e-2`` rad of the swept joint by default), and in
+the subdivided intervals down to ``h / 256 = 9.6e-5`` rad; pairs of zeros that the parabola
+test predicts and zeros at the turning point of two branches are found too. Zeros can be
+missed when they lie closer together than the spacing where they are, at double zeros (a pose
+on a boundary of the workspace), on islands of valid angles that the residual test does not
+flag, and near singular poses where Gauss-Newton does not converge from the candidate. The
+measured recovery of the generating configuration over random arms and targets is in the docs
+page (``docs/solvers/search_1d.md``) and in ``optik benchmark search_1d``. `solve_search_1d`
+returns this with every answer (`Search1DSolutions.certified` is always False, ``reason`` names
+the family and the resolution).
 """
 
 from __future__ import annotations
 
+import functools
 import itertools
 import weakref
 from collections.abc import Callable
@@ -96,8 +104,15 @@ __all__ = [
     "solve_search_1d",
 ]
 
-SAMPLES = 1024
+SAMPLES = 256
 """Angles sampled on the circle (spacing ``2 pi / SAMPLES``)."""
+SUBDIVISIONS = 16
+"""Each flagged interval is sampled again at this many sub-intervals."""
+LEVELS = 2
+"""Levels of subdivision (the finest spacing is ``2 pi / (SAMPLES SUBDIVISIONS^LEVELS)``)."""
+NEAR_TOL = 0.05
+"""A branch with a residual between `VALID_TOL` and this is nearly valid: its interval is
+subdivided (a branch may exist on a shorter interval of the swept angle than the spacing)."""
 VALID_TOL = 1e-6
 """A branch is valid where its subproblems hold to this (times the arm's size)."""
 JUMP = 0.5
@@ -160,7 +175,9 @@ def scan_56_intersecting(
             broadcasting with ``theta``.
 
     Returns:
-        ``q (..., 4, 6)``, ``e (..., 4)`` (dimensionless) and ``valid (..., 4)``.
+        ``q (..., 4, 6)``, ``e (..., 4)`` (dimensionless) and ``res (..., 4)``: how far the
+        branch is from solving its subproblems (relative to the arm's size; complex roots of a
+        quartic give a placeholder with a residual that grows with their imaginary part).
     """
     h, r = axes.h, axes.r
     wp = intersection(axes, 4, 5)
@@ -176,14 +193,14 @@ def scan_56_intersecting(
     x = w4[..., None, :]
     for i in (2, 1, 0):
         x = _apply(axes, i, q[..., i], x)
-    valid = np.linalg.norm(x - w[..., None, :], axis=-1) <= VALID_TOL * axes.size
+    res = np.linalg.norm(x - w[..., None, :], axis=-1) / axes.size
     # the wrist: A = (R_1 .. R_4)^T R06, e = h5 . A h6 - h5 . h6
     a6 = _unrotate(axes, range(4), q, np.einsum("...ij,j->...i", r06, h[5])[..., None, :])
     a5 = _unrotate(axes, range(4), q, np.einsum("...ij,j->...i", r06, h[4])[..., None, :])
     e = a6 @ h[4] - h[4] @ h[5]
     q[..., 4] = sp1(h[4], h[5], a6)[0]
     q[..., 5] = sp1(h[5], h[4], rot(h[4], -q[..., 4], a5))[0]
-    return q, e, valid
+    return q, e, res
 
 
 def scan_12_parallel(
@@ -211,11 +228,11 @@ def scan_12_parallel(
     v = rot(h[5], t6, ktb)
     q[..., 4] = sp1(h[4], v, u)[0]
     # subproblem check: both SP6 equations and the SP1 of q5
-    valid = np.linalg.norm(rot(h[4], q[..., 4], v) - u, axis=-1) <= VALID_TOL
+    res = np.linalg.norm(rot(h[4], q[..., 4], v) - u, axis=-1)
     x = home[:3, 3]
     for i in (5, 4, 3, 2):
         x = _apply(axes, i, q[..., i], x)
-    valid &= np.abs(x @ k - (pt @ k)[..., None]) <= VALID_TOL * axes.size
+    res = np.maximum(res, np.abs(x @ k - (pt @ k)[..., None]) / axes.size)
     # R_1 R_2 = R06 (R_3 .. R_6)^T; y = p_t - r_1 - R_1 R_2 (X - r_2)
     r06b = r06[..., None, :, :]
 
@@ -230,7 +247,7 @@ def scan_12_parallel(
     q[..., 0] = sp1(k, d_perp, y_perp)[0]
     n = _perpendicular(k)
     q[..., 1] = sp1(h[1], n, rot(k, -q[..., 0], r12(n)))[0]
-    return q, e, valid
+    return q, e, res
 
 
 @dataclass(frozen=True)
@@ -305,6 +322,12 @@ class Search1DSolutions:
         return iter(list(self.q))
 
 
+@functools.cache
+def _permutations(b: int) -> np.ndarray:
+    """All permutations of ``range(b)``, ``(b!, b)``."""
+    return np.array(list(itertools.permutations(range(b))))
+
+
 def _angdist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Max-norm joint distance, angles modulo 2 pi (last axis)."""
     d = np.abs(_wrap(a - b))
@@ -328,8 +351,13 @@ class Search1D:
     @property
     def resolution(self) -> float:
         """The sample spacing ``2 pi / samples`` (rad): the smallest separation of two zeros on
-        one branch that the sign test resolves."""
+        one branch that the sign test resolves everywhere."""
         return 2.0 * np.pi / self.samples
+
+    @property
+    def finest(self) -> float:
+        """The spacing in the intervals subdivided `LEVELS` times (rad)."""
+        return self.resolution / SUBDIVISIONS**LEVELS
 
     def _scan(self, theta: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The family's scan on the forward chain: ``q (..., B, 6)`` of the arm, for targets
@@ -341,84 +369,123 @@ class Search1D:
         else:
             rt, pt = t[..., :3, :3], t[..., :3, 3]
         r06 = rt @ chain.home[:3, :3].T
-        q, e, valid = self.family.scan(chain, theta, r06, pt)
+        q, e, res = self.family.scan(chain, theta, r06, pt)
         if self.family.reversed:
             q = -q[..., ::-1]
-        return q, e, valid
+        return q, e, res
 
     def solve(self, t: np.ndarray) -> list[Search1DSolutions]:
         """The solutions of targets ``t (N, 4, 4)`` (validated by the caller)."""
         t = np.asarray(t, dtype=float).reshape(-1, 4, 4)
-        n_t, s = len(t), self.samples
-        theta = -np.pi + self.resolution * np.arange(s)
-        q, e, valid = self._scan(np.broadcast_to(theta, (n_t, s)), t[:, None])
-        b = q.shape[-2]
+        n_t = len(t)
+        theta = -np.pi + self.resolution * np.arange(self.samples + 1)  # closed: last = first + 2 pi
+        grid = np.broadcast_to(theta, (n_t, self.samples + 1))
+        rows = np.arange(n_t)
+        starts: list[np.ndarray] = []
+        owners: list[np.ndarray] = []
+        for level in range(LEVELS + 1):
+            q0, own, flags = self._grid(grid, t[rows])
+            starts.append(q0)
+            owners.append(rows[own])
+            if level == LEVELS:
+                break
+            kk, jj = np.nonzero(flags)
+            if not kk.size:
+                break
+            lo, hi = grid[kk, jj], grid[kk, jj + 1]
+            grid = lo[:, None] + (hi - lo)[:, None] * np.linspace(0.0, 1.0, SUBDIVISIONS + 1)
+            rows = rows[kk]
+        qp, err = self._polish(np.concatenate(starts), t[np.concatenate(owners)])
+        own = np.concatenate(owners)
+        return [self._collect(qp[own == n_], err[own == n_]) for n_ in range(n_t)]
+
+    def _grid(self, theta: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Steps 2-3 of the module docstring on the angle grids ``theta (K, G)`` (increasing
+        along each row) of targets ``t (K, 4, 4)``.
+
+        Returns:
+            The candidates ``(M, 6)``, the row of each ``(M,)``, and ``(K, G - 1)`` flags of the
+            intervals to subdivide: where a branch ends, begins or jumps, where a branch is
+            nearly valid at an end (a local minimum, below `NEAR_TOL`, of the smallest residual
+            of the invalid branches: an island of valid angles may lie in between), and where
+            a continued branch comes within one interval of a zero without a sign change.
+        """
+        q, e, res = self._scan(theta, t[:, None])
+        valid = res <= VALID_TOL
         e = np.where(valid, e, np.nan)
-        # 2. matching of sample k to k + 1 (cyclic) by the best permutation
-        nxt = np.roll(q, -1, axis=1)
-        vnext = np.roll(valid, -1, axis=1)
-        cost = _angdist(q[..., :, None, :], nxt[..., None, :, :])  # (N, S, B, B)
-        cost = np.where(valid[..., :, None] & vnext[..., None, :], cost, 2.0 * np.pi)
-        perms = np.array(list(itertools.permutations(range(b))))
-        total = cost[..., np.arange(b), perms].sum(axis=-1)  # (N, S, P)
-        match = perms[np.argmin(total, axis=-1)]  # (N, S, B): branch i at k -> match[i] at k+1
+        b = q.shape[-1 - 1]
+        qa, qb = q[:, :-1], q[:, 1:]
+        va, vb = valid[:, :-1], valid[:, 1:]
+        ea, eb_all = e[:, :-1], e[:, 1:]
+        # 2. matching of sample k to k + 1 by the best permutation
+        cost = _angdist(qa[..., :, None, :], qb[..., None, :, :])  # (K, G-1, B, B)
+        cost = np.where(va[..., :, None] & vb[..., None, :], cost, 2.0 * np.pi)
+        perms = _permutations(b)
+        total = cost[..., np.arange(b), perms].sum(axis=-1)
+        match = perms[np.argmin(total, axis=-1)]  # (K, G-1, B): branch i at k -> match[i] at k+1
         dist = np.take_along_axis(cost, match[..., None], axis=-1)[..., 0]
         cont = dist < JUMP
-        e_next = np.take_along_axis(np.roll(e, -1, axis=1), match, axis=-1)
+        eb = np.take_along_axis(eb_all, match, axis=-1)
+        qn = np.take_along_axis(qb, match[..., None], axis=-2)  # the matched branch at k+1
         starts: list[np.ndarray] = []
         owners: list[np.ndarray] = []
         # 3a. brackets
-        nb, kb, ib = np.nonzero(cont & (e * e_next <= 0.0))
+        nb, kb, ib = np.nonzero(cont & (ea * eb <= 0.0))
         if nb.size:
-            jb = match[nb, kb, ib]
-            k1 = (kb + 1) % s
-            ends = (theta[kb], theta[kb] + self.resolution)
-            branch = (q[nb, kb, ib], q[nb, k1, jb])
-            starts.append(self._refine(t[nb], ends, branch, (e[nb, kb, ib], e[nb, k1, jb])))
+            ends = (theta[nb, kb], theta[nb, kb + 1])
+            starts.append(
+                self._refine(t[nb], ends, (qa[nb, kb, ib], qn[nb, kb, ib]), (ea[nb, kb, ib], eb[nb, kb, ib]))
+            )
             owners.append(nb)
         # 3b. two close zeros: a parabola through three samples of a continued branch
-        inv = np.argsort(match, axis=-1)  # at k: the branch at k matched to branch j at k+1
-        prev = np.roll(inv, 1, axis=1)  # at k: the branch at k-1 continued by branch i at k
-        cont_prev = np.roll(np.take_along_axis(cont, inv, axis=-1), 1, axis=1)
-        e_prev = np.take_along_axis(np.roll(e, 1, axis=1), prev, axis=-1)
-        curv = e_next - 2.0 * e + e_prev
-        slope = 0.5 * (e_next - e_prev)
+        # (samples k-1, k, k+1 = interval k-1's start, its end = interval k's start, interval k's end)
+        inv = np.argsort(match, axis=-1)  # interval k-1: the branch at k-1 continued by branch i at k
+        e0 = np.take_along_axis(ea[:, :-1], inv[:, :-1], axis=-1)  # e at k-1 of the branch i at k
+        c0 = np.take_along_axis(cont[:, :-1], inv[:, :-1], axis=-1)
+        e1, e2, c1 = ea[:, 1:], eb[:, 1:], cont[:, 1:]
+        curv = e2 - 2.0 * e1 + e0
+        slope = 0.5 * (e2 - e0)
         with np.errstate(invalid="ignore", divide="ignore"):
-            disc = slope**2 - 2.0 * curv * e  # f(x) = e + slope x + curv x^2 / 2, x in samples
-            pair = cont & cont_prev & (e * e_next > 0) & (e * e_prev > 0) & (e * curv < 0) & (disc > 0)
+            disc = slope**2 - 2.0 * curv * e1  # f(x) = e1 + slope x + curv x^2 / 2, x in samples
+            pair = c0 & c1 & (e1 * e2 > 0) & (e1 * e0 > 0) & (e1 * curv < 0) & (disc > 0)
             pair &= np.abs(slope / curv) <= 1.0
-        np_, kp, ip = np.nonzero(pair)
+        npp, kp, ip = np.nonzero(pair)
         for sign in (-1.0, 1.0):
-            if not np_.size:
+            if not npp.size:
                 break
-            c = curv[np_, kp, ip]
-            x = np.clip((-slope[np_, kp, ip] + sign * np.sqrt(disc[np_, kp, ip])) / c, -1.0, 1.0)
-            ko = (kp + np.where(x >= 0, 1, -1)) % s
-            io = np.where(x >= 0, match[np_, kp, ip], prev[np_, kp, ip])
-            qk = q[np_, kp, ip]
-            starts.append(qk + np.abs(x)[:, None] * _wrap(q[np_, ko, io] - qk))
-            owners.append(np_)
+            x = np.clip(
+                (-slope[npp, kp, ip] + sign * np.sqrt(disc[npp, kp, ip])) / curv[npp, kp, ip], -1.0, 1.0
+            )
+            qk = qa[npp, kp + 1, ip]
+            other = np.where((x >= 0)[:, None], qn[npp, kp + 1, ip], qa[npp, kp, inv[npp, kp, ip]])
+            starts.append(qk + np.abs(x)[:, None] * _wrap(other - qk))
+            owners.append(npp)
         # 3c. two branches of opposite signs of e ending at k (or beginning at k + 1) together
         received = np.zeros_like(cont)
-        nn, kk, ii = np.nonzero(cont)
-        received[nn, kk, match[nn, kk, ii]] = True
-        for ends, at, e_at in ((valid & ~cont, q, e), (vnext & ~received, nxt, np.roll(e, -1, axis=1))):
-            lo = np.min(np.where(ends, e_at, np.inf), axis=-1)
-            hi = np.max(np.where(ends, e_at, -np.inf), axis=-1)
-            both = (lo < 0) & (hi > 0)
-            nt, kt = np.nonzero(both)
+        n_, k_, i_ = np.nonzero(cont)
+        received[n_, k_, match[n_, k_, i_]] = True
+        ended, begun = va & ~cont, vb & ~received
+        for ends_, at, e_at in ((ended, qa, ea), (begun, qb, eb_all)):
+            lo = np.min(np.where(ends_, e_at, np.inf), axis=-1)
+            hi = np.max(np.where(ends_, e_at, -np.inf), axis=-1)
+            nt, kt = np.nonzero((lo < 0) & (hi > 0))
             if nt.size:
-                sel = ends[nt, kt]  # (K, B)
-                kk_, bb_ = np.nonzero(sel)
-                starts.append(at[nt[kk_], kt[kk_], bb_])
-                owners.append(nt[kk_])
+                sel, bb = np.nonzero(ends_[nt, kt])
+                starts.append(at[nt[sel], kt[sel], bb])
+                owners.append(nt[sel])
+        # flags of the intervals to subdivide
+        # an island of valid angles between two samples: a local minimum of the smallest residual
+        # of the invalid branches, below NEAR_TOL
+        r = np.min(np.where(valid, np.inf, res), axis=-1)  # (K, G)
+        pad = np.pad(r, ((0, 0), (1, 1)), constant_values=np.inf)
+        left, right = pad[:, :-2], pad[:, 2:]
+        dip = (r <= left) & (r <= right) & ((r < 0.99 * left) | (r < 0.99 * right)) & (r <= NEAR_TOL)
+        with np.errstate(invalid="ignore"):
+            close = cont & (ea * eb > 0) & (np.minimum(np.abs(ea), np.abs(eb)) < np.abs(eb - ea))
+        flags = ended.any(-1) | begun.any(-1) | dip[:, :-1] | dip[:, 1:] | close.any(-1)
         if starts:
-            q0 = np.concatenate(starts)
-            own = np.concatenate(owners)
-        else:
-            q0, own = np.zeros((0, 6)), np.zeros(0, dtype=int)
-        qp, err = self._polish(q0, t[own])
-        return [self._collect(qp[own == n_], err[own == n_]) for n_ in range(n_t)]
+            return np.concatenate(starts), np.concatenate(owners), flags
+        return np.zeros((0, 6)), np.zeros(0, dtype=int), flags
 
     def _refine(
         self,
@@ -441,7 +508,7 @@ class Search1D:
             tm = ta + frac * (tb - ta)
             guess = qa + frac[:, None] * _wrap(qb - qa)
             qm, em, vm = self._scan(tm, t)
-            d = np.where(vm, _angdist(qm, guess[:, None, :]), np.inf)
+            d = np.where(vm <= VALID_TOL, _angdist(qm, guess[:, None, :]), np.inf)
             j = np.argmin(d, axis=-1)
             ok = np.take_along_axis(d, j[:, None], axis=-1)[:, 0] < JUMP
             qn = qm[np.arange(len(tm)), j]
@@ -491,8 +558,8 @@ class Search1D:
             if all(_angdist(q[i], q[j]) >= SAME_TOL for j in kept):
                 kept.append(i)
         reason = (
-            f"1-D search ({self.family.name}, {self.samples} samples, resolution "
-            f"{self.resolution:.1e} rad): not certified complete"
+            f"1-D search ({self.family.name}, {self.samples} samples, spacing {self.resolution:.1e} rad, "
+            f"{self.finest:.1e} where subdivided): not certified complete"
         )
         if len(kept) > MAX_SOLUTIONS:
             reason += (

@@ -271,3 +271,47 @@ def test_driver_through_ctypes_equals_its_python_binding(monkeypatch: pytest.Mon
             assert (a is None) == (b is None)
             for x, y in zip(a or (), b or (), strict=True):
                 np.testing.assert_array_equal(x, y)
+
+
+def _layouts(t: np.ndarray) -> list[object]:
+    """The same target in other layouts and types, and hostile variants."""
+    far = t.copy()
+    far[:3, 3] = 1e300
+    tiny = t.copy()
+    tiny[:3, 3] = 1e-300
+    return [
+        np.asfortranarray(t),
+        t[::-1, ::-1][::-1, ::-1],  # negative strides, same values
+        np.ascontiguousarray(t.T).T,
+        t.astype(np.float32),
+        t.tolist(),
+        np.array(t, dtype=object),
+        far,
+        tiny,
+    ]
+
+
+def test_compiled_path_takes_any_layout_and_hostile_values() -> None:
+    """Targets and starts of any layout or type give what the general path gives (or its named
+    error): the compiled binding reads strided memory, and declines what it does not take."""
+    from optik.solvers import all as all_module
+    from optik.solvers.base import make_request
+
+    m = optik.catalog.puma560()
+    closed_form.derive(m).compile()
+    q = m.random_q(seed=3)
+    t = m.fk(q)
+    for target in _layouts(t):
+        for q0 in (None, m.mid_q(), m.mid_q()[::-1][::-1], m.mid_q().astype(np.float32), [0.1] * 6):
+            try:
+                request = make_request(m, target, q0, None, None, 1.0, None, None, {})
+                want = all_module._closed_form_all(request)
+            except optik.OptikError as exc:
+                with pytest.raises(type(exc)):
+                    optik.solve_ik_all(m, target, q0)
+                continue
+            got = optik.solve_ik_all(m, target, q0)
+            assert len(got) == len(want)
+            for a, b in zip(got, want, strict=True):
+                np.testing.assert_array_equal(a.q, b.q)
+                assert a.success and m.within_limits(a.q)

@@ -256,11 +256,7 @@ def test_driver_through_ctypes_equals_its_python_binding(monkeypatch: pytest.Mon
     if binding is None or binding.fast is None:
         pytest.skip("no C compiler or no Python headers: nothing to compare")
     monkeypatch.setattr(ik_all, "python_flags", lambda: ())
-    one = solver._single
-    with one.lock:
-        one.driver = None
-        plain = one.compile()
-        one.driver = binding  # the solver keeps its binding
+    plain = closed_form.derived._driver_kernel(solver)  # the same driver, without the binding
     plain.library.wait()
     assert plain.ready and plain.fast is None
     qs = m.random_q(30, seed=4)
@@ -315,3 +311,24 @@ def test_compiled_path_takes_any_layout_and_hostile_values() -> None:
             for a, b in zip(got, want, strict=True):
                 np.testing.assert_array_equal(a.q, b.q)
                 assert a.success and m.within_limits(a.q)
+
+
+def test_without_a_compiler_the_evaluator_gives_the_same_solutions(monkeypatch: pytest.MonkeyPatch) -> None:
+    """No C compiler: CasADi's evaluator runs the symbolic kernel (same steps as the driver), and
+    solve_ik_all answers as with the compiled driver."""
+    from optik import native
+
+    arm = optik.catalog.seed_6r_arm(0.9, 0.7, 0.25)
+    compiled = closed_form.derive(arm)
+    compiled.compile()
+    assert compiled.driver() is not None or native.compiler() is None
+    qs = arm.random_q(20, seed=8)
+    want = [optik.solve_ik_all(arm, t) for t in arm.fk(qs)]
+    monkeypatch.setattr(native, "compiler", lambda: None)
+    plain = optik.catalog.seed_6r_arm(0.9, 0.7, 0.25)  # a new mechanism: its own derived solver
+    assert closed_form.derive(plain).driver() is None
+    for t, w in zip(plain.fk(qs), want, strict=True):
+        got = optik.solve_ik_all(plain, t)
+        assert len(got) == len(w)
+        for a, b in zip(got, w, strict=True):
+            np.testing.assert_allclose(a.q, b.q, atol=1e-12)

@@ -10,8 +10,10 @@ pinned to 1 before numpy is imported), interleaved:
   ``optik.closed_form.ik_all``), the counterpart of EAIK's ``calculate_IK(T).Q``; the
   ``IKResult`` of each solution is made when first read, and that cost is timed apart
   (``list(solutions)``, column "IKResult objects");
-* ``EAIK`` (the ``eaik`` package, where installed): ``Robot.calculate_IK(T)``, built once per arm
-  from the same joint axes and points at ``q = 0`` (``H``, ``P`` and the end-effector rotation).
+* ``EAIK`` (the ``eaik`` package, where installed): its compiled ``Robot.calculate_IK(T X)``
+  (without EAIK's Python wrapper), built once per arm by EAIK's own URDF parser (UR arms) or
+  DH constructor (PUMA 560), and from optik's joint axes at ``q = 0`` for the seed arm; ``X`` maps
+  optik's tool frame to EAIK's (EAIK's FK equals ``m.fk(q) X``, checked on 16 configurations).
 
 Arms: the UR5 and UR10 URDFs of example-robot-data (``*_joint_limited_robot.urdf``, base
 ``base_link``, tip ``tool0``; skipped with a note when example-robot-data is not installed), the
@@ -53,14 +55,16 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
+from optik.catalog.industrial import PUMA560_DH  # noqa: E402
 from optik.closed_form.derived import chain_axes, derive, derive_axes  # noqa: E402
 from optik.mechanism import Mechanism  # noqa: E402
 from optik.solvers.base import joint_distance  # noqa: E402
 
 try:  # an optional peer
-    import eaik.pybindings.EAIK as eaik
+    import eaik.IK_DH as eaik_dh
+    import eaik.IK_URDF as eaik_urdf
 except ImportError:  # pragma: no cover - depends on the environment
-    eaik = None
+    eaik_dh = eaik_urdf = None
 
 SAME = 1e-4
 """Joint distance under which two solutions are the same (the same-branch rule)."""
@@ -69,21 +73,21 @@ FK_TOL = 1e-6
 UR_DIR = "cmeel.prefix/share/example-robot-data/robots/ur_description/urdf"
 
 
-def _ur(name: str) -> tuple[Mechanism | None, str]:
-    """A UR arm of example-robot-data (``optik.catalog.robot`` where it exists), or a note."""
-    robot = getattr(optik.catalog, "robot", None)
-    if robot is not None:
-        try:
-            return robot(name), ""
-        except optik.OptikError:
-            pass
+def _urdf_path(name: str) -> Path | None:
+    """The joint-limited URDF of a UR arm in example-robot-data, or None."""
     try:
         dist = metadata.distribution("example-robot-data")
     except metadata.PackageNotFoundError:
-        return None, f"{name}: skipped, example-robot-data is not installed (pip install optik[robots])"
+        return None
     path = Path(str(dist.locate_file(f"{UR_DIR}/{name}_joint_limited_robot.urdf")))
-    if not path.exists():
-        return None, f"{name}: skipped, {path} not found"
+    return path if path.exists() else None
+
+
+def _ur(name: str) -> tuple[Mechanism | None, str]:
+    """A UR arm of example-robot-data (base ``base_link``, tip ``tool0``), or a note."""
+    path = _urdf_path(name)
+    if path is None:
+        return None, f"{name}: skipped, example-robot-data is not installed (pip install optik[robots])"
     m = Mechanism.from_urdf(path, "base_link", "tool0")
     m.name = name
     return m, ""
@@ -101,10 +105,28 @@ def _arms() -> tuple[list[Mechanism], list[str]]:
     return arms, notes
 
 
-def _eaik_robot(m: Mechanism) -> object:
-    ax = chain_axes(m)
-    offsets = np.vstack([ax.r[0], np.diff(ax.r, axis=0), ax.home[:3, 3] - ax.r[-1]])
-    return eaik.Robot(ax.h.T, offsets.T, ax.home[:3, :3], [], True)
+def _eaik_robot(m: Mechanism) -> tuple[object, np.ndarray, str]:
+    """EAIK's robot for the arm, built by EAIK's own parser where it has one (its URDF reader
+    for the UR arms, its DH constructor for the PUMA 560), else from optik's joint axes at
+    ``q = 0`` (the seed arm); with ``X`` such that EAIK's FK is ``m.fk(q) X`` (EAIK's tool
+    frame differs), checked on 16 random configurations."""
+    path = _urdf_path(m.name) if m.name in ("ur5", "ur10") else None
+    if path is not None:
+        robot, source = eaik_urdf.UrdfRobot(str(path)), "EAIK's URDF parser"
+    elif m.kind == "puma560":
+        d, a, alpha = (np.array(c) for c in zip(*PUMA560_DH, strict=True))
+        robot, source = eaik_dh.DhRobot(alpha, a, d), "EAIK's DH constructor"
+    else:
+        ax = chain_axes(m)
+        offsets = np.vstack([ax.r[0], np.diff(ax.r, axis=0), ax.home[:3, 3] - ax.r[-1]])
+        robot, source = eaik_dh.EAIK.Robot(ax.h.T, offsets.T, ax.home[:3, :3], [], True), "optik's axes"
+    raw = getattr(robot, "_robot", robot)  # the compiled robot: timed without EAIK's Python wrapper
+    x = np.linalg.inv(m.fk(np.zeros(6))) @ np.asarray(raw.fwdkin(np.zeros(6)))
+    for q in m.random_q(16, seed=99):
+        gap = np.abs(m.fk(q) @ x - np.asarray(raw.fwdkin(q))).max()
+        if gap > 1e-9:
+            raise RuntimeError(f"{m.name}: EAIK's model ({source}) differs from optik's by {gap:.1e}")
+    return raw, x, source
 
 
 def _valid(m: Mechanism, qs: Sequence[np.ndarray], target: np.ndarray) -> list[np.ndarray]:
@@ -127,6 +149,7 @@ class Row:
     name: str
     family: str
     n: int
+    eaik_model: str = "-"
     optik_times: list[float] = field(default_factory=list)
     results_times: list[float] = field(default_factory=list)
     eaik_times: list[float] = field(default_factory=list)
@@ -150,11 +173,12 @@ def run_arm(m: Mechanism, n: int, seed: int) -> Row:
     family = solver.structure.name if solver is not None else "none"
     row = Row(m.name, family, n)
     targets = m.fk(m.random_q(n, seed=seed))
-    robot = _eaik_robot(m) if eaik is not None else None
+    robot, x, row.eaik_model = _eaik_robot(m) if eaik_dh is not None else (None, np.eye(4), "-")
+    theirs_targets = targets @ x  # EAIK's tool frame (outside the timing)
     optik.solve_ik_all(m, targets[0])  # builds the cached kernel and FK evaluator (untimed)
     if derive(m) is not None:
         derive(m).compile()  # as after its first calls (it compiles itself when hot)
-    for t in targets:
+    for t, t_eaik in zip(targets, theirs_targets, strict=True):
         t0 = time.perf_counter()
         sols = optik.solve_ik_all(m, t)
         assert sols.q.shape[0] == len(sols)  # the solutions as one array, like EAIK.Q
@@ -164,7 +188,7 @@ def run_arm(m: Mechanism, n: int, seed: int) -> Row:
         row.results_times.append(time.perf_counter() - t0)
         if robot is not None:
             t0 = time.perf_counter()
-            theirs = robot.calculate_IK(t)
+            theirs = robot.calculate_IK(t_eaik)
             row.eaik_times.append(time.perf_counter() - t0)
             valid = _valid(m, np.asarray(theirs.Q), t)
         else:
@@ -191,10 +215,11 @@ def report(rows: list[Row], notes: list[str], command: str) -> str:
     lines = [
         f"`{command}` (one process, targets interleaved pose by pose; times per pose in us)",
         "",
-        "| arm | family | poses | EAIK solutions in limits | found by optik | optik solutions | duplicates "
+        "| arm | family | EAIK built by | poses | EAIK solutions in limits | found by optik "
+        "| optik solutions | duplicates "
         "| failed FK/limit check | extra | optik mean / median / p95 | EAIK mean / median / p95 "
         "| ratio of means / medians | IKResult objects (mean) | vectorized (targets/s) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         om, omed, op95 = _stats(r.optik_times)
@@ -206,7 +231,8 @@ def report(rows: list[Row], notes: list[str], command: str) -> str:
         else:
             peer, ratio, found = "EAIK not installed", "-", "-"
         lines.append(
-            f"| {r.name} | {r.family} | {r.n} | {r.eaik_valid if r.eaik_times else '-'} | {found} "
+            f"| {r.name} | {r.family} | {r.eaik_model} | {r.n} "
+            f"| {r.eaik_valid if r.eaik_times else '-'} | {found} "
             f"| {r.optik_solutions} | {r.duplicates} | {r.optik_failed_check} "
             f"| {r.extra if r.eaik_times else '-'} "
             f"| {om:.1f} / {omed:.1f} / {op95:.1f} | {peer} | {ratio} | {_stats(r.results_times)[0]:.1f} "
@@ -239,7 +265,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.n < 1:
         parser.error("--n must be >= 1")
     arms, notes = _arms()
-    if eaik is None:
+    if eaik_dh is None:
         notes.append("EAIK not installed (pip install optik[peers]): optik alone")
     rows = []
     for m in arms:

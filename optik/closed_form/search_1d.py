@@ -78,6 +78,7 @@ import itertools
 import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -111,8 +112,12 @@ SUBDIVISIONS = 16
 LEVELS = 2
 """Levels of subdivision (the finest spacing is ``2 pi / (SAMPLES SUBDIVISIONS^LEVELS)``)."""
 NEAR_TOL = 0.05
-"""A branch with a residual between `VALID_TOL` and this is nearly valid: its interval is
-subdivided (a branch may exist on a shorter interval of the swept angle than the spacing)."""
+"""A local minimum of the smallest residual of the invalid branches below this flags its
+intervals for subdivision (a branch may exist on a shorter interval of the swept angle than the
+spacing)."""
+MAX_FLAGGED = 64
+"""Most intervals of one target subdivided per level (the first in angle order; the reason says
+when a target had more): bounds the work per target."""
 VALID_TOL = 1e-6
 """A branch is valid where its subproblems hold to this (times the arm's size)."""
 JUMP = 0.5
@@ -130,6 +135,7 @@ TRIAL_TARGETS = 8
 MAX_SOLUTIONS = 16
 """The Bezout bound of a 6R arm: at most this many isolated solutions."""
 
+_Brackets = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 Scan = Callable[[Axes, np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
@@ -359,10 +365,15 @@ class Search1D:
         """The spacing in the intervals subdivided `LEVELS` times (rad)."""
         return self.resolution / SUBDIVISIONS**LEVELS
 
+    @cached_property
+    def chain(self) -> Axes:
+        """The chain the scan works on: ``axes``, or its inverse for the reversed families."""
+        return self.axes.reversed() if self.family.reversed else self.axes
+
     def _scan(self, theta: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The family's scan on the forward chain: ``q (..., B, 6)`` of the arm, for targets
-        ``t (..., 4, 4)`` broadcasting with ``theta``."""
-        chain = self.axes.reversed() if self.family.reversed else self.axes
+        """The family's scan, returned for the arm itself: ``q (..., B, 6)``, ``e``, ``res``
+        (see `scan_56_intersecting`) for targets ``t (..., 4, 4)`` broadcasting with ``theta``."""
+        chain = self.chain
         if self.family.reversed:
             rt = np.swapaxes(t[..., :3, :3], -1, -2)
             pt = -np.einsum("...ij,...j->...i", rt, t[..., :3, 3])
@@ -383,28 +394,43 @@ class Search1D:
         rows = np.arange(n_t)
         starts: list[np.ndarray] = []
         owners: list[np.ndarray] = []
+        capped = np.zeros(n_t, dtype=bool)
+        brackets: list[_Brackets] = []
         for level in range(LEVELS + 1):
-            q0, own, flags = self._grid(grid, t[rows])
+            q0, own, found, flags = self._grid(grid, t[rows])
             starts.append(q0)
             owners.append(rows[own])
+            brackets.append((rows[found[0]], *found[1:]))
             if level == LEVELS:
                 break
-            kk, jj = np.nonzero(flags)
+            kept = flags & (np.cumsum(flags, axis=1) <= MAX_FLAGGED)
+            capped[rows[(flags & ~kept).any(axis=1)]] = True
+            kk, jj = np.nonzero(kept)
             if not kk.size:
                 break
             lo, hi = grid[kk, jj], grid[kk, jj + 1]
             grid = lo[:, None] + (hi - lo)[:, None] * np.linspace(0.0, 1.0, SUBDIVISIONS + 1)
             rows = rows[kk]
-        qp, err = self._polish(np.concatenate(starts), t[np.concatenate(owners)])
+        # all brackets of all levels refined together (one subproblem call per Illinois step)
+        nb = np.concatenate([b[0] for b in brackets])
+        ends, branch, errors = (np.concatenate([b[i] for b in brackets], axis=1) for i in (1, 2, 3))
+        if nb.size:
+            starts.append(
+                self._refine(t[nb], (ends[0], ends[1]), (branch[0], branch[1]), (errors[0], errors[1]))
+            )
+            owners.append(nb)
         own = np.concatenate(owners)
-        return [self._collect(qp[own == n_], err[own == n_]) for n_ in range(n_t)]
+        qp, err = self._polish(np.concatenate(starts), t[own])
+        return [self._collect(qp[own == n_], err[own == n_], bool(capped[n_])) for n_ in range(n_t)]
 
-    def _grid(self, theta: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _grid(self, theta: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, _Brackets, np.ndarray]:
         """Steps 2-3 of the module docstring on the angle grids ``theta (K, G)`` (increasing
         along each row) of targets ``t (K, 4, 4)``.
 
         Returns:
-            The candidates ``(M, 6)``, the row of each ``(M,)``, and ``(K, G - 1)`` flags of the
+            The candidates ``(M, 6)`` and the row of each ``(M,)`` except the brackets; the
+            brackets (rows ``(L,)``, then the two ends' angles ``(2, L)``, branches
+            ``(2, L, 6)`` and errors ``(2, L)``, refined later); and ``(K, G - 1)`` flags of the
             intervals to subdivide: where a branch ends, begins or jumps, where a branch is
             nearly valid at an end (a local minimum, below `NEAR_TOL`, of the smallest residual
             of the invalid branches: an island of valid angles may lie in between), and where
@@ -413,7 +439,7 @@ class Search1D:
         q, e, res = self._scan(theta, t[:, None])
         valid = res <= VALID_TOL
         e = np.where(valid, e, np.nan)
-        b = q.shape[-1 - 1]
+        b = q.shape[-2]
         qa, qb = q[:, :-1], q[:, 1:]
         va, vb = valid[:, :-1], valid[:, 1:]
         ea, eb_all = e[:, :-1], e[:, 1:]
@@ -431,12 +457,12 @@ class Search1D:
         owners: list[np.ndarray] = []
         # 3a. brackets
         nb, kb, ib = np.nonzero(cont & (ea * eb <= 0.0))
-        if nb.size:
-            ends = (theta[nb, kb], theta[nb, kb + 1])
-            starts.append(
-                self._refine(t[nb], ends, (qa[nb, kb, ib], qn[nb, kb, ib]), (ea[nb, kb, ib], eb[nb, kb, ib]))
-            )
-            owners.append(nb)
+        brackets = (
+            nb,
+            np.stack([theta[nb, kb], theta[nb, kb + 1]]),
+            np.stack([qa[nb, kb, ib], qn[nb, kb, ib]]),
+            np.stack([ea[nb, kb, ib], eb[nb, kb, ib]]),
+        )
         # 3b. two close zeros: a parabola through three samples of a continued branch
         # (samples k-1, k, k+1 = interval k-1's start, its end = interval k's start, interval k's end)
         inv = np.argsort(match, axis=-1)  # interval k-1: the branch at k-1 continued by branch i at k
@@ -484,8 +510,8 @@ class Search1D:
             close = cont & (ea * eb > 0) & (np.minimum(np.abs(ea), np.abs(eb)) < np.abs(eb - ea))
         flags = ended.any(-1) | begun.any(-1) | dip[:, :-1] | dip[:, 1:] | close.any(-1)
         if starts:
-            return np.concatenate(starts), np.concatenate(owners), flags
-        return np.zeros((0, 6)), np.zeros(0, dtype=int), flags
+            return np.concatenate(starts), np.concatenate(owners), brackets, flags
+        return np.zeros((0, 6)), np.zeros(0, dtype=int), brackets, flags
 
     def _refine(
         self,
@@ -548,7 +574,7 @@ class Search1D:
             q[todo] -= dq * np.minimum(1.0, JUMP / np.maximum(big, 1e-300))[:, None]
         return q, err
 
-    def _collect(self, q: np.ndarray, err: np.ndarray) -> Search1DSolutions:
+    def _collect(self, q: np.ndarray, err: np.ndarray, capped: bool) -> Search1DSolutions:
         """Verified, wrapped, deduplicated solutions of one target."""
         good = err <= CHECK_TOL
         q, err = _wrap(q[good]), err[good]
@@ -561,6 +587,8 @@ class Search1D:
             f"1-D search ({self.family.name}, {self.samples} samples, spacing {self.resolution:.1e} rad, "
             f"{self.finest:.1e} where subdivided): not certified complete"
         )
+        if capped:
+            reason += f"; over {MAX_FLAGGED} intervals to subdivide at a level: the first {MAX_FLAGGED} were"
         if len(kept) > MAX_SOLUTIONS:
             reason += (
                 f"; {len(kept)} distinct verified solutions, more than the {MAX_SOLUTIONS} of an"

@@ -58,12 +58,20 @@ def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.einsum("...i,...i->...", a, b) if a.shape == b.shape else np.sum(a * b, axis=-1)
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a x b`` over the last axis, broadcasting (``np.cross`` without its axis moves: two to
+    three times faster on the arrays of the search kernels)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack(np.broadcast_arrays(a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0), axis=-1)
+
+
 def rot(k: np.ndarray, theta: np.ndarray, p: np.ndarray) -> np.ndarray:
     """``rot(k, theta) p`` (Rodrigues) for broadcasting ``k (..., 3)``, ``theta (...)``, ``p (..., 3)``."""
     c = np.cos(theta)[..., None]
     s = np.sin(theta)[..., None]
     kp = _dot(k, p)[..., None]
-    return p * c + np.cross(k, p) * s + k * (kp * (1.0 - c))
+    return p * c + _cross(np.asarray(k), np.asarray(p)) * s + k * (kp * (1.0 - c))
 
 
 def _split(a: np.ndarray) -> v3.Vec:
@@ -231,7 +239,7 @@ def _sincos_linear(h: np.ndarray, k: np.ndarray, p: np.ndarray) -> tuple[np.ndar
     """``h . rot(k, t) p = alpha + beta . (cos t, sin t)``: returns ``(alpha, beta (..., 2))``."""
     kp = _dot(k, p)
     hk = _dot(h, k)
-    return hk * kp, np.stack([_dot(h, p) - hk * kp, _dot(h, np.cross(k, p))], axis=-1)
+    return hk * kp, np.stack([_dot(h, p) - hk * kp, _dot(h, _cross(np.asarray(k), np.asarray(p)))], axis=-1)
 
 
 def sp6(

@@ -151,7 +151,8 @@ class IKSolutions(Sequence[IKResult]):
 
     @property
     def q(self) -> np.ndarray:
-        """The solutions' coordinates as one ``(K, n)`` array, in order (``(0, 0)`` when empty)."""
+        """The solutions' coordinates as one ``(K, n)`` array, in order (an empty array, of
+        shape ``(0, n)`` or ``(0, 0)``, when there are none)."""
         if self._arrays is not None:
             return self._arrays[0]
         rows = [r.q for r in self._list()]

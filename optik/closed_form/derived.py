@@ -18,6 +18,11 @@ solves many targets at once:
    the polished residual and ``sigma`` the smallest singular value of the Jacobian there (the
    accuracy to which the polished candidate is determined).
 
+One target at a time (`DerivedIK.solve_one`, and `optik.solve_ik_all` directly), the same steps
+run in one compiled call (`optik.closed_form.ik_all`), the numpy path deciding the rare targets
+with a candidate to polish or two close ones; a candidate that only stands in for another at a
+singularity (`DerivedIK.stand_ins`) is dropped when that one passes the check, on every path.
+
 Importing this module registers ``derived_rows`` with `optik.closed_form.registry`, so that
 every mechanism with a detected family and no catalog closed form gets one: ``closed_form.ik``,
 ``solve_ik(method="closed_form")`` and ``solve_ik_all`` use it.

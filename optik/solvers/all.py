@@ -4,7 +4,10 @@
   its own task: a catalog closed form or one derived from the model's structure, see
   ``optik.closed_form.derived``): every branch is computed, each passing the FK check (a
   branch that fails it is polished, then dropped if it still fails, and counted). A closed form is
-  complete, so it answers alone: no numerical search follows.
+  complete, so it answers alone: no numerical search follows. For an arm whose closed form is
+  derived, the plain call ``solve_ik_all(m, T[, q0])`` is one call into compiled C
+  (``optik.closed_form.ik_all``: candidates, checks, 2 pi shift, limit split and order in one
+  go), with the same answer as the general path.
 * **Numerical** (``method="lm"``, ``"nlp"``, ... or ``method=None`` without a closed form): the
   method runs from ``q0`` and then from points drawn uniformly within the limits, one start per
   call. Every successful answer is polished to full precision on the exact residual

@@ -168,3 +168,12 @@ def test_bad_input_raises_named_errors() -> None:
         solve_search_1d(generic, np.eye(4))
     with pytest.raises(InvalidArgumentError, match="m"):
         solve_search_1d("arm", np.eye(4))  # type: ignore[arg-type]
+
+
+def test_benchmark_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    """``optik benchmark search_1d`` on one small geometry (its numbers come from the full run)."""
+    from optik.benchmarks import bench_search_1d
+
+    assert bench_search_1d.main(["--arms", "1", "--poses", "2", "--only", "4, 5, 6"]) == 0
+    out = capsys.readouterr().out
+    assert "| optik search_1d | 2 |" in out and "| optik general_6r | 2 |" in out

@@ -256,11 +256,7 @@ def test_driver_through_ctypes_equals_its_python_binding(monkeypatch: pytest.Mon
     if binding is None or binding.fast is None:
         pytest.skip("no C compiler or no Python headers: nothing to compare")
     monkeypatch.setattr(ik_all, "python_flags", lambda: ())
-    one = solver._single
-    with one.lock:
-        one.driver = None
-        plain = one.compile()
-        one.driver = binding  # the solver keeps its binding
+    plain = closed_form.derived._driver_kernel(solver)  # the same driver, without the binding
     plain.library.wait()
     assert plain.ready and plain.fast is None
     qs = m.random_q(30, seed=4)
@@ -271,3 +267,68 @@ def test_driver_through_ctypes_equals_its_python_binding(monkeypatch: pytest.Mon
             assert (a is None) == (b is None)
             for x, y in zip(a or (), b or (), strict=True):
                 np.testing.assert_array_equal(x, y)
+
+
+def _layouts(t: np.ndarray) -> list[object]:
+    """The same target in other layouts and types, and hostile variants."""
+    far = t.copy()
+    far[:3, 3] = 1e300
+    tiny = t.copy()
+    tiny[:3, 3] = 1e-300
+    return [
+        np.asfortranarray(t),
+        t[::-1, ::-1][::-1, ::-1],  # negative strides, same values
+        np.ascontiguousarray(t.T).T,
+        t.astype(np.float32),
+        t.tolist(),
+        np.array(t, dtype=object),
+        far,
+        tiny,
+    ]
+
+
+def test_compiled_path_takes_any_layout_and_hostile_values() -> None:
+    """Targets and starts of any layout or type give what the general path gives (or its named
+    error): the compiled binding reads strided memory, and declines what it does not take."""
+    from optik.solvers import all as all_module
+    from optik.solvers.base import make_request
+
+    m = optik.catalog.puma560()
+    closed_form.derive(m).compile()
+    q = m.random_q(seed=3)
+    t = m.fk(q)
+    for target in _layouts(t):
+        for q0 in (None, m.mid_q(), m.mid_q()[::-1][::-1], m.mid_q().astype(np.float32), [0.1] * 6):
+            try:
+                request = make_request(m, target, q0, None, None, 1.0, None, None, {})
+                want = all_module._closed_form_all(request)
+            except optik.OptikError as exc:
+                with pytest.raises(type(exc)):
+                    optik.solve_ik_all(m, target, q0)
+                continue
+            got = optik.solve_ik_all(m, target, q0)
+            assert len(got) == len(want)
+            for a, b in zip(got, want, strict=True):
+                np.testing.assert_array_equal(a.q, b.q)
+                assert a.success and m.within_limits(a.q)
+
+
+def test_without_a_compiler_the_evaluator_gives_the_same_solutions(monkeypatch: pytest.MonkeyPatch) -> None:
+    """No C compiler: CasADi's evaluator runs the symbolic kernel (same steps as the driver), and
+    solve_ik_all answers as with the compiled driver."""
+    from optik import native
+
+    arm = optik.catalog.seed_6r_arm(0.9, 0.7, 0.25)
+    compiled = closed_form.derive(arm)
+    compiled.compile()
+    assert compiled.driver() is not None or native.compiler() is None
+    qs = arm.random_q(20, seed=8)
+    want = [optik.solve_ik_all(arm, t) for t in arm.fk(qs)]
+    monkeypatch.setattr(native, "compiler", lambda: None)
+    plain = optik.catalog.seed_6r_arm(0.9, 0.7, 0.25)  # a new mechanism: its own derived solver
+    assert closed_form.derive(plain).driver() is None
+    for t, w in zip(plain.fk(qs), want, strict=True):
+        got = optik.solve_ik_all(plain, t)
+        assert len(got) == len(w)
+        for a, b in zip(got, w, strict=True):
+            np.testing.assert_allclose(a.q, b.q, atol=1e-12)

@@ -48,8 +48,6 @@ POLISH_RANGE = (1e-5, 1e-3)
 """Bounds of `DerivedIK.polish_range`: candidates with errors above `CHECK_TOL` but within
 the polish range (times the arm's size for the position, rad for the orientation) are polished;
 those beyond are no solution (least-squares answers of subproblems without a real one)."""
-COMPILE_AFTER = 64
-"""Single-target calls of one kernel after which its driver is compiled to C (`optik.closed_form.ik_all`)."""
 CHECK_TOL = 1e-9
 """FK check: largest position error (times the arm's size) and orientation error (rad) kept."""
 EXACT_TOL = 1e-12
@@ -226,39 +224,43 @@ class DerivedIK:
     def _single(self) -> _Single:
         return _Single(self)
 
+    @cached_property
+    def _compiled(self) -> _Compiled:
+        return _Compiled()
+
     def compile(self) -> None:
-        """Compile the single-target driver to C now and wait for it (`optik.closed_form.ik_all`;
-        it is built in the background by itself after `COMPILE_AFTER` calls; without a C
-        compiler CasADi's evaluator stays)."""
+        """Build the compiled single-target driver now and wait for it
+        (`optik.closed_form.ik_all`; otherwise its build starts in the background at the first
+        single-target call). Without a C compiler nothing is built: CasADi's evaluator answers."""
         if self.structure.position == "general":
             return
-        one = self._single
-        with one.lock:
-            one.calls = max(one.calls, COMPILE_AFTER)  # no second build when it gets hot
-            driver = one.compile()
-        if driver.library is not None:
-            driver.library.wait()
+        kernel = self._kernel()
+        if kernel.library is not None:
+            kernel.library.wait()
 
     def solve_one(self, t: np.ndarray) -> list[list[float]]:
         """The solutions for one target ``t (4, 4)`` as rows, the same as ``solve(t)`` but
-        through the compiled driver (`optik.closed_form.ik_all`) or, until it is built or
-        without a C compiler, the symbolic kernel (`_Single`): about a hundred times cheaper
-        per call than the numpy kernel on one target. Targets with a candidate to polish or two
-        close candidates take the numpy path (`finish`), as do the families solved by SP5 / SP6
-        (``general`` position case: eigenvalues, numpy only); the others return
+        through the compiled driver (`optik.closed_form.ik_all`): about a hundred times cheaper
+        per call than the numpy kernel on one target. While the driver builds (in the
+        background, from the first call) the numpy kernel answers; without compiled code, the
+        symbolic kernel on CasADi's evaluator (`_Single`). Targets with a candidate to polish or
+        two close candidates take the numpy path (`finish`), as do the families solved by SP5 /
+        SP6 (``general`` position case: eigenvalues, numpy only); the others return
         [`CheckedRows`][optik.closed_form.registry.CheckedRows] carrying the kernel's FK check
         of each row (the product-of-exponentials model, equal to the mechanism's FK to
         rounding: `axes_of` checks it)."""
         if self.structure.position == "general":  # SP5 / SP6 eigenvalues: numpy only
-            q, ok = self.solve(t)
-            return q[0][ok[0]].tolist()
+            return self._solve_numpy(t)
         driver = self.driver()
         if driver is not None:
             got = driver(t, None, _NO_LIMIT, _NO_LIMIT_UP, sort=False)
             if got is not None:
                 return registry.CheckedRows(got[0].tolist(), [tuple(e) for e in got[1].tolist()], True)
             return self._solve_numpy(t)
-        one = self._single
+        library = self._kernel().library
+        if library is not None and library.state == "building":
+            return self._solve_numpy(t)
+        one = self._single  # no compiled code: CasADi's evaluator
         with one.lock:
             one.t[:] = t.reshape(16)
             one.function_call()
@@ -280,21 +282,23 @@ class DerivedIK:
         return q[0][ok[0]].tolist()
 
     def driver(self) -> AllSolutionsKernel | None:
-        """The compiled single-target driver once it is loaded, else None (counting the call:
-        the build starts in the background at the `COMPILE_AFTER`-th). None always for the
-        ``general`` position case (SP5 / SP6 eigenvalues: numpy only)."""
+        """The compiled single-target driver once it is loaded, else None (its build starts in
+        the background at the first call). None always for the ``general`` position case
+        (SP5 / SP6 eigenvalues: numpy only)."""
         if self.structure.position == "general":
             return None
-        one = self._single
-        driver = one.driver
-        if driver is not None and driver.ready:
-            return driver
-        if driver is None:
-            with one.lock:
-                one.calls += 1
-                if one.calls >= COMPILE_AFTER and one.driver is None:
-                    one.compile()
-        return None
+        kernel = self._kernel()
+        return kernel if kernel.ready else None
+
+    def _kernel(self) -> AllSolutionsKernel:
+        """The driver of `optik.closed_form.ik_all` (made once; its library is loaded from the
+        cache or built in the background)."""
+        holder = self._compiled
+        if holder.kernel is None:
+            with holder.lock:
+                if holder.kernel is None:
+                    holder.kernel = _driver_kernel(self)
+        return holder.kernel
 
     def _polish(self, q: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Gauss-Newton on ``q (K, 6)`` for targets ``t (K, 4, 4)``; which pass the check."""
@@ -335,8 +339,8 @@ class _Single:
     branches wrapped to ``(-pi, pi]`` (``6 B``), their position and orientation errors (``2 B``),
     whether each passes the FK check (``B``), and two flags: the number of candidates to polish
     and the smallest wrapped max-norm distance between two passing ones. Guarded by a lock (the
-    buffers are shared). CasADi's evaluator runs it until the compiled driver of the same steps
-    (`driver`, `optik.closed_form.ik_all`) is loaded, and always without a C compiler."""
+    buffers are shared). CasADi's evaluator runs it where there is no compiled driver of the
+    same steps (`optik.closed_form.ik_all`: no C compiler, or its build failed)."""
 
     def __init__(self, solver: DerivedIK) -> None:
         t = ca.SX.sym("t", 16)
@@ -382,31 +386,35 @@ class _Single:
         for k, out in enumerate(self.outputs):
             self.buffer.set_res(k, memoryview(out))
         self.lock = threading.Lock()
-        self.calls = 0
-        self.driver: AllSolutionsKernel | None = None
-        self._solver = solver
 
-    def compile(self) -> AllSolutionsKernel:
-        """Start the build of the compiled driver (`optik.closed_form.ik_all`, in the
-        background) and keep it in `driver`; hold `lock`."""
-        if self.driver is None:
-            solver = self._solver
-            t = ca.SX.sym("t", 16)
-            rt = tuple(tuple(t[4 * i + j] for j in range(3)) for i in range(3))
-            pt = (t[3], t[7], t[11])
-            raw = solver.branches(rt, pt, v3.remembering(v3.CASADI))
-            q = ca.SX.sym("q", 6)
-            err = solver.errors_c(tuple(q[i] for i in range(6)), rt, pt, v3.CASADI)
-            size, span = solver.axes.size, solver.polish_range
-            self.driver = AllSolutionsKernel(
-                ca.Function("optik_ik_branches", [t], [ca.vertcat(*[a for b in raw for a in b])]),
-                ca.Function("optik_ik_check", [q, t], [ca.vertcat(*err)]),
-                solver.stand_ins(len(raw)),
-                (CHECK_TOL * size, CHECK_TOL),
-                (span * size, span),
-                SAME_TOL,
-            )
-        return self.driver
+
+class _Compiled:
+    """The compiled driver of a `DerivedIK`, made at its first use (guarded by a lock)."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.kernel: AllSolutionsKernel | None = None
+
+
+def _driver_kernel(solver: DerivedIK) -> AllSolutionsKernel:
+    """The driver of `optik.closed_form.ik_all` for ``solver``: its candidates (the symbolic
+    kernel, with the cosines and sines it makes remembered, `optik.closed_form.vec3.remembering`)
+    and the FK check of one candidate, with the check and polish tolerances of `finish`."""
+    t = ca.SX.sym("t", 16)
+    rt = tuple(tuple(t[4 * i + j] for j in range(3)) for i in range(3))
+    pt = (t[3], t[7], t[11])
+    raw = solver.branches(rt, pt, v3.remembering(v3.CASADI))
+    q = ca.SX.sym("q", 6)
+    err = solver.errors_c(tuple(q[i] for i in range(6)), rt, pt, v3.CASADI)
+    size, span = solver.axes.size, solver.polish_range
+    return AllSolutionsKernel(
+        ca.Function("optik_ik_branches", [t], [ca.vertcat(*[a for b in raw for a in b])]),
+        ca.Function("optik_ik_check", [q, t], [ca.vertcat(*err)]),
+        solver.stand_ins(len(raw)),
+        (CHECK_TOL * size, CHECK_TOL),
+        (span * size, span),
+        SAME_TOL,
+    )
 
 
 def _wrap_sx(a: ca.SX) -> ca.SX:

@@ -157,6 +157,8 @@ def test_bad_input_raises_named_errors() -> None:
     m = special_arm(rng, CASES["1-2 and 5-6 intersecting"])
     with pytest.raises(ShapeError, match="target"):
         solve_search_1d(m, np.eye(3))
+    with pytest.raises(ShapeError, match="target"):
+        solve_search_1d(m, np.zeros((0, 4, 4)))
     bad = np.eye(4)
     bad[0, 3] = np.nan
     with pytest.raises(NonFiniteError, match="target"):
@@ -168,3 +170,26 @@ def test_bad_input_raises_named_errors() -> None:
         solve_search_1d(generic, np.eye(4))
     with pytest.raises(InvalidArgumentError, match="m"):
         solve_search_1d("arm", np.eye(4))  # type: ignore[arg-type]
+
+
+def test_benchmark_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    """``optik benchmark search_1d`` on one small geometry (its numbers come from the full run)."""
+    from optik.benchmarks import bench_search_1d
+
+    assert bench_search_1d.main(["--arms", "1", "--poses", "2", "--only", "4, 5, 6"]) == 0
+    out = capsys.readouterr().out
+    assert "| optik search_1d | 2 |" in out and "| optik general_6r | 2 |" in out
+
+
+def test_chunks_give_the_same_answers() -> None:
+    """Targets searched in chunks (bounded memory) give the answers of one stacked search."""
+    rng = np.random.default_rng(19)
+    m = special_arm(rng, CASES["1-2 and 5-6 parallel"])
+    axes = axes_of(m)
+    fam = search_1d.family_of(axes)
+    targets = m.fk(m.random_q(5, seed=4))
+    whole = Search1D(axes, fam).solve(targets)
+    parts = Search1D(axes, fam, chunk=2).solve(targets)
+    assert len(parts) == 5
+    for a, b in zip(whole, parts, strict=True):
+        assert a.q.shape == b.q.shape and np.allclose(a.q, b.q, atol=1e-12)

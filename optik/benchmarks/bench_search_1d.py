@@ -25,10 +25,11 @@ Reported per geometry and solver: round trips (the drawn ``q`` among the verifie
 rad modulo 2 pi), solutions per target (each verified here by ``m.fk`` to 1e-8), the share of the
 union of all solvers' verified solutions that a solver found, duplicates (two answers within 1e-4
 rad), answers that fail the FK check, and mean / median / p95 time per target with the ratio of
-means to ``optik search_1d``. ``--covered`` runs the same on geometries with one special end pair,
-which the general 6R solver covers (certified): the measurement behind the registry's choice.
+means to ``optik search_1d``. ``--geometries one-end`` runs the same on geometries with one special
+end pair, which the general 6R solver covers (certified): the measurement behind the registry's
+choice (``all``: both sets).
 
-Run: ``optik benchmark search_1d [--arms 20] [--poses 50] [--seed 0] [--covered]``
+Run: ``optik benchmark search_1d [--arms 20] [--poses 50] [--seed 0] [--geometries both-ends]``
 (or ``python -m optik.benchmarks.bench_search_1d``).
 """
 
@@ -266,14 +267,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--arms", type=int, default=20, help="random arms per geometry")
     ap.add_argument("--poses", type=int, default=50, help="random poses per arm")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--covered", action="store_true", help="also the geometries with one special end")
+    ap.add_argument(
+        "--geometries",
+        choices=("both-ends", "one-end", "all"),
+        default="both-ends",
+        help="special at both ends (covers() False), at one end (covers() True), or all",
+    )
     ap.add_argument("--only", default=None, help="run only the geometries whose label contains this")
     args = ap.parse_args(argv)
     rng = np.random.default_rng(args.seed)
     print(f"## 1-D search: ik-geo {'yes' if ik_geo else 'no'}, EAIK {'yes' if eaik else 'no'}")
-    cases = dict(BOTH_ENDS)
-    if args.covered:
-        cases.update(ONE_END)
+    cases = {
+        **(BOTH_ENDS if args.geometries != "one-end" else {}),
+        **(ONE_END if args.geometries != "both-ends" else {}),
+    }
     for label, zero in cases.items():
         if args.only is None or args.only in label:
             run_geometry(label, zero, args.arms, args.poses, rng)

@@ -132,6 +132,8 @@ _EXACT = 1e-14
 """FK error below which a candidate needs no further Gauss-Newton step."""
 TRIAL_TARGETS = 8
 """Seeded FK targets on which `family_of` compares the families of an arm that has several."""
+CHUNK = 64
+"""Targets searched together by `Search1D.solve`."""
 MAX_SOLUTIONS = 16
 """The Bezout bound of a 6R arm: at most this many isolated solutions."""
 
@@ -348,11 +350,13 @@ class Search1D:
         axes: the chain.
         family: its searchable family.
         samples: angles sampled on the circle.
+        chunk: targets searched together (bounds the memory: a few hundred kB per target).
     """
 
     axes: Axes
     family: Family
     samples: int = SAMPLES
+    chunk: int = CHUNK
 
     @property
     def resolution(self) -> float:
@@ -386,8 +390,13 @@ class Search1D:
         return q, e, res
 
     def solve(self, t: np.ndarray) -> list[Search1DSolutions]:
-        """The solutions of targets ``t (N, 4, 4)`` (validated by the caller)."""
+        """The solutions of targets ``t (N, 4, 4)`` (validated by the caller), `chunk` targets
+        at a time."""
         t = np.asarray(t, dtype=float).reshape(-1, 4, 4)
+        return [s for i in range(0, len(t), self.chunk) for s in self._solve(t[i : i + self.chunk])]
+
+    def _solve(self, t: np.ndarray) -> list[Search1DSolutions]:
+        """`solve` on one chunk of targets."""
         n_t = len(t)
         theta = -np.pi + self.resolution * np.arange(self.samples + 1)  # closed: last = first + 2 pi
         grid = np.broadcast_to(theta, (n_t, self.samples + 1))
@@ -645,8 +654,8 @@ def solve_search_1d(m: Mechanism, target: Any) -> Search1DSolutions | list[Searc
     t = np.asarray(target, dtype=float)
     if t.ndim == 2:
         return search.solve(as_transform(t, "target")[None])[0]
-    if t.ndim != 3 or t.shape[1:] != (4, 4):
-        raise ShapeError("target", f"expected a 4x4 transform or (N, 4, 4), got shape {t.shape}")
+    if t.ndim != 3 or t.shape[1:] != (4, 4) or not len(t):
+        raise ShapeError("target", f"expected a 4x4 transform or (N, 4, 4) with N >= 1, got shape {t.shape}")
     return search.solve(np.stack([as_transform(ti, f"target[{i}]") for i, ti in enumerate(t)]))
 
 

@@ -116,10 +116,17 @@ class IKSolutions(Sequence[IKResult]):
         failed_check: candidates dropped because they did not pass the FK check, even after
             polishing (not in the list).
         method: how the solutions were found (``"closed_form"`` or the numerical method).
+        certified: False when the closed form that found them does not certify that they are
+            every solution (the 1-D search of `optik.closed_form.search_1d`, a failed count check
+            of the general 6R solver); the numerical search is never certified, and says so by
+            its method.
+        uncertified_reason: why not ("" when certified).
         message: a sentence summarizing the counts.
     """
 
-    __slots__ = ("_arrays", "_outside", "_results", "failed_check", "method")
+    __slots__ = (
+        "_arrays", "_outside", "_results", "certified", "failed_check", "method", "uncertified_reason"
+    )  # fmt: skip
 
     def __init__(
         self,
@@ -127,12 +134,15 @@ class IKSolutions(Sequence[IKResult]):
         outside_limits: Iterable[np.ndarray] | None = None,
         failed_check: int = 0,
         method: str = "",
+        uncertified_reason: str | None = None,
     ) -> None:
         self._results: list[IKResult] | None = list(results)
         self._arrays: tuple[np.ndarray, np.ndarray, float] | None = None
         self._outside: Any = outside_limits if outside_limits is not None else ()
         self.failed_check = failed_check
         self.method = method
+        self.certified = uncertified_reason is None
+        self.uncertified_reason = uncertified_reason or ""
 
     @classmethod
     def from_arrays(
@@ -147,6 +157,8 @@ class IKSolutions(Sequence[IKResult]):
         out._outside = outside_limits
         out.failed_check = 0
         out.method = method
+        out.certified = True
+        out.uncertified_reason = ""
         return out
 
     @property
@@ -210,4 +222,6 @@ class IKSolutions(Sequence[IKResult]):
             text += f"; {len(self.outside_limits)} outside the joint limits left out"
         if self.failed_check:
             text += f"; {self.failed_check} candidate(s) failing the FK check dropped"
+        if not self.certified:
+            text += f"; not certified complete ({self.uncertified_reason})"
         return text

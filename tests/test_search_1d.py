@@ -193,3 +193,18 @@ def test_chunks_give_the_same_answers() -> None:
     assert len(parts) == 5
     for a, b in zip(whole, parts, strict=True):
         assert a.q.shape == b.q.shape and np.allclose(a.q, b.q, atol=1e-12)
+
+
+def test_the_registry_answers_say_they_are_not_certified() -> None:
+    """closed_form.ik and solve_ik_all carry the search's flag and reason."""
+    rows = [(0.3, 0.0, 1.1), (0.2, 0.5, -0.7), (-0.4, 0.6, 2.0)]
+    rows += [(0.5, 0.3, 0.9), (0.1, 0.0, -1.3), (0.2, 0.4, 0.5)]  # a1 = a5 = 0: both ends intersect
+    m = optik.mechanism.dh_chain(rows, "standard")
+    target = m.fk(np.array([0.4, -0.8, 1.2, 0.3, -1.5, 2.0]))
+    branches = optik.closed_form.ik(m, target, respect_limits=False)
+    assert isinstance(branches, optik.closed_form.registry.Uncertified) and "1-D search" in branches.reason
+    sols = optik.solve_ik_all(m, target)
+    assert len(sols) >= 1 and not sols.certified
+    assert sols.uncertified_reason == branches.reason and "not certified complete" in sols.message
+    certified = optik.solve_ik_all(optik.catalog.puma560(), optik.catalog.puma560().fk(np.zeros(6)))
+    assert certified.certified and "certified" not in certified.message

@@ -71,6 +71,7 @@ from typing import Any
 import numpy as np
 
 from optik.checks import as_transform, as_vector
+from optik.closed_form import registry
 from optik.closed_form.structure import axes_of
 from optik.errors import InvalidArgumentError, ShapeError
 from optik.mechanism import Mechanism
@@ -820,6 +821,8 @@ def covers(arm: Mechanism | General6R) -> bool:
 def ik_general_6r(m: Mechanism, target: Any) -> list[np.ndarray]:
     """All real IK solutions of a 6R mechanism for one 4x4 target, as a list of ``q`` (the
     closed-form registry's solver contract ``(m, T) -> list[q]``; ``[]`` when unreachable).
-    `solve_general_6r` returns the same solutions with the count check and the reason; route
-    only arms for which `covers` is True here, since this list cannot carry the flag."""
-    return list(solve_general_6r(m, target).q)
+    `solve_general_6r` returns the same solutions with the count check and the reason; when the
+    count check fails the list is a [`registry.Uncertified`][optik.closed_form.registry.Uncertified]
+    carrying that reason (route only arms for which `covers` is True here)."""
+    sols = solve_general_6r(m, target)
+    return list(sols.q) if sols.count_ok else registry.Uncertified(list(sols.q), sols.reason)

@@ -212,9 +212,26 @@ class CheckedRows(list):
         """True when every angle is already in ``(-pi, pi]``."""
 
 
+class Uncertified(list):
+    """Rows from an IK solver that checks each of them but does not certify that they are every
+    solution (a sampled search, a count check that failed); ``reason`` says why. The rows pass
+    through [`branches`][optik.closed_form.registry.branches] and [`ik`][optik.closed_form.registry.ik]
+    with the flag, and `optik.solve_ik_all` reports it (``IKSolutions.certified``)."""
+
+    def __init__(self, rows: Sequence[Any], reason: str) -> None:
+        super().__init__(rows)
+        self.reason = reason
+
+
+def _flagged(rows: Any, out: list[Any]) -> list[Any]:
+    """``out`` with the flag of ``rows`` when they are `Uncertified`."""
+    return Uncertified(out, rows.reason) if isinstance(rows, Uncertified) else out
+
+
 def branches(m: Mechanism, t: np.ndarray) -> list[list[float]]:
     """All closed-form IK branches for a validated 4x4 target ``t``, wrapped by
-    [`wrap_rows`][optik.closed_form.registry.wrap_rows], without the limit filter (``[]`` when unreachable).
+    [`wrap_rows`][optik.closed_form.registry.wrap_rows], without the limit filter (``[]`` when
+    unreachable; `Uncertified` when the solver does not certify completeness).
 
     Raises:
         SolverUnavailableError: no closed form is registered for ``m.kind``.
@@ -227,7 +244,7 @@ def branches(m: Mechanism, t: np.ndarray) -> list[list[float]]:
         if rows.wrapped and _covers_half_turns(m):  # wrap_rows would return the same numbers
             return rows
         return CheckedRows(wrap_rows(m, rows), rows.errors)
-    return wrap_rows(m, rows)
+    return _flagged(rows, wrap_rows(m, rows))
 
 
 def _covers_half_turns(m: Mechanism) -> bool:
@@ -242,7 +259,7 @@ def _covers_half_turns(m: Mechanism) -> bool:
 
 
 def _finish(m: Mechanism, rows: list[list[float]], respect_limits: bool) -> list[np.ndarray]:
-    return [np.array(row) for row in (within_limits(m, rows) if respect_limits else rows)]
+    return _flagged(rows, [np.array(row) for row in (within_limits(m, rows) if respect_limits else rows)])
 
 
 def ik(m: Mechanism, target: Any, respect_limits: bool = True) -> list[np.ndarray]:
@@ -255,7 +272,8 @@ def ik(m: Mechanism, target: Any, respect_limits: bool = True) -> list[np.ndarra
             multiples of 2 pi into the limits where possible).
 
     Returns:
-        One full coordinate vector per branch; ``[]`` when the target is unreachable.
+        One full coordinate vector per branch; ``[]`` when the target is unreachable; an
+        `Uncertified` list (with its ``reason``) when the solver does not certify completeness.
 
     Raises:
         SolverUnavailableError: no closed form is registered for ``m.kind``.

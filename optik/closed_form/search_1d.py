@@ -670,7 +670,8 @@ def search_rows(m: Mechanism) -> registry.IKSolver | None:
         return None
 
     def rows(_: Mechanism, t: np.ndarray) -> list[list[float]]:
-        return search.solve(t[None])[0].q.tolist()
+        found = search.solve(t[None])[0]
+        return registry.Uncertified(found.q.tolist(), found.reason)
 
     return rows
 

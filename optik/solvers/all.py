@@ -247,7 +247,8 @@ def _from_rows(request: IKRequest, rows: list[list[float]]) -> IKSolutions:
             kept.append(res)
         else:
             failed += 1
-    return IKSolutions(kept, outside, failed, "closed_form")
+    reason = rows.reason if isinstance(rows, registry.Uncertified) else None
+    return IKSolutions(kept, outside, failed, "closed_form", reason)
 
 
 def _locks(m: Mechanism, fixed: Mapping[str, float]) -> dict[int, float]:

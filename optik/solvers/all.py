@@ -110,7 +110,8 @@ def solve_ik_all(
         OptikError: malformed input (named argument), unknown or inapplicable method, an option
             the method does not know.
     """
-    if (
+    start = time.perf_counter()
+    if (  # the plain call on an arm with a derived closed form: one compiled call (_binding)
         (method is None or (type(method) is str and method == "closed_form"))
         and closed_form is True
         and fixed is None
@@ -123,10 +124,14 @@ def solve_ik_all(
         and type(max_solutions) is int
         and patience > 0
         and max_solutions > 0
+        and (time_limit is None or (type(time_limit) is float and 0.0 < time_limit < math.inf))
     ):
-        found = _compiled_all(m, target, q0, time_limit)
-        if found is not None:
-            return found
+        entry = _BINDINGS.get(id(m))
+        fresh = entry is not None and entry[0]() is m and entry[1] == registry.generation()
+        fast = entry[2] if fresh else _binding(m)
+        got = None if fast is None else fast(target, q0, m.lower, m.upper, True)
+        if got is not None:
+            return IKSolutions.from_arrays(*got, "closed_form", time.perf_counter() - start)
     request = make_request(m, target, q0, task, frame, time_limit, tol, seed, options)
     if request.multi_target:
         raise InvalidArgumentError(
@@ -154,39 +159,18 @@ def solve_ik_all(
     return _numeric_all(request, name, patience, max_solutions, request.q0)
 
 
-def _compiled_all(m: Mechanism, target: Any, q0: Any, time_limit: Any) -> IKSolutions | None:
-    """The plain call ``solve_ik_all(m, T[, q0])`` of an arm whose closed form is derived
-    (`optik.closed_form.derived`), answered by the compiled driver of
-    [`optik.closed_form.ik_all`][optik.closed_form.ik_all] in one C call: the same solutions,
-    errors and order as `_closed_form_all`, which answers instead (None here) when the driver is
-    not built yet (or has no Python binding), the target or ``q0`` is not a float64 array of its
-    shape or not valid (it then raises the named error), a candidate needs polishing or two
-    candidates are close (the numpy path decides), or the default tolerances are tighter than
-    the derived FK check."""
-    start = time.perf_counter()
-    if time_limit is not None and not (type(time_limit) is float and 0.0 < time_limit < math.inf):
-        return None
-    entry = _BINDINGS.get(id(m))
-    if entry is None or entry[0]() is not m or entry[1] != registry.generation():
-        fast = _binding(m)
-        if fast is None:
-            return None
-    else:
-        fast = entry[2]
-    got = fast(target, q0, m.lower, m.upper, True)
-    if got is None:
-        return None
-    return IKSolutions.from_arrays(*got, "closed_form", time.perf_counter() - start)
-
-
 _BINDINGS: dict[int, tuple[weakref.ref, int, Callable[..., Any]]] = {}
 """``id(m) -> (weak reference to m, registry generation, the driver's Python binding)``."""
 
 
 def _binding(m: Mechanism) -> Callable[..., Any] | None:
-    """The Python binding of the compiled driver of ``m``'s derived closed form, kept in
-    `_BINDINGS` once it is loaded; None while it builds, without one, or when ``m``'s closed form
-    is not a derived one that the default tolerances admit."""
+    """The Python binding of the compiled driver of ``m``'s derived closed form
+    ([`optik.closed_form.ik_all`][optik.closed_form.ik_all]), kept in `_BINDINGS` once it is
+    loaded; None while it builds, without one, or when ``m``'s closed form is not a derived one
+    that the default tolerances admit. ``binding(T, q0, lower, upper, True)`` gives the same
+    solutions, errors and order as `_closed_form_all`, or None where that path must answer:
+    a target or ``q0`` that is not a float64 array of its shape or not valid (it then raises
+    the named error), a candidate to polish or two close candidates (the numpy path decides)."""
     rows = registry.ik_solver(m)
     if type(rows) is not DerivedRows or m.task != "pose" or rows.solver.check_position > _TOL.position:
         return None

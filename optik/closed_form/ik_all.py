@@ -30,6 +30,8 @@ reentrant (stack memory only); the Python buffers of one kernel are guarded by a
 from __future__ import annotations
 
 import ctypes
+import logging
+import sys
 import sysconfig
 import threading
 from collections.abc import Callable
@@ -47,6 +49,7 @@ DRIVER = Path(__file__).with_name("ik_all.c")
 """optik's C driver."""
 
 _IN = 16 + 6 + 6 + 6 + 8  # target, q0, lower, upper, conf (the layout of ik_all.c)
+_LOG = logging.getLogger(__name__)
 
 
 def python_flags() -> tuple[str, ...]:
@@ -56,7 +59,9 @@ def python_flags() -> tuple[str, ...]:
     include = sysconfig.get_paths().get("include") or ""
     if not (Path(include) / "Python.h").exists():
         return ()
-    return ("-DOPTIK_PYTHON", f"-I{include}", f"-I{np.get_include()}")
+    # the versions are part of the cache key: a library built against other headers is not reused
+    abi = f"-DOPTIK_ABI={sys.implementation.cache_tag}_numpy{np.__version__.replace('.', '_')}"
+    return ("-DOPTIK_PYTHON", abi, f"-I{include}", f"-I{np.get_include()}")
 
 
 class AllSolutionsKernel:
@@ -127,7 +132,10 @@ class AllSolutionsKernel:
                     make = ctypes.PyDLL(str(self.library.path)).optik_ik_all_function
                     make.argtypes = []
                     make.restype = ctypes.py_object
-                    self.fast = make()
+                    try:
+                        self.fast = make()
+                    except Exception as exc:  # e.g. numpy's C API refused: the ctypes path stays
+                        _LOG.warning("optik: no Python binding for %s: %s", self.library.path.name, exc)
                 self._fn = fn
         return self._fn is not None
 

@@ -129,7 +129,10 @@ def solve_ik_all(
         entry = _BINDINGS.get(id(m))
         fresh = entry is not None and entry[0]() is m and entry[1] == registry.generation()
         fast = entry[2] if fresh else _binding(m)
-        got = None if fast is None else fast(target, q0, m.lower, m.upper, True)
+        try:
+            got = None if fast is None else fast(target, q0, m.lower, m.upper, True)
+        except RuntimeError as exc:  # the generated code reported an error
+            raise SolverUnavailableError(str(exc)) from None
         if got is not None:
             return IKSolutions.from_arrays(*got, "closed_form", time.perf_counter() - start)
     request = make_request(m, target, q0, task, frame, time_limit, tol, seed, options)

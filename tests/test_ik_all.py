@@ -332,3 +332,25 @@ def test_without_a_compiler_the_evaluator_gives_the_same_solutions(monkeypatch: 
         assert len(got) == len(w)
         for a, b in zip(got, w, strict=True):
             np.testing.assert_allclose(a.q, b.q, atol=1e-12)
+
+
+@pytest.mark.parametrize("m", _compiled_arms(), ids=["puma560", "seed_6r_arm", "seed_6r_arm_shifted"])
+def test_solve_ik_closed_form_through_the_driver_equals_the_general_path(
+    m: optik.Mechanism, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """solve_ik(method="closed_form") takes the nearest solution within the limits from the
+    compiled driver: the same result as through every branch (errors by the mechanism's FK)."""
+    from optik.solvers import closed
+
+    closed_form.derive(m).compile()
+    rng = np.random.default_rng(5)
+    qs = rng.uniform(-np.pi, np.pi, (40, 6))
+    qs[:5, 4] = 0.0
+    starts = rng.uniform(-np.pi, np.pi, (40, 6))
+    fast = [optik.solve_ik(m, t, q0, "closed_form") for t, q0 in zip(m.fk(qs), starts, strict=True)]
+    monkeypatch.setattr(closed, "binding_of", lambda _: None)
+    for t, q0, a in zip(m.fk(qs), starts, fast, strict=True):
+        b = optik.solve_ik(m, t, q0, "closed_form")
+        np.testing.assert_array_equal(a.q, b.q)
+        assert (a.success, a.status, a.position_error, a.orientation_error) == (
+            b.success, b.status, b.position_error, b.orientation_error)  # fmt: skip

@@ -27,32 +27,28 @@ from __future__ import annotations
 
 import math
 import time
-import weakref
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from optik.checks import as_name, as_vector
 from optik.closed_form import registry
-from optik.closed_form.derived import DerivedRows, derive_locked
+from optik.closed_form.derived import derive_locked
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.results import IKResult, IKSolutions
 from optik.solvers.api import pick_method, solve_ik
 from optik.solvers.base import (
     IKRequest,
-    Tolerances,
     joint_distance,
     make_request,
     make_result,
     positive_int,
 )
-from optik.solvers.closed import _compiled_errors, closed_form_applies
+from optik.solvers.closed import _compiled_errors, binding_of, closed_form_applies
 from optik.solvers.polish import polish, same_point_tol
 
-_TOL = Tolerances.from_arg(None)
-"""The default tolerances (the compiled closed-form path answers for them)."""
 NUMERIC_ORDER = ("lm", "nlp")
 """Numerical methods ``solve_ik_all`` may use, in order of preference."""
 RESTARTING = ("lm", "nlp")
@@ -111,7 +107,7 @@ def solve_ik_all(
             the method does not know.
     """
     start = time.perf_counter()
-    if (  # the plain call on an arm with a derived closed form: one compiled call (_binding)
+    if (  # the plain call on an arm with a derived closed form: one compiled call (binding_of)
         (method is None or (type(method) is str and method == "closed_form"))
         and closed_form is True
         and fixed is None
@@ -126,9 +122,7 @@ def solve_ik_all(
         and max_solutions > 0
         and (time_limit is None or (type(time_limit) is float and 0.0 < time_limit < math.inf))
     ):
-        entry = _BINDINGS.get(id(m))
-        fresh = entry is not None and entry[0]() is m and entry[1] == registry.generation()
-        fast = entry[2] if fresh else _binding(m)
+        fast = binding_of(m)
         try:
             got = None if fast is None else fast(target, q0, m.lower, m.upper, True)
         except RuntimeError as exc:  # the generated code reported an error
@@ -160,30 +154,6 @@ def solve_ik_all(
         return _closed_form_all(request)
     name = method or pick_method(m, request.task, NUMERIC_ORDER)
     return _numeric_all(request, name, patience, max_solutions, request.q0)
-
-
-_BINDINGS: dict[int, tuple[weakref.ref, int, Callable[..., Any]]] = {}
-"""``id(m) -> (weak reference to m, registry generation, the driver's Python binding)``."""
-
-
-def _binding(m: Mechanism) -> Callable[..., Any] | None:
-    """The Python binding of the compiled driver of ``m``'s derived closed form
-    ([`optik.closed_form.ik_all`][optik.closed_form.ik_all]), kept in `_BINDINGS` once it is
-    loaded; None while it builds, without one, or when ``m``'s closed form is not a derived one
-    that the default tolerances admit. ``binding(T, q0, lower, upper, True)`` gives the same
-    solutions, errors and order as `_closed_form_all`, or None where that path must answer:
-    a target or ``q0`` that is not a float64 array of its shape or not valid (it then raises
-    the named error), a candidate to polish or two close candidates (the numpy path decides)."""
-    rows = registry.ik_solver(m)
-    if type(rows) is not DerivedRows or m.task != "pose" or rows.solver.check_position > _TOL.position:
-        return None
-    driver = rows.solver.driver()
-    if driver is None or driver.fast is None:
-        return None
-    key = id(m)
-    alive = weakref.ref(m, lambda _, key=key: _BINDINGS.pop(key, None))
-    _BINDINGS[key] = (alive, registry.generation(), driver.fast)
-    return driver.fast
 
 
 def _closed_form_all(request: IKRequest) -> IKSolutions:

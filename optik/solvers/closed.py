@@ -17,16 +17,20 @@ from __future__ import annotations
 import threading
 import weakref
 from collections.abc import Callable
+from typing import Any
 
 import casadi as ca
 import numpy as np
 
 from optik import closed_form
 from optik.closed_form import registry
+from optik.closed_form.derived import DerivedRows
+from optik.errors import SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.results import IKResult
 from optik.solvers.base import (
     IKRequest,
+    Tolerances,
     evaluate,
     joint_distance,
     make_result,
@@ -131,10 +135,54 @@ def _compiled_errors(request: IKRequest) -> Callable[[np.ndarray], tuple[float, 
     return errors
 
 
+BINDINGS: dict[int, tuple[weakref.ref, int, Callable[..., Any]]] = {}
+"""``id(m) -> (weak reference to m, registry generation, the driver's Python binding)``."""
+
+
+_TOL = Tolerances.from_arg(None)
+"""The default tolerances (the compiled driver is used where its FK check is within them)."""
+
+
+def binding_of(m: Mechanism) -> Callable[..., Any] | None:
+    """`compiled_binding` of ``m`` through `BINDINGS` (a dictionary lookup once it is loaded)."""
+    entry = BINDINGS.get(id(m))
+    if entry is not None and entry[0]() is m and entry[1] == registry.generation():
+        return entry[2]
+    return compiled_binding(m)
+
+
+def compiled_binding(m: Mechanism) -> Callable[..., Any] | None:
+    """The Python binding of the compiled driver of ``m``'s derived closed form
+    ([`optik.closed_form.ik_all`][optik.closed_form.ik_all]), kept in `BINDINGS` once it is
+    loaded; None while it builds, without one, or when ``m``'s closed form is not a derived one
+    that the default tolerances admit. ``binding(T, q0, lower, upper, True)`` gives the same
+    solutions, errors and order as the general closed-form paths, or None where they must
+    answer: a target or ``q0`` that is not a float64 array of its shape or not valid (it then raises
+    the named error), a candidate to polish or two close candidates (the numpy path decides)."""
+    rows = registry.ik_solver(m)
+    if type(rows) is not DerivedRows or m.task != "pose" or rows.solver.check_position > _TOL.position:
+        return None
+    driver = rows.solver.driver()
+    if driver is None or driver.fast is None:
+        return None
+    key = id(m)
+    alive = weakref.ref(m, lambda _, key=key: BINDINGS.pop(key, None))
+    BINDINGS[key] = (alive, registry.generation(), driver.fast)
+    return driver.fast
+
+
 def solve_closed_form(request: IKRequest) -> IKResult:
     """All closed-form branches, then the one within limits nearest ``q0`` (no options)."""
     method_options(request, {})
     m = request.mechanism
+    fast = binding_of(m)
+    if fast is not None:  # the solutions within the limits nearest q0 first, in one compiled call
+        try:
+            got = fast(request.target, request.q0, m.lower, m.upper, True)
+        except RuntimeError as exc:  # the generated code reported an error
+            raise SolverUnavailableError(str(exc)) from None
+        if got is not None and len(got[0]):
+            return make_result(request, got[0][0].copy(), "closed_form", 0, errors=_compiled_errors(request))
     every = registry.branches(m, request.target)
     errors = _compiled_errors(request)
     inside = registry.within_limits(m, every)

@@ -141,6 +141,16 @@ def wrap_angle(a: Any) -> Any:
     )
 
 
+def angle_distance(a: Any, b: Any) -> Any:
+    """Max-norm distance of angle vectors compared modulo ``2 pi``: ``max_i |wrap(a_i - b_i)|``
+    over the last axis (broadcast over the others; a float for two vectors).
+
+    Args:
+        a, b: angles (rad), numpy arrays of broadcastable shapes ``(..., n)``.
+    """
+    return np.max(np.abs(wrap_angle(np.subtract(a, b))), axis=-1)
+
+
 def wrap_rotation_vector(w: np.ndarray) -> np.ndarray:
     """The rotation vector of the same rotation with angle in ``[0, pi]``.
 

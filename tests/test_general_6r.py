@@ -22,6 +22,7 @@ from optik.closed_form.general_6r import (
 )
 from optik.errors import InvalidArgumentError, NonFiniteError, ShapeError
 from optik.mechanism import Joint, Mechanism, dh_chain
+from optik.spatial import angle_distance
 
 # A 6R arm and a pose with 16 real solutions (the most a 6R can have), found by a random search
 # over arms and poses with this solver (`optik benchmark general_6r --search-16`), parameters
@@ -36,9 +37,6 @@ REF_DH = [
 ]
 REF_Q = np.array([0.86, 0.99, -0.84, -2.66, -0.31, 0.22])
 
-
-def _angle_dist(a: np.ndarray, b: np.ndarray) -> float:
-    return float(np.max(np.abs((np.asarray(a) - b + np.pi) % (2 * np.pi) - np.pi)))
 
 
 def _random_arm(rng: np.random.Generator) -> Mechanism:
@@ -68,10 +66,10 @@ def test_round_trips_on_random_arms() -> None:
             assert sols.n_finite == 16
             assert len(sols.q) + sols.n_complex == 16
             assert len(sols.q) % 2 == 0 and 2 <= len(sols.q) <= 16
-            assert min(_angle_dist(s, q) for s in sols.q) < 1e-8
+            assert min(angle_distance(s, q) for s in sols.q) < 1e-8
             _check_fk(m, sols, target)
             # distinct solutions
-            assert all(_angle_dist(a, b) > 1e-6 for i, a in enumerate(sols.q) for b in sols.q[:i])
+            assert all(angle_distance(a, b) > 1e-6 for i, a in enumerate(sols.q) for b in sols.q[:i])
             counts.append(len(sols.q))
     assert len(set(counts)) >= 3  # the random arms really differ (2, 4, 6, ... real solutions)
 
@@ -88,7 +86,7 @@ def test_round_trip_property(seed: int) -> None:
     sols = solve_general_6r(arm, target)
     assert sols.count_ok, sols.reason
     assert len(sols.q) <= 16 and len(sols.q) % 2 == 0
-    assert min(_angle_dist(s, q) for s in sols.q) < 1e-8
+    assert min(angle_distance(s, q) for s in sols.q) < 1e-8
     for s in sols.q:
         dp = np.linalg.norm(arm.fk(s)[:3, 3] - target[:3, 3]) / arm.scale
         assert dp <= FK_TOL and spatial.angle_between(arm.fk(s)[:3, :3], target[:3, :3]) <= FK_TOL
@@ -101,8 +99,8 @@ def test_reference_arm_with_16_real_solutions() -> None:
     assert sols.count_ok and sols.n_complex == 0
     assert len(sols.q) == 16  # 16 distinct verified real solutions: all of them (Bezout bound)
     _check_fk(m, sols, target)
-    assert min(_angle_dist(a, b) for i, a in enumerate(sols.q) for b in sols.q[:i]) > 0.1
-    assert min(_angle_dist(s, REF_Q) for s in sols.q) < 1e-8
+    assert min(angle_distance(a, b) for i, a in enumerate(sols.q) for b in sols.q[:i]) > 0.1
+    assert min(angle_distance(s, REF_Q) for s in sols.q) < 1e-8
 
 
 def test_numerical_multistart_finds_nothing_more() -> None:
@@ -121,7 +119,7 @@ def test_numerical_multistart_finds_nothing_more() -> None:
         r = least_squares(residual, q0, xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=200)
         if np.linalg.norm(r.fun) < 1e-10:
             found += 1
-            assert min(_angle_dist(s, r.x) for s in sols) < 1e-6
+            assert min(angle_distance(s, r.x) for s in sols) < 1e-6
     assert found >= 5
 
 
@@ -145,7 +143,7 @@ def test_general_joint_frames_base_and_tool() -> None:
         target = m.fk(q)
         sols = solve_general_6r(m, target)
         assert sols.count_ok, sols.reason
-        assert min(_angle_dist(s, q) for s in sols.q) < 1e-8
+        assert min(angle_distance(s, q) for s in sols.q) < 1e-8
         _check_fk(m, sols, target)
     assert isinstance(ik_general_6r(m, target), list)
 
@@ -158,7 +156,7 @@ def test_batch_matches_single_targets() -> None:
     for t, b in zip(targets, batch, strict=True):
         one = solve_general_6r(m, t)
         assert len(one.q) == len(b.q)
-        assert all(min(_angle_dist(x, y) for y in b.q) < 1e-9 for x in one.q)
+        assert all(min(angle_distance(x, y) for y in b.q) < 1e-9 for x in one.q)
 
 
 def test_unreachable_pose_is_an_empty_answer_with_a_reason() -> None:
@@ -181,7 +179,7 @@ def test_first_axes_intersecting_or_parallel(special: str) -> None:
         q = rng.uniform(-np.pi, np.pi, 6)
         sols = solve_general_6r(arm, arm.fk(q))
         assert sols.count_ok, sols.reason
-        assert min(_angle_dist(s, q) for s in sols.q) < 1e-8
+        assert min(angle_distance(s, q) for s in sols.q) < 1e-8
         assert sols.fk_error <= FK_TOL
 
 
@@ -196,7 +194,7 @@ def test_batch_through_the_inverse_chain() -> None:
     targets = m.fk(qs)
     for q, target, sols in zip(qs, targets, solve_general_6r(m, targets), strict=True):
         assert sols.count_ok, sols.reason
-        assert min(_angle_dist(s, q) for s in sols.q) < 1e-8
+        assert min(angle_distance(s, q) for s in sols.q) < 1e-8
         _check_fk(m, sols, target)
 
 
@@ -212,7 +210,7 @@ def test_nearly_parallel_axes_are_polished_on_the_mechanism() -> None:
     for q in rng.uniform(-np.pi, np.pi, (4, 6)):
         sols = solve_general_6r(m, m.fk(q))
         assert sols.count_ok, sols.reason
-        assert min(_angle_dist(s, q) for s in sols.q) < 1e-8
+        assert min(angle_distance(s, q) for s in sols.q) < 1e-8
         _check_fk(m, sols, m.fk(q))
 
 
@@ -239,7 +237,8 @@ def test_registry_routes_only_covered_arms() -> None:
     generic = _random_arm(rng)
     assert closed_form.has_ik(generic)
     q = rng.uniform(-np.pi, np.pi, 6)
-    assert min(_angle_dist(s, q) for s in closed_form.ik(generic, generic.fk(q), respect_limits=False)) < 1e-8
+    branches = closed_form.ik(generic, generic.fk(q), respect_limits=False)
+    assert min(angle_distance(s, q) for s in branches) < 1e-8
     rows = [(rng.uniform(-1, 1), rng.uniform(0.1, 1), rng.uniform(-np.pi, np.pi)) for _ in range(6)]
     rows[0], rows[4] = (rows[0][0], 0.0, rows[0][2]), (rows[4][0], 0.0, rows[4][2])  # 1-2, 5-6 meet
     special = dh_chain(rows, "standard")
@@ -271,7 +270,7 @@ def test_nearly_parallel_axes_at_both_ends(twist: float) -> None:
     assert np.allclose(arm.reversed.fk(q[:, ::-1]), np.linalg.inv(arm.fk(q)), atol=1e-3)
     sols = solve_general_6r(arm, arm.fk(q))
     assert all(s.fk_error <= FK_TOL for s in sols)
-    assert all(min(_angle_dist(s, qi) for s in sol.q) < 1e-8 for qi, sol in zip(q, sols, strict=True))
+    assert all(min(angle_distance(s, qi) for s in sol.q) < 1e-8 for qi, sol in zip(q, sols, strict=True))
 
 
 def test_reversed_chain_is_the_inverse() -> None:
@@ -293,7 +292,7 @@ def test_special_geometry_is_flagged_and_matches_the_closed_form() -> None:
         _check_fk(m, sols, target)
         ref = closed_form.ik(m, target, respect_limits=False)
         assert len(sols.q) == len(ref)
-        assert all(min(_angle_dist(s, r) for s in sols.q) < 1e-8 for r in ref)
+        assert all(min(angle_distance(s, r) for s in sols.q) < 1e-8 for r in ref)
 
 
 def test_bad_input_raises_named_errors() -> None:

@@ -10,12 +10,14 @@ import pytest
 
 import optik
 from optik import closed_form, spatial
+from optik.benchmarks.bench_search_1d import special_arm
 from optik.closed_form import search_1d
 from optik.closed_form.general_6r import covers, solve_general_6r
 from optik.closed_form.search_1d import FAMILIES, Search1D, families_of, solve_search_1d
 from optik.closed_form.structure import axes_of
 from optik.errors import InvalidArgumentError, NonFiniteError, ShapeError
 from optik.mechanism import Mechanism, dh_chain
+from optik.spatial import angle_distance
 
 CASES = {
     # standard-DH entries set to zero: a_i = 0 makes axes i, i+1 intersect, alpha_i = 0 parallel
@@ -28,17 +30,6 @@ CASES = {
 }
 
 
-def _angle_dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.max(np.abs((np.asarray(a) - b + np.pi) % (2 * np.pi) - np.pi), axis=-1)
-
-
-def special_arm(rng: np.random.Generator, zero: dict[str, list[int]]) -> Mechanism:
-    """A random standard-DH arm with the given entries zero and random joint limits."""
-    a, alpha, d = rng.uniform(0.1, 1, 6), rng.uniform(-np.pi, np.pi, 6), rng.uniform(-1, 1, 6)
-    a[zero.get("a", [])] = 0.0
-    alpha[zero.get("alpha", [])] = 0.0
-    lim = rng.uniform(2.0, np.pi, 6)
-    return dh_chain([(d[i], a[i], alpha[i]) for i in range(6)], "standard", lower=-lim, upper=lim)
 
 
 def _check(m: Mechanism, q: np.ndarray, target: np.ndarray) -> None:
@@ -48,7 +39,7 @@ def _check(m: Mechanism, q: np.ndarray, target: np.ndarray) -> None:
         t = m.fk(qi)
         assert np.linalg.norm(t[:3, 3] - target[:3, 3]) <= 1e-8
         assert spatial.angle_between(t[:3, :3], target[:3, :3]) <= 1e-8
-    assert all(_angle_dist(q[i], q[j]) > 1e-4 for i in range(len(q)) for j in range(i))
+    assert all(angle_distance(q[i], q[j]) > 1e-4 for i in range(len(q)) for j in range(i))
 
 
 @pytest.mark.parametrize("case", list(CASES))
@@ -67,7 +58,7 @@ def test_round_trips_through_the_registry(case: str) -> None:
             sols = closed_form.ik(m, target, respect_limits=False)
             q_all = np.array(sols).reshape(-1, 6)
             _check(m, q_all, target)
-            hits += bool(len(q_all)) and bool(np.min(_angle_dist(q_all, q)) < 1e-6)
+            hits += bool(len(q_all)) and bool(np.min(angle_distance(q_all, q)) < 1e-6)
             total += 1
     assert hits >= 0.95 * total, f"{hits} of {total}"
 
@@ -87,7 +78,7 @@ def test_every_family_round_trips() -> None:
         hits = 0
         for q, target, s in zip(qs, m.fk(qs), sols, strict=True):
             _check(m, s.q, target)
-            hits += bool(len(s.q)) and bool(np.min(_angle_dist(s.q, q)) < 1e-6)
+            hits += bool(len(s.q)) and bool(np.min(angle_distance(s.q, q)) < 1e-6)
         assert hits >= 11, (fam.name, hits)
 
 
@@ -107,7 +98,7 @@ def test_agrees_with_derived_closed_forms() -> None:
         for target, sols in zip(m.fk(qs), solve_search_1d(m, m.fk(qs)), strict=True):
             ref = np.array(closed_form.ik(m, target, respect_limits=False))
             assert len(sols.q) == len(ref)
-            assert all(np.min(_angle_dist(sols.q, r)) < 1e-8 for r in ref)
+            assert all(np.min(angle_distance(sols.q, r)) < 1e-8 for r in ref)
 
 
 def test_search_against_the_perturbation_fallback() -> None:
@@ -126,9 +117,9 @@ def test_search_against_the_perturbation_fallback() -> None:
             assert not g.count_ok
             _check(m, s.q, m.fk(q))
             fallback_total += len(g.q)
-            fallback_only += sum(not len(s.q) or bool(np.min(_angle_dist(s.q, x)) >= 1e-6) for x in g.q)
-            trips_search += bool(len(s.q)) and bool(np.min(_angle_dist(s.q, q)) < 1e-6)
-            trips_fallback += bool(len(g.q)) and bool(np.min(_angle_dist(g.q, q)) < 1e-6)
+            fallback_only += sum(not len(s.q) or bool(np.min(angle_distance(s.q, x)) >= 1e-6) for x in g.q)
+            trips_search += bool(len(s.q)) and bool(np.min(angle_distance(s.q, q)) < 1e-6)
+            trips_fallback += bool(len(g.q)) and bool(np.min(angle_distance(g.q, q)) < 1e-6)
     assert trips_search >= trips_fallback
     assert fallback_only <= 0.02 * fallback_total, (fallback_only, fallback_total)
 
@@ -139,7 +130,7 @@ def test_solve_ik_all_answers_by_the_search() -> None:
     q = m.random_q(1, seed=2)[0]
     sols = optik.solve_ik_all(m, m.fk(q))
     assert sols and all(s.method == "closed_form" and s.success for s in sols)
-    assert min(_angle_dist(s.q, q) for s in sols) < 1e-6
+    assert min(angle_distance(s.q, q) for s in sols) < 1e-6
 
 
 def test_flag_reason_and_unreachable() -> None:

@@ -229,3 +229,10 @@ def test_batches_equal_single_evaluations():
     # a batch mixing ordinary rotations and near half-turns
     mixed = spatial.so3_exp(np.array([[0.1, 0.2, 0.3], [0.0, 0.0, np.pi - 1e-6]]))
     np.testing.assert_allclose(spatial.so3_exp(spatial.so3_log(mixed)), mixed, atol=1e-9)
+
+
+def test_angle_distance_compares_modulo_two_pi_and_broadcasts():
+    assert spatial.angle_distance([np.pi, 0.0], [-np.pi, 0.0]) == 0.0
+    assert spatial.angle_distance([0.1, 2 * np.pi + 0.3], [0.0, 0.0]) == pytest.approx(0.3)
+    got = spatial.angle_distance(np.array([[0.0, 0.0], [1.0, -1.0]]), np.array([0.5, 0.0]))
+    np.testing.assert_allclose(got, [0.5, 1.0])

@@ -58,15 +58,13 @@ import optik  # noqa: E402
 from optik.closed_form.general_6r import General6R, covers, solve_general_6r  # noqa: E402
 from optik.closed_form.structure import axes_of  # noqa: E402
 from optik.mechanism import Mechanism, dh_chain  # noqa: E402
+from optik.spatial import angle_distance  # noqa: E402
 
 try:  # an optional peer
     import ik_geo
 except ImportError:  # pragma: no cover - depends on the environment
     ik_geo = None
 
-
-def _angle_dist(a: np.ndarray, b: np.ndarray) -> float:
-    return float(np.max(np.abs((np.asarray(a) - b + np.pi) % (2 * np.pi) - np.pi)))
 
 
 def _random_arm(rng: np.random.Generator) -> Mechanism:
@@ -87,11 +85,11 @@ class Tally:
 
     def add(self, dt: float, qs: Sequence[np.ndarray], q: np.ndarray, ours: np.ndarray, tol: float) -> None:
         self.times.append(dt)
-        self.round_trips += any(_angle_dist(s, q) < tol for s in qs)
+        self.round_trips += any(angle_distance(s, q) < tol for s in qs)
         self.solutions += len(qs)
         self.ours += len(ours)
-        self.found_of_ours += sum(any(_angle_dist(s, o) < 1e-4 for s in qs) for o in ours)
-        self.extra += sum(all(_angle_dist(s, o) >= 1e-4 for o in ours) for s in qs)
+        self.found_of_ours += sum(any(angle_distance(s, o) < 1e-4 for s in qs) for o in ours)
+        self.extra += sum(all(angle_distance(s, o) >= 1e-4 for o in ours) for s in qs)
 
 
 def _ik_geo_robot(m: Mechanism) -> tuple[object, np.ndarray]:
@@ -242,7 +240,7 @@ def special(arms: int, poses: int, seed: int) -> None:
             qs = rng.uniform(-np.pi, np.pi, (poses, 6))
             for q, sols in zip(qs, solve_general_6r(arm, arm.fk(qs)), strict=True):
                 ok += sols.count_ok
-                trips += any(_angle_dist(s, q) < 1e-8 for s in sols.q)
+                trips += any(angle_distance(s, q) < 1e-8 for s in sols.q)
                 found += len(sols.q)
         n = arms * poses
         print(

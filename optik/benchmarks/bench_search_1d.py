@@ -52,6 +52,7 @@ from optik.closed_form.general_6r import covers, solve_general_6r  # noqa: E402
 from optik.closed_form.search_1d import search_of, solve_search_1d  # noqa: E402
 from optik.closed_form.structure import intersection  # noqa: E402
 from optik.mechanism import Mechanism, dh_chain  # noqa: E402
+from optik.spatial import angle_distance  # noqa: E402
 
 try:  # optional peers
     import ik_geo
@@ -82,9 +83,6 @@ ONE_END = {
 FK_TOL = 1e-8
 SAME = 1e-4
 
-
-def _angle_dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.max(np.abs((np.asarray(a) - b + np.pi) % (2 * np.pi) - np.pi), axis=-1)
 
 
 def special_arm(rng: np.random.Generator, zero: dict[str, list[int]]) -> Mechanism:
@@ -126,11 +124,11 @@ class Tally:
     ) -> None:
         self.times.append(dt)
         self.targets += 1
-        self.round_trips += bool(good) and bool(np.min(_angle_dist(np.array(good), q)) < trip)
+        self.round_trips += bool(good) and bool(np.min(angle_distance(np.array(good), q)) < trip)
         self.solutions += len(good)
         self.failed_check += len(raw) - len(good)
         self.duplicates += sum(
-            bool(_angle_dist(good[i], good[j]) < SAME) for i in range(len(good)) for j in range(i)
+            bool(angle_distance(good[i], good[j]) < SAME) for i in range(len(good)) for j in range(i)
         )
 
 
@@ -225,11 +223,11 @@ def run_geometry(
             union: list[np.ndarray] = []
             for sols in found.values():
                 for s in sols:
-                    if all(_angle_dist(s, u) >= SAME for u in union):
+                    if all(angle_distance(s, u) >= SAME for u in union):
                         union.append(s)
             for name, sols in found.items():
                 tallies[name].union += len(union)
-                tallies[name].of_union += sum(any(_angle_dist(u, s) < SAME for s in sols) for u in union)
+                tallies[name].of_union += sum(any(angle_distance(u, s) < SAME for s in sols) for u in union)
     fam = ", ".join(f"{k}: {v}" for k, v in sorted(families.items()))
     print(
         f"\n### {label}: {arms} arms x {poses} poses; covers() True on {n_covered}; EAIK decomposes {n_eaik}"

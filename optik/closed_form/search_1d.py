@@ -91,6 +91,7 @@ from optik.closed_form.structure import Axes, intersection, parallel
 from optik.closed_form.subproblems import rot, sp1, sp5, sp6
 from optik.errors import InvalidArgumentError, ShapeError
 from optik.mechanism import Mechanism
+from optik.spatial import angle_distance
 
 __all__ = [
     "FAMILIES",
@@ -297,9 +298,8 @@ def family_of(axes: Axes) -> Family | None:
 
     def hits(fam: Family) -> int:
         sols = Search1D(axes, fam).solve(t)
-        return sum(
-            bool(len(s.q)) and bool(np.min(_angdist(s.q, qi)) < 1e-6) for s, qi in zip(sols, q, strict=True)
-        )
+        pairs = zip(sols, q, strict=True)
+        return sum(bool(len(s.q)) and bool(np.min(angle_distance(s.q, qi)) < 1e-6) for s, qi in pairs)
 
     scores = [hits(fam) for fam in fams]
     return fams[int(np.argmax(scores))]
@@ -335,11 +335,6 @@ def _permutations(b: int) -> np.ndarray:
     """All permutations of ``range(b)``, ``(b!, b)``."""
     return np.array(list(itertools.permutations(range(b))))
 
-
-def _angdist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Max-norm joint distance, angles modulo 2 pi (last axis)."""
-    d = np.abs(_wrap(a - b))
-    return d.max(axis=-1)
 
 
 @dataclass(frozen=True)
@@ -453,7 +448,7 @@ class Search1D:
         va, vb = valid[:, :-1], valid[:, 1:]
         ea, eb_all = e[:, :-1], e[:, 1:]
         # 2. matching of sample k to k + 1 by the best permutation
-        cost = _angdist(qa[..., :, None, :], qb[..., None, :, :])  # (K, G-1, B, B)
+        cost = angle_distance(qa[..., :, None, :], qb[..., None, :, :])  # (K, G-1, B, B)
         cost = np.where(va[..., :, None] & vb[..., None, :], cost, 2.0 * np.pi)
         perms = _permutations(b)
         total = cost[..., np.arange(b), perms].sum(axis=-1)
@@ -543,7 +538,7 @@ class Search1D:
             tm = ta + frac * (tb - ta)
             guess = qa + frac[:, None] * _wrap(qb - qa)
             qm, em, vm = self._scan(tm, t)
-            d = np.where(vm <= VALID_TOL, _angdist(qm, guess[:, None, :]), np.inf)
+            d = np.where(vm <= VALID_TOL, angle_distance(qm, guess[:, None, :]), np.inf)
             j = np.argmin(d, axis=-1)
             ok = np.take_along_axis(d, j[:, None], axis=-1)[:, 0] < JUMP
             qn = qm[np.arange(len(tm)), j]
@@ -590,7 +585,7 @@ class Search1D:
         order = np.argsort(err)
         kept: list[int] = []
         for i in order.tolist():
-            if all(_angdist(q[i], q[j]) >= SAME_TOL for j in kept):
+            if all(angle_distance(q[i], q[j]) >= SAME_TOL for j in kept):
                 kept.append(i)
         reason = (
             f"1-D search ({self.family.name}, {self.samples} samples, spacing {self.resolution:.1e} rad, "

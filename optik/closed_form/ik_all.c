@@ -195,11 +195,12 @@ CASADI_SYMBOL_EXPORT int optik_ik_all(const double *in, double *out) {
 
 #ifdef OPTIK_PYTHON
 /* The Python binding: optik_ik_all_function() (called once, through ctypes.PyDLL) returns a
- * builtin function ik_all(t, q0, lower, upper, sort) -> (q within, errors, q outside) or None,
- * taking float64 arrays (any strides): t (4, 4), q0 (6,) or None, lower and upper (6,); with
- * sort true the solutions are ordered by their distance to q0, or to the middle of the limits
- * when q0 is None (sort 2 of conf). None: status 1 or 2, or an argument of another type, shape
- * or layout (the caller's general path decides). */
+ * builtin function ik_all(t, q0, lower, upper, sort) -> (q within, errors, q outside), False
+ * or None, taking float64 arrays (any strides): t (4, 4), q0 (6,) or None, lower and upper
+ * (6,); with sort true the solutions are ordered by their distance to q0, or to the middle of
+ * the limits when q0 is None (sort 2 of conf). False: status 1 or 2 (the caller's general path
+ * decides). None: an argument of another type, shape or layout (which the ctypes path, with its
+ * conversions, takes). */
 #include <Python.h>
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
@@ -253,7 +254,7 @@ static PyObject *optik_py_ik_all(PyObject *self, PyObject *const *args, Py_ssize
     PyErr_SetString(PyExc_RuntimeError, "optik_ik_all: evaluation of the generated code failed");
     return NULL;
   }
-  if (out[0] != 0.0) Py_RETURN_NONE;
+  if (out[0] != 0.0) Py_RETURN_FALSE; /* status 1 or 2: the caller's general path decides */
   const npy_intp n_in = (npy_intp)out[1], n_out = (npy_intp)out[2];
   PyObject *q_in = optik_py_rows(out + 3, n_in, 6);
   PyObject *q_out = optik_py_rows(out + 3 + 6 * n_in, n_out, 6);

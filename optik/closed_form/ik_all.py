@@ -113,9 +113,10 @@ class AllSolutionsKernel:
         self._out = np.zeros(3 + 14 * self.size)
         self._limits = b""
         self._fn: Any = None
-        self.fast: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray] | None] | None = None
-        """The Python binding ``fast(t, q0, lower, upper, sort)`` once loaded (see `__call__`),
-        when the library has one."""
+        self.fast: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray] | bool | None] | None = None
+        """The Python binding ``fast(t, q0, lower, upper, sort)`` once loaded, when the library
+        has one: the answer of `__call__`, False for status 1 or 2, None for arrays of another
+        type or layout than float64 of the right shape."""
         self._args = (ctypes.c_void_p(self._in.ctypes.data), ctypes.c_void_p(self._out.ctypes.data))
         self.lock = threading.Lock()
 
@@ -164,8 +165,8 @@ class AllSolutionsKernel:
             except RuntimeError as exc:
                 raise SolverUnavailableError(str(exc)) from None
             if got is not None:
-                return got
-            # None: status 1 or 2, or arrays of another layout: the buffers below decide
+                return got or None  # False: status 1 or 2
+            # None: arrays of another type or layout, converted into the buffers below
         with self.lock:
             buf, out = self._in, self._out
             buf[:16] = np.reshape(t, 16)

@@ -127,7 +127,7 @@ def solve_ik_all(
             got = None if fast is None else fast(target, q0, m.lower, m.upper, True)
         except RuntimeError as exc:  # the generated code reported an error
             raise SolverUnavailableError(str(exc)) from None
-        if got is not None:
+        if got:  # None or False: the general path decides
             return IKSolutions.from_arrays(*got, "closed_form", time.perf_counter() - start)
     request = make_request(m, target, q0, task, frame, time_limit, tol, seed, options)
     if request.multi_target:

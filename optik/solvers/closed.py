@@ -156,8 +156,8 @@ def compiled_binding(m: Mechanism) -> Callable[..., Any] | None:
     ([`optik.closed_form.ik_all`][optik.closed_form.ik_all]), kept in `BINDINGS` once it is
     loaded; None while it builds, without one, or when ``m``'s closed form is not a derived one
     that the default tolerances admit. ``binding(T, q0, lower, upper, True)`` gives the same
-    solutions, errors and order as the general closed-form paths, or None where they must
-    answer: a target or ``q0`` that is not a float64 array of its shape or not valid (it then raises
+    solutions, errors and order as the general closed-form paths, or None / False where they
+    must answer: a target or ``q0`` that is not a float64 array of its shape or not valid (it then raises
     the named error), a candidate to polish or two close candidates (the numpy path decides)."""
     rows = registry.ik_solver(m)
     if type(rows) is not DerivedRows or m.task != "pose" or rows.solver.check_position > _TOL.position:
@@ -181,7 +181,7 @@ def solve_closed_form(request: IKRequest) -> IKResult:
             got = fast(request.target, request.q0, m.lower, m.upper, True)
         except RuntimeError as exc:  # the generated code reported an error
             raise SolverUnavailableError(str(exc)) from None
-        if got is not None and len(got[0]):
+        if got and len(got[0]):  # None or False: every branch below decides
             return make_result(request, got[0][0].copy(), "closed_form", 0, errors=_compiled_errors(request))
     every = registry.branches(m, request.target)
     errors = _compiled_errors(request)

@@ -116,16 +116,15 @@ class IKSolutions(Sequence[IKResult]):
         failed_check: candidates dropped because they did not pass the FK check, even after
             polishing (not in the list).
         method: how the solutions were found (``"closed_form"`` or the numerical method).
-        certified: False when the closed form that found them does not certify that they are
+        uncertified_reason: why the closed form that found them does not certify that they are
             every solution (the 1-D search of `optik.closed_form.search_1d`, a failed count check
-            of the general 6R solver); the numerical search is never certified, and says so by
-            its method.
-        uncertified_reason: why not ("" when certified).
+            of the general 6R solver); "" when it does (`certified`). The numerical search is
+            never certified, and says so by its method.
         message: a sentence summarizing the counts.
     """
 
     __slots__ = (
-        "_arrays", "_outside", "_results", "certified", "failed_check", "method", "uncertified_reason"
+        "_arrays", "_outside", "_results", "failed_check", "method", "uncertified_reason"
     )  # fmt: skip
 
     def __init__(
@@ -134,15 +133,14 @@ class IKSolutions(Sequence[IKResult]):
         outside_limits: Iterable[np.ndarray] | None = None,
         failed_check: int = 0,
         method: str = "",
-        uncertified_reason: str | None = None,
+        uncertified_reason: str = "",
     ) -> None:
         self._results: list[IKResult] | None = list(results)
         self._arrays: tuple[np.ndarray, np.ndarray, float] | None = None
         self._outside: Any = outside_limits if outside_limits is not None else ()
         self.failed_check = failed_check
         self.method = method
-        self.certified = uncertified_reason is None
-        self.uncertified_reason = uncertified_reason or ""
+        self.uncertified_reason = uncertified_reason
 
     @classmethod
     def from_arrays(
@@ -157,7 +155,6 @@ class IKSolutions(Sequence[IKResult]):
         out._outside = outside_limits
         out.failed_check = 0
         out.method = method
-        out.certified = True
         out.uncertified_reason = ""
         return out
 
@@ -169,6 +166,11 @@ class IKSolutions(Sequence[IKResult]):
             return self._arrays[0]
         rows = [r.q for r in self._list()]
         return np.array(rows) if rows else np.zeros((0, 0))
+
+    @property
+    def certified(self) -> bool:
+        """False when the closed form does not certify completeness (`uncertified_reason`)."""
+        return not self.uncertified_reason
 
     @property
     def outside_limits(self) -> list[np.ndarray]:

@@ -204,7 +204,7 @@ def _from_rows(request: IKRequest, rows: list[list[float]]) -> IKSolutions:
             kept.append(res)
         else:
             failed += 1
-    reason = rows.reason if isinstance(rows, registry.Uncertified) else None
+    reason = (rows.reason or "no reason given") if isinstance(rows, registry.Uncertified) else ""
     return IKSolutions(kept, outside, failed, "closed_form", reason)
 
 

@@ -1,7 +1,7 @@
 """The import direction of the package: each layer imports only the layers below it, and no two
 modules import each other (directly or around a loop), lazy imports inside functions included.
 
-Layers, bottom to top: errors; checks, native; spatial, targets, results; mechanism; catalog;
+Layers, bottom to top: errors; checks, native; spatial, targets, results; mechanism; collision; catalog;
 closed_form; problem; solvers; diffik; applications (problem_files, progress, batch, reach, plot, bench,
 benchmarks, view, cli). A package's ``__init__`` may import its own submodules (it re-exports them).
 """
@@ -20,6 +20,7 @@ LAYERS = [
     {"checks", "native"},
     {"spatial", "targets", "results"},
     {"mechanism"},
+    {"collision"},
     {"catalog"},
     {"closed_form"},
     {"problem"},

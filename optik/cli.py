@@ -227,6 +227,22 @@ def _assembly_modes(m: Mechanism, actuated: np.ndarray) -> list[np.ndarray]:
     return [np.asarray(r.q) for r in optik.solve_fk_all(m, actuated) if r.success]
 
 
+def _wrap_notes(m: Mechanism, actuated: np.ndarray) -> list[str]:
+    """One line per actuated angle outside its limits: the value modulo 2 pi that the assembly
+    modes are solved at (`Mechanism.wrap`), or that none lies within the limits."""
+    q = m.mid_q()
+    q[m.actuated_indices] = actuated
+    wrapped = m.wrap(q)
+    notes = []
+    for i in m.actuated_indices:
+        lo, hi, v, w = m.lower[i], m.upper[i], q[i], wrapped[i]
+        if m.revolute_mask[i] and not lo <= v <= hi:
+            name, span = m.coordinate_names[i], f"[{lo:.6g}, {hi:.6g}]"
+            where = f"taken modulo 2 pi as {w:.6f}" if lo <= w <= hi else "and stays outside them modulo 2 pi"
+            notes.append(f"{name}={v:g} is outside its limits {span}: {where}")
+    return notes
+
+
 def _cmd_fk(args: argparse.Namespace) -> int:
     _writable(args.plot, "plot")
     problem = _problem(args.problem, args.problems_dir)
@@ -242,6 +258,8 @@ def _cmd_fk(args: argparse.Namespace) -> int:
     else:
         names = ", ".join(m.coordinate_names[i] for i in m.actuated_indices)
         actuated = _vector(args.q, n_act, "--q", f"all {m.n_q} coordinates, or the actuated {names}")
+        for note in _wrap_notes(m, actuated):
+            print(f"note: {note}")
         qs = _assembly_modes(m, actuated)
         print(f"{problem.name}: {len(qs)} assembly mode(s) within limits for {names} = {args.q}")
     for i, q in enumerate(qs, 1):

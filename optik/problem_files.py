@@ -663,28 +663,54 @@ def find_problem(name: str, directory: str | Path | None = None) -> Problem:
 
 def add_source_arguments(parser: Any) -> None:
     """The arguments of a command that loads one mechanism (``optik view``, ``optik reach``):
-    ``PROBLEM|URDF``, ``--base`` / ``--tip`` (a URDF chain) and ``--problems-dir``; read back by
-    [`load_source`][optik.problem_files.load_source]."""
-    parser.add_argument("source", metavar="PROBLEM|URDF", help="problem name or .toml file, or a .urdf file")
-    parser.add_argument("--base", help="base link of a URDF chain")
-    parser.add_argument("--tip", help="tip link of a URDF chain")
-    parser.add_argument("--problems-dir", metavar="DIR", help="directory of problem files")
+    ``PROBLEM|ROBOT|URDF``, ``--base`` / ``--tip`` (a URDF chain) and ``--problems-dir``; read
+    back by [`load_source`][optik.problem_files.load_source]."""
+    parser.add_argument(
+        "source",
+        metavar="PROBLEM|ROBOT|URDF",
+        help=(
+            "a problem name (e.g. panda, five_bar; see --problems-dir) or .toml file; a robot of "
+            "optik.catalog.robot (needs the robots extra): "
+            f"{', '.join(catalog.robot_names())}; or a .urdf file with --base and --tip"
+        ),
+    )
+    parser.add_argument("--base", help="base link of a URDF chain (required with a .urdf file)")
+    parser.add_argument("--tip", help="tip link of a URDF chain (required with a .urdf file)")
+    parser.add_argument(
+        "--problems-dir",
+        metavar="DIR",
+        help="directory of problem files (default: the problem files shipped with optik)",
+    )
 
 
 def load_source(
     source: str, base: str | None, tip: str | None, problems_dir: str | Path | None = None
 ) -> tuple[Mechanism, Problem | None]:
-    """The mechanism of a command's ``PROBLEM|URDF`` argument, and its problem (None for a URDF).
+    """The mechanism of a command's ``PROBLEM|ROBOT|URDF`` argument, and its problem (None for
+    a robot or a URDF). A name is a problem first, else a robot of `optik.catalog.robot`.
 
     Raises:
-        InvalidArgumentError: a URDF file without both ``--base`` and ``--tip``; an unknown problem.
+        InvalidArgumentError: no such URDF file, or one without both ``--base`` and ``--tip``;
+            a name that is neither a problem nor a robot (the message lists both).
         ProblemFileError: the problem file is invalid.
+        MissingExtraError: a robot name without the ``robots`` extra.
     """
     if Path(source).suffix.lower() == ".urdf":
+        if not Path(source).is_file():
+            raise InvalidArgumentError("PROBLEM|ROBOT|URDF", f"no such file: {source}")
         if base is None or tip is None:
             raise InvalidArgumentError("--base", "a URDF file needs --base and --tip (the chain's end links)")
         return Mechanism.from_urdf(source, base, tip), None
-    problem = find_problem(source, problems_dir)
+    try:
+        problem = find_problem(source, problems_dir)
+    except InvalidArgumentError as exc:
+        if source in catalog.robot_names():
+            return catalog.robot(source), None
+        if str(exc).startswith("problem: unknown problem"):
+            raise InvalidArgumentError(
+                "PROBLEM|ROBOT|URDF", f"{str(exc).partition(': ')[2]}; robots: {list(catalog.robot_names())}"
+            ) from None
+        raise
     return problem.mechanism(), problem
 
 

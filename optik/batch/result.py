@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from optik.errors import SolverUnavailableError
+from optik.errors import require_extra
 from optik.results import IKResult
 
 PER_TARGET = (
@@ -47,6 +47,8 @@ class BatchResult:
         base_seed: the batch's seed (None was 0; None here when the seeds were given per target).
         wall_time: seconds of the whole batch call.
         workers: threads (local) or Dask workers that solved it.
+        coordinate_names: the mechanism's coordinate names, one per column of ``q`` (the
+            columns of `to_dataframe`).
     """
 
     q: np.ndarray
@@ -63,6 +65,7 @@ class BatchResult:
     base_seed: int | None = 0
     wall_time: float = 0.0
     workers: int = 1
+    coordinate_names: tuple[str, ...] = ()
     extra: dict[str, Any] = field(default_factory=dict)
 
     def __len__(self) -> int:
@@ -104,16 +107,15 @@ class BatchResult:
 
     def to_dataframe(self) -> Any:
         """A pandas ``DataFrame``, one row per target, with ``q`` split into one column per
-        coordinate (``q0``, ``q1``, ...).
+        coordinate, named after the mechanism's coordinates (`coordinate_names`; ``q[0]``,
+        ``q[1]``, ... for a result built without them).
 
         Raises:
-            SolverUnavailableError: pandas is not installed.
+            MissingExtraError: pandas is not installed (``pip install "optik[pandas]"``).
         """
-        try:
-            import pandas as pd
-        except ImportError as exc:
-            raise SolverUnavailableError("to_dataframe needs pandas (pip install pandas)") from exc
-        data: dict[str, Any] = {f"q{j}": self.q[:, j] for j in range(self.q.shape[1])}
+        pd = require_extra("pandas", "pandas", "BatchResult.to_dataframe")
+        names = self.coordinate_names or tuple(f"q[{j}]" for j in range(self.q.shape[1]))
+        data: dict[str, Any] = {name: self.q[:, j] for j, name in enumerate(names)}
         data.update({name: getattr(self, name) for name in PER_TARGET if name != "q"})
         return pd.DataFrame(data)
 

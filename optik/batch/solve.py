@@ -122,7 +122,12 @@ def solve_ik_batch(
     if not parts:  # no target
         parts = [solve_chunk(m, spec, transforms, starts, seeds)]
     return BatchResult.concatenate(
-        parts, method=method, base_seed=seed0, wall_time=time.perf_counter() - t0, workers=used
+        parts,
+        method=method,
+        base_seed=seed0,
+        wall_time=time.perf_counter() - t0,
+        workers=used,
+        coordinate_names=tuple(m.coordinate_names),
     )
 
 

@@ -35,7 +35,7 @@ from optik import spatial
 from optik.checks import as_vector
 from optik.diffik import circle_path, track
 from optik.diffik.track import TrackResult
-from optik.errors import InvalidArgumentError, SolverUnavailableError
+from optik.errors import InvalidArgumentError, SolverUnavailableError, require_extra
 from optik.mechanism import Mechanism
 from optik.results import IKResult
 from optik.solvers import methods, pick_method, solve_ik, solve_ik_all
@@ -85,11 +85,7 @@ def reach_points(source: Any) -> tuple[np.ndarray, np.ndarray, float]:
 
 
 def _viser() -> Any:
-    try:
-        import viser
-    except ImportError:  # pragma: no cover - the view extra is installed in the test environment
-        raise ImportError("optik.view needs viser: pip install 'optik[view]'") from None
-    return viser
+    return require_extra("viser", "view", "the viewer")
 
 
 def _positive(value: Any, name: str) -> float:

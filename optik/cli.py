@@ -1,11 +1,11 @@
 """The ``optik`` command: ``bench``, ``solve``, ``fk`` and ``plot`` on the problem files, and
 ``benchmark`` for the focused benchmark scripts of `optik.benchmarks`.
 
-Every problem subcommand takes a problem name (a file shipped in ``optik/data/problems/``, or
+Every problem subcommand takes a problem name (a file shipped in ``problems/``, or
 of ``--problems-dir``) or the path of a ``.toml`` problem file, and has ``--help``. Bad arguments
 give a one-line message naming the argument and exit code 2; unreachable targets and
 non-assemblable inputs are normal outcomes (exit code 1 when nothing was solved). The
-problem-set benchmark lives in [`optik.bench`][optik.bench]; ``optik benchmark NAME`` imports
+problem-set benchmark lives in [`optik.harness`][optik.harness]; ``optik benchmark NAME`` imports
 ``optik.benchmarks.bench_NAME`` and calls its ``main(argv)``.
 
 Target and joint values are given as numbers, per task space of the problem:
@@ -155,7 +155,7 @@ def _option(exc: OptikError) -> str:
 
 # ---------------------------------------------------------------------------- bench
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from optik.bench import run_bench
+    from optik.harness import run_bench
 
     solvers = [s for item in args.solvers or () for s in item.split(",") if s] or None
     _writable(args.out, "out", directory=True)
@@ -392,7 +392,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="optik",
         description="Kinematics by constrained optimization: benchmark, solve, FK and plots of the problems.",
         epilog=(
-            "Problems are the TOML files shipped in optik/data/problems (e.g. planar_3r, five_bar, "
+            "Problems are the TOML files shipped in problems/ (e.g. planar_3r, five_bar, "
             "stewart_gough, panda), or of --problems-dir."
         ),
     )

@@ -4,10 +4,11 @@ A problem file names a catalog constructor and its parameters, optional joint-li
 how to draw targets, the success tolerances and which solvers and peers apply. Files are parsed
 with `tomllib` (``tomli`` on Python 3.10): data only, no code is executed. Every error
 names the file, the key and what is wrong, e.g.
-``.../optik/data/problems/five_bar.toml: targets.n: expected an integer >= 1, got 0``.
+``.../problems/five_bar.toml: targets.n: expected an integer >= 1, got 0``.
 
-The shipped files are package data in ``optik/data/problems/`` (the one copy in the
-repository), found through `importlib.resources` as `PROBLEM_DIR`, so that a wheel install,
+The shipped files live in the top-level folder ``problems/`` of the repository (the one copy),
+installed as the package ``optik.problems`` (a ``package_dir`` mapping in ``setup.py``) and found
+through `importlib.resources` as `PROBLEM_DIR`, so that a wheel install,
 an editable install and a source tree on ``PYTHONPATH`` all see them; any other directory can
 be given instead (``optik --problems-dir DIR``), and any file by path. Schema (every table but
 ``[mechanism]`` optional)::
@@ -106,11 +107,11 @@ __all__ = [
     "problem_summary",
 ]
 
-PROBLEM_DIR = Path(str(resources.files("optik") / "data" / "problems"))
-"""The shipped problem files: the package data folder ``optik/data/problems``."""
+PROBLEM_DIR = Path(str(resources.files("optik.problems")))
+"""The shipped problem files: the package ``optik.problems`` (the folder ``problems/`` of the repository)."""
 
 PEERS = ("trac_ik", "pink", "ikpy")
-"""Peer libraries a problem may ask for (adapters in [`optik.bench.peers`][optik.bench.peers])."""
+"""Peer libraries a problem may ask for (adapters in [`optik.harness.peers`][optik.harness.peers])."""
 
 SAMPLING = ("auto", "joint", "actuated", "pose")
 """Target sampling modes."""

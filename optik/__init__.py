@@ -16,13 +16,14 @@ from optik.errors import (
     NonFiniteError,
     OptikError,
     ProblemFileError,
+    ReadOnlyError,
     ShapeError,
     SolverUnavailableError,
     UnknownFrameError,
 )
 from optik.mechanism import Joint, Mechanism, dh_chain, planar_chain
 from optik.problem import IKProblem, build_ik_problem
-from optik.reach import reach
+from optik.reach import ReachMap, reach
 from optik.results import FKModes, FKResult, IKResult
 from optik.solvers import Tolerances, self_motion, solve_ik, solve_ik_all
 from optik.solvers.fk import solve_fk, solve_fk_all
@@ -48,6 +49,8 @@ __all__ = [
     "Pose2D",
     "Position",
     "ProblemFileError",
+    "ReachMap",
+    "ReadOnlyError",
     "ShapeError",
     "SolverUnavailableError",
     "Tolerances",

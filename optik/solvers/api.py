@@ -6,10 +6,12 @@ from typing import Any
 
 import numpy as np
 
+from optik.collision import World
 from optik.errors import SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.results import IKResult
 from optik.solvers.base import Tolerances, get_method, make_request, methods
+from optik.solvers.collision_free import solve_collision_free
 
 DEFAULT_ORDER = ("closed_form", "lm", "nlp")
 """Preference of ``method=None``: the first registered method that applies."""
@@ -45,6 +47,9 @@ def solve_ik(
     time_limit: float | None = None,
     tol: float | Tolerances | None = None,
     seed: int | np.random.Generator | None = None,
+    world: World | None = None,
+    self_collision: bool | None = None,
+    margin: float = 0.0,
     **options: Any,
 ) -> IKResult:
     """Inverse kinematics with joint limits (and loop closures for closed chains).
@@ -65,6 +70,13 @@ def solve_ik(
         time_limit: wall-time budget in seconds (default 0.1).
         tol: tolerances (float: position and orientation) or [`Tolerances`][optik.Tolerances].
         seed: seed or Generator for restarts.
+        world: obstacles ([`optik.World`][optik.World]) the answer must clear; with it or with
+            ``self_collision=True`` the solve is collision-aware (``lm`` or ``nlp``, default ``lm``:
+            see `optik.solvers.collision_free`), success needs the exact check at ``margin`` to pass
+            and the result carries ``min_distance`` and ``collision_pair``.
+        self_collision: keep the robot clear of itself (its allowed-collision matrix aside);
+            None: True when ``world`` is given.
+        margin: clearance (m) the exact check requires of a collision-aware answer.
         **options: method-specific options (see each method's documentation).
 
     Returns:
@@ -75,6 +87,9 @@ def solve_ik(
         OptikError: malformed input (named argument), unknown or inapplicable method.
     """
     request = make_request(m, target, q0, task, frame, time_limit, tol, seed, options)
+    if world is not None or self_collision:
+        own = True if self_collision is None else bool(self_collision)
+        return solve_collision_free(request, method or "lm", world, own, margin)
     multi = request.multi_target
     own_frame = not multi and request.frame in (None, m.ee)  # closed forms solve for the end effector only
     if method is None:

@@ -259,3 +259,34 @@ def test_panda_distances_match_pinocchio_and_coal():
                 )
         r = check(m, q, w, self_collision=False)
         assert r.min_distance == pytest.approx(best, abs=1e-6)
+
+
+def test_sphere_model_bounds_never_exceed_exact_distances(arm, tmp_path):
+    """Conservative where the solvers rely on it: when a part's spheres are all clear by ``b >= 0``,
+    the part is clear by ``b`` (smallest row <= exact coal distance; penetration depths of a
+    union of spheres are not ordered so, and no constraint uses them)."""
+    import casadi as ca
+
+    from optik.collision.distance import signed_distance
+    from optik.collision.spheres import distance_expressions, sphere_model
+
+    w = World()
+    w.add_box("box", (0.2, 0.3, 0.1), spatial.transform(spatial.rot_z(0.4), [0.5, 0.3, 0.1]))
+    w.add_sphere("ball", 0.05, spatial.translation(-0.4, 0.2, 0.15))
+    w.add_cylinder("post", 0.04, 0.5, spatial.translation(0.2, -0.5, 0.2))
+    w.add_capsule("rod", 0.03, 0.3, spatial.transform(spatial.rot_x(1.2), [-0.3, -0.4, 0.1]))
+    geo = robot_geometry(arm)
+    model = sphere_model(geo)
+    d, names = distance_expressions(geo, [arm.frame_expr(link) for link in geo.links], w.parts(), False)
+    f = ca.Function("d", [arm.q_sym], [d])
+    obstacles = w.parts()
+    for q in arm.random_q(30, seed=8):
+        rows = np.asarray(f(q)).ravel()
+        poses = geo.part_poses(q)
+        rows = rows.reshape(len(model.part), len(obstacles))
+        assert len(names) == rows.size
+        for k, part in enumerate(geo.parts):
+            exact = [signed_distance(part, poses[k], o, o.offset)[0] for o in obstacles]
+            bound = rows[model.part == k].min(axis=0)
+            clear = bound >= 0
+            assert np.all(bound[clear] <= np.array(exact)[clear] + 1e-6)

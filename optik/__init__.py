@@ -21,7 +21,7 @@ from optik.errors import (
 )
 from optik.mechanism import Joint, Mechanism, dh_chain, planar_chain
 from optik.problem import IKProblem, build_ik_problem
-from optik.reach import reach
+from optik.reach import ReachMap, reach
 from optik.results import FKModes, FKResult, IKResult
 from optik.solvers import Tolerances, self_motion, solve_ik, solve_ik_all
 from optik.solvers.fk import solve_fk, solve_fk_all
@@ -47,6 +47,7 @@ __all__ = [
     "Pose2D",
     "Position",
     "ProblemFileError",
+    "ReachMap",
     "ShapeError",
     "SolverUnavailableError",
     "Tolerances",

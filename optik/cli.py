@@ -1,11 +1,11 @@
 """The ``optik`` command: ``bench``, ``solve``, ``fk`` and ``plot`` on the problem files, and
 ``benchmark`` for the focused benchmark scripts of `optik.benchmarks`.
 
-Every problem subcommand takes a problem name (a file shipped in ``optik/data/problems/``, or
+Every problem subcommand takes a problem name (a file shipped in ``problems/``, or
 of ``--problems-dir``) or the path of a ``.toml`` problem file, and has ``--help``. Bad arguments
 give a one-line message naming the argument and exit code 2; unreachable targets and
 non-assemblable inputs are normal outcomes (exit code 1 when nothing was solved). The
-problem-set benchmark lives in [`optik.bench`][optik.bench]; ``optik benchmark NAME`` imports
+problem-set benchmark lives in [`optik.harness`][optik.harness]; ``optik benchmark NAME`` imports
 ``optik.benchmarks.bench_NAME`` and calls its ``main(argv)``.
 
 Target and joint values are given as numbers, per task space of the problem:
@@ -155,7 +155,7 @@ def _option(exc: OptikError) -> str:
 
 # ---------------------------------------------------------------------------- bench
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from optik.bench import run_bench
+    from optik.harness import run_bench
 
     solvers = [s for item in args.solvers or () for s in item.split(",") if s] or None
     _writable(args.out, "out", directory=True)
@@ -227,6 +227,22 @@ def _assembly_modes(m: Mechanism, actuated: np.ndarray) -> list[np.ndarray]:
     return [np.asarray(r.q) for r in optik.solve_fk_all(m, actuated) if r.success]
 
 
+def _wrap_notes(m: Mechanism, actuated: np.ndarray) -> list[str]:
+    """One line per actuated angle outside its limits: the value modulo 2 pi that the assembly
+    modes are solved at (`Mechanism.wrap`), or that none lies within the limits."""
+    q = m.mid_q()
+    q[m.actuated_indices] = actuated
+    wrapped = m.wrap(q)
+    notes = []
+    for i in m.actuated_indices:
+        lo, hi, v, w = m.lower[i], m.upper[i], q[i], wrapped[i]
+        if m.revolute_mask[i] and not lo <= v <= hi:
+            name, span = m.coordinate_names[i], f"[{lo:.6g}, {hi:.6g}]"
+            where = f"taken modulo 2 pi as {w:.6f}" if lo <= w <= hi else "and stays outside them modulo 2 pi"
+            notes.append(f"{name}={v:g} is outside its limits {span}: {where}")
+    return notes
+
+
 def _cmd_fk(args: argparse.Namespace) -> int:
     _writable(args.plot, "plot")
     problem = _problem(args.problem, args.problems_dir)
@@ -242,6 +258,8 @@ def _cmd_fk(args: argparse.Namespace) -> int:
     else:
         names = ", ".join(m.coordinate_names[i] for i in m.actuated_indices)
         actuated = _vector(args.q, n_act, "--q", f"all {m.n_q} coordinates, or the actuated {names}")
+        for note in _wrap_notes(m, actuated):
+            print(f"note: {note}")
         qs = _assembly_modes(m, actuated)
         print(f"{problem.name}: {len(qs)} assembly mode(s) within limits for {names} = {args.q}")
     for i, q in enumerate(qs, 1):
@@ -374,7 +392,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="optik",
         description="Kinematics by constrained optimization: benchmark, solve, FK and plots of the problems.",
         epilog=(
-            "Problems are the TOML files shipped in optik/data/problems (e.g. planar_3r, five_bar, "
+            "Problems are the TOML files shipped in problems/ (e.g. planar_3r, five_bar, "
             "stewart_gough, panda), or of --problems-dir."
         ),
     )

@@ -8,6 +8,9 @@ result with ``success=False`` for them.
 
 from __future__ import annotations
 
+import importlib
+from types import ModuleType
+
 
 class OptikError(Exception):
     """Base class of every exception raised by optik."""
@@ -54,6 +57,21 @@ class SolverUnavailableError(OptikError):
 
 class MissingExtraError(OptikError, ImportError):
     """An optional part of optik is not installed (the message says which pip extra brings it)."""
+
+
+def require_extra(module: str, extra: str, feature: str) -> ModuleType:
+    """Import the optional ``module`` that ``feature`` needs, from the pip extra ``extra``.
+
+    Raises:
+        MissingExtraError: ``module`` cannot be imported; one line naming the feature, the module
+            and the command that installs it, e.g. ``optik view needs viser (not installed):
+            pip install "optik[view]"``.
+    """
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        found = "not installed" if exc.name in (module, module.partition(".")[0]) else f"import failed: {exc}"
+        raise MissingExtraError(f'{feature} needs {module} ({found}): pip install "optik[{extra}]"') from None
 
 
 class ProblemFileError(OptikError):

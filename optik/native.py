@@ -292,6 +292,23 @@ def source_library(
     return None if lib is None else lib.wait()
 
 
+def driver_source(path: Path, compile: bool | str = "auto") -> str | None:
+    """The text of the hand-written C driver ``path`` that is compiled with generated code, or
+    None when it cannot be read (a damaged or partial install): the caller then evaluates with
+    CasADi instead, and the reason is logged.
+
+    Raises:
+        SolverUnavailableError: ``compile=True`` and the file cannot be read.
+    """
+    try:
+        return path.read_text()
+    except OSError as exc:
+        if compile is True:
+            raise SolverUnavailableError(f"the C driver {path} cannot be read: {exc}") from exc
+        _LOG.warning("optik: the C driver %s cannot be read, CasADi's evaluator is used: %s", path, exc)
+        return None
+
+
 def _check_compile(compile: bool | str) -> None:
     if compile not in (True, False, "auto"):
         raise InvalidArgumentError("compile", f"expected True, False or 'auto', got {compile!r}")

@@ -437,9 +437,12 @@ def write_atomic(path: str | os.PathLike[str], write: Callable[[str], None]) -> 
 
 
 def check_writable(path: str | os.PathLike[str], name: str, directory: bool = False) -> Path:
-    """Check, before a long computation, that its output can be written: the folder (``path``
-    itself when ``directory``, else its parent) is created when missing and a temporary file is
-    created in it and removed; a figure file needs an image extension matplotlib knows.
+    """Check, before a long computation, that its output can be written: a temporary file is
+    created in, and removed from, the folder (``path`` itself when ``directory``, else its
+    parent) or, while that folder does not exist, its nearest existing parent. Nothing is left
+    behind: the folder is created by the first file written into it (`write_atomic`), so a
+    command that fails or has nothing to write leaves no empty folder. A figure file needs an
+    image extension matplotlib knows.
 
     Raises:
         InvalidArgumentError: naming ``name``, with the operating system's reason.
@@ -459,8 +462,12 @@ def check_writable(path: str | os.PathLike[str], name: str, directory: bool = Fa
                 name, f"unsupported image format {fmt!r} of {str(dest)!r}; known: {sorted(known)}"
             )
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".optik-write-check.", dir=folder)
+        existing = folder.absolute()
+        while not existing.exists() and existing != existing.parent:
+            existing = existing.parent
+        if not existing.is_dir():
+            raise NotADirectoryError(f"{str(existing)!r} is not a folder")
+        fd, tmp = tempfile.mkstemp(prefix=".optik-write-check.", dir=existing)
         os.close(fd)
         os.unlink(tmp)
     except (OSError, ValueError) as exc:  # ValueError: a NUL character in the path

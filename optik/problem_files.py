@@ -4,10 +4,11 @@ A problem file names a catalog constructor and its parameters, optional joint-li
 how to draw targets, the success tolerances and which solvers and peers apply. Files are parsed
 with `tomllib` (``tomli`` on Python 3.10): data only, no code is executed. Every error
 names the file, the key and what is wrong, e.g.
-``.../optik/data/problems/five_bar.toml: targets.n: expected an integer >= 1, got 0``.
+``.../problems/five_bar.toml: targets.n: expected an integer >= 1, got 0``.
 
-The shipped files are package data in ``optik/data/problems/`` (the one copy in the
-repository), found through `importlib.resources` as `PROBLEM_DIR`, so that a wheel install,
+The shipped files live in the top-level folder ``problems/`` of the repository (the one copy),
+installed as the package ``optik.problems`` (a ``package_dir`` mapping in ``setup.py``) and found
+through `importlib.resources` as `PROBLEM_DIR`, so that a wheel install,
 an editable install and a source tree on ``PYTHONPATH`` all see them; any other directory can
 be given instead (``optik --problems-dir DIR``), and any file by path. Schema (every table but
 ``[mechanism]`` optional)::
@@ -106,11 +107,11 @@ __all__ = [
     "problem_summary",
 ]
 
-PROBLEM_DIR = Path(str(resources.files("optik") / "data" / "problems"))
-"""The shipped problem files: the package data folder ``optik/data/problems``."""
+PROBLEM_DIR = Path(str(resources.files("optik.problems")))
+"""The shipped problem files: the package ``optik.problems`` (the folder ``problems/`` of the repository)."""
 
 PEERS = ("trac_ik", "pink", "ikpy")
-"""Peer libraries a problem may ask for (adapters in [`optik.bench.peers`][optik.bench.peers])."""
+"""Peer libraries a problem may ask for (adapters in [`optik.harness.peers`][optik.harness.peers])."""
 
 SAMPLING = ("auto", "joint", "actuated", "pose")
 """Target sampling modes."""
@@ -663,28 +664,54 @@ def find_problem(name: str, directory: str | Path | None = None) -> Problem:
 
 def add_source_arguments(parser: Any) -> None:
     """The arguments of a command that loads one mechanism (``optik view``, ``optik reach``):
-    ``PROBLEM|URDF``, ``--base`` / ``--tip`` (a URDF chain) and ``--problems-dir``; read back by
-    [`load_source`][optik.problem_files.load_source]."""
-    parser.add_argument("source", metavar="PROBLEM|URDF", help="problem name or .toml file, or a .urdf file")
-    parser.add_argument("--base", help="base link of a URDF chain")
-    parser.add_argument("--tip", help="tip link of a URDF chain")
-    parser.add_argument("--problems-dir", metavar="DIR", help="directory of problem files")
+    ``PROBLEM|ROBOT|URDF``, ``--base`` / ``--tip`` (a URDF chain) and ``--problems-dir``; read
+    back by [`load_source`][optik.problem_files.load_source]."""
+    parser.add_argument(
+        "source",
+        metavar="PROBLEM|ROBOT|URDF",
+        help=(
+            "a problem name (e.g. panda, five_bar; see --problems-dir) or .toml file; a robot of "
+            "optik.catalog.robot (needs the robots extra): "
+            f"{', '.join(catalog.robot_names())}; or a .urdf file with --base and --tip"
+        ),
+    )
+    parser.add_argument("--base", help="base link of a URDF chain (required with a .urdf file)")
+    parser.add_argument("--tip", help="tip link of a URDF chain (required with a .urdf file)")
+    parser.add_argument(
+        "--problems-dir",
+        metavar="DIR",
+        help="directory of problem files (default: the problem files shipped with optik)",
+    )
 
 
 def load_source(
     source: str, base: str | None, tip: str | None, problems_dir: str | Path | None = None
 ) -> tuple[Mechanism, Problem | None]:
-    """The mechanism of a command's ``PROBLEM|URDF`` argument, and its problem (None for a URDF).
+    """The mechanism of a command's ``PROBLEM|ROBOT|URDF`` argument, and its problem (None for
+    a robot or a URDF). A name is a problem first, else a robot of `optik.catalog.robot`.
 
     Raises:
-        InvalidArgumentError: a URDF file without both ``--base`` and ``--tip``; an unknown problem.
+        InvalidArgumentError: no such URDF file, or one without both ``--base`` and ``--tip``;
+            a name that is neither a problem nor a robot (the message lists both).
         ProblemFileError: the problem file is invalid.
+        MissingExtraError: a robot name without the ``robots`` extra.
     """
     if Path(source).suffix.lower() == ".urdf":
+        if not Path(source).is_file():
+            raise InvalidArgumentError("PROBLEM|ROBOT|URDF", f"no such file: {source}")
         if base is None or tip is None:
             raise InvalidArgumentError("--base", "a URDF file needs --base and --tip (the chain's end links)")
         return Mechanism.from_urdf(source, base, tip), None
-    problem = find_problem(source, problems_dir)
+    try:
+        problem = find_problem(source, problems_dir)
+    except InvalidArgumentError as exc:
+        if source in catalog.robot_names():
+            return catalog.robot(source), None
+        if str(exc).startswith("problem: unknown problem"):
+            raise InvalidArgumentError(
+                "PROBLEM|ROBOT|URDF", f"{str(exc).partition(': ')[2]}; robots: {list(catalog.robot_names())}"
+            ) from None
+        raise
     return problem.mechanism(), problem
 
 

@@ -1,4 +1,4 @@
-"""Tests of optik.bench: statistics, notes instead of crashes, output files, peers, progress bar."""
+"""Tests of optik.harness: statistics, notes instead of crashes, output files, peers, progress bar."""
 
 from __future__ import annotations
 
@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from optik import problem_files
-from optik.bench import run_bench, run_problem
-from optik.bench.harness import Call, SolverRun
 from optik.errors import InvalidArgumentError
+from optik.harness import run_bench, run_problem
+from optik.harness.contenders import Call, SolverRun
 from optik.progress import Progress
 
 
@@ -155,7 +155,7 @@ def test_progress_bar_on_a_plain_stream():
 @pytest.mark.parametrize(("peer", "package"), [("trac_ik", "pytracik"), ("pink", "pink"), ("ikpy", "ikpy")])
 def test_each_peer_matches_the_model_and_solves(peer, package):
     pytest.importorskip(package)
-    from optik.bench.peers import load_peer
+    from optik.harness.peers import load_peer
     from optik.solvers.base import evaluate
 
     p = problem_files.find_problem("iiwa14")
@@ -170,7 +170,7 @@ def test_each_peer_matches_the_model_and_solves(peer, package):
 
 def test_peer_with_a_different_chain_is_unavailable(tmp_path):
     pytest.importorskip("pytracik")
-    from optik.bench.peers import PeerUnavailable, load_peer
+    from optik.harness.peers import PeerUnavailable, load_peer
 
     path = tmp_path / "mix.toml"
     path.write_text('[problem]\ndescription = "x"\n[mechanism]\nconstructor = "iiwa14"\nurdf = "panda"\n')
@@ -179,7 +179,7 @@ def test_peer_with_a_different_chain_is_unavailable(tmp_path):
 
 
 def test_missing_peer_package_is_a_clean_note(monkeypatch):
-    from optik.bench.peers import ADAPTERS
+    from optik.harness.peers import ADAPTERS
 
     monkeypatch.setattr(ADAPTERS["ikpy"], "package", "no_such_ikpy_module")
     res = run_problem(problem_files.find_problem("panda"), n=2, time_limit=0.02, only=["ikpy", "lm"])

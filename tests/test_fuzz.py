@@ -1,7 +1,7 @@
-"""The fuzz suite, short budget: every public entry point of `optik.benchmarks.fuzzing` with
+"""The fuzz suite, short budget: every public entry point of the harness `tests/fuzz/harness.py` with
 derandomized hypothesis calls (valid and corrupted arguments mixed), each outcome classified; no
 call may leak another exception, claim a false success or run past its time limit. The long run
-is ``optik benchmark fuzz --calls 100000`` (docs/reliability.md)."""
+is ``python tests/fuzz/long_run.py --calls 100000`` (docs/reliability.md)."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import pytest
 from hypothesis import HealthCheck, Phase, given, settings
 
 import optik
-from optik.benchmarks import fuzzing
-from optik.benchmarks.fuzzing import ENTRIES, Call, Tally, classify
+from fuzz import harness as fuzzing
+from fuzz.harness import ENTRIES, Call, Tally, classify
 
 EXAMPLES = {
     "cli (subprocess)": 3,

@@ -2,8 +2,10 @@
 modules import each other (directly or around a loop), lazy imports inside functions included.
 
 Layers, bottom to top: errors; checks, native; spatial, targets, results; mechanism; catalog;
-closed_form; problem; solvers; diffik; applications (problem_files, progress, batch, reach, plot, bench,
-benchmarks, view, cli). A package's ``__init__`` may import its own submodules (it re-exports them).
+closed_form; problem; solvers; diffik; applications (problem_files, progress, batch, reach, plot,
+harness, benchmarks, problems, view, cli). The top-level folders ``benchmarks/`` and ``problems/``
+are the packages ``optik.benchmarks`` and ``optik.problems`` (setup.py maps them) and are checked
+as such. A package's ``__init__`` may import its own submodules (it re-exports them).
 """
 
 from __future__ import annotations
@@ -25,18 +27,36 @@ LAYERS = [
     {"problem"},
     {"solvers"},
     {"diffik"},
-    {"problem_files", "progress", "batch", "reach", "plot", "bench", "benchmarks", "view", "cli"},
+    {
+        "problem_files",
+        "progress",
+        "batch",
+        "reach",
+        "plot",
+        "harness",
+        "benchmarks",
+        "problems",
+        "view",
+        "cli",
+    },
 ]
 LEVEL = {name: i for i, layer in enumerate(LAYERS) for name in layer}
 
 
+MAPPED = {"optik.benchmarks": ROOT.parent / "benchmarks", "optik.problems": ROOT.parent / "problems"}
+"""Packages whose source is a top-level folder of the repository (absent in a wheel install, where
+they are folders of the package itself)."""
+
+
 def _modules() -> dict[str, pathlib.Path]:
     mods = {}
-    for path in ROOT.rglob("*.py"):
-        parts = path.relative_to(ROOT.parent).with_suffix("").parts
-        if parts[-1] == "__init__":
-            parts = parts[:-1]
-        mods[".".join(parts)] = path
+    roots = [(ROOT, "optik")] + [(d, pkg) for pkg, d in MAPPED.items() if (d / "__init__.py").is_file()]
+    for root, package in roots:
+        for path in root.rglob("*.py"):
+            parts = (*package.split("."), *path.relative_to(root).with_suffix("").parts)
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            mods[".".join(parts)] = path
     return mods
 
 

@@ -478,3 +478,30 @@ def test_closed_form_fk_of_overflowing_actuated_values(name):
     _raises("actuated", optik.closed_form.fk, m, a)
     a[0] = 1e40  # huge but within the range: cannot assemble
     assert optik.closed_form.fk(m, a) == []
+
+
+@pytest.mark.parametrize("module", ["optik.solvers.lm_kernel", "optik.closed_form.ik_all"])
+def test_a_missing_c_driver_falls_back_to_the_evaluator_logged(module, monkeypatch, tmp_path, caplog):
+    """A wheel without `ik_all.c` crashed `optik bench --quick` with FileNotFoundError: a C driver
+    that cannot be read is a logged fallback to CasADi's evaluator (the answers stay right), and an
+    error only when compiled code is demanded (``compile=True``)."""
+    import importlib
+
+    from optik.native import driver_source
+
+    gone = tmp_path / "gone.c"
+    monkeypatch.setattr(importlib.import_module(module), "DRIVER", gone)
+    with pytest.raises(optik.SolverUnavailableError, match="cannot be read"):
+        driver_source(gone, compile=True)
+    q = np.array([0.3, -0.5, 0.4, 0.2, -0.6, 0.7])
+    with caplog.at_level("WARNING", logger="optik"):
+        if module.endswith("lm_kernel"):
+            m = catalog.planar_3r()  # a new model: a new kernel, built with the patched driver path
+            q = q[:3]
+            res = optik.solve_ik(m, m.fk(q), method="lm")
+            assert res.success and res.position_error <= 1e-6
+        else:
+            m = catalog.puma560()
+            sols = optik.solve_ik_all(m, m.fk(q))
+            assert sols.certified and min(np.max(np.abs(s - q)) for s in sols.q) < 1e-9
+    assert f"{gone} cannot be read" in caplog.text

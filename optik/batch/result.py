@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from optik.errors import SolverUnavailableError
+from optik.errors import require_extra
 from optik.results import IKResult
 
 PER_TARGET = (
@@ -45,8 +45,13 @@ class BatchResult:
             gives the same answer.
         method: the IK method.
         base_seed: the batch's seed (None was 0; None here when the seeds were given per target).
-        wall_time: seconds of the whole batch call.
+        wall_time: seconds of the whole batch call, `compile_time` included.
+        compile_time: seconds of it spent building and compiling the code every chunk runs
+            (the LM kernel, a closed form's driver) before the first chunk; about zero once it
+            is in memory or in the disk cache, zero on a Dask cluster (the workers compile).
         workers: threads (local) or Dask workers that solved it.
+        coordinate_names: the mechanism's coordinate names, one per column of ``q`` (the
+            columns of `to_dataframe`).
     """
 
     q: np.ndarray
@@ -62,7 +67,9 @@ class BatchResult:
     method: str = "lm"
     base_seed: int | None = 0
     wall_time: float = 0.0
+    compile_time: float = 0.0
     workers: int = 1
+    coordinate_names: tuple[str, ...] = ()
     extra: dict[str, Any] = field(default_factory=dict)
 
     def __len__(self) -> int:
@@ -75,8 +82,10 @@ class BatchResult:
 
     @property
     def throughput(self) -> float:
-        """Targets per second of wall time."""
-        return len(self) / self.wall_time if self.wall_time > 0 else float("inf")
+        """Targets per second of wall time, the compile excluded: ``len / (wall_time -
+        compile_time)`` (the compile of a first call is reported apart, in `compile_time`)."""
+        solving = self.wall_time - self.compile_time
+        return len(self) / solving if solving > 0 else float("inf")
 
     def result(self, i: int) -> IKResult:
         """Row ``i`` as an `optik.IKResult`."""
@@ -104,16 +113,15 @@ class BatchResult:
 
     def to_dataframe(self) -> Any:
         """A pandas ``DataFrame``, one row per target, with ``q`` split into one column per
-        coordinate (``q0``, ``q1``, ...).
+        coordinate, named after the mechanism's coordinates (`coordinate_names`; ``q[0]``,
+        ``q[1]``, ... for a result built without them).
 
         Raises:
-            SolverUnavailableError: pandas is not installed.
+            MissingExtraError: pandas is not installed (``pip install "optik[pandas]"``).
         """
-        try:
-            import pandas as pd
-        except ImportError as exc:
-            raise SolverUnavailableError("to_dataframe needs pandas (pip install pandas)") from exc
-        data: dict[str, Any] = {f"q{j}": self.q[:, j] for j in range(self.q.shape[1])}
+        pd = require_extra("pandas", "pandas", "BatchResult.to_dataframe")
+        names = self.coordinate_names or tuple(f"q[{j}]" for j in range(self.q.shape[1]))
+        data: dict[str, Any] = {name: self.q[:, j] for j, name in enumerate(names)}
         data.update({name: getattr(self, name) for name in PER_TARGET if name != "q"})
         return pd.DataFrame(data)
 

@@ -105,8 +105,13 @@ class AllSolutionsKernel:
             f"static const double optik_conf[7] = {{{', '.join(float(v).hex() for v in conf)}}};\n"
         )
         # errno is never read: sqrt becomes one instruction
-        self.library = native.library(
-            [branches, check], compile, defines + DRIVER.read_text(), ("-fno-math-errno", *python_flags())
+        driver = native.driver_source(DRIVER, compile)
+        self.library = (
+            None
+            if driver is None
+            else native.library(
+                [branches, check], compile, defines + driver, ("-fno-math-errno", *python_flags())
+            )
         )
         self._in = np.zeros(_IN)
         self._in[34:41] = conf

@@ -9,9 +9,16 @@ C compiler (same numbers, slower).
 
 Every input and output is dense and column-major (CasADi's storage), so a ``p x q`` output is
 returned as a numpy array of shape ``(p, q)``; vectors are returned 1-D.
+
+*Threads.* The ``ctypes`` call releases the GIL, so each thread has its own input and output
+buffers and its own bound call (the generated code's work memory): threads calling one
+`CompiledFunction` at once run in parallel and never see each other's numbers.
 """
 
 from __future__ import annotations
+
+import threading
+from collections.abc import Callable
 
 import casadi as ca
 import numpy as np
@@ -49,26 +56,39 @@ class CompiledFunction:
         for r, c in self._out_shapes:
             self._bounds.append((start, start + r * c, r, c))
             start += r * c
-        self._in = np.zeros(x.shape[0])
-        self._out = np.zeros(start)
+        self._sizes = (int(x.shape[0]), start)
         self.library = library([self._flat])
-        self._native = Binding(self.library, f.name(), [self._in], [self._out])
+        self._local = threading.local()
+
+    def _thread_state(self) -> tuple[np.ndarray, np.ndarray, Binding, Callable[[], None]]:
+        """This thread's ``(input buffer, output buffer, bound call, CasADi evaluation)``."""
+        state = getattr(self._local, "state", None)
+        if state is None:
+            x, out = np.zeros(self._sizes[0]), np.zeros(self._sizes[1])
+
+            def evaluate() -> None:  # CasADi's evaluator, into this thread's output buffer
+                out[:] = np.asarray(self._flat(x), dtype=float).reshape(-1)
+
+            state = self._local.state = (
+                x,
+                out,
+                Binding(self.library, self._flat.name(), [x], [out]),
+                evaluate,
+            )
+        return state
 
     @property
     def compiled(self) -> bool:
         """True when the compiled C code is used; False for CasADi's evaluator (while it builds,
         or without a compiler)."""
-        return self._native.compiled
-
-    def _evaluate(self) -> None:
-        """CasADi's evaluator, into the output buffer."""
-        self._out[:] = np.asarray(self._flat(self._in), dtype=float).reshape(-1)
+        return self._thread_state()[2].compiled
 
     def call_flat(self, x: np.ndarray) -> tuple[np.ndarray, ...]:
         """Evaluate on the concatenated (column-major) inputs."""
-        self._in[:] = x
-        self._native(self._evaluate)
-        out = self._out.copy()
+        buf, out, native, evaluate = self._thread_state()
+        buf[:] = x
+        native(evaluate)
+        out = out.copy()
         return tuple([out[a:b] if c == 1 else out[a:b].reshape(c, r).T for a, b, r, c in self._bounds])
 
     def __call__(self, *inputs: np.ndarray) -> tuple[np.ndarray, ...]:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import threading
 import weakref
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
@@ -152,8 +153,16 @@ class StackFunction:
         bounds = np.cumsum([0, *self.dims])
         self.slices = [slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
         self.starts = bounds[:-1]
-        self.backends: dict[str, Any] = {}
-        """QP backend objects that keep state between steps (OSQP workspace, cvxpy problem)."""
+        self._local = threading.local()
+
+    @property
+    def backends(self) -> dict[str, Any]:
+        """QP backend objects that keep state between steps (OSQP workspace, cvxpy problem):
+        each thread has its own, so concurrent steps never share a solver's workspace."""
+        found = getattr(self._local, "backends", None)
+        if found is None:
+            found = self._local.backends = {}
+        return found
 
     def __call__(
         self, q: np.ndarray, p: list[np.ndarray], dt: float, v_prev: np.ndarray

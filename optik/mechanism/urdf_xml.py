@@ -17,9 +17,12 @@ both. `read_urdf_xml` accepts them with a documented pre-pass and lxml:
 5. **Parse** with lxml's recovering parser with entity resolution, DTD loading and network
    access off and libxml2's default size limits (``huge_tree=False``). Its error log is then
    checked: an undeclared namespace prefix is accepted (the element keeps the name
-   ``prefix:tag``), every other error (an unclosed or mismatched tag, a bad attribute, an
-   undefined entity, text after the root ...) is rejected, so "recovering" never means
-   silently dropping part of a robot.
+   ``prefix:tag``), and so is content after ``</robot>`` (text, a second root, the stray
+   ``</transmission> -->`` left by a vendor's commented-out block): TinyXML stops reading there
+   and urdfdom takes the first ``<robot>``, so optik does the same and warns
+   (`UrdfTrailingContentWarning`, with the line where the ignored content starts). Every other
+   error (an unclosed or mismatched tag, a bad attribute, an undefined entity ...) is rejected,
+   so "recovering" never means silently dropping part of a robot.
 6. Elements of a default namespace (``<robot xmlns="...">``) get their local names, as
    TinyXML sees them.
 
@@ -34,6 +37,7 @@ from __future__ import annotations
 
 import os
 import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -41,7 +45,7 @@ from lxml import etree
 
 from optik.errors import InvalidArgumentError, ModelError
 
-__all__ = ["MAX_URDF_BYTES", "UrdfXml", "read_urdf_xml"]
+__all__ = ["MAX_URDF_BYTES", "UrdfTrailingContentWarning", "UrdfXml", "read_urdf_xml"]
 
 MAX_URDF_BYTES = 32 * 1024 * 1024
 """Largest URDF accepted (bytes of UTF-8). Real robots take well under 1 MB (the largest file
@@ -52,6 +56,12 @@ _XML_DECLARATION = re.compile(r"^\s*<\?xml\b.*?\?>", re.DOTALL)
 _COMMENT_OR_CDATA = re.compile(r"<!--|<!\[CDATA\[")
 _ALLOWED_ERRORS = frozenset({"NS_ERR_UNDEFINED_NAMESPACE"})
 """libxml2 errors that TinyXML would not see: undeclared namespace prefixes."""
+_TRAILING = "ERR_DOCUMENT_END"
+"""libxml2's "Extra content at the end of the document": what follows the root element."""
+
+
+class UrdfTrailingContentWarning(UserWarning):
+    """A URDF has content after its ``</robot>``; it is ignored, as urdfdom ignores it."""
 
 
 @dataclass(frozen=True)
@@ -133,6 +143,9 @@ def read_urdf_xml(source: str | os.PathLike[str]) -> UrdfXml:
             unreadable or not UTF-8, or the text holds lone surrogates.
         ModelError: too large, an unterminated comment, a DOCTYPE/ENTITY declaration, malformed
             XML, or a root element other than ``<robot>``.
+
+    Warns:
+        UrdfTrailingContentWarning: content after ``</robot>`` was ignored.
     """
     text, label, folder = _text(source)
     text = _XML_DECLARATION.sub("", strip_comments(text, label), count=1)
@@ -168,6 +181,14 @@ def read_urdf_xml(source: str | os.PathLike[str]) -> UrdfXml:
         for e in parser.error_log
         if e.level >= etree.ErrorLevels.ERROR and e.type_name not in _ALLOWED_ERRORS
     ]
+    trailing = [e for e in errors if e.type_name == _TRAILING]
+    if trailing and root is not None and len(trailing) == len(errors):
+        warnings.warn(
+            f"{label}: line {trailing[0].line}: content after </robot> is ignored (as urdfdom ignores it)",
+            UrdfTrailingContentWarning,
+            stacklevel=4,
+        )
+        errors = []
     if errors or root is None:
         first = errors[0] if errors else None
         where = f"line {first.line}: {first.message.strip()}" if first else "no root element"

@@ -151,6 +151,16 @@ def binding_of(m: Mechanism) -> Callable[..., Any] | None:
     return compiled_binding(m)
 
 
+def compile_closed_form(m: Mechanism) -> None:
+    """Build (or load from the cache) the compiled driver of ``m``'s derived closed form now and
+    wait for it (`optik.closed_form.DerivedIK.compile`), so that `binding_of` has it; nothing
+    for other closed forms. A batch is worth the wait: a single call answers from numpy while
+    the driver builds in the background."""
+    rows = registry.ik_solver(m)
+    if type(rows) is DerivedRows:
+        rows.solver.compile()
+
+
 def compiled_binding(m: Mechanism) -> Callable[..., Any] | None:
     """The Python binding of the compiled driver of ``m``'s derived closed form
     ([`optik.closed_form.ik_all`][optik.closed_form.ik_all]), kept in `BINDINGS` once it is

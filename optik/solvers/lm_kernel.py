@@ -31,7 +31,7 @@ import casadi as ca
 import numpy as np
 
 from optik.mechanism import Mechanism
-from optik.native import library
+from optik.native import driver_source, library
 from optik.problem import IKProblem, build_ik_problem
 from optik.solvers.evaluation import error_function
 from optik.solvers.native import NativeFunction
@@ -184,7 +184,10 @@ class LMKernel:
             f"#define OPTIK_STEP {_STEP}\n#define OPTIK_STEP_WORK {_STEP}_work\n"
             f"#define OPTIK_ERRORS {_ERRORS}\n#define OPTIK_ERRORS_WORK {_ERRORS}_work\n"
         )
-        self.library = library([self.step, self.errors], compile, defines + DRIVER.read_text())
+        driver = driver_source(DRIVER, compile)
+        self.library = (
+            None if driver is None else library([self.step, self.errors], compile, defines + driver)
+        )
         self._fn: Any = None
         self._local = threading.local()  # per-thread error evaluators
 

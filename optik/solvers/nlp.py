@@ -56,6 +56,7 @@ import io
 import os
 import re
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -207,6 +208,9 @@ class _Monitor(ca.Callback):
 
 @dataclass(frozen=True)
 class _Solver:
+    """One ``nlpsol`` instance of an IK problem with its iteration monitor: used by one solve at
+    a time (see `_checkout`)."""
+
     problem: IKProblem
     solver: ca.Function
     monitor: _Monitor
@@ -263,7 +267,11 @@ def _hessian_function(problem: IKProblem, upper: bool, damping: float) -> ca.Fun
     )
 
 
-_SOLVERS: dict[tuple, _Solver] = {}
+_SOLVERS: dict[tuple, list[_Solver]] = {}
+"""Idle solvers per argument combination of `_checkout` (a pool: see `_checkout`)."""
+_SOLVERS_LOCK = threading.Lock()
+_BUILD_LOCK = threading.Lock()
+"""Serializes the construction of solvers: `_silenced_stdout` redirects the process's stdout."""
 _LIBC = ctypes.CDLL(None)
 
 
@@ -289,7 +297,8 @@ def _silenced_stdout() -> Iterator[None]:
 atexit.register(_SOLVERS.clear)
 
 
-def nlp_solver(
+@contextmanager
+def _checkout(
     m: Mechanism,
     task: str,
     frame: str | None,
@@ -300,30 +309,59 @@ def nlp_solver(
     extra: dict[str, Any] | None = None,
     hessian: str = "gauss-newton",
     damping: float = 1e-6,
-) -> _Solver:
-    """The ``nlpsol`` instance of an IK problem, built once per argument combination (defaults
-    as in [`DEFAULTS`][optik.solvers.nlp.DEFAULTS]; ``extra``: additional ``nlpsol`` options, applied last,
-    part of the cache key through their ``repr``)."""
+) -> Iterator[_Solver]:
+    """An ``nlpsol`` instance of an IK problem for the duration of one solve (defaults as in
+    [`DEFAULTS`][optik.solvers.nlp.DEFAULTS]; ``extra``: additional ``nlpsol`` options, applied
+    last, part of the cache key through their ``repr``).
+
+    An ``nlpsol`` instance and its monitor hold the state of the solve running on them, and
+    CasADi's call releases the GIL, so an instance serves one solve at a time: the solve takes
+    an idle instance of its argument combination from the pool, or builds one when every one is
+    busy (as many instances as solves run at once), and gives it back when done.
+    """
     extra = dict(extra or {})
     options_key = repr(sorted(extra.items()))
     key = (m, task, frame, secondary, solver, max_iter, ipopt_tol, options_key, hessian, damping)
-    if key not in _SOLVERS:
-        problem = build_ik_problem(m, task, frame, secondary)
-        monitor = _Monitor(m.n_q, m.n_closure, problem.parameters.shape[0])
-        options = _solver_options(solver, max_iter, ipopt_tol, extra, monitor, m.n_closure > 0)
-        if hessian == "gauss-newton":
-            options["hess_lag"] = _hessian_function(problem, solver == "ipopt", damping)
-        try:
-            with _silenced_stdout():  # qpOASES prints a licence banner on construction
-                fn = ca.nlpsol("optik_ik", solver, problem.nlp(), options)
-        except RuntimeError as exc:  # CasADi rejects an unknown or ill-typed option
-            if not extra:
-                raise
-            found = re.findall(r"\.[ch]pp:\d+: (.+)", str(exc))
-            message = found[-1] if found else str(exc)
-            raise InvalidArgumentError("solver_options", f"rejected by nlpsol: {message}") from exc
-        _SOLVERS[key] = _Solver(problem, fn, monitor)
-    return _SOLVERS[key]
+    with _SOLVERS_LOCK:
+        idle = _SOLVERS.setdefault(key, [])
+        s = idle.pop() if idle else None
+    if s is None:
+        s = _build_solver(m, task, frame, secondary, solver, max_iter, ipopt_tol, extra, hessian, damping)
+    try:
+        yield s
+    finally:
+        with _SOLVERS_LOCK:
+            _SOLVERS.setdefault(key, []).append(s)
+
+
+def _build_solver(
+    m: Mechanism,
+    task: str,
+    frame: str | None,
+    secondary: tuple[str, ...],
+    solver: str,
+    max_iter: int,
+    ipopt_tol: float,
+    extra: dict[str, Any],
+    hessian: str,
+    damping: float,
+) -> _Solver:
+    """A new ``nlpsol`` instance of the IK problem (arguments as in `_checkout`)."""
+    problem = build_ik_problem(m, task, frame, secondary)
+    monitor = _Monitor(m.n_q, m.n_closure, problem.parameters.shape[0])
+    options = _solver_options(solver, max_iter, ipopt_tol, extra, monitor, m.n_closure > 0)
+    if hessian == "gauss-newton":
+        options["hess_lag"] = _hessian_function(problem, solver == "ipopt", damping)
+    try:
+        with _BUILD_LOCK, _silenced_stdout():  # qpOASES prints a licence banner on construction
+            fn = ca.nlpsol("optik_ik", solver, problem.nlp(), options)
+    except RuntimeError as exc:  # CasADi rejects an unknown or ill-typed option
+        if not extra:
+            raise
+        found = re.findall(r"\.[ch]pp:\d+: (.+)", str(exc))
+        message = found[-1] if found else str(exc)
+        raise InvalidArgumentError("solver_options", f"rejected by nlpsol: {message}") from exc
+    return _Solver(problem, fn, monitor)
 
 
 def _default_stall(solver: str, closed: bool, stop_at_tolerance: bool) -> tuple[float, float]:
@@ -345,38 +383,32 @@ def solve_nlp(request: IKRequest) -> IKResult:
     hessian = opts["hessian"]
     if hessian not in HESSIANS:
         raise InvalidArgumentError("hessian", f"unknown Hessian {hessian!r}; use one of {HESSIANS}")
-    m, tol = request.mechanism, request.tol
+    m = request.mechanism
     secondary = tuple(name for name in ("manipulability", "limits") if float(opts[name]) > 0)
     setup = time.perf_counter()
     extra = opts["solver_options"]
     if not isinstance(extra, dict):
         raise InvalidArgumentError("solver_options", f"expected a dict, got {extra!r}")
     args = (positive_int(opts["max_iter"], "max_iter"), float(opts["ipopt_tol"]))
-    s = nlp_solver(
-        m,
-        request.task,
-        request.frame,
-        secondary,
-        opts["solver"],
-        *args,
-        extra,
-        hessian,
-        float(opts["damping"]),
-    )
-    polisher = s
-    if opts["solver"] == "ipopt":  # polish from a point near the solution: a small barrier parameter
-        polish_extra = {**_IPOPT_POLISH, **extra}
-        polisher = nlp_solver(
-            m,
-            request.task,
-            request.frame,
-            secondary,
-            "ipopt",
-            *args,
-            polish_extra,
-            hessian,
-            float(opts["damping"]),
+    common = (m, request.task, request.frame, secondary)
+    with contextlib.ExitStack() as held:
+        s = held.enter_context(
+            _checkout(*common, opts["solver"], *args, extra, hessian, float(opts["damping"]))
         )
+        polisher = s
+        if opts["solver"] == "ipopt":  # polish from a point near the solution: a small barrier parameter
+            polish_extra = {**_IPOPT_POLISH, **extra}
+            polisher = held.enter_context(
+                _checkout(*common, "ipopt", *args, polish_extra, hessian, float(opts["damping"]))
+            )
+        return _solve_with(request, opts, s, polisher, setup)
+
+
+def _solve_with(
+    request: IKRequest, opts: dict[str, Any], s: _Solver, polisher: _Solver, setup: float
+) -> IKResult:
+    """The multi-start loop of `solve_nlp` on the checked-out solver and polisher."""
+    m, tol = request.mechanism, request.tol
     params = s.problem.parameter_values(
         request.target,
         opts["weights"],

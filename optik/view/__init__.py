@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+from optik.errors import require_extra
+
 if TYPE_CHECKING:
     from optik.mechanism import Mechanism
     from optik.view.viewer import Viewer
@@ -18,18 +20,27 @@ if TYPE_CHECKING:
 def view(m: Mechanism, q: Any = None, **options: Any) -> Viewer:
     """Show ``m`` in a local web page and return the `Viewer` without blocking (scripts,
     notebooks): ``v = optik.view(m); v.set_target(T); v.q; v.close()``. ``options`` are those of
-    `Viewer` (``port``, ``host``, ``method``...). Open `Viewer.url` in a browser."""
+    `Viewer` (``port``, ``host``, ``method``...). Open `Viewer.url` in a browser.
+
+    Raises:
+        MissingExtraError: viser or trimesh is not installed (``pip install "optik[view]"``).
+    """
+    return _viewer_class()(m, q, **options)
+
+
+def _viewer_class() -> type[Viewer]:
+    """`Viewer`, after checking that the ``view`` extra's packages import."""
+    for module in ("viser", "trimesh"):
+        require_extra(module, "view", "the viewer")
     from optik.view.viewer import Viewer
 
-    return Viewer(m, q, **options)
+    return Viewer
 
 
 def __getattr__(name: str) -> Any:
     """`Viewer` on first use (PEP 562), without importing the viewer at ``import optik``."""
     if name == "Viewer":
-        from optik.view.viewer import Viewer
-
-        return Viewer
+        return _viewer_class()
     raise AttributeError(f"module 'optik.view' has no attribute {name!r}")
 
 

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from optik.bench.peers.base import Peer
+from optik.harness.peers.base import Peer
 from optik.mechanism import Mechanism
 from optik.solvers import Tolerances
 

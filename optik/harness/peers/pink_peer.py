@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from optik.bench.peers.base import Peer, PeerUnavailable
+from optik.harness.peers.base import Peer, PeerUnavailable
 from optik.mechanism import Mechanism
 from optik.solvers import Tolerances
 

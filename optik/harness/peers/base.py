@@ -60,8 +60,8 @@ class Peer(ABC):
             ) from None
 
     def check_joints(self, n: int) -> None:
-        """Raise [`PeerUnavailable`][optik.bench.peers.base.PeerUnavailable] when the peer's chain has ``n !=
-        mechanism.n_q`` joints."""
+        """Raise [`PeerUnavailable`][optik.harness.peers.base.PeerUnavailable] when the peer's chain
+        has ``n != mechanism.n_q`` joints."""
         if n != self.mechanism.n_q:
             raise PeerUnavailable(
                 f"{self.name}: the URDF chain {self.base_link} -> {self.tip_link} has {n} joints, "

@@ -3,7 +3,7 @@ and the classification of every outcome against optik's promise.
 
 The promise: every public call returns a result or raises an [`OptikError`][optik.OptikError],
 within its time limit and bounded memory, and a result that claims success is right. Each call
-is classified as one of [`CLASSES`][optik.benchmarks.fuzzing.CLASSES]:
+is classified as one of `CLASSES`:
 
 * ``ok``: a result, and where it claims something (``success=True``, a closed-form branch, a
   step within the limits) an independent check recomputed from the returned ``q`` agrees: FK
@@ -16,7 +16,7 @@ is classified as one of [`CLASSES`][optik.benchmarks.fuzzing.CLASSES]:
 * ``overtime``: the call took longer than ``3 x its time limit + 0.5 s`` (first-time setup
   that the result reports in ``extra["setup_time"]`` excluded).
 
-Every strategy draws a [`Call`][optik.benchmarks.fuzzing.Call]: the entry point's name, a
+Every strategy draws a `Call`: the entry point's name, a
 closure that makes the call (argument objects such as ``Pose2D`` are constructed inside it, so
 that their validation is part of the call) and the check of its result. Mechanisms come from a
 fixed pool (built once: solvers compile code per mechanism), except in the constructor entries.
@@ -520,7 +520,7 @@ POOL_NAMES = (
 
 @cache
 def pool(name: str) -> optik.Mechanism:
-    """A mechanism of [`POOL_NAMES`][optik.benchmarks.fuzzing.POOL_NAMES], built once."""
+    """A mechanism of `POOL_NAMES`, built once."""
     if name == "planar_2r_fixed":  # lower == upper
         return catalog.planar_2r().with_limits([0.3, 0.2], [0.3, 0.2])
     if name == "planar_3r_thin":

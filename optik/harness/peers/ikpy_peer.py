@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from optik.bench.peers.base import Peer
+from optik.harness.peers.base import Peer
 from optik.mechanism import Mechanism
 from optik.solvers import Tolerances
 

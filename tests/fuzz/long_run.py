@@ -1,4 +1,4 @@
-"""The long fuzz run of the public API: every entry point of `optik.benchmarks.fuzzing`, valid
+"""The long fuzz run of the public API: every entry point of the harness `tests/fuzz/harness.py`, valid
 and corrupted arguments mixed, each outcome classified (ok, OptikError, leak, false success,
 overtime), with the counts per class and entry and the peak memory.
 
@@ -9,7 +9,7 @@ is `WEIGHTS`; ``--subprocess-calls`` calls of the ``optik`` command through a su
 after the in-process calls. The address space is capped at ``--max-memory-gb`` (``RLIMIT_AS``),
 so that a runaway allocation is a ``MemoryError`` (a leak) instead of exhausting the machine.
 
-Run: ``optik benchmark fuzz --calls 100000`` (about 20 minutes on two loaded cores). Exit code 1
+Run: ``python tests/fuzz/long_run.py --calls 100000`` (about 20 minutes on two loaded cores). Exit code 1
 when any call broke the promise (leak, false success, overtime).
 """
 
@@ -17,14 +17,19 @@ from __future__ import annotations
 
 import argparse
 import resource
+import sys
 import time
 from collections.abc import Sequence
+from pathlib import Path
 
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import seed as hypothesis_seed
 from hypothesis import strategies as st
 
-from optik.benchmarks.fuzzing import ENTRIES, Call, Tally, classify, mixed, peak_rss_mib, warm_up
+if __package__ in (None, ""):  # run as a script: make the package `fuzz` (this folder) importable
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from fuzz.harness import ENTRIES, Call, Tally, classify, mixed, peak_rss_mib, warm_up
 
 
 def run_chunk(strategy: st.SearchStrategy, n: int, seed: int, tally: Tally) -> None:
@@ -56,7 +61,7 @@ def _cap_memory(gib: float) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="optik benchmark fuzz", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python tests/fuzz/long_run.py", description=__doc__.split("\n\n")[0])
     ap.add_argument("--calls", type=int, default=100_000, help="in-process calls (default: %(default)s)")
     ap.add_argument("--subprocess-calls", type=int, default=100, help="CLI calls through a subprocess")
     ap.add_argument("--seed", type=int, default=0)

@@ -44,7 +44,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
-from optik.batch.chunk import default_workers  # noqa: E402
+from optik.batch.fk import default_workers  # noqa: E402
 from optik.catalog.arms import URDF_CHAINS, urdf_path  # noqa: E402
 from optik.solvers.lm_kernel import target_seeds  # noqa: E402
 

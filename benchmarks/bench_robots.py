@@ -9,7 +9,7 @@ Method (docs/robots.md): each arm of `optik.catalog.robots.ARMS` is loaded by op
 * **IK**: ``--n`` joint vectors drawn within the limits (`optik.Mechanism.random_q`, seeded;
   continuous joints in ``[-pi, pi]``), their FK poses (pinocchio's) as targets. Every solver
   starts from the mid-limit seed with the same time limit (``--time-limit``) and tolerance
-  (``--tol``; TRAC-IK's ``eps`` is half of it, as in `optik.bench.peers.tracik_peer`); optik
+  (``--tol``; TRAC-IK's ``eps`` is half of it, as in `optik.harness.peers.tracik_peer`); optik
   runs its default method for the arm (named in the table; ``--method`` picks one). The solvers
   run interleaved target by target after one untimed warm-up call each (optik's C code built and
   loaded); every call is timed around the public call, failures included. **Success is one check for both**:

@@ -1,16 +1,16 @@
 """Thin adapters for the peer IK libraries the benchmark compares optik against.
 
-[`load_peer`][optik.bench.peers.load_peer] returns a ready [`Peer`][optik.bench.peers.base.Peer] for a
-problem, or raises [`PeerUnavailable`][optik.bench.peers.base.PeerUnavailable] with the reason (package
+[`load_peer`][optik.harness.peers.load_peer] returns a ready [`Peer`][optik.harness.peers.base.Peer] for a
+problem, or raises [`PeerUnavailable`][optik.harness.peers.base.PeerUnavailable] with the reason (package
 missing, no URDF, different joint count), which the benchmark reports as a note instead of crashing.
 """
 
 from __future__ import annotations
 
-from optik.bench.peers.base import Peer, PeerUnavailable
-from optik.bench.peers.ikpy_peer import IKPy
-from optik.bench.peers.pink_peer import Pink
-from optik.bench.peers.tracik_peer import TracIK
+from optik.harness.peers.base import Peer, PeerUnavailable
+from optik.harness.peers.ikpy_peer import IKPy
+from optik.harness.peers.pink_peer import Pink
+from optik.harness.peers.tracik_peer import TracIK
 from optik.problem_files import PEERS, Problem
 
 ADAPTERS: dict[str, type[Peer]] = {"trac_ik": TracIK, "pink": Pink, "ikpy": IKPy}

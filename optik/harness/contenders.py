@@ -29,8 +29,8 @@ import numpy as np
 
 import optik
 from optik import closed_form, native
-from optik.bench.peers import PeerUnavailable, load_peer
 from optik.errors import InvalidArgumentError, OptikError
+from optik.harness.peers import PeerUnavailable, load_peer
 from optik.mechanism import Mechanism
 from optik.problem_files import PEERS, Problem, TargetSet
 from optik.progress import Progress
@@ -118,7 +118,7 @@ class SolverRun:
 
 @dataclass
 class ProblemRun:
-    """The outcome of one problem: its targets, one [`SolverRun`][optik.bench.harness.SolverRun] per
+    """The outcome of one problem: its targets, one [`SolverRun`][optik.harness.contenders.SolverRun] per
     contender, notes."""
 
     problem: Problem
@@ -129,8 +129,8 @@ class ProblemRun:
     time_limit: float
 
     def summary(self) -> list[dict[str, Any]]:
-        """[`SolverRun.stats`][optik.bench.harness.SolverRun.stats] of every contender; ratios relative to the
-        fastest median time among the contenders that solved at least one target."""
+        """[`SolverRun.stats`][optik.harness.contenders.SolverRun.stats] of every contender; ratios
+        relative to the fastest median time among the contenders that solved at least one target."""
         medians = [
             float(np.median([c.time for c in r.calls]))
             for r in self.runs
@@ -321,8 +321,8 @@ def run_problems(
     progress: Progress | None = None,
     on_done: Callable[[ProblemRun], None] | None = None,
 ) -> list[ProblemRun]:
-    """[`run_problem`][optik.bench.harness.run_problem] for each problem in turn; ``on_done`` sees each result
-    as it lands."""
+    """[`run_problem`][optik.harness.contenders.run_problem] for each problem in turn; ``on_done``
+    sees each result as it lands."""
     out = []
     for p in problems:
         res = run_problem(p, quick, n, time_limit, only, progress)

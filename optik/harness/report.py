@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from optik.bench.harness import ProblemRun
+from optik.harness.contenders import ProblemRun
 from optik.plot import save_figure, write_atomic
 from optik.problem_files import problem_summary
 

@@ -10,9 +10,9 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import TextIO
 
-from optik.bench.harness import ProblemRun, known_solvers, run_problems
-from optik.bench.report import format_table, machine_info, write_outputs
 from optik.errors import InvalidArgumentError
+from optik.harness.contenders import ProblemRun, known_solvers, run_problems
+from optik.harness.report import format_table, machine_info, write_outputs
 from optik.problem_files import Problem, default_problems, find_problem
 from optik.progress import Progress
 
@@ -21,7 +21,7 @@ __all__ = ["BenchOutcome", "run_bench", "select_problems"]
 
 @dataclass(frozen=True)
 class BenchOutcome:
-    """What [`run_bench`][optik.bench.run.run_bench] did: the problem results and the files it wrote."""
+    """What [`run_bench`][optik.harness.run.run_bench] did: the problem results and the files it wrote."""
 
     runs: list[ProblemRun]
     files: list[Path]
@@ -56,7 +56,7 @@ def run_bench(
         quick: the quick settings of every file (fewer targets, shorter time limits).
         out: output directory.
         time_limit: seconds per IK call (default: from the files).
-        problem_dir: where named problems are looked up (default: the shipped ``optik/data/problems``).
+        problem_dir: where named problems are looked up (default: the shipped ``problems/``).
         stream: where tables go (default stdout); the progress bar goes to stderr.
         progress: show the progress bar.
         command: the command line, recorded in the report.

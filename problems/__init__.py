@@ -1,0 +1,1 @@
+"""The problem files shipped with optik (TOML), installed as the package ``optik.problems``."""

@@ -46,7 +46,7 @@ import casadi as ca
 import numpy as np
 
 from optik import spatial
-from optik.checks import as_float, as_name, real_array
+from optik.checks import as_float, as_name, read_only, real_array
 from optik.errors import InvalidArgumentError, LimitsError
 
 JOINT_DOF = {"revolute": 1, "prismatic": 1, "fixed": 0, "universal": 2, "spherical": 3, "free": 6}
@@ -167,9 +167,9 @@ class Joint:
             t = real_array(getattr(self, key), key)
             if t.shape != (4, 4) or not np.all(np.isfinite(t)):
                 raise InvalidArgumentError(key, f"joint {self.name!r}: expected a finite 4x4 transform")
-            object.__setattr__(self, key, t)
-        object.__setattr__(self, "axis", _unit(self.axis, f"axis (joint {self.name!r})"))
-        object.__setattr__(self, "axis2", _unit(self.axis2, f"axis2 (joint {self.name!r})"))
+            object.__setattr__(self, key, read_only(t))
+        object.__setattr__(self, "axis", read_only(_unit(self.axis, f"axis (joint {self.name!r})")))
+        object.__setattr__(self, "axis2", read_only(_unit(self.axis2, f"axis2 (joint {self.name!r})")))
         if self.mimic is not None:
             if not isinstance(self.mimic, Mimic):
                 got = f"expected a Mimic, got {self.mimic!r}"

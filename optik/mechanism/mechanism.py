@@ -21,8 +21,8 @@ import casadi as ca
 import numpy as np
 
 from optik import spatial
-from optik.checks import as_batch, as_limits, as_name, as_rng, as_vector
-from optik.errors import InvalidArgumentError, ModelError, UnknownFrameError
+from optik.checks import as_batch, as_limits, as_name, as_rng, as_vector, read_only, real_array
+from optik.errors import InvalidArgumentError, ModelError, ReadOnlyError, UnknownFrameError
 from optik.mechanism.joint import Joint
 from optik.mechanism.mjcf import parse_mjcf
 from optik.mechanism.topology import analyse, gruebler_kutzbach
@@ -36,6 +36,7 @@ TASK_ROWS: dict[str, tuple[int, ...]] = {
     "position2d": (0, 1),
 }
 """Rows of the 6-row geometric Jacobian ``[v; w]`` that each task space uses."""
+_EYE = read_only(np.eye(4))
 
 
 def _function_name(prefix: str, frame: str) -> str:
@@ -106,7 +107,7 @@ class Mechanism:
         self.name = name
         self.topology = analyse(self.joints, base)
         self.planar = all(_joint_is_planar(j) for j in self.joints)
-        self.frames: dict[str, tuple[str, np.ndarray]] = {b: (b, np.eye(4)) for b in self.topology.bodies}
+        self.frames: dict[str, tuple[str, np.ndarray]] = {b: (b, _EYE) for b in self.topology.bodies}
         for fname, (body, offset) in (frames or {}).items():
             if fname in self.topology.bodies:
                 raise InvalidArgumentError(
@@ -116,7 +117,7 @@ class Mechanism:
                 )
             if body not in self.frames:
                 raise UnknownFrameError("frames", f"frame {fname!r} is on unknown body {body!r}")
-            off = np.asarray(offset, dtype=float)
+            off = read_only(real_array(offset, "frames"))
             if off.shape != (4, 4):
                 raise InvalidArgumentError("frames", f"frame {fname!r}: offset must be 4x4")
             self.frames[fname] = (body, off)
@@ -141,8 +142,8 @@ class Mechanism:
             upper += j.upper
             actuated += [j.actuated] * j.dof
         self.coordinate_names: tuple[str, ...] = tuple(names)
-        self.lower = np.array(lower, dtype=float)
-        self.upper = np.array(upper, dtype=float)
+        self._lower = read_only(lower)
+        self._upper = read_only(upper)
         self.actuated: tuple[bool, ...] = tuple(actuated)
         self._mimic_sources = self._mimic_coordinates()
         self.params: dict[str, Any] = {}
@@ -209,6 +210,26 @@ class Mechanism:
         m = cls(model.joints, model.base, model.frames, model.ee, model.name, task="pose")
         m.params = dict(model.params)
         return m
+
+    # ------------------------------------------------------------------ limits
+    @property
+    def lower(self) -> np.ndarray:
+        """Lower coordinate limits (read-only: the compiled solvers of a mechanism are built for its
+        limits; [`with_limits`][optik.Mechanism.with_limits] makes a mechanism with other ones)."""
+        return self._lower
+
+    @lower.setter
+    def lower(self, value: Any) -> None:
+        raise ReadOnlyError("lower", "the limits are read-only; use m.with_limits(lower=..., upper=...)")
+
+    @property
+    def upper(self) -> np.ndarray:
+        """Upper coordinate limits (read-only, as [`lower`][optik.Mechanism.lower])."""
+        return self._upper
+
+    @upper.setter
+    def upper(self, value: Any) -> None:
+        raise ReadOnlyError("upper", "the limits are read-only; use m.with_limits(lower=..., upper=...)")
 
     # ------------------------------------------------------------------ structure
     @property

@@ -24,6 +24,7 @@ from optik import spatial
 from optik.checks import as_batch, as_limits, as_name, as_rng, as_vector, read_only, real_array
 from optik.errors import InvalidArgumentError, ModelError, ReadOnlyError, UnknownFrameError
 from optik.mechanism.joint import Joint
+from optik.mechanism.srdf import read_disabled_collisions
 from optik.mechanism.topology import analyse, gruebler_kutzbach
 from optik.mechanism.urdf import parse_urdf
 
@@ -168,7 +169,11 @@ class Mechanism:
 
     @classmethod
     def from_urdf(
-        cls, source: str | os.PathLike[str], base_link: str | None = None, tip_link: str | None = None
+        cls,
+        source: str | os.PathLike[str],
+        base_link: str | None = None,
+        tip_link: str | None = None,
+        srdf: str | os.PathLike[str] | None = None,
     ) -> Mechanism:
         """A URDF robot: the whole tree, the tree below ``base_link``, or one chain.
 
@@ -177,12 +182,17 @@ class Mechanism:
         only, the subtree below that link; with ``tip_link``, the chain from ``base_link`` (default
         the root link) to ``tip_link``, which is then ``ee``. Coordinates are named after the URDF
         joints; the task is ``"pose"``; ``params`` holds what `optik.mechanism.urdf.parse_urdf`
-        read (source, links, velocity limits, visuals). See that function for what is supported
-        and what is raised.
+        read (source, links, velocity limits, visuals, collision geometry). See that function for
+        what is supported and what is raised. ``srdf`` (a file or the XML text) gives the link
+        pairs `optik.collision` never checks, its ``disable_collisions``, kept in
+        ``params["disabled_collisions"]`` (`optik.mechanism.srdf.read_disabled_collisions`);
+        without it `optik.collision` samples them.
         """
         model = parse_urdf(source, base_link, tip_link)
         m = cls(model.joints, model.base, model.frames, model.ee, model.name, task="pose")
         m.params = dict(model.params)
+        if srdf is not None:
+            m.params["disabled_collisions"] = read_disabled_collisions(srdf)
         return m
 
     # ------------------------------------------------------------------ limits

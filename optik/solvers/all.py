@@ -335,7 +335,8 @@ def _numeric_all(
         found.append((res, same))
         misses = 0
     kept = sorted((r for r, _ in found), key=lambda r: joint_distance(m, r.q, near))
-    return IKSolutions(kept, method=name)
+    why = f"found by the numerical multi-start ({name}), which does not prove that no solution is missing"
+    return IKSolutions(kept, method=name, uncertified_reason=why)
 
 
 def _polished(request: IKRequest, res: IKResult, q: np.ndarray) -> IKResult:

@@ -24,6 +24,7 @@ from optik import spatial
 from optik.checks import as_batch, as_limits, as_name, as_rng, as_vector, read_only, real_array
 from optik.errors import InvalidArgumentError, ModelError, ReadOnlyError, UnknownFrameError
 from optik.mechanism.joint import Joint
+from optik.mechanism.mjcf import parse_mjcf
 from optik.mechanism.srdf import read_disabled_collisions
 from optik.mechanism.topology import analyse, gruebler_kutzbach
 from optik.mechanism.urdf import parse_urdf
@@ -76,7 +77,8 @@ class Mechanism:
     Args:
         joints: the joints; tree joints get coordinates in this order.
         base: name of the fixed body.
-        frames: extra named frames ``{name: (body, 4x4 offset)}``; every body is a frame too.
+        frames: extra named frames ``{name: (body, 4x4 offset)}``; every body is a frame too,
+            under its own name, which no extra frame may take.
         ee: name of the end-effector frame (default: child body of the last joint).
         name: a label for printing.
         task: default task space for Jacobian measures: ``"pose"``, ``"position"``,
@@ -87,6 +89,7 @@ class Mechanism:
         ModelError: inconsistent topology (see
             [`optik.mechanism.topology.analyse`][optik.mechanism.topology.analyse]).
         UnknownFrameError: ``ee`` or a frame's body does not exist.
+        InvalidArgumentError: a frame has a body's name, or an offset is not 4x4.
     """
 
     def __init__(
@@ -107,6 +110,12 @@ class Mechanism:
         self.planar = all(_joint_is_planar(j) for j in self.joints)
         self.frames: dict[str, tuple[str, np.ndarray]] = {b: (b, _EYE) for b in self.topology.bodies}
         for fname, (body, offset) in (frames or {}).items():
+            if fname in self.topology.bodies:
+                raise InvalidArgumentError(
+                    "frames",
+                    f"frame {fname!r} has the name of a body: it would hide the body's own frame; "
+                    "give it another name",
+                )
             if body not in self.frames:
                 raise UnknownFrameError("frames", f"frame {fname!r} is on unknown body {body!r}")
             off = read_only(real_array(offset, "frames"))
@@ -195,6 +204,23 @@ class Mechanism:
             m.params["disabled_collisions"] = read_disabled_collisions(srdf)
         return m
 
+    @classmethod
+    def from_mjcf(cls, source: Any) -> Mechanism:
+        """A MuJoCo model's whole body tree, compiled by MuJoCo (``pip install "optik[mjcf]"``).
+
+        ``source`` is an MJCF file path, the XML text or a ``mujoco.MjModel``. The base is the
+        world body ``"world"``; every body and site is a named frame; hinge, slide, ball and
+        free joints become revolute, prismatic, spherical and free joints whose coordinates
+        are MuJoCo's ``qpos`` (rotation vectors instead of quaternions:
+        `optik.mechanism.mjcf.to_qpos` and `optik.mechanism.mjcf.from_qpos` convert). The task
+        is ``"pose"``; ``params`` holds what `optik.mechanism.mjcf.parse_mjcf` read (source,
+        site frames, visuals, notes). See that module for what is supported and what is raised.
+        """
+        model = parse_mjcf(source)
+        m = cls(model.joints, model.base, model.frames, model.ee, model.name, task="pose")
+        m.params = dict(model.params)
+        return m
+
     # ------------------------------------------------------------------ limits
     @property
     def lower(self) -> np.ndarray:
@@ -255,8 +281,16 @@ class Mechanism:
 
     @cached_property
     def spherical_slices(self) -> tuple[slice, ...]:
-        """Coordinate slices of the spherical joints of the tree (rotation vectors)."""
-        return tuple(self._slices[i] for i in self.topology.tree if self.joints[i].type == "spherical")
+        """Coordinate slices of the rotation vectors of the tree: each spherical joint's three
+        coordinates and the last three of each free joint."""
+        out = []
+        for i in self.topology.tree:
+            sl, kind = self._slices[i], self.joints[i].type
+            if kind == "spherical":
+                out.append(sl)
+            elif kind == "free":
+                out.append(slice(sl.start + 3, sl.stop))
+        return tuple(out)
 
     def mobility(self) -> int:
         """Degrees of freedom by Gruebler-Kutzbach from the topology (not from the geometry)."""
@@ -464,13 +498,17 @@ class Mechanism:
 
         An unbounded side is replaced so that the interval spans ``2 pi`` for angles and
         rotation vectors (one turn: ``[-pi, pi]`` when both sides are unbounded, ``[lo, lo + 2 pi]``
-        or ``[hi - 2 pi, hi]`` when one is) and ``2`` m for prismatic coordinates. The limits
-        themselves stay infinite: solvers never clip an unbounded coordinate.
+        or ``[hi - 2 pi, hi]`` when one is) and ``2`` m for prismatic coordinates and the positions
+        of free joints. The limits themselves stay infinite: solvers never clip an unbounded
+        coordinate.
         """
         span = np.full(self.n_q, 2.0 * np.pi)
         for i in self.topology.tree:
+            sl = self._slices[i]
             if self.joints[i].type == "prismatic":
-                span[self._slices[i]] = 2.0
+                span[sl] = 2.0
+            elif self.joints[i].type == "free":
+                span[sl.start : sl.start + 3] = 2.0
         lo, hi = self.lower.copy(), self.upper.copy()
         both = ~np.isfinite(lo) & ~np.isfinite(hi)
         lo[both], hi[both] = -0.5 * span[both], 0.5 * span[both]

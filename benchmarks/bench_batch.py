@@ -49,7 +49,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
-from optik.batch.chunk import default_workers  # noqa: E402
+from optik.batch.fk import default_workers  # noqa: E402
 from optik.catalog.arms import URDF_CHAINS, urdf_path  # noqa: E402
 from optik.harness.peers import PeerUnavailable, TracIK  # noqa: E402
 from optik.harness.peers.rules import Referee, warm_up  # noqa: E402

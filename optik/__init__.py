@@ -5,8 +5,9 @@ loop-closure constraints; optik solves IK with limits, FK of parallel mechanisms
 assembly mode and differential IK, and compares every solver against closed forms.
 """
 
-from optik import catalog, closed_form, diffik, spatial  # diffik registers the "dls" and "qp" IK methods
+from optik import catalog, closed_form, collision, diffik, spatial  # diffik registers "dls" and "qp"
 from optik.batch import BatchResult, fk_batch, solve_ik_batch
+from optik.collision import World
 from optik.errors import (
     InvalidArgumentError,
     LimitsError,
@@ -15,13 +16,14 @@ from optik.errors import (
     NonFiniteError,
     OptikError,
     ProblemFileError,
+    ReadOnlyError,
     ShapeError,
     SolverUnavailableError,
     UnknownFrameError,
 )
 from optik.mechanism import Joint, Mechanism, dh_chain, planar_chain
 from optik.problem import IKProblem, build_ik_problem
-from optik.reach import reach
+from optik.reach import ReachMap, reach
 from optik.results import FKModes, FKResult, IKResult
 from optik.solvers import Tolerances, self_motion, solve_ik, solve_ik_all
 from optik.solvers.fk import solve_fk, solve_fk_all
@@ -47,13 +49,17 @@ __all__ = [
     "Pose2D",
     "Position",
     "ProblemFileError",
+    "ReachMap",
+    "ReadOnlyError",
     "ShapeError",
     "SolverUnavailableError",
     "Tolerances",
     "UnknownFrameError",
+    "World",
     "build_ik_problem",
     "catalog",
     "closed_form",
+    "collision",
     "dh_chain",
     "diffik",
     "fk_batch",

@@ -122,6 +122,48 @@ class ReachMap:
         g[tuple(self.voxels.T)] = self.index
         return g
 
+    @classmethod
+    def load(cls, path: str | Path) -> ReachMap:
+        """The map a `reach` run saved: ``path`` is its ``reach.npz`` or the folder holding it
+        (with the ``meta.json`` beside it, when there is one).
+
+        Raises:
+            InvalidArgumentError: naming ``path``: no such file, or not a capability map.
+        """
+        try:
+            npz = Path(path)
+        except TypeError:
+            raise InvalidArgumentError("path", f"expected a folder or a reach.npz, got {path!r}") from None
+        if npz.is_dir():
+            npz = npz / "reach.npz"
+        if not npz.is_file():
+            raise InvalidArgumentError("path", f"no capability map at {npz} (no such file)")
+        try:
+            with np.load(npz) as data:
+                arrays = {name: np.asarray(data[name]) for name in _MAP_ARRAYS}
+            meta_path = npz.with_name("meta.json")
+            meta = json.loads(meta_path.read_text()) if meta_path.is_file() else {}
+        except (OSError, ValueError, KeyError) as exc:
+            raise InvalidArgumentError("path", f"{npz} is not a reach.npz capability map ({exc})") from None
+        grid = arrays["grid"]
+        return cls(
+            voxels=arrays["voxels"].astype(np.int64).reshape(-1, 3),
+            centers=arrays["centers"].astype(float).reshape(-1, 3),
+            index=arrays["index"].astype(float).reshape(-1),
+            success=arrays["success"].astype(bool),
+            rotations=arrays["rotations"].astype(float),
+            origin=arrays["origin"].astype(float),
+            resolution=float(arrays["resolution"]),
+            shape=(int(grid.shape[0]), int(grid.shape[1]), int(grid.shape[2])),
+            meta=meta,
+            complete=bool(np.isfinite(arrays["index"]).all()),
+            files=[npz, *([meta_path] if meta_path.is_file() else [])],
+        )
+
+
+_MAP_ARRAYS = ("voxels", "centers", "index", "grid", "success", "rotations", "origin", "resolution")
+"""The arrays of ``reach.npz`` (written by `_write_outputs`, read by `ReachMap.load`)."""
+
 
 def _fingerprint(m: Mechanism) -> str:
     return hashlib.sha256(pickle.dumps(m)).hexdigest()[:16]

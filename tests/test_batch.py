@@ -91,6 +91,49 @@ def test_other_methods_loop_over_solve_ik() -> None:
         np.testing.assert_array_equal(optik.solve_ik(arm, targets[i], method="closed_form").q, res.q[i])
 
 
+def test_closed_form_batch_of_a_derived_arm_takes_the_compiled_driver(monkeypatch) -> None:
+    import optik.batch.chunk as chunk
+
+    arm = optik.catalog.puma560()
+    q = arm.random_q(60, seed=4)
+    targets = fk_batch(arm, q)
+    targets[5, :3, 3] = [3.0, 0.0, 0.0]  # out of reach: the driver leaves it to solve_ik
+    looped = []
+
+    def counted(*args, **kwargs):
+        looped.append(args[1])
+        return optik.solve_ik(*args, **kwargs)
+
+    monkeypatch.setattr(chunk, "solve_ik", counted)
+    res = solve_ik_batch(arm, targets, method="closed_form")
+    assert len(looped) == 1 and np.array_equal(looped[0], targets[5])  # every other target: the driver
+    assert res.workers == 1 and 0 < res.compile_time <= res.wall_time
+    assert res.throughput == pytest.approx(len(res) / (res.wall_time - res.compile_time))
+    assert res.success.sum() == 59 and not res.success[5] and res.status[5] == "unreachable"
+    for i in range(60):
+        one = optik.solve_ik(arm, targets[i], method="closed_form")
+        np.testing.assert_array_equal(one.q, res.q[i])
+        assert one.success == res.success[i] and one.status == res.status[i]
+        assert one.position_error == pytest.approx(res.position_error[i], abs=1e-12)
+        assert one.orientation_error == pytest.approx(res.orientation_error[i], abs=1e-12)
+    # the successes are real: one independent FK, exact limits
+    ok = res.success
+    pose = np.array([arm.fk(row) for row in res.q[ok]])
+    assert np.abs(pose[:, :3, 3] - targets[ok, :3, 3]).max() <= 1e-6
+    assert ((res.q >= arm.lower) & (res.q <= arm.upper)).all()
+
+
+def test_the_compile_is_reported_apart_from_the_throughput() -> None:
+    arm = optik.catalog.planar_3r(lengths=(1.0, 0.7, 0.4))  # a new mechanism: its kernel is built now
+    targets = fk_batch(arm, arm.random_q(20, seed=2))
+    first = solve_ik_batch(arm, targets, tol=1e-8)
+    again = solve_ik_batch(arm, targets, tol=1e-8)
+    assert 0 < first.compile_time <= first.wall_time
+    assert again.compile_time < first.compile_time
+    for res in (first, again):
+        assert res.throughput == pytest.approx(len(res) / (res.wall_time - res.compile_time))
+
+
 def test_table_records_and_concatenation(capsys: pytest.CaptureFixture) -> None:
     targets, _ = _panda_targets(3, 5)
     res = solve_ik_batch(PANDA, targets, progress=True)

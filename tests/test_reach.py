@@ -101,3 +101,20 @@ def test_cli_stops_resumes_and_keeps_chunks_on_ctrl_c(tmp_path: Path, capsys: py
     for c in chunks:
         with np.load(c) as data:
             assert data["success"].shape[1] == 16
+
+
+def test_a_saved_map_loads_back(tmp_path):
+    m = optik.catalog.planar_2r()
+    rmap = optik.reach(m, resolution=0.25, orientations=4, samples=2000, workers=1, out=tmp_path)
+    for path in (tmp_path, tmp_path / "reach.npz"):
+        back = optik.ReachMap.load(path)
+        for name in ("voxels", "centers", "index", "success", "rotations", "origin"):
+            np.testing.assert_array_equal(getattr(back, name), getattr(rmap, name))
+        assert back.resolution == rmap.resolution and back.shape == rmap.shape
+        assert back.complete and back.meta["settings"] == rmap.meta["settings"]
+        np.testing.assert_array_equal(back.grid(), rmap.grid())
+    with pytest.raises(optik.InvalidArgumentError, match=r"^path: no capability map at .*no such file"):
+        optik.ReachMap.load(tmp_path / "nothing")
+    (tmp_path / "bad.npz").write_bytes(b"not a zip")
+    with pytest.raises(optik.InvalidArgumentError, match=r"^path: .*bad\.npz is not a reach\.npz"):
+        optik.ReachMap.load(tmp_path / "bad.npz")

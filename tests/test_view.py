@@ -199,11 +199,12 @@ def test_latest_runs_the_newest_request_and_drops_the_stale_ones():
 @pytest.mark.parametrize(
     ("argv", "argument"),
     [
-        (["view", "no_such_problem", "--no-browser"], "problem"),
-        (["view", "robot.urdf", "--no-browser"], "--base"),
+        (["view", "no_such_problem", "--no-browser"], "PROBLEM|ROBOT|URDF"),
+        (["view", "robot.urdf", "--no-browser"], "PROBLEM|ROBOT|URDF"),  # no such file
+        (["view", str(optik.catalog.urdf_path("panda")), "--no-browser"], "--base"),
         (["view", "planar_3r", "--no-browser", "--method", "warp"], "method"),
         (["view", "planar_3r", "--no-browser", "--port", "70000"], "--port"),
-        (["view", "planar_3r", "--no-browser", "--reach", "no/such/map"], "source"),
+        (["view", "planar_3r", "--no-browser", "--reach", "no/such/map"], "--reach"),
     ],
 )
 def test_view_command_errors_exit_2_naming_the_argument(argv, argument, capsys):

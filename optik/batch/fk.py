@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
 from functools import lru_cache
@@ -10,7 +11,6 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from optik.batch.chunk import default_workers
 from optik.checks import as_batch
 from optik.mechanism import Mechanism
 from optik.native import CCall, library
@@ -45,6 +45,14 @@ class _MappedFK:
         buf[k:] = q[-1] if k else 0.0
         call()
         return out[:k].transpose(0, 2, 1).copy()
+
+
+def default_workers() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
 
 
 @lru_cache(maxsize=32)

@@ -2,12 +2,16 @@
 
 The targets are cut into chunks. With method ``"lm"`` a chunk is one call of the compiled
 kernel (`optik.solvers.lm_kernel`): the whole multi-start loop of every target runs in C and
-the call releases the GIL, so a thread pool keeps every core busy; other methods loop over
-`optik.solve_ik` per target. Target ``i`` is solved with seed ``target_seeds(seed)[i]`` and its
-own time limit, so the answers depend neither on the chunking nor on the number of threads or
-Dask workers, and ``solve_ik(m, targets[i], q0[i], seed=result.seed[i], ...)`` gives the same
-answer (``result.seed`` holds the seeds). With ``scheduler=`` a ``dask.distributed.Client``,
-the chunks are Dask tasks (`optik.batch.distributed`).
+the call releases the GIL, so a thread pool keeps every core busy. With ``"closed_form"`` on
+an arm whose closed form is derived (UR, PUMA-like 6R arms) each target is one call of the
+compiled driver and the answers are checked by one vectorized FK, in the calling thread;
+other methods loop over `optik.solve_ik` per target. The build and compile before the first
+chunk is timed apart (``BatchResult.compile_time``, not counted in its throughput). Target
+``i`` is solved with seed ``target_seeds(seed)[i]`` and its own time limit, so the answers
+depend neither on the chunking nor on the number of threads or Dask workers, and
+``solve_ik(m, targets[i], q0[i], seed=result.seed[i], ...)`` gives the same answer
+(``result.seed`` holds the seeds). With ``scheduler=`` a ``dask.distributed.Client``, the
+chunks are Dask tasks (`optik.batch.distributed`).
 """
 
 from __future__ import annotations
@@ -19,7 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from optik.batch.chunk import ChunkSpec, chunk_bounds, default_workers, solve_chunk
+from optik.batch.chunk import ChunkSpec, chunk_bounds, prepare, solve_chunk
+from optik.batch.fk import default_workers
 from optik.batch.inputs import as_starts, as_targets, target_seed_array
 from optik.batch.result import BatchResult
 from optik.mechanism import Mechanism
@@ -53,7 +58,9 @@ def solve_ik_batch(
         targets: ``(N, 4, 4)`` transforms, ``(N, 3)`` positions, or a sequence of
             `optik.Pose2D` / `optik.Position` / 4x4 transforms.
         q0: first start: None (mid-limit), one vector for all, or ``(N, n)``.
-        method: IK method (``"lm"``: the compiled chunk kernel; others loop over `optik.solve_ik`).
+        method: IK method (``"lm"``: the compiled chunk kernel; ``"closed_form"`` on an arm with
+            a derived closed form: its compiled driver, one thread; others loop over
+            `optik.solve_ik`).
         task: task space (default from the targets and the mechanism).
         frame: task frame (default: the end effector).
         time_limit: seconds per target (default 0.1, as `optik.solve_ik`).
@@ -62,7 +69,7 @@ def solve_ik_batch(
             ``result.seed[i]``. Or one int per target (e.g. ``result.seed[rows]`` of an earlier
             batch, to solve some of its targets again with their own seeds).
         workers: threads of the local pool (default: the cores available); ignored with
-            ``scheduler``.
+            ``scheduler`` and by ``"closed_form"`` (one thread: its calls hold the GIL).
         scheduler: a ``dask.distributed.Client`` (or a scheduler address) to solve the chunks
             on a Dask cluster.
         chunk_size: targets per chunk (default: about eight chunks per worker, at most 512
@@ -78,6 +85,7 @@ def solve_ik_batch(
         OptikError: malformed input (named argument), unknown option or method.
     """
     t0 = time.perf_counter()
+    compile_time = 0.0
     transforms, implied = as_targets(m, targets)
     n = len(transforms)
     starts = as_starts(m, q0, n)
@@ -112,9 +120,12 @@ def solve_ik_batch(
             scheduler, m, spec, transforms, starts, seeds, chunk_size, retries, bar.step if bar else None
         )
     else:
-        used = workers or default_workers()
-        if method == "lm" and n:  # build and compile once, before the threads start
-            solve_chunk(m, spec, transforms[:1], starts[:1], seeds[:1])
+        # the compiled closed form holds the GIL for its microseconds: threads would only contend
+        used = 1 if method == "closed_form" else workers or default_workers()
+        if n:  # build and compile once, before the threads start
+            t_build = time.perf_counter()
+            prepare(m, spec, transforms[0], starts[0])
+            compile_time = time.perf_counter() - t_build
         bounds = chunk_bounds(n, used, chunk_size)
         parts = _run_threads(m, spec, transforms, starts, seeds, bounds, used, bar.step if bar else None)
     if bar is not None:
@@ -127,6 +138,7 @@ def solve_ik_batch(
         base_seed=seed0,
         wall_time=time.perf_counter() - t0,
         workers=used,
+        compile_time=compile_time,
         coordinate_names=tuple(m.coordinate_names),
     )
 

@@ -151,6 +151,16 @@ def binding_of(m: Mechanism) -> Callable[..., Any] | None:
     return compiled_binding(m)
 
 
+def compile_closed_form(m: Mechanism) -> None:
+    """Build (or load from the cache) the compiled driver of ``m``'s derived closed form now and
+    wait for it (`optik.closed_form.DerivedIK.compile`), so that `binding_of` has it; nothing
+    for other closed forms. A batch is worth the wait: a single call answers from numpy while
+    the driver builds in the background."""
+    rows = registry.ik_solver(m)
+    if type(rows) is DerivedRows:
+        rows.solver.compile()
+
+
 def compiled_binding(m: Mechanism) -> Callable[..., Any] | None:
     """The Python binding of the compiled driver of ``m``'s derived closed form
     ([`optik.closed_form.ik_all`][optik.closed_form.ik_all]), kept in `BINDINGS` once it is
@@ -188,6 +198,19 @@ def solve_closed_form(request: IKRequest) -> IKResult:
     inside = registry.within_limits(m, every)
     if inside:
         return make_result(request, _nearest_row(m, inside, request.q0), "closed_form", 0, errors=errors)
+    if isinstance(every, registry.Uncertified):  # no word on reachability from an incomplete search
+        res = make_result(
+            request,
+            _nearest_row(m, every, request.q0) if every else request.q0,
+            "closed_form",
+            0,
+            status="not_found",
+            message=f"the closed form found {len(every)} branch(es), none within the joint limits, and is "
+            f"not certified complete ({every.reason}): the target may still be reachable",
+            errors=errors,
+        )
+        res.extra["uncertified"] = every.reason or "no reason given"
+        return res
     if every:
         return make_result(
             request,

@@ -56,8 +56,11 @@ def _viewer(args: argparse.Namespace) -> Any:
         raise InvalidArgumentError("--port", f"expected 0..65535, got {args.port}")
     m, problem = load_source(args.source, args.base, args.tip, args.problems_dir)
     task, tol = (problem.mechanism_task, problem.tolerances) if problem is not None else (None, None)
-    if args.reach is not None:
-        reach_points(args.reach)  # a bad map is a usage error before the server starts
+    if args.reach is not None:  # a bad map is a usage error before the server starts
+        try:
+            reach_points(args.reach)
+        except InvalidArgumentError as exc:
+            raise InvalidArgumentError("--reach", str(exc).partition(": ")[2]) from None
     viewer = Viewer(m, host=args.host, port=args.port, task=task, tol=tol, method=args.method)
     if args.reach is not None:
         viewer.show_reach(args.reach)

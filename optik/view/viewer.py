@@ -25,7 +25,6 @@ import io
 import math
 import os
 import threading
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -37,6 +36,7 @@ from optik.diffik import circle_path, track
 from optik.diffik.track import TrackResult
 from optik.errors import InvalidArgumentError, SolverUnavailableError, require_extra
 from optik.mechanism import Mechanism
+from optik.reach import ReachMap
 from optik.results import IKResult
 from optik.solvers import methods, pick_method, solve_ik, solve_ik_all
 from optik.solvers.base import Tolerances, joint_distance, positive_int
@@ -57,7 +57,7 @@ GHOST = Style(link=(120, 170, 230), ground=(120, 120, 120), slide=(230, 150, 120
 
 def reach_points(source: Any) -> tuple[np.ndarray, np.ndarray, float]:
     """``(centers (V, 3), index (V,), resolution)`` of a capability map: a `optik.reach.ReachMap`
-    or the ``reach.npz`` it is saved as (a file or its folder).
+    or the ``reach.npz`` it is saved as (a file or its folder, read by `optik.ReachMap.load`).
 
     Raises:
         InvalidArgumentError: not a map, no such file, or a file without those arrays.
@@ -68,20 +68,11 @@ def reach_points(source: Any) -> tuple[np.ndarray, np.ndarray, float]:
         raise InvalidArgumentError(
             "source", f"expected a ReachMap or a reach.npz path, got {type(source).__name__}"
         )
-    path = Path(source)
-    if path.is_dir():
-        path = path / "reach.npz"
-    if not path.is_file():
-        raise InvalidArgumentError("source", f"no capability map at {path}")
     try:
-        with np.load(path) as data:
-            return (
-                np.asarray(data["centers"], float).reshape(-1, 3),
-                np.asarray(data["index"], float).reshape(-1),
-                float(data["resolution"]),
-            )
-    except (OSError, ValueError, KeyError) as exc:
-        raise InvalidArgumentError("source", f"{path} is not a reach.npz capability map ({exc})") from None
+        rmap = ReachMap.load(source)
+    except InvalidArgumentError as exc:
+        raise InvalidArgumentError("source", str(exc).partition(": ")[2]) from None
+    return rmap.centers, rmap.index, rmap.resolution
 
 
 def _viser() -> Any:

@@ -157,6 +157,7 @@ class Mechanism:
         self._mimic_sources = self._mimic_coordinates()
         self.params: dict[str, Any] = {}
         """Catalog parameters (link lengths, base points, ...) the mechanism was built from."""
+        self._geometry_of: Mechanism | None = None  # set by with_limits
         self.kind: str | None = None
         """Catalog key (e.g. ``"planar_3r"``) under which [`optik.closed_form`][optik.closed_form] finds this
         mechanism's analytic solvers; None for mechanisms built by hand."""
@@ -638,7 +639,17 @@ class Mechanism:
         joints = list(self.joints)
         for i, sl in self._slices.items():
             joints[i] = replace(joints[i], lower=tuple(lo[sl]), upper=tuple(hi[sl]))
-        return self._rebuild(joints)
+        copy = self._rebuild(joints)
+        copy._geometry_of = self.geometry
+        return copy
+
+    @property
+    def geometry(self) -> Mechanism:
+        """The mechanism this one was made from by `with_limits` (through any number of such
+        copies), else itself: the same model but for the limits. Code compiled with the limits as
+        inputs (the LM kernel of `optik.solvers.lm_kernel`) is shared through it, so that
+        pinning a joint at many values (`optik.solve_ik_all` with ``fixed=``) compiles once."""
+        return self._geometry_of or self
 
     def _rebuild(self, joints: Sequence[Joint]) -> Mechanism:
         extra = {k: v for k, v in self.frames.items() if k not in self.topology.bodies}

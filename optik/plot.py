@@ -52,7 +52,7 @@ __all__ = [
     "write_atomic",
 ]
 
-_MARKERS = {"revolute": "o", "prismatic": "s", "universal": "D", "spherical": "o"}
+_MARKERS = {"revolute": "o", "prismatic": "s", "universal": "D", "spherical": "o", "free": "*"}
 _TRIAD_COLORS = ("tab:red", "tab:green", "tab:blue")
 _GEOMETRY: PerMechanism[ca.Function] = PerMechanism()
 

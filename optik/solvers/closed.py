@@ -199,6 +199,19 @@ def solve_closed_form(request: IKRequest) -> IKResult:
     inside = registry.within_limits(m, every)
     if inside:
         return make_result(request, _nearest_row(m, inside, request.q0), "closed_form", 0, errors=errors)
+    if isinstance(every, registry.Uncertified):  # no word on reachability from an incomplete search
+        res = make_result(
+            request,
+            _nearest_row(m, every, request.q0) if every else request.q0,
+            "closed_form",
+            0,
+            status="not_found",
+            message=f"the closed form found {len(every)} branch(es), none within the joint limits, and is "
+            f"not certified complete ({every.reason}): the target may still be reachable",
+            errors=errors,
+        )
+        res.extra["uncertified"] = every.reason or "no reason given"
+        return res
     if every:
         return make_result(
             request,

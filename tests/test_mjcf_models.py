@@ -1,7 +1,8 @@
 """Every MJCF file shipped by the installed test-set packages (dm_control, gymnasium,
 gymnasium-robotics): where MuJoCo compiles it, `Mechanism.from_mjcf` loads it and the pose of
 every body and site equals MuJoCo's ``mj_kinematics`` (``xpos``, ``xmat``, ``site_xpos``,
-``site_xmat``) to 1e-10 on random configurations; a model without joints is refused. Files that
+``site_xmat``) to 1e-10 on random configurations, and so does the centre of mass (MuJoCo's
+``subtree_com`` of the world); a model without joints is refused. Files that
 MuJoCo itself cannot compile (include fragments, schemas, files whose assets are missing) are
 skipped with MuJoCo's message. The table in ``docs/mjcf.md`` lists the outcome per file."""
 
@@ -81,5 +82,10 @@ def test_fk_equals_mujoco(path: Path):
     frames = [model.body(b).name or f"body{b}" for b in range(1, model.nbody)]
     frames += [m.params["site_frames"][model.site(s).name or f"site{s}"] for s in range(model.nsite)]
     f = ca.Function("frames", [m.q_sym], [m.frame_expr(name) for name in frames])
+    data = mujoco.MjData(model)
     for q in m.random_q(SAMPLES, seed=0):
         assert _max_fk_error(m, model, q, frames, f) < 1e-10
+        data.qpos[:] = to_qpos(m, q)
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        assert np.abs(m.com(q) - data.subtree_com[0]).max() < 1e-10

@@ -68,7 +68,6 @@ a singular boundary, a root that cannot be decided) and solutions may be missing
 from __future__ import annotations
 
 import math
-import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -81,6 +80,7 @@ from optik.closed_form import registry
 from optik.closed_form.structure import Axes, axes_of
 from optik.errors import InvalidArgumentError, ShapeError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 
 __all__ = [
     "FK_TOL",
@@ -467,7 +467,7 @@ class General6RSolutions:
         return iter(list(self.q))
 
 
-_ARMS: weakref.WeakKeyDictionary[Mechanism, General6R] = weakref.WeakKeyDictionary()
+_ARMS: PerMechanism[General6R] = PerMechanism()
 
 
 def _arm(arm: Mechanism | General6R) -> General6R:

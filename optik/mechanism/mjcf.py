@@ -81,6 +81,8 @@ class MjcfModel:
             coordinate index, ``qpos`` address; used by `to_qpos` and `from_qpos`), ``"nq"``
             (MuJoCo's ``nq``), ``"site_frames"``, ``"visuals"`` and ``"notes"`` (what was not
             read and why, when anything was not).
+        inertials: ``{body: (body_mass, body_ipos)}`` of the bodies with a mass (fixed bodies
+            included; MuJoCo's compiler has already derived masses from geoms where asked).
     """
 
     name: str
@@ -89,6 +91,7 @@ class MjcfModel:
     frames: dict[str, tuple[str, np.ndarray]]
     ee: str
     params: dict[str, object] = field(default_factory=dict)
+    inertials: dict[str, tuple[float, np.ndarray]] = field(default_factory=dict)
 
 
 def load_mjmodel(source: Any) -> tuple[Any, str]:
@@ -325,7 +328,12 @@ def parse_mjcf(source: Any) -> MjcfModel:
         params["notes"] = tuple(notes)
     raw = bytes(model.names)
     name = raw[: raw.index(b"\0")].decode() or "mjcf"
-    return MjcfModel(name, "world", tuple(joints), frames, ee, params)
+    inertials = {
+        bodies[b]: (float(model.body_mass[b]), np.array(model.body_ipos[b], dtype=float))
+        for b in range(1, model.nbody)
+        if model.body_mass[b] > 0
+    }
+    return MjcfModel(name, "world", tuple(joints), frames, ee, params, inertials)
 
 
 def _qpos_map(m: Any) -> tuple[tuple[int, int, int], ...]:

@@ -27,7 +27,6 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Callable, Sequence  # noqa: E402
 from dataclasses import dataclass, field  # noqa: E402
@@ -36,6 +35,7 @@ import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
 from optik import native  # noqa: E402
+from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.catalog.arms import URDF_CHAINS, urdf_path  # noqa: E402
 from optik.solvers.base import evaluate  # noqa: E402
 
@@ -136,7 +136,7 @@ def run(
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point (also called by the ``optik`` CLI)."""
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p = benchmark_parser("ik", __doc__)
     p.add_argument("--n", type=int, default=10000, help="number of targets")
     p.add_argument("--time-limit", type=float, default=0.005, help="time limit per call (s)")
     p.add_argument("--tol", type=float, default=1e-5, help="position / orientation tolerance")
@@ -147,7 +147,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     p.add_argument("--n-nlp", type=int, default=1000, help="targets for the (slower) nlp method")
     p.add_argument("--nlp-time-limit", type=float, default=0.3, help="time limit of nlp calls (s)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seed of the random draws")
     args = p.parse_args(argv)
     methods = [s.strip() for s in args.methods.split(",") if s.strip()]
     if "tracik" in methods:

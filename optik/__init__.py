@@ -5,8 +5,9 @@ loop-closure constraints; optik solves IK with limits, FK of parallel mechanisms
 assembly mode and differential IK, and compares every solver against closed forms.
 """
 
-from optik import catalog, closed_form, diffik, spatial  # diffik registers the "dls" and "qp" IK methods
+from optik import catalog, closed_form, collision, diffik, spatial  # diffik registers "dls" and "qp"
 from optik.batch import BatchResult, fk_batch, solve_ik_batch
+from optik.collision import World
 from optik.errors import (
     InvalidArgumentError,
     LimitsError,
@@ -15,6 +16,7 @@ from optik.errors import (
     NonFiniteError,
     OptikError,
     ProblemFileError,
+    ReadOnlyError,
     ShapeError,
     SolverUnavailableError,
     UnknownFrameError,
@@ -48,13 +50,16 @@ __all__ = [
     "Position",
     "ProblemFileError",
     "ReachMap",
+    "ReadOnlyError",
     "ShapeError",
     "SolverUnavailableError",
     "Tolerances",
     "UnknownFrameError",
+    "World",
     "build_ik_problem",
     "catalog",
     "closed_form",
+    "collision",
     "dh_chain",
     "diffik",
     "fk_batch",

@@ -22,6 +22,14 @@ def real_array(value: Any, name: str) -> np.ndarray:
     return a.astype(float, copy=False)
 
 
+def read_only(value: Any) -> np.ndarray:
+    """A read-only float copy of ``value``: the arrays a model is built from, which cached
+    solvers rely on (a write raises numpy's ``ValueError: assignment destination is read-only``)."""
+    out = np.array(value, dtype=float)
+    out.flags.writeable = False
+    return out
+
+
 def as_vector(value: Any, name: str, size: int | None = None) -> np.ndarray:
     """A finite float vector of the given size.
 

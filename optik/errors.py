@@ -47,6 +47,11 @@ class UnknownFrameError(InvalidArgumentError, KeyError):
         return self.args[0]
 
 
+class ReadOnlyError(InvalidArgumentError, AttributeError):
+    """An attribute of a model is read-only; the message names the call that makes a changed
+    copy (e.g. `Mechanism.with_limits`), so that no cached solver keeps answering for old values."""
+
+
 class ModelError(OptikError):
     """A mechanism description is inconsistent (dangling bodies, duplicate names, ...)."""
 

@@ -270,7 +270,26 @@ def test_nearly_parallel_axes_at_both_ends(twist: float) -> None:
     assert np.allclose(arm.reversed.fk(q[:, ::-1]), np.linalg.inv(arm.fk(q)), atol=1e-3)
     sols = solve_general_6r(arm, arm.fk(q))
     assert all(s.fk_error <= FK_TOL for s in sols)
-    assert all(min(angle_distance(s, qi) for s in sol.q) < 1e-8 for qi, sol in zip(q, sols, strict=True))
+    for qi, sol in zip(q, sols, strict=True):  # an empty answer fails here, not in min()
+        assert np.min(angle_distance(sol.q, qi), initial=np.inf) < 1e-8, sol.reason
+
+
+def test_drifted_real_roots_are_polished_back_not_called_complex() -> None:
+    """Axes 1-2 and 5-6 at 1e-6 rad from parallel make the pencil nearly singular: eigenvalues of
+    real solutions drift up to 0.5 rad into the complex plane (before, 0 solutions of a
+    reachable target were certified complete on 39 of 300 targets). Polished in complex space
+    they come back to the real axis; every target's drawn configuration is among the answers,
+    and a certified answer's real and complex solutions add up to 16."""
+    rng = np.random.default_rng(51)
+    a, alpha, d = rng.uniform(0.1, 1, 6), rng.uniform(-np.pi, np.pi, 6), rng.uniform(-1, 1, 6)
+    alpha[[0, 4]] = 1e-6
+    arm = General6R(a=a, alpha=alpha, d=d)
+    q = np.random.default_rng(7).uniform(-np.pi, np.pi, (60, 6))
+    sols = solve_general_6r(arm, arm.fk(q))
+    for qi, sol in zip(q, sols, strict=True):
+        assert np.min(angle_distance(sol.q, qi), initial=np.inf) < 1e-8, (sol.count_ok, sol.reason)
+        assert sol.fk_error <= FK_TOL
+        assert not sol.count_ok or len(sol.q) + sol.n_complex == 16
 
 
 def test_reversed_chain_is_the_inverse() -> None:

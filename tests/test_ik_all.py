@@ -55,6 +55,25 @@ def test_numeric_method_is_the_method_used() -> None:
     assert all(joint_distance(m, a.q, b.q) >= 1e-4 for a, b in pairs)
 
 
+def test_only_a_complete_closed_form_is_certified() -> None:
+    """Regression (issue 18, item 1): numerical answers said ``certified=True`` (an empty
+    ``uncertified_reason``). Every numerical answer now says why it is not certified, on a
+    locked Panda (no derived closed form: multi-start ``lm``) and on an arm with a closed form
+    asked for by ``lm``; the closed form itself stays certified."""
+    panda = optik.catalog.panda()
+    q = np.array([0.1, -0.4, 0.3, -1.8, 0.2, 1.6, 0.5])
+    locked = optik.solve_ik_all(panda, panda.fk(q), fixed={"q3": 0.3}, seed=0, time_limit=0.5, patience=5)
+    assert locked.method == "lm" and len(locked)
+    assert not locked.certified and "numerical multi-start (lm)" in locked.uncertified_reason
+    assert "not certified complete" in locked.message
+    m, target = _seed_target()
+    numeric = optik.solve_ik_all(m, target, method="lm", seed=0, time_limit=0.5, patience=5)
+    assert not numeric.certified and numeric.uncertified_reason
+    exact = optik.solve_ik_all(m, target)
+    assert exact.method == "closed_form" and exact.certified and exact.uncertified_reason == ""
+    assert not optik.results.IKSolutions([], method="lm").certified  # whatever the reason says
+
+
 def test_methods_without_restarts_run_in_the_multistart() -> None:
     m = optik.catalog.planar_2r()
     sols = optik.solve_ik_all(m, optik.Position(1.2, 0.6), method="dls", seed=0, time_limit=2.0, patience=10)

@@ -1,8 +1,8 @@
 """The import direction of the package: each layer imports only the layers below it, and no two
 modules import each other (directly or around a loop), lazy imports inside functions included.
 
-Layers, bottom to top: errors; checks, native; spatial, targets, results; mechanism; catalog;
-closed_form; problem; solvers; diffik; applications (problem_files, progress, batch, reach, plot,
+Layers, bottom to top: errors; checks, native; spatial, targets, results; mechanism; collision;
+catalog; closed_form; problem; solvers; diffik; applications (problem_files, progress, batch, reach, plot,
 harness, benchmarks, problems, view, cli). The top-level folders ``benchmarks/`` and ``problems/``
 are the packages ``optik.benchmarks`` and ``optik.problems`` (setup.py maps them) and are checked
 as such. A package's ``__init__`` may import its own submodules (it re-exports them).
@@ -22,6 +22,7 @@ LAYERS = [
     {"checks", "native"},
     {"spatial", "targets", "results"},
     {"mechanism"},
+    {"collision"},
     {"catalog"},
     {"closed_form"},
     {"problem"},

@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import functools
 import threading
-import weakref
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
@@ -46,6 +45,7 @@ from optik.closed_form.ik_all import AllSolutionsKernel
 from optik.closed_form.spherical_wrist import Branch
 from optik.closed_form.structure import Axes, Structure, axes_of, detect
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 
 POLISH_STEPS = 3
 """Gauss-Newton steps applied to an inexact candidate."""
@@ -456,8 +456,8 @@ def derive_axes(axes: Axes) -> DerivedIK | None:
     return None if structure is None else DerivedIK(axes, structure)
 
 
-_AXES: weakref.WeakKeyDictionary[Mechanism, Axes | None] = weakref.WeakKeyDictionary()
-_CACHE: weakref.WeakKeyDictionary[Mechanism, DerivedIK | None] = weakref.WeakKeyDictionary()
+_AXES: PerMechanism[Axes | None] = PerMechanism()
+_CACHE: PerMechanism[DerivedIK | None] = PerMechanism()
 
 
 def chain_axes(m: Mechanism) -> Axes | None:

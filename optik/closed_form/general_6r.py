@@ -45,24 +45,29 @@ of a nearby generic arm (`General6R.perturbed`) are polished on the arm and adde
 certificate (the count check stays failed). `covers` tells beforehand whether an arm's geometry
 is covered (regular from one end).
 
-**Certification.** Every candidate whose eigenvalue is real to within `REAL_TOL` is
-Newton-polished on the full pose residual (six equations, six unknowns) of the DH model and,
-for a mechanism, on ``m.fk`` / ``m.jacobian`` where still needed, kept only when the
-final forward kinematics matches the target to `FK_TOL` (position relative to the arm's
-size, orientation in radians) and deduplicated (1e-6 rad, angles modulo 2 pi). The count check:
-a generic arm has exactly 16 finite solutions in complex space, so the result reports the number
-of finite eigenvalues (``n_finite``, 16 expected), of real and of complex ones, and flags
-(``count_ok = False``) any instance where the verified real solutions and the complex
-eigenvalues do not add up to 16, where fewer than 16 finite eigenvalues were found, where
-``M(x_3)`` is singular at two test points (a singular pencil, whose eigenvalues mean nothing),
-or where a real candidate failed its check: the arm or the pose is then degenerate (special geometry, a
-pose on a singular boundary) and solutions may be missing.
+**Certification.** Every finite eigenvalue is a candidate, except those far from the real axis
+(``|Im(phi_3)| > _FAR``) of a well-posed pencil (`_WELL_POSED`), which count as complex. Each
+candidate (``theta_1 .. theta_6`` complex, from the eigenvector and the back-substitution) is
+Newton-polished in complex space on the full pose residual (six equations, six unknowns) of the
+DH model: a real root that rounding moved off the real axis (which happens when the pencil is
+nearly singular, e.g. axes within 1e-5 rad of parallel) converges back to it, a complex root
+converges where it is. A converged candidate whose angles are real to `IMAG_TOL` is a real
+candidate: it is polished on the real model (for a mechanism on ``m.fk`` / ``m.jacobian`` where
+still needed), kept only when the final forward kinematics matches the target to `FK_TOL`
+(position relative to the arm's size, orientation in radians) and deduplicated (1e-6 rad,
+angles modulo 2 pi). The count check: a 6R arm has at most 16 isolated solutions in complex
+space (16 for a generic arm), so 16 distinct verified ones are all of them. The result reports
+the number of finite eigenvalues (``n_finite``, 16 expected), of distinct real and complex
+solutions, and flags (``count_ok = False``) any instance where they do not add up to 16, where
+fewer than 16 finite eigenvalues were found, where ``M(x_3)`` is singular at two test points (a
+singular pencil, whose eigenvalues mean nothing), or where a candidate did not converge or a
+real one failed its check: the arm or the pose is then degenerate (special geometry, a pose on
+a singular boundary, a root that cannot be decided) and solutions may be missing.
 """
 
 from __future__ import annotations
 
 import math
-import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -75,11 +80,12 @@ from optik.closed_form import registry
 from optik.closed_form.structure import axes_of
 from optik.errors import InvalidArgumentError, ShapeError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 
 __all__ = [
     "FK_TOL",
+    "IMAG_TOL",
     "PERTURBATION",
-    "REAL_TOL",
     "ROTATIONS",
     "General6R",
     "General6RSolutions",
@@ -91,9 +97,22 @@ __all__ = [
 FK_TOL = 1e-9
 """Largest accepted FK mismatch of a returned solution (position / arm size, orientation rad)."""
 
-REAL_TOL = 1e-3
-"""An eigenvalue is a real candidate when ``|Im(phi_3)| <= REAL_TOL`` (``phi_3 = 2 atan(x_3)``);
-polishing and the FK check then decide."""
+IMAG_TOL = 1e-8
+"""A candidate polished in complex space is a real solution when every ``|Im(theta_i)|`` is
+below this (a complex solution otherwise); the FK check on the real part then decides."""
+
+_CONVERGED = 1e-10
+"""Largest pose residual (unit scale, times `_magnitude`) of a converged candidate."""
+
+_FAR = 1.0
+"""An eigenvalue with ``|Im(phi_3)| > _FAR`` of a well-posed pencil (`_WELL_POSED`) is counted
+complex without polishing; every other one is polished and verified (or the count fails)."""
+
+_WELL_POSED = 1e-7
+"""``M(x)`` is well posed when its smallest singular value relative to its largest exceeds this
+at one of the test points (`_PROBES`). Generic arms measure above 1e-4; the eigenvalues of
+arms below 1e-7 (axes within 1e-5 rad of parallel at both ends) move by up to 0.2 rad off the
+real axis, and much more below that."""
 
 ROTATIONS = (0.7853981633974483 + 0.2718281828, -0.5772156649, 0.4142135624)
 """The fixed rotations ``delta_3, delta_4, delta_5`` (rad) of the eliminated angles."""
@@ -144,7 +163,7 @@ def _dh(theta: np.ndarray, d: float, a: float, alpha: float) -> np.ndarray:
     """``Rz(theta) Tz(d) Tx(a) Rx(alpha)`` for an array of angles: shape ``theta.shape + (4, 4)``."""
     c, s = np.cos(theta), np.sin(theta)
     ca, sa = math.cos(alpha), math.sin(alpha)
-    out = np.zeros((*np.shape(theta), 4, 4))
+    out = np.zeros((*np.shape(theta), 4, 4), dtype=np.result_type(theta, float))
     out[..., 0, 0], out[..., 0, 1], out[..., 0, 2], out[..., 0, 3] = c, -s * ca, s * sa, a * c
     out[..., 1, 0], out[..., 1, 1], out[..., 1, 2], out[..., 1, 3] = s, c * ca, -c * sa, a * s
     out[..., 2, 1], out[..., 2, 2], out[..., 2, 3] = sa, ca, d
@@ -407,9 +426,9 @@ class General6RSolutions:
     Attributes:
         q: the verified solutions, ``(k, 6)``, angles wrapped to ``(-pi, pi]``.
         n_finite: finite non-spurious eigenvalues (16 for a generic arm and pose).
-        n_real_candidates: eigenvalues real to within `REAL_TOL`.
-        n_complex: the other finite eigenvalues (complex solutions).
-        n_rejected: real candidates that failed polishing or the FK check.
+        n_real_candidates: candidates whose polished angles are real (to `IMAG_TOL`).
+        n_complex: distinct complex solutions: verified by polishing, or far from the real axis.
+        n_rejected: candidates that did not converge, or real ones that failed the FK check.
         fk_error: largest FK error of a returned solution.
         count_ok: the count check passed (see the module docstring).
         reason: why the list is empty or the count check failed ("" otherwise).
@@ -431,7 +450,7 @@ class General6RSolutions:
         return iter(list(self.q))
 
 
-_ARMS: weakref.WeakKeyDictionary[Mechanism, General6R] = weakref.WeakKeyDictionary()
+_ARMS: PerMechanism[General6R] = PerMechanism()
 
 
 def _arm(arm: Mechanism | General6R) -> General6R:
@@ -508,7 +527,8 @@ def _eigen(m_poly: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _half_angle(w: np.ndarray) -> np.ndarray:
     """``phi = 2 atan(x)`` from the eigenvector blocks ``w = (x^i y^j)``: least-squares ratios,
-    taken the way round that keeps them bounded. ``w``: ``(..., 4, 3)`` -> ``(phi_4, phi_5)``."""
+    taken the way round that keeps them bounded. ``w``: ``(..., 4, 3)`` -> ``(phi_4, phi_5)``,
+    complex (real up to rounding for a real root)."""
 
     def angle(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         fwd = np.sum(np.conj(lo) * hi, axis=(-2, -1)) / np.maximum(
@@ -517,44 +537,69 @@ def _half_angle(w: np.ndarray) -> np.ndarray:
         rev = np.sum(np.conj(hi) * lo, axis=(-2, -1)) / np.maximum(
             np.sum(np.abs(hi) ** 2, axis=(-2, -1)), 1e-300
         )
-        return np.where(np.abs(fwd) <= 1.0, 2.0 * np.arctan(fwd.real), 2.0 * np.arctan2(1.0, rev.real))
+        # 2 atan(1 / rev) = pi - 2 atan(rev) modulo 2 pi, analytic: complex roots keep their value
+        return np.where(np.abs(fwd) <= 1.0, 2.0 * np.arctan(fwd), np.pi - 2.0 * np.arctan(rev))
 
     return np.stack([angle(w[..., :3, :], w[..., 1:, :]), angle(w[..., :, :2], w[..., :, 1:])], axis=-1)
 
 
 def _chain(left: _Left, theta: np.ndarray) -> np.ndarray:
     """Prefix products ``A1 ... A_k`` (unit scale), ``k = 0..6``: shape ``(..., 7, 4, 4)``."""
-    out = np.empty((*theta.shape[:-1], 7, 4, 4))
+    out = np.empty((*theta.shape[:-1], 7, 4, 4), dtype=theta.dtype)
     out[..., 0, :, :] = np.eye(4)
     for i in range(6):
         out[..., i + 1, :, :] = out[..., i, :, :] @ _dh(theta[..., i], left.d[i], left.a[i], left.alpha[i])
     return out
 
 
-def _polish(left: _Left, theta: np.ndarray, tp: np.ndarray) -> np.ndarray:
-    """Newton on ``A1 ... A6 (theta) = tp`` (unit scale), ``theta (K, 6)``, ``tp (K, 4, 4)``:
-    residual ``[p - p*; vee(R R*^T - R* R^T) / 2]``, geometric Jacobian
-    ``[z_{i-1} x (p - o_{i-1}); z_{i-1}]``."""
-    rt = tp[:, :3, :3]
-    for _ in range(NEWTON_ITERATIONS):
-        pre = _chain(left, theta)
-        t = pre[:, 6]
-        z, o = pre[:, :6, :3, 2], pre[:, :6, :3, 3]
-        jac = np.empty((len(theta), 6, 6))
-        jac[:, :3] = np.swapaxes(np.cross(z, t[:, None, :3, 3] - o), 1, 2)
-        jac[:, 3:] = np.swapaxes(z, 1, 2)
-        err = np.concatenate(
-            [t[:, :3, 3] - tp[:, :3, 3], 0.5 * _skew(t[:, :3, :3] @ np.swapaxes(rt, 1, 2))], 1
-        )
-        if not len(theta) or float(np.max(np.abs(err))) < 1e-15:
+def _polish(
+    left: _Left, theta: np.ndarray, tp: np.ndarray, iterations: int = NEWTON_ITERATIONS
+) -> tuple[np.ndarray, np.ndarray]:
+    """Newton on ``A1 ... A6 (theta) = tp`` (unit scale), ``theta (K, 6)`` real or complex,
+    ``tp (K, 4, 4)``: residual ``r = [p - p*; vee(R R*^T - R* R^T) / 2]``, geometric Jacobian
+    ``[z_{i-1} x (p - o_{i-1}); z_{i-1}]`` (exact at a solution, so convergence is quadratic;
+    the algebra holds for complex angles too, where it converges to complex solutions). Steps
+    are bounded to 0.5 per entry; a candidate stops once ``max |r| < 1e-15``, or once it no
+    longer halves below ``1e-9`` times its `_magnitude` (rounding). Returns the polished angles
+    and ``max |r|`` of each at them."""
+    theta = theta.copy()
+    err, pre = _residual(left, theta, tp)
+    size = np.max(np.abs(err), axis=1, initial=0.0)
+    todo = np.flatnonzero(size >= 1e-15)
+    err, pre = err[todo], pre[todo]
+    before = size[todo]
+    for _ in range(iterations):
+        if not len(todo):
             break
+        z, o = pre[:, :6, :3, 2], pre[:, :6, :3, 3]
+        jac = np.empty((len(todo), 6, 6), dtype=theta.dtype)
+        jac[:, :3] = np.swapaxes(np.cross(z, pre[:, 6, None, :3, 3] - o), 1, 2)
+        jac[:, 3:] = np.swapaxes(z, 1, 2)
         try:
             step = np.linalg.solve(jac, err[..., None])[..., 0]
         except np.linalg.LinAlgError:
             step = np.stack([np.linalg.lstsq(j, e, rcond=None)[0] for j, e in zip(jac, err, strict=True)])
-        step = np.clip(step, -0.5, 0.5)  # a bounded step: a bad candidate never flies off
-        theta = theta - step
-    return theta
+        theta[todo] -= step / np.maximum(1.0, 2.0 * np.abs(step))  # bounded: never flies off
+        err, pre = _residual(left, theta[todo], tp[todo])
+        now = size[todo] = np.max(np.abs(err), axis=1, initial=0.0)
+        stalled = (now > 0.5 * before) & (now < 1e-9 * _magnitude(theta[todo]))
+        keep = (now >= 1e-15) & ~stalled
+        todo, err, pre, before = todo[keep], err[keep], pre[keep], now[keep]
+    return theta, size
+
+
+def _magnitude(theta: np.ndarray) -> np.ndarray:
+    """``prod_i cosh(Im theta_i)``: a bound on the entries of ``A1 ... A6`` at complex angles
+    (1 for real ones), the scale of the rounding error of their residual."""
+    return np.prod(np.cosh(theta.imag), axis=-1)
+
+
+def _residual(left: _Left, theta: np.ndarray, tp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The pose residual ``(K, 6)`` of `_polish` and the prefix products (`_chain`) at ``theta``."""
+    pre = _chain(left, theta)
+    t = pre[:, 6]
+    rot = 0.5 * _skew(t[:, :3, :3] @ np.swapaxes(tp[:, :3, :3], 1, 2))
+    return np.concatenate([t[:, :3, 3] - tp[:, :3, 3], rot], 1), pre
 
 
 def _skew(r: np.ndarray) -> np.ndarray:
@@ -578,9 +623,10 @@ def _pose_errors(t: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 def _dedup(q: np.ndarray) -> np.ndarray:
+    """The distinct rows of ``q`` (real or complex angles; real parts compared modulo 2 pi)."""
     keep: list[np.ndarray] = []
     for row in q:
-        if all(float(np.max(np.abs(_wrap(row - k)))) >= _SAME for k in keep):
+        if all(float(np.max(np.abs(_wrap((row - k).real)) + np.abs((row - k).imag))) >= _SAME for k in keep):
             keep.append(row)
     return np.array(keep).reshape(-1, 6)
 
@@ -606,8 +652,8 @@ def _matrices(arm: General6R, targets: np.ndarray) -> tuple[np.ndarray, ...]:
     # a singular pencil (det M(x) = 0 for every x: special geometry) has meaningless eigenvalues
     probe = np.einsum("nkab,pk->npab", mats, _PROBES)
     probe_sv = np.linalg.svd(probe, compute_uv=False)
-    regular = np.max(probe_sv[..., -1] / probe_sv[..., 0], axis=1) > _SINGULAR_PENCIL
-    return tp, u, sv, vt, r0, mats, rank_ok, regular
+    ratio = np.max(probe_sv[..., -1] / probe_sv[..., 0], axis=1)
+    return tp, u, sv, vt, r0, mats, rank_ok, ratio > _SINGULAR_PENCIL, ratio > _WELL_POSED
 
 
 def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[General6RSolutions]:
@@ -616,7 +662,7 @@ def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[Ge
     last polish of the candidates on the exact model (``(q, target index) -> q``)."""
     left = arm._left
     n = len(targets)
-    tp, u, sv, vt, r0, mats, rank_ok, regular = _matrices(arm, targets)
+    tp, u, sv, vt, r0, mats, rank_ok, regular, well = _matrices(arm, targets)
     vals, vecs = _eigen(mats)
     finite = np.isfinite(vals) & (np.abs(vals) < 1e12)
     spurious = np.zeros_like(finite)
@@ -626,42 +672,42 @@ def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[Ge
         np.put_along_axis(spurious, near, True, axis=1)
     good = finite & ~spurious
     phi3 = 2.0 * np.arctan(np.where(good, vals, 0.0))
-    real = good & (np.abs(phi3.imag) <= REAL_TOL)
-    # candidates
-    idx_n, idx_e = np.nonzero(real)
+    # far from the real axis (near x_3 = +-i, where roots run off to infinity as an arm nears
+    # special geometry): complex on the word of the eigenvalue, when the pencil is well posed
+    far = good & (np.abs(phi3.imag) > _FAR) & well[:, None]
+    # every other eigenvalue is a candidate, polished in complex space: a real root that
+    # rounding moved off the real axis comes back to it, a complex one converges where it is
+    idx_n, idx_e = np.nonzero(good & ~far)
     flat = vecs[idx_n, idx_e]  # (K, 12), normalized by the largest entry: real for a real root
     flat = flat / flat[np.arange(len(flat)), np.argmax(np.abs(flat), axis=1)][:, None]
-    w = flat.reshape(-1, 4, 3)
-    phi = np.concatenate([phi3[idx_n, idx_e].real[:, None], _half_angle(w)], axis=1)
+    phi = np.concatenate([phi3[idx_n, idx_e][:, None], _half_angle(flat.reshape(-1, 4, 3))], 1)
     lhs = left.values(phi[:, 0], phi[:, 1], phi[:, 2])
     pinv = np.swapaxes(vt[:, :8], 1, 2) @ (u[:, :, :8] / sv[:, None, :8]).transpose(0, 2, 1)
     x_r = np.einsum("kij,kj->ki", pinv[idx_n], lhs - r0[idx_n])
-    theta = np.zeros((len(idx_n), 6))
-    theta[:, 0] = np.arctan2(x_r[:, 5], x_r[:, 2])
-    theta[:, 1] = np.arctan2(x_r[:, 1], x_r[:, 0])
+    theta = np.zeros((len(idx_n), 6), dtype=complex)
+    theta[:, 0] = _angle(x_r[:, 2], x_r[:, 5])
+    theta[:, 1] = _angle(x_r[:, 0], x_r[:, 1])
     theta[:, 2:5] = phi + np.array(ROTATIONS)
-    pre = _chain(left, theta)
-    a6 = _inv(pre[:, 5]) @ tp[idx_n] @ left.inv6
-    theta[:, 5] = np.arctan2(a6[:, 1, 0], a6[:, 0, 0])
-    theta = _polish(left, theta, tp[idx_n])
-    q = refine(_wrap(theta - arm.offset), idx_n)
+    a6 = _inv(_chain(left, theta)[:, 5]) @ tp[idx_n] @ left.inv6
+    theta[:, 5] = _angle(a6[:, 0, 0], a6[:, 1, 0])
+    theta, residual = _polish(left, np.where(np.isfinite(theta), theta, 0.0), tp[idx_n])
+    converged = residual <= _CONVERGED * _magnitude(theta)
+    real = converged & (np.max(np.abs(theta.imag), axis=1, initial=0.0) <= IMAG_TOL)
+    at = np.flatnonzero(real)
+    q = refine(_wrap(theta[at].real - arm.offset), idx_n[at])
     ok = np.zeros(len(q), dtype=bool)
     fk_err = np.full(len(q), np.inf)
     if len(q):
-        dp, dr = _pose_errors(fk(q), targets[idx_n])
+        dp, dr = _pose_errors(fk(q), targets[idx_n[at]])
         fk_err = np.maximum(dp / arm.scale, dr)
         ok = fk_err <= FK_TOL
     out = []
     for k in range(n):
-        mine = idx_n == k
-        sols = _dedup(q[mine & ok])
+        mine, mine_real = idx_n == k, idx_n[at] == k
+        sols = _dedup(q[mine_real & ok])
         n_finite = int(np.sum(good[k]))
-        n_real = int(np.sum(real[k]))
-        failed = mine & ~ok
-        # a failed candidate off the real axis is half of a complex pair close to it
-        pair = failed & (np.abs(phi3[idx_n, idx_e].imag) > 1e-7)
-        n_complex = n_finite - n_real + int(np.sum(pair))
-        n_rejected = int(np.sum(failed & ~pair))
+        n_complex = len(_dedup(theta[mine & converged & ~real])) + int(np.sum(far[k]))
+        n_rejected = int(np.sum(mine & ~converged) + np.sum(mine_real & ~ok))
         count_ok = (
             bool(rank_ok[k] and regular[k])
             and n_finite == 16
@@ -671,16 +717,25 @@ def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[Ge
         reason = ""
         if not count_ok:
             reason = (
-                f"count check failed: {n_finite} finite solutions (16 expected), {len(sols)} real verified, "
-                f"{n_complex} complex, {n_rejected} real candidates rejected by the FK check"
+                f"count check failed: {n_finite} finite eigenvalues (16 expected), {len(sols)} distinct real "
+                f"and {n_complex} distinct complex solutions verified, {n_rejected} candidates that did not "
+                "converge or failed the FK check"
                 + ("" if rank_ok[k] else ", rank-deficient elimination (special geometry)")
                 + ("" if regular[k] else ", singular 12 x 12 matrix for every x_3 (special geometry)")
             )
         elif not len(sols):
             reason = "unreachable: all 16 solutions are complex"
-        err = float(np.max(fk_err[mine & ok])) if np.any(mine & ok) else 0.0
+        err = float(np.max(fk_err[mine_real & ok], initial=0.0))
+        n_real = int(np.sum(mine & real))
         out.append(General6RSolutions(sols, n_finite, n_real, n_complex, n_rejected, err, count_ok, reason))
     return out
+
+
+def _angle(c: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """The angle whose cosine and sine are proportional to ``c, s``: ``arctan2(s, c)`` for real
+    input, continued analytically to complex input, ``-i log((c + i s) / sqrt(c^2 + s^2))``."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return -1j * np.log((c + 1j * s) / np.sqrt(c * c + s * s))
 
 
 def solve_general_6r(
@@ -772,7 +827,7 @@ def _refine(g: General6R, m: Mechanism | None, q: np.ndarray, targets: np.ndarra
         return q
     tp = _inv(g.base) @ targets @ _inv(g.tool)
     tp[:, :3, 3] /= g.scale
-    q = _wrap(_polish(g._left, q + g.offset, tp) - g.offset)
+    q = _wrap(_polish(g._left, q + g.offset, tp)[0] - g.offset)
     if m is None:
         return q
     for _ in range(3):

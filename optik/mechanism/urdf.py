@@ -7,7 +7,11 @@
   one link that is no joint's child) is the base and every link is a named frame;
 * the **subtree** below ``base_link`` when only that is given;
 * the **chain** from ``base_link`` (default: the root link) down to ``tip_link``, which becomes
-  the end effector; branches off the path are ignored.
+  the end effector. The links hanging off the path (a tool flange, a camera, the Panda's hand
+  and fingers when the tip is the flange) stay as named frames, rigidly attached: a fixed joint
+  keeps its origin, a moving joint off the path is *held* at 0 clipped into its limits (its
+  value is in ``params["held_joints"]``), so the chain keeps the geometry of every link it
+  carries and no coordinate is added.
 
 It imports only the joint layer, so that `optik.mechanism.mechanism` builds on it without an
 import cycle.
@@ -36,7 +40,10 @@ URDF's ``R = Rot(z, yaw) Rot(y, pitch) Rot(x, roll)`` = `optik.spatial.rpy_to_ro
 ``<axis xyz>`` (default ``1 0 0``) is normalized. ``<limit velocity>`` values, when every
 joint with a coordinate has a positive one, are kept in ``params["velocity_limits"]``. The
 ``<visual>`` elements of the loaded links (meshes with ``package://`` or relative names, boxes,
-cylinders, spheres) are kept in ``params["visuals"]`` for drawing (`optik.mechanism.urdf_visuals`).
+cylinders, spheres) are kept in ``params["visuals"]`` for drawing, their ``<collision>``
+elements in ``params["collisions"]`` for `optik.collision` (`optik.mechanism.urdf_visuals`).
+Each loaded link's ``<inertial>`` gives its mass (``<mass value>``) and centre of mass
+(``<origin xyz>``, in the link frame) for the centre of mass of the robot (`Mechanism.com`).
 """
 
 from __future__ import annotations
@@ -51,7 +58,7 @@ from lxml import etree
 from optik import spatial
 from optik.checks import as_name
 from optik.errors import ModelError, UnknownFrameError
-from optik.mechanism.joint import Joint, Mimic
+from optik.mechanism.joint import Joint, Mimic, axis_rotation
 from optik.mechanism.urdf_visuals import read_visuals
 from optik.mechanism.urdf_xml import UrdfXml, read_urdf_xml
 
@@ -72,8 +79,12 @@ class UrdfModel:
         frames: links reached through fixed joints, ``{link: (body, 4x4 offset)}``.
         ee: the end-effector link: ``tip_link``, or for a tree the deepest leaf (most moving
             joints from the base; the first in depth-first order on a tie).
+        inertials: ``{link: (mass, centre of mass in the link frame)}`` of the loaded links that
+            have an ``<inertial>`` with a ``<mass>``.
         params: ``"urdf"`` (source label), ``"base_link"``, ``"tip_link"`` (None for a tree),
-            ``"visuals"`` (tuple of `Visual`), ``"notes"`` (what was ignored and why, when
+            ``"visuals"`` and ``"collisions"`` (tuples of `Visual`), ``"held_joints"``
+            (``{joint: value}`` of the moving joints off a chain, see the module docstring; only
+            for a chain that carries some), ``"notes"`` (what was ignored and why, when
             anything was) and, when every joint with a coordinate has a
             positive ``<limit velocity>``, ``"velocity_limits"`` (rad/s or m/s per coordinate).
     """
@@ -84,6 +95,23 @@ class UrdfModel:
     frames: dict[str, tuple[str, np.ndarray]]
     ee: str
     params: dict[str, object] = field(default_factory=dict)
+    inertials: dict[str, tuple[float, np.ndarray]] = field(default_factory=dict)
+
+
+def _inertials(src: UrdfXml, links: list[etree._Element]) -> dict[str, tuple[float, np.ndarray]]:
+    """``{link: (mass, com)}`` from the links' ``<inertial>`` (``<mass value>``, ``<origin xyz>``)."""
+    out: dict[str, tuple[float, np.ndarray]] = {}
+    for link in links:
+        el = link.find("inertial")
+        mass = None if el is None else el.find("mass")
+        if mass is None:
+            continue
+        where = f"link {link.get('name')!r} <inertial>"
+        value = float(_floats(src, f"{where} <mass value>", mass.get("value"), 1, (0.0,))[0])
+        if value < 0:
+            raise ModelError(f"{src.label}: {where}: negative mass {value}")
+        out[link.get("name")] = (value, _origin(src, el, where)[:3, 3])
+    return out
 
 
 def _floats(src: UrdfXml, where: str, text: str | None, n: int, default: tuple[float, ...]) -> np.ndarray:
@@ -276,6 +304,26 @@ def _resolve_mimics(src: UrdfXml, mimics: dict[str, Mimic | None]) -> dict[str, 
     return out
 
 
+FLOATING_WORLD, FLOATING_JOINT = "world", "root_joint"
+"""The fixed body and the free joint that ``floating_base=True`` adds (Pinocchio's names)."""
+
+
+def _float_base(
+    src: UrdfXml, tree: _Tree, base: str, specs: list[dict[str, object]], velocities: list[float | None]
+) -> None:
+    """Prepend the free joint ``world -> base`` (six coordinates, unbounded speeds)."""
+    if FLOATING_WORLD in tree.links:
+        raise ModelError(
+            f"{src.label}: floating_base=True adds a body {FLOATING_WORLD!r}, but the robot has a link of "
+            "that name; load the part below it with base_link=..."
+        )
+    if FLOATING_JOINT in {el.get("name") for el, _ in tree.parent_joint.values()}:
+        what = f"floating_base=True adds a joint {FLOATING_JOINT!r}, which the robot has"
+        raise ModelError(f"{src.label}: {what}")
+    specs.insert(0, {"name": FLOATING_JOINT, "type": "free", "parent": FLOATING_WORLD, "child": base})
+    velocities[:0] = [np.inf] * 6
+
+
 def _deepest_leaf(selected: list[tuple[etree._Element, str]], base: str) -> str:
     depth = {base: 0}
     parents = set()
@@ -287,8 +335,52 @@ def _deepest_leaf(selected: list[tuple[etree._Element, str]], base: str) -> str:
     return max(leaves, key=lambda link: depth[link])  # max keeps the first of equal depth
 
 
+def _held_value(src: UrdfXml, el: etree._Element, kind: str, where: str) -> float:
+    """The value a moving joint off the chain is held at: 0 clipped into its limits (0 for a
+    mimic or continuous joint, whose own limits are not enforced)."""
+    if kind == "continuous" or el.find("mimic") is not None or el.find("limit") is None:
+        return 0.0
+    lo, hi = _limits(src, el, kind, where)
+    return float(min(max(0.0, lo), hi))
+
+
+def _off_path(
+    src: UrdfXml, tree: _Tree, place: dict[str, tuple[str, np.ndarray]]
+) -> tuple[dict[str, tuple[str, np.ndarray]], dict[str, float]]:
+    """The links below the loaded ones that the chain does not pass, rigidly attached:
+    ``({link: (body, offset)}, {held joint: value})``, depth first."""
+    frames: dict[str, tuple[str, np.ndarray]] = {}
+    held: dict[str, float] = {}
+    stack = [(el, c, link) for link in place for el, c in reversed(tree.children[link]) if c not in place]
+    known = dict(place)
+    while stack:
+        el, child, parent = stack.pop()
+        name = el.get("name")
+        where = f"joint {name!r}"
+        kind = el.get("type")
+        body, pending = known[parent]
+        offset = pending @ _origin(src, el, where)
+        if kind in _MOVING:
+            held[name] = _held_value(src, el, kind, where)
+            if held[name] != 0.0:
+                axis = _axis(src, el, where)
+                if kind == "prismatic":
+                    motion = spatial.transform(position=held[name] * axis)
+                else:
+                    motion = spatial.transform(axis_rotation(axis, held[name]))
+                offset = offset @ motion
+        elif kind != "fixed":
+            continue  # a floating or planar joint off the chain: its links are not carried
+        known[child] = frames[child] = (body, offset)
+        stack.extend((e, c, child) for e, c in reversed(tree.children[child]))
+    return frames, held
+
+
 def parse_urdf(
-    source: str | os.PathLike[str], base_link: str | None = None, tip_link: str | None = None
+    source: str | os.PathLike[str],
+    base_link: str | None = None,
+    tip_link: str | None = None,
+    floating_base: bool = False,
 ) -> UrdfModel:
     """A URDF robot's whole tree, the subtree below ``base_link``, or the chain to ``tip_link``.
 
@@ -302,6 +394,9 @@ def parse_urdf(
         source: path of a URDF file, or the URDF XML text itself (any string containing ``<``).
         base_link: the fixed link, the mechanism's base body (default: the root link).
         tip_link: the end-effector link (default: load the whole tree below ``base_link``).
+        floating_base: add a free joint ``"root_joint"`` (six coordinates: the base link's
+            position and rotation vector in a new fixed body ``"world"``, the first coordinates
+            of the model) above ``base_link``, as Pinocchio's ``JointModelFreeFlyer``.
 
     Returns:
         The model named after the ``<robot name>`` (see `UrdfModel`).
@@ -368,21 +463,40 @@ def parse_urdf(
             }
         )
         place[child] = (child, np.eye(4))
+    if floating_base:
+        _float_base(src, tree, base, specs, velocities)
     if not specs:
         where = f"between {base!r} and {tip!r}" if tip is not None else f"below {base!r}"
         raise ModelError(f"{src.label}: no moving joint {where}")
     resolved = _resolve_mimics(src, mimics)
     joints = tuple(Joint(**spec, mimic=resolved.get(str(spec["name"]))) for spec in specs)
     ee = tip if tip is not None else _deepest_leaf(selected, base)
-    visuals = read_visuals(
-        [tree.links[link] for link in place],
-        lambda el, where: _origin(src, el, where),
-        lambda where, text, n, default: _floats(src, where, text, n, default),
-        src.folder,
-    )
-    params: dict[str, object] = {"urdf": src.label, "base_link": base, "tip_link": tip, "visuals": visuals}
+    held: dict[str, float] = {}
+    if tip is not None:
+        extra, held = _off_path(src, tree, place)
+        place.update(extra)
+        frames.update(extra)
+    links = [tree.links[link] for link in place]
+
+    def pose(el: etree._Element, where: str) -> np.ndarray:
+        return _origin(src, el, where)
+
+    def numbers(where: str, text: str | None, n: int, default: tuple[float, ...]) -> np.ndarray:
+        return _floats(src, where, text, n, default)
+
+    params: dict[str, object] = {
+        "urdf": src.label,
+        "base_link": base,
+        "tip_link": tip,
+        "visuals": read_visuals(links, pose, numbers, src.folder),
+        "collisions": read_visuals(links, pose, numbers, src.folder, "collision"),
+    }
+    if held:
+        params["held_joints"] = held
     if notes:
         params["notes"] = tuple(notes)
     if velocities and all(v is not None for v in velocities):
         params["velocity_limits"] = np.array(velocities, dtype=float)
-    return UrdfModel(src.root.get("name") or "urdf", base, joints, frames, ee, params)
+    inertials = _inertials(src, links)
+    name = src.root.get("name") or "urdf"
+    return UrdfModel(name, FLOATING_WORLD if floating_base else base, joints, frames, ee, params, inertials)

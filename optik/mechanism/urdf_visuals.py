@@ -1,4 +1,7 @@
-"""The ``<visual>`` elements of URDF links, kept for drawing (never used by the kinematics).
+"""The ``<visual>`` and ``<collision>`` elements of URDF links (never used by the kinematics).
+
+Visuals are kept for drawing, collision elements for `optik.collision` (same fields, read by
+the same `read_visuals` with ``tag="collision"``).
 
 Each visual is a `Visual`: the link it belongs to (a named frame of the mechanism), its pose in
 that link's frame (``<origin>``), and its geometry: a ``mesh`` (``filename`` as written, e.g.
@@ -35,11 +38,13 @@ class Visual:
     Attributes:
         link: the link (a frame of the mechanism).
         origin: 4x4 pose of the geometry in the link frame.
-        geometry: ``"mesh"``, ``"box"``, ``"cylinder"`` or ``"sphere"``.
+        geometry: ``"mesh"``, ``"box"``, ``"cylinder"`` or ``"sphere"``; ``"capsule"`` too for
+            MJCF geoms (`optik.mechanism.mjcf`).
         filename: the mesh file name as written in the URDF (None for other geometries).
         path: the mesh file found on disk (None if not found or not a mesh).
-        scale: mesh scale factors along x, y, z.
-        size: box edge lengths ``(x, y, z)``, ``(radius, length)`` of a cylinder (along z),
+        scale: scale factors along x, y, z (of a mesh; of a unit sphere for an MJCF ellipsoid).
+        size: box edge lengths ``(x, y, z)``, ``(radius, length)`` of a cylinder or of a
+            capsule's cylindrical part (along z),
             ``(radius,)`` of a sphere, ``()`` for a mesh.
     """
 
@@ -80,8 +85,10 @@ def read_visuals(
     pose: Callable[[Any, str], np.ndarray],
     numbers: Callable[[str, str | None, int, tuple[float, ...]], np.ndarray],
     folder: Path | None,
+    tag: str = "visual",
 ) -> tuple[Visual, ...]:
-    """The visuals of the given ``<link>`` elements, in document order.
+    """The ``<visual>`` (or ``<collision>``) elements of the given ``<link>`` elements, in
+    document order.
 
     Args:
         links: the ``<link>`` elements to read.
@@ -89,14 +96,15 @@ def read_visuals(
         numbers: ``numbers(where, text, n, default)``: ``n`` finite floats of an attribute
             (raising the URDF reader's `ModelError` that names the file).
         folder: the URDF file's folder, for `resolve_mesh`.
+        tag: ``"visual"`` or ``"collision"``.
 
     Unknown geometries and visuals without a geometry are skipped (they draw nothing).
     """
     out: list[Visual] = []
     for link in links:
         name = link.get("name")
-        for i, vis in enumerate(link.findall("visual")):
-            where = f"link {name!r} <visual> {i}"
+        for i, vis in enumerate(link.findall(tag)):
+            where = f"link {name!r} <{tag}> {i}"
             geom = vis.find("geometry")
             shape = next((g for g in ([] if geom is None else list(geom)) if g.tag in GEOMETRIES), None)
             if shape is None:

@@ -81,7 +81,9 @@ def solve_ik_all(
             distance to it.
         method: ``"closed_form"`` (all analytic branches only), a numerical method for the
             multi-start (``"lm"``, ``"nlp"``, ...), or None: the closed form when the mechanism
-            has one for the task, else ``"lm"`` where it applies, else ``"nlp"``.
+            has one for the task, else ``"lm"`` where it applies, else ``"nlp"``; when the
+            closed form is not certified complete and finds no solution within the limits, the
+            numerical search answers within the time left (its ``uncertified_reason`` says so).
         task: task space (default from the target and the mechanism).
         frame: task frame (default: the end effector).
         time_limit: wall-time budget of the whole search (s).
@@ -151,7 +153,14 @@ def solve_ik_all(
             )
         return _closed_form_all(request)
     if method is None and closed_form and applies:
-        return _closed_form_all(request)
+        found = _closed_form_all(request)
+        if len(found) or found.certified:
+            return found
+        # an uncertified closed form with nothing within the limits: the numerical search decides
+        name = pick_method(m, request.task, NUMERIC_ORDER)
+        numeric = _numeric_all(request, name, patience, max_solutions, request.q0)
+        numeric.uncertified_reason += f"; the closed form found none ({found.uncertified_reason})"
+        return numeric
     name = method or pick_method(m, request.task, NUMERIC_ORDER)
     return _numeric_all(request, name, patience, max_solutions, request.q0)
 
@@ -335,7 +344,8 @@ def _numeric_all(
         found.append((res, same))
         misses = 0
     kept = sorted((r for r, _ in found), key=lambda r: joint_distance(m, r.q, near))
-    return IKSolutions(kept, method=name)
+    why = f"found by the numerical multi-start ({name}), which does not prove that no solution is missing"
+    return IKSolutions(kept, method=name, uncertified_reason=why)
 
 
 def _polished(request: IKRequest, res: IKResult, q: np.ndarray) -> IKResult:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
@@ -9,7 +10,7 @@ import numpy as np
 from optik.errors import SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.results import IKResult
-from optik.solvers.base import Tolerances, get_method, make_request, methods
+from optik.solvers.base import IKRequest, Tolerances, get_method, make_request, methods
 
 DEFAULT_ORDER = ("closed_form", "lm", "nlp")
 """Preference of ``method=None``: the first registered method that applies."""
@@ -69,7 +70,10 @@ def solve_ik(
 
     Returns:
         An [`IKResult`][optik.IKResult]; unreachable targets give ``success=False`` with the closest
-        configuration found and a message.
+        configuration found and a message. With ``method=None``, a closed form that finds no
+        branch within the limits and does not certify completeness (the 1-D search of arms
+        special at both ends) does not decide: the numerical method answers, within the time
+        left, and its message and ``extra["closed_form"]`` say what the closed form found.
 
     Raises:
         OptikError: malformed input (named argument), unknown or inapplicable method.
@@ -93,4 +97,23 @@ def solve_ik(
             f"method {name!r} does not apply to {m.name!r} with task {request.task!r}"
             + ("" if own_frame else f" and frame {request.frame!r}")
         )
-    return info.solve(request)
+    res = info.solve(request)
+    if method is None and name == "closed_form" and "uncertified" in res.extra:
+        return _numerical_fallback(request, res)
+    return res
+
+
+def _numerical_fallback(request: IKRequest, closed: IKResult) -> IKResult:
+    """The default method's answer when the closed form found nothing within the limits and
+    does not certify completeness (the 1-D search, a general 6R solve whose count check
+    failed): the next method of `DEFAULT_ORDER` that applies, within what is left of the time
+    limit, with the closed form's finding in its message and ``extra["closed_form"]``."""
+    m = request.mechanism
+    name = pick_method(m, request.task, tuple(n for n in DEFAULT_ORDER if n != "closed_form"))
+    rest = dataclasses.replace(request, time_limit=max(request.remaining(), 1e-6))  # same start
+    res = get_method(name).solve(rest)
+    reason = closed.extra["uncertified"]
+    note = f"the closed form (not certified complete: {reason}) found no branch within the limits"
+    res.message = f"{res.message}; {note}" if res.message else note
+    res.extra["closed_form"] = {"status": closed.status, "message": closed.message}
+    return res

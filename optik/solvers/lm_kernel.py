@@ -23,7 +23,6 @@ import ctypes
 import threading
 import time
 from dataclasses import dataclass
-from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +30,7 @@ import casadi as ca
 import numpy as np
 
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.native import driver_source, library
 from optik.problem import IKProblem, build_ik_problem
 from optik.solvers.evaluation import error_function
@@ -54,15 +54,16 @@ _STEP, _ERRORS = "optik_lm_step", "optik_ik_errors"
 def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Function:
     """One bounded LM iteration with the errors of the trial point, as an ``SX`` function.
 
-    ``(q, mu, target, weights, q_ref, gain) -> (q+, mu+, cost+, accepted, position error,
+    ``(q, mu, target, weights, q_ref, gain, lo, hi) -> (q+, mu+, cost+, accepted, position error,
     orientation error, closure error)``: the step of `optik.solvers.lm` from ``q``, the
     projected trial point ``q_t = clip(q + dq, lo, hi)``, accepted when its cost
     ``|e(q_t)|^2 / 2`` is below that of ``q``; the errors are those of ``q_t`` (the driver keeps
-    the previous ones when the trial is rejected).
+    the previous ones when the trial is rejected). The limits ``lo, hi`` are inputs (infinite
+    entries: unbounded), so one compiled kernel serves every limits of one geometry.
     """
     m = problem.mechanism
     q = problem.q
-    lo, hi = problem.lower, problem.upper
+    lo, hi = ca.SX.sym("lower", m.n_q), ca.SX.sym("upper", m.n_q)
     e = problem.weighted_residual(closure_weight if m.is_closed else None)
     at = ca.Function("at", [q, problem.target, problem.weights], [e, *problem.error_expressions()])
     mu, gain = ca.SX.sym("mu"), ca.SX.sym("gain")
@@ -85,9 +86,8 @@ def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Funct
         ori,
         clo,
     ]
-    return ca.Function(
-        _STEP, [q, mu, problem.target, problem.weights, problem.q_ref, gain], [ca.densify(v) for v in outs]
-    )
+    ins = [q, mu, problem.target, problem.weights, problem.q_ref, gain, lo, hi]
+    return ca.Function(_STEP, ins, [ca.densify(v) for v in outs])
 
 
 def target_seeds(seed: int, start: int, count: int) -> np.ndarray:
@@ -129,11 +129,12 @@ class Settings:
     q_ref: np.ndarray
 
     def conf(self, m: Mechanism) -> np.ndarray:
-        """The driver's ``conf`` vector (layout in ``lm_chunk.c``)."""
+        """The driver's ``conf`` vector (layout in ``lm_chunk.c``): the scalars, the sampling
+        bounds, ``q_ref`` and the limits of ``m`` that the steps project onto."""
         scalars = [self.block, self.max_iter, self.max_restarts, self.time_limit, self.mu0, self.stall]
         scalars += [*self.stop, self.gain, *self.weights]
         lo, hi = m.sampling_bounds  # restarts are drawn over finite bounds (one turn when unbounded)
-        return np.concatenate([scalars, lo, hi, self.q_ref]).astype(float)
+        return np.concatenate([scalars, lo, hi, self.q_ref, m.lower, m.upper]).astype(float)
 
 
 @dataclass
@@ -266,8 +267,10 @@ class LMKernel:
         stop = conf[6:9]
         lo, hi = conf[12 : 12 + nq], conf[12 + nq : 12 + 2 * nq]
         step.inputs[3][:] = conf[10:12]
-        step.inputs[4][:] = conf[12 + 2 * nq :]
+        step.inputs[4][:] = conf[12 + 2 * nq : 12 + 3 * nq]
         step.inputs[5][0] = conf[9]
+        step.inputs[6][:] = conf[12 + 3 * nq : 12 + 4 * nq]
+        step.inputs[7][:] = conf[12 + 4 * nq :]
 
         def check(q: np.ndarray, target: np.ndarray) -> np.ndarray:
             errors.inputs[0][:] = q
@@ -330,9 +333,19 @@ class LMKernel:
             out.solve_time[t] = time.perf_counter() - t0
 
 
-@lru_cache(maxsize=64)
+_KERNELS: PerMechanism[dict[tuple, LMKernel]] = PerMechanism()
+
+
 def kernel(
     m: Mechanism, task: str, frame: str | None, closure_weight: float, compile: bool | str
 ) -> LMKernel:
-    """The `LMKernel` of a mechanism, task, frame and closure weight (built once)."""
-    return LMKernel(m, task, frame, closure_weight, compile)
+    """The `LMKernel` of a mechanism, task, frame and closure weight (built once per
+    [`Mechanism.geometry`][optik.Mechanism.geometry]: copies that differ only by their limits
+    share it, the limits being inputs of `Settings.conf`; it lives as long as that geometry)."""
+    g = m.geometry
+    per = _KERNELS.setdefault(g, {})
+    key = (task, frame, closure_weight, compile)
+    found = per.get(key)
+    if found is None:
+        found = per.setdefault(key, LMKernel(g, task, frame, closure_weight, compile))
+    return found

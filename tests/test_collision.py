@@ -1,0 +1,284 @@
+"""optik.collision: World, robot collision geometry from URDF/SRDF, exact checks against coal and
+against closed-form distances of primitives, and an independent Pinocchio + coal check."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import optik
+from optik import spatial
+from optik.collision import World, check, check_many, robot_geometry
+from optik.errors import InvalidArgumentError, UnknownFrameError
+
+coal = pytest.importorskip("coal", reason="collision checks need coal (extra 'collision')")
+
+# A two-link arm: base cylinder, upper arm a box, forearm a capsule-like cylinder, a ball hand
+# on a fixed joint, and a sensor hanging off the chain on a fixed joint.
+ARM = """
+<robot name="toy">
+  <link name="base"><collision><origin xyz="0 0 0.05"/>
+    <geometry><cylinder radius="0.1" length="0.1"/></geometry></collision></link>
+  <link name="upper"><collision><origin xyz="0.25 0 0"/>
+    <geometry><box size="0.5 0.06 0.06"/></geometry></collision></link>
+  <link name="fore"><collision><origin xyz="0.2 0 0" rpy="0 1.5707963267948966 0"/>
+    <geometry><cylinder radius="0.03" length="0.4"/></geometry></collision></link>
+  <link name="hand"><collision><geometry><sphere radius="0.05"/></geometry></collision></link>
+  <link name="tip"/>
+  <link name="sensor"><collision><geometry><sphere radius="0.02"/></geometry></collision></link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="upper"/><origin xyz="0 0 0.1"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3"/></joint>
+  <joint name="j2" type="revolute"><parent link="upper"/><child link="fore"/><origin xyz="0.5 0 0"/>
+    <axis xyz="0 0 1"/><limit lower="-2.9" upper="2.9"/></joint>
+  <joint name="j3" type="fixed"><parent link="fore"/><child link="hand"/><origin xyz="0.45 0 0"/></joint>
+  <joint name="j4" type="fixed"><parent link="hand"/><child link="tip"/><origin xyz="0.05 0 0"/></joint>
+  <joint name="j5" type="fixed"><parent link="upper"/><child link="sensor"/><origin xyz="0.1 0 0.08"/></joint>
+</robot>
+"""
+
+
+@pytest.fixture(scope="module")
+def arm() -> optik.Mechanism:
+    return optik.Mechanism.from_urdf(ARM, "base", "tip")
+
+
+def _panda(srdf: bool = True):
+    from optik.catalog.robots import robots_dir
+
+    try:
+        d = robots_dir() / "panda_description"
+    except optik.MissingExtraError:
+        pytest.skip("example-robot-data (extra 'robots') is not installed")
+    if not d.is_dir():
+        pytest.skip("example-robot-data has no panda_description")
+    s = d / "srdf" / "panda.srdf" if srdf else None
+    return optik.Mechanism.from_urdf(d / "urdf" / "panda.urdf", "panda_link0", "panda_hand_tcp", srdf=s), d
+
+
+# ------------------------------------------------------------------ World
+
+
+def test_world_builds_moves_and_removes():
+    w = World()
+    w.add_box("table", (1.0, 1.0, 0.05), spatial.translation(0.5, 0, -0.025))
+    w.add_sphere("ball", 0.1)
+    w.add_cylinder("post", 0.05, 1.0, spatial.translation(1, 1, 0.5))
+    w.add_capsule("rod", 0.02, 0.3)
+    w.add_points("cloud", [[0, 0, 1], [0, 0.1, 1]], 0.01)
+    assert w.names == ("table", "ball", "post", "rod", "cloud") and len(w) == 5 and "ball" in w
+    v = w.version
+    w.move("ball", spatial.translation(0, 0, 2))
+    assert w.version > v and np.allclose(w["ball"].pose[:3, 3], [0, 0, 2])
+    w.remove("rod")
+    assert w.names == ("table", "ball", "post", "cloud")
+    with pytest.raises(InvalidArgumentError, match="name"):
+        w.add_sphere("ball", 0.2)
+    with pytest.raises(UnknownFrameError, match="name"):
+        w.move("nothing", np.eye(4))
+    with pytest.raises(UnknownFrameError, match="name"):
+        w.remove("nothing")
+    with pytest.raises(InvalidArgumentError, match="size"):
+        w.add_box("bad", (1.0, -1.0, 1.0))
+    with pytest.raises(InvalidArgumentError, match="radius"):
+        w.add_sphere("bad", float("nan"))
+    with pytest.raises(InvalidArgumentError, match="pose"):
+        w.add_sphere("bad", 0.1, np.ones((4, 4)))
+    with pytest.raises(InvalidArgumentError, match="xyz"):
+        w.add_points("bad", [[0, 0]], 0.1)
+    with pytest.raises(InvalidArgumentError, match="path"):
+        w.add_mesh("bad", "/no/such/mesh.stl")
+
+
+def test_world_from_problem_table(tmp_path):
+    table = {
+        "table": {"box": [1.0, 1.2, 0.04], "xyz": [0.5, 0.0, -0.02]},
+        "ball": {"sphere": 0.05, "xyz": [0.4, 0.2, 0.3]},
+        "post": {"cylinder": [0.05, 1.0], "xyz": [1, 1, 0.5], "rpy": [0, 0, 0.3]},
+        "cloud": {"points": [[0, 0, 1]], "radius": 0.01, "xyz": [0, 0, 1]},
+    }
+    w = World.from_table(table)
+    assert w.names == ("table", "ball", "post", "cloud")
+    assert w["post"].shape.size == (0.05, 1.0)
+    assert np.allclose(w["cloud"].shape.points, [[0, 0, 2]])
+    with pytest.raises(InvalidArgumentError, match=r"world\.x"):
+        World.from_table({"x": {"box": [1, 1, 1], "sphere": 1.0}})
+    with pytest.raises(InvalidArgumentError, match=r"world\.x"):
+        World.from_table({"x": {"box": [1, 1, 1], "colour": "red"}})
+
+
+# ------------------------------------------------------------------ robot geometry
+
+
+def test_chain_keeps_links_off_its_path(arm):
+    """The sensor hangs off the chain on a fixed joint: it is a frame and keeps its geometry."""
+    assert "sensor" in arm.frames
+    links = {c.link for c in arm.params["collisions"]}
+    assert links == {"base", "upper", "fore", "hand", "sensor"}
+    whole = optik.Mechanism.from_urdf(ARM)
+    q = np.array([0.4, -0.9])
+    assert np.allclose(arm.fk(q, "sensor"), whole.fk(q, "sensor"), atol=1e-12)
+
+
+def test_moving_joints_off_the_chain_are_held_at_zero_within_limits():
+    m, _ = _panda()
+    assert m.params["held_joints"] == {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
+    assert {"panda_leftfinger", "panda_rightfinger"} <= set(m.frames)
+    assert m.n_q == 7
+    full = optik.Mechanism.from_urdf(m.params["urdf"])
+    q = m.random_q(seed=3)
+    qf = np.zeros(full.n_q)
+    qf[: m.n_q] = q  # the fingers' coordinates are last in the whole tree, at 0
+    assert full.coordinate_names[:7] == m.coordinate_names
+    assert np.allclose(m.fk(q, "panda_leftfinger"), full.fk(qf, "panda_leftfinger"), atol=1e-12)
+
+
+def test_srdf_pairs_are_not_checked():
+    m, _ = _panda()
+    geo = robot_geometry(m)
+    assert geo.disabled[("panda_link0", "panda_link2")] == "srdf"
+    checked = {
+        tuple(sorted((geo.links[geo.part_link[i]], geo.links[geo.part_link[j]]))) for i, j in geo.self_pairs
+    }
+    assert ("panda_link0", "panda_link2") not in checked
+    assert ("panda_link1", "panda_link7") in checked or ("panda_link1", "panda_link7") not in geo.disabled
+    with pytest.raises(InvalidArgumentError, match="srdf"):
+        optik.Mechanism.from_urdf(ARM, "base", "tip", srdf="/no/such.srdf")
+
+
+def test_structural_pairs_without_srdf(arm):
+    geo = robot_geometry(arm)
+    assert geo.disabled[("fore", "hand")] == "same body"
+    assert geo.disabled[("base", "upper")] == "adjacent"
+    assert geo.disabled[("fore", "upper")] == "adjacent"
+    assert geo.disabled[("sensor", "upper")] == "same body"
+    checked = {
+        tuple(sorted((geo.links[geo.part_link[i]], geo.links[geo.part_link[j]]))) for i, j in geo.self_pairs
+    }
+    # a link fixed to a body (sensor on the upper arm, hand on the forearm) meets the next body
+    expected = {("base", "fore"), ("base", "hand"), ("base", "sensor"), ("fore", "sensor")}
+    assert checked == expected | {("hand", "sensor"), ("hand", "upper")}
+
+
+def test_mechanism_without_geometry_is_an_error():
+    with pytest.raises(InvalidArgumentError, match=r"m: .*collision geometry"):
+        check(optik.catalog.panda(), np.zeros(7))
+
+
+# ------------------------------------------------------------------ exact distances
+
+
+def test_sphere_hand_distance_to_a_ball_is_exact(arm):
+    """Closed form: two spheres at distance |c1 - c2| - r1 - r2."""
+    q = np.array([0.3, -0.6])
+    hand = arm.fk(q, "hand")[:3, 3]
+    centre = hand + np.array([0.0, 0.0, 0.3])
+    w = World()
+    w.add_sphere("ball", 0.1, spatial.translation(*centre))
+    r = check(arm, q, w, self_collision=False)
+    assert r.pair == ("hand", "ball")
+    assert r.min_distance == pytest.approx(0.3 - 0.05 - 0.1, abs=1e-6)
+    pa, pb = r.witness
+    assert np.linalg.norm(pa - pb) == pytest.approx(r.min_distance, abs=1e-6)
+    assert np.allclose(pa, hand + np.array([0, 0, 0.05]), atol=1e-6)
+    assert not r.in_collision
+    near = check(arm, q, w, margin=0.2, self_collision=False)
+    assert near.in_collision and near.close_pairs[0].b == "ball" and near.close_pairs[0].world
+
+
+def test_penetration_is_a_negative_distance(arm):
+    q = np.array([0.0, 0.0])
+    w = World()
+    w.add_box("wall", (0.1, 1.0, 1.0), spatial.translation(0.45, 0.0, 0.1))  # cuts the upper arm
+    r = check(arm, q, w)
+    assert r.in_collision and r.min_distance < 0 and r.pair == ("upper", "wall")
+    assert r.close_pairs == tuple(sorted(r.close_pairs, key=lambda p: p.distance))
+
+
+def test_self_collision_of_a_folded_arm(arm):
+    """Folding the forearm back over the base puts the hand into the base cylinder's column."""
+    free = check(arm, np.array([0.0, 0.0]))
+    assert not free.in_collision and np.isfinite(free.min_distance)
+    w = World()
+    far = check(arm, np.array([0.0, 0.0]), w, self_collision=False)
+    assert far.pair is None and far.min_distance == np.inf and not far.in_collision
+
+
+@settings(max_examples=25, deadline=None, derandomize=True)
+@given(
+    st.lists(st.floats(-2.8, 2.8), min_size=2, max_size=2),
+    st.lists(
+        st.tuples(st.floats(-0.8, 0.8), st.floats(-0.8, 0.8), st.floats(-0.2, 0.4)), min_size=1, max_size=4
+    ),
+    st.floats(0.0, 0.1),
+)
+def test_pruned_search_equals_every_pair(arm, q, centres, margin):
+    """The bounding-sphere search gives the distance and the close pairs of the brute force."""
+    from optik.collision.distance import signed_distance
+
+    w = World()
+    for k, c in enumerate(centres):
+        w.add_box(f"b{k}", (0.1, 0.2, 0.15), spatial.translation(*c))
+    q = np.array(q)
+    r = check(arm, q, w, margin=margin)
+    geo = robot_geometry(arm)
+    poses = geo.part_poses(q)
+    dists = [signed_distance(geo.parts[i], poses[i], geo.parts[j], poses[j])[0] for i, j in geo.self_pairs]
+    for o in w.parts():
+        dists += [signed_distance(p, poses[i], o, o.offset)[0] for i, p in enumerate(geo.parts)]
+    assert r.min_distance == pytest.approx(min(dists), abs=1e-9)
+    assert len(r.close_pairs) == sum(d < margin or d <= 0 for d in dists)
+    assert r.in_collision == any(d < margin or d <= 0 for d in dists)
+
+
+def test_check_many_matches_check(arm):
+    w = World()
+    w.add_sphere("ball", 0.1, spatial.translation(0.6, 0.2, 0.1))
+    Q = arm.random_q(12, seed=1)
+    b = check_many(arm, Q, w, margin=0.01)
+    for q, d, c in zip(Q, b.min_distance, b.in_collision, strict=True):
+        r = check(arm, q, w, margin=0.01)
+        assert r.min_distance == d and r.in_collision == c
+
+
+def test_bad_arguments(arm):
+    with pytest.raises(InvalidArgumentError, match="margin"):
+        check(arm, np.zeros(2), margin=-1.0)
+    with pytest.raises(InvalidArgumentError, match="world"):
+        check(arm, np.zeros(2), world="table")
+    with pytest.raises(InvalidArgumentError, match="q"):
+        check(arm, np.zeros(3))
+
+
+def test_panda_distances_match_pinocchio_and_coal():
+    """Independent check: Pinocchio's own URDF + geometry loading, coal distances on its models."""
+    pin = pytest.importorskip("pinocchio", reason="the independent check needs Pinocchio")
+    m, d = _panda()
+    urdf = str(d / "urdf" / "panda.urdf")
+    full = pin.buildModelFromUrdf(urdf)
+    geom = pin.buildGeomFromUrdf(full, urdf, pin.GeometryType.COLLISION, package_dirs=[str(d.parents[2])])
+    w = World()
+    w.add_box("table", (1.0, 1.2, 0.04), spatial.translation(0.5, 0.0, -0.03))
+    w.add_box("box", (0.2, 0.2, 0.2), spatial.translation(0.45, 0.0, 0.35))
+    data, gdata = full.createData(), geom.createData()
+    for q in m.random_q(10, seed=5):
+        qp = pin.neutral(full)
+        qp[:7] = q
+        pin.updateGeometryPlacements(full, data, geom, gdata, qp)
+        best = np.inf
+        for go in geom.geometryObjects:
+            tf = gdata.oMg[geom.getGeometryId(go.name)]
+            for o in w.snapshot():
+                box = coal.Box(*o.shape.size)
+                tb = coal.Transform3s(o.pose[:3, :3], o.pose[:3, 3])
+                req, res = coal.DistanceRequest(), coal.DistanceResult()
+                geo = go.geometry
+                if isinstance(geo, coal.BVHModelBase):
+                    geo.buildConvexHull(True, "Qt")
+                    geo = geo.convex
+                best = min(
+                    best, coal.distance(geo, coal.Transform3s(tf.rotation, tf.translation), box, tb, req, res)
+                )
+        r = check(m, q, w, self_collision=False)
+        assert r.min_distance == pytest.approx(best, abs=1e-6)

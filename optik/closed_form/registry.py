@@ -105,6 +105,13 @@ def ik_solver(m: Mechanism) -> IKSolver | None:
     return solver
 
 
+def costly(m: Mechanism) -> bool:
+    """True when ``m``'s closed-form IK declares itself costly (a ``costly`` attribute that is
+    True: the general 6R solver, tens of ms per target), so that `optik.solve_ik` with
+    ``method=None`` tries the numerical method first."""
+    return getattr(ik_solver(m), "costly", False) is True
+
+
 def has_ik(m: Mechanism) -> bool:
     """True when a closed-form IK is registered for the mechanism's kind or derived from its model."""
     return ik_solver(m) is not None

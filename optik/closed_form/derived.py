@@ -528,15 +528,26 @@ def derived_rows(m: Mechanism) -> registry.IKSolver | None:
     return None if solver is None else DerivedRows(solver)
 
 
+class GeneralRows:
+    """The registry solver ``(m, T) -> rows`` of the general 6R solver
+    ([`ik_general_6r`][optik.closed_form.general_6r.ik_general_6r]), marked ``costly``
+    ([`registry.costly`][optik.closed_form.registry.costly]): tens of ms per target, so
+    `optik.solve_ik` with ``method=None`` tries ``lm`` first."""
+
+    costly = True
+
+    def __call__(self, m: Mechanism, t: np.ndarray) -> list[np.ndarray]:
+        return general_6r.ik_general_6r(m, t)
+
+
 def general_rows(m: Mechanism) -> registry.IKSolver | None:
     """Registry deriver after [`derived_rows`][optik.closed_form.derived.derived_rows]: a 6R
-    serial chain of no decomposable family gets the general 6R solver
-    ([`ik_general_6r`][optik.closed_form.general_6r.ik_general_6r], all 16 complex solutions'
-    real ones, each FK-checked) when it covers the geometry
+    serial chain of no decomposable family gets the general 6R solver (a `GeneralRows`: all 16
+    complex solutions' real ones, each FK-checked) when it covers the geometry
     ([`covers`][optik.closed_form.general_6r.covers]: no certified answer otherwise)."""
     if m.n_q != 6 or derive(m) is not None or chain_axes(m) is None or not general_6r.covers(m):
         return None
-    return general_6r.ik_general_6r
+    return GeneralRows()
 
 
 registry.register_deriver(derived_rows)

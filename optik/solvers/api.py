@@ -7,9 +7,11 @@ from typing import Any
 
 import numpy as np
 
-from optik.errors import SolverUnavailableError
+from optik.closed_form import registry
+from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.results import IKResult
+from optik.solvers.balance import merge_contacts, solve_balance
 from optik.solvers.base import IKRequest, Tolerances, get_method, make_request, methods
 
 DEFAULT_ORDER = ("closed_form", "lm", "nlp")
@@ -46,6 +48,9 @@ def solve_ik(
     time_limit: float | None = None,
     tol: float | Tolerances | None = None,
     seed: int | np.random.Generator | None = None,
+    contacts: Any = None,
+    support: Any = None,
+    com_margin: float = 0.0,
     **options: Any,
 ) -> IKResult:
     """Inverse kinematics with joint limits (and loop closures for closed chains).
@@ -59,13 +64,20 @@ def solve_ik(
             ``orientation_error`` are their maxima; success needs every frame within tolerance.
         q0: start configuration (default: mid-limit).
         method: ``"closed_form"``, ``"lm"``, ``"nlp"``, ``"dls"``, ``"qp"``; None picks the best
-            available (closed form where the catalog has one, else ``"lm"``).
+            available (closed form where the catalog has one, else ``"lm"``; where the closed
+            form is costly, ``"lm"`` first and the closed form only when it fails).
         task: task space (default from the target type and the mechanism); with a target dict,
             one space for every frame or a ``{frame: task}`` dict.
         frame: task frame (default: the end effector); None with a target dict.
         time_limit: wall-time budget in seconds (default 0.1).
         tol: tolerances (float: position and orientation) or [`Tolerances`][optik.Tolerances].
         seed: seed or Generator for restarts.
+        contacts: ``{frame: 4x4 or Position}``: frames held in the world (flat contacts or point
+            feet), extra targets that success needs too (`optik.solvers.balance`).
+        support: the world x-y support polygon, counter-clockwise ``(k, 2)``: the centre of
+            mass's ground projection must stay inside it by ``com_margin`` (method ``"nlp"``,
+            the default then; the mechanism needs masses).
+        com_margin: the balance margin (m, ``>= 0``; only with ``support``).
         **options: method-specific options (see each method's documentation).
 
     Returns:
@@ -78,7 +90,18 @@ def solve_ik(
     Raises:
         OptikError: malformed input (named argument), unknown or inapplicable method.
     """
+    if contacts is not None:
+        target, frame = merge_contacts(m, target, frame, contacts), None
+    if support is None and com_margin != 0.0:
+        raise InvalidArgumentError("com_margin", "a balance margin needs a support polygon (support=...)")
     request = make_request(m, target, q0, task, frame, time_limit, tol, seed, options)
+    if support is not None:
+        if method not in (None, "nlp"):
+            raise SolverUnavailableError(
+                f"method {method!r} does not take support=: the balance constraints are NLP inequalities "
+                "(method 'nlp'); contacts alone work with every method that takes several targets"
+            )
+        return solve_balance(request, support, com_margin)
     multi = request.multi_target
     own_frame = not multi and request.frame in (None, m.ee)  # closed forms solve for the end effector only
     if method is None:
@@ -97,10 +120,40 @@ def solve_ik(
             f"method {name!r} does not apply to {m.name!r} with task {request.task!r}"
             + ("" if own_frame else f" and frame {request.frame!r}")
         )
+    if method is None and name == "closed_form" and registry.costly(m):
+        return _numerical_first(request)
     res = info.solve(request)
     if method is None and name == "closed_form" and "uncertified" in res.extra:
         return _numerical_fallback(request, res)
     return res
+
+
+NUMERICAL_SHARE = 0.5
+"""Share of the time limit that ``method=None`` gives the numerical method first where the
+closed form is costly (`_numerical_first`)."""
+
+
+def _numerical_first(request: IKRequest) -> IKResult:
+    """The default method where the closed form costs far more than a numerical solve (the
+    general 6R solver: an eigenproblem and 16 polished paths, tens of ms, against a fraction of
+    a ms for ``lm``): the next method of `DEFAULT_ORDER` with `NUMERICAL_SHARE` of the time
+    limit; the closed form only when that fails. Its answer is taken when it finds a branch within
+    the limits, or when it is certified complete (it then says why there is none: out of reach,
+    or only outside the limits); otherwise the numerical answer stands, with the closed form's
+    finding in its message and ``extra["closed_form"]``."""
+    m = request.mechanism
+    name = pick_method(m, request.task, tuple(n for n in DEFAULT_ORDER if n != "closed_form"))
+    first = dataclasses.replace(request, time_limit=NUMERICAL_SHARE * request.time_limit)  # same start
+    res = get_method(name).solve(first)
+    if res.success:
+        return res
+    closed = get_method("closed_form").solve(request)
+    if closed.success or "uncertified" not in closed.extra:
+        note = f"{name} found no solution within {first.time_limit:g} s first"
+        closed.message = f"{closed.message}; {note}" if closed.message else note
+        closed.extra[name] = {"status": res.status, "message": res.message}
+        return closed
+    return _noted(res, closed)
 
 
 def _numerical_fallback(request: IKRequest, closed: IKResult) -> IKResult:
@@ -111,7 +164,12 @@ def _numerical_fallback(request: IKRequest, closed: IKResult) -> IKResult:
     m = request.mechanism
     name = pick_method(m, request.task, tuple(n for n in DEFAULT_ORDER if n != "closed_form"))
     rest = dataclasses.replace(request, time_limit=max(request.remaining(), 1e-6))  # same start
-    res = get_method(name).solve(rest)
+    return _noted(get_method(name).solve(rest), closed)
+
+
+def _noted(res: IKResult, closed: IKResult) -> IKResult:
+    """A numerical answer ``res`` with the finding of the uncertified closed form ``closed`` in
+    its message and ``extra["closed_form"]``."""
     reason = closed.extra["uncertified"]
     note = f"the closed form (not certified complete: {reason}) found no branch within the limits"
     res.message = f"{res.message}; {note}" if res.message else note

@@ -24,7 +24,6 @@ Run: ``optik benchmark first_solve [--reps 7] [--figure docs/img/first_solve.png
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import subprocess
@@ -229,9 +228,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv[:1] == ["--child"]:
         print(json.dumps(_child(argv[1], np.asarray(json.loads(argv[2]), dtype=float))))
         return 0
-    ap = argparse.ArgumentParser(prog="optik benchmark first_solve", description=__doc__.split("\n")[0])
+    from optik.benchmarks import benchmark_parser  # not at the top: a child times its own imports
+
+    ap = benchmark_parser("first_solve", __doc__)
     ap.add_argument("--reps", type=int, default=7, help="fresh processes per case (default 7)")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=0, help="seed of the random draws")
     ap.add_argument("--figure", help="write the bar chart to this PNG")
     args = ap.parse_args(argv)
 

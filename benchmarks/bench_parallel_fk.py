@@ -39,7 +39,6 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
 import math  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Sequence  # noqa: E402
@@ -50,6 +49,7 @@ import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
 from optik import closed_form  # noqa: E402
+from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.closed_form import parallel  # noqa: E402
 from optik.harness.peers import PeerUnavailable  # noqa: E402
 from optik.harness.peers.fksgp_peer import Postures, load_fksgp  # noqa: E402
@@ -309,7 +309,7 @@ def bench_solve_fk(n: int, rng: np.random.Generator) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the three benchmarks and print their tables (markdown); returns 0."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser("parallel_fk", __doc__)
     ap.add_argument("--n-rpr", type=int, default=500, help="3-RPR cases per geometry kind")
     ap.add_argument("--n-sg", type=int, default=1000, help="random general 6-6 Stewart-Gough platforms")
     ap.add_argument(
@@ -324,7 +324,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--heavy", type=int, default=3, help="independent runs in the completeness check")
     ap.add_argument("--n-fk", type=int, default=200, help="solve_fk cases per mechanism")
     ap.add_argument("--fksgp", type=Path, help="folder of a fkSGP checkout (the Stewart-Gough peer)")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=0, help="seed of the random draws")
     args = ap.parse_args(argv)
     if min(args.n_rpr, args.n_sg, args.n_fk, args.heavy, args.n_total) < 1 or args.n_catalog < 0:
         ap.error("--n-rpr, --n-sg, --n-total, --n-fk and --heavy must be >= 1, --n-catalog >= 0")

@@ -17,7 +17,6 @@ Run: ``optik benchmark view [--moves 200] [--method lm] [--browser]``.
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import socket
 import time
@@ -27,6 +26,7 @@ import numpy as np
 
 import optik
 from optik import catalog
+from optik.benchmarks import benchmark_parser
 from optik.view import Viewer
 
 
@@ -104,7 +104,7 @@ def actuator_moves(name: str, values: Sequence[float], moves: int, browser: bool
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="optik benchmark view", description=__doc__.splitlines()[0])
+    parser = benchmark_parser("view", __doc__)
     parser.add_argument("--moves", type=int, default=200, help="gizmo moves per case (default: %(default)s)")
     parser.add_argument("--method", help="IK method of the gizmo (default: the viewer's choice)")
     parser.add_argument("--browser", action="store_true", help="keep a headless Chromium page connected")

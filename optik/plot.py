@@ -22,7 +22,6 @@ from __future__ import annotations
 import math
 import os
 import tempfile
-import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,6 +36,7 @@ from matplotlib.figure import Figure
 from optik.checks import as_rng
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.problem_files import assemble
 
 __all__ = [
@@ -54,7 +54,7 @@ __all__ = [
 
 _MARKERS = {"revolute": "o", "prismatic": "s", "universal": "D", "spherical": "o", "free": "*"}
 _TRIAD_COLORS = ("tab:red", "tab:green", "tab:blue")
-_GEOMETRY: weakref.WeakKeyDictionary[Mechanism, ca.Function] = weakref.WeakKeyDictionary()
+_GEOMETRY: PerMechanism[ca.Function] = PerMechanism()
 
 
 @dataclass(frozen=True)

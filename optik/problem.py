@@ -44,7 +44,6 @@ check are the largest over the frames (`frame_tasks` pairs them).
 
 from __future__ import annotations
 
-import weakref
 from dataclasses import dataclass
 from typing import Any
 
@@ -55,6 +54,7 @@ from optik import spatial
 from optik.checks import as_vector
 from optik.errors import InvalidArgumentError
 from optik.mechanism import TASK_ROWS, Mechanism
+from optik.mechanism.memo import PerMechanism
 
 __all__ = [
     "SECONDARY_OBJECTIVES",
@@ -298,7 +298,7 @@ class IKProblem:
         return ca.vertcat(*rows)
 
 
-_CACHE: weakref.WeakKeyDictionary[Mechanism, dict[tuple, IKProblem]] = weakref.WeakKeyDictionary()
+_CACHE: PerMechanism[dict[tuple, IKProblem]] = PerMechanism()
 
 
 def build_ik_problem(

@@ -110,7 +110,7 @@ __all__ = [
 PROBLEM_DIR = Path(str(resources.files("optik.problems")))
 """The shipped problem files: the package ``optik.problems`` (the folder ``problems/`` of the repository)."""
 
-PEERS = ("trac_ik", "pink", "ikpy")
+PEERS = ("trac_ik", "rtb_lm", "pink", "ikpy")
 """Peer libraries a problem may ask for (adapters in [`optik.harness.peers`][optik.harness.peers])."""
 
 SAMPLING = ("auto", "joint", "actuated", "pose")

@@ -13,7 +13,7 @@ import pytest
 import optik
 from optik import native
 from optik.diffik._codegen import CompiledFunction
-from optik.solvers import evaluation, lm_kernel
+from optik.solvers import lm_kernel
 from optik.solvers.native import NativeFunction, native_functions
 
 X = ca.SX.sym("x", 3)
@@ -148,10 +148,8 @@ def test_fallback_without_a_working_compiler(monkeypatch: pytest.MonkeyPatch, tm
 
 
 def _fresh_panda(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> optik.Mechanism:
-    """A Panda never compiled: empty cache directory, no solver function cached in the process."""
+    """A Panda never compiled: empty cache directory, and a new mechanism (its caches are its own)."""
     monkeypatch.setenv("OPTIK_CACHE_DIR", str(tmp_path))
-    lm_kernel.kernel.cache_clear()
-    evaluation._native_errors.cache_clear()
     return optik.Mechanism.from_urdf(PANDA, "panda_link0", "panda_link8")
 
 

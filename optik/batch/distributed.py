@@ -14,7 +14,6 @@ answers are those of a local run: each target carries its own seed.
 from __future__ import annotations
 
 import uuid
-import weakref
 from collections.abc import Callable
 from typing import Any
 
@@ -24,8 +23,9 @@ from optik.batch.chunk import ChunkSpec, chunk_bounds, solve_chunk
 from optik.batch.result import BatchResult
 from optik.errors import InvalidArgumentError, require_extra
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 
-_SHIPPED: weakref.WeakKeyDictionary[Mechanism, dict[str, Any]] = weakref.WeakKeyDictionary()
+_SHIPPED: PerMechanism[dict[str, Any]] = PerMechanism()
 """The future of each shipped mechanism per client id (ship a mechanism once per cluster)."""
 
 _ON_WORKER: dict[str, Mechanism] = {}

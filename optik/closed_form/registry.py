@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import inspect
 import math
-import weakref
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -27,6 +26,7 @@ import numpy as np
 from optik.checks import as_vector
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.spatial import wrap_rotation_vector
 from optik.targets import target_transform
 
@@ -53,7 +53,6 @@ def register(
     True answers for the kind instead of ``ik`` (the hand-written one then answers for the
     geometries the derived one only approximates)."""
     _GENERATION[0] += 1
-    _DERIVED.clear()
     if ik is not None:
         _IK[kind] = ik
         if prefer_exact_derived:
@@ -66,7 +65,8 @@ def register(
 
 Deriver = Callable[[Mechanism], IKSolver | None]
 _DERIVERS: list[Deriver] = []
-_DERIVED: weakref.WeakKeyDictionary[Mechanism, IKSolver | None] = weakref.WeakKeyDictionary()
+_DERIVED: PerMechanism[tuple[int, IKSolver | None]] = PerMechanism()
+"""``(registry generation, derived IK)`` per mechanism: stale once the generation changed."""
 
 
 def register_deriver(deriver: Deriver) -> None:
@@ -74,7 +74,6 @@ def register_deriver(deriver: Deriver) -> None:
     None). Derivers are tried in registration order for mechanisms whose kind has no registered
     IK; the first answer is cached per mechanism."""
     _DERIVERS.append(deriver)
-    _DERIVED.clear()
     _GENERATION[0] += 1
 
 
@@ -92,10 +91,9 @@ def ik_solver(m: Mechanism) -> IKSolver | None:
     own = _IK.get(m.kind) if m.kind is not None else None
     if own is not None and m.kind not in _PREFER_EXACT_DERIVED:
         return own
-    try:
-        return _DERIVED[m]
-    except KeyError:
-        pass
+    cached = _DERIVED.get(m)
+    if cached is not None and cached[0] == _GENERATION[0]:
+        return cached[1]
     solver = None
     for deriver in _DERIVERS:
         solver = deriver(m)
@@ -103,8 +101,15 @@ def ik_solver(m: Mechanism) -> IKSolver | None:
             break
     if own is not None and not getattr(solver, "exact", False):
         solver = own
-    _DERIVED[m] = solver
+    _DERIVED[m] = (_GENERATION[0], solver)
     return solver
+
+
+def costly(m: Mechanism) -> bool:
+    """True when ``m``'s closed-form IK declares itself costly (a ``costly`` attribute that is
+    True: the general 6R solver, tens of ms per target), so that `optik.solve_ik` with
+    ``method=None`` tries the numerical method first."""
+    return getattr(ik_solver(m), "costly", False) is True
 
 
 def has_ik(m: Mechanism) -> bool:
@@ -118,7 +123,7 @@ def has_fk(m: Mechanism) -> bool:
 
 
 _Coordinates = tuple[tuple[bool, ...], tuple[slice, ...], tuple[int, ...]]
-_COORDS: weakref.WeakKeyDictionary[Mechanism, _Coordinates] = weakref.WeakKeyDictionary()
+_COORDS: PerMechanism[_Coordinates] = PerMechanism()
 
 MAX_ACTUATED = 1e50
 """Largest actuated value (leg length, angle) the closed-form FK accepts: the assembly

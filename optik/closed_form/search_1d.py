@@ -78,7 +78,6 @@ from __future__ import annotations
 
 import functools
 import itertools
-import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
@@ -94,6 +93,7 @@ from optik.closed_form.structure import Axes, intersection, parallel
 from optik.closed_form.subproblems import rot, sp1, sp2, sp3, sp5, sp6
 from optik.errors import InvalidArgumentError, ShapeError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.spatial import angle_distance
 
 __all__ = [
@@ -626,7 +626,7 @@ class Search1D:
         return Search1DSolutions(qk, float(np.max(err[kept], initial=0.0)), int(good.size), False, reason)
 
 
-_SEARCH: weakref.WeakKeyDictionary[Mechanism, Search1D | None] = weakref.WeakKeyDictionary()
+_SEARCH: PerMechanism[Search1D | None] = PerMechanism()
 
 
 def search_of(m: Mechanism) -> Search1D | None:

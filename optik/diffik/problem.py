@@ -19,7 +19,6 @@ from __future__ import annotations
 import itertools
 import math
 import threading
-import weakref
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -33,6 +32,7 @@ from optik.diffik.base import Limit, Task, intersect
 from optik.diffik.limits import ClosureConstraint, ConfigurationLimit, VelocityLimit
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 
 
 @dataclass
@@ -171,7 +171,7 @@ class StackFunction:
         return self.function.call_flat(np.concatenate([q, *p, np.array([dt]), v_prev]))
 
 
-_STACKS: weakref.WeakKeyDictionary[Mechanism, dict[tuple, StackFunction]] = weakref.WeakKeyDictionary()
+_STACKS: PerMechanism[dict[tuple, StackFunction]] = PerMechanism()
 
 
 def normalize_limits(m: Mechanism, limits: Sequence[Limit] | None) -> list[Limit]:
@@ -198,7 +198,7 @@ def normalize_limits(m: Mechanism, limits: Sequence[Limit] | None) -> list[Limit
 
 
 _ZEROS: dict[int, np.ndarray] = {}
-_DEFAULT_LIMITS: weakref.WeakKeyDictionary[Mechanism, list[Limit]] = weakref.WeakKeyDictionary()
+_DEFAULT_LIMITS: PerMechanism[list[Limit]] = PerMechanism()
 
 
 MIN_DT = 1e-9

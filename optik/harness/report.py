@@ -39,6 +39,7 @@ COLUMNS = (
     ("median_ms", "median ms", "{:.3g}"),
     ("p95_ms", "p95 ms", "{:.3g}"),
     ("ratio", "x fastest", "{:.2f}"),
+    ("overshoot_max", "max overshoot", "{:.1e}"),
     ("cf_err_max", "max err vs cf", "{:.1e}"),
     ("branch_pct", "cf branch %", "{:.0f}"),
     ("ref_branch_pct", "ref branch %", "{:.0f}"),
@@ -56,6 +57,7 @@ CSV_KEYS = (
     "p95_ms",
     "max_ms",
     "ratio",
+    "overshoot_max",
     "cf_err_median",
     "cf_err_max",
     "branch_pct",
@@ -162,6 +164,7 @@ def _problem_json(run: ProblemRun) -> dict[str, Any]:
                     "cf_distance",
                     "ref_distance",
                     "status",
+                    "overshoot",
                 )
             }
             for r in run.runs
@@ -181,6 +184,9 @@ def _markdown(runs: Sequence[ProblemRun], meta: dict[str, Any], charts: dict[str
         "every solver starts at the mid-limit configuration, with the same time limit and tolerances; "
         "every call is timed, failures included (one untimed warm-up call per solver). "
         "`x fastest`: median time over the fastest median among solvers with a success. "
+        "Every answer is clipped into the limits before it is judged (optik's `solve_ik` clips its own); "
+        "`max overshoot`: how far the raw answer was outside the limits (0 for optik, already clipped). "
+        "Where the problem has a URDF, every success is re-checked by Pinocchio's FK. "
         "`max err vs cf`: largest joint distance of a successful answer to the nearest closed-form branch; "
         "`cf branch %` / `ref branch %`: successes on a closed-form branch / on the branch the target "
         "was drawn from (distance < 1e-4).",

@@ -161,6 +161,8 @@ class Mechanism:
         self.kind: str | None = None
         """Catalog key (e.g. ``"planar_3r"``) under which [`optik.closed_form`][optik.closed_form] finds this
         mechanism's analytic solvers; None for mechanisms built by hand."""
+        self._memo: dict[object, Any] = {}
+        """Entries of the caches keyed on this mechanism (`optik.mechanism.memo.PerMechanism`)."""
         self._fk_funs: dict[str, ca.Function] = {}
         self._jac_funs: dict[str, ca.Function] = {}
 

@@ -33,8 +33,9 @@ from typing import Any
 import numpy as np
 
 from optik.checks import as_name, as_vector
-from optik.closed_form import registry
-from optik.closed_form.derived import derive_locked
+from optik.closed_form import registry, search_1d
+from optik.closed_form.derived import derive_locked, locked_axes
+from optik.closed_form.general_6r import General6R, solve_general_6r
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.results import IKResult, IKSolutions
@@ -93,9 +94,11 @@ def solve_ik_all(
         max_solutions: stop after this many solutions.
         closed_form: with ``method=None``, False skips the closed form (numerical search only).
         fixed: coordinates locked at given values, ``{name: value}`` (e.g. one joint of a 7-DOF
-            arm): the solutions of the remaining joints, by the closed form derived for the chain
-            they leave when its structure allows (Panda, iiwa with one joint locked), else by the
-            numerical search with those coordinates' limits pinned to the values. Sample the
+            arm): the solutions of the remaining joints, by what a standalone arm of the 6R chain
+            they leave would get: its derived closed form when its structure allows (Panda, iiwa
+            with one joint locked), else the general 6R solver where it covers the geometry, else
+            the 1-D search (both with their certificate or its absence); else by the numerical
+            search with those coordinates' limits pinned to the values. Sample the
             self-motion of a redundant arm by sweeping the value (`self_motion`).
         **options: options of the numerical method (the closed form takes none).
 
@@ -246,15 +249,14 @@ def _locked_all(
     """Solutions with the coordinates ``locks`` fixed: the derived closed form of the remaining
     6R chain, else the numerical search with those limits pinned."""
     m = request.mechanism
-    solver = None
+    found = None
     if method in (None, "closed_form") and request.task == "pose" and request.frame in (None, m.ee):
-        solver = derive_locked(m, locks)
-    if solver is not None:
+        found = _locked_closed_form(m, locks, request.target)
+    if found is not None:
         _no_options(request)
-        q, ok = solver.solve(request.target)
         free = [k for k in range(m.n_q) if k not in locks]
         rows = []
-        for sol in q[0][ok[0]].tolist():
+        for sol in found:
             row = [0.0] * m.n_q
             for k, v in zip(free, sol, strict=True):
                 row[k] = v
@@ -263,12 +265,14 @@ def _locked_all(
         for row in rows:  # exactly the locked values (within limits: checked)
             for k, v in locks.items():
                 row[k] = v
+        if isinstance(found, registry.Uncertified):
+            rows = registry.Uncertified(rows, found.reason)
         return _from_rows(request, rows)
     if method == "closed_form":
         raise SolverUnavailableError(
             f"method 'closed_form' does not apply to {m.name!r} with "
             f"{sorted(m.coordinate_names[k] for k in locks)} locked: the remaining chain has no "
-            "derived closed form"
+            "closed form for this task and frame"
         )
     lower, upper = m.lower.copy(), m.upper.copy()
     for k, v in locks.items():
@@ -279,6 +283,31 @@ def _locked_all(
     sub = make_request(pinned, r.target, q0, r.task, r.frame, r.time_limit, r.tol, r.seed, r.options)
     name = method or pick_method(pinned, request.task, NUMERIC_ORDER)
     return _numeric_all(sub, name, patience, max_solutions, request.q0)
+
+
+def _locked_closed_form(
+    m: Mechanism, locks: dict[int, float], target: np.ndarray
+) -> list[list[float]] | None:
+    """The closed-form solutions of the free joints with ``locks`` fixed, by what a standalone
+    arm of the remaining 6R chain's geometry would get: its derived closed form, else the
+    general 6R solver where it covers the geometry (an `registry.Uncertified` list when the
+    count check fails), else the 1-D search (uncertified); None when none applies."""
+    solver = derive_locked(m, locks)
+    if solver is not None:
+        q, ok = solver.solve(target)
+        return q[0][ok[0]].tolist()
+    axes = locked_axes(m, locks)
+    if axes is None:
+        return None
+    arm = General6R.from_axes(axes)
+    if arm.covered:
+        sols = solve_general_6r(arm, target)
+        return sols.q.tolist() if sols.count_ok else registry.Uncertified(sols.q.tolist(), sols.reason)
+    family = search_1d.family_of(axes)
+    if family is None:
+        return None
+    got = search_1d.Search1D(axes, family).solve(target[None])[0]
+    return registry.Uncertified(got.q.tolist(), got.reason)
 
 
 def self_motion(m: Mechanism, target: Any, joint: str, values: Any, **options: Any) -> list[IKSolutions]:

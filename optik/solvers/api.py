@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from optik.closed_form import registry
 from optik.errors import SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.results import IKResult
@@ -59,7 +60,8 @@ def solve_ik(
             ``orientation_error`` are their maxima; success needs every frame within tolerance.
         q0: start configuration (default: mid-limit).
         method: ``"closed_form"``, ``"lm"``, ``"nlp"``, ``"dls"``, ``"qp"``; None picks the best
-            available (closed form where the catalog has one, else ``"lm"``).
+            available (closed form where the catalog has one, else ``"lm"``; where the closed
+            form is costly, ``"lm"`` first and the closed form only when it fails).
         task: task space (default from the target type and the mechanism); with a target dict,
             one space for every frame or a ``{frame: task}`` dict.
         frame: task frame (default: the end effector); None with a target dict.
@@ -97,10 +99,40 @@ def solve_ik(
             f"method {name!r} does not apply to {m.name!r} with task {request.task!r}"
             + ("" if own_frame else f" and frame {request.frame!r}")
         )
+    if method is None and name == "closed_form" and registry.costly(m):
+        return _numerical_first(request)
     res = info.solve(request)
     if method is None and name == "closed_form" and "uncertified" in res.extra:
         return _numerical_fallback(request, res)
     return res
+
+
+NUMERICAL_SHARE = 0.5
+"""Share of the time limit that ``method=None`` gives the numerical method first where the
+closed form is costly (`_numerical_first`)."""
+
+
+def _numerical_first(request: IKRequest) -> IKResult:
+    """The default method where the closed form costs far more than a numerical solve (the
+    general 6R solver: an eigenproblem and 16 polished paths, tens of ms, against a fraction of
+    a ms for ``lm``): the next method of `DEFAULT_ORDER` with `NUMERICAL_SHARE` of the time
+    limit; the closed form only when that fails. Its answer is taken when it finds a branch within
+    the limits, or when it is certified complete (it then says why there is none: out of reach,
+    or only outside the limits); otherwise the numerical answer stands, with the closed form's
+    finding in its message and ``extra["closed_form"]``."""
+    m = request.mechanism
+    name = pick_method(m, request.task, tuple(n for n in DEFAULT_ORDER if n != "closed_form"))
+    first = dataclasses.replace(request, time_limit=NUMERICAL_SHARE * request.time_limit)  # same start
+    res = get_method(name).solve(first)
+    if res.success:
+        return res
+    closed = get_method("closed_form").solve(request)
+    if closed.success or "uncertified" not in closed.extra:
+        note = f"{name} found no solution within {first.time_limit:g} s first"
+        closed.message = f"{closed.message}; {note}" if closed.message else note
+        closed.extra[name] = {"status": res.status, "message": res.message}
+        return closed
+    return _noted(res, closed)
 
 
 def _numerical_fallback(request: IKRequest, closed: IKResult) -> IKResult:
@@ -111,7 +143,12 @@ def _numerical_fallback(request: IKRequest, closed: IKResult) -> IKResult:
     m = request.mechanism
     name = pick_method(m, request.task, tuple(n for n in DEFAULT_ORDER if n != "closed_form"))
     rest = dataclasses.replace(request, time_limit=max(request.remaining(), 1e-6))  # same start
-    res = get_method(name).solve(rest)
+    return _noted(get_method(name).solve(rest), closed)
+
+
+def _noted(res: IKResult, closed: IKResult) -> IKResult:
+    """A numerical answer ``res`` with the finding of the uncertified closed form ``closed`` in
+    its message and ``extra["closed_form"]``."""
     reason = closed.extra["uncertified"]
     note = f"the closed form (not certified complete: {reason}) found no branch within the limits"
     res.message = f"{res.message}; {note}" if res.message else note

@@ -27,6 +27,7 @@ from optik.closed_form import registry
 from optik.closed_form.derived import DerivedRows
 from optik.errors import SolverUnavailableError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.results import IKResult
 from optik.solvers.base import (
     IKRequest,
@@ -101,7 +102,7 @@ class _Evaluator:
         self.lock = threading.Lock()
 
 
-_EVALUATORS: weakref.WeakKeyDictionary[Mechanism, dict[str | None, _Evaluator]] = weakref.WeakKeyDictionary()
+_EVALUATORS: PerMechanism[dict[str | None, _Evaluator]] = PerMechanism()
 
 
 def _evaluator(m: Mechanism, frame: str | None) -> _Evaluator:

@@ -36,7 +36,6 @@ assembly, where two modes merge.
 from __future__ import annotations
 
 import time
-import weakref
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -47,6 +46,7 @@ from optik import closed_form, spatial
 from optik.checks import as_rng, as_vector
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.results import FKModes, FKResult
 from optik.solvers.base import BRANCH_TOL, Tolerances, joint_distance, positive_int
 
@@ -85,7 +85,7 @@ class _Compiled:
         return np.asarray(c).T, np.asarray(jac).reshape(rows, n, cols).transpose(1, 0, 2)
 
 
-_CACHE: weakref.WeakKeyDictionary[Mechanism, _Compiled] = weakref.WeakKeyDictionary()
+_CACHE: PerMechanism[_Compiled] = PerMechanism()
 
 
 def _compiled(m: Mechanism) -> _Compiled:

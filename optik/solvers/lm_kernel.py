@@ -23,7 +23,6 @@ import ctypes
 import threading
 import time
 from dataclasses import dataclass
-from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +30,7 @@ import casadi as ca
 import numpy as np
 
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.native import driver_source, library
 from optik.problem import IKProblem, build_ik_problem
 from optik.solvers.evaluation import error_function
@@ -333,17 +333,19 @@ class LMKernel:
             out.solve_time[t] = time.perf_counter() - t0
 
 
+_KERNELS: PerMechanism[dict[tuple, LMKernel]] = PerMechanism()
+
+
 def kernel(
     m: Mechanism, task: str, frame: str | None, closure_weight: float, compile: bool | str
 ) -> LMKernel:
     """The `LMKernel` of a mechanism, task, frame and closure weight (built once per
     [`Mechanism.geometry`][optik.Mechanism.geometry]: copies that differ only by their limits
-    share it, the limits being inputs of `Settings.conf`)."""
-    return _kernel(m.geometry, task, frame, closure_weight, compile)
-
-
-@lru_cache(maxsize=64)
-def _kernel(
-    m: Mechanism, task: str, frame: str | None, closure_weight: float, compile: bool | str
-) -> LMKernel:
-    return LMKernel(m, task, frame, closure_weight, compile)
+    share it, the limits being inputs of `Settings.conf`; it lives as long as that geometry)."""
+    g = m.geometry
+    per = _KERNELS.setdefault(g, {})
+    key = (task, frame, closure_weight, compile)
+    found = per.get(key)
+    if found is None:
+        found = per.setdefault(key, LMKernel(g, task, frame, closure_weight, compile))
+    return found

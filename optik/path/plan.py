@@ -1,0 +1,255 @@
+"""`plan_path`: a Cartesian path of tool poses as a joint path, over every IK solution.
+
+For an arm with a complete closed form (`optik.solve_ik_all` certified), every solution of
+every pose becomes a node of a layered graph, and the path of least weighted joint motion
+through it is found by dynamic programming (`optik.path.graph`): the exact optimum over all
+solutions, so it never changes branch unless the poses force it. Joints that can turn past
+``+-pi`` are compared modulo ``2 pi`` and their turns counted afterwards, or planned over every
+turn when the limits bind (`optik.path.nodes`). With given times, the edges that break the
+velocity limits are removed; without, the times are the shortest the velocity limits allow, or
+those of a tool speed stretched where the limits need it (`optik.path.timing`).
+
+The answer is checked from its configurations alone, independently of how it was found: the FK
+of every sample against its pose, the joint limits, the velocity and acceleration limits on the
+finite differences, the branch changes, collisions with a `World`.
+
+A *branch change* is a step to a solution of the next pose other than the one nearest the
+current configuration (`optik.path.graph.branch_changes`): on a densely sampled path the nearest
+solution is the continuation of the branch, any other a jump.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from optik.batch import fk_batch
+from optik.checks import as_float, as_int, as_transform, as_vector, real_array
+from optik.collision import World, check_many
+from optik.errors import InvalidArgumentError, ShapeError
+from optik.mechanism import Mechanism
+from optik.path.graph import branch_changes, least_motion
+from optik.path.nodes import closed_form_solutions, realize, turn_copies, wrapping
+from optik.path.result import JointPath
+from optik.path.timing import derivatives, segment_times, step_bounds
+from optik.solvers import Tolerances
+from optik.spatial import angle_between
+
+VELOCITY_SLACK = 1e-9
+"""Relative rounding allowed on the velocity check (times equal to ``|dq| / v`` give ``v`` to
+rounding)."""
+
+
+def _poses(poses: Any) -> np.ndarray:
+    a = real_array(poses, "poses")
+    if a.ndim != 3 or a.shape[1:] != (4, 4) or len(a) == 0:
+        raise ShapeError("poses", f"expected N >= 1 transforms of shape (N, 4, 4), got {a.shape}")
+    return np.stack([as_transform(t, f"poses[{k}]") for k, t in enumerate(a)])
+
+
+def _times(times: Any, n: int) -> np.ndarray | None:
+    if times is None:
+        return None
+    t = as_vector(times, "times", n)
+    if np.any(np.diff(t) <= 0.0):
+        raise InvalidArgumentError("times", "must be strictly increasing")
+    return t - t[0]
+
+
+def _positive(value: Any, name: str, n: int) -> np.ndarray:
+    v = as_vector(value, name, n)
+    if np.any(v <= 0.0):
+        raise InvalidArgumentError(name, f"every entry must be > 0, got {v}")
+    return v
+
+
+def _velocity(m: Mechanism, velocity: Any) -> np.ndarray | None:
+    if velocity is None:
+        own = m.params.get("velocity_limits") if isinstance(m.params, dict) else None
+        return None if own is None else np.asarray(own, dtype=float)
+    return _positive(velocity, "velocity", m.n_q)
+
+
+def _failed(m: Mechanism, nodes: np.ndarray, message: str) -> JointPath:
+    empty = np.zeros((0, m.n_q))
+    return JointPath(empty, np.zeros(0), empty, empty, np.zeros(0, dtype=int), float("inf"),
+                     {}, False, message, 0, np.zeros(0), nodes)  # fmt: skip
+
+
+def _free_of_collisions(
+    m: Mechanism, solutions: list[np.ndarray], world: World | None, margin: float
+) -> tuple[list[np.ndarray], int]:
+    """The solutions free of collisions with ``world`` and with the robot itself (all of them
+    without a world), and how many were dropped."""
+    if world is None:
+        return solutions, 0
+    stacked = np.concatenate(solutions)
+    if not len(stacked):
+        return solutions, 0
+    free = ~check_many(m, stacked, world=world, margin=margin).in_collision
+    keep = np.split(free, np.cumsum([len(s) for s in solutions])[:-1])
+    return [s[k] for s, k in zip(solutions, keep, strict=True)], int(np.count_nonzero(~free))
+
+
+def check_path(
+    m: Mechanism,
+    q: np.ndarray,
+    t: np.ndarray,
+    qdd: np.ndarray,
+    targets: np.ndarray,
+    frame: str | None,
+    tol: Tolerances,
+    velocity: np.ndarray | None,
+    acceleration: np.ndarray | None,
+) -> dict[str, bool]:
+    """The checks of a path recomputed from its samples alone: FK of every sample against its
+    target pose, joint limits, segment velocities ``|dq| / dt`` against ``velocity`` and
+    accelerations against ``acceleration`` (when given)."""
+    fk = fk_batch(m, q, frame)
+    pos = np.linalg.norm(fk[:, :3, 3] - targets[:, :3, 3], axis=1)
+    ori = np.array([angle_between(a[:3, :3], b[:3, :3]) for a, b in zip(fk, targets, strict=True)])
+    checks = {
+        "fk": bool(np.all(pos <= tol.position) and np.all(ori <= tol.orientation)),
+        "limits": bool(np.all(q >= m.lower) and np.all(q <= m.upper)),
+    }
+    if velocity is not None:
+        seg = np.abs(np.diff(q, axis=0)) / np.diff(t)[:, None] if len(q) > 1 else np.zeros((0, m.n_q))
+        checks["velocity"] = bool(np.all(seg <= velocity * (1.0 + VELOCITY_SLACK)))
+    if acceleration is not None:
+        checks["acceleration"] = bool(np.all(np.abs(qdd) <= acceleration))
+    return checks
+
+
+def plan_path(
+    m: Mechanism,
+    poses: Any,
+    times: Any = None,
+    *,
+    weights: Any = None,
+    velocity: Any = None,
+    acceleration: Any = None,
+    speed: float | None = None,
+    frame: str | None = None,
+    tol: float | Tolerances | None = None,
+    world: World | None = None,
+    margin: float = 0.0,
+    max_flips: int | None = 0,
+) -> JointPath:
+    """A joint path through ``poses`` of least weighted joint motion, over every IK solution.
+
+    The graph has one layer per pose and one node per solution (with its ``2 pi`` turns); the
+    answer minimizes the weighted joint-space length
+
+    ```
+    L = sum_k |W (q_{k+1} - q_k)|_2 ,   W = diag(weights)
+    ```
+
+    exactly over the graph (dynamic programming, `optik.path.graph`).
+
+    Args:
+        m: an arm with a complete closed form (`optik.solve_ik_all` certified).
+        poses: tool poses ``(N, 4, 4)``, in order.
+        times: sample times ``(N,)`` (s, strictly increasing): edges breaking the velocity limits
+            at these times are removed. None: the shortest times the velocity limits allow, or
+            those of ``speed`` stretched where the limits need it (`optik.path.timing`).
+        weights: per-joint weights of the joint motion ``(n,)`` (default ones).
+        velocity: joint velocity limits ``(n,)`` (default: the model's ``<limit velocity>`` when
+            it has them, else none).
+        acceleration: joint acceleration limits ``(n,)``, checked on the answer (not planned).
+        speed: tool speed (m/s) giving the nominal times when ``times`` is None.
+        frame: the tool frame (default: the end effector).
+        tol: FK tolerances of the check (default `optik.Tolerances()`).
+        world: obstacles; configurations in collision with them or with the robot itself are
+            no nodes (`optik.collision.check_many`).
+        margin: clearance (m) of the collision check.
+        max_flips: most branch changes the ``"branch"`` check accepts (None: any, for poses far
+            apart, where the nearest solution says nothing about continuity).
+
+    Returns:
+        A [`JointPath`][optik.path.JointPath]; ``success=False`` with a message when a pose has
+        no solution (or none free of collisions), when no path meets the velocity limits at the
+        given times, or when a check of the answer fails.
+
+    Raises:
+        OptikError: malformed input (named argument); `SolverUnavailableError` when ``m`` has no
+            certified closed form.
+    """
+    targets = _poses(poses)
+    n = len(targets)
+    t_given = _times(times, n)
+    w = np.ones(m.n_q) if weights is None else as_vector(weights, "weights", m.n_q)
+    if np.any(w < 0.0):
+        raise InvalidArgumentError("weights", f"must be >= 0, got {w}")
+    v = _velocity(m, velocity)
+    acc = None if acceleration is None else _positive(acceleration, "acceleration", m.n_q)
+    spd = None if speed is None else as_float(speed, "speed", 0.0, strict=True)
+    tols = Tolerances.from_arg(tol)
+    flips_ok = None if max_flips is None else as_int(max_flips, "max_flips")
+    solutions = closed_form_solutions(m, targets, frame)
+    layers, dropped = _free_of_collisions(m, solutions, world, margin)
+    sizes = np.array([len(layer) for layer in layers])
+    empty = np.flatnonzero(sizes == 0)
+    if empty.size:
+        why = "every solution collides" if len(solutions[empty[0]]) else "no solution within the joint limits"
+        return _failed(m, sizes, f"pose {empty[0]} has {why} ({empty.size} such poses)")
+    bounds = None if t_given is None or v is None else step_bounds(t_given, v)
+    periods = wrapping(m)
+    best = least_motion(layers, w, bounds, periods)
+    if best.blocked >= 0:
+        k = best.blocked
+        dt = t_given[k] - t_given[k - 1]
+        why = f"no solution of pose {k} is reachable from pose {k - 1} in {dt:g} s"
+        return _failed(m, sizes, f"no joint path within the velocity limits at the given times: {why}")
+    rows = np.stack([layer[i] for layer, i in zip(layers, best.index, strict=True)])
+    q = realize(rows, periods, m.lower, m.upper)
+    turns = ""
+    if q is None:  # the relaxed optimum turns a joint past its limits: plan over every turn
+        angles = np.asarray(m.revolute_mask, dtype=bool)
+        layers = [turn_copies(layer, m.lower, m.upper, angles)[0] for layer in layers]
+        periods = np.zeros(m.n_q)
+        best = least_motion(layers, w, bounds, periods)
+        if best.blocked >= 0:
+            return _failed(m, sizes, f"no joint path within the joint limits and the velocity limits: pose "
+                           f"{best.blocked} is not reachable on any turn of the joints")  # fmt: skip
+        q = np.stack([layer[i] for layer, i in zip(layers, best.index, strict=True)])
+        copies = np.mean([len(x) for x in layers])
+        turns = (
+            f"; the joints' turns reach their limits: planned over every turn ({copies:.3g} nodes per pose)"
+        )
+    groups = [np.zeros(len(layer), dtype=int) for layer in layers]
+    branch = branch_changes(layers, best.index, w, groups, periods)
+    stretched = 0
+    if t_given is None:
+        travel = np.linalg.norm(np.diff(targets[:, :3, 3], axis=0), axis=1)
+        t, stretched = segment_times(q, travel, v, spd)
+    else:
+        t = t_given
+    qd, qdd = derivatives(q, t)
+    checks = check_path(m, q, t, qdd, targets, frame, tols, v, acc)
+    checks["branch"] = bool(flips_ok is None or branch[-1] <= flips_ok)
+    if world is not None:
+        checks["collision"] = True  # every node was checked free
+    parts = [
+        f"{n} poses, {sizes.mean():.3g} solutions per pose on average{turns}",
+        f"joint-space length {best.cost:.6g}",
+        f"{int(branch[-1])} branch changes",
+    ]
+    if dropped:
+        parts.append(f"{dropped} colliding configurations dropped")
+    if t_given is None:
+        if v is None:
+            parts.append(
+                "no velocity limits: " + ("unit time steps" if spd is None else "times from the tool speed")
+            )
+        elif spd is None:
+            parts.append("times: the shortest the velocity limits allow")
+        else:
+            parts.append(
+                f"times from the tool speed, {stretched} segments stretched to meet the velocity limits"
+            )
+    failed = [name for name, ok in checks.items() if not ok]
+    if failed:
+        parts.append("failed checks: " + ", ".join(failed))
+    return JointPath(q, t, qd, qdd, branch, best.cost, checks, not failed, "; ".join(parts), stretched,
+                     np.zeros(n), sizes)  # fmt: skip

@@ -1,0 +1,240 @@
+"""`optik.plan_path` (issue 24): the least-motion joint path over every IK solution.
+
+The optimum is checked against brute force (every sequence of solutions enumerated), the
+relaxation of wrapping joints against the graph of every turn, and every answer by an
+independent FK per sample, the limits and the velocities recomputed from ``q`` and ``t``.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import optik
+from optik.path import graph
+from optik.path.nodes import turn_copies
+
+
+def _robot(name):
+    try:
+        return optik.catalog.robot(name)
+    except optik.MissingExtraError as exc:
+        pytest.skip(f"the UR5 comes from the robots extra: {exc}")
+
+
+@pytest.fixture(scope="module")
+def ur5():
+    return _robot("ur5")
+
+
+@pytest.fixture(scope="module")
+def ur5_limited():
+    return _robot("ur5_limited")
+
+
+@pytest.fixture(scope="module")
+def puma():
+    return optik.catalog.puma560()
+
+
+Q0 = {"puma560": np.array([0.3, 0.5, -1.0, 0.4, 0.8, 0.2]), "ur5": np.array([0.3, -1.1, 1.2, -0.6, 0.8, 0.2])}
+
+
+def line(m, n=200, d=(0.05, 0.03, -0.02)):
+    """Poses along a straight line from ``fk(q0)``, orientation fixed."""
+    poses = np.repeat(m.fk(Q0.get(m.name, Q0["ur5"]))[None], n, axis=0)
+    poses[:, :3, 3] += np.linspace(0.0, 1.0, n)[:, None] * np.asarray(d)
+    return poses
+
+
+def length(q, w=None):
+    w = np.ones(q.shape[1]) if w is None else w
+    return float(np.linalg.norm(np.diff(q, axis=0) * w, axis=1).sum())
+
+
+def brute_force(layers, w, bounds=None):
+    """The least cost over every sequence of nodes (enumerated)."""
+    best = np.inf
+    for pick in itertools.product(*[range(len(layer)) for layer in layers]):
+        q = np.stack([layer[i] for layer, i in zip(layers, pick, strict=True)])
+        if bounds is not None and np.any(np.abs(np.diff(q, axis=0)) > bounds):
+            continue
+        best = min(best, length(q, w))
+    return best
+
+
+def independent_checks(m, path, poses, tol=1e-6):
+    """FK of every sample by ``m.fk`` (one call each), the limits exactly."""
+    for q, t in zip(path.q, poses, strict=True):
+        f = m.fk(q)
+        assert np.linalg.norm(f[:3, 3] - t[:3, 3]) <= tol
+        assert optik.spatial.angle_between(f[:3, :3], t[:3, :3]) <= tol
+    assert np.all(path.q >= m.lower) and np.all(path.q <= m.upper)
+
+
+@settings(max_examples=30)
+@given(st.integers(2, 4), st.integers(1, 4), st.integers(0, 10_000), st.booleans(), st.booleans())
+def test_dynamic_program_is_the_brute_force_optimum(n_layers, width, seed, bounded, periodic):
+    rng = np.random.default_rng(seed)
+    layers = [rng.uniform(-4, 4, (int(rng.integers(1, width + 1)), 3)) for _ in range(n_layers)]
+    w = rng.uniform(0.2, 2.0, 3)
+    bounds = np.full((n_layers - 1, 3), 4.0) if bounded else None
+    periods = np.array([2 * np.pi, 0.0, 2 * np.pi]) if periodic else np.zeros(3)
+    got_c = graph.least_motion(layers, w, bounds, periods)
+    got_np = graph.least_motion_numpy(layers, w, bounds, periods)
+    if periodic:  # the brute force over the wrapped differences
+        want = np.inf
+        for pick in itertools.product(*[range(len(layer)) for layer in layers]):
+            q = np.stack([layer[i] for layer, i in zip(layers, pick, strict=True)])
+            d = graph.differences(q[:-1], q[1:], periods)
+            if bounds is None or np.all(np.abs(d) <= bounds):
+                want = min(want, float(np.linalg.norm(d * w, axis=1).sum()))
+    else:
+        want = brute_force(layers, w, bounds)
+    for got in (got_c, got_np):
+        if np.isinf(want):
+            assert got.blocked >= 1 and np.isinf(got.cost)
+            continue
+        assert got.blocked == -1
+        assert got.cost == pytest.approx(want, abs=1e-9)
+        q = np.stack([layer[i] for layer, i in zip(layers, got.index, strict=True)])
+        d = graph.differences(q[:-1], q[1:], periods)
+        assert float(np.linalg.norm(d * w, axis=1).sum()) == pytest.approx(got.cost, abs=1e-9)
+
+
+def test_far_apart_poses_brute_force_over_every_solution(ur5_limited):
+    m = ur5_limited
+    rng = np.random.default_rng(3)
+    poses = optik.fk_batch(m, rng.uniform(m.lower, m.upper, (4, 6)))
+    w = np.array([2.0, 2.0, 1.5, 1.0, 1.0, 0.5])
+    path = optik.plan_path(m, poses, weights=w, max_flips=None)
+    assert path.success, path.message
+    layers = [optik.solve_ik_all(m, t).q for t in poses]
+    layers = [turn_copies(x, m.lower, m.upper, m.revolute_mask)[0] for x in layers]
+    assert length(path.q, w) == pytest.approx(brute_force(layers, w), abs=1e-9)
+    assert path.cost == pytest.approx(length(path.q, w), abs=1e-9)
+    independent_checks(m, path, poses)
+
+
+def test_relaxed_turns_equal_the_graph_of_every_turn(ur5):
+    """UR5 joints span +-2 pi: the plan on representatives modulo 2 pi, its turns counted, has
+    the optimum of the graph of every turn (up to 32 copies of each solution)."""
+    m = ur5
+    rng = np.random.default_rng(5)
+    q = rng.uniform(-np.pi, np.pi, (6, 6))
+    poses = optik.fk_batch(m, q)
+    path = optik.plan_path(m, poses, max_flips=None)
+    assert path.success, path.message
+    layers = [turn_copies(optik.solve_ik_all(m, t).q, m.lower, m.upper, m.revolute_mask)[0] for t in poses]
+    full = graph.least_motion(layers, np.ones(6))
+    assert length(path.q) == pytest.approx(full.cost, abs=1e-9)
+    independent_checks(m, path, poses)
+
+
+@pytest.mark.parametrize("arm", ["puma", "ur5", "ur5_limited"])
+def test_line_no_branch_change_fk_round_trip(arm, request):
+    m = request.getfixturevalue(arm)
+    poses = line(m)
+    path = optik.plan_path(m, poses, velocity=np.full(6, 1.0))
+    assert path.success, path.message
+    assert path.flips == 0 and np.all(path.branch == 0)
+    assert set(path.checks) == {"fk", "limits", "velocity", "branch"}
+    independent_checks(m, path, poses)
+    # a continuous path: no joint jumps between neighbouring samples
+    assert np.abs(np.diff(path.q, axis=0)).max() < 0.05
+    seg = np.abs(np.diff(path.q, axis=0)) / np.diff(path.t)[:, None]
+    assert np.all(seg <= 1.0 + 1e-9) and np.all(np.abs(path.qd) <= 1.0 + 1e-9)
+    # the nearest solution of each pose, stepped from the start, is no shorter
+    step = [path.q[0]]
+    for t in poses[1:]:
+        sols = optik.solve_ik_all(m, t).q
+        step.append(sols[np.argmin(np.linalg.norm(sols - step[-1], axis=1))])
+    assert path.cost <= length(np.array(step)) + 1e-9
+
+
+def test_circle_about_the_base_turns_past_pi(ur5):
+    """A base rotation of 1.3 turns: the path of a UR5 (+-2 pi) sweeps joint 1 continuously."""
+    m = ur5
+    angles = np.linspace(0.0, 1.3 * 2 * np.pi, 300)
+    q = np.tile(np.array([0.0, -1.2, 1.4, -0.5, 1.2, 0.3]), (300, 1))
+    q[:, 0] = angles - np.pi
+    poses = optik.fk_batch(m, q)
+    path = optik.plan_path(m, poses)
+    assert path.success, path.message
+    assert np.ptp(path.q[:, 0]) == pytest.approx(1.3 * 2 * np.pi, abs=1e-6)
+    assert np.abs(np.diff(path.q, axis=0)).max() < 0.05
+    independent_checks(m, path, poses)
+    tight = m.with_limits(lower=np.r_[-4.0, m.lower[1:]], upper=np.r_[4.0, m.upper[1:]])
+    q[:, 0] = angles - 4.0  # within the limits at every sample, but 8.2 rad of sweep
+    blocked = optik.plan_path(tight, optik.fk_batch(tight, q))
+    # the relaxed optimum does not fit: over every turn, the only way is another branch
+    assert "planned over every turn" in blocked.message
+    assert not blocked.success and blocked.flips >= 1 and blocked.checks["branch"] is False
+    assert blocked.checks["limits"] and blocked.checks["fk"]
+
+
+def test_given_times_remove_fast_edges_and_none_stretch(puma):
+    m = puma
+    poses = line(m, n=100)
+    ok = optik.plan_path(m, poses, times=np.linspace(0, 10, 100), velocity=np.full(6, 1.0))
+    assert ok.success and ok.checks["velocity"]
+    fast = optik.plan_path(m, poses, times=np.linspace(0, 1e-3, 100), velocity=np.full(6, 1.0))
+    assert not fast.success and "velocity limits" in fast.message and "pose 1" in fast.message
+    slow = optik.plan_path(m, poses, velocity=np.full(6, 0.01), speed=0.5)
+    assert slow.success and slow.stretched > 0 and f"{slow.stretched} segments stretched" in slow.message
+    seg = np.abs(np.diff(slow.q, axis=0)) / np.diff(slow.t)[:, None]
+    assert np.all(seg <= 0.01 * (1 + 1e-9))
+    # the nominal time of a segment at the tool speed, or longer
+    travel = np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=1)
+    assert np.all(np.diff(slow.t) >= travel / 0.5 - 1e-12)
+    acc = optik.plan_path(m, poses, velocity=np.full(6, 1.0), acceleration=np.full(6, 1e-6))
+    assert not acc.success and acc.checks["acceleration"] is False and "acceleration" in acc.message
+
+
+def test_unreachable_pose_is_a_failure_naming_it(puma):
+    poses = line(puma, n=20)
+    poses[7, :3, 3] += 10.0
+    path = optik.plan_path(puma, poses)
+    assert not path.success and "pose 7" in path.message and path.q.shape == (0, 6)
+
+
+def test_bad_input_names_the_argument(puma):
+    poses = line(puma, n=5)
+    cases = [
+        ({"poses": poses[:, :3]}, "poses"),
+        ({"poses": poses, "times": [0, 1, 1, 2, 3]}, "times"),
+        ({"poses": poses, "times": [0, 1, 2]}, "times"),
+        ({"poses": poses, "weights": [-1, 1, 1, 1, 1, 1]}, "weights"),
+        ({"poses": poses, "velocity": [0, 1, 1, 1, 1, 1]}, "velocity"),
+        ({"poses": poses, "speed": -1.0}, "speed"),
+    ]
+    for kwargs, name in cases:
+        with pytest.raises(optik.InvalidArgumentError) as err:
+            optik.plan_path(puma, **kwargs)
+        assert err.value.argument == name
+    bad = poses.copy()
+    bad[2, 0, 0] = np.nan
+    with pytest.raises(optik.NonFiniteError, match=r"poses\[2\]"):
+        optik.plan_path(puma, bad)
+    with pytest.raises(optik.SolverUnavailableError):
+        optik.plan_path(optik.catalog.panda(), np.eye(4)[None])
+
+
+def test_world_drops_colliding_solutions(ur5_limited):
+    pytest.importorskip("coal", reason="collision queries need coal (the collision extra)")
+    m = ur5_limited
+    poses = line(m, n=50)
+    free = optik.plan_path(m, poses)
+    ball = optik.World()
+    ball.add_sphere("ball", 0.08, optik.spatial.translation(*m.fk(free.q[25], "forearm_link")[:3, 3]))
+    path = optik.plan_path(m, poses, world=ball)
+    assert path.success and path.checks["collision"], path.message
+    assert "colliding configurations dropped" in path.message
+    hits = [optik.collision.check(m, q, world=ball).in_collision for q in path.q]
+    assert not any(hits)
+    assert any(optik.collision.check(m, q, world=ball).in_collision for q in free.q)
+    independent_checks(m, path, poses)

@@ -66,6 +66,7 @@ that it satisfies the limits and the loop closures, and the target is ``T = FK(q
 
 from __future__ import annotations
 
+import argparse
 import inspect
 import os
 import sys
@@ -677,9 +678,17 @@ def add_source_arguments(parser: Any) -> None:
     )
     parser.add_argument("--base", help="base link of a URDF chain (required with a .urdf file)")
     parser.add_argument("--tip", help="tip link of a URDF chain (required with a .urdf file)")
+    add_problems_dir(parser, argparse.SUPPRESS)
+
+
+def add_problems_dir(parser: Any, default: Any) -> None:
+    """The ``--problems-dir DIR`` option: on the ``optik`` parser with ``default=None``, and on
+    each subcommand with ``argparse.SUPPRESS``, so that ``optik --problems-dir D solve ...`` and
+    ``optik solve --problems-dir D ...`` both set it (the subcommand's value wins)."""
     parser.add_argument(
         "--problems-dir",
         metavar="DIR",
+        default=default,
         help="directory of problem files (default: the problem files shipped with optik)",
     )
 

@@ -53,7 +53,8 @@ def test_library_is_compiled_once_into_the_cache(monkeypatch: pytest.MonkeyPatch
     f = ca.Function("optik_test_cache", [X], [ca.cos(X)])
     lib = native.library([f], True)
     assert lib.state == "ready" and lib.path.parent == tmp_path
-    assert list(tmp_path.iterdir()) == [lib.path]  # the temporary build folder is gone
+    manifest = lib.path.with_name(lib.path.name + ".json")  # its size and hash (see test_cache_faults)
+    assert sorted(tmp_path.iterdir()) == [lib.path, manifest]  # the temporary build folder is gone
     assert native.library([f]) is lib  # loaded once per process
 
     def no_compiler(*args, **kwargs):
@@ -80,7 +81,8 @@ def test_first_calls_evaluate_while_the_library_builds_then_switch(
     assert native.wait(timeout=60)
     assert fn.library.state == "ready" and fn.compiled
     np.testing.assert_array_equal(fn()[0], before)
-    assert [p.name for p in (tmp_path / "fresh").iterdir()] == [fn.library.path.name]  # no leftovers
+    name = fn.library.path.name
+    assert sorted(p.name for p in (tmp_path / "fresh").iterdir()) == [name, f"{name}.json"]  # no leftovers
 
 
 def test_calls_wait_for_the_build_once_the_evaluator_budget_is_spent(

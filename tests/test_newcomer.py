@@ -3,13 +3,20 @@ what to do, and a failed command leaves nothing behind."""
 
 from __future__ import annotations
 
+import argparse
+import importlib
+import re
+import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
 
 import optik
-from optik.cli import main
+from optik import benchmarks
+from optik.cli import build_parser, main
+from optik.problem_files import PROBLEM_DIR
 
 
 def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
@@ -137,3 +144,116 @@ def test_the_output_folder_appears_with_its_first_file(capsys, tmp_path):
     code, _, _ = _run(["plot", "planar_2r", "--mode", "config", "--out", str(out)], capsys)
     assert code == 0
     assert [p.name for p in out.iterdir()] == ["planar_2r_config.png"]
+
+
+# ---------------------------------------------------------------------------- the CLI
+def _subcommands() -> dict[str, argparse.ArgumentParser]:
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return dict(sub.choices)
+
+
+def test_every_subcommand_option_says_its_default_and_choices():
+    commands = _subcommands()
+    assert set(commands) == {"bench", "solve", "fk", "plot", "benchmark", "view", "reach"}
+    for name, parser in commands.items():
+        for action in parser._actions:
+            if not action.option_strings or action.help == argparse.SUPPRESS or action.dest == "help":
+                continue
+            where = f"optik {name} {action.option_strings[0]}"
+            assert action.help and action.help.strip(), f"{where} has no help text"
+            if action.default not in (None, False, argparse.SUPPRESS):
+                assert "default" in action.help, f"{where}: its default {action.default!r} is not shown"
+            if action.choices:
+                assert action.metavar is None, f"{where} hides its choices"
+
+
+@pytest.mark.parametrize("command", ["bench", "solve", "fk", "plot", "benchmark", "view", "reach"])
+def test_every_subcommand_has_help(command, capsys):
+    code, out, _ = _run([command, "--help"], capsys)
+    assert code == 0 and out.startswith(f"usage: optik {command}")
+
+
+def test_the_top_level_help_lists_every_benchmark(capsys):
+    code, out, _ = _run(["--help"], capsys)
+    assert code == 0 and "--problems-dir" in out
+    for name in benchmarks.available():
+        assert name in out
+
+
+def test_optik_benchmark_lists_the_benchmarks_with_their_descriptions(capsys):
+    summaries = benchmarks.summaries()
+    assert len(summaries) >= 12 and all(summaries.values())
+    code, out, _ = _run(["benchmark"], capsys)
+    assert code == 0 and out.startswith(f"{len(summaries)} benchmarks; run one with: optik benchmark NAME")
+    code, helped, _ = _run(["benchmark", "--help"], capsys)
+    assert code == 0
+    for name, text in summaries.items():
+        first_words = " ".join(text.split()[:4])
+        assert re.search(rf"^  {name} +{re.escape(first_words)}", out, re.MULTILINE), name
+        assert re.search(rf"^  {name} +{re.escape(first_words)}", helped, re.MULTILINE), name
+
+
+@pytest.mark.parametrize("name", benchmarks.available())
+def test_each_benchmark_help_is_its_own_with_defaults(name, capsys):
+    code, out, _ = _run(["benchmark", name, "--help"], capsys)
+    assert code == 0 and out.startswith(f"usage: optik benchmark {name} ")
+    assert benchmarks.summary(importlib.import_module(f"optik.benchmarks.bench_{name}").__doc__)[:30] in (
+        " ".join(out.split())
+    )
+    options = re.findall(r"^  (--[a-z0-9-]+)", out, re.MULTILINE)
+    assert options, out
+    for line in re.split(r"\n(?=  -)", out.split("options:")[1])[1:]:
+        assert len(line.split()) > 1, f"optik benchmark {name}: an option without help: {line!r}"
+
+
+def test_problems_dir_before_or_after_the_subcommand(capsys, tmp_path):
+    (tmp_path / "mine.toml").write_text((PROBLEM_DIR / "planar_2r.toml").read_text())
+    for argv in (
+        ["--problems-dir", str(tmp_path), "solve", "mine", "--target", "1.2", "0.6"],
+        ["solve", "mine", "--problems-dir", str(tmp_path), "--target", "1.2", "0.6"],
+    ):
+        code, out, err = _run(argv, capsys)
+        assert code == 0, err
+        assert out.startswith("mine: IK of x=+1.200000")
+    code, _, err = _run(["solve", "mine", "--target", "1.2", "0.6"], capsys)
+    assert code == 2 and "unknown problem 'mine'" in err
+
+
+def test_bench_reports_its_whole_time(capsys, tmp_path):
+    code, out, _ = _run(
+        [
+            "bench",
+            "planar_2r",
+            "--quick",
+            "--solvers",
+            "closed_form",
+            "--n",
+            "5",
+            "--no-progress",
+            "--out",
+            str(tmp_path),
+        ],
+        capsys,
+    )
+    last = out.strip().splitlines()[-1]
+    assert code == 0
+    found = re.match(
+        r"1 problems: solved in ([\d.]+) s, tables and charts written in ([\d.]+) s; ([\d.]+) s since the "
+        r"command started \(imports and start-up included\); wrote ",
+        last,
+    )
+    assert found, last
+    solved, written, whole = map(float, found.groups())
+    assert whole >= solved + written  # the process ran at least that long
+
+
+def test_process_seconds_is_the_age_of_the_process():
+    from optik.harness.run import process_seconds
+
+    code = "import time\nfrom optik.harness.run import process_seconds as age\ntime.sleep(0.5)\nprint(age())"
+    started = time.perf_counter()
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    took = time.perf_counter() - started
+    assert 0.5 <= float(out) <= took + 0.02  # clock ticks are 10 ms
+    assert process_seconds() > 0

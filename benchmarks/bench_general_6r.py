@@ -66,7 +66,6 @@ except ImportError:  # pragma: no cover - depends on the environment
     ik_geo = None
 
 
-
 def _random_arm(rng: np.random.Generator) -> Mechanism:
     rows = [(rng.uniform(-1, 1), rng.uniform(0.1, 1), rng.uniform(-np.pi, np.pi)) for _ in range(6)]
     return dh_chain(rows, "standard")

@@ -84,7 +84,6 @@ FK_TOL = 1e-8
 SAME = 1e-4
 
 
-
 def special_arm(rng: np.random.Generator, zero: dict[str, list[int]]) -> Mechanism:
     """A random standard-DH arm with the given entries zero and joint limits ``+-U(2, pi)``."""
     a, alpha, d = rng.uniform(0.1, 1, 6), rng.uniform(-np.pi, np.pi, 6), rng.uniform(-1, 1, 6)

@@ -62,7 +62,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from optik.errors import InvalidArgumentError, SolverUnavailableError
+from optik.errors import InvalidArgumentError, ShapeError, SolverUnavailableError
 
 _INT = ctypes.c_longlong  # casadi_int of the generated code (see c_source)
 _FLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off")
@@ -469,6 +469,32 @@ def wait(timeout: float | None = None) -> bool:
     return all(lib.state != "building" for lib in builds)
 
 
+def _check_buffers(lib: ctypes.CDLL, name: str, side: str, buffers: Sequence[np.ndarray]) -> None:
+    """Check the input (``side="in"``) or output buffers of the generated function ``name``
+    against its signature in ``lib`` (see `CCall`)."""
+    argument = f"{side}puts"
+    count = getattr(lib, f"{name}_n_{side}")
+    count.restype, count.argtypes = _INT, []
+    sparsity = getattr(lib, f"{name}_sparsity_{side}")
+    sparsity.restype, sparsity.argtypes = ctypes.POINTER(_INT), [_INT]
+    n = int(count())
+    if len(buffers) != n:
+        raise InvalidArgumentError(argument, f"{name} takes {n} {argument}, got {len(buffers)} buffers")
+    for i, b in enumerate(buffers):
+        if not isinstance(b, np.ndarray) or b.dtype != np.float64 or not b.flags.contiguous:
+            what = f"{type(b).__name__} {getattr(b, 'dtype', '')}".strip()
+            raise InvalidArgumentError(
+                argument, f"{name}: buffer {i} must be a contiguous float64 array, got {what}"
+            )
+        if side == "out" and not b.flags.writeable:
+            raise InvalidArgumentError(argument, f"{name}: output buffer {i} is read-only")
+        sp = sparsity(i)
+        rows, cols = int(sp[0]), int(sp[1])
+        nnz = rows * cols if sp[2] == 1 else int(sp[2 + cols])  # compact dense form [rows, cols, 1]
+        if b.size != nnz:
+            raise ShapeError(argument, f"{name}: buffer {i} has {b.size} entries, its argument {nnz}")
+
+
 class CCall:
     """One generated function of a loaded library, bound to preallocated numpy buffers.
 
@@ -479,13 +505,23 @@ class CCall:
         outputs: one contiguous float64 array per output.
 
     The arrays are bound by address: write into ``inputs``, call, read ``outputs``. Keep them
-    alive (and never reallocate them) while the call object is in use.
+    alive (and never reallocate them) while the call object is in use. They are checked once,
+    here, against the generated function's own signature (its numbers of inputs and outputs and
+    the nonzeros of each, from ``<name>_n_in`` and ``<name>_sparsity_in`` ...), so that a call
+    never reads or writes past a buffer.
+
+    Raises:
+        InvalidArgumentError: another number of ``inputs`` or ``outputs`` than the function has,
+            or a buffer that is not a contiguous float64 numpy array (writeable for outputs).
+        ShapeError: a buffer of another size than its argument's nonzeros.
     """
 
     def __init__(
         self, lib: ctypes.CDLL, name: str, inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray]
     ) -> None:
         self.name = name
+        for side, buffers in (("in", inputs), ("out", outputs)):
+            _check_buffers(lib, name, side, buffers)
         self._buffers = (list(inputs), list(outputs))  # keep the bound memory alive
         sizes = [_INT() for _ in range(4)]
         getattr(lib, f"{name}_work")(*[ctypes.byref(s) for s in sizes])

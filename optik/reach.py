@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from optik.batch import fk_batch, solve_ik_batch
+from optik.checks import as_bool
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 from optik.problem_files import add_source_arguments, load_source
@@ -236,6 +237,7 @@ def reach(
     m._frame(frame)
     if max_chunks is not None:
         max_chunks = positive_int(max_chunks, "max_chunks")
+    progress = as_bool(progress, "progress")
     position_only = m.task in ("position", "position2d")
     rotations = (
         np.eye(3)[None]

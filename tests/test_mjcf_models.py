@@ -78,7 +78,8 @@ def test_fk_equals_mujoco(path: Path):
             optik.Mechanism.from_mjcf(model)
         return
     m = optik.Mechanism.from_mjcf(model)
-    assert m.n_q == model.nq - sum(int(t) in (0, 1) for t in model.jnt_type)  # a quaternion is 3 numbers
+    coupled = len(m.params["qpos_mimics"])  # joints that follow others (<equality joint>)
+    assert m.n_q == model.nq - sum(int(t) in (0, 1) for t in model.jnt_type) - coupled  # quaternions: 3
     frames = [model.body(b).name or f"body{b}" for b in range(1, model.nbody)]
     frames += [m.params["site_frames"][model.site(s).name or f"site{s}"] for s in range(model.nsite)]
     f = ca.Function("frames", [m.q_sym], [m.frame_expr(name) for name in frames])

@@ -51,7 +51,6 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Sequence  # noqa: E402
@@ -62,6 +61,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
+from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.catalog.industrial import PUMA560_DH  # noqa: E402
 from optik.closed_form.derived import chain_axes, derive, derive_axes  # noqa: E402
 from optik.mechanism import Mechanism  # noqa: E402
@@ -98,7 +98,7 @@ def _ur(name: str) -> tuple[Mechanism | None, str]:
     """A UR arm of example-robot-data (base ``base_link``, tip ``tool0``), or a note."""
     path = _urdf_path(name)
     if path is None:
-        return None, f"{name}: skipped, example-robot-data is not installed (pip install optik[robots])"
+        return None, f'{name}: skipped, example-robot-data is not installed (pip install "optik[robots]")'
     m = Mechanism.from_urdf(path, "base_link", "tool0")
     m.name = name
     return m, ""
@@ -326,9 +326,7 @@ def _write(path: Path, text: str) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog="optik benchmark all_solutions", description=__doc__.splitlines()[0]
-    )
+    parser = benchmark_parser("all_solutions", __doc__)
     parser.add_argument("--n", type=int, default=1000, help="random poses per arm (default: %(default)s)")
     parser.add_argument("--seed", type=int, default=0, help="seed of joint vectors (default: %(default)s)")
     parser.add_argument("--out", type=Path, help="also write the report (markdown) to this file")
@@ -337,9 +335,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error("--n must be >= 1")
     arms, notes = _arms()
     if eaik_dh is None:
-        notes.append("EAIK not installed (pip install optik[peers]): skipped")
+        notes.append('EAIK not installed (pip install "optik[peers]"): skipped')
     if ik_geo is None:
-        notes.append("ik-geo not installed (pip install optik[peers]): skipped")
+        notes.append('ik-geo not installed (pip install "optik[peers]"): skipped')
     rows = []
     for m in arms:
         rows.append(run_arm(m, args.n, args.seed))

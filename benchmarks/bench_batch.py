@@ -38,7 +38,6 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
 import itertools  # noqa: E402
 import logging  # noqa: E402
 import time  # noqa: E402
@@ -50,6 +49,7 @@ import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
 from optik.batch.fk import default_workers  # noqa: E402
+from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.catalog.arms import URDF_CHAINS, urdf_path  # noqa: E402
 from optik.harness.peers import PeerUnavailable, TracIK  # noqa: E402
 from optik.harness.peers.rules import Referee, warm_up  # noqa: E402
@@ -118,7 +118,7 @@ def dask_runs(
     try:
         from distributed import Client, LocalCluster
     except ImportError:
-        return ["Dask: dask.distributed is not installed (pip install 'optik[dist]'): skipped"]
+        return ['Dask: dask.distributed is not installed (pip install "optik[dist]"): skipped']
     logging.getLogger("distributed").setLevel(logging.ERROR)
     clusters = {
         w: LocalCluster(
@@ -157,7 +157,7 @@ def dask_runs(
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point (also called by ``optik benchmark batch``)."""
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p = benchmark_parser("batch", __doc__)
     p.add_argument("--n", type=int, default=100_000, help="number of targets")
     p.add_argument("--block", type=int, default=5000, help="targets per alternating block")
     p.add_argument("--tol", type=float, default=1e-5, help="position / orientation tolerance")
@@ -166,7 +166,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--n-check", type=int, default=1000, help="targets compared with solve_ik")
     p.add_argument("--n-dask", type=int, default=20_000, help="targets of the Dask runs (0: skip)")
     p.add_argument("--dask-blocks", type=int, default=6, help="alternating blocks of the Dask runs")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seed of the random draws")
     args = p.parse_args(argv)
     print(f"load average before: {load_average()}  (cores: {os.cpu_count()})")
     path, (base, tip) = str(urdf_path("panda")), URDF_CHAINS["panda"]
@@ -260,7 +260,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"| {rate[name]:,.0f} | {rate[name] / cores[name]:,.0f} "
             f"| {mean:.1f} / {median:.1f} / {p95:.1f} | {ratio} |"
         )
-    print(f"\noptik status counts: {dict(zip(*np.unique(res.status, return_counts=True), strict=True))}")
+    names, counts = np.unique(res.status, return_counts=True)
+    counts_text = ", ".join(f"{k} {int(v):,}" for k, v in zip(names, counts, strict=True))
+    print(f"\noptik status counts: {counts_text}")
     rng = np.random.default_rng(args.seed)
     sample = rng.choice(args.n, size=min(args.n_check, args.n), replace=False)
     equal = timed_out = 0

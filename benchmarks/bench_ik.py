@@ -29,7 +29,6 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Callable, Sequence  # noqa: E402
 
@@ -37,6 +36,7 @@ import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
 from optik import native  # noqa: E402
+from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.catalog.arms import URDF_CHAINS, urdf_path  # noqa: E402
 from optik.harness.peers import ADAPTERS, PeerUnavailable  # noqa: E402
 from optik.harness.peers.rules import Referee, warm_up  # noqa: E402
@@ -148,7 +148,7 @@ def table_rows(robot: str, tallies: dict[str, Tally]) -> list[str]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point (also called by the ``optik`` CLI)."""
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p = benchmark_parser("ik", __doc__)
     p.add_argument("--n", type=int, default=10000, help="number of targets per robot")
     p.add_argument("--robots", default="panda,iiwa14", help=f"comma list of {', '.join(URDF_CHAINS)}")
     p.add_argument("--time-limit", type=float, default=0.005, help="time limit per call (s)")
@@ -161,7 +161,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     p.add_argument("--n-nlp", type=int, default=1000, help="targets for the (slower) nlp method")
     p.add_argument("--nlp-time-limit", type=float, default=0.3, help="time limit of nlp calls (s)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seed of the random draws")
     args = p.parse_args(argv)
     methods = [s.strip() for s in args.methods.split(",") if s.strip()]
     robots = [s.strip() for s in args.robots.split(",") if s.strip()]

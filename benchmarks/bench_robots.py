@@ -30,7 +30,6 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Callable, Sequence  # noqa: E402
@@ -40,6 +39,7 @@ import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
 from optik import native  # noqa: E402
+from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.catalog.robots import ARMS, robot, robot_names, robot_urdf  # noqa: E402
 from optik.harness.peers import PeerUnavailable, TracIK  # noqa: E402
 from optik.harness.peers.rules import Referee, warm_up  # noqa: E402
@@ -136,12 +136,12 @@ def _pooled(name: str, tallies: list[Tally]) -> Tally:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="optik benchmark robots", description=__doc__.split("\n")[0])
+    ap = benchmark_parser("robots", __doc__)
     ap.add_argument("--n", type=int, default=200, help="IK targets per arm (default 200)")
     ap.add_argument("--fk", type=int, default=100, help="FK comparisons per arm (default 100)")
     ap.add_argument("--time-limit", type=float, default=0.05, help="per call (s, default 0.05)")
     ap.add_argument("--tol", type=float, default=1e-6, help="position (m) and angle (rad) tolerance")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=0, help="seed of the random draws")
     ap.add_argument("--robots", help="comma-separated names (default: every arm)")
     ap.add_argument("--method", help="optik's IK method (default: its default for each arm)")
     args = ap.parse_args(argv)

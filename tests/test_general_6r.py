@@ -349,3 +349,19 @@ def test_default_solve_ik_tries_lm_before_the_costly_general_solver() -> None:
     res = optik.solve_ik(m, far, time_limit=0.02)
     assert res.method == "closed_form" and not res.success and "lm found no solution" in res.message
     assert res.extra["lm"]["status"] != "solved"
+
+
+def test_solve_ik_does_not_call_a_reachable_target_unreachable() -> None:
+    """Regression (issue 18, item 2): on the mechanism of the 1e-6 twist arm, ``solve_ik`` by the
+    closed form answered "unreachable" (certified) for FK targets of configurations within the
+    limits. Now every such target is solved, by the closed form asked for and by default."""
+    rng = np.random.default_rng(51)
+    a, alpha, d = rng.uniform(0.1, 1, 6), rng.uniform(-np.pi, np.pi, 6), rng.uniform(-1, 1, 6)
+    alpha[[0, 4]] = 1e-6
+    m = dh_chain([(d[i], a[i], alpha[i]) for i in range(6)], "standard")
+    for q in m.random_q(40, seed=7):
+        target = m.fk(q)
+        res = optik.solve_ik(m, target, method="closed_form")
+        assert res.success and res.status == "solved", res.message
+        assert np.abs(m.fk(res.q) - target).max() < 1e-9  # independent FK check
+        assert optik.solve_ik(m, target).success

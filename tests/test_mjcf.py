@@ -222,3 +222,52 @@ def test_free_joint_alone():
     np.testing.assert_allclose(w[5], -0.5 * np.pi) and np.testing.assert_allclose(m.fk(w), t, atol=1e-12)
     j = m.jacobian(q)
     np.testing.assert_allclose(j[:3, :3], np.eye(3), atol=1e-12)
+
+
+FOURBAR = """<mujoco model="fourbar"><compiler angle="radian"/>
+<worldbody>
+  <body name="crank"><joint name="a" axis="0 0 1"/><geom type="capsule" fromto="0 0 0 0.2 0 0" size="0.01"/>
+    <body name="coupler" pos="0.2 0 0"><joint name="b" axis="0 0 1"/>
+      <geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.01"/></body>
+  </body>
+  <body name="rocker" pos="0.6 0 0"><joint name="c" axis="0 0 1"/>
+    <geom type="capsule" fromto="0 0 0 0 0.4 0" size="0.01"/></body>
+  <body name="slider" pos="0 1 0"><joint name="d" type="slide" axis="1 0 0"/><geom size="0.05"/>
+    <body name="follower"><joint name="e" type="slide" axis="0 1 0" ref="0.1"/><geom size="0.05"/>
+    </body></body>
+  <body name="box" pos="0 -1 0"><joint name="f" axis="1 0 0"/><geom size="0.05"/></body>
+</worldbody>
+<equality>
+  <connect name="close" body1="coupler" body2="rocker" anchor="0.5 0 0"/>
+  <joint name="couple" joint1="e" joint2="d" polycoef="0.05 -2 0 0 0"/>
+  <weld name="glue" body1="box"/>
+  <connect name="off" body1="crank" body2="slider" anchor="0 0 0" active="false"/>
+</equality>
+<actuator><motor joint="a"/><motor joint="d"/><motor joint="f"/></actuator></mujoco>"""
+
+
+def test_equalities_as_closures_and_couplings():
+    """``connect``: a cut spherical joint whose closure is MuJoCo's own constraint residual
+    (``efc_pos`` of the equality rows, opposite sign); ``joint``: a coupling whose MuJoCo
+    residual vanishes; weld and inactive equalities: not modelled, said in the notes."""
+    m = optik.Mechanism.from_mjcf(FOURBAR)
+    model = mujoco.MjModel.from_xml_string(FOURBAR)
+    assert m.coordinate_names == ("a", "b", "c", "d", "f") and m.n_closure == 3 and m.is_closed
+    notes = " ".join(m.params["notes"])
+    assert (
+        "joint 'e' follows 'd'" in notes
+        and "weld 'glue' is not modelled" in notes
+        and "'off' is inactive" in notes
+    )
+    data = mujoco.MjData(model)
+    for q in m.random_q(5, seed=4):
+        qpos = to_qpos(m, q)
+        assert qpos[model.jnt_qposadr[4]] == pytest.approx(0.1 + 0.05 - 2 * q[3])  # e - ref = c0 + c1 d
+        data.qpos[:] = qpos
+        mujoco.mj_forward(model, data)
+        rows = data.efc_pos[data.efc_type == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)]
+        np.testing.assert_allclose(m.closure(q), -rows[:3], atol=1e-12)  # connect
+        assert abs(rows[3]) < 1e-12  # the coupling holds
+        assert abs(m.fk(q, "follower")[1, 3] - data.xpos[model.body("follower").id][1]) < 1e-12
+    fk = optik.solve_fk(m, [0.3, 0.1, 0.2], q0=m.mid_q())  # the crank drives the closed four-bar
+    assert fk.success and np.abs(m.closure(fk.q)).max() < 1e-9

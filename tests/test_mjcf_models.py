@@ -78,7 +78,8 @@ def test_fk_equals_mujoco(path: Path):
             optik.Mechanism.from_mjcf(model)
         return
     m = optik.Mechanism.from_mjcf(model)
-    assert m.n_q == model.nq - sum(int(t) in (0, 1) for t in model.jnt_type)  # a quaternion is 3 numbers
+    coupled = len(m.params["qpos_mimics"])  # joints that follow others (<equality joint>)
+    assert m.n_q == model.nq - sum(int(t) in (0, 1) for t in model.jnt_type) - coupled  # quaternions: 3
     frames = [model.body(b).name or f"body{b}" for b in range(1, model.nbody)]
     frames += [m.params["site_frames"][model.site(s).name or f"site{s}"] for s in range(model.nsite)]
     f = ca.Function("frames", [m.q_sym], [m.frame_expr(name) for name in frames])
@@ -89,3 +90,11 @@ def test_fk_equals_mujoco(path: Path):
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
         assert np.abs(m.com(q) - data.subtree_com[0]).max() < 1e-10
+
+
+def test_the_fk_benchmark_runs(capsys):
+    from optik.benchmarks import bench_mjcf_fk
+
+    assert bench_mjcf_fk.main(["--n", "2", "--max-models", "2"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("| `") == 2 and "2 models, largest error" in out

@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import optik
-from optik.path import graph
+from optik.path import graph, samples
 from optik.path.nodes import turn_copies
 
 
@@ -238,3 +238,132 @@ def test_world_drops_colliding_solutions(ur5_limited):
     assert not any(hits)
     assert any(optik.collision.check(m, q, world=ball).in_collision for q in free.q)
     independent_checks(m, path, poses)
+
+
+def test_free_axis_absorbs_a_tool_spin(ur5_limited):
+    """The poses spin back and forth about the tool axis: with ``free_axis="z"`` the path need
+    not follow the spin, so it is shorter, and every sample still has the tool axis and point."""
+    m = ur5_limited
+    poses = line(m, n=120)
+    spin = 0.6 * np.sin(np.linspace(0, 6 * np.pi, 120))
+    poses[:, :3, :3] = poses[:, :3, :3] @ np.stack([optik.spatial.rot_z(a) for a in spin])
+    fixed = optik.plan_path(m, poses)
+    free = optik.plan_path(m, poses, free_axis="z", axis_step=np.pi / 18)
+    assert fixed.success and free.success, free.message
+    assert free.cost < 0.5 * fixed.cost
+    assert free.flips == 0
+    for q, t in zip(free.q, poses, strict=True):  # the tool point and axis, by one FK each
+        f = m.fk(q)
+        assert np.linalg.norm(f[:3, 3] - t[:3, 3]) <= 1e-6
+        assert np.arccos(np.clip(f[:3, 2] @ t[:3, 2], -1, 1)) <= 1e-6
+    assert np.all(free.q >= m.lower) and np.all(free.q <= m.upper)
+
+
+def test_axis_shortcut_equals_one_ik_per_sample(ur5, puma):
+    """Turning the last joint is the tool's z spin for both arms: the solutions so obtained are
+    those of the IK of every sampled pose."""
+    for m in (ur5, puma):
+        assert samples.axis_joint(m, "z", None) is not None
+        assert samples.axis_joint(m, "x", None) is None
+        poses = line(m, n=3)
+        sp = samples.sample_poses(poses, "z", np.pi / 4, None)
+        quick, qg = samples.sample_solutions(m, sp, None, samples.axis_joint(m, "z", None))
+        slow, sg = samples.sample_solutions(m, sp, None, None)
+        per = graph.differences  # compare modulo 2 pi on the wrapping joints
+        periods = optik.path.nodes.wrapping(m)
+        for a, ga, b, gb in zip(quick, qg, slow, sg, strict=True):
+            assert len(a) == len(b)
+            for g in np.unique(gb):
+                x, y = a[ga == g], b[gb == g]
+                d = np.abs(per(x[:, None], y[None], periods)).max(axis=-1)
+                assert d.min(axis=1).max() < 1e-9 and d.min(axis=0).max() < 1e-9
+
+
+def test_free_axis_optimum_over_the_sampled_graph(ur5_limited):
+    m = ur5_limited
+    rng = np.random.default_rng(11)
+    poses = optik.fk_batch(m, rng.uniform(-2, 2, (3, 6)))
+    path = optik.plan_path(m, poses, free_axis="z", axis_step=np.pi / 3, max_flips=None)
+    assert path.success, path.message
+    sp = samples.sample_poses(poses, "z", np.pi / 3, None)
+    layers, _ = samples.sample_solutions(m, sp, None, None)
+    want = graph.least_motion_numpy(layers, np.ones(6), None, np.zeros(6))
+    assert path.cost == pytest.approx(want.cost, abs=1e-9)
+    for q, t, a in zip(path.q, poses, path.axis_angle, strict=True):  # the reported turn
+        assert np.abs(m.fk(q)[:3, :3] - t[:3, :3] @ optik.spatial.rot_z(a)).max() < 1e-9
+
+
+def test_position_tolerance_widens_the_graph(puma):
+    m = puma
+    poses = line(m, n=60)
+    poses[::2, :3, 3] += [0.0, 0.0, 0.004]  # a 4 mm ripple
+    exact = optik.plan_path(m, poses)
+    loose = optik.plan_path(m, poses, position_tolerance=0.004)
+    assert exact.success and loose.success, loose.message
+    assert loose.cost < exact.cost
+    tips = optik.fk_batch(m, loose.q)[:, :3, 3]
+    assert np.all(np.linalg.norm(tips - poses[:, :3, 3], axis=1) <= 0.004 + 1e-6)
+    with pytest.raises(optik.InvalidArgumentError, match="position_tolerance"):
+        optik.plan_path(m, poses, position_tolerance=-1.0)
+    with pytest.raises(optik.InvalidArgumentError, match="free_axis"):
+        optik.plan_path(m, poses, free_axis="w")
+
+
+def test_densification_keeps_the_tool_near_the_segments(puma):
+    m = puma
+    poses = line(m, n=200, d=(0.0, 0.2, 0.0))[::40]  # 5 samples 4 cm apart
+    loose = optik.plan_path(m, poses)
+    assert loose.deviation.max() > 1e-4
+    dense = optik.plan_path(m, poses, max_deviation=1e-4)
+    assert dense.success and dense.checks["deviation"], dense.message
+    assert len(dense) > len(poses) and "samples inserted" in dense.message
+    for t in poses:  # the poses asked for are all still samples
+        assert np.min(np.abs(dense.poses - t).reshape(len(dense), -1).max(axis=1)) < 1e-12
+    mid = 0.5 * (dense.q[:-1] + dense.q[1:])  # independent: the tool at each joint midpoint
+    tips, p = optik.fk_batch(m, mid)[:, :3, 3], dense.poses[:, :3, 3]
+    ab = p[1:] - p[:-1]
+    s = np.clip(np.einsum("ij,ij->i", tips - p[:-1], ab) / np.einsum("ij,ij->i", ab, ab), 0, 1)
+    assert np.linalg.norm(tips - (p[:-1] + s[:, None] * ab), axis=1).max() <= 1e-4
+    independent_checks(m, dense, dense.poses)
+
+
+PANDA_Q0 = np.array([0.1, -0.3, 0.2, -2.0, 0.1, 1.8, 0.6])
+
+
+@pytest.fixture(scope="module")
+def panda_line():
+    m = optik.catalog.panda()
+    poses = np.repeat(m.fk(PANDA_Q0)[None], 60, axis=0)
+    poses[:, :3, 3] += np.linspace(0.0, 1.0, 60)[:, None] * [0.0, 0.2, 0.0]
+    return m, poses
+
+
+def test_redundant_arm_over_self_motion_samples(panda_line):
+    m, poses = panda_line
+    values = np.linspace(-2.8, 2.8, 15)
+    path = optik.plan_path(m, poses, self_motion=("q7", values))
+    assert path.success and path.flips == 0, path.message
+    assert np.all(np.isin(path.q[:, 6], values))  # every sample on a sampled self-motion value
+    independent_checks(m, path, poses)
+    layers, _ = samples.sample_solutions(
+        m, samples.sample_poses(poses, None, 1.0, None), None, None, (6, values)
+    )
+    want = graph.least_motion_numpy(layers, np.ones(7), None, optik.path.nodes.wrapping(m))
+    assert path.cost == pytest.approx(want.cost, abs=1e-9)
+    smooth = optik.plan_path(m, poses, self_motion=("q7", values), smooth=True)
+    assert smooth.success and "refined from" in smooth.message, smooth.message
+    assert smooth.cost < path.cost
+    assert smooth.cost == pytest.approx(length(smooth.q), abs=1e-9)
+    independent_checks(m, smooth, poses)
+
+
+def test_redundant_arm_bad_input(panda_line):
+    m, poses = panda_line
+    for value in [("q9", [0.0]), ("q7", [5.0]), "q7"]:
+        with pytest.raises(optik.InvalidArgumentError) as err:
+            optik.plan_path(m, poses[:3], self_motion=value)
+        assert err.value.argument == "self_motion"
+    with pytest.raises(optik.SolverUnavailableError, match="q1"):
+        optik.plan_path(m, poses[:3], self_motion=("q1", [0.0]))
+    with pytest.raises(optik.InvalidArgumentError, match="smooth"):
+        optik.plan_path(m, poses[:3], self_motion=("q7", [0.6]), free_axis="z", smooth=True)

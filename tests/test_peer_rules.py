@@ -106,3 +106,11 @@ def test_every_claimed_success_of_a_peer_passes_the_referee(peer, package):
             assert verdict.success, (peer, verdict)
             assert verdict.position <= math.sqrt(3) * twist_epsilon(TOL) * (1 + 1e-9)
     assert claimed >= 25  # the peers solve nearly all of these with 50 ms
+
+
+def test_fksgp_without_a_checkout_is_unavailable_with_the_reason(tmp_path):
+    from optik.harness.peers import PeerUnavailable
+    from optik.harness.peers.fksgp_peer import load_fksgp
+
+    with pytest.raises(PeerUnavailable, match=r"solver66\.py not found"):
+        load_fksgp(tmp_path)

@@ -640,12 +640,18 @@ def _pose_errors(t: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 def _dedup(q: np.ndarray) -> np.ndarray:
-    """The distinct rows of ``q`` (real or complex angles; real parts compared modulo 2 pi)."""
-    keep: list[np.ndarray] = []
-    for row in q:
-        if all(float(np.max(np.abs(_wrap((row - k).real)) + np.abs((row - k).imag))) >= _SAME for k in keep):
-            keep.append(row)
-    return np.array(keep).reshape(-1, 6)
+    """The distinct rows of ``q`` (real or complex angles; real parts compared modulo 2 pi),
+    the first of each group of rows closer than `_SAME`."""
+    q = q.reshape(-1, 6)
+    if len(q) < 2:
+        return q
+    diff = q[:, None, :] - q[None, :, :]
+    close = np.max(np.abs(_wrap(diff.real)) + np.abs(diff.imag), axis=-1) < _SAME
+    keep: list[int] = []
+    for i in range(len(q)):
+        if not close[i, keep].any():
+            keep.append(i)
+    return q[keep]
 
 
 def _matrices(arm: General6R, targets: np.ndarray) -> tuple[np.ndarray, ...]:

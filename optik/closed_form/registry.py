@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from optik.checks import as_vector
+from optik.checks import as_bool, as_vector
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
@@ -195,12 +195,37 @@ def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]
     return out
 
 
-def within_limits(m: Mechanism, rows: list[list[float]]) -> list[list[float]]:
-    """The rows with ``lower <= q <= upper`` in every coordinate
-    ([`Mechanism.within_limits`][optik.Mechanism.within_limits])."""
+LIMIT_TOL = 1e-9
+"""A computed coordinate at most this far outside a joint limit (rad or m) is at the limit:
+rounding of an answer on the boundary (e.g. the R-P arm's slide at its lower limit). It is
+clipped onto the limit, and the FK check of the clipped row decides, as the success check of
+every method does with its clipped answer (`optik.solvers.base.make_result`)."""
+
+
+def clip_to_limits(m: Mechanism, row: list[float]) -> list[float] | None:
+    """``row`` when ``lower <= q <= upper`` holds in every coordinate
+    ([`Mechanism.within_limits`][optik.Mechanism.within_limits]); a copy clipped onto the
+    limits when no coordinate is more than `LIMIT_TOL` outside; else None."""
     lo, hi = m.lower.tolist(), m.upper.tolist()
-    n = range(len(lo))
-    return [row for row in rows if len(row) == len(lo) and all([lo[k] <= row[k] <= hi[k] for k in n])]
+    if len(row) != len(lo):
+        return None
+    out = row
+    for k, v in enumerate(row):
+        if lo[k] <= v <= hi[k]:
+            continue
+        if not lo[k] - LIMIT_TOL <= v <= hi[k] + LIMIT_TOL:
+            return None
+        if out is row:
+            out = list(row)
+        out[k] = lo[k] if v < lo[k] else hi[k]
+    return out
+
+
+def within_limits(m: Mechanism, rows: list[list[float]]) -> list[list[float]]:
+    """The rows within the joint limits, each by `clip_to_limits` (a row within `LIMIT_TOL`
+    of a limit clipped onto it: a new list)."""
+    clipped = (clip_to_limits(m, row) for row in rows)
+    return [row for row in clipped if row is not None]
 
 
 class CheckedRows(list):
@@ -274,7 +299,8 @@ def ik(m: Mechanism, target: Any, respect_limits: bool = True) -> list[np.ndarra
         m: a catalog mechanism with a registered closed form.
         target: 4x4 transform, [`Pose2D`][optik.Pose2D] or [`Position`][optik.Position].
         respect_limits: drop branches outside the joint limits (angles are first shifted by
-            multiples of 2 pi into the limits where possible).
+            multiples of 2 pi into the limits where possible; a coordinate within `LIMIT_TOL`
+            of a limit is clipped onto it); True or False only.
 
     Returns:
         One full coordinate vector per branch; ``[]`` when the target is unreachable; an
@@ -282,7 +308,9 @@ def ik(m: Mechanism, target: Any, respect_limits: bool = True) -> list[np.ndarra
 
     Raises:
         SolverUnavailableError: no closed form is registered for ``m.kind``.
+        InvalidArgumentError: ``respect_limits`` is not a boolean.
     """
+    respect_limits = as_bool(respect_limits, "respect_limits")
     if ik_solver(m) is None:
         raise SolverUnavailableError(f"no closed-form IK for mechanism {m.name!r} (kind {m.kind!r})")
     return _finish(m, branches(m, target_transform(target)), respect_limits)
@@ -296,7 +324,7 @@ def fk(
     Args:
         m: a catalog mechanism with a registered closed-form FK.
         actuated: values of the actuated coordinates.
-        respect_limits: drop modes outside the joint limits.
+        respect_limits: drop modes outside the joint limits (`within_limits`); True or False.
         time_limit: wall-time budget (s) of the FK solvers that can run long (the Stewart-Gough
             homotopy, which warns when it could not certify completeness in time); None: their
             default. The algebraic closed forms finish in microseconds and need none.
@@ -308,6 +336,7 @@ def fk(
         SolverUnavailableError: no closed-form FK is registered for ``m.kind``.
         InvalidArgumentError: an actuated value beyond `MAX_ACTUATED` in magnitude.
     """
+    respect_limits = as_bool(respect_limits, "respect_limits")
     if m.kind not in _FK:
         raise SolverUnavailableError(f"no closed-form FK for mechanism {m.name!r} (kind {m.kind!r})")
     a = as_vector(actuated, "actuated", len(m.actuated_indices))

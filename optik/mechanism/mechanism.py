@@ -21,7 +21,7 @@ import casadi as ca
 import numpy as np
 
 from optik import spatial
-from optik.checks import as_batch, as_limits, as_name, as_rng, as_vector, read_only, real_array
+from optik.checks import as_batch, as_bool, as_limits, as_name, as_rng, as_vector, read_only, real_array
 from optik.errors import InvalidArgumentError, ModelError, ReadOnlyError, UnknownFrameError
 from optik.mechanism.inertia import check_inertials, com_expr
 from optik.mechanism.joint import Joint
@@ -212,7 +212,7 @@ class Mechanism:
         coordinates (position, rotation vector) come first. Link masses (``<inertial>``) give
         `com`.
         """
-        model = parse_urdf(source, base_link, tip_link, bool(floating_base))
+        model = parse_urdf(source, base_link, tip_link, as_bool(floating_base, "floating_base"))
         m = cls(model.joints, model.base, model.frames, model.ee, model.name, "pose", model.inertials)
         m.params = dict(model.params)
         if srdf is not None:

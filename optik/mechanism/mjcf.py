@@ -41,14 +41,23 @@ named after it, unless a body already has that name, then ``site:<name>``
 capsules, ellipsoids (unit spheres with ``scale``) and meshes (the asset file, placed so that
 MuJoCo's re-centring of the mesh is undone); planes, height fields and SDFs are not kept.
 
-Not read (listed in ``params["notes"]`` when the model has them): equality constraints,
-tendons (fixed tendons as couplings are not modelled yet).
+Actuation: when the model has actuators, the joints an actuator drives directly (joint
+transmission) are actuated and the others passive (inputs and unknowns of `optik.solve_fk`);
+without actuators every joint is actuated.
+
+Equality constraints (active at start): ``connect`` becomes a cut spherical joint between the
+two bodies (or sites) at the anchors, so its loop-closure residual is MuJoCo's constraint
+residual (``efc_pos``, opposite sign); ``joint`` with a linear polynomial, ``q1 - qpos0_1 = c0 +
+c1 (q2 - qpos0_2)``, makes joint 1 follow joint 2 (a `Mimic`; joint 1 has no coordinate and its
+own range is not enforced, as for URDF mimic joints). Not modelled, and listed in
+``params["notes"]``: ``weld``, ``tendon`` and ``flex`` equalities, nonlinear joint
+polynomials, inactive equalities, and tendons.
 """
 
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -57,7 +66,7 @@ import numpy as np
 from optik import spatial
 from optik.checks import as_vector
 from optik.errors import InvalidArgumentError, MissingExtraError, ModelError
-from optik.mechanism.joint import Joint
+from optik.mechanism.joint import Joint, Mimic
 from optik.mechanism.urdf_visuals import Visual
 
 __all__ = ["MjcfModel", "from_qpos", "load_mjmodel", "parse_mjcf", "to_qpos"]
@@ -65,6 +74,7 @@ __all__ = ["MjcfModel", "from_qpos", "load_mjmodel", "parse_mjcf", "to_qpos"]
 _FREE, _BALL, _SLIDE, _HINGE = 0, 1, 2, 3
 _GEOM_PLANE, _GEOM_HFIELD, _GEOM_SPHERE, _GEOM_CAPSULE = 0, 1, 2, 3
 _GEOM_ELLIPSOID, _GEOM_CYLINDER, _GEOM_BOX, _GEOM_MESH = 4, 5, 6, 7
+_EQ_CONNECT, _EQ_JOINT, _OBJ_SITE = 0, 2, 6
 
 
 @dataclass(frozen=True)
@@ -74,13 +84,15 @@ class MjcfModel:
     Attributes:
         name: the ``<mujoco model>`` name (``"mjcf"`` when absent).
         base: ``"world"``.
-        joints: one `Joint` per MuJoCo joint, in MuJoCo's joint order.
         frames: fixed bodies and sites, ``{name: (body, 4x4 offset)}``.
         ee: the end-effector frame: the body with the most joints above it (the first on a tie).
-        params: ``"mjcf"`` (source label), ``"qpos_map"`` (per joint: MuJoCo type, optik
-            coordinate index, ``qpos`` address; used by `to_qpos` and `from_qpos`), ``"nq"``
-            (MuJoCo's ``nq``), ``"site_frames"``, ``"visuals"`` and ``"notes"`` (what was not
-            read and why, when anything was not).
+        joints: one `Joint` per MuJoCo joint, in MuJoCo's joint order, then one cut joint per
+            modelled ``connect`` equality.
+        params: ``"mjcf"`` (source label), ``"qpos_map"`` (per joint with a coordinate: MuJoCo
+            type, optik coordinate index, ``qpos`` address; used by `to_qpos` and `from_qpos`),
+            ``"qpos_mimics"`` (per coupled joint: ``qpos`` address, source coordinate,
+            multiplier, offset), ``"nq"`` (MuJoCo's ``nq``), ``"site_frames"``, ``"visuals"``
+            and ``"notes"`` (what was not read and why, when anything was not).
         inertials: ``{body: (body_mass, body_ipos)}`` of the bodies with a mass (fixed bodies
             included; MuJoCo's compiler has already derived masses from geoms where asked).
     """
@@ -309,18 +321,29 @@ def parse_mjcf(source: Any) -> MjcfModel:
         site_frames[name] = frame
     visuals = [v for g in range(model.ngeom) if (v := _visual(model, g, bodies[model.geom_bodyid[g]]))]
     ee = bodies[max(range(model.nbody), key=lambda b: (depth[b], -b))]
-    coords, qpos_map = 0, []
+    if model.nu:  # with actuators, the joints they drive are the actuated ones
+        driven = {int(model.actuator_trnid[u, 0]) for u in range(model.nu) if model.actuator_trntype[u] == 0}
+        joints[:] = [jt if j in driven else replace(jt, actuated=False) for j, jt in enumerate(joints)]
+    cuts = _equalities(model, joints, joints_named, place, site_frames, frames, notes)
+    coords, qpos_map, first = 0, [], {}
     for j, joint in enumerate(joints):
-        qpos_map.append((int(model.jnt_type[j]), coords, int(model.jnt_qposadr[j])))
+        first[joint.name] = coords
+        if joint.mimic is None:
+            qpos_map.append((int(model.jnt_type[j]), coords, int(model.jnt_qposadr[j])))
         coords += joint.dof
-    if model.neq:
-        notes.append(f"{model.neq} equality constraint(s) are not modelled (the tree alone is loaded)")
+    mimics = tuple(
+        (int(model.jnt_qposadr[j]), first[jt.mimic.joint], jt.mimic.multiplier, jt.mimic.offset)
+        for j, jt in enumerate(joints)
+        if jt.mimic is not None
+    )
+    joints.extend(cuts)
     if model.ntendon:
         notes.append(f"{model.ntendon} tendon(s) are not modelled")
     params: dict[str, object] = {
         "mjcf": label,
         "nq": int(model.nq),
         "qpos_map": tuple(qpos_map),
+        "qpos_mimics": mimics,
         "site_frames": site_frames,
         "visuals": tuple(visuals),
     }
@@ -334,6 +357,64 @@ def parse_mjcf(source: Any) -> MjcfModel:
         if model.body_mass[b] > 0
     }
     return MjcfModel(name, "world", tuple(joints), frames, ee, params, inertials)
+
+
+def _equalities(
+    model: Any,
+    joints: list[Joint],
+    joint_names: list[str],
+    place: dict[int, tuple[str, np.ndarray]],
+    site_frames: dict[str, str],
+    frames: dict[str, tuple[str, np.ndarray]],
+    notes: list[str],
+) -> list[Joint]:
+    """The active ``<equality>`` constraints: ``connect`` as cut spherical joints (loop
+    closures), ``joint`` with a linear polynomial as mimic couplings (``joints`` is updated in
+    place); the cut joints are returned. What is not modelled goes to ``notes``."""
+    eq_names = _names(model, "equality", model.neq, model.name_eqadr)
+    sites = _names(model, "site", model.nsite, model.name_siteadr)
+    kinds = {0: "connect", 1: "weld", 2: "joint", 3: "tendon", 4: "flex"}
+    cuts: list[Joint] = []
+    for e in range(model.neq):
+        kind, name = int(model.eq_type[e]), eq_names[e]
+        what = f"equality {kinds.get(kind, kind)} {name!r}"
+        if not model.eq_active0[e]:
+            notes.append(f"{what} is inactive at start and is not modelled")
+            continue
+        a, b, data = (
+            int(model.eq_obj1id[e]),
+            int(model.eq_obj2id[e]),
+            np.asarray(model.eq_data[e], dtype=float),
+        )
+        if kind == _EQ_CONNECT:
+            if int(model.eq_objtype[e]) == _OBJ_SITE:
+                (pa, oa), (pb, ob) = frames[site_frames[sites[a]]], frames[site_frames[sites[b]]]
+            else:
+                (pa, oa), (pb, ob) = place[a], place[b]
+                oa = oa @ spatial.transform(position=data[0:3])
+                ob = ob @ spatial.transform(position=data[3:6])
+            if pa == pb:
+                notes.append(f"{what} joins two points of one rigid body and is not modelled")
+                continue
+            cuts.append(Joint(f"equality:{name}", "spherical", pa, pb, oa, child_offset=ob, cut=True))
+        elif kind == _EQ_JOINT and b >= 0 and not np.any(data[2:5]):
+            follower, source = joints[a], joints[b]
+            if follower.type not in ("revolute", "prismatic") or source.type not in ("revolute", "prismatic"):
+                notes.append(f"{what} couples a ball or free joint and is not modelled")
+                continue
+            if follower.mimic is not None or source.mimic is not None:
+                notes.append(f"{what} couples a coupled joint and is not modelled")
+                continue
+            # q_a - qpos0_a = c0 + c1 (q_b - qpos0_b)
+            q0a, q0b = float(model.qpos0[model.jnt_qposadr[a]]), float(model.qpos0[model.jnt_qposadr[b]])
+            coupling = Mimic(joint_names[b], float(data[1]), q0a + float(data[0]) - float(data[1]) * q0b)
+            joints[a] = replace(follower, mimic=coupling, lower=None, upper=None)
+            notes.append(
+                f"{what}: joint {joint_names[a]!r} follows {joint_names[b]!r}; its own range is not enforced"
+            )
+        else:
+            notes.append(f"{what} is not modelled (only connect and linear joint equalities are)")
+    return cuts
 
 
 def _qpos_map(m: Any) -> tuple[tuple[int, int, int], ...]:
@@ -355,6 +436,8 @@ def to_qpos(m: Any, q: Any) -> np.ndarray:
     qmap = _qpos_map(m)
     qq = as_vector(q, "q", m.n_q)
     qpos = np.zeros(int(m.params["nq"]))
+    for a, i, multiplier, offset in m.params.get("qpos_mimics", ()):
+        qpos[a] = multiplier * qq[i] + offset
     for kind, i, a in qmap:
         if kind == _FREE:
             qpos[a : a + 3] = qq[i : i + 3]

@@ -63,7 +63,11 @@ int optik_path_dp(int n_layers, const int *offset, const double *nodes, int n, c
                 int ok = 1;
                 for (int j = 0; j < n; ++j) {
                     double d = qb[j] - qa[j];
-                    if (period[j] > 0.0) d -= period[j] * nearbyint(d / period[j]);
+                    if (period[j] > 0.0) { /* |d| is a few periods at most: subtract whole ones */
+                        double p = period[j], half = 0.5 * p;
+                        while (d > half) d -= p;
+                        while (d < -half) d += p;
+                    }
                     if (bd && fabs(d) > bd[j]) {
                         ok = 0;
                         break;

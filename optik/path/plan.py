@@ -25,13 +25,16 @@ from typing import Any
 import numpy as np
 
 from optik.batch import fk_batch
-from optik.checks import as_float, as_int, as_transform, as_vector, real_array
+from optik.checks import as_float, as_int, as_name, as_transform, as_vector, real_array
 from optik.collision import World, check_many
 from optik.errors import InvalidArgumentError, ShapeError
 from optik.mechanism import Mechanism
+from optik.path.densify import deviation, midpoints
 from optik.path.graph import branch_changes, least_motion
-from optik.path.nodes import closed_form_solutions, realize, turn_copies, wrapping
+from optik.path.nodes import realize, turn_copies, wrapping
+from optik.path.redundant import refine
 from optik.path.result import JointPath
+from optik.path.samples import AXES, axis_joint, chosen_angle, sample_poses, sample_solutions
 from optik.path.timing import derivatives, segment_times, step_bounds
 from optik.solvers import Tolerances
 from optik.spatial import angle_between
@@ -71,25 +74,49 @@ def _velocity(m: Mechanism, velocity: Any) -> np.ndarray | None:
     return _positive(velocity, "velocity", m.n_q)
 
 
-def _failed(m: Mechanism, nodes: np.ndarray, message: str) -> JointPath:
+def _failed(m: Mechanism, nodes: np.ndarray, message: str, poses: np.ndarray) -> JointPath:
     empty = np.zeros((0, m.n_q))
     return JointPath(empty, np.zeros(0), empty, empty, np.zeros(0, dtype=int), float("inf"),
-                     {}, False, message, 0, np.zeros(0), nodes)  # fmt: skip
+                     {}, False, message, 0, np.zeros(0), nodes, poses, np.zeros(0))  # fmt: skip
+
+
+def _tolerance(value: Any, n: int) -> np.ndarray | None:
+    if value is None:
+        return None
+    a = real_array(value, "position_tolerance")
+    a = np.full(n, float(a)) if a.ndim == 0 else as_vector(a, "position_tolerance", n)
+    if not np.all(np.isfinite(a)) or np.any(a < 0.0):
+        raise InvalidArgumentError("position_tolerance", f"must be finite and >= 0, got {value!r}")
+    return a
+
+
+def _self_motion(m: Mechanism, value: Any) -> tuple[int, np.ndarray] | None:
+    if value is None:
+        return None
+    if not isinstance(value, tuple | list) or len(value) != 2:
+        raise InvalidArgumentError("self_motion", f"expected (joint name, values), got {value!r:.80}")
+    name = as_name(value[0], "self_motion", m.coordinate_names)
+    j = m.coordinate_names.index(name)
+    vals = as_vector(value[1], "self_motion")
+    if np.any(vals < m.lower[j]) or np.any(vals > m.upper[j]):
+        raise InvalidArgumentError(
+            "self_motion", f"values of {name!r} must lie within [{m.lower[j]:g}, {m.upper[j]:g}]"
+        )
+    return j, vals
 
 
 def _free_of_collisions(
     m: Mechanism, solutions: list[np.ndarray], world: World | None, margin: float
-) -> tuple[list[np.ndarray], int]:
+) -> tuple[list[np.ndarray], list[np.ndarray], int]:
     """The solutions free of collisions with ``world`` and with the robot itself (all of them
-    without a world), and how many were dropped."""
-    if world is None:
-        return solutions, 0
+    without a world), the masks kept, and how many were dropped."""
+    keep = [np.ones(len(s), dtype=bool) for s in solutions]
     stacked = np.concatenate(solutions)
-    if not len(stacked):
-        return solutions, 0
+    if world is None or not len(stacked):
+        return solutions, keep, 0
     free = ~check_many(m, stacked, world=world, margin=margin).in_collision
     keep = np.split(free, np.cumsum([len(s) for s in solutions])[:-1])
-    return [s[k] for s, k in zip(solutions, keep, strict=True)], int(np.count_nonzero(~free))
+    return [s[k] for s, k in zip(solutions, keep, strict=True)], keep, int(np.count_nonzero(~free))
 
 
 def check_path(
@@ -102,13 +129,23 @@ def check_path(
     tol: Tolerances,
     velocity: np.ndarray | None,
     acceleration: np.ndarray | None,
+    free_axis: str | None = None,
+    position_tolerance: np.ndarray | None = None,
 ) -> dict[str, bool]:
     """The checks of a path recomputed from its samples alone: FK of every sample against its
-    target pose, joint limits, segment velocities ``|dq| / dt`` against ``velocity`` and
-    accelerations against ``acceleration`` (when given)."""
+    target pose (the position within ``position_tolerance`` more, only the direction of the free
+    axis when there is one), joint limits, segment velocities ``|dq| / dt`` against ``velocity``
+    and accelerations against ``acceleration`` (when given)."""
     fk = fk_batch(m, q, frame)
     pos = np.linalg.norm(fk[:, :3, 3] - targets[:, :3, 3], axis=1)
-    ori = np.array([angle_between(a[:3, :3], b[:3, :3]) for a, b in zip(fk, targets, strict=True)])
+    if position_tolerance is not None:
+        pos = np.maximum(pos - position_tolerance, 0.0)
+    if free_axis is None:
+        ori = np.array([angle_between(a[:3, :3], b[:3, :3]) for a, b in zip(fk, targets, strict=True)])
+    else:
+        col = "xyz".index(free_axis)
+        cos = np.einsum("ij,ij->i", fk[:, :3, col], targets[:, :3, col])
+        ori = np.arccos(np.clip(cos, -1.0, 1.0))
     checks = {
         "fk": bool(np.all(pos <= tol.position) and np.all(ori <= tol.orientation)),
         "limits": bool(np.all(q >= m.lower) and np.all(q <= m.upper)),
@@ -126,6 +163,11 @@ def plan_path(
     poses: Any,
     times: Any = None,
     *,
+    free_axis: str | None = None,
+    axis_step: float = np.pi / 18,
+    position_tolerance: Any = None,
+    max_deviation: float | None = None,
+    max_rounds: int = 8,
     weights: Any = None,
     velocity: Any = None,
     acceleration: Any = None,
@@ -135,10 +177,12 @@ def plan_path(
     world: World | None = None,
     margin: float = 0.0,
     max_flips: int | None = 0,
+    self_motion: tuple[str, Any] | None = None,
+    smooth: bool = False,
 ) -> JointPath:
     """A joint path through ``poses`` of least weighted joint motion, over every IK solution.
 
-    The graph has one layer per pose and one node per solution (with its ``2 pi`` turns); the
+    The graph has one layer per pose and one node per solution of each of its sampled poses; the
     answer minimizes the weighted joint-space length
 
     ```
@@ -153,6 +197,17 @@ def plan_path(
         times: sample times ``(N,)`` (s, strictly increasing): edges breaking the velocity limits
             at these times are removed. None: the shortest times the velocity limits allow, or
             those of ``speed`` stretched where the limits need it (`optik.path.timing`).
+        free_axis: ``"x"``, ``"y"`` or ``"z"``: the tool is symmetric about this axis of its
+            frame, each pose may turn about it (`optik.path.samples`); None: the full pose.
+        axis_step: sampling step of the turn about the free axis (rad; a full turn is sampled).
+        position_tolerance: how far (m) the tool point may lie from each pose's position, one
+            value or one per pose: the position and the six points at that distance along the
+            base axes are sampled.
+        max_deviation: largest distance (m) of the tool from the straight segment between two
+            samples while the joints move linearly; samples are inserted halfway where it is
+            exceeded and the path planned again (`optik.path.densify`), at most ``max_rounds``
+            times. None: measured, not enforced.
+        max_rounds: most densification rounds.
         weights: per-joint weights of the joint motion ``(n,)`` (default ones).
         velocity: joint velocity limits ``(n,)`` (default: the model's ``<limit velocity>`` when
             it has them, else none).
@@ -165,6 +220,12 @@ def plan_path(
         margin: clearance (m) of the collision check.
         max_flips: most branch changes the ``"branch"`` check accepts (None: any, for poses far
             apart, where the nearest solution says nothing about continuity).
+        self_motion: ``(joint, values)`` for a redundant (7-DOF) arm: its self-motion sampled
+            by locking the coordinate ``joint`` at each of ``values`` (within its limits), every
+            solution of the 6R chain left by its derived closed form (`optik.path.redundant`).
+        smooth: refine the graph's answer continuously (`optik.path.redundant.refine`: one NLP
+            over the whole path, warm-started from it), kept when shorter and every check
+            passes; with full poses only (no ``free_axis``, no ``position_tolerance``).
 
     Returns:
         A [`JointPath`][optik.path.JointPath]; ``success=False`` with a message when a pose has
@@ -178,6 +239,12 @@ def plan_path(
     targets = _poses(poses)
     n = len(targets)
     t_given = _times(times, n)
+    if free_axis is not None:
+        as_name(free_axis, "free_axis", AXES)
+    step = as_float(axis_step, "axis_step", 0.0, strict=True)
+    radius = _tolerance(position_tolerance, n)
+    limit = None if max_deviation is None else as_float(max_deviation, "max_deviation", 0.0, strict=True)
+    rounds = as_int(max_rounds, "max_rounds")
     w = np.ones(m.n_q) if weights is None else as_vector(weights, "weights", m.n_q)
     if np.any(w < 0.0):
         raise InvalidArgumentError("weights", f"must be >= 0, got {w}")
@@ -186,57 +253,65 @@ def plan_path(
     spd = None if speed is None else as_float(speed, "speed", 0.0, strict=True)
     tols = Tolerances.from_arg(tol)
     flips_ok = None if max_flips is None else as_int(max_flips, "max_flips")
-    solutions = closed_form_solutions(m, targets, frame)
-    layers, dropped = _free_of_collisions(m, solutions, world, margin)
-    sizes = np.array([len(layer) for layer in layers])
-    empty = np.flatnonzero(sizes == 0)
-    if empty.size:
-        why = "every solution collides" if len(solutions[empty[0]]) else "no solution within the joint limits"
-        return _failed(m, sizes, f"pose {empty[0]} has {why} ({empty.size} such poses)")
-    bounds = None if t_given is None or v is None else step_bounds(t_given, v)
-    periods = wrapping(m)
-    best = least_motion(layers, w, bounds, periods)
-    if best.blocked >= 0:
-        k = best.blocked
-        dt = t_given[k] - t_given[k - 1]
-        why = f"no solution of pose {k} is reachable from pose {k - 1} in {dt:g} s"
-        return _failed(m, sizes, f"no joint path within the velocity limits at the given times: {why}")
-    rows = np.stack([layer[i] for layer, i in zip(layers, best.index, strict=True)])
-    q = realize(rows, periods, m.lower, m.upper)
-    turns = ""
-    if q is None:  # the relaxed optimum turns a joint past its limits: plan over every turn
-        angles = np.asarray(m.revolute_mask, dtype=bool)
-        layers = [turn_copies(layer, m.lower, m.upper, angles)[0] for layer in layers]
-        periods = np.zeros(m.n_q)
-        best = least_motion(layers, w, bounds, periods)
-        if best.blocked >= 0:
-            return _failed(m, sizes, f"no joint path within the joint limits and the velocity limits: pose "
-                           f"{best.blocked} is not reachable on any turn of the joints")  # fmt: skip
-        q = np.stack([layer[i] for layer, i in zip(layers, best.index, strict=True)])
-        copies = np.mean([len(x) for x in layers])
-        turns = (
-            f"; the joints' turns reach their limits: planned over every turn ({copies:.3g} nodes per pose)"
-        )
-    groups = [np.zeros(len(layer), dtype=int) for layer in layers]
-    branch = branch_changes(layers, best.index, w, groups, periods)
-    stretched = 0
-    if t_given is None:
-        travel = np.linalg.norm(np.diff(targets[:, :3, 3], axis=0), axis=1)
-        t, stretched = segment_times(q, travel, v, spd)
-    else:
-        t = t_given
-    qd, qdd = derivatives(q, t)
-    checks = check_path(m, q, t, qdd, targets, frame, tols, v, acc)
-    checks["branch"] = bool(flips_ok is None or branch[-1] <= flips_ok)
-    if world is not None:
-        checks["collision"] = True  # every node was checked free
+    motion = _self_motion(m, self_motion)
+    smooth = bool(smooth)
+    if smooth and (free_axis is not None or radius is not None):
+        raise InvalidArgumentError("smooth", "needs full poses: no free_axis, no position_tolerance")
+    shortcut = None if free_axis is None or motion is not None else axis_joint(m, free_axis, frame)
+    plan = _Plan(m, frame, free_axis, step, shortcut, w, v, world, margin, motion)
+    inserted = 0
+    for round_ in range(rounds + 1):
+        found = plan.solve(targets, t_given, radius)
+        if isinstance(found, str):
+            return _failed(m, plan.sizes, found, targets)
+        q, index, groups, layers, periods, cost, note = found
+        dev = deviation(m, q, frame)
+        far = np.flatnonzero(dev > limit) if limit is not None else np.zeros(0, dtype=int)
+        if not far.size or round_ == rounds:
+            break
+        targets, (t_given, radius) = midpoints(targets, [t_given, radius], far)
+        inserted += far.size
+    n = len(targets)
+    branch = branch_changes(layers, index, w, groups, periods)
+
+    def finish(qq: np.ndarray) -> tuple[np.ndarray, int, np.ndarray, np.ndarray, dict[str, bool]]:
+        stretched = 0
+        if t_given is None:
+            travel = np.linalg.norm(np.diff(targets[:, :3, 3], axis=0), axis=1)
+            tt, stretched = segment_times(qq, travel, v, spd)
+        else:
+            tt = t_given
+        qd, qdd = derivatives(qq, tt)
+        checks = check_path(m, qq, tt, qdd, targets, frame, tols, v, acc, free_axis, radius)
+        checks["branch"] = bool(flips_ok is None or branch[-1] <= flips_ok)
+        if world is not None:
+            checks["collision"] = not np.any(check_many(m, qq, world=world, margin=margin).in_collision)
+        if limit is not None:
+            checks["deviation"] = bool(np.all(deviation(m, qq, frame) <= limit))
+        return tt, stretched, qd, qdd, checks
+
+    t, stretched, qd, qdd, checks = finish(q)
+    refined = ""
+    if smooth:
+        q2 = refine(m, q, targets, frame, min(tols.position, tols.orientation))
+        cost2 = np.inf if q2 is None else float(np.linalg.norm(np.diff(q2, axis=0) * w, axis=1).sum())
+        got = finish(q) if q2 is None else finish(q2)
+        if q2 is not None and cost2 < cost and all(got[4].values()):
+            refined = f"; refined from {cost:.6g}"
+            q, cost, dev = q2, cost2, deviation(m, q2, frame)
+            t, stretched, qd, qdd, checks = got
+        else:
+            refined = "; the refinement was not kept (not shorter, or a check failed)"
+    sizes = plan.sizes
     parts = [
-        f"{n} poses, {sizes.mean():.3g} solutions per pose on average{turns}",
-        f"joint-space length {best.cost:.6g}",
+        f"{n} poses, {sizes.mean():.3g} nodes per pose on average{note}",
+        f"joint-space length {cost:.6g}{refined}",
         f"{int(branch[-1])} branch changes",
     ]
-    if dropped:
-        parts.append(f"{dropped} colliding configurations dropped")
+    if inserted:
+        parts.append(f"{inserted} samples inserted to keep the tool within {limit:g} m of the segments")
+    if plan.dropped:
+        parts.append(f"{plan.dropped} colliding configurations dropped")
     if t_given is None:
         if v is None:
             parts.append(
@@ -251,5 +326,73 @@ def plan_path(
     failed = [name for name, ok in checks.items() if not ok]
     if failed:
         parts.append("failed checks: " + ", ".join(failed))
-    return JointPath(q, t, qd, qdd, branch, best.cost, checks, not failed, "; ".join(parts), stretched,
-                     np.zeros(n), sizes)  # fmt: skip
+    angle = chosen_angle(plan.samples, groups, index, 1 if motion is None else len(motion[1]))
+    return JointPath(q, t, qd, qdd, branch, cost, checks, not failed, "; ".join(parts), stretched, angle,
+                     sizes, targets, dev)  # fmt: skip
+
+
+class _Plan:
+    """One planning round's graph and its optimum (the fixed settings of a `plan_path` call)."""
+
+    def __init__(
+        self,
+        m: Mechanism,
+        frame: str | None,
+        free_axis: str | None,
+        step: float,
+        shortcut: tuple[int, float] | None,
+        w: np.ndarray,
+        v: np.ndarray | None,
+        world: World | None,
+        margin: float,
+        motion: tuple[int, np.ndarray] | None,
+    ) -> None:
+        self.m, self.frame, self.free_axis, self.step, self.shortcut = m, frame, free_axis, step, shortcut
+        self.w, self.v, self.world, self.margin, self.motion = w, v, world, margin, motion
+        self.sizes = np.zeros(0, dtype=int)
+        self.dropped = 0
+        self.samples = sample_poses(np.eye(4)[None], None, step, None)
+
+    def solve(self, targets: np.ndarray, times: np.ndarray | None, radius: np.ndarray | None) -> Any:
+        """The optimum over the graph of ``targets`` as ``(q, index, groups, layers, periods,
+        cost, note)``, or the message of a failure."""
+        m = self.m
+        self.samples = sample_poses(targets, self.free_axis, self.step, radius)
+        solutions, groups = sample_solutions(m, self.samples, self.frame, self.shortcut, self.motion)
+        layers, keep, self.dropped = _free_of_collisions(m, solutions, self.world, self.margin)
+        groups = [g[k] for g, k in zip(groups, keep, strict=True)]
+        self.sizes = np.array([len(layer) for layer in layers])
+        empty = np.flatnonzero(self.sizes == 0)
+        if empty.size:
+            why = (
+                "every solution collides"
+                if len(solutions[empty[0]])
+                else "no solution within the joint limits"
+            )
+            return f"pose {empty[0]} has {why} ({empty.size} such poses)"
+        bounds = None if times is None or self.v is None else step_bounds(times, self.v)
+        periods = wrapping(m)
+        best = least_motion(layers, self.w, bounds, periods)
+        if best.blocked >= 0:
+            k = best.blocked
+            why = f"no solution of pose {k} is reachable from pose {k - 1} in {times[k] - times[k - 1]:g} s"
+            return f"no joint path within the velocity limits at the given times: {why}"
+        rows = np.stack([layer[i] for layer, i in zip(layers, best.index, strict=True)])
+        q = realize(rows, periods, m.lower, m.upper)
+        note = ""
+        if q is None:  # the relaxed optimum turns a joint past its limits: plan over every turn
+            angles = np.asarray(m.revolute_mask, dtype=bool)
+            copies = [turn_copies(layer, m.lower, m.upper, angles) for layer in layers]
+            layers = [c[0] for c in copies]
+            groups = [g[c[1]] for g, c in zip(groups, copies, strict=True)]
+            periods = np.zeros(m.n_q)
+            best = least_motion(layers, self.w, bounds, periods)
+            if best.blocked >= 0:
+                return (
+                    f"no joint path within the joint limits and the velocity limits: pose {best.blocked} "
+                    "is not reachable on any turn of the joints"
+                )
+            q = np.stack([layer[i] for layer, i in zip(layers, best.index, strict=True)])
+            per_pose = np.mean([len(x) for x in layers])
+            note = f"; turns reach the joint limits: planned over every turn ({per_pose:.3g} nodes per pose)"
+        return q, best.index, groups, layers, periods, best.cost, note

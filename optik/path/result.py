@@ -23,7 +23,7 @@ class JointPath:
         cost: weighted joint-space length, the sum over segments of ``|W (q[k+1] - q[k])|``.
         checks: each check run on the final path (recomputed from ``q`` and ``t``) and whether it
             passed: ``"fk"``, ``"limits"``, ``"velocity"``, ``"acceleration"``, ``"branch"``,
-            ``"collision"`` (the ones that apply).
+            ``"collision"``, ``"deviation"`` (the ones that apply).
         success: True when a path was found and every check passed.
         message: what was done, what was stretched or dropped, and why a path failed.
         stretched: number of segments whose time was stretched to meet the velocity limits
@@ -31,6 +31,10 @@ class JointPath:
         axis_angle: per sample, the rotation about the free tool axis that was chosen (rad; zeros
             without ``free_axis``).
         nodes: number of graph nodes (solutions) per pose.
+        poses: the path's poses ``(N, 4, 4)``: the ones asked for, with the samples that
+            densification inserted.
+        deviation: per segment, the largest distance of the tool from the straight segment
+            between its ends while the joints move linearly (m; `optik.path.densify`).
     """
 
     q: np.ndarray
@@ -45,6 +49,8 @@ class JointPath:
     stretched: int = 0
     axis_angle: np.ndarray = field(default_factory=lambda: np.zeros(0))
     nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    poses: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
+    deviation: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def flips(self) -> int:

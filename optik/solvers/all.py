@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from optik.checks import as_name, as_vector
+from optik.checks import as_bool, as_name, as_vector
 from optik.closed_form import registry, search_1d
 from optik.closed_form.derived import derive_locked, locked_axes
 from optik.closed_form.general_6r import General6R, solve_general_6r
@@ -143,8 +143,7 @@ def solve_ik_all(
     max_solutions = positive_int(max_solutions, "max_solutions")
     if method is not None:
         as_name(method, "method")
-    if not isinstance(closed_form, bool):
-        raise InvalidArgumentError("closed_form", f"expected True or False, got {closed_form!r}")
+    closed_form = as_bool(closed_form, "closed_form")
     if fixed is not None:
         return _locked_all(request, _locks(m, fixed), method, patience, max_solutions)
     applies = closed_form_applies(m, request.task) and frame in (None, m.ee)
@@ -190,8 +189,9 @@ def _from_rows(request: IKRequest, rows: list[list[float]]) -> IKSolutions:
     of the generic [`make_result`][optik.solvers.base.make_result], which only the rare branch
     that needs polishing goes through."""
     m = request.mechanism
-    inside = registry.within_limits(m, rows)
-    outside = [np.array(r) for r in rows if r not in inside] if len(inside) < len(rows) else []
+    clipped = [registry.clip_to_limits(m, r) for r in rows]
+    inside = [c for c in clipped if c is not None]
+    outside = [np.array(r) for r, c in zip(rows, clipped, strict=True) if c is None]
     checked = {}
     if isinstance(rows, registry.CheckedRows) and request.task == m.task == "pose" and not m.is_closed:
         checked = {id(row): err for row, err in zip(rows, rows.errors, strict=True)}

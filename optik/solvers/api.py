@@ -7,10 +7,12 @@ from typing import Any
 
 import numpy as np
 
+from optik import native
 from optik.closed_form import registry
-from optik.errors import SolverUnavailableError
+from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.results import IKResult
+from optik.solvers.balance import merge_contacts, solve_balance
 from optik.solvers.base import IKRequest, Tolerances, get_method, make_request, methods
 
 DEFAULT_ORDER = ("closed_form", "lm", "nlp")
@@ -47,6 +49,9 @@ def solve_ik(
     time_limit: float | None = None,
     tol: float | Tolerances | None = None,
     seed: int | np.random.Generator | None = None,
+    contacts: Any = None,
+    support: Any = None,
+    com_margin: float = 0.0,
     **options: Any,
 ) -> IKResult:
     """Inverse kinematics with joint limits (and loop closures for closed chains).
@@ -68,6 +73,12 @@ def solve_ik(
         time_limit: wall-time budget in seconds (default 0.1).
         tol: tolerances (float: position and orientation) or [`Tolerances`][optik.Tolerances].
         seed: seed or Generator for restarts.
+        contacts: ``{frame: 4x4 or Position}``: frames held in the world (flat contacts or point
+            feet), extra targets that success needs too (`optik.solvers.balance`).
+        support: the world x-y support polygon, counter-clockwise ``(k, 2)``: the centre of
+            mass's ground projection must stay inside it by ``com_margin`` (method ``"nlp"``,
+            the default then; the mechanism needs masses).
+        com_margin: the balance margin (m, ``>= 0``; only with ``support``).
         **options: method-specific options (see each method's documentation).
 
     Returns:
@@ -80,7 +91,18 @@ def solve_ik(
     Raises:
         OptikError: malformed input (named argument), unknown or inapplicable method.
     """
+    if contacts is not None:
+        target, frame = merge_contacts(m, target, frame, contacts), None
+    if support is None and com_margin != 0.0:
+        raise InvalidArgumentError("com_margin", "a balance margin needs a support polygon (support=...)")
     request = make_request(m, target, q0, task, frame, time_limit, tol, seed, options)
+    if support is not None:
+        if method not in (None, "nlp"):
+            raise SolverUnavailableError(
+                f"method {method!r} does not take support=: the balance constraints are NLP inequalities "
+                "(method 'nlp'); contacts alone work with every method that takes several targets"
+            )
+        return solve_balance(request, support, com_margin)
     multi = request.multi_target
     own_frame = not multi and request.frame in (None, m.ee)  # closed forms solve for the end effector only
     if method is None:
@@ -99,12 +121,13 @@ def solve_ik(
             f"method {name!r} does not apply to {m.name!r} with task {request.task!r}"
             + ("" if own_frame else f" and frame {request.frame!r}")
         )
-    if method is None and name == "closed_form" and registry.costly(m):
-        return _numerical_first(request)
-    res = info.solve(request)
-    if method is None and name == "closed_form" and "uncertified" in res.extra:
-        return _numerical_fallback(request, res)
-    return res
+    with native.deadline(request.start + request.time_limit):  # no wait for a C build past it
+        if method is None and name == "closed_form" and registry.costly(m):
+            return _numerical_first(request)
+        res = info.solve(request)
+        if method is None and name == "closed_form" and "uncertified" in res.extra:
+            return _numerical_fallback(request, res)
+        return res
 
 
 NUMERICAL_SHARE = 0.5

@@ -43,7 +43,7 @@ import casadi as ca
 import numpy as np
 
 from optik import closed_form, spatial
-from optik.checks import as_rng, as_vector
+from optik.checks import as_bool, as_rng, as_vector
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
@@ -427,8 +427,7 @@ def solve_fk_all(
     singular_condition = _positive(singular_condition, "singular_condition")
     if method not in (None, "closed_form", "numeric"):
         raise InvalidArgumentError("method", f"unknown FK method {method!r}; use 'closed_form' or 'numeric'")
-    if not isinstance(within_limits, (bool, np.bool_)):
-        raise InvalidArgumentError("within_limits", f"must be True or False, got {within_limits!r}")
+    within_limits = as_bool(within_limits, "within_limits")
     cm = _compiled(m)
     use_closed = method == "closed_form" or (method is None and closed_form.has_fk(m))
     found: list[np.ndarray] = []

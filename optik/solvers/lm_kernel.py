@@ -29,6 +29,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from optik.errors import InvalidArgumentError, ShapeError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
 from optik.native import driver_source, library
@@ -193,6 +194,10 @@ class LMKernel:
     ) -> None:
         problem = build_ik_problem(m, task, frame)
         self.mechanism = m
+        self.n_target = int(problem.target.shape[0])
+        """Target parameters per target (12 per frame target)."""
+        self.n_conf = 12 + 5 * m.n_q
+        """Length of `Settings.conf`: 12 scalars, sampling bounds, ``q_ref`` and the limits."""
         self.step = lm_iteration_function(problem, closure_weight)
         self.errors = error_function(problem)
         defines = (
@@ -286,7 +291,7 @@ class LMKernel:
             seeds: restart seeds (uint64, ``(N,)``).
             conf: `Settings.conf`.
         """
-        n, nq = len(targets), self.mechanism.n_q
+        n, nq = self._check_run(targets, q0, seeds, conf)
         out = Output(
             np.empty((n, nq)),
             np.empty((n, 3)),
@@ -307,10 +312,37 @@ class LMKernel:
         conf = np.ascontiguousarray(conf, dtype=float)
         bufs = [*ins, conf, out.q, out.errors, out.iterations, out.restarts, out.status, out.solve_time]
         if fn(n, *[b.ctypes.data for b in bufs]) != 0:
-            from optik.errors import SolverUnavailableError
-
             raise SolverUnavailableError("optik_lm_chunk: evaluation of the generated code failed")
         return out
+
+    def _check_run(self, targets: Any, q0: Any, seeds: Any, conf: Any) -> tuple[int, int]:
+        """``(N, n)`` once the arrays that `run` hands to C are checked (shapes and kinds; the
+        driver reads and writes by these sizes, so a wrong array would be read out of bounds).
+
+        Raises:
+            ShapeError: an array of another shape than ``targets (N, n_target)``, ``q0 (N, n)``,
+                ``seeds (N,)``, ``conf (n_conf,)``.
+            InvalidArgumentError: ``seeds`` not of unsigned or non-negative integers, or another
+                array not of real numbers.
+        """
+        nq = self.mechanism.n_q
+        n = np.shape(targets)[0] if np.ndim(targets) == 2 else -1
+        expected = (
+            ("targets", targets, (n, self.n_target), "biuf"),
+            ("q0", q0, (n, nq), "biuf"),
+            ("seeds", seeds, (n,), "ui"),
+            ("conf", conf, (self.n_conf,), "biuf"),
+        )
+        for name, value, shape, kinds in expected:
+            arr = np.asarray(value)
+            if arr.shape != shape or n < 0:
+                want = f"(N, {self.n_target})" if name == "targets" else str(shape)
+                raise ShapeError(name, f"expected shape {want}, got {arr.shape}")
+            negative = arr.dtype.kind == "i" and name == "seeds" and bool((arr < 0).any())
+            if arr.dtype.kind not in kinds or negative:
+                what = "integers >= 0" if name == "seeds" else "real numbers"
+                raise InvalidArgumentError(name, f"expected {what}, got {arr.dtype} {arr.ravel()[:3]}")
+        return n, nq
 
     def _run_python(
         self, targets: np.ndarray, q0: np.ndarray, seeds: np.ndarray, conf: np.ndarray, out: Output

@@ -1,4 +1,4 @@
-"""Every IK solution of 6-axis arms: optik's derived closed forms against EAIK, pose by pose.
+"""Every IK solution of 6-axis arms: optik's derived closed forms against EAIK and ik-geo, pose by pose.
 
 Method (docs/benchmarks.md): per arm, ``--n`` joint vectors drawn uniformly within the limits (seeded),
 targets by the mechanism's own FK (``m.fk``); then, target by target in one process (thread pools
@@ -13,23 +13,30 @@ pinned to 1 before numpy is imported), interleaved:
 * ``EAIK`` (the ``eaik`` package, where installed): its compiled ``Robot.calculate_IK(T X)``
   (without EAIK's Python wrapper), built once per arm by EAIK's own URDF parser (UR arms) or
   DH constructor (PUMA 560), and from optik's joint axes at ``q = 0`` for the seed arm; ``X`` maps
-  optik's tool frame to EAIK's (EAIK's FK equals ``m.fk(q) X``, checked on 16 configurations).
+  optik's tool frame to EAIK's (EAIK's FK equals ``m.fk(q) X``, checked on 16 configurations);
+* ``ik-geo`` (the ``ik_geo`` package, where installed): its compiled ``Robot.get_ik(R, p)`` for
+  the arm's family (``three_parallel_two_intersecting`` for the UR arms and the seed arm,
+  ``spherical_two_intersecting`` for the PUMA 560), built from optik's joint axes at ``q = 0``
+  with the points of intersecting axes moved to their common point (as ik-geo's formulas assume);
+  its end frame is the last joint's, so its target is ``R = R_T R_home^T`` (its bindings read
+  the 3x3 array transposed, so the transpose is passed), made outside the timing. Its exact
+  solutions count (not the least-squares ones it flags).
 
 Arms: the UR5 and UR10 URDFs of example-robot-data (``*_joint_limited_robot.urdf``, base
 ``base_link``, tip ``tool0``; skipped with a note when example-robot-data is not installed), the
 PUMA 560 of the catalog (spherical wrist, standard DH) and the seed's 6R arm (its derived closed
 form; the hand-written one is its cross-check in the tests).
 
-Checks (each recomputed here from the returned ``q``): an EAIK solution counts when its FK by
+Checks (each recomputed here from the returned ``q``): an EAIK (ik-geo) solution counts when its FK by
 ``m.fk`` matches the target (position and orientation error <= 1e-6) and it lies within the limits
 after the 2 pi shift of ``m.wrap``; it is *found* when an optik solution lies within 1e-4 rad of
 it (max-norm, angles modulo 2 pi). Every optik solution must pass the same FK and limit check;
 *duplicates* are pairs of optik solutions of one target closer than 1e-4 rad; *extra* are optik
-solutions that no valid EAIK solution matches.
+solutions that no valid EAIK solution matches. The checks run on every pose of the timed run.
 
-Before timing, each arm's single-target kernel is built and compiled to C (untimed; in use it
-compiles itself after its first calls). Times: mean / median / p95 per pose of both, the ratio
-of means and medians (optik / EAIK), and optik's vectorized throughput (``DerivedIK.solve`` on
+Before timing, each arm's single-target kernel is built and compiled to C and each peer solves
+one pose (untimed warm-up for every solver). Times: mean / median / p95 per pose of every solver,
+the ratio of medians (optik / peer), and optik's vectorized throughput (``DerivedIK.solve`` on
 all ``--n`` targets at once: every branch, FK-checked and deduplicated, no limit filter) in
 targets per second.
 
@@ -44,7 +51,6 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Sequence  # noqa: E402
@@ -55,11 +61,16 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
+from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.catalog.industrial import PUMA560_DH  # noqa: E402
 from optik.closed_form.derived import chain_axes, derive, derive_axes  # noqa: E402
 from optik.mechanism import Mechanism  # noqa: E402
 from optik.solvers.base import joint_distance  # noqa: E402
 
+try:  # an optional peer
+    import ik_geo
+except ImportError:  # pragma: no cover - depends on the environment
+    ik_geo = None
 try:  # an optional peer
     import eaik.IK_DH as eaik_dh
     import eaik.IK_URDF as eaik_urdf
@@ -87,7 +98,7 @@ def _ur(name: str) -> tuple[Mechanism | None, str]:
     """A UR arm of example-robot-data (base ``base_link``, tip ``tool0``), or a note."""
     path = _urdf_path(name)
     if path is None:
-        return None, f"{name}: skipped, example-robot-data is not installed (pip install optik[robots])"
+        return None, f'{name}: skipped, example-robot-data is not installed (pip install "optik[robots]")'
     m = Mechanism.from_urdf(path, "base_link", "tool0")
     m.name = name
     return m, ""
@@ -129,6 +140,34 @@ def _eaik_robot(m: Mechanism) -> tuple[object, np.ndarray, str]:
     return raw, x, source
 
 
+IK_GEO_FAMILY = {
+    "three_parallel (5-6 intersecting)": ("three_parallel_two_intersecting", ((4, 5),)),
+    "spherical_wrist (1-2 intersecting)": ("spherical_two_intersecting", ((0, 1), (3, 4, 5))),
+}
+"""optik's family name -> ik-geo's constructor and the groups of joints (0-based) whose axes meet."""
+
+
+def _common_point(h: np.ndarray, r: np.ndarray, joints: Sequence[int]) -> np.ndarray:
+    """The point closest to the lines ``r_i + s h_i`` (least squares; their intersection)."""
+    proj = [np.eye(3) - np.outer(h[i], h[i]) for i in joints]
+    return np.linalg.solve(sum(proj), sum(p @ r[i] for p, i in zip(proj, joints, strict=True)))
+
+
+def _ik_geo_robot(m: Mechanism, family: str) -> tuple[object, np.ndarray] | None:
+    """ik-geo's robot for the arm's family and the home rotation to strip from targets, or None
+    when ik-geo has no constructor for the family."""
+    if ik_geo is None or family not in IK_GEO_FAMILY:
+        return None
+    name, groups = IK_GEO_FAMILY[family]
+    ax = chain_axes(m)
+    h = ax.h / np.linalg.norm(ax.h, axis=1)[:, None]
+    r = np.array(ax.r, dtype=float)
+    for joints in groups:
+        r[list(joints)] = _common_point(h, r, joints)
+    p = np.vstack([r[0], np.diff(r, axis=0), ax.home[:3, 3] - r[-1]])
+    return getattr(ik_geo.Robot, name)(h, p), ax.home[:3, :3]
+
+
 def _valid(m: Mechanism, qs: Sequence[np.ndarray], target: np.ndarray) -> list[np.ndarray]:
     """The ``qs`` (shifted into the limits by ``m.wrap``) passing the FK and limit check."""
     out = []
@@ -154,6 +193,9 @@ class Row:
     results_times: list[float] = field(default_factory=list)
     eaik_times: list[float] = field(default_factory=list)
     eaik_valid: int = 0
+    ikgeo_times: list[float] = field(default_factory=list)
+    ikgeo_valid: int = 0
+    ikgeo_found: int = 0
     found: int = 0
     optik_solutions: int = 0
     optik_failed_check: int = 0
@@ -175,10 +217,19 @@ def run_arm(m: Mechanism, n: int, seed: int) -> Row:
     targets = m.fk(m.random_q(n, seed=seed))
     robot, x, row.eaik_model = _eaik_robot(m) if eaik_dh is not None else (None, np.eye(4), "-")
     theirs_targets = targets @ x  # EAIK's tool frame (outside the timing)
+    geo = _ik_geo_robot(m, family)
+    # ik-geo's targets: the last joint's frame, the rotation transposed for its bindings (untimed)
+    geo_targets = (
+        [(np.ascontiguousarray((t[:3, :3] @ geo[1].T).T), t[:3, 3].copy()) for t in targets] if geo else []
+    )
     optik.solve_ik_all(m, targets[0])  # builds the cached kernel and FK evaluator (untimed)
     if derive(m) is not None:
         derive(m).compile()  # as after its first calls (it compiles itself when hot)
-    for t, t_eaik in zip(targets, theirs_targets, strict=True):
+    if robot is not None:
+        robot.calculate_IK(theirs_targets[0])  # warm-up, as optik's
+    if geo:
+        geo[0].get_ik(*geo_targets[0])
+    for k, (t, t_eaik) in enumerate(zip(targets, theirs_targets, strict=True)):
         t0 = time.perf_counter()
         sols = optik.solve_ik_all(m, t)
         assert sols.q.shape[0] == len(sols)  # the solutions as one array, like EAIK.Q
@@ -194,6 +245,15 @@ def run_arm(m: Mechanism, n: int, seed: int) -> Row:
         else:
             valid = []
         ours = [s.q for s in sols]
+        if geo:
+            t0 = time.perf_counter()
+            geo_sols = geo[0].get_ik(*geo_targets[k])
+            row.ikgeo_times.append(time.perf_counter() - t0)
+            geo_valid = _valid(
+                m, [np.asarray(q, dtype=float) for q, least_squares in geo_sols if not least_squares], t
+            )
+            row.ikgeo_valid += len(geo_valid)
+            row.ikgeo_found += sum(any(joint_distance(m, v, o) < SAME for o in ours) for v in geo_valid)
         row.optik_solutions += len(ours)
         row.outside_limits += len(sols.outside_limits)
         row.optik_failed_check += len(ours) - len(_valid(m, ours, t))
@@ -218,8 +278,10 @@ def report(rows: list[Row], notes: list[str], command: str) -> str:
         "| arm | family | EAIK built by | poses | EAIK solutions in limits | found by optik "
         "| optik solutions | duplicates "
         "| failed FK/limit check | extra | optik mean / median / p95 | EAIK mean / median / p95 "
-        "| ratio of means / medians | IKResult objects (mean) | vectorized (targets/s) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| ratio of means / medians (optik / EAIK) | ik-geo solutions in limits | found by optik "
+        "| ik-geo mean / median / p95 | ratio of means / medians (optik / ik-geo) "
+        "| IKResult objects (mean) | vectorized (targets/s) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         om, omed, op95 = _stats(r.optik_times)
@@ -230,12 +292,21 @@ def report(rows: list[Row], notes: list[str], command: str) -> str:
             found = f"{r.found} ({100.0 * r.found / max(r.eaik_valid, 1):.1f} %)"
         else:
             peer, ratio, found = "EAIK not installed", "-", "-"
+        if r.ikgeo_times:
+            gm, gmed, gp95 = _stats(r.ikgeo_times)
+            geo = (
+                f"{r.ikgeo_valid} | {r.ikgeo_found} ({100.0 * r.ikgeo_found / max(r.ikgeo_valid, 1):.1f} %) "
+                f"| {gm:.1f} / {gmed:.1f} / {gp95:.1f} | {om / gm:.1f} / {omed / gmed:.1f}"
+            )
+        else:
+            geo = "- | - | ik-geo not installed or no constructor for the family | -"
         lines.append(
             f"| {r.name} | {r.family} | {r.eaik_model} | {r.n} "
             f"| {r.eaik_valid if r.eaik_times else '-'} | {found} "
             f"| {r.optik_solutions} | {r.duplicates} | {r.optik_failed_check} "
             f"| {r.extra if r.eaik_times else '-'} "
-            f"| {om:.1f} / {omed:.1f} / {op95:.1f} | {peer} | {ratio} | {_stats(r.results_times)[0]:.1f} "
+            f"| {om:.1f} / {omed:.1f} / {op95:.1f} | {peer} | {ratio} | {geo} "
+            f"| {_stats(r.results_times)[0]:.1f} "
             f"| {r.throughput:,.0f} |"
         )
     lines += ["", *(f"- {note}" for note in notes)]
@@ -255,9 +326,7 @@ def _write(path: Path, text: str) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog="optik benchmark all_solutions", description=__doc__.splitlines()[0]
-    )
+    parser = benchmark_parser("all_solutions", __doc__)
     parser.add_argument("--n", type=int, default=1000, help="random poses per arm (default: %(default)s)")
     parser.add_argument("--seed", type=int, default=0, help="seed of joint vectors (default: %(default)s)")
     parser.add_argument("--out", type=Path, help="also write the report (markdown) to this file")
@@ -266,7 +335,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error("--n must be >= 1")
     arms, notes = _arms()
     if eaik_dh is None:
-        notes.append("EAIK not installed (pip install optik[peers]): optik alone")
+        notes.append('EAIK not installed (pip install "optik[peers]"): skipped')
+    if ik_geo is None:
+        notes.append('ik-geo not installed (pip install "optik[peers]"): skipped')
     rows = []
     for m in arms:
         rows.append(run_arm(m, args.n, args.seed))
@@ -276,7 +347,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(text)
     if args.out is not None:
         _write(args.out, text)
-    ok = all(r.found == r.eaik_valid and r.duplicates == 0 and r.optik_failed_check == 0 for r in rows)
+    ok = all(
+        r.found == r.eaik_valid
+        and r.ikgeo_found == r.ikgeo_valid
+        and r.duplicates == 0
+        and r.optik_failed_check == 0
+        for r in rows
+    )
     return 0 if ok else 1
 
 

@@ -1,20 +1,24 @@
-"""Batch IK on the Franka Panda: ``solve_ik_batch`` on every core against TRAC-IK's single-thread loop.
+"""Batch IK on the Franka Panda: ``solve_ik_batch`` on W threads against TRAC-IK on 1 and on W processes.
 
 Method: the Panda chain is loaded from the shipped URDF (``panda_link0`` -> ``panda_link8``) by
-optik and by TRAC-IK (``pytracik``, Speed mode). ``--n`` joint vectors are drawn uniformly
-within the limits (seeded), the targets are their FK poses, and each target gets a random start
-(also seeded), the same for both solvers; tolerance ``--tol`` (1e-5) and time limit
-``--time-limit`` (5 ms) per target. The targets are processed in blocks of ``--block``;
-every block is solved by ``optik.solve_ik_batch(..., workers=--workers)`` and by a Python loop
-over ``TracIK.ik`` on one thread, alternating which goes first, so that load changes of a
-shared machine hit both; each solver's throughput is its targets over the sum of its blocks'
-wall times (the batch call's validation, thread pool and result assembly included). TRAC-IK
-runs with ``epsilon = tol / 2`` (a bound per twist component), as the TRAC-IK peer of
-``optik bench``. Success is judged for both by an independent forward kinematics (Pinocchio on
-the same URDF; optik's own FK when Pinocchio is missing): position error and geodesic
-orientation error <= ``--tol`` and the joint limits satisfied exactly (TRAC-IK's answers often
-overshoot a limit by about 5e-9 rad, so its success is also shown with the answers clipped into
-the limits). Equality: on ``--n-check`` sampled targets,
+optik and by the TRAC-IK peer of `optik.harness.peers` (``pytracik``, Speed mode). ``--n`` joint
+vectors are drawn uniformly within the limits (seeded), the targets are their FK poses, and each
+target gets a random start (also seeded), the same for every solver; tolerance ``--tol`` (1e-5)
+and time limit ``--time-limit`` (5 ms) per target. The targets are processed in blocks of
+``--block``; every block is solved by ``optik.solve_ik_batch(..., workers=W)`` (``--workers``
+threads), by TRAC-IK in a loop on one thread, and by TRAC-IK in a pool of W processes (the same
+core count as optik: each process has its own solver and takes a contiguous share of the block),
+in a rotating order so that load changes of a shared machine hit all of them; each solver's
+throughput is its targets over the sum of its blocks' wall times (the batch call's validation,
+thread pool and result assembly included; the pool's pickling and dispatch included). Every
+solver is held to the rules of `optik.harness.peers.rules`: asked for half the tolerance
+(TRAC-IK: ``eps = tol / 2`` per twist component), warmed up untimed (optik builds its kernel,
+every pool process builds its solver and solves once), every answer clipped into the limits (the
+raw overshoot is reported), and success judged for all by one referee (Pinocchio's FK on the same
+URDF where installed): position error and geodesic orientation error <= ``--tol`` and the joint
+limits satisfied exactly. The table gives the IK/s, the IK/s per core (throughput over the
+threads or processes used) and the mean / median / p95 over the blocks of the wall time per
+target. Equality: on ``--n-check`` sampled targets,
 ``optik.solve_ik(m, T[i], q0[i], method="lm", seed=res.seed[i])`` must return exactly the
 batch's ``q`` (bitwise) and iteration count, where neither hit the time limit. Dask: the first
 ``--n-dask`` targets on a ``LocalCluster`` of one and of two worker processes (one thread
@@ -34,18 +38,21 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
 import itertools  # noqa: E402
 import logging  # noqa: E402
 import time  # noqa: E402
-from collections.abc import Callable, Sequence  # noqa: E402
+from collections.abc import Sequence  # noqa: E402
+from concurrent.futures import ProcessPoolExecutor  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
 from optik.batch.fk import default_workers  # noqa: E402
+from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.catalog.arms import URDF_CHAINS, urdf_path  # noqa: E402
+from optik.harness.peers import PeerUnavailable, TracIK  # noqa: E402
+from optik.harness.peers.rules import Referee, warm_up  # noqa: E402
 from optik.solvers.lm_kernel import target_seeds  # noqa: E402
 
 
@@ -57,38 +64,35 @@ def load_average() -> str:
         return "n/a"
 
 
-def fk_checker(path: str, tip: str, m: optik.Mechanism) -> tuple[str, Callable[[np.ndarray], np.ndarray]]:
-    """An FK ``q -> 4x4`` independent of optik (Pinocchio) when available, and its name."""
-    try:
-        import pinocchio as pin
-    except ImportError:
-        return "optik fk (Pinocchio missing)", m.fk
-    model = pin.buildModelFromUrdf(path)
-    data = model.createData()
-    frame = model.getFrameId(tip)
+OPTIK, TRACIK_1, TRACIK_POOL = (
+    "optik solve_ik_batch",
+    "TRAC-IK (Speed), 1 thread",
+    "TRAC-IK (Speed), process pool",
+)
 
-    def fk(q: np.ndarray) -> np.ndarray:
-        pin.framesForwardKinematics(model, data, q)
-        return data.oMf[frame].homogeneous
-
-    return "Pinocchio", fk
+_WORKER: dict[str, object] = {}
+"""The TRAC-IK solver of a pool process (built by `_pool_init`)."""
 
 
-def successes(
-    m: optik.Mechanism, fk: Callable[[np.ndarray], np.ndarray], qs: list, targets: np.ndarray, tol: float
-) -> np.ndarray:
-    """Per target: within limits, position and geodesic orientation errors <= tol."""
-    ok = np.zeros(len(targets), dtype=bool)
-    for i, (q, t) in enumerate(zip(qs, targets, strict=True)):
-        if q is None or not ((q >= m.lower) & (q <= m.upper)).all():
-            continue
-        pose = fk(q)
-        pos = np.linalg.norm(pose[:3, 3] - t[:3, 3])
-        r = pose[:3, :3].T @ t[:3, :3]
-        skew = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
-        ori = np.arctan2(0.5 * np.linalg.norm(skew), 0.5 * (np.trace(r) - 1.0))
-        ok[i] = pos <= tol and ori <= tol
-    return ok
+def _pool_init(chain: tuple[str, str, str], time_limit: float, tol: optik.Tolerances) -> None:
+    path, base, tip = chain
+    m = optik.Mechanism.from_urdf(path, base, tip)
+    _WORKER.update(peer=TracIK(m, Path(path), base, tip), limit=time_limit, tol=tol)
+
+
+def _pool_part(targets: np.ndarray, q0: np.ndarray) -> list[np.ndarray]:
+    peer, limit, tol = _WORKER["peer"], _WORKER["limit"], _WORKER["tol"]
+    return [peer.attempt(s, t, limit, tol)[0] for s, t in zip(q0, targets, strict=True)]  # type: ignore[attr-defined]
+
+
+def _pool_solve(
+    pool: ProcessPoolExecutor | None, targets: np.ndarray, q0: np.ndarray, workers: int
+) -> list[np.ndarray]:
+    """TRAC-IK on the pool's processes, each taking a contiguous share of the targets."""
+    assert pool is not None
+    cuts = np.linspace(0, len(targets), workers + 1).astype(int)
+    futures = [pool.submit(_pool_part, targets[a:b], q0[a:b]) for a, b in itertools.pairwise(cuts)]
+    return [q for f in futures for q in f.result()]
 
 
 def compare(a: optik.BatchResult, b: optik.BatchResult) -> str:
@@ -114,7 +118,7 @@ def dask_runs(
     try:
         from distributed import Client, LocalCluster
     except ImportError:
-        return ["Dask: dask.distributed is not installed (pip install 'optik[dist]'): skipped"]
+        return ['Dask: dask.distributed is not installed (pip install "optik[dist]"): skipped']
     logging.getLogger("distributed").setLevel(logging.ERROR)
     clusters = {
         w: LocalCluster(
@@ -153,7 +157,7 @@ def dask_runs(
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point (also called by ``optik benchmark batch``)."""
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p = benchmark_parser("batch", __doc__)
     p.add_argument("--n", type=int, default=100_000, help="number of targets")
     p.add_argument("--block", type=int, default=5000, help="targets per alternating block")
     p.add_argument("--tol", type=float, default=1e-5, help="position / orientation tolerance")
@@ -162,7 +166,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--n-check", type=int, default=1000, help="targets compared with solve_ik")
     p.add_argument("--n-dask", type=int, default=20_000, help="targets of the Dask runs (0: skip)")
     p.add_argument("--dask-blocks", type=int, default=6, help="alternating blocks of the Dask runs")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seed of the random draws")
     args = p.parse_args(argv)
     print(f"load average before: {load_average()}  (cores: {os.cpu_count()})")
     path, (base, tip) = str(urdf_path("panda")), URDF_CHAINS["panda"]
@@ -171,68 +175,94 @@ def main(argv: Sequence[str] | None = None) -> int:
     q0 = m.random_q(args.n, seed=args.seed + 1)
     opts = {"tol": args.tol, "time_limit": args.time_limit}
     seeds = target_seeds(args.seed, 0, args.n)  # the seeds of one batch of all targets, block by block
-    optik.solve_ik_batch(m, targets[:10], q0[:10], **opts)  # build and compile outside the timings
-    tracik = None
+    tolerances = optik.Tolerances(position=args.tol, orientation=args.tol)
+    chain = (path, base, tip)
+    warm_up([lambda: optik.solve_ik_batch(m, targets[:10], q0[:10], workers=args.workers, **opts)])
     try:
-        from trac_ik import TracIK
+        tracik: TracIK | None = TracIK(m, Path(path), base, tip)
+    except PeerUnavailable as exc:
+        tracik = None
+        print(f"TRAC-IK skipped: {exc}")
+    pool = None
+    if tracik is not None:
+        pool = ProcessPoolExecutor(
+            args.workers, initializer=_pool_init, initargs=(chain, opts["time_limit"], tolerances)
+        )
+        warm_up(
+            [
+                lambda: tracik.attempt(q0[0], targets[0], args.time_limit, tolerances),
+                lambda: _pool_solve(pool, targets[:40], q0[:40], args.workers),
+            ]
+        )
+    parts: list[optik.BatchResult] = []
+    walls: dict[str, list[float]] = {OPTIK: [], TRACIK_1: [], TRACIK_POOL: []}
+    answers: dict[str, list[np.ndarray]] = {TRACIK_1: [], TRACIK_POOL: []}
+    blocks = [(a, min(a + args.block, args.n)) for a in range(0, args.n, args.block)]
+    for k, (a, b) in enumerate(blocks):
 
-        # epsilon bounds each twist component: tol / 2 keeps the Euclidean errors within tol (as
-        # the TRAC-IK peer of `optik bench`)
-        eps = 0.5 * args.tol
-        tracik = TracIK(base, tip, path, timeout=args.time_limit, epsilon=eps, solver_type="Speed")
-    except ImportError:
-        print("pytracik is not installed (pip install pytracik): TRAC-IK skipped")
-    parts, t_optik, t_tracik, tracik_q = [], 0.0, 0.0, []
-    for k, a in enumerate(range(0, args.n, args.block)):
-        b = min(a + args.block, args.n)
-
-        def run_optik(a: int = a, b: int = b) -> float:
+        def run_optik(a: int = a, b: int = b) -> None:
             t0 = time.perf_counter()
             parts.append(
                 optik.solve_ik_batch(m, targets[a:b], q0[a:b], workers=args.workers, **opts, seed=seeds[a:b])
             )
-            return time.perf_counter() - t0
+            walls[OPTIK].append(time.perf_counter() - t0)
 
-        def run_tracik(a: int = a, b: int = b) -> float:
+        def run_tracik(a: int = a, b: int = b) -> None:
+            assert tracik is not None
             t0 = time.perf_counter()
-            for i in range(a, b):
-                tracik_q.append(tracik.ik(targets[i][:3, 3], targets[i][:3, :3], q0[i]))
-            return time.perf_counter() - t0
+            qs = [tracik.attempt(q0[i], targets[i], args.time_limit, tolerances)[0] for i in range(a, b)]
+            walls[TRACIK_1].append(time.perf_counter() - t0)
+            answers[TRACIK_1] += qs
 
-        if tracik is None:
-            t_optik += run_optik()
-        elif k % 2 == 0:
-            t_optik += run_optik()
-            t_tracik += run_tracik()
-        else:
-            t_tracik += run_tracik()
-            t_optik += run_optik()
-    res = optik.BatchResult.concatenate(parts, wall_time=t_optik, workers=args.workers)
-    checker, fk = fk_checker(path, tip, m)
-    ok = successes(m, fk, list(res.q), targets, args.tol)
+        def run_pool(a: int = a, b: int = b) -> None:
+            t0 = time.perf_counter()
+            qs = _pool_solve(pool, targets[a:b], q0[a:b], args.workers)
+            walls[TRACIK_POOL].append(time.perf_counter() - t0)
+            answers[TRACIK_POOL] += qs
+
+        runs = [run_optik] if tracik is None else [run_optik, run_tracik, run_pool]
+        for i in range(len(runs)):
+            runs[(i + k) % len(runs)]()
+    if pool is not None:
+        pool.shutdown()
+    res = optik.BatchResult.concatenate(parts, wall_time=sum(walls[OPTIK]), workers=args.workers)
+    referee = Referee(m, path, base, tip)
+    answers[OPTIK] = list(res.q)
     print(
-        f"\nPanda (URDF), {args.n} FK targets, random starts, tol {args.tol:g}, time limit "
-        f"{args.time_limit * 1e3:g} ms, blocks of {args.block} alternating; success by {checker}\n"
+        f"\nPanda (URDF), {args.n} FK targets, random starts, tol {args.tol:g} (every solver asked for "
+        f"tol / 2), time limit {args.time_limit * 1e3:g} ms, blocks of {args.block} in rotating order; "
+        f"answers clipped into the limits, success by {referee.source}'s FK and the exact limits\n"
     )
-    print("| solver | targets | success % | wall s | IK/s | IK/s / TRAC-IK |\n|---|--:|--:|--:|--:|--:|")
-    rate = args.n / t_optik
-    ratio = ""
-    if tracik is not None:
-        tk_q = [None if q is None else np.asarray(q, dtype=float) for q in tracik_q]
-        tk_ok = successes(m, fk, tk_q, targets, args.tol)
-        clipped = [None if q is None else np.clip(q, m.lower, m.upper) for q in tk_q]
-        tk_clipped = successes(m, fk, clipped, targets, args.tol)
-        ratio = f"{rate / (args.n / t_tracik):.1f}"
+    print(
+        "| solver | cores | targets | success % | max overshoot | wall s | IK/s | IK/s per core "
+        "| us per target, per block: mean / median / p95 | IK/s / TRAC-IK on as many cores |\n"
+        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|"
+    )
+    cores = {OPTIK: args.workers, TRACIK_1: 1, TRACIK_POOL: args.workers}
+    rate = {name: args.n / sum(w) for name, w in walls.items() if w}
+    same_cores = {
+        OPTIK: TRACIK_POOL if args.workers > 1 else TRACIK_1,
+        TRACIK_1: TRACIK_1,
+        TRACIK_POOL: TRACIK_POOL,
+    }
+    for name in (TRACIK_1, TRACIK_POOL, OPTIK):
+        if name not in rate:
+            continue
+        verdicts = [referee.judge(q, t, tolerances) for q, t in zip(answers[name], targets, strict=True)]
+        ok = 100.0 * float(np.mean([v.success for v in verdicts]))
+        over = max(v.overshoot for v in verdicts)
+        per_target = 1e6 * np.asarray(walls[name]) / np.asarray([b - a for a, b in blocks])
+        mean, median, p95 = per_target.mean(), np.median(per_target), np.percentile(per_target, 95)
+        peer = same_cores[name]
+        ratio = f"{rate[name] / rate[peer]:.2f}" if peer in rate else "-"
         print(
-            f"| TRAC-IK (Speed), 1 thread | {args.n} | {100 * tk_ok.mean():.2f} "
-            f"({100 * tk_clipped.mean():.2f} clipped into the limits) | {t_tracik:.2f} | "
-            f"{args.n / t_tracik:,.0f} | 1.0 |"
+            f"| {name} | {cores[name]} | {args.n} | {ok:.2f} | {over:.1e} | {sum(walls[name]):.2f} "
+            f"| {rate[name]:,.0f} | {rate[name] / cores[name]:,.0f} "
+            f"| {mean:.1f} / {median:.1f} / {p95:.1f} | {ratio} |"
         )
-    print(
-        f"| optik solve_ik_batch, {args.workers} threads | {args.n} | {100 * ok.mean():.2f} | "
-        f"{t_optik:.2f} | {rate:,.0f} | {ratio or '-'} |"
-    )
-    print(f"\noptik status counts: {dict(zip(*np.unique(res.status, return_counts=True), strict=True))}")
+    names, counts = np.unique(res.status, return_counts=True)
+    counts_text = ", ".join(f"{k} {int(v):,}" for k, v in zip(names, counts, strict=True))
+    print(f"\noptik status counts: {counts_text}")
     rng = np.random.default_rng(args.seed)
     sample = rng.choice(args.n, size=min(args.n_check, args.n), replace=False)
     equal = timed_out = 0

@@ -21,7 +21,6 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Callable, Sequence  # noqa: E402
 from dataclasses import dataclass  # noqa: E402
@@ -29,6 +28,7 @@ from dataclasses import dataclass  # noqa: E402
 import numpy as np  # noqa: E402
 
 from optik import Mechanism, catalog, closed_form, spatial  # noqa: E402
+from optik.benchmarks import benchmark_parser  # noqa: E402
 
 Solver = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 """``targets (N, 4, 4) -> (q (N, B, n), ok (N, B))``."""
@@ -91,12 +91,12 @@ def _per_call_times(m: Mechanism, targets: np.ndarray) -> np.ndarray:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the benchmark and print the table; returns 0 (1 if the 3R is below 1e6 targets/s)."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser("closed_form", __doc__)
     ap.add_argument("--n", type=int, default=1_000_000, help="targets for 2R and 3R")
     ap.add_argument("--n-6r", type=int, default=200_000, help="targets for the 6R arm (8 branches each)")
     ap.add_argument("--repeat", type=int, default=5, help="timed calls per solver")
     ap.add_argument("--verify", type=int, default=20_000, help="targets checked by FK and timed per call")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=0, help="seed of the random draws")
     args = ap.parse_args(argv)
     if min(args.n, args.n_6r, args.repeat, args.verify) < 1:
         ap.error("--n, --n-6r, --repeat and --verify must be >= 1")

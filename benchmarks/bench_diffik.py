@@ -20,7 +20,6 @@ Run: ``optik benchmark diffik [--goals 20] [--steps 300] [--dt 0.01]``.
 
 from __future__ import annotations
 
-import argparse
 import logging
 import time
 import warnings
@@ -31,6 +30,7 @@ import numpy as np
 
 import optik
 from optik import diffik, native, spatial
+from optik.benchmarks import benchmark_parser
 
 Stepper = Callable[[np.ndarray, np.ndarray], Callable[[], np.ndarray]]
 """``(q0, goal) -> step()``: prepares a run to one goal; each ``step()`` returns the new ``q``."""
@@ -146,12 +146,12 @@ def _stats(row: Row, n_goals: int, ref: float | None) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the benchmark and print a markdown table; returns 0."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--goals", type=int, default=20)
-    ap.add_argument("--steps", type=int, default=300)
-    ap.add_argument("--dt", type=float, default=0.01)
+    ap = benchmark_parser("diffik", __doc__)
+    ap.add_argument("--goals", type=int, default=20, help="random goal poses")
+    ap.add_argument("--steps", type=int, default=300, help="at most this many steps per goal")
+    ap.add_argument("--dt", type=float, default=0.01, help="time step (s)")
     ap.add_argument("--tol", type=float, default=1e-4, help="convergence tolerance (m and rad)")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=0, help="seed of the random draws")
     ap.add_argument("--no-pink", action="store_true", help="skip the Pink peer")
     args = ap.parse_args(argv)
     logging.getLogger().setLevel(logging.ERROR)  # Pink logs every limit violation it sees
@@ -176,7 +176,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             import pink  # noqa: F401
         except ImportError:
-            print("pin-pink not installed: Pink rows skipped")
+            print('pin-pink is not installed (pip install "optik[peers]"): Pink rows skipped')
         else:
             if qpsolvers is not None:
                 trial = {}

@@ -46,7 +46,6 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
 import time  # noqa: E402
 from collections import Counter  # noqa: E402
 from collections.abc import Sequence  # noqa: E402
@@ -55,6 +54,7 @@ from dataclasses import dataclass, field  # noqa: E402
 import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
+from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.closed_form.general_6r import General6R, covers, solve_general_6r  # noqa: E402
 from optik.closed_form.structure import axes_of  # noqa: E402
 from optik.mechanism import Mechanism, dh_chain  # noqa: E402
@@ -64,7 +64,6 @@ try:  # an optional peer
     import ik_geo
 except ImportError:  # pragma: no cover - depends on the environment
     ik_geo = None
-
 
 
 def _random_arm(rng: np.random.Generator) -> Mechanism:
@@ -279,11 +278,11 @@ def search_16(seed: int, budget: float) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the benchmark (or the 16-real-solution search) and print markdown tables."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser("general_6r", __doc__)
     ap.add_argument("--arms", type=int, default=200, help="random arms")
     ap.add_argument("--poses", type=int, default=5, help="random poses per arm")
     ap.add_argument("--multistart-arms", type=int, default=20, help="arms also solved by solve_ik_all")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=0, help="seed of the random draws")
     ap.add_argument("--plot", default=None, help="write the histogram of real-solution counts here")
     ap.add_argument("--special", type=int, default=20, help="arms per special geometry (0: skip)")
     ap.add_argument("--search-16", action="store_true", help="search for a pose with 16 real solutions")

@@ -1,23 +1,25 @@
-"""IK on the Franka Panda: optik ``lm`` and ``nlp`` against TRAC-IK, same URDF, same targets, same run.
+"""IK on the Panda and the iiwa14: optik ``lm`` / ``nlp`` against TRAC-IK and the Robotics Toolbox ``ik_LM``.
 
-Method (docs/benchmarks.md): the Panda chain is loaded from the shipped URDF
-(``optik.catalog.arms.urdf_path("panda")``, ``panda_link0`` -> ``panda_link8``) by optik and by
-TRAC-IK (``pytracik``, Speed mode). ``--n`` joint vectors are drawn uniformly within the limits
-(seeded), the targets are their FK poses, and every solver starts from the mid-limit seed with
-the time limit ``--time-limit`` (5 ms) and tolerance ``--tol`` (1e-5). Every call is timed
-with ``time.perf_counter`` around the public call (``optik.solve_ik(...)`` with its input
-validation and result check; ``TracIK.ik(...)`` with its quaternion conversion), failures
-included. Success is judged for every solver by the same check: position error and geodesic
-orientation error <= ``--tol`` and joint limits satisfied exactly (TRAC-IK's own success flag,
-on its twist error, is shown next to it). The NLP method runs with its own budget
-``--nlp-time-limit`` (one IPOPT solve from the mid-limit seed takes longer than 5 ms here), on
-the first ``--n-nlp`` targets, with IPOPT (``nlp``) and with ``sqpmethod`` (``nlp-sqp``). The
-methods run interleaved per target so that load changes on a shared machine hit all of them
-alike; the table reports success rate, mean / median / p95 time and the ratio of each mean time
-to TRAC-IK's.
+Method (docs/benchmarks.md): each arm's chain is loaded from the shipped URDF
+(``optik.catalog.arms.urdf_path``; Panda ``panda_link0 -> panda_link8``, iiwa14 ``iiwa_link_0 ->
+iiwa_link_ee``) by optik and by the peers of `optik.harness.peers`: TRAC-IK (``pytracik``, Speed
+mode) and the Robotics Toolbox (``ETS.ik_LM``, C++, joint limits on). ``--n`` joint vectors are
+drawn uniformly within the limits (seeded), the targets are their FK poses, and every solver starts
+from the mid-limit seed with the time limit ``--time-limit`` (5 ms; ``ik_LM`` has no time limit,
+its iteration caps bound it) and tolerance ``--tol`` (1e-5). Every solver is held to the rules of
+`optik.harness.peers.rules`: asked for half the tolerance (TRAC-IK: ``eps = tol / 2`` per twist
+component; ``ik_LM``: residual ``E <= (tol / 2)^2 / 2``), one untimed warm-up call each, every answer
+clipped into the limits (the overshoot of the raw answer is reported), and success judged for every
+solver by the same referee: Pinocchio's FK of the answer within ``--tol`` (position, geodesic angle)
+and the limits satisfied exactly (each solver's own success flag is shown next to it). Every call is
+timed with ``time.perf_counter`` around the public call, failures included. The NLP method runs
+with its own budget ``--nlp-time-limit`` on the first ``--n-nlp`` targets, with IPOPT (``nlp``)
+and with ``sqpmethod`` (``nlp-sqp``). The solvers run interleaved per target so that load changes
+on a shared machine hit all of them alike; the table reports success rate, mean / median / p95
+time and the ratio of each median time to the fastest peer's median.
 
-Run: ``optik benchmark ik [--n 10000] [--time-limit 0.005] [--tol 1e-5]
-[--methods lm,nlp,nlp-sqp,tracik] [--n-nlp 1000] [--nlp-time-limit 0.3]``.
+Run: ``optik benchmark ik [--n 10000] [--robots panda,iiwa14] [--time-limit 0.005] [--tol 1e-5]
+[--methods lm,nlp,nlp-sqp,trac_ik,rtb_lm] [--n-nlp 1000] [--nlp-time-limit 0.3]``.
 """
 
 from __future__ import annotations
@@ -27,44 +29,28 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Callable, Sequence  # noqa: E402
-from dataclasses import dataclass, field  # noqa: E402
 
 import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
 from optik import native  # noqa: E402
+from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.catalog.arms import URDF_CHAINS, urdf_path  # noqa: E402
-from optik.solvers.base import evaluate  # noqa: E402
+from optik.harness.peers import ADAPTERS, PeerUnavailable  # noqa: E402
+from optik.harness.peers.rules import Referee, warm_up  # noqa: E402
+from optik.harness.tally import Tally  # noqa: E402
 
 Solver = Callable[[np.ndarray], tuple[np.ndarray | None, bool]]
-"""``target 4x4 -> (q or None, the solver's own success flag)``."""
+"""``target 4x4 -> (raw q or None, the solver's own success flag)``."""
 
-
-@dataclass
-class Record:
-    """Per-solver outcomes over the targets."""
-
-    name: str
-    times: list[float] = field(default_factory=list)
-    success: list[bool] = field(default_factory=list)
-    own_success: list[bool] = field(default_factory=list)
-
-    def row(self, reference_mean: float | None) -> str:
-        t = np.asarray(self.times) * 1e3
-        ratio = f"{t.mean() / reference_mean:.3f}" if reference_mean else "-"
-        return (
-            f"| {self.name} | {len(t)} | {100 * np.mean(self.success):.2f} | "
-            f"{100 * np.mean(self.own_success):.2f} | {t.mean():.3f} | {np.median(t):.3f} | "
-            f"{np.percentile(t, 95):.3f} | {ratio} |"
-        )
-
+PEER_LABELS = {"trac_ik": "TRAC-IK (Speed)", "rtb_lm": "Robotics Toolbox ik_LM (C++)"}
 
 HEADER = (
-    "| solver | n | success % | own success % | mean ms | median ms | p95 ms | mean / TRAC-IK mean |\n"
-    "|---|--:|--:|--:|--:|--:|--:|--:|"
+    "| robot | solver | n | success % | own success % | max overshoot | mean ms | median ms | p95 ms "
+    "| median / fastest peer median |\n"
+    "|---|---|--:|--:|--:|--:|--:|--:|--:|--:|"
 )
 
 
@@ -78,37 +64,53 @@ def _optik_solver(
     return solve
 
 
-def _tracik_solver(path: str, base: str, tip: str, q0: np.ndarray, limit: float, tol: float) -> Solver:
-    from trac_ik import TracIK
-
-    ik = TracIK(base, tip, path, timeout=limit, epsilon=tol, solver_type="Speed")
+def _peer_solver(
+    name: str,
+    m: optik.Mechanism,
+    chain: tuple[str, str, str],
+    q0: np.ndarray,
+    limit: float,
+    tol: optik.Tolerances,
+) -> Solver:
+    peer = ADAPTERS[name](m, *chain)
+    peer.check_fk()
 
     def solve(target: np.ndarray) -> tuple[np.ndarray | None, bool]:
-        q = ik.ik(target[:3, 3], target[:3, :3], q0)
-        return (None, False) if q is None else (np.asarray(q, dtype=float), True)
+        return peer.attempt(q0, target, limit, tol)
 
     return solve
 
 
 def run(
+    robot: str = "panda",
     n: int = 10000,
     time_limit: float = 0.005,
     tol: float = 1e-5,
-    methods: Sequence[str] = ("lm", "nlp", "nlp-sqp", "tracik"),
+    methods: Sequence[str] = ("lm", "nlp", "nlp-sqp", "trac_ik", "rtb_lm"),
     n_nlp: int = 1000,
     nlp_time_limit: float = 0.3,
     seed: int = 0,
-) -> dict[str, Record]:
-    """Run the benchmark and return the records by solver label."""
-    path = str(urdf_path("panda"))
-    base, tip = URDF_CHAINS["panda"]
+) -> tuple[dict[str, Tally], list[str]]:
+    """Run the benchmark on one arm; the tallies by solver label (peers' labels in
+    `PEER_LABELS`) and notes on the solvers that could not run."""
+    path = str(urdf_path(robot))
+    base, tip = URDF_CHAINS[robot]
     m = optik.Mechanism.from_urdf(path, base, tip)
     q0 = m.mid_q()
     targets = m.fk(m.random_q(n, seed=seed))
+    tolerances = optik.Tolerances(position=tol, orientation=tol)
+    referee = Referee(m, path, base, tip)
+    notes = [] if referee.source == "pinocchio" else ["pinocchio not installed: success judged by optik's FK"]
     solvers: dict[str, tuple[Solver, int]] = {}
     for name in methods:
-        if name == "tracik":
-            solvers["TRAC-IK (Speed)"] = (_tracik_solver(path, base, tip, q0, time_limit, tol), n)
+        if name in ADAPTERS:
+            try:
+                solvers[PEER_LABELS.get(name, name)] = (
+                    _peer_solver(name, m, (path, base, tip), q0, time_limit, tolerances),
+                    n,
+                )
+            except PeerUnavailable as exc:
+                notes.append(f"skipped: {exc}")
         elif name in ("nlp", "nlp-sqp"):
             solver = "ipopt" if name == "nlp" else "sqpmethod"
             label = f"optik nlp {solver} ({nlp_time_limit * 1e3:g} ms)"
@@ -116,56 +118,68 @@ def run(
             solvers[label] = (nlp, min(n, n_nlp))
         else:
             solvers[f"optik {name}"] = (_optik_solver(m, name, q0, time_limit, tol), n)
-    for solve, _ in solvers.values():  # build and compile once, outside the timings
-        solve(targets[0])
+    warm_up(lambda s=s: s(targets[0]) for s, _ in solvers.values())
     native.wait()  # the C libraries built in the background: time the compiled code
-    records = {label: Record(label) for label in solvers}
-    tolerances = optik.Tolerances(position=tol, orientation=tol)
+    tallies = {label: Tally(label) for label in solvers}
     for i, target in enumerate(targets):
         for label, (solve, count) in solvers.items():
             if i >= count:
                 continue
             t0 = time.perf_counter()
             q, own = solve(target)
-            records[label].times.append(time.perf_counter() - t0)
-            ok = q is not None and evaluate(m, q, target, "pose", None).ok(tolerances)
-            records[label].success.append(bool(ok))
-            records[label].own_success.append(bool(own))
-    return records
+            elapsed = time.perf_counter() - t0
+            tallies[label].add(elapsed, referee.judge(q, target, tolerances), own)
+    return tallies, notes
+
+
+def table_rows(robot: str, tallies: dict[str, Tally]) -> list[str]:
+    """Markdown rows of one arm; ratios of median times to the fastest peer's median."""
+    peers = [t for label, t in tallies.items() if label in PEER_LABELS.values()]
+    ref = min((t.timing_ms()[1] for t in peers), default=None)
+    rows = []
+    for t in tallies.values():
+        ratio = f"{t.timing_ms()[1] / ref:.2f}" if ref else "-"
+        rows.append(
+            f"| {robot} | {t.name} | {t.n} | {t.success_pct():.2f} | {t.own_pct():.2f} "
+            f"| {t.max_overshoot():.1e} | {t.timing_cells()} | {ratio} |"
+        )
+    return rows
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point (also called by the ``optik`` CLI)."""
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--n", type=int, default=10000, help="number of targets")
+    p = benchmark_parser("ik", __doc__)
+    p.add_argument("--n", type=int, default=10000, help="number of targets per robot")
+    p.add_argument("--robots", default="panda,iiwa14", help=f"comma list of {', '.join(URDF_CHAINS)}")
     p.add_argument("--time-limit", type=float, default=0.005, help="time limit per call (s)")
     p.add_argument("--tol", type=float, default=1e-5, help="position / orientation tolerance")
     p.add_argument(
         "--methods",
-        default="lm,nlp,nlp-sqp,tracik",
-        help="comma list of lm, nlp (IPOPT), nlp-sqp (sqpmethod), tracik, and any registered method",
+        default="lm,nlp,nlp-sqp,trac_ik,rtb_lm",
+        help="comma list of lm, nlp (IPOPT), nlp-sqp (sqpmethod), the peers trac_ik and rtb_lm, "
+        "and any registered method",
     )
     p.add_argument("--n-nlp", type=int, default=1000, help="targets for the (slower) nlp method")
     p.add_argument("--nlp-time-limit", type=float, default=0.3, help="time limit of nlp calls (s)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seed of the random draws")
     args = p.parse_args(argv)
     methods = [s.strip() for s in args.methods.split(",") if s.strip()]
-    if "tracik" in methods:
-        try:
-            import trac_ik  # noqa: F401
-        except ImportError:
-            print('pytracik is not installed (pip install "optik[peers]"): TRAC-IK skipped')
-            methods.remove("tracik")
-    records = run(args.n, args.time_limit, args.tol, methods, args.n_nlp, args.nlp_time_limit, args.seed)
-    ref = next((r for label, r in records.items() if label.startswith("TRAC-IK")), None)
-    ref_mean = float(np.mean(ref.times)) * 1e3 if ref else None
+    robots = [s.strip() for s in args.robots.split(",") if s.strip()]
     print(
-        f"Panda (URDF), {args.n} random targets within limits, mid-limit seed, time limit "
-        f"{args.time_limit * 1e3:g} ms, tol {args.tol:g} (same check for every solver)"
+        f"{args.n} random targets within limits per arm (URDF), mid-limit seed, time limit "
+        f"{args.time_limit * 1e3:g} ms, tol {args.tol:g}; every solver asked for tol / 2, its answer clipped "
+        "into the limits, success by Pinocchio's FK and the exact limits\n"
     )
     print(HEADER)
-    for r in records.values():
-        print(r.row(ref_mean))
+    all_notes = []
+    for robot in robots:
+        tallies, notes = run(
+            robot, args.n, args.time_limit, args.tol, methods, args.n_nlp, args.nlp_time_limit, args.seed
+        )
+        print("\n".join(table_rows(robot, tallies)), flush=True)
+        all_notes += [f"{robot}: {note}" for note in notes]
+    for note in dict.fromkeys(all_notes):
+        print(f"\n- {note}")
     return 0
 
 

@@ -12,8 +12,11 @@ Thread pools are pinned to 1 before numpy is imported (the machine has 2 cores).
    (building its CasADi functions is set-up, not solving).
 2. Closed-form FK per call (``closed_form.fk``, all modes): five-bar, slider-crank, 3-RPR.
 3. Stewart-Gough, all real postures: the 40-path parameter homotopy (``method="auto"``, the
-   default) beside the 128-path total-degree method on the same random general 6-6 platforms
-   (random orientation and position), interleaved platform by platform: round trips (pose ->
+   default) beside the 128-path total-degree method and, with ``--fksgp DIR`` (the folder of a
+   checkout of github.com/martyushev/fkSGP; skipped with a note without it), fkSGP's
+   elimination-template solver (`optik.harness.peers.fksgp_peer`), on the same random general 6-6
+   platforms (random orientation and position), interleaved platform by platform, each warmed up
+   by one untimed call: round trips (pose ->
    leg lengths -> FK contains the pose), real postures, complex solutions, time per call, the
    largest leg-length residual of any real posture, the median time ratio; a union check against
    extra independent 128-path runs; the planar catalog geometry (where the count check fails and
@@ -22,11 +25,11 @@ Thread pools are pinned to 1 before numpy is imported (the machine has 2 cores).
    whose actuators are moved by a small step, and a cold start from mid-limit: success rate
    and time per call.
 
-No peer library solves the FK of closed chains, so the comparisons are internal (closed form vs
-numeric on the same inputs).
+Apart from fkSGP on the Stewart-Gough platform, no peer library solves the FK of these closed
+chains, so the other comparisons are internal (closed form vs numeric on the same inputs).
 
 Run: ``optik benchmark parallel_fk [--n-rpr 500] [--n-sg 1000] [--n-total 1000] [--n-catalog 20]
-[--heavy 3] [--n-fk 200] [--seed 0]``.
+[--heavy 3] [--n-fk 200] [--fksgp DIR] [--seed 0]``.
 """
 
 from __future__ import annotations
@@ -36,15 +39,20 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
+import math  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Sequence  # noqa: E402
+from pathlib import Path  # noqa: E402
+from types import SimpleNamespace  # noqa: E402
 
 import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
 from optik import closed_form  # noqa: E402
+from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.closed_form import parallel  # noqa: E402
+from optik.harness.peers import PeerUnavailable  # noqa: E402
+from optik.harness.peers.fksgp_peer import Postures, load_fksgp  # noqa: E402
 from optik.solvers.fk import same_mode  # noqa: E402
 
 
@@ -109,9 +117,12 @@ def _leg_residual(b, p, rho, poses) -> float:
     )
 
 
-def bench_stewart(n: int, n_total: int, rng: np.random.Generator, heavy: int, n_catalog: int) -> None:
+def bench_stewart(
+    n: int, n_total: int, rng: np.random.Generator, heavy: int, n_catalog: int, fksgp: Postures | None = None
+) -> None:
     """40-path parameter homotopy (default ``method="auto"``) beside the 128-path total-degree
-    method on the same random general 6-6 platforms, interleaved platform by platform."""
+    method and fkSGP (when given) on the same random general 6-6 platforms, interleaved platform
+    by platform."""
     n_total = min(n_total, n)
     print(f"\n## Stewart-Gough: all real postures, {n} random general 6-6 platforms\n")
     print(
@@ -121,14 +132,21 @@ def bench_stewart(n: int, n_total: int, rng: np.random.Generator, heavy: int, n_
     cases = [_sg_case(rng) for _ in range(n)]
     for method in ("auto", "total"):  # untimed: compile / load the tracker, the start instance
         parallel.stewart_poses(*cases[0][:2], cases[0][4], method=method)
-    rows = {"auto": [], "total": []}
+    if fksgp is not None:
+        fksgp(*cases[0][:2], cases[0][4])  # the same untimed warm-up
+    rows: dict[str, list[dict]] = {"auto": [], "total": []} | ({"fksgp": []} if fksgp else {})
     for i, (b, p, r, t, rho) in enumerate(cases):
-        order = ("auto", "total") if i % 2 == 0 else ("total", "auto")
+        order = list(rows)[i % len(rows) :] + list(rows)[: i % len(rows)]
         for method in order:
             if method == "total" and i >= n_total:
                 continue
             start = time.perf_counter()
-            fk = parallel.stewart_poses(b, p, rho, method=method, seed=i)
+            if method == "fksgp":
+                assert fksgp is not None
+                poses = fksgp(b, p, rho)  # the conversion to (R, t) is in the timing, as optik's
+                fk = SimpleNamespace(poses=poses, complex_solutions=math.nan, complete=None, method="fksgp")
+            else:
+                fk = parallel.stewart_poses(b, p, rho, method=method, seed=i)
             elapsed = time.perf_counter() - start
             rows[method].append(
                 {
@@ -146,15 +164,18 @@ def bench_stewart(n: int, n_total: int, rng: np.random.Generator, heavy: int, n_
         "median ms | mean ms | p95 ms | max ms | max leg residual |"
     )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
-    labels = {"auto": "40-path parameter (auto)", "total": "128-path total degree"}
+    labels = {"auto": "40-path parameter (auto)", "total": "128-path total degree", "fksgp": "fkSGP (peer)"}
     for method, res in rows.items():
         tt = np.array([x["time"] for x in res]) * 1e3
         counts = [len(x["poses"]) for x in res]
         found = sum(x["found"] for x in res)
+        peer = method == "fksgp"  # it returns the real postures only
+        complete = "-" if peer else str(sum(x["complete"] for x in res))
+        n_complex = "-" if peer else f"{np.mean([x['complex'] for x in res]):.1f}"
         print(
             f"| {labels[method]} | {len(res)} | {found}/{len(res)} | {len(res) - found} "
-            f"| {sum(x['complete'] for x in res)} | {np.mean(counts):.2f} ({max(counts)}) "
-            f"| {np.mean([x['complex'] for x in res]):.1f} | {np.median(tt):.2f} | {tt.mean():.2f} "
+            f"| {complete} | {np.mean(counts):.2f} ({max(counts)}) | {n_complex} "
+            f"| {np.median(tt):.2f} | {tt.mean():.2f} "
             f"| {np.percentile(tt, 95):.2f} | {tt.max():.2f} | {max(x['residual'] for x in res):.1e} |"
         )
     new, old = rows["auto"][:n_total], rows["total"]
@@ -168,6 +189,20 @@ def bench_stewart(n: int, n_total: int, rng: np.random.Generator, heavy: int, n_
         f"more: {more}"
     )
     print(f"methods used by auto: {used}")
+    if "fksgp" in rows:
+        peer = rows["fksgp"]
+        ratio = np.median([x["time"] for x in peer]) / np.median([x["time"] for x in rows["auto"]])
+        agree = sum(
+            len(a["poses"]) == len(f["poses"])
+            and all(_has(a["poses"], r2, t2, 1e-7) for r2, t2 in f["poses"])
+            for a, f in zip(rows["auto"], peer, strict=True)
+        )
+        print(
+            f"Same {n} platforms against fkSGP: median time fkSGP / 40-path = {ratio:.2f}; platforms "
+            f"where both found the same real postures (within 1e-7): {agree}/{n}"
+        )
+    else:
+        print("fkSGP skipped: no checkout given (--fksgp DIR, a checkout of github.com/martyushev/fkSGP)")
     hist = np.bincount([len(x["poses"]) for x in rows["auto"]], minlength=11)
     print(f"real postures per platform (40-path), counts of 0..{len(hist) - 1}: {hist.tolist()}")
     checked = max(1, min(n, n // 50))
@@ -192,8 +227,8 @@ def bench_stewart(n: int, n_total: int, rng: np.random.Generator, heavy: int, n_
             f"\n### Catalog geometry (planar hexagons: 28 complex solutions, the count check fails), "
             f"{n_catalog} poses\n"
         )
-        print("| method | round trips | median ms | methods used |")
-        print("|---|---|---|---|")
+        print("| method | round trips | mean ms | median ms | p95 ms | methods used |")
+        print("|---|---|---|---|---|---|")
         poses = [
             (
                 optik.spatial.rpy_to_rot(*rng.uniform(-0.4, 0.4, 3)),
@@ -210,7 +245,7 @@ def bench_stewart(n: int, n_total: int, rng: np.random.Generator, heavy: int, n_
                 times.append(time.perf_counter() - start)
                 found += _has(fk.poses, r, t)
                 used_c.add(fk.method)
-            print(f"| {method} | {found}/{n_catalog} | {1e3 * np.median(times):.1f} | {sorted(used_c)} |")
+            print(f"| {method} | {found}/{n_catalog} | {_stats(times)} | {sorted(used_c)} |")
 
 
 def bench_closed_form_fk(n: int, rng: np.random.Generator) -> None:
@@ -274,7 +309,7 @@ def bench_solve_fk(n: int, rng: np.random.Generator) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the three benchmarks and print their tables (markdown); returns 0."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser("parallel_fk", __doc__)
     ap.add_argument("--n-rpr", type=int, default=500, help="3-RPR cases per geometry kind")
     ap.add_argument("--n-sg", type=int, default=1000, help="random general 6-6 Stewart-Gough platforms")
     ap.add_argument(
@@ -288,14 +323,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     ap.add_argument("--heavy", type=int, default=3, help="independent runs in the completeness check")
     ap.add_argument("--n-fk", type=int, default=200, help="solve_fk cases per mechanism")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--fksgp", type=Path, help="folder of a fkSGP checkout (the Stewart-Gough peer)")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the random draws")
     args = ap.parse_args(argv)
     if min(args.n_rpr, args.n_sg, args.n_fk, args.heavy, args.n_total) < 1 or args.n_catalog < 0:
         ap.error("--n-rpr, --n-sg, --n-total, --n-fk and --heavy must be >= 1, --n-catalog >= 0")
     rng = np.random.default_rng(args.seed)
     bench_3rpr(args.n_rpr, rng)
     bench_closed_form_fk(args.n_rpr, rng)
-    bench_stewart(args.n_sg, args.n_total, rng, args.heavy, min(args.n_catalog, args.n_sg))
+    fksgp = None
+    if args.fksgp is not None:
+        try:
+            fksgp = load_fksgp(args.fksgp)
+        except PeerUnavailable as exc:
+            print(f"fkSGP skipped: {exc}")
+    bench_stewart(args.n_sg, args.n_total, rng, args.heavy, min(args.n_catalog, args.n_sg), fksgp)
     bench_solve_fk(args.n_fk, rng)
     return 0
 

@@ -40,13 +40,13 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Callable, Sequence  # noqa: E402
 from dataclasses import dataclass, field  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.closed_form.derived import chain_axes, derive  # noqa: E402
 from optik.closed_form.general_6r import covers, solve_general_6r  # noqa: E402
 from optik.closed_form.search_1d import search_of, solve_search_1d  # noqa: E402
@@ -82,7 +82,6 @@ ONE_END = {
 
 FK_TOL = 1e-8
 SAME = 1e-4
-
 
 
 def special_arm(rng: np.random.Generator, zero: dict[str, list[int]]) -> Mechanism:
@@ -261,10 +260,10 @@ def run_geometry(
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the benchmark and print markdown tables."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser("search_1d", __doc__)
     ap.add_argument("--arms", type=int, default=20, help="random arms per geometry")
     ap.add_argument("--poses", type=int, default=50, help="random poses per arm")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=0, help="seed of the random draws")
     ap.add_argument(
         "--geometries",
         choices=("both-ends", "one-end", "all"),

@@ -20,7 +20,6 @@ Run: ``optik benchmark two_hands [--n 200] [--time-limit 0.05] [--tol 1e-6] [--s
 
 from __future__ import annotations
 
-import argparse
 import time
 from collections.abc import Callable, Sequence
 
@@ -28,6 +27,7 @@ import numpy as np
 
 import optik
 from optik import spatial
+from optik.benchmarks import benchmark_parser
 
 HANDS = ("left_tool", "right_tool")
 Solver = Callable[[dict[str, np.ndarray], float], np.ndarray]
@@ -115,11 +115,11 @@ def run(
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the benchmark and print a markdown table with the ratios to ``lm``; returns 0."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser("two_hands", __doc__)
     ap.add_argument("--n", type=int, default=200, help="targets (pairs of hand poses)")
     ap.add_argument("--time-limit", type=float, default=0.05, help="seconds per call")
     ap.add_argument("--tol", type=float, default=1e-6, help="position (m) and orientation (rad) tolerance")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=0, help="seed of the random draws")
     ap.add_argument("--methods", default="lm,nlp,dls,qp", help="optik methods (comma separated)")
     ap.add_argument("--no-pink", action="store_true", help="skip the Pink peer")
     args = ap.parse_args(argv)

@@ -17,7 +17,6 @@ Run: ``optik benchmark view [--moves 200] [--method lm] [--browser]``.
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import socket
 import time
@@ -27,6 +26,8 @@ import numpy as np
 
 import optik
 from optik import catalog
+from optik.benchmarks import benchmark_parser
+from optik.harness.tally import timing_ms
 from optik.view import Viewer
 
 
@@ -55,7 +56,14 @@ def _timed(calls: Iterator[Callable[[], object]]) -> tuple[np.ndarray, list[obje
 
 
 def _ms(x: np.ndarray) -> str:
-    return f"median {1e3 * np.median(x):.3f} ms, p95 {1e3 * np.percentile(x, 95):.3f} ms"
+    mean, median, p95 = timing_ms(x)
+    return f"{mean:.3f} / {median:.3f} / {p95:.3f}"
+
+
+HEADER = (
+    "| case | handler | moves | per move ms: mean / median / p95 | solve ms: mean / median / p95 | result |\n"
+    "|---|---|--:|--:|--:|---|"
+)
 
 
 @contextlib.contextmanager
@@ -70,8 +78,8 @@ def _page(v: Viewer, browser: bool) -> Iterator[None]:
         yield
 
 
-def gizmo_moves(name: str, method: str | None, moves: int, all_solutions: bool, browser: bool) -> None:
-    """Print the latency of ``moves`` gizmo moves on catalog mechanism ``name``."""
+def gizmo_moves(name: str, method: str | None, moves: int, all_solutions: bool, browser: bool) -> str:
+    """The table row of the latency of ``moves`` gizmo moves on catalog mechanism ``name``."""
     m = getattr(catalog, name)()
     targets = [m.fk(q) for q in drag(m, moves + 1)]
     with Viewer(m, port=_port(), method=method) as v, _page(v, browser):
@@ -83,14 +91,14 @@ def gizmo_moves(name: str, method: str | None, moves: int, all_solutions: bool, 
         ok = sum(r.success for r in results)
         what = " + all solutions" if all_solutions else ""
         branches = f", {len(v.solutions)} branches drawn at the end" if all_solutions else ""
-        print(
-            f"{name:14s} {v.method:12s}{what}: per move {_ms(times)}; solve {_ms(solve)}; "
-            f"solved {ok}/{len(results)}{branches}"
+        return (
+            f"| {name} | {v.method}{what} | {len(results)} | {_ms(times)} | {_ms(solve)} "
+            f"| solved {ok}/{len(results)}{branches} |"
         )
 
 
-def actuator_moves(name: str, values: Sequence[float], moves: int, browser: bool) -> None:
-    """Print the latency of ``moves`` actuator-slider moves around ``values``."""
+def actuator_moves(name: str, values: Sequence[float], moves: int, browser: bool) -> str:
+    """The table row of the latency of ``moves`` actuator-slider moves around ``values``."""
     m = getattr(catalog, name)()
     a = np.asarray(values, dtype=float)
     path = a + 0.05 * np.sin(2 * np.pi * np.arange(moves)[:, None] / moves + np.arange(len(a)))
@@ -98,24 +106,28 @@ def actuator_moves(name: str, values: Sequence[float], moves: int, browser: bool
         v.set_actuated(a)
         times, modes = _timed(lambda x=x: v.set_actuated(x) for x in path)
         counts = [len(x) for x in modes]
-        print(
-            f"{name:14s} actuators   : per move {_ms(times)}; {min(counts)}-{max(counts)} modes drawn"
-        )
+        modes_drawn = f"{min(counts)}-{max(counts)} modes drawn"
+        return f"| {name} | actuators | {len(path)} | {_ms(times)} | - | {modes_drawn} |"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="optik benchmark view", description=__doc__.splitlines()[0])
+    parser = benchmark_parser("view", __doc__)
     parser.add_argument("--moves", type=int, default=200, help="gizmo moves per case (default: %(default)s)")
     parser.add_argument("--method", help="IK method of the gizmo (default: the viewer's choice)")
     parser.add_argument("--browser", action="store_true", help="keep a headless Chromium page connected")
     args = parser.parse_args(argv)
     print(
         f"optik view latency: {args.moves} moves per case, handler wall time (solve + scene update)"
-        f"{', page connected' if args.browser else ''}"
+        f"{', page connected' if args.browser else ''}\n"
     )
-    gizmo_moves("panda", args.method, args.moves, False, args.browser)
-    gizmo_moves("seed_6r_arm", args.method, args.moves, False, args.browser)
-    gizmo_moves("puma560", args.method, max(args.moves // 4, 1), True, args.browser)
-    actuator_moves("five_bar", (1.5, 1.0), args.moves, args.browser)
-    actuator_moves("stewart_gough", (1.2, 1.1, 1.15, 1.25, 1.2, 1.1), max(args.moves // 20, 1), args.browser)
+    rows = [
+        gizmo_moves("panda", args.method, args.moves, False, args.browser),
+        gizmo_moves("seed_6r_arm", args.method, args.moves, False, args.browser),
+        gizmo_moves("puma560", args.method, max(args.moves // 4, 1), True, args.browser),
+        actuator_moves("five_bar", (1.5, 1.0), args.moves, args.browser),
+        actuator_moves(
+            "stewart_gough", (1.2, 1.1, 1.15, 1.25, 1.2, 1.1), max(args.moves // 20, 1), args.browser
+        ),
+    ]
+    print("\n".join([HEADER, *rows]))  # after the servers' own messages, as one table
     return 0

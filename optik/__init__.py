@@ -22,6 +22,7 @@ from optik.errors import (
     UnknownFrameError,
 )
 from optik.mechanism import Joint, Mechanism, dh_chain, planar_chain
+from optik.path import JointPath, plan_path
 from optik.problem import IKProblem, build_ik_problem
 from optik.reach import ReachMap, reach
 from optik.results import FKModes, FKResult, IKResult
@@ -40,6 +41,7 @@ __all__ = [
     "IKResult",
     "InvalidArgumentError",
     "Joint",
+    "JointPath",
     "LimitsError",
     "Mechanism",
     "MissingExtraError",
@@ -63,6 +65,7 @@ __all__ = [
     "dh_chain",
     "diffik",
     "fk_batch",
+    "plan_path",
     "planar_chain",
     "reach",
     "self_motion",

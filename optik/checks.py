@@ -146,6 +146,22 @@ def as_float(value: Any, name: str, minimum: float | None = None, strict: bool =
     return value
 
 
+def as_bool(value: Any, name: str) -> bool:
+    """A boolean option: ``True`` or ``False`` (numpy's ``np.bool_`` too), nothing else.
+
+    A string such as ``"no"`` or a number would be truthy or falsy by Python's rules and be
+    taken silently for what it does not say.
+
+    Raises:
+        InvalidArgumentError: anything but a boolean.
+    """
+    if value is True or value is False:
+        return value
+    if isinstance(value, np.bool_):
+        return bool(value)
+    raise InvalidArgumentError(name, f"expected True or False, got {value!r}")
+
+
 def as_name(value: Any, name: str, choices: Any = None) -> str:
     """A string, optionally one of ``choices`` (anything supporting ``in``).
 

@@ -10,23 +10,22 @@ problem-set benchmark lives in [`optik.harness`][optik.harness]; ``optik benchma
 
 Target and joint values are given as numbers, per task space of the problem:
 
-=============  ===========================================================
-task           ``--target`` values
-=============  ===========================================================
-position2d     ``x y``
-pose2d         ``x y phi``
-position       ``x y z``
-orientation    ``roll pitch yaw``
-pose           ``x y z roll pitch yaw`` (RPY: ``Rot(z, yaw) Rot(y, pitch) Rot(x, roll)``)
-               or 16 numbers of the 4x4 matrix, row by row
-=============  ===========================================================
+| task | ``--target`` values |
+|---|---|
+| position2d | ``x y`` |
+| pose2d | ``x y phi`` |
+| position | ``x y z`` |
+| orientation | ``roll pitch yaw`` |
+| pose | ``x y z roll pitch yaw`` (``Rot(z, yaw) Rot(y, pitch) Rot(x, roll)``), or 16 numbers row by row |
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import shlex
 import sys
+import textwrap
 from collections.abc import Sequence
 from pathlib import Path
 from typing import NoReturn
@@ -39,7 +38,7 @@ import optik
 from optik import closed_form, spatial
 from optik.errors import OptikError, SolverUnavailableError
 from optik.mechanism import Mechanism
-from optik.problem_files import Problem, find_problem
+from optik.problem_files import Problem, add_problems_dir, find_problem
 
 __all__ = ["build_parser", "main", "parse_target"]
 
@@ -309,7 +308,8 @@ def _cmd_plot(args: argparse.Namespace) -> int:
         sols = [r.q for r in optik.solve_ik_all(m, target, task=task, tol=problem.tolerances) if r.success]
         what = f"{len(sols)} IK branch{'es' if len(sols) != 1 else ''}"
         title = f"{name}: {what} of {_pose_text(m, target, 3)}"
-        written.append(_save(draw_branches(m, sols, title=title), out_dir / f"{name}_branches.png"))
+        fig = draw_branches(m, sols, title=title, near=q_show)
+        written.append(_save(fig, out_dir / f"{name}_branches.png"))
     if "assembly" in modes and m.is_closed and q_show is not None:
         actuated = q_show[m.actuated_indices]
         sols = _assembly_modes(m, actuated)
@@ -325,10 +325,26 @@ def _cmd_plot(args: argparse.Namespace) -> int:
     return 0 if written else 1
 
 
+def _benchmark_list() -> str:
+    """The benchmarks, one per line: ``NAME  description``."""
+    from optik import benchmarks
+
+    listed = benchmarks.summaries()
+    width = max(map(len, listed), default=0)
+    return "\n".join(
+        textwrap.fill(text, 79, initial_indent=f"  {name:<{width}}  ", subsequent_indent=" " * (width + 4))
+        for name, text in listed.items()
+    )
+
+
 def _cmd_benchmark(args: argparse.Namespace) -> int:
     from optik import benchmarks
 
     names = benchmarks.available()
+    if args.name is None:
+        print(f"{len(names)} benchmarks; run one with: optik benchmark NAME [ARGS] (NAME --help: options)")
+        print(_benchmark_list())
+        return 0
     if args.name not in names:
         raise UsageError("NAME", f"unknown benchmark {args.name!r}; available: {', '.join(names)}")
     return benchmarks.run(args.name, args.args)
@@ -379,11 +395,7 @@ def _common(p: argparse.ArgumentParser, many: bool = False) -> None:
         )
     else:
         p.add_argument("problem", metavar="PROBLEM", help="problem name (e.g. five_bar) or a .toml file")
-    p.add_argument(
-        "--problems-dir",
-        metavar="DIR",
-        help="directory of problem files (default: the problem files shipped with optik)",
-    )
+    add_problems_dir(p, argparse.SUPPRESS)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -397,6 +409,7 @@ def build_parser() -> argparse.ArgumentParser:
         ),
     )
     parser.add_argument("--version", action="version", version=f"optik {optik.__version__}")
+    add_problems_dir(parser, None)  # before the subcommand, or after it (the subcommand's wins)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
 
@@ -410,8 +423,14 @@ def build_parser() -> argparse.ArgumentParser:
         ),
     )
     _common(b, many=True)
+    from optik.harness import known_solvers
+
     b.add_argument(
-        "--solvers", nargs="+", metavar="NAME", help="only these methods / peers (space or comma separated)"
+        "--solvers",
+        nargs="+",
+        metavar="NAME",
+        help=f"only these methods / peers, space or comma separated: {', '.join(known_solvers())} "
+        "(default: every one that applies)",
     )
     b.add_argument("--n", type=_positive_int, help="targets per problem (default: from each file)")
     b.add_argument(
@@ -439,9 +458,12 @@ def build_parser() -> argparse.ArgumentParser:
         ),
     )
     _common(s)
-    s.add_argument("--target", type=_finite, nargs="+", required=True, metavar="V", help="target values")
     s.add_argument(
-        "--method", help="IK method (default: the best available); e.g. closed_form, lm, nlp, dls, qp"
+        "--target", type=_finite, nargs="+", required=True, metavar="V", help="target values (see above)"
+    )
+    s.add_argument(
+        "--method",
+        help=f"IK method: {', '.join(optik.solvers.methods())} (default: the best available for the problem)",
     )
     s.add_argument(
         "--q0", type=_finite, nargs="+", metavar="Q", help="start configuration (default: mid-limit)"
@@ -463,7 +485,14 @@ def build_parser() -> argparse.ArgumentParser:
         ),
     )
     _common(f)
-    f.add_argument("--q", type=_finite, nargs="+", required=True, metavar="Q", help="joint values")
+    f.add_argument(
+        "--q",
+        type=_finite,
+        nargs="+",
+        required=True,
+        metavar="Q",
+        help="joint values: every coordinate, or (closed chains) only the actuated ones",
+    )
     f.add_argument("--matrix", action="store_true", help="also print the 4x4 transform")
     f.add_argument("--plot", type=Path, metavar="FILE", help="save a figure of the configuration(s)")
     f.set_defaults(func=_cmd_fk)
@@ -489,17 +518,28 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="plots", metavar="DIR", help="output directory (default: %(default)s)")
     p.set_defaults(func=_cmd_plot)
 
+    from optik import benchmarks
+
     k = sub.add_parser(
         "benchmark",
-        help="run a focused benchmark script of optik.benchmarks (ik, diffik, closed_form, parallel_fk)",
-        description=(
+        help=f"run a focused benchmark script: {', '.join(benchmarks.available())}",
+        description=textwrap.fill(
             "Run the benchmark script optik.benchmarks.bench_NAME with the remaining arguments, e.g. "
             "'optik benchmark ik --n 1000' (Panda: lm / nlp against TRAC-IK) or 'optik benchmark diffik' "
-            "(QP step against Pink). 'optik benchmark NAME --help' shows a script's own options."
+            "(QP step against Pink). 'optik benchmark NAME --help' shows a script's own options and "
+            "defaults; 'optik benchmark' alone lists the benchmarks.",
+            79,
         ),
+        epilog="benchmarks:\n" + _benchmark_list(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    k.add_argument("name", metavar="NAME", help="benchmark name: the NAME of optik.benchmarks.bench_NAME")
-    k.add_argument("args", nargs=argparse.REMAINDER, help="arguments passed to the script")
+    k.add_argument(
+        "name",
+        nargs="?",
+        metavar="NAME",
+        help=f"the benchmark (one of: {', '.join(benchmarks.available())}; none: list them)",
+    )
+    k.add_argument("args", nargs=argparse.REMAINDER, help="arguments passed to the script (see NAME --help)")
     k.set_defaults(func=_cmd_benchmark)
 
     from optik.view.command import add_parser as add_view  # optik view: the browser viewer
@@ -524,6 +564,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.argv = args_list
     try:
         return int(args.func(args))
+    except BrokenPipeError:  # the reader stopped (e.g. `optik benchmark | head`): no traceback
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     except UsageError as exc:
         sub = f"optik {args.command}"
         sys.stderr.write(f"{sub}: error: {exc}\n")

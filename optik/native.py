@@ -28,28 +28,42 @@ library and the callers always evaluate with CasADi's virtual machine (same numb
 The cache directory is ``$OPTIK_CACHE_DIR`` or ``~/.cache/optik``. A library is compiled in a
 private temporary folder of the cache and renamed into place (``os.replace``), so processes and
 threads compiling the same source at once never load a half-written file.
+
+*A damaged cache never kills the process.* A library file is keyed by the hash of its source,
+the compiler's path and version (``cc --version``), the flags and the machine's architecture,
+and each build records the file's size and SHA-256 in a manifest beside it
+(``<library>.json``, written atomically before the library is renamed into place). A cached
+library is loaded only when its size and hash match its manifest: a truncated, zeroed or foreign
+file (whose loading would fail or end the process with SIGBUS) or one without a manifest is
+removed and rebuilt, with a warning on the ``optik.native`` logger. Loading a library marks it
+used (its modification time); after each build the least recently used libraries are removed
+while the cache holds more than `CACHE_MAX_BYTES` (``$OPTIK_CACHE_MAX_MB`` overrides it).
 """
 
 from __future__ import annotations
 
 import atexit
 import contextlib
+import contextvars
 import ctypes
+import functools
 import hashlib
+import json
 import logging
 import os
+import platform
 import shutil
 import subprocess
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
-from optik.errors import InvalidArgumentError, SolverUnavailableError
+from optik.errors import InvalidArgumentError, ShapeError, SolverUnavailableError
 
 _INT = ctypes.c_longlong  # casadi_int of the generated code (see c_source)
 _FLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off")
@@ -64,6 +78,25 @@ EVALUATOR_BUDGET = 0.25
 builds, after which the next call waits for the build instead: the first answers come at once, and
 a long computation started on a cold cache runs at most this long at the evaluator's speed."""
 _EXITING = threading.Event()  # set at interpreter exit: unfinished builds are stopped, not failures
+CACHE_MAX_BYTES = 512 * 1024 * 1024
+"""Size of the compiled libraries in the cache above which the least recently used are removed
+after a build (``$OPTIK_CACHE_MAX_MB`` overrides it); a 7-joint arm's LM kernel takes about 0.2 MB."""
+
+
+_DEADLINE: contextvars.ContextVar[float | None] = contextvars.ContextVar("optik_deadline", default=None)
+
+
+@contextlib.contextmanager
+def deadline(at: float | None) -> Iterator[None]:
+    """Within this block (this thread or task), a call never waits for a library being built
+    past ``at`` (a ``time.perf_counter()`` value; None: no limit): it evaluates with CasADi
+    instead. The solvers' entry points set it to the end of their time limit, so that no call
+    waits for a C compile past its own limit."""
+    token = _DEADLINE.set(at)
+    try:
+        yield
+    finally:
+        _DEADLINE.reset(token)
 
 
 def compiler() -> str | None:
@@ -93,10 +126,99 @@ def c_source(functions: Sequence[ca.Function], extra_source: str = "") -> str:
     return gen.dump() + extra_source
 
 
+@functools.lru_cache(maxsize=8)
+def compiler_version(cc: str) -> str:
+    """The first line of ``cc --version`` (empty when it cannot be run): part of the cache key,
+    so that a library built by another compiler is never loaded."""
+    try:
+        out = subprocess.run([cc, "--version"], capture_output=True, text=True, timeout=30, check=False)
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    return out.stdout.partition("\n")[0].strip()
+
+
 def _library_file(stem: str, source: str, cc: str, flags: Sequence[str]) -> Path:
-    """Cache path of the library of ``source`` compiled by ``cc`` with the flags (hash-keyed)."""
-    digest = hashlib.sha256("\0".join((source, cc, *_FLAGS, *flags)).encode()).hexdigest()[:20]
+    """Cache path of the library of ``source`` compiled by ``cc`` with the flags on this machine
+    (keyed by a hash of them, the compiler's version and the architecture)."""
+    machine = f"{platform.system()}-{platform.machine()}"
+    key = (source, cc, compiler_version(cc), machine, *_FLAGS, *flags)
+    digest = hashlib.sha256("\0".join(key).encode()).hexdigest()[:20]
     return cache_dir() / f"{stem}_{digest}.so"
+
+
+def _manifest_file(lib: Path) -> Path:
+    return lib.with_name(lib.name + ".json")
+
+
+def _fingerprint(path: Path) -> dict[str, int | str]:
+    """``{"size": bytes, "sha256": hex digest}`` of a file."""
+    data = path.read_bytes()
+    return {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+
+
+def _write_manifest(built: Path, lib: Path) -> None:
+    """Record the size and hash of the freshly built ``built`` as the manifest of ``lib``
+    (written to a temporary file and renamed: atomic)."""
+    manifest = _manifest_file(lib)
+    tmp = built.with_name("manifest.json")
+    tmp.write_text(json.dumps(_fingerprint(built)))
+    os.replace(tmp, manifest)
+
+
+def _damage(lib: Path) -> str | None:
+    """Why the cached ``lib`` must not be loaded (no manifest, another size or hash), or None."""
+    try:
+        recorded = json.loads(_manifest_file(lib).read_text())
+    except (OSError, ValueError):
+        return "it has no readable manifest"
+    if not isinstance(recorded, dict):
+        return "its manifest is not a record"
+    try:
+        size = lib.stat().st_size
+        if size != recorded.get("size"):
+            return f"its size is {size} bytes, {recorded.get('size')} recorded"
+        if _fingerprint(lib)["sha256"] != recorded.get("sha256"):
+            return "its SHA-256 differs from the one recorded at build time"
+    except OSError as exc:
+        return f"it cannot be read: {exc}"
+    return None
+
+
+def _remove(lib: Path) -> None:
+    for f in (lib, _manifest_file(lib)):
+        with contextlib.suppress(OSError):
+            f.unlink()
+
+
+def _cache_limit() -> int:
+    value = os.environ.get("OPTIK_CACHE_MAX_MB")
+    try:
+        return int(float(value) * 1024 * 1024) if value else CACHE_MAX_BYTES
+    except ValueError:
+        _LOG.warning("optik: $OPTIK_CACHE_MAX_MB=%r is not a number; %d bytes used", value, CACHE_MAX_BYTES)
+        return CACHE_MAX_BYTES
+
+
+def prune_cache(directory: Path, limit: int, keep: Path | None = None) -> list[Path]:
+    """Remove the least recently used libraries (oldest modification time: loading one marks it)
+    of ``directory`` while their sizes add up to more than ``limit`` bytes; never ``keep``.
+    Returns the removed files (a library loaded by a process stays usable by it)."""
+    libs = []
+    for f in directory.glob("*.so"):
+        with contextlib.suppress(OSError):
+            st = f.stat()
+            libs.append((st.st_mtime, st.st_size, f))
+    total = sum(size for _, size, _ in libs)
+    removed = []
+    for _, size, f in sorted(libs):
+        if total <= limit:
+            break
+        if f == keep:
+            continue
+        _remove(f)
+        removed.append(f)
+        total -= size
+    return removed
 
 
 def _start(source: str, cc: str, lib: Path, flags: Sequence[str]) -> tuple[subprocess.Popen, Path]:
@@ -140,6 +262,7 @@ def _finish(proc: subprocess.Popen, tmp: Path, lib: Path) -> None:
                 _RUNNING.pop(proc, None)
         if proc.returncode != 0:
             raise SolverUnavailableError(f"compiling {lib.name} failed: {err[-2000:]}")
+        _write_manifest(tmp / "f.so", lib)  # first: a library in place always has its manifest
         os.replace(tmp / "f.so", lib)  # atomic: concurrent processes may compile the same source
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -184,9 +307,11 @@ class Library:
 
     def get(self) -> ctypes.CDLL | None:
         """The loaded library when it is ready, else None; blocks until the build is done only
-        once the callers have spent `EVALUATOR_BUDGET` seconds in CasADi's evaluator meanwhile."""
+        once the callers have spent `EVALUATOR_BUDGET` seconds in CasADi's evaluator meanwhile,
+        and never past the caller's `deadline`."""
         if not self._done.is_set() and self._evaluated > EVALUATOR_BUDGET:
-            self._done.wait()
+            until = _DEADLINE.get()
+            self._done.wait(None if until is None else max(0.0, until - time.perf_counter()))
         return self._cdll if self._done.is_set() else None
 
     def evaluated(self, seconds: float) -> None:
@@ -203,8 +328,12 @@ class Library:
         waits for it when ``background``, else here. A failure is recorded (and logged), not raised."""
         try:
             if self.path.exists():
-                self._settle(None, None)
-                return
+                damage = _damage(self.path)
+                if damage is None:
+                    self._settle(None, None)
+                    return
+                _LOG.warning("optik: the cached library %s is damaged (%s): rebuilt", self.path.name, damage)
+                _remove(self.path)
             proc, tmp = _start(
                 source, cc, self.path, self.flags
             )  # here: the thread does no Python work meanwhile
@@ -223,6 +352,10 @@ class Library:
         try:
             if proc is not None and tmp is not None:
                 _finish(proc, tmp, self.path)
+                prune_cache(self.path.parent, _cache_limit(), keep=self.path)
+            else:
+                with contextlib.suppress(OSError):
+                    os.utime(self.path)  # used now (the cache is pruned least recently used first)
             self._cdll = ctypes.CDLL(str(self.path))
         except (SolverUnavailableError, OSError) as exc:  # broken toolchain, unwritable cache, bad file
             self._fail(exc)
@@ -355,6 +488,32 @@ def wait(timeout: float | None = None) -> bool:
     return all(lib.state != "building" for lib in builds)
 
 
+def _check_buffers(lib: ctypes.CDLL, name: str, side: str, buffers: Sequence[np.ndarray]) -> None:
+    """Check the input (``side="in"``) or output buffers of the generated function ``name``
+    against its signature in ``lib`` (see `CCall`)."""
+    argument = f"{side}puts"
+    count = getattr(lib, f"{name}_n_{side}")
+    count.restype, count.argtypes = _INT, []
+    sparsity = getattr(lib, f"{name}_sparsity_{side}")
+    sparsity.restype, sparsity.argtypes = ctypes.POINTER(_INT), [_INT]
+    n = int(count())
+    if len(buffers) != n:
+        raise InvalidArgumentError(argument, f"{name} takes {n} {argument}, got {len(buffers)} buffers")
+    for i, b in enumerate(buffers):
+        if not isinstance(b, np.ndarray) or b.dtype != np.float64 or not b.flags.contiguous:
+            what = f"{type(b).__name__} {getattr(b, 'dtype', '')}".strip()
+            raise InvalidArgumentError(
+                argument, f"{name}: buffer {i} must be a contiguous float64 array, got {what}"
+            )
+        if side == "out" and not b.flags.writeable:
+            raise InvalidArgumentError(argument, f"{name}: output buffer {i} is read-only")
+        sp = sparsity(i)
+        rows, cols = int(sp[0]), int(sp[1])
+        nnz = rows * cols if sp[2] == 1 else int(sp[2 + cols])  # compact dense form [rows, cols, 1]
+        if b.size != nnz:
+            raise ShapeError(argument, f"{name}: buffer {i} has {b.size} entries, its argument {nnz}")
+
+
 class CCall:
     """One generated function of a loaded library, bound to preallocated numpy buffers.
 
@@ -365,13 +524,23 @@ class CCall:
         outputs: one contiguous float64 array per output.
 
     The arrays are bound by address: write into ``inputs``, call, read ``outputs``. Keep them
-    alive (and never reallocate them) while the call object is in use.
+    alive (and never reallocate them) while the call object is in use. They are checked once,
+    here, against the generated function's own signature (its numbers of inputs and outputs and
+    the nonzeros of each, from ``<name>_n_in`` and ``<name>_sparsity_in`` ...), so that a call
+    never reads or writes past a buffer.
+
+    Raises:
+        InvalidArgumentError: another number of ``inputs`` or ``outputs`` than the function has,
+            or a buffer that is not a contiguous float64 numpy array (writeable for outputs).
+        ShapeError: a buffer of another size than its argument's nonzeros.
     """
 
     def __init__(
         self, lib: ctypes.CDLL, name: str, inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray]
     ) -> None:
         self.name = name
+        for side, buffers in (("in", inputs), ("out", outputs)):
+            _check_buffers(lib, name, side, buffers)
         self._buffers = (list(inputs), list(outputs))  # keep the bound memory alive
         sizes = [_INT() for _ in range(4)]
         getattr(lib, f"{name}_work")(*[ctypes.byref(s) for s in sizes])

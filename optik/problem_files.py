@@ -11,42 +11,44 @@ installed as the package ``optik.problems`` (a ``package_dir`` mapping in ``setu
 through `importlib.resources` as `PROBLEM_DIR`, so that a wheel install,
 an editable install and a source tree on ``PYTHONPATH`` all see them; any other directory can
 be given instead (``optik --problems-dir DIR``), and any file by path. Schema (every table but
-``[mechanism]`` optional)::
+``[mechanism]`` optional):
 
-    [problem]
-    description = "..."          # required, one line
-    name = "five_bar"            # default: the file name without .toml
-    default = true               # part of the default set of `optik bench`
+```toml
+[problem]
+description = "..."          # required, one line
+name = "five_bar"            # default: the file name without .toml
+default = true               # part of the default set of `optik bench`
 
-    [mechanism]
-    constructor = "five_bar"     # a function of optik.catalog
-    task = "position2d"          # default: the mechanism's own task
-    urdf = "panda"               # shipped URDF (optik.catalog.URDF_CHAINS) for the peers
-    [mechanism.params]           # keyword arguments of the constructor
-    lengths = [1.0, 1.0, 1.2, 1.2]
+[mechanism]
+constructor = "five_bar"     # a function of optik.catalog
+task = "position2d"          # default: the mechanism's own task
+urdf = "panda"               # shipped URDF (optik.catalog.URDF_CHAINS) for the peers
+[mechanism.params]           # keyword arguments of the constructor
+lengths = [1.0, 1.0, 1.2, 1.2]
 
-    [limits]                     # radians / metres, one value per coordinate
-    lower = [...]
-    upper = [...]
+[limits]                     # radians / metres, one value per coordinate
+lower = [...]
+upper = [...]
 
-    [targets]
-    n = 200                      # targets of a full run
-    quick_n = 25                 # targets of `optik bench --quick`
-    seed = 0
-    sampling = "auto"            # "joint", "actuated", "pose" or "auto"
-    pose_center = [...]          # "pose": (x, y, phi) planar, (x, y, z, roll, pitch, yaw) spatial
-    pose_half_range = [...]
+[targets]
+n = 200                      # targets of a full run
+quick_n = 25                 # targets of `optik bench --quick`
+seed = 0
+sampling = "auto"            # "joint", "actuated", "pose" or "auto"
+pose_center = [...]          # "pose": (x, y, phi) planar, (x, y, z, roll, pitch, yaw) spatial
+pose_half_range = [...]
 
-    [tolerances]                 # the default success tolerances
-    position = 1e-6
-    orientation = 1e-6
-    closure = 1e-9
+[tolerances]                 # the default success tolerances
+position = 1e-6
+orientation = 1e-6
+closure = 1e-9
 
-    [solvers]
-    methods = ["closed_form", "lm", "nlp", "dls", "qp"]   # default: every registered method
-    peers = ["trac_ik", "pink", "ikpy"]                    # default: none
-    time_limit = 0.1             # seconds per IK call
-    quick_time_limit = 0.05
+[solvers]
+methods = ["closed_form", "lm", "nlp", "dls", "qp"]   # default: every registered method
+peers = ["trac_ik", "pink", "ikpy"]                    # default: none
+time_limit = 0.1             # seconds per IK call
+quick_time_limit = 0.05
+```
 
 Target sampling (the benchmark method): the reference configuration ``q`` is drawn so
 that it satisfies the limits and the loop closures, and the target is ``T = FK(q)``:
@@ -66,6 +68,7 @@ that it satisfies the limits and the loop closures, and the target is ``T = FK(q
 
 from __future__ import annotations
 
+import argparse
 import inspect
 import os
 import sys
@@ -110,7 +113,7 @@ __all__ = [
 PROBLEM_DIR = Path(str(resources.files("optik.problems")))
 """The shipped problem files: the package ``optik.problems`` (the folder ``problems/`` of the repository)."""
 
-PEERS = ("trac_ik", "pink", "ikpy")
+PEERS = ("trac_ik", "rtb_lm", "pink", "ikpy")
 """Peer libraries a problem may ask for (adapters in [`optik.harness.peers`][optik.harness.peers])."""
 
 SAMPLING = ("auto", "joint", "actuated", "pose")
@@ -677,9 +680,17 @@ def add_source_arguments(parser: Any) -> None:
     )
     parser.add_argument("--base", help="base link of a URDF chain (required with a .urdf file)")
     parser.add_argument("--tip", help="tip link of a URDF chain (required with a .urdf file)")
+    add_problems_dir(parser, argparse.SUPPRESS)
+
+
+def add_problems_dir(parser: Any, default: Any) -> None:
+    """The ``--problems-dir DIR`` option: on the ``optik`` parser with ``default=None``, and on
+    each subcommand with ``argparse.SUPPRESS``, so that ``optik --problems-dir D solve ...`` and
+    ``optik solve --problems-dir D ...`` both set it (the subcommand's value wins)."""
     parser.add_argument(
         "--problems-dir",
         metavar="DIR",
+        default=default,
         help="directory of problem files (default: the problem files shipped with optik)",
     )
 

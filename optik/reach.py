@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from optik.batch import fk_batch, solve_ik_batch
+from optik.checks import as_bool
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 from optik.problem_files import add_source_arguments, load_source
@@ -236,6 +237,7 @@ def reach(
     m._frame(frame)
     if max_chunks is not None:
         max_chunks = positive_int(max_chunks, "max_chunks")
+    progress = as_bool(progress, "progress")
     position_only = m.task in ("position", "position2d")
     rotations = (
         np.eye(3)[None]
@@ -502,24 +504,50 @@ def add_parser(sub: Any) -> None:
         ),
     )
     add_source_arguments(p)
-    p.add_argument("--resolution", type=float, default=0.05, help="voxel edge in m (default: %(default)s)")
     p.add_argument(
-        "--orientations", type=int, default=32, help="orientations per voxel (default: %(default)s)"
+        "--resolution", type=float, default=0.05, metavar="M", help="voxel edge in m (default: %(default)s)"
     )
-    p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address (default: local threads)")
+    p.add_argument(
+        "--orientations",
+        type=int,
+        default=32,
+        metavar="N",
+        help="orientations per voxel (default: %(default)s)",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="Dask scheduler address, e.g. tcp://host:8786 (default: local threads)",
+    )
     p.add_argument("--out", metavar="DIR", default="reach-out", help="output folder (default: %(default)s)")
     p.add_argument(
         "--tol", type=float, default=1e-4, help="position / orientation tolerance (default: %(default)s)"
     )
     p.add_argument(
-        "--time-limit", type=float, default=0.005, help="seconds per IK target (default: %(default)s)"
+        "--time-limit",
+        type=float,
+        default=0.005,
+        metavar="S",
+        help="seconds per IK target (default: %(default)s)",
     )
     p.add_argument("--max-restarts", type=int, default=8, help="restarts per target (default: %(default)s)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--samples", type=int, default=200_000, help="configurations that delimit the workspace")
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="seed of the workspace samples and IK starts (default: %(default)s)",
+    )
+    p.add_argument(
+        "--samples",
+        type=int,
+        default=200_000,
+        help="random configurations whose frame positions delimit the workspace (default: %(default)s)",
+    )
     p.add_argument("--workers", type=int, help="local threads (default: the cores available)")
-    p.add_argument("--max-chunks", type=int, help="stop after this many chunks (rerun to continue)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--max-chunks", type=int, help="stop after this many chunks, rerun to continue (default: all)"
+    )
+    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     p.set_defaults(func=run)
 
 

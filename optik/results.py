@@ -121,10 +121,10 @@ class IKSolutions(Sequence[IKResult]):
         failed_check: candidates dropped because they did not pass the FK check, even after
             polishing (not in the list).
         method: how the solutions were found (``"closed_form"`` or the numerical method).
-        uncertified_reason: why the closed form that found them does not certify that they are
-            every solution (the 1-D search of `optik.closed_form.search_1d`, a failed count check
-            of the general 6R solver); "" when it does (`certified`). The numerical search is
-            never certified, and says so by its method.
+        uncertified_reason: why the solutions are not certified to be every solution: the
+            numerical multi-start (never certified), the 1-D search of
+            `optik.closed_form.search_1d`, a failed count check of the general 6R solver; ""
+            only for a closed form that proves completeness (`certified`).
         message: a sentence summarizing the counts.
     """
 
@@ -174,8 +174,9 @@ class IKSolutions(Sequence[IKResult]):
 
     @property
     def certified(self) -> bool:
-        """False when the closed form does not certify completeness (`uncertified_reason`)."""
-        return not self.uncertified_reason
+        """True only when a closed form proves that these are every solution: ``method`` is
+        ``"closed_form"`` and there is no `uncertified_reason`."""
+        return self.method == "closed_form" and not self.uncertified_reason
 
     @property
     def outside_limits(self) -> list[np.ndarray]:

@@ -152,7 +152,10 @@ def test_progress_bar_on_a_plain_stream():
     assert line.startswith("[1/2] five_bar") and "100%" in line and "4/4" in line and line.endswith("\n")
 
 
-@pytest.mark.parametrize(("peer", "package"), [("trac_ik", "pytracik"), ("pink", "pink"), ("ikpy", "ikpy")])
+@pytest.mark.parametrize(
+    ("peer", "package"),
+    [("trac_ik", "pytracik"), ("rtb_lm", "roboticstoolbox"), ("pink", "pink"), ("ikpy", "ikpy")],
+)
 def test_each_peer_matches_the_model_and_solves(peer, package):
     pytest.importorskip(package)
     from optik.harness.peers import load_peer

@@ -6,12 +6,14 @@ formulations they replace, and compute the same errors.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 import optik
 from optik import spatial
-from optik.checks import as_transform, as_vector
+from optik.checks import as_bool, as_transform, as_vector
 from optik.solvers.base import Tolerances, make_request, make_result, task_errors
 
 
@@ -274,3 +276,20 @@ def test_non_real_input_and_bad_seeds_raise_named_errors(call, argument) -> None
         call(m)
     assert info.value.argument == argument
     assert str(info.value).startswith(f"{argument}:")
+
+
+@pytest.mark.parametrize("flag", ["no", "False", 0, 1, None, [True]])
+def test_boolean_options_accept_booleans_only(flag: object) -> None:
+    """``as_bool`` and the public boolean options that use it: a string, a number or None is
+    an error naming the option, not a truthy or falsy guess (issue 18, item 10)."""
+    with pytest.raises(optik.OptikError, match=r"^flag"):
+        as_bool(flag, "flag")
+    m = optik.catalog.planar_2r()
+    with pytest.raises(optik.OptikError, match=r"^progress"):
+        optik.solve_ik_batch(m, [optik.Position(1.0, 0.5)], progress=flag)
+    with pytest.raises(optik.OptikError, match=r"^progress"):
+        optik.reach(m, resolution=0.5, progress=flag)
+    urdf = Path(optik.__file__).parent / "data" / "urdf" / "iiwa14.urdf"
+    with pytest.raises(optik.OptikError, match=r"^floating_base"):
+        optik.Mechanism.from_urdf(urdf, floating_base=flag)
+    assert as_bool(True, "flag") is True and as_bool(np.bool_(False), "flag") is False

@@ -110,7 +110,14 @@ def test_benchmark_runs_a_script_of_benchmarks_folder(capsys):
     argv = ["benchmark", "parallel_fk", "--n-rpr", "2", "--n-sg", "1", "--heavy", "1", "--n-fk", "2"]
     assert main(argv) == 0
     out = capsys.readouterr().out
-    assert "planar_3rpr" in out and "stewart_gough" in out
+    # the tables it prints hold the results: the drawn Stewart-Gough pose among the postures found,
+    # every numerical FK case solved, and the optional peer named as skipped
+    assert "| 40-path parameter (auto) | 1 | 1/1 | 0 |" in out
+    assert "| 128-path total degree | 1 | 1/1 | 0 |" in out
+    starts = tuple(f"| {m} | {s}" for m in ("planar_3rpr", "stewart_gough") for s in ("tracking", "cold"))
+    rows = [line for line in out.splitlines() if line.startswith(starts)]
+    assert len(rows) == 4 and all("| 100.0% |" in line for line in rows), rows
+    assert "fkSGP skipped: no checkout given" in out
 
 
 def test_problems_dir_overrides_the_shipped_problems(tmp_path, capsys):

@@ -145,3 +145,41 @@ def test_closed_form_method_equals_reference(make):
         assert res.orientation_error == err.orientation
         assert res.closure_error == err.closure
         assert res.limits_ok == err.limits_ok
+
+
+def test_answers_on_a_limit_are_not_lost_to_rounding() -> None:
+    """Regression (issue 18, item 10): the R-P arm's FK of a slide at its limit came back a hair
+    outside it and the branch was dropped (40 of 800 such targets had no branch). One tolerance
+    (`registry.LIMIT_TOL`) clips such a coordinate onto the limit; the FK check decides, as the
+    success check does; a branch really outside stays outside."""
+    m = catalog.rp_arm()
+    for a in np.linspace(-3.1, 3.1, 100):
+        for r in (m.lower[1], m.upper[1]):
+            target = m.fk([a, r])
+            branches = closed_form.ik(m, target)
+            assert len(branches) == 1 and m.within_limits(branches[0])
+            assert joint_distance(m, branches[0], np.array([a, r])) < 1e-12
+            assert optik.solve_ik(m, target).success
+            sols = optik.solve_ik_all(m, target)
+            assert len(sols) == 1 and sols[0].limits_ok
+    row = [0.3, float(m.lower[1]) - 10 * registry.LIMIT_TOL]
+    assert registry.clip_to_limits(m, row) is None
+    inside = registry.clip_to_limits(m, [0.3, float(m.lower[1]) - 0.1 * registry.LIMIT_TOL])
+    assert inside == [0.3, float(m.lower[1])]
+
+
+@pytest.mark.parametrize("flag", ["no", 0, 1, None, "False"])
+def test_boolean_options_take_booleans_only(flag: object) -> None:
+    """Regression (issue 18, item 10): ``respect_limits="no"`` was taken as True."""
+    m = catalog.rp_arm()
+    target = m.fk([0.3, 0.5])
+    with pytest.raises(optik.OptikError, match=r"^respect_limits"):
+        closed_form.ik(m, target, respect_limits=flag)
+    with pytest.raises(optik.OptikError, match=r"^closed_form"):
+        optik.solve_ik_all(m, target, closed_form=flag)
+    five = catalog.five_bar()
+    with pytest.raises(optik.OptikError, match=r"^within_limits"):
+        optik.solve_fk_all(five, [1.0, 2.0], within_limits=flag)
+    with pytest.raises(optik.OptikError, match=r"^respect_limits"):
+        closed_form.fk(five, [1.0, 2.0], respect_limits=flag)
+    assert closed_form.ik(m, target, respect_limits=np.bool_(False))  # numpy's booleans are booleans

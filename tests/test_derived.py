@@ -250,6 +250,18 @@ def test_all_solutions_benchmark_runs_and_agrees_with_eaik(monkeypatch: pytest.M
     assert bench_all_solutions.main(["--n", "3"]) == 0
 
 
+def test_ik_geo_peer_finds_every_solution_optik_finds(monkeypatch: pytest.MonkeyPatch) -> None:
+    pytest.importorskip("ik_geo", reason="the ik-geo peer of the all-solutions benchmark")
+    from optik.benchmarks import bench_all_solutions
+
+    monkeypatch.setenv("OPTIK_NO_CODEGEN", "1")
+    for m in (optik.catalog.puma560(), optik.catalog.seed_6r_arm()):
+        row = bench_all_solutions.run_arm(m, 5, seed=2)
+        # ik-geo ran on every pose and its answers pass the FK check
+        assert len(row.ikgeo_times) == 5 and row.ikgeo_valid >= 5
+        assert row.ikgeo_found == row.ikgeo_valid and row.optik_failed_check == 0
+
+
 @pytest.mark.parametrize("name", ["tp_56_intersecting", "tp_general", "tp_reversed"])
 def test_three_parallel_wrist_singularity_has_representatives(name: str) -> None:
     """Axis 6 parallel to axes 2-4 (q5 = 0 on a UR arm): only theta + q6 is fixed, and the

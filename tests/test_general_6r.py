@@ -10,8 +10,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import least_squares
 
+import optik
 from optik import catalog, closed_form, spatial
-from optik.closed_form import derived, search_1d
+from optik.closed_form import derived, registry, search_1d
 from optik.closed_form.general_6r import (
     FK_TOL,
     General6R,
@@ -330,3 +331,37 @@ def test_bad_input_raises_named_errors() -> None:
         solve_general_6r("arm", np.eye(4))  # type: ignore[arg-type]
     with pytest.raises(ShapeError, match="a"):
         General6R(a=[1.0] * 5, alpha=[0.5] * 6, d=[0.0] * 6)
+
+
+def test_default_solve_ik_tries_lm_before_the_costly_general_solver() -> None:
+    """The general 6R solver takes tens of ms, ``lm`` a fraction of one: ``method=None`` answers
+    by ``lm`` when it succeeds, by the (certified) closed form when it does not, and
+    ``method="closed_form"`` still gets the closed form."""
+    m = dh_chain(REF_DH, "standard")
+    assert registry.costly(m) and not registry.costly(catalog.puma560())
+    for q in np.random.default_rng(3).uniform(-np.pi, np.pi, (4, 6)):
+        target = m.fk(q)
+        res = optik.solve_ik(m, target, time_limit=1.0)
+        assert res.method == "lm" and res.success
+        np.testing.assert_allclose(m.fk(res.q), target, atol=1e-6)  # independent FK check
+        assert optik.solve_ik(m, target, method="closed_form").method == "closed_form"
+    far = spatial.translation(50.0, 0.0, 0.0)
+    res = optik.solve_ik(m, far, time_limit=0.02)
+    assert res.method == "closed_form" and not res.success and "lm found no solution" in res.message
+    assert res.extra["lm"]["status"] != "solved"
+
+
+def test_solve_ik_does_not_call_a_reachable_target_unreachable() -> None:
+    """Regression (issue 18, item 2): on the mechanism of the 1e-6 twist arm, ``solve_ik`` by the
+    closed form answered "unreachable" (certified) for FK targets of configurations within the
+    limits. Now every such target is solved, by the closed form asked for and by default."""
+    rng = np.random.default_rng(51)
+    a, alpha, d = rng.uniform(0.1, 1, 6), rng.uniform(-np.pi, np.pi, 6), rng.uniform(-1, 1, 6)
+    alpha[[0, 4]] = 1e-6
+    m = dh_chain([(d[i], a[i], alpha[i]) for i in range(6)], "standard")
+    for q in m.random_q(40, seed=7):
+        target = m.fk(q)
+        res = optik.solve_ik(m, target, method="closed_form")
+        assert res.success and res.status == "solved", res.message
+        assert np.abs(m.fk(res.q) - target).max() < 1e-9  # independent FK check
+        assert optik.solve_ik(m, target).success

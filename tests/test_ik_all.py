@@ -55,6 +55,27 @@ def test_numeric_method_is_the_method_used() -> None:
     assert all(joint_distance(m, a.q, b.q) >= 1e-4 for a, b in pairs)
 
 
+def test_only_a_complete_closed_form_is_certified() -> None:
+    """Regression (issue 18, item 1): numerical answers said ``certified=True`` (an empty
+    ``uncertified_reason``). Every numerical answer now says why it is not certified: the
+    Panda (no closed form: multi-start ``lm``), the Panda with a joint locked asked for by
+    ``lm``, an arm with a closed form asked for by ``lm``; the closed form stays certified."""
+    panda = optik.catalog.panda()
+    q = np.array([0.1, -0.4, 0.3, -1.8, 0.2, 1.6, 0.5])
+    free = optik.solve_ik_all(panda, panda.fk(q), seed=0, time_limit=0.3, patience=3, max_solutions=2)
+    assert free.method == "lm" and len(free) and not free.certified
+    locked = optik.solve_ik_all(panda, panda.fk(q), None, "lm", fixed={"q3": 0.3}, seed=0, time_limit=0.5)
+    assert locked.method == "lm" and len(locked)
+    assert not locked.certified and "numerical multi-start (lm)" in locked.uncertified_reason
+    assert "not certified complete" in locked.message
+    m, target = _seed_target()
+    numeric = optik.solve_ik_all(m, target, method="lm", seed=0, time_limit=0.5, patience=5)
+    assert not numeric.certified and numeric.uncertified_reason
+    exact = optik.solve_ik_all(m, target)
+    assert exact.method == "closed_form" and exact.certified and exact.uncertified_reason == ""
+    assert not optik.results.IKSolutions([], method="lm").certified  # whatever the reason says
+
+
 def test_methods_without_restarts_run_in_the_multistart() -> None:
     m = optik.catalog.planar_2r()
     sols = optik.solve_ik_all(m, optik.Position(1.2, 0.6), method="dls", seed=0, time_limit=2.0, patience=10)
@@ -129,19 +150,51 @@ def test_locked_joint_finds_every_eaik_solution() -> None:
                 assert min(joint_distance(m, s, r.q) for r in sols) < 1e-4
 
 
+def test_locked_joint_with_a_general_remainder_gets_the_general_6r_solver() -> None:
+    """Regression (issue 18, item 3): a 7-joint arm locked to a 6R chain of no decomposable
+    family got the numerical multi-start (uncertified, answers off by up to 4e-7, since the
+    polish stopped at once: its step moved the pinned joint out of its limits). It now gets the
+    certified general 6R solver, like the standalone arm; the multi-start asked for finds
+    nothing outside that set, and its answers meet the FK to rounding too."""
+    m = optik.mechanism.dh_chain(
+        [(0.3, 0.2, 1.1), (0.1, 0.5, -0.7), (0.2, 0.4, 0.9), (0.15, 0.3, 1.3), (0.1, 0.2, -1.2),
+         (0.05, 0.3, 0.8), (0.1, 0.1, 0.4)]
+    )  # fmt: skip
+    q = np.array([0.3, 0.5, 0.7, -0.4, 0.8, -0.2, 0.6])
+    target = m.fk(q)
+    sols = optik.solve_ik_all(m, target, fixed={"q3": 0.7})
+    assert sols.method == "closed_form" and sols.certified and len(sols) >= 2
+    assert min(joint_distance(m, s.q, q) for s in sols) < 1e-9
+    for s in sols:  # independent check by the mechanism's own FK
+        assert s.q[2] == 0.7 and np.abs(m.fk(s.q) - target).max() < 1e-12
+    numeric = optik.solve_ik_all(m, target, None, "lm", fixed={"q3": 0.7}, seed=0, time_limit=1.0)
+    assert numeric.method == "lm" and len(numeric)
+    for s in numeric:
+        assert np.abs(m.fk(s.q) - target).max() < 1e-12
+        assert min(joint_distance(m, s.q, c.q) for c in sols) < 1e-8
+
+
 def test_locked_joint_input_checks_and_fallback() -> None:
     m = optik.catalog.panda()
     target = m.fk(m.mid_q())
     for bad in ({}, {"q9": 0.0}, {"q4": 0.5}, {"q1": float("nan")}, [("q1", 0.0)]):
         with pytest.raises(InvalidArgumentError, match=r"^fixed"):
             optik.solve_ik_all(m, target, fixed=bad)
-    with pytest.raises(SolverUnavailableError, match="no derived closed form"):
-        optik.solve_ik_all(m, target, method="closed_form", fixed={"q1": 0.0})
-    # no closed form for q1 locked: the numerical search with q1 pinned
-    sols = optik.solve_ik_all(m, target, fixed={"q1": 0.0}, time_limit=1.0, patience=3, seed=0)
+    # q1 locked leaves a 6R chain of no decomposable family: the general 6R solver, certified
+    q = np.array([0.1, -0.4, 0.3, -1.8, 0.2, 1.6, 0.5])
+    locked = optik.solve_ik_all(m, m.fk(q), fixed={"q1": 0.1})
+    assert locked.method == "closed_form" and locked.certified
+    assert min(joint_distance(m, s.q, q) for s in locked) < 1e-9
+    # the mid-limit pose is special (axes aligned): the count check fails and says so
+    assert not optik.solve_ik_all(m, target, fixed={"q1": 0.0}).certified
+    point = optik.Position(target[:3, 3])
+    with pytest.raises(SolverUnavailableError, match="no closed form"):
+        optik.solve_ik_all(m, point, method="closed_form", fixed={"q1": 0.0})
+    # no closed form for a position task: the numerical search with q1 pinned
+    sols = optik.solve_ik_all(m, point, fixed={"q1": 0.0}, time_limit=1.0, patience=3, seed=0)
     assert sols and all(s.q[0] == 0.0 and s.method == "lm" for s in sols)
     for s in sols:
-        np.testing.assert_allclose(m.fk(s.q), target, atol=1e-6)
+        np.testing.assert_allclose(m.fk(s.q)[:3, 3], target[:3, 3], atol=1e-6)
 
 
 def test_self_motion_samples_follow_the_swept_joint() -> None:

@@ -2,8 +2,8 @@
 modules import each other (directly or around a loop), lazy imports inside functions included.
 
 Layers, bottom to top: errors; checks, native; spatial, targets, results; mechanism; collision;
-catalog; closed_form; problem; solvers; diffik; applications (problem_files, progress, batch, reach, plot,
-harness, benchmarks, problems, view, cli). The top-level folders ``benchmarks/`` and ``problems/``
+catalog; closed_form; problem; solvers; diffik; applications (problem_files, progress, batch, reach,
+path, plot, harness, benchmarks, problems, view, cli). The top-level folders ``benchmarks/`` and ``problems/``
 are the packages ``optik.benchmarks`` and ``optik.problems`` (setup.py maps them) and are checked
 as such. A package's ``__init__`` may import its own submodules (it re-exports them).
 """
@@ -33,6 +33,7 @@ LAYERS = [
         "progress",
         "batch",
         "reach",
+        "path",
         "plot",
         "harness",
         "benchmarks",

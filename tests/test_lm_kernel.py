@@ -85,3 +85,54 @@ def test_target_seeds_are_a_splitmix64_stream() -> None:
     assert target_seeds(12345, 0, 5).tolist() == expected
     assert target_seeds(12345, 2, 3).tolist() == expected[2:]  # independent of chunking
     assert len(set(target_seeds(0, 0, 10000).tolist())) == 10000
+
+
+def test_limits_are_inputs_of_one_kernel_per_geometry() -> None:
+    """Copies of one arm that differ only by their limits (a joint pinned at many values, as
+    ``solve_ik_all(..., fixed=)`` makes them) share one kernel, and each run projects onto its own
+    limits, compiled and in the Python loop alike."""
+    from optik.solvers.lm_kernel import kernel
+
+    m = optik.catalog.panda()
+    q_true = m.random_q(seed=5)
+    targets = target_parameters(m.fk(q_true))[None]
+    shared = kernel(m, "pose", None, 100.0, True)
+    python = LMKernel(m, "pose", None, 100.0, False)
+    for v in (q_true[0], -1.0, 0.5):
+        lo, hi = m.lower.copy(), m.upper.copy()
+        lo[0] = hi[0] = v
+        lo[3], hi[3] = q_true[3] - 0.3, q_true[3] + 0.3  # a narrower second limit
+        pinned = m.with_limits(lower=lo, upper=hi).with_limits()
+        assert pinned.geometry is m and kernel(pinned, "pose", None, 100.0, True) is shared
+        conf = _settings(pinned, max_restarts=20).conf(pinned)
+        q0 = np.clip(m.mid_q(), lo, hi)[None]
+        a = shared.run(targets, q0, target_seeds(1, 0, 1), conf)
+        b = python.run(targets, q0, target_seeds(1, 0, 1), conf)
+        np.testing.assert_allclose(a.q, b.q, atol=1e-12)
+        assert a.q[0, 0] == v and pinned.within_limits(a.q[0])
+        pos = np.linalg.norm(m.fk(a.q[0])[:3, 3] - m.fk(q_true)[:3, 3])
+        assert pos == pytest.approx(a.errors[0, 0], abs=1e-12)
+        if v == q_true[0]:  # q_true is within the pinned limits
+            assert a.status[0] == 0
+
+
+def test_one_target_path_equals_the_chunk_run() -> None:
+    """``run_one`` (the packed one-target call of ``solve_ik``) gives what ``run`` gives, on the
+    compiled driver and in the Python loop, from threads that each use their own buffers."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    m = optik.catalog.iiwa14()
+    targets = np.stack([target_parameters(t) for t in m.fk(m.random_q(6, seed=8))])
+    q0 = m.random_q(6, seed=9)
+    seeds = target_seeds(3, 0, 6)
+    conf = _settings(m).conf(m)
+    for k in (LMKernel(m, "pose", None, 100.0, True), LMKernel(m, "pose", None, 100.0, False)):
+        want = k.run(targets, q0, seeds, conf)
+        with ThreadPoolExecutor(2) as pool:
+            got = list(pool.map(lambda i, k=k: k.run_one(targets[i], q0[i], int(seeds[i]), conf), range(6)))
+        for i, (q, err, iterations, restarts, status) in enumerate(got):
+            np.testing.assert_array_equal(q, want.q[i])
+            assert err == tuple(want.errors[i])
+            assert (iterations, restarts, status) == (want.iterations[i], want.restarts[i], want.status[i])
+            assert status == 0 and m.within_limits(q)
+            np.testing.assert_allclose(m.fk(q)[:3, 3], targets[i][9:], atol=1e-6)  # independent FK

@@ -23,16 +23,18 @@ except MissingExtraError as exc:
     pytest.skip(f"example-robot-data is not installed ({exc})", allow_module_level=True)
 pytest.importorskip("pinocchio")
 
-from optik.benchmarks.bench_robots import pinocchio_fk, pose_errors
+from optik.harness.peers.rules import Referee
 
 NAMES = robots.robot_names()
 IK_TARGETS = 8
 
 
-def _reference(name: str) -> tuple[optik.Mechanism, object]:
+def _reference(name: str) -> tuple[optik.Mechanism, Referee]:
     arm = robots.ARMS[name]
     m = optik.catalog.robot(name)
-    return m, pinocchio_fk(m, robots.robot_urdf(name), arm.base_link, arm.tip_link)
+    ref = Referee(m, robots.robot_urdf(name), arm.base_link, arm.tip_link)
+    assert ref.source == "pinocchio"
+    return m, ref
 
 
 def test_the_table_covers_the_arms_the_issue_names() -> None:
@@ -47,18 +49,18 @@ def test_arm_loads_and_its_fk_equals_pinocchio(name: str) -> None:
     arm = robots.ARMS[name]
     assert m.kind == f"robot:{name}" and m.n_q >= 5 and m.params["tip_link"] == arm.tip_link
     for q in m.random_q(20, seed=1):
-        np.testing.assert_allclose(m.fk(q), ref(q), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(m.fk(q), ref.fk(q), rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("name", NAMES)
 def test_ik_reaches_fk_targets_checked_by_pinocchio(name: str) -> None:
     m, ref = _reference(name)
     for q in m.random_q(IK_TARGETS, seed=2):
-        target = ref(q)
+        target = ref.fk(q)
         res = optik.solve_ik(m, target, method="lm", time_limit=3.0, seed=0, compile=False)
         assert res.success, (name, res.message)
-        pos, ori = pose_errors(ref(res.q), target)  # recomputed by pinocchio
-        assert pos <= 1e-6 and ori <= 1e-6 and m.within_limits(res.q)
+        verdict = ref.judge(res.q, target, optik.Tolerances(position=1e-6, orientation=1e-6))
+        assert verdict.success and verdict.overshoot == 0.0, verdict  # recomputed by pinocchio
 
 
 def test_unknown_names_are_listed() -> None:

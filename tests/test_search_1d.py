@@ -16,7 +16,7 @@ from optik.closed_form.general_6r import covers, solve_general_6r
 from optik.closed_form.search_1d import FAMILIES, Search1D, families_of, solve_search_1d
 from optik.closed_form.structure import axes_of
 from optik.errors import InvalidArgumentError, NonFiniteError, ShapeError
-from optik.mechanism import Mechanism, dh_chain
+from optik.mechanism import Joint, Mechanism, dh_chain
 from optik.spatial import angle_distance
 
 CASES = {
@@ -205,3 +205,69 @@ def test_the_registry_answers_say_they_are_not_certified() -> None:
     assert sols.uncertified_reason == branches.reason and "not certified complete" in sols.message
     certified = optik.solve_ik_all(optik.catalog.puma560(), optik.catalog.puma560().fk(np.zeros(6)))
     assert certified.certified and "certified" not in certified.message
+
+
+def _jaco_like(extra_joint: bool = False) -> Mechanism:
+    """The Kinova-Jaco-like arm of issue 18 (IK-Geo's convention: joint axes ``H``, offsets ``P``
+    between points on them; wrist axes bent at 55 degrees): axes 1-2, 3-4, 4-5 and 5-6 meet,
+    2-3 are parallel, and no decomposable family applies."""
+    h = [[0, 0, 1], [0, 1, 0], [0, 1, 0], [0, 0, -1], [0, 0.8192, -0.5736], [0, 0.9397, 0.342]]
+    p = [[0, 0, -0.0074], [0, 0.1178, 0.2829], [0.41, 0, 0], [0, -0.108, -0.2829], [0, 0.0883, -0.0281]]
+    p += [[0, 0.0197, 0.0281], [0, 0, 0]]
+    joints, prev = [], "base"
+    for i in range(6):
+        origin = spatial.translation(*p[i])
+        joints.append(Joint(f"q{i + 1}", "revolute", prev, f"l{i + 1}", origin=origin, axis=h[i]))
+        prev = f"l{i + 1}"
+    if extra_joint:  # a seventh joint before the tool: locked, it leaves the six above
+        origin = spatial.translation(0.0, 0.05, 0.1)
+        joints.append(Joint("q7", "revolute", prev, "l7", origin=origin, axis=[1, 0, 0]))
+        prev = "l7"
+    return Mechanism(joints, frames={"tool": (prev, spatial.translation(*p[6]))}, ee="tool")
+
+
+def test_jaco_like_arm_is_solved_by_the_search() -> None:
+    """Regression (issue 18, item 3b): on this arm the search found 0 solutions of every FK
+    target and the default ``solve_ik`` answered "unreachable". Its axes 1-2 meet, which made
+    the SP5 of the 5-6 family degenerate (``p0 = 0``); it is SP3 then SP2 there. Every drawn
+    configuration is among the verified answers, and the default ``solve_ik`` solves them."""
+    m = _jaco_like()
+    assert closed_form.derive(m) is None and not covers(m) and closed_form.has_ik(m)
+    qs = m.random_q(10, seed=1)
+    for q, target, s in zip(qs, m.fk(qs), solve_search_1d(m, m.fk(qs)), strict=True):
+        _check(m, s.q, target)
+        assert np.min(angle_distance(s.q, q), initial=np.inf) < 1e-8
+        res = optik.solve_ik(m, target)
+        assert res.success and res.method == "closed_form"
+        t = m.fk(res.q)  # independent check
+        assert np.linalg.norm(t[:3, 3] - target[:3, 3]) <= 1e-6
+
+
+def test_default_solve_ik_does_not_call_unreachable_on_an_uncertified_search() -> None:
+    """The search is not certified complete: when it finds no branch within the limits the
+    default ``solve_ik`` answers by the numerical method within the time left and says so;
+    ``method="closed_form"`` asked for explicitly says "not_found", not "unreachable"."""
+    m = _jaco_like()
+    far = spatial.translation(3.0, 0.0, 0.0)
+    res = optik.solve_ik(m, far, time_limit=0.05)
+    assert not res.success and res.status != "unreachable" and res.method == "lm"
+    assert "not certified complete" in res.message and res.extra["closed_form"]["status"] == "not_found"
+    cf = optik.solve_ik(m, far, method="closed_form")
+    assert cf.status == "not_found" and "may still be reachable" in cf.message
+    every = optik.solve_ik_all(m, far, time_limit=0.1, patience=3)
+    assert every.method == "lm" and not every.certified
+    assert "the closed form found none" in every.uncertified_reason
+
+
+def test_a_locked_joint_leaving_the_jaco_chain_gets_the_search() -> None:
+    """A 7-joint arm whose first six joints are the Jaco-like chain: with the seventh locked, the
+    remaining 6R (special at both ends, no decomposable family) gets the 1-D search, as the
+    standalone arm does (issue 18, item 3), its answers flagged as not certified."""
+    m = _jaco_like(extra_joint=True)
+    q = m.random_q(seed=4)
+    target = m.fk(q)
+    sols = optik.solve_ik_all(m, target, fixed={"q7": float(q[6])})
+    assert sols.method == "closed_form" and not sols.certified and "1-D search" in sols.uncertified_reason
+    assert min(np.abs(spatial.angle_distance(s.q, q)) for s in sols) < 1e-9
+    for s in sols:
+        assert s.q[6] == q[6] and np.abs(m.fk(s.q) - target).max() < 1e-9

@@ -310,7 +310,14 @@ def test_urdf_meshes_of_example_robot_data_resolve():
     meshes, notes = body_visuals(m)
     assert notes == []
     visuals = m.params["visuals"]
-    assert len(visuals) == 9  # link0..link7 and the hand (on the body of link7: fixed joints)
+    # link0..link7, the hand and its two fingers (carried by the chain off its path, joints held at 0),
+    # the hand and fingers on the body of link7
+    assert [v.link for v in visuals] == [
+        *(f"panda_link{i}" for i in range(8)),
+        "panda_hand",
+        "panda_leftfinger",
+        "panda_rightfinger",
+    ]
     assert set(meshes) == {m.frames[v.link][0] for v in visuals}
     assert all(len(mesh.faces) > 1000 for mesh in meshes.values())
 

@@ -14,7 +14,6 @@ answers are those of a local run: each target carries its own seed.
 from __future__ import annotations
 
 import uuid
-import weakref
 from collections.abc import Callable
 from typing import Any
 
@@ -24,8 +23,9 @@ from optik.batch.chunk import ChunkSpec, chunk_bounds, solve_chunk
 from optik.batch.result import BatchResult
 from optik.errors import InvalidArgumentError, require_extra
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 
-_SHIPPED: weakref.WeakKeyDictionary[Mechanism, dict[str, Any]] = weakref.WeakKeyDictionary()
+_SHIPPED: PerMechanism[dict[str, Any]] = PerMechanism()
 """The future of each shipped mechanism per client id (ship a mechanism once per cluster)."""
 
 _ON_WORKER: dict[str, Mechanism] = {}
@@ -41,13 +41,14 @@ def client_of(scheduler: Any) -> Any:
         InvalidArgumentError: ``scheduler`` is neither a Client nor the address of a scheduler
             that answers (``"tcp://host:port"`` or ``"host:port"``).
     """
+    wrong = f"expected a dask.distributed.Client or an address, got {type(scheduler).__name__}"
+    if not isinstance(scheduler, str) and type(scheduler).__name__ != "Client":
+        raise InvalidArgumentError("scheduler", wrong)  # wrong whether Dask is installed or not
     distributed = require_extra("distributed", "dist", "solve_ik_batch(scheduler=...)")
     if isinstance(scheduler, distributed.Client):
         return scheduler
     if not isinstance(scheduler, str):
-        raise InvalidArgumentError(
-            "scheduler", f"expected a dask.distributed.Client or an address, got {type(scheduler).__name__}"
-        )
+        raise InvalidArgumentError("scheduler", wrong)
     try:
         return distributed.Client(scheduler)
     except (ValueError, TypeError, OSError) as exc:  # OSError: TimeoutError, refused connections

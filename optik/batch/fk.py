@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
-from functools import lru_cache
 from typing import Any
 
 import casadi as ca
@@ -13,6 +12,7 @@ import numpy as np
 
 from optik.checks import as_batch
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.native import CCall, library
 
 CHUNK = 256
@@ -55,9 +55,16 @@ def default_workers() -> int:
         return os.cpu_count() or 1
 
 
-@lru_cache(maxsize=32)
+_MAPPED: PerMechanism[dict[str | None, _MappedFK]] = PerMechanism()
+
+
 def _mapped(m: Mechanism, frame: str | None) -> _MappedFK:
-    return _MappedFK(m, frame)
+    """The mapped FK of a frame (built once; it lives as long as the mechanism)."""
+    per = _MAPPED.setdefault(m, {})
+    found = per.get(frame)
+    if found is None:
+        found = per.setdefault(frame, _MappedFK(m, frame))
+    return found
 
 
 def fk_batch(m: Mechanism, q: Any, frame: str | None = None, workers: int | None = None) -> np.ndarray:

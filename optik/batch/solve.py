@@ -27,6 +27,7 @@ from optik.batch.chunk import ChunkSpec, chunk_bounds, prepare, solve_chunk
 from optik.batch.fk import default_workers
 from optik.batch.inputs import as_starts, as_targets, target_seed_array
 from optik.batch.result import BatchResult
+from optik.checks import as_bool
 from optik.mechanism import Mechanism
 from optik.progress import Progress
 from optik.solvers.base import Tolerances, get_method, make_request, positive_int
@@ -110,7 +111,7 @@ def solve_ik_batch(
         workers = positive_int(workers, "workers")
     if chunk_size is not None:
         chunk_size = positive_int(chunk_size, "chunk_size")
-    bar = Progress(1) if progress else None
+    bar = Progress(1) if as_bool(progress, "progress") else None
     if bar is not None:
         bar.start(f"IK x{n}", n)
     if scheduler is not None:

@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import functools
 import threading
-import weakref
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
@@ -46,6 +45,7 @@ from optik.closed_form.ik_all import AllSolutionsKernel
 from optik.closed_form.spherical_wrist import Branch
 from optik.closed_form.structure import Axes, Structure, axes_of, detect
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 
 POLISH_STEPS = 3
 """Gauss-Newton steps applied to an inexact candidate."""
@@ -456,8 +456,8 @@ def derive_axes(axes: Axes) -> DerivedIK | None:
     return None if structure is None else DerivedIK(axes, structure)
 
 
-_AXES: weakref.WeakKeyDictionary[Mechanism, Axes | None] = weakref.WeakKeyDictionary()
-_CACHE: weakref.WeakKeyDictionary[Mechanism, DerivedIK | None] = weakref.WeakKeyDictionary()
+_AXES: PerMechanism[Axes | None] = PerMechanism()
+_CACHE: PerMechanism[DerivedIK | None] = PerMechanism()
 
 
 def chain_axes(m: Mechanism) -> Axes | None:
@@ -484,16 +484,23 @@ def derive(m: Mechanism) -> DerivedIK | None:
     return solver
 
 
-def derive_locked(m: Mechanism, locked: dict[int, float]) -> DerivedIK | None:
-    """The derived IK of the 6R chain left when the coordinates ``locked`` (index -> value) of a
-    serial revolute chain are fixed (`Axes.lock`, highest index first), or None when that chain
-    is not decomposable (or ``m`` is not such a chain, or it does not leave 6 joints)."""
+def locked_axes(m: Mechanism, locked: dict[int, float]) -> Axes | None:
+    """The 6R chain left when the coordinates ``locked`` (index -> value) of a serial revolute
+    chain are fixed (`Axes.lock`, highest index first), or None when ``m`` is not such a chain
+    or that does not leave 6 joints."""
     axes = chain_axes(m)
     if axes is None or axes.n - len(locked) != 6:
         return None
     for index in sorted(locked, reverse=True):
         axes = axes.lock(index, locked[index])
-    return derive_axes(axes)
+    return axes
+
+
+def derive_locked(m: Mechanism, locked: dict[int, float]) -> DerivedIK | None:
+    """The derived IK of the `locked_axes` chain, or None when there is none or it is not
+    decomposable."""
+    axes = locked_axes(m, locked)
+    return None if axes is None else derive_axes(axes)
 
 
 class DerivedRows:
@@ -521,15 +528,26 @@ def derived_rows(m: Mechanism) -> registry.IKSolver | None:
     return None if solver is None else DerivedRows(solver)
 
 
+class GeneralRows:
+    """The registry solver ``(m, T) -> rows`` of the general 6R solver
+    ([`ik_general_6r`][optik.closed_form.general_6r.ik_general_6r]), marked ``costly``
+    ([`registry.costly`][optik.closed_form.registry.costly]): tens of ms per target, so
+    `optik.solve_ik` with ``method=None`` tries ``lm`` first."""
+
+    costly = True
+
+    def __call__(self, m: Mechanism, t: np.ndarray) -> list[np.ndarray]:
+        return general_6r.ik_general_6r(m, t)
+
+
 def general_rows(m: Mechanism) -> registry.IKSolver | None:
     """Registry deriver after [`derived_rows`][optik.closed_form.derived.derived_rows]: a 6R
-    serial chain of no decomposable family gets the general 6R solver
-    ([`ik_general_6r`][optik.closed_form.general_6r.ik_general_6r], all 16 complex solutions'
-    real ones, each FK-checked) when it covers the geometry
+    serial chain of no decomposable family gets the general 6R solver (a `GeneralRows`: all 16
+    complex solutions' real ones, each FK-checked) when it covers the geometry
     ([`covers`][optik.closed_form.general_6r.covers]: no certified answer otherwise)."""
     if m.n_q != 6 or derive(m) is not None or chain_axes(m) is None or not general_6r.covers(m):
         return None
-    return general_6r.ik_general_6r
+    return GeneralRows()
 
 
 registry.register_deriver(derived_rows)

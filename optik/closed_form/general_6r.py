@@ -68,7 +68,6 @@ a singular boundary, a root that cannot be decided) and solutions may be missing
 from __future__ import annotations
 
 import math
-import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -78,9 +77,10 @@ import numpy as np
 
 from optik.checks import as_transform, as_vector
 from optik.closed_form import registry
-from optik.closed_form.structure import axes_of
+from optik.closed_form.structure import Axes, axes_of
 from optik.errors import InvalidArgumentError, ShapeError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 
 __all__ = [
     "FK_TOL",
@@ -252,13 +252,30 @@ class General6R:
             raise InvalidArgumentError(
                 "m", f"{m.name!r}: expected a serial chain of six revolute joints (n_q={m.n_q})"
             )
+        return cls._checked(axes, m.fk, "m", f"{m.name!r}: its DH description does not reproduce m.fk")
+
+    @classmethod
+    def from_axes(cls, axes: Axes) -> General6R:
+        """The DH description of six joint lines in product-of-exponentials form (an
+        `optik.closed_form.structure.Axes`, e.g. a 7-DOF arm's chain with one joint locked,
+        `Axes.lock`), checked against ``axes.fk`` at seeded random ``q`` to `_MODEL_TOL`.
+
+        Raises:
+            InvalidArgumentError: (argument ``axes``) not six axes, or the DH description does
+                not reproduce ``axes.fk``.
+        """
+        if axes.n != 6:
+            raise InvalidArgumentError("axes", f"expected six joint axes, got {axes.n}")
+        return cls._checked(axes, axes.fk, "axes", "the DH description does not reproduce axes.fk")
+
+    @classmethod
+    def _checked(cls, axes: Axes, fk: Any, argument: str, complaint: str) -> General6R:
+        """`_dh_from_lines` of ``axes``, compared with ``fk`` at four seeded random ``q``."""
         arm = _dh_from_lines(axes.r, axes.h, axes.home)
         q = np.random.default_rng(0).uniform(-np.pi, np.pi, size=(4, 6))
-        err = float(np.max(np.abs(arm.fk(q) - m.fk(q))))
+        err = float(np.max(np.abs(arm.fk(q) - fk(q))))
         if err > _MODEL_TOL * max(1.0, arm.scale):
-            raise InvalidArgumentError(
-                "m", f"{m.name!r}: its DH description does not reproduce m.fk ({err:.1e})"
-            )
+            raise InvalidArgumentError(argument, f"{complaint} ({err:.1e})")
         return arm
 
     @property
@@ -450,7 +467,7 @@ class General6RSolutions:
         return iter(list(self.q))
 
 
-_ARMS: weakref.WeakKeyDictionary[Mechanism, General6R] = weakref.WeakKeyDictionary()
+_ARMS: PerMechanism[General6R] = PerMechanism()
 
 
 def _arm(arm: Mechanism | General6R) -> General6R:
@@ -623,12 +640,18 @@ def _pose_errors(t: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 def _dedup(q: np.ndarray) -> np.ndarray:
-    """The distinct rows of ``q`` (real or complex angles; real parts compared modulo 2 pi)."""
-    keep: list[np.ndarray] = []
-    for row in q:
-        if all(float(np.max(np.abs(_wrap((row - k).real)) + np.abs((row - k).imag))) >= _SAME for k in keep):
-            keep.append(row)
-    return np.array(keep).reshape(-1, 6)
+    """The distinct rows of ``q`` (real or complex angles; real parts compared modulo 2 pi),
+    the first of each group of rows closer than `_SAME`."""
+    q = q.reshape(-1, 6)
+    if len(q) < 2:
+        return q
+    diff = q[:, None, :] - q[None, :, :]
+    close = np.max(np.abs(_wrap(diff.real)) + np.abs(diff.imag), axis=-1) < _SAME
+    keep: list[int] = []
+    for i in range(len(q)):
+        if not close[i, keep].any():
+            keep.append(i)
+    return q[keep]
 
 
 def _matrices(arm: General6R, targets: np.ndarray) -> tuple[np.ndarray, ...]:

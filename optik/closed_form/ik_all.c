@@ -18,8 +18,9 @@ enum { OPTIK_T = 0, OPTIK_Q0 = 16, OPTIK_LO = 22, OPTIK_HI = 28, OPTIK_CONF = 34
  *        replaced so that the interval spans 2 pi)] */
 /* out: [status, n within, n outside, q within (6 n within), q outside (6 n outside),
  *       errors within (2 n within)], packed
- * status: 0 answered; 1 the target is not a valid transform; 2 a candidate to polish or two
- * candidates closer than `same` (the caller's numpy path decides). */
+ * status: 0 answered; 1 the target is not a valid transform; 2 a candidate to polish, two
+ * candidates closer than `same`, or one outside the limits by at most OPTIK_LIMIT_TOL (the
+ * caller's numpy path decides). */
 
 static const double OPTIK_PI = 3.14159265358979323846;
 static const double OPTIK_TWO_PI = 6.28318530717958647692;
@@ -164,6 +165,12 @@ CASADI_SYMBOL_EXPORT int optik_ik_all(const double *in, double *out) {
       inside &= lo[k] <= q[k] && q[k] <= hi[k];
     }
     if (!inside) {
+      int near = 1; /* within OPTIK_LIMIT_TOL of the limits: the numpy path clips and checks it */
+      for (int k = 0; k < 6; ++k) near &= lo[k] - OPTIK_LIMIT_TOL <= q[k] && q[k] <= hi[k] + OPTIK_LIMIT_TOL;
+      if (near) {
+        out[0] = 2.0;
+        return 0;
+      }
       for (int k = 0; k < 6; ++k) q_out[6 * n_out + k] = q[k];
       ++n_out;
       continue;

@@ -43,6 +43,7 @@ import numpy as np
 
 from optik import native
 from optik.checks import ORTHO_DIAG, ORTHO_OFF
+from optik.closed_form import registry
 from optik.errors import SolverUnavailableError
 
 DRIVER = Path(__file__).with_name("ik_all.c")
@@ -101,6 +102,7 @@ class AllSolutionsKernel:
         defines = (
             f"\n#define OPTIK_B {self.size}\n#define OPTIK_IW {work[0]}\n#define OPTIK_W {work[1]}\n"
             f"#define OPTIK_BRANCHES {branches.name()}\n#define OPTIK_CHECK {check.name()}\n"
+            f"#define OPTIK_LIMIT_TOL {float(registry.LIMIT_TOL).hex()}\n"
             f"static const int optik_stand_in[{self.size}] = {{{', '.join(map(str, stand_ins))}}};\n"
             f"static const double optik_conf[7] = {{{', '.join(float(v).hex() for v in conf)}}};\n"
         )

@@ -18,15 +18,15 @@ from __future__ import annotations
 
 import inspect
 import math
-import weakref
 from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 
-from optik.checks import as_vector
+from optik.checks import as_bool, as_vector
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.spatial import wrap_rotation_vector
 from optik.targets import target_transform
 
@@ -53,7 +53,6 @@ def register(
     True answers for the kind instead of ``ik`` (the hand-written one then answers for the
     geometries the derived one only approximates)."""
     _GENERATION[0] += 1
-    _DERIVED.clear()
     if ik is not None:
         _IK[kind] = ik
         if prefer_exact_derived:
@@ -66,7 +65,8 @@ def register(
 
 Deriver = Callable[[Mechanism], IKSolver | None]
 _DERIVERS: list[Deriver] = []
-_DERIVED: weakref.WeakKeyDictionary[Mechanism, IKSolver | None] = weakref.WeakKeyDictionary()
+_DERIVED: PerMechanism[tuple[int, IKSolver | None]] = PerMechanism()
+"""``(registry generation, derived IK)`` per mechanism: stale once the generation changed."""
 
 
 def register_deriver(deriver: Deriver) -> None:
@@ -74,7 +74,6 @@ def register_deriver(deriver: Deriver) -> None:
     None). Derivers are tried in registration order for mechanisms whose kind has no registered
     IK; the first answer is cached per mechanism."""
     _DERIVERS.append(deriver)
-    _DERIVED.clear()
     _GENERATION[0] += 1
 
 
@@ -92,10 +91,9 @@ def ik_solver(m: Mechanism) -> IKSolver | None:
     own = _IK.get(m.kind) if m.kind is not None else None
     if own is not None and m.kind not in _PREFER_EXACT_DERIVED:
         return own
-    try:
-        return _DERIVED[m]
-    except KeyError:
-        pass
+    cached = _DERIVED.get(m)
+    if cached is not None and cached[0] == _GENERATION[0]:
+        return cached[1]
     solver = None
     for deriver in _DERIVERS:
         solver = deriver(m)
@@ -103,8 +101,15 @@ def ik_solver(m: Mechanism) -> IKSolver | None:
             break
     if own is not None and not getattr(solver, "exact", False):
         solver = own
-    _DERIVED[m] = solver
+    _DERIVED[m] = (_GENERATION[0], solver)
     return solver
+
+
+def costly(m: Mechanism) -> bool:
+    """True when ``m``'s closed-form IK declares itself costly (a ``costly`` attribute that is
+    True: the general 6R solver, tens of ms per target), so that `optik.solve_ik` with
+    ``method=None`` tries the numerical method first."""
+    return getattr(ik_solver(m), "costly", False) is True
 
 
 def has_ik(m: Mechanism) -> bool:
@@ -118,7 +123,7 @@ def has_fk(m: Mechanism) -> bool:
 
 
 _Coordinates = tuple[tuple[bool, ...], tuple[slice, ...], tuple[int, ...]]
-_COORDS: weakref.WeakKeyDictionary[Mechanism, _Coordinates] = weakref.WeakKeyDictionary()
+_COORDS: PerMechanism[_Coordinates] = PerMechanism()
 
 MAX_ACTUATED = 1e50
 """Largest actuated value (leg length, angle) the closed-form FK accepts: the assembly
@@ -190,12 +195,37 @@ def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]
     return out
 
 
-def within_limits(m: Mechanism, rows: list[list[float]]) -> list[list[float]]:
-    """The rows with ``lower <= q <= upper`` in every coordinate
-    ([`Mechanism.within_limits`][optik.Mechanism.within_limits])."""
+LIMIT_TOL = 1e-9
+"""A computed coordinate at most this far outside a joint limit (rad or m) is at the limit:
+rounding of an answer on the boundary (e.g. the R-P arm's slide at its lower limit). It is
+clipped onto the limit, and the FK check of the clipped row decides, as the success check of
+every method does with its clipped answer (`optik.solvers.base.make_result`)."""
+
+
+def clip_to_limits(m: Mechanism, row: list[float]) -> list[float] | None:
+    """``row`` when ``lower <= q <= upper`` holds in every coordinate
+    ([`Mechanism.within_limits`][optik.Mechanism.within_limits]); a copy clipped onto the
+    limits when no coordinate is more than `LIMIT_TOL` outside; else None."""
     lo, hi = m.lower.tolist(), m.upper.tolist()
-    n = range(len(lo))
-    return [row for row in rows if len(row) == len(lo) and all([lo[k] <= row[k] <= hi[k] for k in n])]
+    if len(row) != len(lo):
+        return None
+    out = row
+    for k, v in enumerate(row):
+        if lo[k] <= v <= hi[k]:
+            continue
+        if not lo[k] - LIMIT_TOL <= v <= hi[k] + LIMIT_TOL:
+            return None
+        if out is row:
+            out = list(row)
+        out[k] = lo[k] if v < lo[k] else hi[k]
+    return out
+
+
+def within_limits(m: Mechanism, rows: list[list[float]]) -> list[list[float]]:
+    """The rows within the joint limits, each by `clip_to_limits` (a row within `LIMIT_TOL`
+    of a limit clipped onto it: a new list)."""
+    clipped = (clip_to_limits(m, row) for row in rows)
+    return [row for row in clipped if row is not None]
 
 
 class CheckedRows(list):
@@ -269,7 +299,8 @@ def ik(m: Mechanism, target: Any, respect_limits: bool = True) -> list[np.ndarra
         m: a catalog mechanism with a registered closed form.
         target: 4x4 transform, [`Pose2D`][optik.Pose2D] or [`Position`][optik.Position].
         respect_limits: drop branches outside the joint limits (angles are first shifted by
-            multiples of 2 pi into the limits where possible).
+            multiples of 2 pi into the limits where possible; a coordinate within `LIMIT_TOL`
+            of a limit is clipped onto it); True or False only.
 
     Returns:
         One full coordinate vector per branch; ``[]`` when the target is unreachable; an
@@ -277,7 +308,9 @@ def ik(m: Mechanism, target: Any, respect_limits: bool = True) -> list[np.ndarra
 
     Raises:
         SolverUnavailableError: no closed form is registered for ``m.kind``.
+        InvalidArgumentError: ``respect_limits`` is not a boolean.
     """
+    respect_limits = as_bool(respect_limits, "respect_limits")
     if ik_solver(m) is None:
         raise SolverUnavailableError(f"no closed-form IK for mechanism {m.name!r} (kind {m.kind!r})")
     return _finish(m, branches(m, target_transform(target)), respect_limits)
@@ -291,7 +324,7 @@ def fk(
     Args:
         m: a catalog mechanism with a registered closed-form FK.
         actuated: values of the actuated coordinates.
-        respect_limits: drop modes outside the joint limits.
+        respect_limits: drop modes outside the joint limits (`within_limits`); True or False.
         time_limit: wall-time budget (s) of the FK solvers that can run long (the Stewart-Gough
             homotopy, which warns when it could not certify completeness in time); None: their
             default. The algebraic closed forms finish in microseconds and need none.
@@ -303,6 +336,7 @@ def fk(
         SolverUnavailableError: no closed-form FK is registered for ``m.kind``.
         InvalidArgumentError: an actuated value beyond `MAX_ACTUATED` in magnitude.
     """
+    respect_limits = as_bool(respect_limits, "respect_limits")
     if m.kind not in _FK:
         raise SolverUnavailableError(f"no closed-form FK for mechanism {m.name!r} (kind {m.kind!r})")
     a = as_vector(actuated, "actuated", len(m.actuated_indices))

@@ -14,7 +14,10 @@ branch of the subproblems. In product-of-exponentials form (`optik.closed_form.s
   ``E_1 E_2 E_3 E_4 W = w``, ``w = R06 (W - p_M) + p_t``. Sweep ``q4``; then ``(q1, q2, q3)``
   solve the SP5 ``r_1 - r_2 + rot(h_1, -q1) (w - r_1) = rot(h_2, q2) (r_3 - r_2 + rot(h_3, q3)
   (E_4 W - r_3))`` (up to four branches), and the wrist ``R_5 R_6 = A = (R_1 ... R_4)^T R06``
-  exists when ``e = h_5 . A h_6 - h_5 . h_6 = 0``; then ``q5``, ``q6`` by SP1.
+  exists when ``e = h_5 . A h_6 - h_5 . h_6 = 0``; then ``q5``, ``q6`` by SP1. When axes 1-2
+  meet at ``C`` the SP5 degenerates (``p0 = 0``: a Kinova Jaco): ``E_1 E_2`` fix ``C``, so
+  ``q3`` solves the SP3 ``|E_3 E_4 W - C| = |w - C|`` and ``(q1, q2)`` the SP2
+  ``rot(h_1, -q1) (w - C) = rot(h_2, q2) (E_3 E_4 W - C)`` (`_sp3_sp2`).
 * **1-2 parallel** along ``k`` (`scan_12_parallel`): ``R_1 R_2`` is a rotation about ``k``
   and ``E_1 E_2`` keep the ``k`` component of a point, so ``k^T R_3 ... R_6 = k^T R06`` and
   ``k . (E_3 ... E_6 p_M) = k . p_t``. Sweep ``q3``; multiplied by ``R_6^T h_5`` the first and
@@ -75,7 +78,6 @@ from __future__ import annotations
 
 import functools
 import itertools
-import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
@@ -88,9 +90,10 @@ from optik.closed_form import registry
 from optik.closed_form.derived import CHECK_TOL, _errors, _solve_steps, _wrap, chain_axes, derive
 from optik.closed_form.general_6r import covers
 from optik.closed_form.structure import Axes, intersection, parallel
-from optik.closed_form.subproblems import rot, sp1, sp5, sp6
+from optik.closed_form.subproblems import rot, sp1, sp2, sp3, sp5, sp6
 from optik.errors import InvalidArgumentError, ShapeError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.spatial import angle_distance
 
 __all__ = [
@@ -193,7 +196,12 @@ def scan_56_intersecting(
     w = np.einsum("...ij,j->...i", r06, wp - axes.home[:3, 3]) + pt
     w4 = _apply(axes, 3, theta, wp)
     w, w4 = np.broadcast_arrays(w, w4)
-    t1, t2, t3, _ = sp5(*np.broadcast_arrays(r[0] - r[1], w - r[0], r[2] - r[1], w4 - r[2], h[0], h[1], h[2]))
+    c = intersection(axes, 0, 1)
+    if c is None:
+        args = np.broadcast_arrays(r[0] - r[1], w - r[0], r[2] - r[1], w4 - r[2], h[0], h[1], h[2])
+        t1, t2, t3, _ = sp5(*args)
+    else:  # SP5 degenerates (p0 = 0 at the common point C): SP3 in q3, then SP2 in (q1, q2)
+        t1, t2, t3 = _sp3_sp2(axes, c, w, w4)
     shape = t1.shape
     q = np.zeros((*shape, 6))
     q[..., 0], q[..., 1], q[..., 2] = -t1, t2, t3
@@ -210,6 +218,21 @@ def scan_56_intersecting(
     q[..., 4] = sp1(h[4], h[5], a6)[0]
     q[..., 5] = sp1(h[5], h[4], rot(h[4], -q[..., 4], a5))[0]
     return q, e, res
+
+
+def _sp3_sp2(
+    axes: Axes, c: np.ndarray, w: np.ndarray, w4: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``E_1 E_2 E_3 w4 = w`` when axes 1-2 meet at ``c``: ``E_1 E_2`` fix ``c``, so
+    ``|E_3 w4 - c| = |w - c|`` (SP3 in ``q3``) and then
+    ``rot(h_1, -q1) (w - c) = rot(h_2, q2) (E_3 w4 - c)`` (SP2). Returns ``(t1, t2, t3)``,
+    ``(..., 4)`` each, in the form of `sp5` (``q1 = -t1``); a least-squares root where none is
+    real (the caller's residual tells)."""
+    h, r = axes.h, axes.r
+    t3, _ = sp3(h[2], w4 - r[2], np.broadcast_to(c - r[2], w4.shape), np.linalg.norm(w - c, axis=-1))
+    x3 = r[2] + rot(h[2], t3, (w4 - r[2])[..., None, :])  # (..., 2, 3)
+    t1, t2, _ = sp2(h[0], np.broadcast_to((w - c)[..., None, :], x3.shape), h[1], x3 - c)
+    return t1.reshape(*t1.shape[:-2], 4), t2.reshape(*t2.shape[:-2], 4), np.repeat(t3, 2, axis=-1)
 
 
 def scan_12_parallel(
@@ -602,7 +625,7 @@ class Search1D:
         return Search1DSolutions(qk, float(np.max(err[kept], initial=0.0)), int(good.size), False, reason)
 
 
-_SEARCH: weakref.WeakKeyDictionary[Mechanism, Search1D | None] = weakref.WeakKeyDictionary()
+_SEARCH: PerMechanism[Search1D | None] = PerMechanism()
 
 
 def search_of(m: Mechanism) -> Search1D | None:

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from optik.checks import as_batch, as_float
+from optik.checks import as_batch, as_bool, as_float
 from optik.collision.distance import signed_distance
 from optik.collision.parts import Part
 from optik.collision.robot import RobotGeometry, robot_geometry
@@ -192,7 +192,8 @@ def check(
     """
     geo = robot_geometry(m)
     qv = m.check_q(q)
-    return _report(geo, qv, world_parts(world), as_float(margin, "margin", 0.0), bool(self_collision))
+    collide = as_bool(self_collision, "self_collision")
+    return _report(geo, qv, world_parts(world), as_float(margin, "margin", 0.0), collide)
 
 
 def check_many(
@@ -203,7 +204,8 @@ def check_many(
     qb, _ = as_batch(Q, "Q", m.n_q)
     obstacles = world_parts(world)
     mg = as_float(margin, "margin", 0.0)
-    reports = tuple(_report(geo, q, obstacles, mg, bool(self_collision)) for q in qb)
+    collide = as_bool(self_collision, "self_collision")
+    reports = tuple(_report(geo, q, obstacles, mg, collide) for q in qb)
     return CollisionBatch(
         np.array([r.in_collision for r in reports], dtype=bool),
         np.array([r.min_distance for r in reports], dtype=float),

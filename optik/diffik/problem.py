@@ -2,12 +2,14 @@
 
 With the step ``dq = v dt`` (Pink's convention; ``v`` is returned), tasks ``k`` with error
 ``e_k``, Jacobian ``J_k``, costs ``W_k = diag(cost_k)``, gain ``alpha_k`` and LM damping
-``lambda_k``, limits giving ``lb <= dq <= ub`` and, for closed chains, the closure ``c(q)``::
+``lambda_k``, limits giving ``lb <= dq <= ub`` and, for closed chains, the closure ``c(q)``:
 
-    minimise    1/2 dq^T H dq + c^T dq
-    H = sum_k (W_k J_k)^T (W_k J_k) + mu I,   mu = damping + sum_k lambda_k ||alpha_k W_k e_k||^2
-    c = sum_k (W_k J_k)^T (alpha_k W_k e_k)
-    subject to  lb <= dq <= ub,   J_c dq = -gain_c c(q)
+```text
+minimise    1/2 dq^T H dq + c^T dq
+H = sum_k (W_k J_k)^T (W_k J_k) + mu I,   mu = damping + sum_k lambda_k ||alpha_k W_k e_k||^2
+c = sum_k (W_k J_k)^T (alpha_k W_k e_k)
+subject to  lb <= dq <= ub,   J_c dq = -gain_c c(q)
+```
 
 which is ``1/2 sum_k ||W_k (J_k dq + alpha_k e_k)||^2 + mu/2 ||dq||^2`` up to a constant. Every
 term is one compiled CasADi function per mechanism and task structure (see
@@ -19,7 +21,6 @@ from __future__ import annotations
 import itertools
 import math
 import threading
-import weakref
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -33,6 +34,7 @@ from optik.diffik.base import Limit, Task, intersect
 from optik.diffik.limits import ClosureConstraint, ConfigurationLimit, VelocityLimit
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 
 
 @dataclass
@@ -171,7 +173,7 @@ class StackFunction:
         return self.function.call_flat(np.concatenate([q, *p, np.array([dt]), v_prev]))
 
 
-_STACKS: weakref.WeakKeyDictionary[Mechanism, dict[tuple, StackFunction]] = weakref.WeakKeyDictionary()
+_STACKS: PerMechanism[dict[tuple, StackFunction]] = PerMechanism()
 
 
 def normalize_limits(m: Mechanism, limits: Sequence[Limit] | None) -> list[Limit]:
@@ -198,7 +200,7 @@ def normalize_limits(m: Mechanism, limits: Sequence[Limit] | None) -> list[Limit
 
 
 _ZEROS: dict[int, np.ndarray] = {}
-_DEFAULT_LIMITS: weakref.WeakKeyDictionary[Mechanism, list[Limit]] = weakref.WeakKeyDictionary()
+_DEFAULT_LIMITS: PerMechanism[list[Limit]] = PerMechanism()
 
 
 MIN_DT = 1e-9

@@ -8,9 +8,13 @@ machine slows every contender alike. Each contender gets one untimed warm-up cal
 functions and NLPs are built once, peers load their URDF); after that every call is timed with
 ``time.perf_counter`` around the whole call, failures included.
 
-Success is judged by one function for everybody
+The rules of [`optik.harness.peers.rules`][optik.harness.peers.rules] hold for every contender: every answer
+is wrapped and clipped into the limits ([`settle`][optik.harness.peers.rules.settle], what `solve_ik` does to
+its own answers) and its raw overshoot is recorded; success is judged by one function for everybody
 ([`optik.solvers.base.evaluate`][optik.solvers.base.evaluate]): position, orientation and closure errors
-within the problem's tolerances and the joint limits satisfied exactly. Where a closed-form IK exists, each
+within the problem's tolerances and the joint limits satisfied exactly, and, where the problem has a URDF
+chain, the same pose check by the independent [`Referee`][optik.harness.peers.rules.Referee] (Pinocchio's
+FK where installed). Where a closed-form IK exists, each
 successful answer is compared with the nearest closed-form branch (max-norm joint distance, angles modulo 2
 pi): the *closed-form error*, and *branch agreement* when that distance is below
 [`optik.solvers.base.BRANCH_TOL`][optik.solvers.base.BRANCH_TOL].
@@ -31,6 +35,7 @@ import optik
 from optik import closed_form, native
 from optik.errors import InvalidArgumentError, OptikError
 from optik.harness.peers import PeerUnavailable, load_peer
+from optik.harness.peers.rules import Referee, overshoot, settle, warm_up
 from optik.mechanism import Mechanism
 from optik.problem_files import PEERS, Problem, TargetSet
 from optik.progress import Progress
@@ -57,7 +62,8 @@ class Call:
         time: wall time of the call (s).
         success: every tolerance met and limits satisfied.
         position_error, orientation_error, closure_error: errors of the returned ``q``.
-        limits_ok: the returned ``q`` is within limits.
+        limits_ok: the settled ``q`` is within limits.
+        overshoot: how far the raw answer was outside the limits (before it was settled).
         cf_distance: joint distance to the nearest closed-form branch (NaN: no closed form or
             no branch).
         ref_distance: joint distance to the reference configuration the target was made from.
@@ -73,6 +79,7 @@ class Call:
     cf_distance: float
     ref_distance: float
     status: str
+    overshoot: float = 0.0
 
 
 def _percentile(x: np.ndarray, p: float) -> float:
@@ -89,8 +96,8 @@ class SolverRun:
 
     def stats(self, fastest_median: float) -> dict[str, Any]:
         """Summary: success %, mean / median / p95 / max time (ms), ratio of the median time to
-        ``fastest_median``, closed-form error (median, max) and branch agreement (% of the
-        successes that land on a closed-form branch / on the reference branch)."""
+        ``fastest_median``, largest raw limit overshoot, closed-form error (median, max) and branch
+        agreement (% of the successes that land on a closed-form branch / on the reference branch)."""
         t = np.array([c.time for c in self.calls])
         ok = np.array([c.success for c in self.calls], dtype=bool)
         cf = np.array([c.cf_distance for c in self.calls])[ok]
@@ -108,6 +115,7 @@ class SolverRun:
             "p95_ms": 1e3 * _percentile(t, 95),
             "max_ms": 1e3 * float(np.max(t)) if len(t) else float("nan"),
             "ratio": median / fastest_median if fastest_median > 0 else float("nan"),
+            "overshoot_max": max((c.overshoot for c in self.calls), default=float("nan")),
             "cf_err_median": float(np.median(cf)) if len(cf) else float("nan"),
             "cf_err_max": float(np.max(cf)) if len(cf) else float("nan"),
             "branch_pct": 100.0 * float(np.mean(cf < BRANCH_TOL)) if len(cf) else float("nan"),
@@ -142,8 +150,8 @@ class ProblemRun:
 
 @dataclass
 class Contender:
-    """A named solve function ``(q0, target) -> (q, status)`` of one method or peer (an empty
-    status is filled in from optik's evaluation: ``"solved"`` or ``"not_converged"``)."""
+    """A named solve function ``(q0, target) -> (raw q, status)`` of one method or peer (an empty
+    status is filled in from the evaluation: ``"solved"`` or ``"not_converged"``)."""
 
     name: str
     kind: str
@@ -223,6 +231,15 @@ def _closed_form_branches(m: Mechanism, targets: TargetSet) -> list[list[np.ndar
     return [closed_form.ik(m, t) for t in targets.poses]
 
 
+def _referee(problem: Problem, m: Mechanism) -> Referee | None:
+    """The independent check of a problem with a URDF chain (None without one)."""
+    chain = problem.urdf_chain()
+    if chain is None:
+        return None
+    urdf, base, tip = chain
+    return Referee(m, urdf, base, tip)
+
+
 def _call(c: Contender, q0: np.ndarray, target: np.ndarray) -> tuple[float, np.ndarray, str]:
     start = time.perf_counter()
     try:
@@ -272,22 +289,28 @@ def run_problem(
     task = targets.task
     q0 = m.mid_q()
     ready: list[Contender] = []
-    for c in cons:  # untimed warm-up: builds CasADi functions, NLPs, peer solvers once
-        _, _, status = _call(c, q0, targets.poses[0])
+    warmed: list[str] = []
+    # untimed warm-up, the same for every contender: builds CasADi functions, NLPs, peer solvers once
+    warm_up(lambda c=c: warmed.append(_call(c, q0, targets.poses[0])[2]) for c in cons)
+    for c, status in zip(cons, warmed, strict=True):
         if status.startswith("error:"):
             notes.append(f"{c.name} failed its warm-up call and was skipped ({status})")
         else:
             ready.append(c)
     native.wait()  # C libraries still building in the background: time the compiled code
+    referee = _referee(problem, m) if task == "pose" else None
     runs = [SolverRun(c.name, c.kind) for c in ready]
     if progress is not None:
         progress.start(problem.name, len(targets) * len(ready))
     for k, (ref, target) in enumerate(zip(targets.q, targets.poses, strict=True)):
         cf = branches[k] if branches is not None else []
         for c, run in zip(ready, runs, strict=True):
-            elapsed, q, status = _call(c, q0, target)
+            elapsed, raw, status = _call(c, q0, target)
+            q = settle(m, raw)
             err = evaluate(m, q, target, task, None)
             ok = err.ok(problem.tolerances)
+            if ok and referee is not None:  # every claimed success re-checked by the independent FK
+                ok = referee.judge(q, target, problem.tolerances).success
             run.calls.append(
                 Call(
                     time=elapsed,
@@ -299,6 +322,7 @@ def run_problem(
                     cf_distance=min((joint_distance(m, q, b) for b in cf), default=float("nan")),
                     ref_distance=joint_distance(m, q, ref),
                     status=status or ("solved" if ok else "not_converged"),
+                    overshoot=overshoot(m, raw),
                 )
             )
             if progress is not None:

@@ -10,15 +10,17 @@ for joints of a serial chain, where the child body frame *is* the joint frame).
 
 Joint types and their coordinates (``dof`` = connectivity ``f`` in Gruebler-Kutzbach):
 
-===========  ===  ==============================================================
-type         dof  motion(q)
-===========  ===  ==============================================================
-revolute     1    ``Rot(axis, q)`` (Rodrigues)
-prismatic    1    ``Trans(q * axis)``
-fixed        0    identity
-universal    2    ``Rot(axis, q0) Rot(axis2, q1)``
-spherical    3    ``exp([q]x)``: q is a rotation vector (one chart covering SO(3))
-===========  ===  ==============================================================
+| type | dof | motion(q) |
+|---|---|---|
+| revolute | 1 | ``Rot(axis, q)`` (Rodrigues) |
+| prismatic | 1 | ``Trans(q * axis)`` |
+| fixed | 0 | identity |
+| universal | 2 | ``Rot(axis, q0) Rot(axis2, q1)`` |
+| spherical | 3 | ``exp([q]x)``: q is a rotation vector (one chart covering SO(3)) |
+| free | 6 | ``Trans(q[0:3]) exp([q[3:6]]x)``: a floating base (parent-frame position, rotation vector) |
+
+A free joint's six coordinates are unbounded by default; they are those of a spherical joint
+placed after three prismatic joints along the parent's axes, in one joint (MJCF ``<freejoint>``).
 
 When a joint closes a loop (a *cut* joint) it has no coordinates; instead it contributes
 loop-closure equations (see `optik.mechanism.closure`).
@@ -44,10 +46,10 @@ from optik import spatial
 from optik.checks import as_float, as_name, read_only, real_array
 from optik.errors import InvalidArgumentError, LimitsError
 
-JOINT_DOF = {"revolute": 1, "prismatic": 1, "fixed": 0, "universal": 2, "spherical": 3}
+JOINT_DOF = {"revolute": 1, "prismatic": 1, "fixed": 0, "universal": 2, "spherical": 3, "free": 6}
 """Connectivity of each joint type."""
 
-_DEFAULT_LIMIT = {"revolute": np.pi, "prismatic": 1.0, "universal": np.pi, "spherical": np.pi}
+_DEFAULT_LIMIT = {"revolute": np.pi, "prismatic": 1.0, "universal": np.pi, "spherical": np.pi, "free": np.inf}
 
 
 def _unit(v: Any, name: str) -> np.ndarray:
@@ -117,13 +119,15 @@ class Joint:
 
     Args:
         name: unique joint name; coordinates are named after it.
-        type: ``"revolute"``, ``"prismatic"``, ``"fixed"``, ``"universal"`` or ``"spherical"``.
+        type: ``"revolute"``, ``"prismatic"``, ``"fixed"``, ``"universal"``, ``"spherical"`` or
+            ``"free"``.
         parent: parent body name.
         child: child body name.
         origin: 4x4 pose of the joint frame in the parent body frame.
         axis: joint axis in the joint frame (revolute, prismatic; first axis of a universal).
         axis2: second axis of a universal joint (in the frame after the first rotation).
-        lower: lower limit(s), one per coordinate (default -pi for angles, -1 m for slides).
+        lower: lower limit(s), one per coordinate (default -pi for angles and rotation vectors,
+            -1 m for slides, -inf for the six coordinates of a free joint).
         upper: upper limit(s), one per coordinate.
         actuated: whether the joint's coordinates are driven (inputs of FK).
         child_offset: 4x4 pose of the joint frame in the child body frame.
@@ -211,4 +215,6 @@ class Joint:
         if self.type == "universal":
             r, r2 = axis_rotation(self.axis, q[0]), axis_rotation(self.axis2, q[1])
             return spatial.transform(spatial.matmul(r, r2))
-        return spatial.transform(spatial.so3_exp(q))
+        if self.type == "spherical":
+            return spatial.transform(spatial.so3_exp(q))
+        return spatial.transform(spatial.so3_exp(q[3:6]), q[0:3])

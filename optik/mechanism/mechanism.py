@@ -21,9 +21,11 @@ import casadi as ca
 import numpy as np
 
 from optik import spatial
-from optik.checks import as_batch, as_limits, as_name, as_rng, as_vector, read_only, real_array
+from optik.checks import as_batch, as_bool, as_limits, as_name, as_rng, as_vector, read_only, real_array
 from optik.errors import InvalidArgumentError, ModelError, ReadOnlyError, UnknownFrameError
+from optik.mechanism.inertia import check_inertials, com_expr
 from optik.mechanism.joint import Joint
+from optik.mechanism.mjcf import parse_mjcf
 from optik.mechanism.srdf import read_disabled_collisions
 from optik.mechanism.topology import analyse, gruebler_kutzbach
 from optik.mechanism.urdf import parse_urdf
@@ -76,17 +78,23 @@ class Mechanism:
     Args:
         joints: the joints; tree joints get coordinates in this order.
         base: name of the fixed body.
-        frames: extra named frames ``{name: (body, 4x4 offset)}``; every body is a frame too.
+        frames: extra named frames ``{name: (body, 4x4 offset)}``; every body is a frame too,
+            under its own name, which no extra frame may take.
         ee: name of the end-effector frame (default: child body of the last joint).
         name: a label for printing.
         task: default task space for Jacobian measures: ``"pose"``, ``"position"``,
             ``"pose2d"``, ``"position2d"`` (default: ``"pose2d"`` for planar mechanisms,
             ``"pose"`` otherwise).
+        inertials: link masses ``{frame: (mass, com)}``: the mass (kg) and the centre of mass
+            (3-vector) in that frame (a body or a named frame), for `com` and `com_jacobian`
+            (see [`optik.mechanism.inertia`][optik.mechanism.inertia]).
 
     Raises:
         ModelError: inconsistent topology (see
             [`optik.mechanism.topology.analyse`][optik.mechanism.topology.analyse]).
         UnknownFrameError: ``ee`` or a frame's body does not exist.
+        InvalidArgumentError: a frame has a body's name, an offset is not 4x4, or an inertial
+            is malformed (a negative or non-finite mass, a centre that is not a 3-vector).
     """
 
     def __init__(
@@ -97,6 +105,7 @@ class Mechanism:
         ee: str | None = None,
         name: str = "mechanism",
         task: str | None = None,
+        inertials: Mapping[str, tuple[Any, Any]] | None = None,
     ) -> None:
         if not joints:
             raise ModelError("a mechanism needs at least one joint")
@@ -107,6 +116,12 @@ class Mechanism:
         self.planar = all(_joint_is_planar(j) for j in self.joints)
         self.frames: dict[str, tuple[str, np.ndarray]] = {b: (b, _EYE) for b in self.topology.bodies}
         for fname, (body, offset) in (frames or {}).items():
+            if fname in self.topology.bodies:
+                raise InvalidArgumentError(
+                    "frames",
+                    f"frame {fname!r} has the name of a body: it would hide the body's own frame; "
+                    "give it another name",
+                )
             if body not in self.frames:
                 raise UnknownFrameError("frames", f"frame {fname!r} is on unknown body {body!r}")
             off = read_only(real_array(offset, "frames"))
@@ -121,6 +136,8 @@ class Mechanism:
         if task is not None and task not in TASK_ROWS:
             raise InvalidArgumentError("task", f"unknown task {task!r}; use one of {sorted(TASK_ROWS)}")
         self.task = task or ("pose2d" if self.planar else "pose")
+        self.inertials: dict[str, tuple[float, np.ndarray]] = check_inertials(inertials, self.frames)
+        """Link masses ``{frame: (mass, com in that frame)}`` (empty when none were given)."""
         self._slices: dict[int, slice] = {}
         names: list[str] = []
         lower: list[float] = []
@@ -140,9 +157,12 @@ class Mechanism:
         self._mimic_sources = self._mimic_coordinates()
         self.params: dict[str, Any] = {}
         """Catalog parameters (link lengths, base points, ...) the mechanism was built from."""
+        self._geometry_of: Mechanism | None = None  # set by with_limits
         self.kind: str | None = None
         """Catalog key (e.g. ``"planar_3r"``) under which [`optik.closed_form`][optik.closed_form] finds this
         mechanism's analytic solvers; None for mechanisms built by hand."""
+        self._memo: dict[object, Any] = {}
+        """Entries of the caches keyed on this mechanism (`optik.mechanism.memo.PerMechanism`)."""
         self._fk_funs: dict[str, ca.Function] = {}
         self._jac_funs: dict[str, ca.Function] = {}
 
@@ -174,6 +194,7 @@ class Mechanism:
         base_link: str | None = None,
         tip_link: str | None = None,
         srdf: str | os.PathLike[str] | None = None,
+        floating_base: bool = False,
     ) -> Mechanism:
         """A URDF robot: the whole tree, the tree below ``base_link``, or one chain.
 
@@ -186,13 +207,33 @@ class Mechanism:
         what is supported and what is raised. ``srdf`` (a file or the XML text) gives the link
         pairs `optik.collision` never checks, its ``disable_collisions``, kept in
         ``params["disabled_collisions"]`` (`optik.mechanism.srdf.read_disabled_collisions`);
-        without it `optik.collision` samples them.
+        without it `optik.collision` samples them. With ``floating_base=True`` the base link
+        hangs from a new fixed body ``"world"`` by a free joint ``"root_joint"`` whose six
+        coordinates (position, rotation vector) come first. Link masses (``<inertial>``) give
+        `com`.
         """
-        model = parse_urdf(source, base_link, tip_link)
-        m = cls(model.joints, model.base, model.frames, model.ee, model.name, task="pose")
+        model = parse_urdf(source, base_link, tip_link, as_bool(floating_base, "floating_base"))
+        m = cls(model.joints, model.base, model.frames, model.ee, model.name, "pose", model.inertials)
         m.params = dict(model.params)
         if srdf is not None:
             m.params["disabled_collisions"] = read_disabled_collisions(srdf)
+        return m
+
+    @classmethod
+    def from_mjcf(cls, source: Any) -> Mechanism:
+        """A MuJoCo model's whole body tree, compiled by MuJoCo (``pip install "optik[mjcf]"``).
+
+        ``source`` is an MJCF file path, the XML text or a ``mujoco.MjModel``. The base is the
+        world body ``"world"``; every body and site is a named frame; hinge, slide, ball and
+        free joints become revolute, prismatic, spherical and free joints whose coordinates
+        are MuJoCo's ``qpos`` (rotation vectors instead of quaternions:
+        `optik.mechanism.mjcf.to_qpos` and `optik.mechanism.mjcf.from_qpos` convert). The task
+        is ``"pose"``; ``params`` holds what `optik.mechanism.mjcf.parse_mjcf` read (source,
+        site frames, visuals, notes). See that module for what is supported and what is raised.
+        """
+        model = parse_mjcf(source)
+        m = cls(model.joints, model.base, model.frames, model.ee, model.name, "pose", model.inertials)
+        m.params = dict(model.params)
         return m
 
     # ------------------------------------------------------------------ limits
@@ -255,8 +296,16 @@ class Mechanism:
 
     @cached_property
     def spherical_slices(self) -> tuple[slice, ...]:
-        """Coordinate slices of the spherical joints of the tree (rotation vectors)."""
-        return tuple(self._slices[i] for i in self.topology.tree if self.joints[i].type == "spherical")
+        """Coordinate slices of the rotation vectors of the tree: each spherical joint's three
+        coordinates and the last three of each free joint."""
+        out = []
+        for i in self.topology.tree:
+            sl, kind = self._slices[i], self.joints[i].type
+            if kind == "spherical":
+                out.append(sl)
+            elif kind == "free":
+                out.append(slice(sl.start + 3, sl.stop))
+        return tuple(out)
 
     def mobility(self) -> int:
         """Degrees of freedom by Gruebler-Kutzbach from the topology (not from the geometry)."""
@@ -371,6 +420,16 @@ class Mechanism:
             return f
 
     @cached_property
+    def com_function(self) -> ca.Function:
+        """Compiled ``q -> (com(q), J_com(q))`` (3 x 1 and 3 x n).
+
+        Raises:
+            ModelError: the mechanism has no mass.
+        """
+        c = com_expr(self.inertials, self.frames, self.body_transforms, self.name)
+        return ca.Function("com", [self.q_sym], [c, ca.jacobian(c, self.q_sym)])
+
+    @cached_property
     def closure_function(self) -> ca.Function:
         """Compiled ``q -> (c(q), dc/dq)``."""
         c = self.closure_expr
@@ -402,6 +461,33 @@ class Mechanism:
     def jacobian(self, q: Any, frame: str | None = None) -> np.ndarray:
         """Geometric Jacobian ``[v; w] = J(q) qdot`` (6 x n, base frame, at the frame origin)."""
         return np.asarray(self.jacobian_function(frame)(self.check_q(q)))
+
+    @property
+    def mass(self) -> float:
+        """Total mass of the `inertials` (kg; 0 when none were given)."""
+        return float(sum(m for m, _ in self.inertials.values()))
+
+    def com(self, q: Any) -> np.ndarray:
+        """Centre of mass in the base frame, ``sum_i m_i p_i(q) / M`` (``(3,)``, or ``(N, 3)``
+        for ``q`` of shape ``(N, n_q)``).
+
+        Raises:
+            ModelError: the mechanism has no mass (no `inertials`).
+        """
+        qb, single = as_batch(q, "q", self.n_q)
+        f = self.com_function
+        if not len(qb):
+            return np.zeros((0, 3))
+        out = np.asarray(f(qb.T)[0]).T if len(qb) > 1 else np.asarray(f(qb[0])[0]).reshape(1, 3)
+        return out[0] if single else out
+
+    def com_jacobian(self, q: Any) -> np.ndarray:
+        """``d com / d q`` (3 x n_q, base frame): the CoM velocity is ``J_com(q) qdot``.
+
+        Raises:
+            ModelError: the mechanism has no mass (no `inertials`).
+        """
+        return np.asarray(self.com_function(self.check_q(q))[1])
 
     def closure(self, q: Any) -> np.ndarray:
         """Loop-closure residual vector (empty for open chains)."""
@@ -464,13 +550,17 @@ class Mechanism:
 
         An unbounded side is replaced so that the interval spans ``2 pi`` for angles and
         rotation vectors (one turn: ``[-pi, pi]`` when both sides are unbounded, ``[lo, lo + 2 pi]``
-        or ``[hi - 2 pi, hi]`` when one is) and ``2`` m for prismatic coordinates. The limits
-        themselves stay infinite: solvers never clip an unbounded coordinate.
+        or ``[hi - 2 pi, hi]`` when one is) and ``2`` m for prismatic coordinates and the positions
+        of free joints. The limits themselves stay infinite: solvers never clip an unbounded
+        coordinate.
         """
         span = np.full(self.n_q, 2.0 * np.pi)
         for i in self.topology.tree:
+            sl = self._slices[i]
             if self.joints[i].type == "prismatic":
-                span[self._slices[i]] = 2.0
+                span[sl] = 2.0
+            elif self.joints[i].type == "free":
+                span[sl.start : sl.start + 3] = 2.0
         lo, hi = self.lower.copy(), self.upper.copy()
         both = ~np.isfinite(lo) & ~np.isfinite(hi)
         lo[both], hi[both] = -0.5 * span[both], 0.5 * span[both]
@@ -551,18 +641,31 @@ class Mechanism:
         joints = list(self.joints)
         for i, sl in self._slices.items():
             joints[i] = replace(joints[i], lower=tuple(lo[sl]), upper=tuple(hi[sl]))
-        return self._rebuild(joints)
+        copy = self._rebuild(joints)
+        copy._geometry_of = self.geometry
+        return copy
+
+    @property
+    def geometry(self) -> Mechanism:
+        """The mechanism this one was made from by `with_limits` (through any number of such
+        copies), else itself: the same model but for the limits. Code compiled with the limits as
+        inputs (the LM kernel of `optik.solvers.lm_kernel`) is shared through it, so that
+        pinning a joint at many values (`optik.solve_ik_all` with ``fixed=``) compiles once."""
+        return self._geometry_of or self
 
     def _rebuild(self, joints: Sequence[Joint]) -> Mechanism:
         extra = {k: v for k, v in self.frames.items() if k not in self.topology.bodies}
-        return _restore(joints, self.base, extra, self.ee, self.name, self.task, self.kind, self.params)
+        return _restore(
+            joints, self.base, extra, self.ee, self.name, self.task, self.kind, self.params, self.inertials
+        )
 
     def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
         """Pickle the definition (joints, frames, names, catalog data) only: the symbolic model
         and the compiled functions are rebuilt on first use after unpickling (CasADi symbols do
         not pickle; e.g. Dask ships a mechanism to its workers this way)."""
         extra = {k: v for k, v in self.frames.items() if k not in self.topology.bodies}
-        definition = (self.joints, self.base, extra, self.ee, self.name, self.task, self.kind, self.params)
+        names = (self.ee, self.name, self.task, self.kind)
+        definition = (self.joints, self.base, extra, *names, self.params, self.inertials)
         return _restore, definition
 
 
@@ -575,9 +678,10 @@ def _restore(
     task: str,
     kind: str | None,
     params: dict[str, Any],
+    inertials: Mapping[str, tuple[float, Any]] | None = None,
 ) -> Mechanism:
     """A mechanism from its definition, with its catalog kind and parameters."""
-    m = Mechanism(joints, base, frames, ee, name, task)
+    m = Mechanism(joints, base, frames, ee, name, task, inertials)
     m.kind = kind
     m.params = dict(params)
     return m

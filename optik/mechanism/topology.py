@@ -2,7 +2,8 @@
 
 Bodies are nodes, joints are edges. A spanning tree rooted at the base body is chosen with
 Kruskal's rule over the joints in the order given, taking first the joints that cannot be cut
-(prismatic and fixed joints) and never taking joints marked ``cut=True``; every joint left over
+(prismatic, fixed and free joints: a cut free joint would close nothing) and never taking
+joints marked ``cut=True``; every joint left over
 closes a loop and becomes a *cut joint* (cut-joint method). The number of independent loops is
 ``g - n`` for ``g`` joints and ``n`` moving bodies.
 """
@@ -15,7 +16,7 @@ from dataclasses import dataclass
 from optik.errors import ModelError
 from optik.mechanism.joint import Joint
 
-UNCUTTABLE = ("prismatic", "fixed")
+UNCUTTABLE = ("prismatic", "fixed", "free")
 
 
 @dataclass(frozen=True)
@@ -60,7 +61,7 @@ def analyse(joints: Sequence[Joint], base: str) -> Topology:
 
     Raises:
         ModelError: duplicate joint names, a joint from a body to itself, bodies not connected
-            to the base, or a loop that could only be closed by cutting a prismatic/fixed joint.
+            to the base, or a loop that could only be closed by cutting a prismatic, fixed or free joint.
     """
     names = [j.name for j in joints]
     dup = {n for n in names if names.count(n) > 1}

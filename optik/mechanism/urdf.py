@@ -42,6 +42,8 @@ joint with a coordinate has a positive one, are kept in ``params["velocity_limit
 ``<visual>`` elements of the loaded links (meshes with ``package://`` or relative names, boxes,
 cylinders, spheres) are kept in ``params["visuals"]`` for drawing, their ``<collision>``
 elements in ``params["collisions"]`` for `optik.collision` (`optik.mechanism.urdf_visuals`).
+Each loaded link's ``<inertial>`` gives its mass (``<mass value>``) and centre of mass
+(``<origin xyz>``, in the link frame) for the centre of mass of the robot (`Mechanism.com`).
 """
 
 from __future__ import annotations
@@ -77,6 +79,8 @@ class UrdfModel:
         frames: links reached through fixed joints, ``{link: (body, 4x4 offset)}``.
         ee: the end-effector link: ``tip_link``, or for a tree the deepest leaf (most moving
             joints from the base; the first in depth-first order on a tie).
+        inertials: ``{link: (mass, centre of mass in the link frame)}`` of the loaded links that
+            have an ``<inertial>`` with a ``<mass>``.
         params: ``"urdf"`` (source label), ``"base_link"``, ``"tip_link"`` (None for a tree),
             ``"visuals"`` and ``"collisions"`` (tuples of `Visual`), ``"held_joints"``
             (``{joint: value}`` of the moving joints off a chain, see the module docstring; only
@@ -91,6 +95,23 @@ class UrdfModel:
     frames: dict[str, tuple[str, np.ndarray]]
     ee: str
     params: dict[str, object] = field(default_factory=dict)
+    inertials: dict[str, tuple[float, np.ndarray]] = field(default_factory=dict)
+
+
+def _inertials(src: UrdfXml, links: list[etree._Element]) -> dict[str, tuple[float, np.ndarray]]:
+    """``{link: (mass, com)}`` from the links' ``<inertial>`` (``<mass value>``, ``<origin xyz>``)."""
+    out: dict[str, tuple[float, np.ndarray]] = {}
+    for link in links:
+        el = link.find("inertial")
+        mass = None if el is None else el.find("mass")
+        if mass is None:
+            continue
+        where = f"link {link.get('name')!r} <inertial>"
+        value = float(_floats(src, f"{where} <mass value>", mass.get("value"), 1, (0.0,))[0])
+        if value < 0:
+            raise ModelError(f"{src.label}: {where}: negative mass {value}")
+        out[link.get("name")] = (value, _origin(src, el, where)[:3, 3])
+    return out
 
 
 def _floats(src: UrdfXml, where: str, text: str | None, n: int, default: tuple[float, ...]) -> np.ndarray:
@@ -283,6 +304,26 @@ def _resolve_mimics(src: UrdfXml, mimics: dict[str, Mimic | None]) -> dict[str, 
     return out
 
 
+FLOATING_WORLD, FLOATING_JOINT = "world", "root_joint"
+"""The fixed body and the free joint that ``floating_base=True`` adds (Pinocchio's names)."""
+
+
+def _float_base(
+    src: UrdfXml, tree: _Tree, base: str, specs: list[dict[str, object]], velocities: list[float | None]
+) -> None:
+    """Prepend the free joint ``world -> base`` (six coordinates, unbounded speeds)."""
+    if FLOATING_WORLD in tree.links:
+        raise ModelError(
+            f"{src.label}: floating_base=True adds a body {FLOATING_WORLD!r}, but the robot has a link of "
+            "that name; load the part below it with base_link=..."
+        )
+    if FLOATING_JOINT in {el.get("name") for el, _ in tree.parent_joint.values()}:
+        what = f"floating_base=True adds a joint {FLOATING_JOINT!r}, which the robot has"
+        raise ModelError(f"{src.label}: {what}")
+    specs.insert(0, {"name": FLOATING_JOINT, "type": "free", "parent": FLOATING_WORLD, "child": base})
+    velocities[:0] = [np.inf] * 6
+
+
 def _deepest_leaf(selected: list[tuple[etree._Element, str]], base: str) -> str:
     depth = {base: 0}
     parents = set()
@@ -336,7 +377,10 @@ def _off_path(
 
 
 def parse_urdf(
-    source: str | os.PathLike[str], base_link: str | None = None, tip_link: str | None = None
+    source: str | os.PathLike[str],
+    base_link: str | None = None,
+    tip_link: str | None = None,
+    floating_base: bool = False,
 ) -> UrdfModel:
     """A URDF robot's whole tree, the subtree below ``base_link``, or the chain to ``tip_link``.
 
@@ -350,6 +394,9 @@ def parse_urdf(
         source: path of a URDF file, or the URDF XML text itself (any string containing ``<``).
         base_link: the fixed link, the mechanism's base body (default: the root link).
         tip_link: the end-effector link (default: load the whole tree below ``base_link``).
+        floating_base: add a free joint ``"root_joint"`` (six coordinates: the base link's
+            position and rotation vector in a new fixed body ``"world"``, the first coordinates
+            of the model) above ``base_link``, as Pinocchio's ``JointModelFreeFlyer``.
 
     Returns:
         The model named after the ``<robot name>`` (see `UrdfModel`).
@@ -416,6 +463,8 @@ def parse_urdf(
             }
         )
         place[child] = (child, np.eye(4))
+    if floating_base:
+        _float_base(src, tree, base, specs, velocities)
     if not specs:
         where = f"between {base!r} and {tip!r}" if tip is not None else f"below {base!r}"
         raise ModelError(f"{src.label}: no moving joint {where}")
@@ -448,4 +497,6 @@ def parse_urdf(
         params["notes"] = tuple(notes)
     if velocities and all(v is not None for v in velocities):
         params["velocity_limits"] = np.array(velocities, dtype=float)
-    return UrdfModel(src.root.get("name") or "urdf", base, joints, frames, ee, params)
+    inertials = _inertials(src, links)
+    name = src.root.get("name") or "urdf"
+    return UrdfModel(name, FLOATING_WORLD if floating_base else base, joints, frames, ee, params, inertials)

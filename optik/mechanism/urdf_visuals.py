@@ -38,11 +38,13 @@ class Visual:
     Attributes:
         link: the link (a frame of the mechanism).
         origin: 4x4 pose of the geometry in the link frame.
-        geometry: ``"mesh"``, ``"box"``, ``"cylinder"`` or ``"sphere"``.
+        geometry: ``"mesh"``, ``"box"``, ``"cylinder"`` or ``"sphere"``; ``"capsule"`` too for
+            MJCF geoms (`optik.mechanism.mjcf`).
         filename: the mesh file name as written in the URDF (None for other geometries).
         path: the mesh file found on disk (None if not found or not a mesh).
-        scale: mesh scale factors along x, y, z.
-        size: box edge lengths ``(x, y, z)``, ``(radius, length)`` of a cylinder (along z),
+        scale: scale factors along x, y, z (of a mesh; of a unit sphere for an MJCF ellipsoid).
+        size: box edge lengths ``(x, y, z)``, ``(radius, length)`` of a cylinder or of a
+            capsule's cylindrical part (along z),
             ``(radius,)`` of a sphere, ``()`` for a mesh.
     """
 

@@ -32,9 +32,10 @@ from typing import Any
 
 import numpy as np
 
-from optik.checks import as_name, as_vector
-from optik.closed_form import registry
-from optik.closed_form.derived import derive_locked
+from optik.checks import as_bool, as_name, as_vector
+from optik.closed_form import registry, search_1d
+from optik.closed_form.derived import derive_locked, locked_axes
+from optik.closed_form.general_6r import General6R, solve_general_6r
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.results import IKResult, IKSolutions
@@ -81,7 +82,9 @@ def solve_ik_all(
             distance to it.
         method: ``"closed_form"`` (all analytic branches only), a numerical method for the
             multi-start (``"lm"``, ``"nlp"``, ...), or None: the closed form when the mechanism
-            has one for the task, else ``"lm"`` where it applies, else ``"nlp"``.
+            has one for the task, else ``"lm"`` where it applies, else ``"nlp"``; when the
+            closed form is not certified complete and finds no solution within the limits, the
+            numerical search answers within the time left (its ``uncertified_reason`` says so).
         task: task space (default from the target and the mechanism).
         frame: task frame (default: the end effector).
         time_limit: wall-time budget of the whole search (s).
@@ -91,9 +94,11 @@ def solve_ik_all(
         max_solutions: stop after this many solutions.
         closed_form: with ``method=None``, False skips the closed form (numerical search only).
         fixed: coordinates locked at given values, ``{name: value}`` (e.g. one joint of a 7-DOF
-            arm): the solutions of the remaining joints, by the closed form derived for the chain
-            they leave when its structure allows (Panda, iiwa with one joint locked), else by the
-            numerical search with those coordinates' limits pinned to the values. Sample the
+            arm): the solutions of the remaining joints, by what a standalone arm of the 6R chain
+            they leave would get: its derived closed form when its structure allows (Panda, iiwa
+            with one joint locked), else the general 6R solver where it covers the geometry, else
+            the 1-D search (both with their certificate or its absence); else by the numerical
+            search with those coordinates' limits pinned to the values. Sample the
             self-motion of a redundant arm by sweeping the value (`self_motion`).
         **options: options of the numerical method (the closed form takes none).
 
@@ -138,8 +143,7 @@ def solve_ik_all(
     max_solutions = positive_int(max_solutions, "max_solutions")
     if method is not None:
         as_name(method, "method")
-    if not isinstance(closed_form, bool):
-        raise InvalidArgumentError("closed_form", f"expected True or False, got {closed_form!r}")
+    closed_form = as_bool(closed_form, "closed_form")
     if fixed is not None:
         return _locked_all(request, _locks(m, fixed), method, patience, max_solutions)
     applies = closed_form_applies(m, request.task) and frame in (None, m.ee)
@@ -151,7 +155,14 @@ def solve_ik_all(
             )
         return _closed_form_all(request)
     if method is None and closed_form and applies:
-        return _closed_form_all(request)
+        found = _closed_form_all(request)
+        if len(found) or found.certified:
+            return found
+        # an uncertified closed form with nothing within the limits: the numerical search decides
+        name = pick_method(m, request.task, NUMERIC_ORDER)
+        numeric = _numeric_all(request, name, patience, max_solutions, request.q0)
+        numeric.uncertified_reason += f"; the closed form found none ({found.uncertified_reason})"
+        return numeric
     name = method or pick_method(m, request.task, NUMERIC_ORDER)
     return _numeric_all(request, name, patience, max_solutions, request.q0)
 
@@ -178,8 +189,9 @@ def _from_rows(request: IKRequest, rows: list[list[float]]) -> IKSolutions:
     of the generic [`make_result`][optik.solvers.base.make_result], which only the rare branch
     that needs polishing goes through."""
     m = request.mechanism
-    inside = registry.within_limits(m, rows)
-    outside = [np.array(r) for r in rows if r not in inside] if len(inside) < len(rows) else []
+    clipped = [registry.clip_to_limits(m, r) for r in rows]
+    inside = [c for c in clipped if c is not None]
+    outside = [np.array(r) for r, c in zip(rows, clipped, strict=True) if c is None]
     checked = {}
     if isinstance(rows, registry.CheckedRows) and request.task == m.task == "pose" and not m.is_closed:
         checked = {id(row): err for row, err in zip(rows, rows.errors, strict=True)}
@@ -237,15 +249,14 @@ def _locked_all(
     """Solutions with the coordinates ``locks`` fixed: the derived closed form of the remaining
     6R chain, else the numerical search with those limits pinned."""
     m = request.mechanism
-    solver = None
+    found = None
     if method in (None, "closed_form") and request.task == "pose" and request.frame in (None, m.ee):
-        solver = derive_locked(m, locks)
-    if solver is not None:
+        found = _locked_closed_form(m, locks, request.target)
+    if found is not None:
         _no_options(request)
-        q, ok = solver.solve(request.target)
         free = [k for k in range(m.n_q) if k not in locks]
         rows = []
-        for sol in q[0][ok[0]].tolist():
+        for sol in found:
             row = [0.0] * m.n_q
             for k, v in zip(free, sol, strict=True):
                 row[k] = v
@@ -254,12 +265,14 @@ def _locked_all(
         for row in rows:  # exactly the locked values (within limits: checked)
             for k, v in locks.items():
                 row[k] = v
+        if isinstance(found, registry.Uncertified):
+            rows = registry.Uncertified(rows, found.reason)
         return _from_rows(request, rows)
     if method == "closed_form":
         raise SolverUnavailableError(
             f"method 'closed_form' does not apply to {m.name!r} with "
             f"{sorted(m.coordinate_names[k] for k in locks)} locked: the remaining chain has no "
-            "derived closed form"
+            "closed form for this task and frame"
         )
     lower, upper = m.lower.copy(), m.upper.copy()
     for k, v in locks.items():
@@ -270,6 +283,31 @@ def _locked_all(
     sub = make_request(pinned, r.target, q0, r.task, r.frame, r.time_limit, r.tol, r.seed, r.options)
     name = method or pick_method(pinned, request.task, NUMERIC_ORDER)
     return _numeric_all(sub, name, patience, max_solutions, request.q0)
+
+
+def _locked_closed_form(
+    m: Mechanism, locks: dict[int, float], target: np.ndarray
+) -> list[list[float]] | None:
+    """The closed-form solutions of the free joints with ``locks`` fixed, by what a standalone
+    arm of the remaining 6R chain's geometry would get: its derived closed form, else the
+    general 6R solver where it covers the geometry (an `registry.Uncertified` list when the
+    count check fails), else the 1-D search (uncertified); None when none applies."""
+    solver = derive_locked(m, locks)
+    if solver is not None:
+        q, ok = solver.solve(target)
+        return q[0][ok[0]].tolist()
+    axes = locked_axes(m, locks)
+    if axes is None:
+        return None
+    arm = General6R.from_axes(axes)
+    if arm.covered:
+        sols = solve_general_6r(arm, target)
+        return sols.q.tolist() if sols.count_ok else registry.Uncertified(sols.q.tolist(), sols.reason)
+    family = search_1d.family_of(axes)
+    if family is None:
+        return None
+    got = search_1d.Search1D(axes, family).solve(target[None])[0]
+    return registry.Uncertified(got.q.tolist(), got.reason)
 
 
 def self_motion(m: Mechanism, target: Any, joint: str, values: Any, **options: Any) -> list[IKSolutions]:
@@ -335,7 +373,8 @@ def _numeric_all(
         found.append((res, same))
         misses = 0
     kept = sorted((r for r, _ in found), key=lambda r: joint_distance(m, r.q, near))
-    return IKSolutions(kept, method=name)
+    why = f"found by the numerical multi-start ({name}), which does not prove that no solution is missing"
+    return IKSolutions(kept, method=name, uncertified_reason=why)
 
 
 def _polished(request: IKRequest, res: IKResult, q: np.ndarray) -> IKResult:

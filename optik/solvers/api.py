@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
 
+from optik import native
+from optik.closed_form import registry
 from optik.collision import World
-from optik.errors import SolverUnavailableError
+from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.results import IKResult
-from optik.solvers.base import Tolerances, get_method, make_request, methods
+from optik.solvers.balance import merge_contacts, solve_balance
+from optik.solvers.base import IKRequest, Tolerances, get_method, make_request, methods
 from optik.solvers.collision_free import solve_collision_free
 
 DEFAULT_ORDER = ("closed_form", "lm", "nlp")
@@ -47,6 +51,9 @@ def solve_ik(
     time_limit: float | None = None,
     tol: float | Tolerances | None = None,
     seed: int | np.random.Generator | None = None,
+    contacts: Any = None,
+    support: Any = None,
+    com_margin: float = 0.0,
     world: World | None = None,
     self_collision: bool | None = None,
     margin: float = 0.0,
@@ -63,13 +70,20 @@ def solve_ik(
             ``orientation_error`` are their maxima; success needs every frame within tolerance.
         q0: start configuration (default: mid-limit).
         method: ``"closed_form"``, ``"lm"``, ``"nlp"``, ``"dls"``, ``"qp"``; None picks the best
-            available (closed form where the catalog has one, else ``"lm"``).
+            available (closed form where the catalog has one, else ``"lm"``; where the closed
+            form is costly, ``"lm"`` first and the closed form only when it fails).
         task: task space (default from the target type and the mechanism); with a target dict,
             one space for every frame or a ``{frame: task}`` dict.
         frame: task frame (default: the end effector); None with a target dict.
         time_limit: wall-time budget in seconds (default 0.1).
         tol: tolerances (float: position and orientation) or [`Tolerances`][optik.Tolerances].
         seed: seed or Generator for restarts.
+        contacts: ``{frame: 4x4 or Position}``: frames held in the world (flat contacts or point
+            feet), extra targets that success needs too (`optik.solvers.balance`).
+        support: the world x-y support polygon, counter-clockwise ``(k, 2)``: the centre of
+            mass's ground projection must stay inside it by ``com_margin`` (method ``"nlp"``,
+            the default then; the mechanism needs masses).
+        com_margin: the balance margin (m, ``>= 0``; only with ``support``).
         world: obstacles ([`optik.World`][optik.World]) the answer must clear; with it or with
             ``self_collision=True`` the solve is collision-aware (``lm`` or ``nlp``, default ``lm``:
             see `optik.solvers.collision_free`), success needs the exact check at ``margin`` to pass
@@ -81,12 +95,26 @@ def solve_ik(
 
     Returns:
         An [`IKResult`][optik.IKResult]; unreachable targets give ``success=False`` with the closest
-        configuration found and a message.
+        configuration found and a message. With ``method=None``, a closed form that finds no
+        branch within the limits and does not certify completeness (the 1-D search of arms
+        special at both ends) does not decide: the numerical method answers, within the time
+        left, and its message and ``extra["closed_form"]`` say what the closed form found.
 
     Raises:
         OptikError: malformed input (named argument), unknown or inapplicable method.
     """
+    if contacts is not None:
+        target, frame = merge_contacts(m, target, frame, contacts), None
+    if support is None and com_margin != 0.0:
+        raise InvalidArgumentError("com_margin", "a balance margin needs a support polygon (support=...)")
     request = make_request(m, target, q0, task, frame, time_limit, tol, seed, options)
+    if support is not None:
+        if method not in (None, "nlp"):
+            raise SolverUnavailableError(
+                f"method {method!r} does not take support=: the balance constraints are NLP inequalities "
+                "(method 'nlp'); contacts alone work with every method that takes several targets"
+            )
+        return solve_balance(request, support, com_margin)
     if world is not None or self_collision:
         own = True if self_collision is None else bool(self_collision)
         return solve_collision_free(request, method or "lm", world, own, margin)
@@ -108,4 +136,59 @@ def solve_ik(
             f"method {name!r} does not apply to {m.name!r} with task {request.task!r}"
             + ("" if own_frame else f" and frame {request.frame!r}")
         )
-    return info.solve(request)
+    with native.deadline(request.start + request.time_limit):  # no wait for a C build past it
+        if method is None and name == "closed_form" and registry.costly(m):
+            return _numerical_first(request)
+        res = info.solve(request)
+        if method is None and name == "closed_form" and "uncertified" in res.extra:
+            return _numerical_fallback(request, res)
+        return res
+
+
+NUMERICAL_SHARE = 0.5
+"""Share of the time limit that ``method=None`` gives the numerical method first where the
+closed form is costly (`_numerical_first`)."""
+
+
+def _numerical_first(request: IKRequest) -> IKResult:
+    """The default method where the closed form costs far more than a numerical solve (the
+    general 6R solver: an eigenproblem and 16 polished paths, tens of ms, against a fraction of
+    a ms for ``lm``): the next method of `DEFAULT_ORDER` with `NUMERICAL_SHARE` of the time
+    limit; the closed form only when that fails. Its answer is taken when it finds a branch within
+    the limits, or when it is certified complete (it then says why there is none: out of reach,
+    or only outside the limits); otherwise the numerical answer stands, with the closed form's
+    finding in its message and ``extra["closed_form"]``."""
+    m = request.mechanism
+    name = pick_method(m, request.task, tuple(n for n in DEFAULT_ORDER if n != "closed_form"))
+    first = dataclasses.replace(request, time_limit=NUMERICAL_SHARE * request.time_limit)  # same start
+    res = get_method(name).solve(first)
+    if res.success:
+        return res
+    closed = get_method("closed_form").solve(request)
+    if closed.success or "uncertified" not in closed.extra:
+        note = f"{name} found no solution within {first.time_limit:g} s first"
+        closed.message = f"{closed.message}; {note}" if closed.message else note
+        closed.extra[name] = {"status": res.status, "message": res.message}
+        return closed
+    return _noted(res, closed)
+
+
+def _numerical_fallback(request: IKRequest, closed: IKResult) -> IKResult:
+    """The default method's answer when the closed form found nothing within the limits and
+    does not certify completeness (the 1-D search, a general 6R solve whose count check
+    failed): the next method of `DEFAULT_ORDER` that applies, within what is left of the time
+    limit, with the closed form's finding in its message and ``extra["closed_form"]``."""
+    m = request.mechanism
+    name = pick_method(m, request.task, tuple(n for n in DEFAULT_ORDER if n != "closed_form"))
+    rest = dataclasses.replace(request, time_limit=max(request.remaining(), 1e-6))  # same start
+    return _noted(get_method(name).solve(rest), closed)
+
+
+def _noted(res: IKResult, closed: IKResult) -> IKResult:
+    """A numerical answer ``res`` with the finding of the uncertified closed form ``closed`` in
+    its message and ``extra["closed_form"]``."""
+    reason = closed.extra["uncertified"]
+    note = f"the closed form (not certified complete: {reason}) found no branch within the limits"
+    res.message = f"{res.message}; {note}" if res.message else note
+    res.extra["closed_form"] = {"status": closed.status, "message": closed.message}
+    return res

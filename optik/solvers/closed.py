@@ -27,6 +27,7 @@ from optik.closed_form import registry
 from optik.closed_form.derived import DerivedRows
 from optik.errors import SolverUnavailableError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.results import IKResult
 from optik.solvers.base import (
     IKRequest,
@@ -101,7 +102,7 @@ class _Evaluator:
         self.lock = threading.Lock()
 
 
-_EVALUATORS: weakref.WeakKeyDictionary[Mechanism, dict[str | None, _Evaluator]] = weakref.WeakKeyDictionary()
+_EVALUATORS: PerMechanism[dict[str | None, _Evaluator]] = PerMechanism()
 
 
 def _evaluator(m: Mechanism, frame: str | None) -> _Evaluator:
@@ -198,6 +199,19 @@ def solve_closed_form(request: IKRequest) -> IKResult:
     inside = registry.within_limits(m, every)
     if inside:
         return make_result(request, _nearest_row(m, inside, request.q0), "closed_form", 0, errors=errors)
+    if isinstance(every, registry.Uncertified):  # no word on reachability from an incomplete search
+        res = make_result(
+            request,
+            _nearest_row(m, every, request.q0) if every else request.q0,
+            "closed_form",
+            0,
+            status="not_found",
+            message=f"the closed form found {len(every)} branch(es), none within the joint limits, and is "
+            f"not certified complete ({every.reason}): the target may still be reachable",
+            errors=errors,
+        )
+        res.extra["uncertified"] = every.reason or "no reason given"
+        return res
     if every:
         return make_result(
             request,

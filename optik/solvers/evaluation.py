@@ -11,12 +11,12 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
-from functools import lru_cache
 
 import casadi as ca
 import numpy as np
 
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.problem import IKProblem, build_ik_problem, target_parameters
 from optik.solvers.native import NativeFunction, native_functions
 
@@ -31,12 +31,21 @@ def error_function(problem: IKProblem) -> ca.Function:
     return ca.Function("optik_ik_errors", [problem.q, problem.target], outs)
 
 
-@lru_cache(maxsize=64)
+_ERRORS: PerMechanism[dict[tuple, tuple[NativeFunction, threading.Lock]]] = PerMechanism()
+
+
 def _native_errors(
     m: Mechanism, task: str, frame: str | None, compile: bool | str
 ) -> tuple[NativeFunction, threading.Lock]:
-    """The shared error function and the lock that serializes its buffers."""
-    return native_functions([error_function(build_ik_problem(m, task, frame))], compile)[0], threading.Lock()
+    """The shared error function and the lock that serializes its buffers (built once per
+    mechanism, task, frame and ``compile``; they live as long as the mechanism)."""
+    per = _ERRORS.setdefault(m, {})
+    key = (task, frame, compile)
+    found = per.get(key)
+    if found is None:
+        fn = native_functions([error_function(build_ik_problem(m, task, frame))], compile)[0]
+        found = per.setdefault(key, (fn, threading.Lock()))
+    return found
 
 
 def errors_against(

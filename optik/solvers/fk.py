@@ -36,7 +36,6 @@ assembly, where two modes merge.
 from __future__ import annotations
 
 import time
-import weakref
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -44,9 +43,10 @@ import casadi as ca
 import numpy as np
 
 from optik import closed_form, spatial
-from optik.checks import as_rng, as_vector
+from optik.checks import as_bool, as_rng, as_vector
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.results import FKModes, FKResult
 from optik.solvers.base import BRANCH_TOL, Tolerances, joint_distance, positive_int
 
@@ -85,7 +85,7 @@ class _Compiled:
         return np.asarray(c).T, np.asarray(jac).reshape(rows, n, cols).transpose(1, 0, 2)
 
 
-_CACHE: weakref.WeakKeyDictionary[Mechanism, _Compiled] = weakref.WeakKeyDictionary()
+_CACHE: PerMechanism[_Compiled] = PerMechanism()
 
 
 def _compiled(m: Mechanism) -> _Compiled:
@@ -427,8 +427,7 @@ def solve_fk_all(
     singular_condition = _positive(singular_condition, "singular_condition")
     if method not in (None, "closed_form", "numeric"):
         raise InvalidArgumentError("method", f"unknown FK method {method!r}; use 'closed_form' or 'numeric'")
-    if not isinstance(within_limits, (bool, np.bool_)):
-        raise InvalidArgumentError("within_limits", f"must be True or False, got {within_limits!r}")
+    within_limits = as_bool(within_limits, "within_limits")
     cm = _compiled(m)
     use_closed = method == "closed_form" or (method is None and closed_form.has_fk(m))
     found: list[np.ndarray] = []

@@ -45,6 +45,7 @@ import numpy as np
 
 from optik.checks import as_vector
 from optik.errors import InvalidArgumentError
+from optik.mechanism.memo import PerMechanism
 from optik.problem import target_parameters
 from optik.results import IKResult
 from optik.solvers.base import IKRequest, make_result, method_options, positive_int, register_method
@@ -109,8 +110,9 @@ def request_seed(seed: int | np.random.Generator | None) -> int:
     return 0 if seed is None else int(seed)
 
 
-_PREPARED: dict[tuple[Any, ...], tuple[LMKernel, np.ndarray]] = {}
+_PREPARED: PerMechanism[dict[tuple[Any, ...], tuple[LMKernel, np.ndarray]]] = PerMechanism()
 _PREPARED_MAX = 256
+"""Prepared requests kept per mechanism (all are dropped past it: option values drawn anew per call)."""
 
 
 def _prepare(request: IKRequest) -> tuple[LMKernel, np.ndarray]:
@@ -118,13 +120,13 @@ def _prepare(request: IKRequest) -> tuple[LMKernel, np.ndarray]:
     tolerances and option values when those are hashable (validation costs more than a solve)."""
     try:
         key: tuple[Any, ...] | None = (
-            request.mechanism,
             request.task,
             request.frame,
             request.tol,
             tuple(sorted(request.options.items())),
         )
-        hit = _PREPARED.get(key)  # type: ignore[arg-type]
+        prepared = _PREPARED.setdefault(request.mechanism, {})
+        hit = prepared.get(key)  # type: ignore[arg-type]
     except TypeError:  # an unhashable option value (an array q_ref): validate every time
         key, hit = None, None
     if hit is None:
@@ -134,9 +136,9 @@ def _prepare(request: IKRequest) -> tuple[LMKernel, np.ndarray]:
         request.exclude_setup(setup)
         hit = (k, settings.conf(request.mechanism))
         if key is not None:
-            if len(_PREPARED) >= _PREPARED_MAX:
-                _PREPARED.clear()
-            _PREPARED[key] = hit
+            if len(prepared) >= _PREPARED_MAX:
+                prepared.clear()
+            prepared[key] = hit
     return hit
 
 
@@ -145,19 +147,19 @@ def solve_lm(request: IKRequest) -> IKResult:
     k, base = _prepare(request)
     conf = base.copy()
     conf[3] = max(request.remaining(), 0.0)
-    seed = np.array([request_seed(request.seed) & (2**64 - 1)], dtype=np.uint64)
     params = target_parameters(request.target)
-    out = k.run(params[None], request.q0[None], seed, conf)
-    status = None if out.status[0] == 0 else STATUS[int(out.status[0])]
-    return make_result(
-        request,
-        out.q[0],
-        "lm",
-        int(out.iterations[0]),
-        int(out.restarts[0]),
-        status,
-        errors=lambda q: k.final_errors(q, params),  # the kernel's own check, as the batch's
+    q, err, iterations, restarts, code = k.run_one(
+        params, request.q0, request_seed(request.seed) & (2**64 - 1), conf
     )
+    answer = q.tolist()
+
+    def errors(qq: np.ndarray) -> tuple[float, float, float]:
+        """The kernel's own check, as the batch's: the errors it computed for its answer when
+        wrapping and clipping left that unchanged, else evaluated again."""
+        return err if qq.tolist() == answer else k.final_errors(qq, params)
+
+    status = None if code == 0 else STATUS[code]
+    return make_result(request, q, "lm", iterations, restarts, status, errors=errors)
 
 
 register_method(

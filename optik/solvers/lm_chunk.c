@@ -16,7 +16,8 @@
 
 /* conf: [block, max_iter, max_restarts (< 0: none), time_limit, mu0, stall,
  *        stop_position, stop_orientation, stop_closure, gain, w_p, w_o,
- *        lower[n], upper[n], q_ref[n]] */
+ *        lower[n], upper[n] (sampling bounds of the restarts), q_ref[n],
+ *        limit_lo[n], limit_hi[n] (the limits the steps project onto; may be infinite)] */
 #define OPTIK_CONF_SCALARS 12
 
 static double optik_now(void) {
@@ -63,7 +64,7 @@ CASADI_SYMBOL_EXPORT int optik_lm_chunk(casadi_int n_targets, const double *targ
   const double gain = conf[9];
   const double weights[2] = {conf[10], conf[11]};
   const double *lower = conf + OPTIK_CONF_SCALARS, *upper = lower + N;
-  const double *q_ref = upper + N;
+  const double *q_ref = upper + N, *limit_lo = q_ref + N, *limit_hi = limit_lo + N;
   int rc = 0;
   for (casadi_int t = 0; t < n_targets; ++t) {
     const double t0 = optik_now(), deadline = t0 + time_limit;
@@ -74,8 +75,8 @@ CASADI_SYMBOL_EXPORT int optik_lm_chunk(casadi_int n_targets, const double *targ
     casadi_int iterations = 0, restarts = -1, status = 0;
     const double *answer = q;
     memcpy(best, q0 + N * t, sizeof(best));
-    /* step: (q, mu, target, weights, q_ref, gain) -> (q+, mu+, cost+, accept, pos+, ori+, clo+) */
-    const double *s_arg[6] = {q, &mu, target, weights, q_ref, &gain};
+    /* step: (q, mu, target, weights, q_ref, gain, lo, hi) -> (q+, mu+, cost+, accept, pos+, ori+, clo+) */
+    const double *s_arg[8] = {q, &mu, target, weights, q_ref, &gain, limit_lo, limit_hi};
     double *s_res[7] = {q_new, &mu_new, &cost, &accept, &e3[0], &e3[1], &e3[2]};
     const double *e_arg[2] = {q, target};
     double *e_res[3] = {&pos, &ori, &clo};
@@ -129,4 +130,14 @@ CASADI_SYMBOL_EXPORT int optik_lm_chunk(casadi_int n_targets, const double *targ
   free(iw);
   free(w);
   return rc;
+}
+
+/* optik_lm_chunk with its arguments packed in one array: args[0] the target count (as an
+ * integer), args[1..10] the pointers in optik_lm_chunk's order. One ctypes argument instead of
+ * eleven: a single solve's call costs about a microsecond instead of ten. */
+CASADI_SYMBOL_EXPORT int optik_lm_packed(void *const *args) {
+  return optik_lm_chunk((casadi_int)(size_t)args[0], (const double *)args[1], (const double *)args[2],
+                        (const unsigned long long *)args[3], (const double *)args[4], (double *)args[5],
+                        (double *)args[6], (casadi_int *)args[7], (casadi_int *)args[8],
+                        (casadi_int *)args[9], (double *)args[10]);
 }

@@ -23,14 +23,15 @@ import ctypes
 import threading
 import time
 from dataclasses import dataclass
-from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
 import casadi as ca
 import numpy as np
 
+from optik.errors import InvalidArgumentError, ShapeError, SolverUnavailableError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.native import driver_source, library
 from optik.problem import IKProblem, build_ik_problem
 from optik.solvers.evaluation import error_function
@@ -54,15 +55,16 @@ _STEP, _ERRORS = "optik_lm_step", "optik_ik_errors"
 def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Function:
     """One bounded LM iteration with the errors of the trial point, as an ``SX`` function.
 
-    ``(q, mu, target, weights, q_ref, gain) -> (q+, mu+, cost+, accepted, position error,
+    ``(q, mu, target, weights, q_ref, gain, lo, hi) -> (q+, mu+, cost+, accepted, position error,
     orientation error, closure error)``: the step of `optik.solvers.lm` from ``q``, the
     projected trial point ``q_t = clip(q + dq, lo, hi)``, accepted when its cost
     ``|e(q_t)|^2 / 2`` is below that of ``q``; the errors are those of ``q_t`` (the driver keeps
-    the previous ones when the trial is rejected).
+    the previous ones when the trial is rejected). The limits ``lo, hi`` are inputs (infinite
+    entries: unbounded), so one compiled kernel serves every limits of one geometry.
     """
     m = problem.mechanism
     q = problem.q
-    lo, hi = problem.lower, problem.upper
+    lo, hi = ca.SX.sym("lower", m.n_q), ca.SX.sym("upper", m.n_q)
     e = problem.weighted_residual(closure_weight if problem.closure.shape[0] else None)
     at = ca.Function("at", [q, problem.target, problem.weights], [e, *problem.error_expressions()])
     mu, gain = ca.SX.sym("mu"), ca.SX.sym("gain")
@@ -85,9 +87,8 @@ def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Funct
         ori,
         clo,
     ]
-    return ca.Function(
-        _STEP, [q, mu, problem.target, problem.weights, problem.q_ref, gain], [ca.densify(v) for v in outs]
-    )
+    ins = [q, mu, problem.target, problem.weights, problem.q_ref, gain, lo, hi]
+    return ca.Function(_STEP, ins, [ca.densify(v) for v in outs])
 
 
 def target_seeds(seed: int, start: int, count: int) -> np.ndarray:
@@ -129,11 +130,12 @@ class Settings:
     q_ref: np.ndarray
 
     def conf(self, m: Mechanism) -> np.ndarray:
-        """The driver's ``conf`` vector (layout in ``lm_chunk.c``)."""
+        """The driver's ``conf`` vector (layout in ``lm_chunk.c``): the scalars, the sampling
+        bounds, ``q_ref`` and the limits of ``m`` that the steps project onto."""
         scalars = [self.block, self.max_iter, self.max_restarts, self.time_limit, self.mu0, self.stall]
         scalars += [*self.stop, self.gain, *self.weights]
         lo, hi = m.sampling_bounds  # restarts are drawn over finite bounds (one turn when unbounded)
-        return np.concatenate([scalars, lo, hi, self.q_ref]).astype(float)
+        return np.concatenate([scalars, lo, hi, self.q_ref, m.lower, m.upper]).astype(float)
 
 
 @dataclass
@@ -158,6 +160,21 @@ class Output:
 
 
 _P = ctypes.c_void_p
+
+
+class _OneTarget:
+    """One thread's buffers of a one-target run, and the packed argument array of the driver's
+    ``optik_lm_packed`` pointing at them (the addresses are taken once: reading
+    ``ndarray.ctypes.data`` costs microseconds per array, more than a whole solve's iterations)."""
+
+    def __init__(self, nq: int, nt: int, n_conf: int) -> None:
+        self.target, self.q0, self.conf = np.zeros(nt), np.zeros(nq), np.zeros(n_conf)
+        self.seed = np.zeros(1, dtype=np.uint64)
+        self.q, self.errors, self.time = np.zeros(nq), np.zeros(3), np.zeros(1)
+        self.counts = np.zeros(3, dtype=np.int64)  # iterations, restarts, status
+        c = self.counts.ctypes.data
+        bufs = (self.target, self.q0, self.seed, self.conf, self.q, self.errors)
+        self.args = (_P * 11)(1, *[b.ctypes.data for b in bufs], c, c + 8, c + 16, self.time.ctypes.data)
 
 
 class LMKernel:
@@ -187,6 +204,10 @@ class LMKernel:
     ) -> None:
         problem = build_ik_problem(m, task, frame) if problem is None else problem
         self.mechanism = m
+        self.n_target = int(problem.target.shape[0])
+        """Target parameters per target (12 per frame target)."""
+        self.n_conf = 12 + 5 * m.n_q
+        """Length of `Settings.conf`: 12 scalars, sampling bounds, ``q_ref`` and the limits."""
         self.step = lm_iteration_function(problem, closure_weight)
         self.errors = error_function(problem)
         defines = (
@@ -199,7 +220,8 @@ class LMKernel:
             None if driver is None else library([self.step, self.errors], compile, defines + driver)
         )
         self._fn: Any = None
-        self._local = threading.local()  # per-thread error evaluators
+        self._packed: Any = None
+        self._local = threading.local()  # per-thread error evaluators and one-target buffers
 
     def final_errors(self, q: np.ndarray, target: np.ndarray) -> tuple[float, float, float]:
         """Position, orientation and closure errors of ``q`` against target parameters
@@ -229,6 +251,46 @@ class LMKernel:
                 self._fn = fn
         return self._fn
 
+    def run_one(
+        self, target: np.ndarray, q0: np.ndarray, seed: int, conf: np.ndarray
+    ) -> tuple[np.ndarray, tuple[float, float, float], int, int, int]:
+        """`run` for one target with the least per-call work (the path of `optik.solve_ik`):
+        the same driver on this thread's preallocated buffers, through one packed argument.
+
+        Args:
+            target: target parameters ``(12,)`` (``(12 k,)`` for ``k`` frame targets).
+            q0: the first start ``(n,)``.
+            seed: the restart seed (below 2^64).
+            conf: `Settings.conf`.
+
+        Returns:
+            ``(q, (position, orientation, closure) errors of q, iterations, restarts, status)``.
+        """
+        packed = self._packed
+        if packed is None and self._driver() is not None:
+            packed = self._packed = self.library.get().optik_lm_packed  # type: ignore[union-attr]
+            packed.argtypes, packed.restype = [_P], ctypes.c_int
+        if packed is None:
+            seeds = np.array([seed], dtype=np.uint64)
+            out = self.run(target[None], q0[None], seeds, conf)
+            e = out.errors[0].tolist()
+            counts = int(out.iterations[0]), int(out.restarts[0]), int(out.status[0])
+            return out.q[0], (e[0], e[1], e[2]), *counts
+        one = getattr(self._local, "one", None)
+        if one is None:
+            one = self._local.one = _OneTarget(self.mechanism.n_q, len(target), len(conf))
+        one.target[:] = target
+        one.q0[:] = q0
+        one.seed[0] = seed
+        one.conf[:] = conf
+        if packed(one.args) != 0:
+            from optik.errors import SolverUnavailableError
+
+            raise SolverUnavailableError("optik_lm_chunk: evaluation of the generated code failed")
+        e = one.errors.tolist()
+        it, restarts, status = one.counts.tolist()
+        return one.q.copy(), (e[0], e[1], e[2]), it, restarts, status
+
     def run(self, targets: np.ndarray, q0: np.ndarray, seeds: np.ndarray, conf: np.ndarray) -> Output:
         """Solve ``N`` targets.
 
@@ -239,7 +301,7 @@ class LMKernel:
             seeds: restart seeds (uint64, ``(N,)``).
             conf: `Settings.conf`.
         """
-        n, nq = len(targets), self.mechanism.n_q
+        n, nq = self._check_run(targets, q0, seeds, conf)
         out = Output(
             np.empty((n, nq)),
             np.empty((n, 3)),
@@ -260,10 +322,37 @@ class LMKernel:
         conf = np.ascontiguousarray(conf, dtype=float)
         bufs = [*ins, conf, out.q, out.errors, out.iterations, out.restarts, out.status, out.solve_time]
         if fn(n, *[b.ctypes.data for b in bufs]) != 0:
-            from optik.errors import SolverUnavailableError
-
             raise SolverUnavailableError("optik_lm_chunk: evaluation of the generated code failed")
         return out
+
+    def _check_run(self, targets: Any, q0: Any, seeds: Any, conf: Any) -> tuple[int, int]:
+        """``(N, n)`` once the arrays that `run` hands to C are checked (shapes and kinds; the
+        driver reads and writes by these sizes, so a wrong array would be read out of bounds).
+
+        Raises:
+            ShapeError: an array of another shape than ``targets (N, n_target)``, ``q0 (N, n)``,
+                ``seeds (N,)``, ``conf (n_conf,)``.
+            InvalidArgumentError: ``seeds`` not of unsigned or non-negative integers, or another
+                array not of real numbers.
+        """
+        nq = self.mechanism.n_q
+        n = np.shape(targets)[0] if np.ndim(targets) == 2 else -1
+        expected = (
+            ("targets", targets, (n, self.n_target), "biuf"),
+            ("q0", q0, (n, nq), "biuf"),
+            ("seeds", seeds, (n,), "ui"),
+            ("conf", conf, (self.n_conf,), "biuf"),
+        )
+        for name, value, shape, kinds in expected:
+            arr = np.asarray(value)
+            if arr.shape != shape or n < 0:
+                want = f"(N, {self.n_target})" if name == "targets" else str(shape)
+                raise ShapeError(name, f"expected shape {want}, got {arr.shape}")
+            negative = arr.dtype.kind == "i" and name == "seeds" and bool((arr < 0).any())
+            if arr.dtype.kind not in kinds or negative:
+                what = "integers >= 0" if name == "seeds" else "real numbers"
+                raise InvalidArgumentError(name, f"expected {what}, got {arr.dtype} {arr.ravel()[:3]}")
+        return n, nq
 
     def _run_python(
         self, targets: np.ndarray, q0: np.ndarray, seeds: np.ndarray, conf: np.ndarray, out: Output
@@ -276,8 +365,10 @@ class LMKernel:
         stop = conf[6:9]
         lo, hi = conf[12 : 12 + nq], conf[12 + nq : 12 + 2 * nq]
         step.inputs[3][:] = conf[10:12]
-        step.inputs[4][:] = conf[12 + 2 * nq :]
+        step.inputs[4][:] = conf[12 + 2 * nq : 12 + 3 * nq]
         step.inputs[5][0] = conf[9]
+        step.inputs[6][:] = conf[12 + 3 * nq : 12 + 4 * nq]
+        step.inputs[7][:] = conf[12 + 4 * nq :]
 
         def check(q: np.ndarray, target: np.ndarray) -> np.ndarray:
             errors.inputs[0][:] = q
@@ -340,9 +431,19 @@ class LMKernel:
             out.solve_time[t] = time.perf_counter() - t0
 
 
-@lru_cache(maxsize=64)
+_KERNELS: PerMechanism[dict[tuple, LMKernel]] = PerMechanism()
+
+
 def kernel(
     m: Mechanism, task: str, frame: str | None, closure_weight: float, compile: bool | str
 ) -> LMKernel:
-    """The `LMKernel` of a mechanism, task, frame and closure weight (built once)."""
-    return LMKernel(m, task, frame, closure_weight, compile)
+    """The `LMKernel` of a mechanism, task, frame and closure weight (built once per
+    [`Mechanism.geometry`][optik.Mechanism.geometry]: copies that differ only by their limits
+    share it, the limits being inputs of `Settings.conf`; it lives as long as that geometry)."""
+    g = m.geometry
+    per = _KERNELS.setdefault(g, {})
+    key = (task, frame, closure_weight, compile)
+    found = per.get(key)
+    if found is None:
+        found = per.setdefault(key, LMKernel(g, task, frame, closure_weight, compile))
+    return found

@@ -1,10 +1,12 @@
 """Method ``"nlp"``: the IK NLP of [`optik.problem`][optik.problem] solved by CasADi ``nlpsol``, multi-start.
 
 The NLP (built once per mechanism, task, frame and secondary objectives; the target, weights and
-reference posture are parameters) is::
+reference posture are parameters) is:
 
-    minimize_q  1/2 (w_p^2 |r_p|^2 + w_o^2 |r_o|^2) + 1/2 w_post |q - q_ref|^2 (+ secondary terms)
-    subject to  q_min <= q <= q_max,  c(q) = 0
+```text
+minimize_q  1/2 (w_p^2 |r_p|^2 + w_o^2 |r_o|^2) + 1/2 w_post |q - q_ref|^2 (+ secondary terms)
+subject to  q_min <= q <= q_max,  c(q) = 0
+```
 
 solved by IPOPT (default) or CasADi's ``sqpmethod`` (option ``solver="sqpmethod"``, QP solver
 qpOASES). An iteration callback checks, after every iteration, the success tolerances on the
@@ -58,6 +60,7 @@ import re
 import sys
 import threading
 import time
+import weakref
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -68,6 +71,7 @@ import numpy as np
 
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.problem import IKProblem, build_ik_problem
 from optik.results import IKResult
 from optik.solvers.base import (
@@ -267,8 +271,21 @@ def _hessian_function(problem: IKProblem, upper: bool, damping: float) -> ca.Fun
     )
 
 
-_SOLVERS: dict[tuple, list[_Solver]] = {}
-"""Idle solvers per argument combination of `_checkout` (a pool: see `_checkout`)."""
+class _Pool(list):
+    """The idle solvers of one mechanism and argument combination of `_checkout` (compared and
+    hashed by identity, for `_POOLS`)."""
+
+    __hash__ = object.__hash__
+
+    def __eq__(self, other: object) -> bool:
+        return self is other
+
+
+_SOLVERS: PerMechanism[dict[tuple, _Pool]] = PerMechanism()
+"""The pools of a mechanism by argument combination of `_checkout`; they live as long as the
+mechanism."""
+_POOLS: weakref.WeakSet[_Pool] = weakref.WeakSet()
+"""Every pool alive, emptied at interpreter exit (see `_free_solvers`)."""
 _SOLVERS_LOCK = threading.Lock()
 _BUILD_LOCK = threading.Lock()
 """Serializes the construction of solvers: `_silenced_stdout` redirects the process's stdout."""
@@ -294,7 +311,10 @@ def _silenced_stdout() -> Iterator[None]:
 
 # Free the solvers before their Python iteration callbacks at interpreter exit (CasADi may
 # otherwise call into an already destroyed callback while tearing a solver down).
-atexit.register(_SOLVERS.clear)
+@atexit.register
+def _free_solvers() -> None:
+    for pool in list(_POOLS):
+        pool.clear()
 
 
 @contextmanager
@@ -321,9 +341,13 @@ def _checkout(
     """
     extra = dict(extra or {})
     options_key = repr(sorted(extra.items()))
-    key = (m, task, frame, secondary, solver, max_iter, ipopt_tol, options_key, hessian, damping)
+    key = (task, frame, secondary, solver, max_iter, ipopt_tol, options_key, hessian, damping)
     with _SOLVERS_LOCK:
-        idle = _SOLVERS.setdefault(key, [])
+        pools = _SOLVERS.setdefault(m, {})
+        idle = pools.get(key)
+        if idle is None:
+            idle = pools[key] = _Pool()
+            _POOLS.add(idle)
         s = idle.pop() if idle else None
     if s is None:
         s = _build_solver(m, task, frame, secondary, solver, max_iter, ipopt_tol, extra, hessian, damping)
@@ -331,7 +355,7 @@ def _checkout(
         yield s
     finally:
         with _SOLVERS_LOCK:
-            _SOLVERS.setdefault(key, []).append(s)
+            idle.append(s)
 
 
 def _build_solver(

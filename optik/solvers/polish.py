@@ -6,9 +6,11 @@ precision by Gauss-Newton steps on the exact residual
 ``r(q) = [e_task(q); c(q)]``, ``e_task = pose_error(T(q), T*)`` restricted to the rows of the
 task (position ``p - p*``, rotation vector ``log(R R*^T)``, planar heading ``phi - phi*``) and
 ``c(q)`` the loop-closure residual, with the step ``dq = -pinv(J) r`` where
-``J = [J_task; dc/dq]`` (geometric Jacobian rows of the task, closure Jacobian). A step is kept
-only when it lowers ``|r|`` and leaves ``q`` within the joint limits; it stops when ``|r|`` no
-longer decreases.
+``J = [J_task; dc/dq]`` (geometric Jacobian rows of the task, closure Jacobian). Coordinates
+pinned by their limits (``lower = upper``, e.g. a joint locked by ``solve_ik_all(fixed=...)``)
+do not move: their columns of ``J`` are left out. A step that would leave the limits holds the
+coordinates it would push out where they are and is taken again without them; a step is kept
+only when it lowers ``|r|``; it stops when ``|r|`` no longer decreases.
 
 ``same_point_tol`` ties the deduplication distance to that accuracy: a configuration known to
 ``|r|`` with smallest singular value ``sigma`` of ``J`` is determined to about ``|r| / sigma`` in
@@ -66,19 +68,25 @@ def polish(m: Mechanism, request: IKRequest, q: np.ndarray) -> tuple[np.ndarray,
     q = np.asarray(q, dtype=float).copy()
     r = residual(m, request, q)
     norm = float(np.linalg.norm(r))
+    pinned = m.lower == m.upper
+    held = pinned.copy()
     for _ in range(MAX_STEPS):
-        if norm == 0.0:
+        if norm == 0.0 or held.all():
             break
-        step = np.linalg.lstsq(_jacobian(m, request, q), r, rcond=None)[0]
+        jac = _jacobian(m, request, q)
+        jac[:, held] = 0.0  # the least-norm step leaves these coordinates where they are
+        step = np.linalg.lstsq(jac, r, rcond=None)[0]
         trial = q - step
-        if not ((trial >= m.lower).all() and (trial <= m.upper).all()):
-            break
+        outside = (trial < m.lower) | (trial > m.upper)
+        if outside.any():
+            held |= outside
+            continue
         r_trial = residual(m, request, trial)
         n_trial = float(np.linalg.norm(r_trial))
         if not n_trial < norm:
             break
         q, r, norm = trial, r_trial, n_trial
-    sigma = np.linalg.svd(_jacobian(m, request, q), compute_uv=False)
+    sigma = np.linalg.svd(_jacobian(m, request, q)[:, ~pinned], compute_uv=False)
     return q, norm, float(sigma[-1]) if sigma.size else 0.0
 
 

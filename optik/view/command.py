@@ -39,9 +39,13 @@ def add_parser(sub: Any) -> None:
     add_source_arguments(p)
     p.add_argument("--port", type=int, default=8080, help="TCP port (default: %(default)s, or the next free)")
     p.add_argument("--host", default="127.0.0.1", help="interface to bind (default: %(default)s)")
-    p.add_argument("--method", help="IK method of the gizmo (default: the best available)")
     p.add_argument(
-        "--reach", metavar="PATH", help="capability map to draw: a reach.npz or its folder (optik reach)"
+        "--method", help="IK method of the gizmo: closed_form, lm, nlp, dls, qp (default: the best available)"
+    )
+    p.add_argument(
+        "--reach",
+        metavar="PATH",
+        help="capability map to draw: a reach.npz or its folder, written by optik reach (default: none)",
     )
     p.add_argument("--no-browser", action="store_true", help="do not open a browser window")
     p.set_defaults(func=run)
@@ -49,12 +53,14 @@ def add_parser(sub: Any) -> None:
 
 def _viewer(args: argparse.Namespace) -> Any:
     from optik.errors import InvalidArgumentError
-    from optik.view import Viewer
-    from optik.view.viewer import reach_points
 
     if not 0 <= args.port <= 65535:
         raise InvalidArgumentError("--port", f"expected 0..65535, got {args.port}")
     m, problem = load_source(args.source, args.base, args.tip, args.problems_dir)
+    # the viewer's extra is needed only once the arguments are known to be right
+    from optik.view import Viewer
+    from optik.view.viewer import reach_points
+
     task, tol = (problem.mechanism_task, problem.tolerances) if problem is not None else (None, None)
     if args.reach is not None:  # a bad map is a usage error before the server starts
         try:

@@ -14,7 +14,6 @@ every update. Joint frames are drawn at ``A_j`` (orange: actuated, grey: passive
 
 from __future__ import annotations
 
-import weakref
 from dataclasses import dataclass
 from typing import Any
 
@@ -22,12 +21,13 @@ import casadi as ca
 import numpy as np
 
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.plot import Geometry, body_points, ordered_outline
 from optik.view.shapes import Mesh, capsule_chain, cylinder, plate, wxyz
 
 __all__ = ["Poses", "RobotDrawing", "Style", "poses"]
 
-_FUNCTIONS: weakref.WeakKeyDictionary[Mechanism, ca.Function] = weakref.WeakKeyDictionary()
+_FUNCTIONS: PerMechanism[ca.Function] = PerMechanism()
 
 
 @dataclass(frozen=True)

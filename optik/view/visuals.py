@@ -4,7 +4,8 @@ A mechanism loaded from a URDF keeps its ``<visual>`` elements in ``m.params["vi
 `optik.mechanism.urdf_visuals`): a link (a named frame ``(body, offset)`` of the mechanism), the
 geometry's pose ``origin`` in that link frame and the geometry. Its vertices in the body frame
 are ``offset @ origin @ (scale * v)``. Meshes are read by trimesh (STL, OBJ, PLY, COLLADA with
-pycollada, ...); boxes, cylinders and spheres are built. A visual that cannot be drawn (file not
+pycollada, ...); boxes, cylinders, capsules and spheres are built (MJCF geoms too: see
+`optik.mechanism.mjcf`). A visual that cannot be drawn (file not
 found, unreadable, empty) is reported in the notes, and its body is drawn as a capsule chain.
 """
 
@@ -23,12 +24,15 @@ __all__ = ["body_visuals"]
 def _geometry(visual: Any) -> trimesh.Trimesh:
     kind, size = visual.geometry, visual.size
     if kind == "box":
-        return trimesh.creation.box(extents=size)
-    if kind == "cylinder":
-        return trimesh.creation.cylinder(radius=size[0], height=size[1], sections=24)
-    if kind == "sphere":
-        return trimesh.creation.icosphere(subdivisions=2, radius=size[0])
-    mesh = trimesh.load(visual.path, force="mesh")
+        mesh = trimesh.creation.box(extents=size)
+    elif kind == "cylinder":
+        mesh = trimesh.creation.cylinder(radius=size[0], height=size[1], sections=24)
+    elif kind == "capsule":
+        mesh = trimesh.creation.capsule(height=size[1], radius=size[0], count=[12, 12])
+    elif kind == "sphere":
+        mesh = trimesh.creation.icosphere(subdivisions=2, radius=size[0])
+    else:
+        mesh = trimesh.load(visual.path, force="mesh")
     mesh.apply_scale(visual.scale)
     return mesh
 

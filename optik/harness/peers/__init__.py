@@ -3,6 +3,8 @@
 [`load_peer`][optik.harness.peers.load_peer] returns a ready [`Peer`][optik.harness.peers.base.Peer] for a
 problem, or raises [`PeerUnavailable`][optik.harness.peers.base.PeerUnavailable] with the reason (package
 missing, no URDF, different joint count), which the benchmark reports as a note instead of crashing.
+The rules every solver is held to (tolerance, clipping, warm-up, the independent check) are in
+[`optik.harness.peers.rules`][optik.harness.peers.rules].
 """
 
 from __future__ import annotations
@@ -10,13 +12,14 @@ from __future__ import annotations
 from optik.harness.peers.base import Peer, PeerUnavailable
 from optik.harness.peers.ikpy_peer import IKPy
 from optik.harness.peers.pink_peer import Pink
+from optik.harness.peers.rtb_peer import RoboticsToolbox
 from optik.harness.peers.tracik_peer import TracIK
 from optik.problem_files import PEERS, Problem
 
-ADAPTERS: dict[str, type[Peer]] = {"trac_ik": TracIK, "pink": Pink, "ikpy": IKPy}
+ADAPTERS: dict[str, type[Peer]] = {"trac_ik": TracIK, "rtb_lm": RoboticsToolbox, "pink": Pink, "ikpy": IKPy}
 """Adapter class per peer name (the names of [`optik.problem_files.PEERS`][optik.problem_files.PEERS])."""
 
-__all__ = ["ADAPTERS", "IKPy", "Peer", "PeerUnavailable", "Pink", "TracIK", "load_peer"]
+__all__ = ["ADAPTERS", "IKPy", "Peer", "PeerUnavailable", "Pink", "RoboticsToolbox", "TracIK", "load_peer"]
 
 
 def load_peer(name: str, problem: Problem) -> Peer:

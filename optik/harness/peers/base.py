@@ -1,9 +1,10 @@
 """What every peer adapter shares: the interface, the unavailability error, the URDF chain check.
 
 A peer is a third-party IK library run on the same targets as optik's methods. An adapter loads
-the problem's URDF once (`load`), then answers ``solve(q0, target, time_limit, tol)`` with
-the best configuration it found; the harness times the call and judges success with optik's own
-evaluation (the same tolerances and exact joint limits for every solver).
+the problem's URDF once, then answers ``attempt(q0, target, time_limit, tol)`` with the raw
+configuration it returned and its own success flag; the benchmark times the call, and the rules of
+[`optik.harness.peers.rules`][optik.harness.peers.rules] (the same for every solver) settle and judge the
+answer.
 """
 
 from __future__ import annotations
@@ -88,5 +89,12 @@ class Peer(ABC):
         """4x4 pose of the tip link according to the peer."""
 
     @abstractmethod
+    def attempt(
+        self, q0: np.ndarray, target: np.ndarray, time_limit: float, tol: Tolerances
+    ) -> tuple[np.ndarray, bool]:
+        """``(q, found)``: the raw joint vector the library returned for the 4x4 ``target`` of the
+        tip link from ``q0`` (``q0`` itself when it returned none), and its own success flag."""
+
     def solve(self, q0: np.ndarray, target: np.ndarray, time_limit: float, tol: Tolerances) -> np.ndarray:
-        """Best joint vector found for the 4x4 ``target`` of the tip link, starting at ``q0``."""
+        """The raw joint vector of [`attempt`][optik.harness.peers.base.Peer.attempt]."""
+        return self.attempt(q0, target, time_limit, tol)[0]

@@ -49,11 +49,14 @@ class IKPy(Peer):
     def fk(self, q: np.ndarray) -> np.ndarray:
         return np.asarray(self._chain.forward_kinematics(self._full(q)))
 
-    def solve(self, q0: np.ndarray, target: np.ndarray, time_limit: float, tol: Tolerances) -> np.ndarray:
+    def attempt(
+        self, q0: np.ndarray, target: np.ndarray, time_limit: float, tol: Tolerances
+    ) -> tuple[np.ndarray, bool]:
+        """ikpy has no success flag: ``found`` is always True (the referee judges)."""
         full = self._full(q0)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             out = self._chain.inverse_kinematics_frame(
                 target, initial_position=full, orientation_mode="all", max_iter=MAX_ITER
             )
-        return np.asarray(out)[self._active]
+        return np.asarray(out)[self._active], True

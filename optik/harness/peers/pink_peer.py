@@ -1,8 +1,9 @@
 """Pink (``pip install pin-pink``): differential IK on pinocchio, iterated to a pose.
 
 Each step solves Pink's QP ``min_v |J v - e / dt|^2 (+ damping)`` under the URDF's position and
-velocity limits, and integrates ``q <- q (+) v dt``; iterations stop at the tolerances or at the
-time limit, or when the QP has no solution. The QP backend is ``daqp`` when installed, else ``osqp``.
+velocity limits, and integrates ``q <- q (+) v dt``; iterations stop at half the tolerances (the
+common rule of `optik.harness.peers.rules`) or at the time limit, or when the QP has no solution.
+The QP backend is ``daqp`` when installed, else ``osqp``.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from optik.harness.peers.base import Peer, PeerUnavailable
+from optik.harness.peers.rules import HALF
 from optik.mechanism import Mechanism
 from optik.solvers import Tolerances
 
@@ -49,20 +51,25 @@ class Pink(Peer):
         conf = self._pink.Configuration(self._model, self._data, np.asarray(q, dtype=float).copy())
         return np.asarray(conf.get_transform_frame_to_world(self.tip_link).homogeneous)
 
-    def solve(self, q0: np.ndarray, target: np.ndarray, time_limit: float, tol: Tolerances) -> np.ndarray:
+    def attempt(
+        self, q0: np.ndarray, target: np.ndarray, time_limit: float, tol: Tolerances
+    ) -> tuple[np.ndarray, bool]:
+        """``found``: the loop stopped at half the tolerances (by Pink's FK)."""
         start = time.perf_counter()
         pin = self._pin
         conf: Any = self._pink.Configuration(self._model, self._data, np.asarray(q0, dtype=float).copy())
         self._task.set_target(pin.SE3(target[:3, :3].copy(), target[:3, 3].copy()))
+        found = False
         while time.perf_counter() - start < time_limit:
             pose = conf.get_transform_frame_to_world(self.tip_link)
             dp = np.linalg.norm(pose.translation - target[:3, 3])
             dr = np.linalg.norm(pin.log3(pose.rotation.T @ target[:3, :3]))
-            if dp <= tol.position and dr <= tol.orientation:
+            if dp <= HALF * tol.position and dr <= HALF * tol.orientation:
+                found = True
                 break
             try:
                 v = self._pink.solve_ik(conf, [self._task], DT, solver=self._qp, safety_break=False)
             except self._pink.exceptions.NoSolutionFound:  # infeasible QP: stop where we are
                 break
             conf.integrate_inplace(v, DT)
-        return np.asarray(conf.q, dtype=float).copy()
+        return np.asarray(conf.q, dtype=float).copy(), found

@@ -2,8 +2,11 @@
 
 ``TRAC_IK(base, tip, urdf_xml, timeout, eps, solve_type)``; ``ik(solver, q0, x, y, z, qx, qy,
 qz, qw)`` returns ``[found, q...]``. Its ``eps`` bounds each component of the Cartesian twist
-error, so ``eps = min(position, orientation) / 2`` keeps the Euclidean errors within optik's
-tolerances. The timeout is fixed at construction, so one solver is kept per time limit.
+error; it is [`twist_epsilon`][optik.harness.peers.rules.twist_epsilon] of the tolerances, the rule
+of `optik.harness.peers.rules`. The timeout is fixed at construction, so one solver is kept per
+time limit. ``pytracik`` reads the limits of a joint that has a ``<safety_controller>`` as
+``[0, 0]``; such limits are replaced by the URDF's (``set_joint_limits``, as optik and Pinocchio
+read them), so that every solver searches the same box.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from optik.harness.peers.base import Peer
+from optik.harness.peers.rules import twist_epsilon
 from optik.mechanism import Mechanism
 from optik.solvers import Tolerances
 
@@ -35,17 +39,29 @@ class TracIK(Peer):
     def _solver(self, time_limit: float, eps: float) -> Any:
         key = (time_limit, eps)
         if key not in self._solvers:
-            self._solvers[key] = self._lib.TRAC_IK(
-                self.base_link, self.tip_link, self._xml, time_limit, eps, self._lib.SolveType.Speed
+            lib, m = self._lib, self.mechanism
+            solver = lib.TRAC_IK(
+                self.base_link, self.tip_link, self._xml, time_limit, eps, lib.SolveType.Speed
             )
+            if lib.get_num_joints(solver) == m.n_q:
+                lo = np.asarray(lib.get_joint_lower_bounds(solver), dtype=float)
+                hi = np.asarray(lib.get_joint_upper_bounds(solver), dtype=float)
+                finite = np.isfinite(m.lower) & np.isfinite(m.upper)
+                gap = np.abs(np.where(finite, m.lower - lo, 0)) + np.abs(np.where(finite, m.upper - hi, 0))
+                if np.any(gap > 1e-6):
+                    lib.set_joint_limits(solver, np.where(finite, m.lower, lo), np.where(finite, m.upper, hi))
+            self._solvers[key] = solver
         return self._solvers[key]
 
     def fk(self, q: np.ndarray) -> np.ndarray:
         return np.asarray(self._lib.fk(self._solver(0.01, 1e-6), np.asarray(q, dtype=float)))
 
-    def solve(self, q0: np.ndarray, target: np.ndarray, time_limit: float, tol: Tolerances) -> np.ndarray:
-        solver = self._solver(time_limit, 0.5 * min(tol.position, tol.orientation))
+    def attempt(
+        self, q0: np.ndarray, target: np.ndarray, time_limit: float, tol: Tolerances
+    ) -> tuple[np.ndarray, bool]:
+        solver = self._solver(time_limit, twist_epsilon(tol))
         qx, qy, qz, qw = Rotation.from_matrix(target[:3, :3]).as_quat()
         x, y, z = target[:3, 3]
-        out = np.asarray(self._lib.ik(solver, np.asarray(q0, dtype=float), x, y, z, qx, qy, qz, qw))
-        return out[1:] if out[0] > 0 else np.asarray(q0, dtype=float)
+        q0 = np.asarray(q0, dtype=float)
+        out = np.asarray(self._lib.ik(solver, q0, x, y, z, qx, qy, qz, qw))
+        return (out[1:], True) if out[0] > 0 else (q0, False)

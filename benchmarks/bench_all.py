@@ -1,0 +1,342 @@
+"""Every benchmark the README and the docs quote, in one sitting on one machine, written as Markdown.
+
+``optik benchmark all --out DIR`` runs the benchmarks of `RUNS` one after the other in this
+process (full settings, or the smaller ``--quick`` ones), captures what each prints, and writes:
+
+* ``DIR/NAME.md`` per benchmark: a header with the date (UTC), the commit of the source tree
+  (``git describe``; ``+ uncommitted changes`` when the tree differs from it), the machine
+  (platform, CPU count, Python), the load average before and after, the exact command, and the
+  benchmark's own output (its tables are Markdown);
+* ``DIR/index.md``: the same header for the whole sitting and the headline table of every
+  benchmark (the table and rows named in `RUNS`), each under its command and a link to its file.
+
+With ``--readme FILE`` the text between the markers ``<!-- measured:start -->`` and
+``<!-- measured:end -->`` of ``FILE`` is replaced by that headline section (links made relative
+to ``FILE``), so that the README's "Measured" section is generated, never hand-copied. Every file
+is written atomically (a temporary file in the same folder, then ``os.replace``).
+
+Run: ``optik benchmark all --out docs/measured [--quick] [--only ik,batch] [--readme README.md]
+[--fksgp DIR]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import os
+import platform
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+
+__all__ = ["RUNS", "Run", "headline", "main", "markdown_tables", "replace_between_markers"]
+
+START, END = "<!-- measured:start -->", "<!-- measured:end -->"
+
+
+@dataclass(frozen=True)
+class Run:
+    """One benchmark of the sitting.
+
+    Attributes:
+        name: ``optik benchmark NAME``.
+        title: what it measures (the headline's title).
+        full, quick: its arguments in a full and in a quick sitting.
+        table: which Markdown table of its output is the headline (0: the first).
+        rows: keep only the rows containing one of these strings (empty: every row).
+    """
+
+    name: str
+    title: str
+    full: tuple[str, ...]
+    quick: tuple[str, ...]
+    table: int = 0
+    rows: tuple[str, ...] = field(default_factory=tuple)
+
+
+RUNS: tuple[Run, ...] = (
+    Run(
+        "ik",
+        "Single IK, Panda and iiwa14 (URDF), against TRAC-IK and the Robotics Toolbox's C++ ik_LM",
+        ("--n", "3000", "--n-nlp", "300"),
+        ("--n", "300", "--n-nlp", "30"),
+    ),
+    Run(
+        "batch",
+        "Batch IK, Panda: solve_ik_batch against TRAC-IK on 1 core and on as many cores",
+        ("--n", "20000", "--block", "2000", "--n-check", "300", "--n-dask", "10000"),
+        ("--n", "2000", "--block", "500", "--n-check", "50", "--n-dask", "0"),
+    ),
+    Run(
+        "all_solutions",
+        "All IK solutions of 6-axis arms, against EAIK and ik-geo",
+        ("--n", "300"),
+        ("--n", "30"),
+    ),
+    Run(
+        "robots",
+        "34 arms of example-robot-data, against TRAC-IK (FK checked against Pinocchio)",
+        ("--n", "50"),
+        ("--n", "5", "--fk", "10"),
+        rows=("| all ",),
+    ),
+    Run(
+        "parallel_fk",
+        "Stewart-Gough FK, every real posture of random general 6-6 platforms, against fkSGP",
+        ("--n-rpr", "200", "--n-sg", "100", "--n-total", "50", "--n-catalog", "5", "--n-fk", "50"),
+        (
+            "--n-rpr",
+            "20",
+            "--n-sg",
+            "10",
+            "--n-total",
+            "5",
+            "--heavy",
+            "1",
+            "--n-catalog",
+            "1",
+            "--n-fk",
+            "5",
+        ),
+        table=2,
+    ),
+    Run(
+        "diffik",
+        "Differential IK step, Panda (frame + posture tasks, limits), against Pink",
+        (
+            "--goals",
+            "20",
+        ),
+        ("--goals", "3", "--steps", "100"),
+    ),
+    Run(
+        "first_solve",
+        "First solve on a never-compiled robot (fresh processes, fresh cache), against TRAC-IK and Pink",
+        ("--reps", "3"),
+        ("--reps", "1"),
+    ),
+    Run(
+        "closed_form",
+        "Vectorized closed forms (2R, 3R, 6R), one core",
+        ("--n", "1000000", "--n-6r", "200000", "--repeat", "3"),
+        ("--n", "100000", "--n-6r", "20000", "--repeat", "2", "--verify", "2000"),
+    ),
+    Run(
+        "view",
+        "Viewer: IK re-solve per gizmo move",
+        (
+            "--moves",
+            "200",
+        ),
+        (
+            "--moves",
+            "20",
+        ),
+    ),
+)
+"""The benchmarks the README and the docs quote, in the order they run."""
+
+
+def load_average() -> str:
+    """The 1, 5 and 15 minute load averages (``/proc/loadavg``), or ``"n/a"``."""
+    try:
+        return " ".join(Path("/proc/loadavg").read_text().split()[:3])
+    except OSError:
+        return "n/a"
+
+
+def source_commit() -> str:
+    """``git describe --always --dirty`` of the source tree of this file, or why there is none."""
+    here = Path(__file__).resolve().parent
+    try:
+        out = subprocess.run(
+            ["git", "describe", "--always", "--dirty=+ uncommitted changes"],
+            cwd=here,
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        )
+    except (OSError, subprocess.SubprocessError):
+        import optik
+
+        return f"not a git checkout (optik {optik.__version__})"
+    return out.stdout.strip()
+
+
+def machine() -> str:
+    """Platform, CPU count and Python version."""
+    return f"{platform.platform()}, {os.cpu_count()} CPUs, Python {sys.version.split()[0]}"
+
+
+def markdown_tables(text: str) -> list[list[str]]:
+    """The Markdown tables of ``text``: runs of lines starting with ``|``, header and separator
+    included."""
+    tables: list[list[str]] = []
+    current: list[str] = []
+    for line in text.splitlines():
+        if line.startswith("|"):
+            current.append(line.rstrip())
+        elif current:
+            tables.append(current)
+            current = []
+    if current:
+        tables.append(current)
+    return [t for t in tables if len(t) >= 2 and re.fullmatch(r"\|[\s:|-]+\|?", t[1])]
+
+
+def headline(run: Run, output: str) -> list[str]:
+    """The headline table of one benchmark's output (``run.table``, rows filtered by ``run.rows``),
+    or a line saying it printed none."""
+    tables = markdown_tables(output)
+    if run.table >= len(tables):
+        return [f"(no table {run.table} in the output: see the full output)"]
+    table = tables[run.table]
+    body = [r for r in table[2:] if not run.rows or any(s in r for s in run.rows)]
+    return table[:2] + body
+
+
+def replace_between_markers(text: str, section: str) -> str:
+    """``text`` with everything between `START` and `END` replaced by ``section``.
+
+    Raises:
+        ValueError: the markers are missing or out of order.
+    """
+    a, b = text.find(START), text.find(END)
+    if a < 0 or b < a:
+        raise ValueError(f"the markers {START} and {END} are missing or out of order")
+    return text[: a + len(START)] + "\n" + section.rstrip() + "\n" + text[b:]
+
+
+def write_atomic(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` atomically (temporary file in the same folder, then ``os.replace``)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.NamedTemporaryFile(
+        "w", dir=path.parent, delete=False, suffix=".tmp", encoding="utf-8"
+    ) as f:
+        f.write(text)
+    os.replace(f.name, path)
+
+
+@dataclass
+class Outcome:
+    """What one benchmark printed and how it went."""
+
+    run: Run
+    command: str
+    output: str
+    code: int
+    seconds: float
+    load_before: str
+    load_after: str
+    started: str
+
+
+def run_one(run: Run, argv: Sequence[str]) -> Outcome:
+    """Run one benchmark in this process, its standard output captured (a crash is recorded as
+    its output with exit code 1)."""
+    from optik.benchmarks import run as run_benchmark
+
+    command = " ".join(["optik benchmark", run.name, *argv])
+    started = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    before = load_average()
+    buffer = io.StringIO()
+    t0 = time.perf_counter()
+    try:
+        with contextlib.redirect_stdout(buffer):
+            code = run_benchmark(run.name, list(argv))
+    except Exception as exc:  # a failed benchmark is reported, the sitting goes on
+        buffer.write(f"\nthe benchmark raised {type(exc).__name__}: {exc}\n")
+        code = 1
+    return Outcome(
+        run, command, buffer.getvalue(), code, time.perf_counter() - t0, before, load_average(), started
+    )
+
+
+def _header(o: Outcome, commit: str) -> str:
+    return (
+        f"Run {o.started}, commit `{commit}`, {machine()}; load average {o.load_before} before, "
+        f"{o.load_after} after; {o.seconds:.0f} s; exit code {o.code}.\n\nCommand: `{o.command}`\n"
+    )
+
+
+def page(o: Outcome, commit: str) -> str:
+    """The generated page of one benchmark."""
+    return (
+        f"# {o.run.title}\n\n<!-- generated by `optik benchmark all`; do not edit -->\n\n"
+        f"{_header(o, commit)}\n{o.output.rstrip()}\n"
+    )
+
+
+def summary(outcomes: Sequence[Outcome], commit: str, command: str, link_prefix: str) -> str:
+    """The headline section: the sitting's header, then per benchmark its command, a link to its
+    page (``link_prefix + NAME.md``) and its headline table."""
+    loads = (
+        f"{outcomes[0].load_before} at the start, {outcomes[-1].load_after} at the end" if outcomes else "n/a"
+    )
+    started = outcomes[0].started if outcomes else "-"
+    lines = [
+        f"Generated by `{command}` on {started}, commit `{commit}`, {machine()}; "
+        f"load average {loads}. Every peer gets what optik gets (the rules of "
+        "`optik.harness.peers.rules`); success is re-checked by one independent FK.",
+        "",
+    ]
+    for o in outcomes:
+        lines += [
+            f"**{o.run.title}**: `{o.command}` ([full output]({link_prefix}{o.run.name}.md))",
+            "",
+            *headline(o.run, o.output),
+            "",
+        ]
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point (``optik benchmark all``); exit code 1 when a benchmark failed."""
+    ap = argparse.ArgumentParser(prog="optik benchmark all", description=__doc__.splitlines()[0])
+    ap.add_argument("--out", type=Path, required=True, help="folder of the generated Markdown files")
+    ap.add_argument("--quick", action="store_true", help="the smaller settings of every benchmark")
+    ap.add_argument("--only", help="comma list of benchmark names (default: all of them)")
+    ap.add_argument("--readme", type=Path, help="replace this file's measured section (between the markers)")
+    ap.add_argument("--fksgp", help="folder of a fkSGP checkout, passed to parallel_fk")
+    args = ap.parse_args(argv)
+    names = [r.name for r in RUNS]
+    only = names if not args.only else [s.strip() for s in args.only.split(",") if s.strip()]
+    unknown = sorted(set(only) - set(names))
+    if unknown:
+        ap.error(f"unknown benchmark(s) {unknown}; known: {', '.join(names)}")
+    if args.readme is not None and not args.readme.is_file():
+        ap.error(f"--readme {args.readme}: no such file")
+    command = " ".join(["optik benchmark all", *(argv if argv is not None else sys.argv[1:])])
+    commit = source_commit()
+    outcomes = []
+    for run in RUNS:
+        if run.name not in only:
+            continue
+        extra = ("--fksgp", args.fksgp) if run.name == "parallel_fk" and args.fksgp else ()
+        outcome = run_one(run, [*(run.quick if args.quick else run.full), *extra])
+        write_atomic(args.out / f"{run.name}.md", page(outcome, commit))
+        print(f"{run.name}: exit code {outcome.code}, {outcome.seconds:.0f} s", flush=True)
+        outcomes.append(outcome)
+    write_atomic(
+        args.out / "index.md",
+        "# Measured\n\n<!-- generated by `optik benchmark all`; do not edit -->\n\n"
+        + summary(outcomes, commit, command, ""),
+    )
+    if args.readme is not None:
+        prefix = os.path.relpath(args.out.resolve(), args.readme.resolve().parent).replace(os.sep, "/") + "/"
+        text = args.readme.read_text(encoding="utf-8")
+        write_atomic(args.readme, replace_between_markers(text, summary(outcomes, commit, command, prefix)))
+    print(f"wrote {len(outcomes) + 1} files into {args.out}")
+    return 0 if all(o.code == 0 for o in outcomes) else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,197 @@
+"""The layered graph of a path and its path of least weighted joint motion.
+
+Layer ``k`` holds the nodes of sample ``k`` (configurations ``(K_k, n)``); every node of layer
+``k`` is joined to every node of layer ``k + 1`` by an edge of cost
+
+```
+c(a, b) = |W (q_b - q_a)|_2 ,   W = diag(weights)
+```
+
+(a joint with a period ``P_j > 0`` measures its difference modulo ``P_j``, in
+``[-P_j / 2, P_j / 2]``: the relaxed graph of `optik.path.plan`) unless the edge breaks a
+per-joint step bound ``|q_b - q_a|_j <= s_kj`` (the velocity limits
+times the segment's duration), in which case it is removed. The path of least total cost from
+layer 0 to the last layer is found by dynamic programming (Bellman's recursion, one layer at a
+time, each layer one vectorized numpy step over its ``K_k x K_{k+1}`` edges):
+
+```
+C_0(a) = 0,   C_{k+1}(b) = min_a C_k(a) + c(a, b),   p_{k+1}(b) = argmin_a ...
+```
+
+then traced back from ``argmin_b C_{N-1}(b)``. The answer is the exact optimum over the graph:
+every path through the layers is one sequence of edges and the recursion keeps, for every node,
+the cheapest way to it.
+
+The recursion runs in C (``dp.c``, compiled once per machine by `optik.native.source_library`;
+the call releases the GIL) with an exact branch and bound: the predecessors of a node are
+visited by increasing cost, stopping at the first whose cost alone reaches the best found, and
+an edge's squared length is summed joint by joint, stopping when it can no longer improve.
+Without a C compiler the same recursion runs in numpy (`least_motion_numpy`), one vectorized
+step per layer. Equal totals (ties, e.g. two copies of one node) may resolve differently on the
+two paths; the cost is the same.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from optik import native
+
+SOURCE = Path(__file__).with_name("dp.c")
+"""The C kernel of `least_motion`."""
+_LIB: list[ctypes.CDLL | None] = []
+_LOCK = threading.Lock()
+
+
+@dataclass(frozen=True)
+class GraphPath:
+    """The optimum through a layered graph.
+
+    Attributes:
+        index: per layer, the chosen node (``-1`` everywhere when there is no path).
+        cost: its total cost (``inf`` when there is no path).
+        blocked: the first layer that no node of the previous one reaches within the step
+            bounds (-1 when a path exists).
+    """
+
+    index: np.ndarray
+    cost: float
+    blocked: int
+
+
+def differences(a: np.ndarray, b: np.ndarray, periods: np.ndarray) -> np.ndarray:
+    """``b - a`` (broadcast), modulo the period of each joint that has one."""
+    d = b - a
+    p = np.where(periods > 0.0, periods, 1.0)
+    return np.where(periods > 0.0, d - p * np.round(d / p), d)
+
+
+def edge_costs(
+    a: np.ndarray, b: np.ndarray, weights: np.ndarray, periods: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Costs ``(K_a, K_b)`` of every edge between nodes ``a (K_a, n)`` and ``b (K_b, n)``, and
+    the joint differences ``(K_a, K_b, n)`` the step bounds are checked on."""
+    d = differences(a[:, None, :], b[None, :, :], periods)
+    dw = d * weights
+    return np.sqrt(np.einsum("ijk,ijk->ij", dw, dw)), d
+
+
+def compiled() -> ctypes.CDLL | None:
+    """The compiled kernel (built on first use, cached on disk), or None without a C compiler."""
+    with _LOCK:
+        if not _LIB:
+            text = native.driver_source(SOURCE)
+            lib = None if text is None else native.source_library(text, "optik_path_dp", "auto")
+            if lib is not None:
+                fn = lib.optik_path_dp
+                ptr, i32 = ctypes.c_void_p, ctypes.c_int
+                fn.argtypes = [i32, ptr, ptr, i32, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr]
+                fn.restype = i32
+            _LIB.append(lib)
+        return _LIB[0]
+
+
+def _ptr(a: np.ndarray | None) -> int | None:
+    return None if a is None else a.ctypes.data
+
+
+def least_motion(
+    layers: Sequence[np.ndarray],
+    weights: np.ndarray,
+    step_bounds: np.ndarray | None = None,
+    periods: np.ndarray | None = None,
+) -> GraphPath:
+    """The path of least weighted joint motion through ``layers`` (module docstring).
+
+    Args:
+        layers: per sample, its nodes ``(K_k, n)`` (each ``K_k >= 1``).
+        weights: per-joint weights ``(n,)``.
+        step_bounds: ``(N - 1, n)`` largest allowed ``|q_{k+1} - q_k|`` per joint and segment,
+            or None (no bound).
+        periods: per joint, the period of its differences (0: none; default none).
+
+    Returns:
+        The optimal `GraphPath`.
+    """
+    per = np.zeros(layers[0].shape[1]) if periods is None else np.ascontiguousarray(periods, dtype=float)
+    lib = compiled()
+    if lib is None:
+        return least_motion_numpy(layers, weights, step_bounds, per)
+    sizes = np.array([len(layer) for layer in layers], dtype=np.int32)
+    offset = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int32)
+    stacked = np.concatenate(layers)
+    # the joints that tell a layer's nodes apart most first: the bound prunes an edge sooner
+    spread = np.add.reduceat(np.abs(stacked - stacked.mean(axis=0)), offset[:-1], axis=0).sum(axis=0)
+    perm = np.argsort(-spread * np.asarray(weights), kind="stable")
+    nodes = np.ascontiguousarray(stacked[:, perm], dtype=float)
+    w = np.ascontiguousarray(np.asarray(weights, dtype=float)[perm])
+    per = np.ascontiguousarray(per[perm])
+    bounds = None if step_bounds is None else np.ascontiguousarray(step_bounds[:, perm], dtype=float)
+    total = len(nodes)
+    cost, back = np.empty(total), np.empty(total, dtype=np.int32)
+    order, tmp = np.empty(int(sizes.max()), dtype=np.int32), np.empty(int(sizes.max()), dtype=np.int32)
+    index, best = np.empty(len(layers), dtype=np.int32), np.zeros(1)
+    blocked = lib.optik_path_dp(
+        len(layers), _ptr(offset), _ptr(nodes), nodes.shape[1], _ptr(w), _ptr(per), _ptr(bounds), _ptr(cost),
+        _ptr(back), _ptr(order), _ptr(tmp), _ptr(index), _ptr(best),
+    )  # fmt: skip
+    if blocked >= 0:
+        return GraphPath(np.full(len(layers), -1), float("inf"), int(blocked))
+    return GraphPath(index.astype(int), float(best[0]), -1)
+
+
+def least_motion_numpy(
+    layers: Sequence[np.ndarray], weights: np.ndarray, step_bounds: np.ndarray | None, periods: np.ndarray
+) -> GraphPath:
+    """`least_motion` in numpy, one vectorized step per layer (without compiled code)."""
+    n_layers = len(layers)
+    cost = np.zeros(len(layers[0]))
+    back: list[np.ndarray] = []
+    for k in range(1, n_layers):
+        c, d = edge_costs(layers[k - 1], layers[k], weights, periods)
+        if step_bounds is not None:
+            c[(np.abs(d) > step_bounds[k - 1]).any(axis=-1)] = np.inf
+        total = cost[:, None] + c
+        arg = total.argmin(axis=0)
+        cost = total[arg, np.arange(total.shape[1])]
+        if not np.isfinite(cost).any():
+            return GraphPath(np.full(n_layers, -1), float("inf"), k)
+        back.append(arg)
+    index = np.empty(n_layers, dtype=int)
+    index[-1] = int(cost.argmin())
+    for k in range(n_layers - 1, 0, -1):
+        index[k - 1] = back[k - 1][index[k]]
+    return GraphPath(index, float(cost[index[-1]]), -1)
+
+
+def branch_changes(
+    layers: Sequence[np.ndarray],
+    index: np.ndarray,
+    weights: np.ndarray,
+    groups: Sequence[np.ndarray],
+    periods: np.ndarray,
+) -> np.ndarray:
+    """Per sample, how many branch changes the path ``index`` made before it.
+
+    A step ``k -> k + 1`` changes branch when the chosen node of layer ``k + 1`` is not the node
+    nearest (in weighted joint distance) to the chosen node of layer ``k`` among the nodes of its
+    own group (the nodes of one tool pose: one free-axis sample, one self-motion sample). On a
+    densely sampled path the nearest solution of the next pose is the continuation of the same
+    branch, so a step to any other is a jump to another branch. Differences are taken modulo
+    ``periods`` as in `least_motion`.
+    """
+    out = np.zeros(len(index), dtype=int)
+    for k in range(len(index) - 1):
+        nxt = layers[k + 1]
+        same = groups[k + 1] == groups[k + 1][index[k + 1]]
+        dist = np.linalg.norm(differences(layers[k][index[k]], nxt, periods) * weights, axis=1)
+        dist[~same] = np.inf
+        flip = dist[index[k + 1]] > dist.min()
+        out[k + 1] = out[k] + int(flip)
+    return out

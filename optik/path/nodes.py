@@ -1,0 +1,101 @@
+"""The nodes of a path's graph: every solution of every pose, with its turns.
+
+A revolute joint whose range is wider than ``2 pi`` reaches one angle in several ways: ``q``,
+``q + 2 pi``, ... are distinct configurations of the joint (a cable wraps differently) and a
+path may need any of them to stay continuous. `turn_copies` lists, for each solution, every
+combination of the shifts ``2 pi k`` (``|k| <= 2``) of its angles that keeps each within its
+limits; the closed forms return one representative per solution (wrapped into the limits).
+
+Most paths need no such copy: `optik.path.plan` first plans on the representatives with the
+angles of *wrapping* joints (revolute, range at least ``2 pi``) compared modulo ``2 pi`` (a
+relaxation: no copy path is shorter), and `realize` turns that answer into configurations by
+counting its turns; only when the turns do not fit the limits is the graph of every copy needed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from optik.errors import SolverUnavailableError
+from optik.mechanism import Mechanism
+from optik.solvers import solve_ik_all
+
+SHIFTS = 2.0 * np.pi * np.array([0.0, 1.0, -1.0, 2.0, -2.0])
+"""Multiples of ``2 pi`` tried on each angle."""
+
+
+def turn_copies(
+    q: np.ndarray, lower: np.ndarray, upper: np.ndarray, angles: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Every copy of the rows of ``q (K, n)`` with its angles shifted by multiples of ``2 pi``
+    within ``[lower, upper]``.
+
+    Args:
+        q: configurations within the limits.
+        lower, upper: joint limits ``(n,)``.
+        angles: ``(n,)`` True for the revolute coordinates.
+
+    Returns:
+        The copies ``(M, n)`` (each row of ``q`` first, unshifted) and, for each, the row of ``q``
+        it copies ``(M,)``.
+    """
+    rows, source = q, np.arange(len(q))
+    for j in np.flatnonzero(angles):
+        vals = rows[:, j, None] + SHIFTS[None, :]
+        ok = (vals >= lower[j]) & (vals <= upper[j])
+        r, s = np.nonzero(ok)
+        rows = rows[r].copy()
+        rows[:, j] = vals[r, s]
+        source = source[r]
+    return rows, source
+
+
+def wrapping(m: Mechanism) -> np.ndarray:
+    """Per coordinate, ``2 pi`` for a revolute joint whose range is at least ``2 pi`` (it can
+    turn past ``+-pi``), else 0: the periods of the relaxed graph."""
+    angles = np.asarray(m.revolute_mask, dtype=bool)
+    return np.where(angles & (m.upper - m.lower >= 2.0 * np.pi), 2.0 * np.pi, 0.0)
+
+
+def realize(rows: np.ndarray, periods: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray | None:
+    """Configurations ``(N, n)`` of a path through the representatives ``rows (N, n)`` of the
+    relaxed graph: each wrapping angle continues its last value by the step modulo ``2 pi``
+    (whole turns counted exactly, ``q = row + 2 pi turns``), the whole joint shifted by the whole
+    turns nearest zero that fit it within its limits; None when some joint's sweep does not fit.
+    """
+    q = rows.copy()
+    for j in np.flatnonzero(periods > 0.0):
+        step = np.diff(rows[:, j])
+        turns = np.concatenate([[0.0], np.cumsum(-np.round(step / periods[j]))])
+        swept = rows[:, j] + periods[j] * turns
+        lo = np.ceil((lower[j] - swept.min()) / periods[j])
+        hi = np.floor((upper[j] - swept.max()) / periods[j])
+        if lo > hi:
+            return None
+        shift = min(max(0.0, lo), hi)
+        q[:, j] = rows[:, j] + periods[j] * (turns + shift)
+        if np.any(q[:, j] < lower[j]) or np.any(q[:, j] > upper[j]):  # rounding at a limit
+            return None
+    return q
+
+
+def closed_form_solutions(m: Mechanism, poses: Sequence[np.ndarray], frame: str | None) -> list[np.ndarray]:
+    """Every solution within the limits of each pose, by ``m``'s closed form (certified complete).
+
+    Raises:
+        SolverUnavailableError: ``m`` has no closed form (a redundant arm: plan with
+            ``self_motion``), or its answer is not certified complete (the graph would then
+            miss solutions).
+    """
+    out = []
+    for k, t in enumerate(poses):
+        sols = solve_ik_all(m, t, method="closed_form", frame=frame)
+        if not sols.certified:
+            raise SolverUnavailableError(
+                f"the closed form of {m.name!r} does not certify that it found every solution of "
+                f"pose {k} ({sols.uncertified_reason}); plan_path needs every solution"
+            )
+        out.append(np.asarray(sols.q, dtype=float).reshape(-1, m.n_q))
+    return out

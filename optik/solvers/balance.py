@@ -1,0 +1,250 @@
+"""Contacts and static balance: frames held in the world and the centre of mass over a support polygon.
+
+``solve_ik(m, {"hand": T}, contacts={"l_sole": T_l, "r_sole": T_r}, support=polygon,
+com_margin=0.01)``:
+
+* ``contacts`` maps frames to a 4x4 (a flat contact: the whole pose is held) or an
+  `optik.Position` (a point foot: the position is held). They are frame targets with the same
+  tolerances as the task targets, so every method that takes several targets (``lm``, ``nlp``,
+  ``dls``, ``qp``) holds them, and success needs every contact met (`merge_contacts`).
+* ``support`` is the world x-y polygon of the feet in contact, counter-clockwise, a ``(k, 2)``
+  array. Its edges ``v_i -> v_{i+1}`` give the half-planes ``n_i . x <= n_i . v_i`` with the
+  unit outward normals ``n_i = (dy, -dx) / |d|`` (`support_halfplanes`); static balance asks the
+  ground projection of the centre of mass, ``c_xy(q)`` of `optik.Mechanism.com`, to lie inside by
+  ``com_margin`` (m):
+
+  ```
+  n_i . c_xy(q) <= n_i . v_i - com_margin,      i = 1 ... k
+  ```
+
+  These are inequality constraints of the IK NLP (`solve_balance`, method ``"nlp"``, IPOPT):
+
+  ```
+  minimize_q  1/2 (|r_p|^2 + |r_o|^2) + 1/2 w_post |q - q_ref|^2     targets and contacts
+  subject to  q_min <= q <= q_max,  c(q) = 0,  N c_xy(q) <= b - margin
+  ```
+
+  solved by IPOPT (exact second derivatives, adaptive barrier; ``posture`` 0 by default: a
+  positive weight biases the optimum and is then removed by a second solve from the answer)
+  from ``q0`` and then from random starts until success or the time limit. Success
+  needs the targets, the contacts, the limits and the balance rows (to 1e-9 m) all met; the
+  result's ``extra`` holds ``"com"`` (the centre of mass) and ``"com_inside"`` (its smallest
+  distance inside the polygon's edges, ``>= com_margin`` on success).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+import weakref
+from collections.abc import Mapping
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from optik.checks import as_float, real_array
+from optik.errors import InvalidArgumentError
+from optik.mechanism import Mechanism
+from optik.problem import build_ik_problem, target_parameters
+from optik.results import IKResult
+from optik.solvers.base import IKRequest, make_result, method_options, restart_stop, start_points
+from optik.targets import Position
+
+__all__ = ["BALANCE_TOL", "merge_contacts", "solve_balance", "support_halfplanes"]
+
+BALANCE_TOL = 1e-9
+"""Largest violation (m) of a balance row that still counts as met."""
+
+_SOLVERS: weakref.WeakKeyDictionary[Mechanism, dict[Any, tuple[ca.Function, threading.Lock]]] = (
+    weakref.WeakKeyDictionary()
+)
+_SOLVERS_LOCK = threading.Lock()
+
+
+def merge_contacts(m: Mechanism, target: Any, frame: str | None, contacts: Any) -> dict[str, Any]:
+    """``{frame: target}`` of the task target(s) and the contacts, one dict.
+
+    Raises:
+        InvalidArgumentError: ``contacts`` is not a dict of 4x4 transforms or `Position`
+            targets, or names a frame that is also a task target.
+    """
+    if not isinstance(contacts, Mapping) or not contacts:
+        raise InvalidArgumentError(
+            "contacts", f"expected a non-empty {{frame: 4x4 or Position}}, got {contacts!r}"
+        )
+    if isinstance(target, Mapping):
+        if frame is not None:
+            raise InvalidArgumentError("frame", "give the frames as the keys of the target dict")
+        merged = dict(target)
+    else:
+        merged = {m.ee if frame is None else frame: target}
+    for name, value in contacts.items():
+        if name in merged:
+            raise InvalidArgumentError("contacts", f"frame {name!r} is both a target and a contact")
+        if not isinstance(value, Position):
+            t = real_array(value, f"contacts[{name!r}]")
+            if t.shape != (4, 4):
+                raise InvalidArgumentError("contacts", f"contact {name!r}: expected a 4x4 or a Position")
+        merged[name] = value
+    return merged
+
+
+def support_halfplanes(support: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``(N, b)``: the polygon's inside is ``N x <= b`` (unit outward edge normals, ``(k, 2)``, ``(k,)``).
+
+    Raises:
+        InvalidArgumentError: not a finite ``(k, 2)`` array with ``k >= 3``, or not a convex
+            counter-clockwise polygon (every turn strictly to the left).
+    """
+    v = real_array(support, "support")
+    if v.ndim != 2 or v.shape[1] != 2 or v.shape[0] < 3 or not np.all(np.isfinite(v)):
+        raise InvalidArgumentError(
+            "support", f"expected a finite (k, 2) polygon with k >= 3, got shape {v.shape}"
+        )
+    d = np.roll(v, -1, axis=0) - v
+    turns = d[:, 0] * np.roll(d, -1, axis=0)[:, 1] - d[:, 1] * np.roll(d, -1, axis=0)[:, 0]
+    if np.any(np.linalg.norm(d, axis=1) < 1e-12) or np.any(turns <= 0):
+        raise InvalidArgumentError("support", "expected a convex polygon, vertices counter-clockwise")
+    n = np.column_stack([d[:, 1], -d[:, 0]]) / np.linalg.norm(d, axis=1)[:, None]
+    return n, np.einsum("ij,ij->i", n, v)
+
+
+def _solver(request: IKRequest, k: int) -> tuple[ca.Function, threading.Lock]:
+    """IPOPT on the IK NLP of the request's frames plus ``k`` balance rows (built once per
+    mechanism, tasks, frames and ``k``; one lock per instance: an nlpsol is not re-entrant)."""
+    m = request.mechanism
+    key = (request.task, request.frame, k)
+    with _SOLVERS_LOCK:
+        cached = _SOLVERS.setdefault(m, {}).get(key)
+    if cached is not None:
+        return cached
+    problem = build_ik_problem(m, request.task, request.frame)
+    halfplanes = ca.SX.sym("halfplanes", k, 3)  # rows [n_x, n_y, b - margin]
+    c = m.com_function(problem.q)[0]
+    rows = ca.mtimes(halfplanes[:, :2], c[:2]) - halfplanes[:, 2]
+    nlp = {
+        "x": problem.q,
+        "p": ca.vertcat(problem.parameters, ca.vec(halfplanes)),
+        "f": problem.objective,
+        "g": ca.vertcat(problem.closure, rows),
+    }
+    options = {
+        "print_time": False,
+        "ipopt.print_level": 0,
+        "ipopt.sb": "yes",
+        "ipopt.tol": 1e-12,
+        "ipopt.constr_viol_tol": 1e-11,
+        "ipopt.bound_relax_factor": 0.0,
+        "ipopt.max_iter": 200,
+        "ipopt.mu_strategy": "adaptive",
+    }
+    made = (ca.nlpsol("balance", "ipopt", nlp, options), threading.Lock())
+    with _SOLVERS_LOCK:
+        return _SOLVERS[m].setdefault(key, made)
+
+
+def _inside(m: Mechanism, q: np.ndarray, normals: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:
+    """The centre of mass and its smallest distance inside the polygon (negative outside)."""
+    c = m.com(q)
+    return c, float(np.min(b - normals @ c[:2]))
+
+
+def _run(solver: ca.Function, lock: threading.Lock, x0: np.ndarray, p: np.ndarray, bounds: tuple) -> tuple:
+    """One IPOPT solve: ``(q, iterations)``."""
+    lbx, ubx, lbg, ubg = bounds
+    with lock:
+        sol = solver(x0=x0, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        iterations = int(solver.stats().get("iter_count", 0))
+    return np.asarray(sol["x"]).reshape(-1), iterations
+
+
+def _judged(
+    request: IKRequest,
+    run: tuple[np.ndarray, int],
+    iterations: int,
+    restarts: int,
+    normals: np.ndarray,
+    b: np.ndarray,
+    margin: float,
+) -> IKResult:
+    """The result of a solve, its success including the balance rows."""
+    q, its = run
+    res = make_result(request, q, "nlp", iterations + its, restarts)
+    com, inside = _inside(request.mechanism, res.q, normals, b)
+    res.extra.update({"com": com, "com_inside": inside})
+    if res.success and inside < margin - BALANCE_TOL:
+        res.success, res.status = False, "not_converged"
+        res.message = f"the centre of mass is {inside:.3g} m inside the support polygon, less than {margin:g}"
+    return res
+
+
+def solve_balance(request: IKRequest, support: Any, com_margin: Any) -> IKResult:
+    """The NLP of the module docstring for a request whose targets include the contacts.
+
+    Options: ``posture`` (0: weight of ``1/2 |q - q_ref|^2``), ``q_ref`` (``q0``),
+    ``max_restarts`` (None: until success or the time limit).
+
+    Raises:
+        InvalidArgumentError: a malformed ``support`` or ``com_margin``.
+        ModelError: the mechanism has no mass.
+    """
+    normals, b = support_halfplanes(support)
+    margin = as_float(com_margin, "com_margin", minimum=0.0)
+    m = request.mechanism
+    opts = method_options(request, {"posture": 0.0, "q_ref": None, "max_restarts": None})
+    since = time.perf_counter()
+    solver, lock = _solver(request, len(b))
+    request.exclude_setup(since)
+    problem = build_ik_problem(m, request.task, request.frame)
+    q_ref = request.q0 if opts["q_ref"] is None else m.check_q(opts["q_ref"], "q_ref")
+    p = np.concatenate(
+        [
+            target_parameters(request.target),
+            [1.0, 1.0],
+            q_ref,
+            [as_float(opts["posture"], "posture", minimum=0.0), 0.0, 0.0],
+            np.column_stack([normals, b - margin]).reshape(-1, order="F"),
+        ]
+    )
+    polish = p.copy()
+    polish[len(p) - 3 * len(b) - 3] = 0.0
+    n_closure = problem.closure.shape[0]
+    lbg = np.concatenate([np.zeros(n_closure), np.full(len(b), -np.inf)])
+    ubg = np.zeros(n_closure + len(b))
+    lbx = np.where(np.isfinite(m.lower), m.lower, -1e20)
+    ubx = np.where(np.isfinite(m.upper), m.upper, 1e20)
+    bounds = (lbx, ubx, lbg, ubg)
+    deadline = request.start + request.time_limit
+    best: tuple[float, IKResult] | None = None
+    restarts = iterations = 0
+    stop = "time_limit"
+    for x0 in start_points(request):
+        res = _judged(request, _run(solver, lock, x0, p, bounds), iterations, restarts, normals, b, margin)
+        iterations = res.iterations
+        if not res.success:  # again without the posture term, which biases the optimum
+            res = _judged(
+                request, _run(solver, lock, res.q, polish, bounds), iterations, restarts, normals, b, margin
+            )
+            iterations = res.iterations
+        badness = (
+            0.0
+            if res.success
+            else max(res.position_error, res.orientation_error, margin - res.extra["com_inside"], 1e-300)
+        )
+        if best is None or badness < best[0]:
+            best = (badness, res)
+        if res.success:
+            stop = ""
+            break
+        why = restart_stop(deadline, restarts, opts["max_restarts"])
+        if why is not None:
+            stop = why
+            break
+        restarts += 1
+    assert best is not None  # start_points yields at least q0
+    out = best[1]
+    out.restarts, out.solve_time = restarts, request.elapsed()
+    if not out.success and stop and stop not in out.message:
+        out.message = f"{out.message} ({stop})" if out.message else stop
+    return out

@@ -1,0 +1,139 @@
+"""Contacts and static balance (optik.solvers.balance): frames held in the world in every
+multi-target method, and the centre of mass's ground projection kept inside a support polygon
+by a margin (NLP inequalities), on the free-base quadruped of test_floating_base. Every success
+is re-checked from the returned ``q``: contacts and targets by FK, the centre of mass by
+``m.com`` (itself checked against MuJoCo and Pinocchio in test_com)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial import ConvexHull
+from test_floating_base import FEET, URDF
+
+import optik
+from optik.errors import InvalidArgumentError, SolverUnavailableError
+from optik.solvers.balance import support_halfplanes
+
+
+@pytest.fixture(scope="module")
+def quad():
+    m = optik.Mechanism.from_urdf(URDF, floating_base=True)
+    q = m.mid_q()
+    q[2] = -min(m.fk(q, f)[2, 3] for f in FEET)  # standing on z = 0
+    return m, q
+
+
+def _hull(points: np.ndarray) -> np.ndarray:
+    return points[ConvexHull(points).vertices]  # counter-clockwise in 2-D
+
+
+def _inside(m, q, polygon) -> float:
+    n, b = support_halfplanes(polygon)
+    return float(np.min(b - n @ m.com(q)[:2]))
+
+
+def test_halfplanes_of_a_square():
+    n, b = support_halfplanes([[0, 0], [1, 0], [1, 1], [0, 1]])
+    np.testing.assert_allclose(n, [[0, -1], [1, 0], [0, 1], [-1, 0]], atol=1e-15)
+    np.testing.assert_allclose(b, [0, 1, 1, 0], atol=1e-15)
+    for bad in (
+        [[0, 0], [0, 1], [1, 1], [1, 0]],
+        [[0, 0], [1, 0]],
+        [[0, 0], [1, 0], [2, 0]],
+        [[0, 0, 0]] * 3,
+    ):
+        with pytest.raises(InvalidArgumentError, match="support"):
+            support_halfplanes(bad)
+
+
+@pytest.mark.parametrize("method", ["lm", "nlp", "qp"])
+def test_contacts_hold_the_feet(quad, method):
+    m, stand = quad
+    feet = {f: optik.Position(m.fk(stand, f)[:3, 3]) for f in FEET}
+    goal = m.fk(stand, "torso")
+    goal[:3, 3] += [0.03, -0.02, -0.05]
+    r = optik.solve_ik(m, {"torso": goal}, q0=stand, contacts=feet, method=method, time_limit=10.0)
+    assert r.success, r.message
+    assert set(r.frame_errors) == {"torso", *FEET}
+    for f, p in feet.items():
+        assert np.abs(m.fk(r.q, f)[:3, 3] - p.xyz).max() < 1e-6
+    assert np.abs(m.fk(r.q, "torso")[:3, 3] - goal[:3, 3]).max() < 1e-6
+
+
+def test_balance_on_three_feet(quad):
+    """Three feet hold, the fourth reaches out: the centre of mass must stay over the triangle
+    of the three by the margin; without the balance rows the same reach leaves it outside."""
+    m, stand = quad
+    held = FEET[:3]
+    contacts = {f: optik.Position(m.fk(stand, f)[:3, 3]) for f in held}
+    polygon = _hull(np.array([m.fk(stand, f)[:2, 3] for f in held]))
+    reach = m.fk(stand, FEET[3])[:3, 3] + [-0.12, -0.06, 0.08]
+    target = {FEET[3]: optik.Position(reach)}
+    free = optik.solve_ik(m, target, q0=stand, contacts=contacts, method="nlp", time_limit=10.0)
+    assert free.success and _inside(m, free.q, polygon) < 0.0  # falls over without the rows
+    r = optik.solve_ik(
+        m, target, q0=stand, contacts=contacts, support=polygon, com_margin=0.01, time_limit=10.0
+    )
+    assert r.success, r.message
+    assert _inside(m, r.q, polygon) >= 0.01 - 1e-9 and r.extra["com_inside"] == pytest.approx(
+        _inside(m, r.q, polygon)
+    )
+    np.testing.assert_allclose(r.extra["com"], m.com(r.q))
+    for f, p in {**contacts, **target}.items():
+        assert np.abs(m.fk(r.q, f)[:3, 3] - p.xyz).max() < 1e-6
+    assert m.within_limits(r.q)
+
+
+def test_an_impossible_margin_fails_with_the_reason(quad):
+    m, stand = quad
+    contacts = {f: optik.Position(m.fk(stand, f)[:3, 3]) for f in FEET}
+    polygon = _hull(np.array([m.fk(stand, f)[:2, 3] for f in FEET]))
+    goal = m.fk(stand, "torso")
+    r = optik.solve_ik(
+        m,
+        {"torso": goal},
+        q0=stand,
+        contacts=contacts,
+        support=polygon,
+        com_margin=0.5,
+        time_limit=0.5,
+        max_restarts=1,
+    )
+    assert not r.success and r.extra["com_inside"] < 0.5
+    assert "centre of mass" in r.message or "tolerances not met" in r.message
+
+
+def test_rejections(quad):
+    m, stand = quad
+    feet = {f: m.fk(stand, f) for f in FEET}
+    square = [[-1, -1], [1, -1], [1, 1], [-1, 1]]
+    goal = m.fk(stand, "torso")
+    with pytest.raises(InvalidArgumentError, match="contacts"):
+        optik.solve_ik(m, {"torso": goal}, contacts={"torso": goal})
+    with pytest.raises(InvalidArgumentError, match="contacts"):
+        optik.solve_ik(m, goal, frame="torso", contacts={"FL_foot": np.eye(3)})
+    with pytest.raises(InvalidArgumentError, match="contacts"):
+        optik.solve_ik(m, goal, frame="torso", contacts={})
+    with pytest.raises(InvalidArgumentError, match="com_margin"):
+        optik.solve_ik(m, goal, frame="torso", com_margin=0.1)
+    with pytest.raises(InvalidArgumentError, match="com_margin"):
+        optik.solve_ik(m, goal, frame="torso", support=square, com_margin=-0.1)
+    with pytest.raises(SolverUnavailableError, match="support"):
+        optik.solve_ik(m, goal, frame="torso", contacts=feet, support=square, method="lm")
+    with pytest.raises(InvalidArgumentError, match="support"):
+        optik.solve_ik(m, goal, frame="torso", support=square[::-1])
+
+
+def test_the_humanoid_benchmark_runs(capsys):
+    pytest.importorskip("pinocchio", reason="the benchmark's judge is Pinocchio")
+    from optik.benchmarks import bench_balance
+    from optik.catalog.robots import robots_dir
+
+    try:
+        robots_dir()
+    except optik.OptikError as exc:
+        pytest.skip(f"the G1 comes from example-robot-data: {exc}")
+    assert bench_balance.main(["--n", "2", "--time-limit", "5", "--pink-com-costs", "0"]) == 0
+    out = capsys.readouterr().out
+    assert "| optik nlp + balance | 2/2 |" in out

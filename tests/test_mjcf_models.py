@@ -1,0 +1,100 @@
+"""Every MJCF file shipped by the installed test-set packages (dm_control, gymnasium,
+gymnasium-robotics): where MuJoCo compiles it, `Mechanism.from_mjcf` loads it and the pose of
+every body and site equals MuJoCo's ``mj_kinematics`` (``xpos``, ``xmat``, ``site_xpos``,
+``site_xmat``) to 1e-10 on random configurations, and so does the centre of mass (MuJoCo's
+``subtree_com`` of the world); a model without joints is refused. Files that
+MuJoCo itself cannot compile (include fragments, schemas, files whose assets are missing) are
+skipped with MuJoCo's message. The table in ``docs/mjcf.md`` lists the outcome per file."""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pytest
+
+import optik
+from optik.errors import ModelError
+
+mujoco = pytest.importorskip("mujoco", reason="MJCF import needs MuJoCo (extra 'mjcf')")
+from optik.mechanism.mjcf import to_qpos  # noqa: E402  (after the importorskip)
+
+PACKAGES = ("dm_control", "gymnasium", "gymnasium_robotics")
+SAMPLES = 3
+
+
+def _model_files() -> list[tuple[str, Path]]:
+    """``(package-relative id, path)`` of every distinct ``.xml`` file of the installed packages
+    (a file shipped twice, e.g. gymnasium's envs copied into gymnasium-robotics, counts once)."""
+    out, seen = [], set()
+    for pkg in PACKAGES:
+        spec = importlib.util.find_spec(pkg)
+        if spec is None or not spec.submodule_search_locations:
+            continue
+        root = Path(next(iter(spec.submodule_search_locations)))
+        for path in sorted(root.rglob("*.xml")):
+            digest = hashlib.sha1(path.read_bytes()).hexdigest()
+            if digest not in seen:
+                seen.add(digest)
+                out.append((f"{pkg}/{path.relative_to(root)}", path))
+    return out
+
+
+FILES = _model_files()
+
+
+def test_the_test_sets_are_installed():
+    if not FILES:
+        pytest.skip("none of dm_control, gymnasium, gymnasium-robotics is installed")
+    assert len(FILES) > 20
+
+
+def _max_fk_error(m: optik.Mechanism, model, q: np.ndarray, frames: list[str], f: ca.Function) -> float:
+    data = mujoco.MjData(model)
+    data.qpos[:] = to_qpos(m, q)
+    mujoco.mj_kinematics(model, data)
+    want = [(data.xpos[b], data.xmat[b]) for b in range(1, model.nbody)]
+    want += [(data.site_xpos[s], data.site_xmat[s]) for s in range(model.nsite)]
+    out = f(q)
+    got = [np.asarray(t) for t in (out if isinstance(out, tuple | list) else [out])]
+    assert len(got) == len(want) == len(frames)
+    return max(
+        max(np.abs(t[:3, 3] - p).max(), np.abs(t[:3, :3] - r.reshape(3, 3)).max())
+        for t, (p, r) in zip(got, want, strict=True)
+    )
+
+
+@pytest.mark.parametrize("path", [p for _, p in FILES], ids=[i for i, _ in FILES])
+def test_fk_equals_mujoco(path: Path):
+    try:
+        model = mujoco.MjModel.from_xml_path(str(path))
+    except ValueError as exc:
+        pytest.skip(f"MuJoCo does not compile it either: {str(exc).splitlines()[0]}")
+    if model.njnt == 0:
+        with pytest.raises(ModelError, match="no joint"):
+            optik.Mechanism.from_mjcf(model)
+        return
+    m = optik.Mechanism.from_mjcf(model)
+    coupled = len(m.params["qpos_mimics"])  # joints that follow others (<equality joint>)
+    assert m.n_q == model.nq - sum(int(t) in (0, 1) for t in model.jnt_type) - coupled  # quaternions: 3
+    frames = [model.body(b).name or f"body{b}" for b in range(1, model.nbody)]
+    frames += [m.params["site_frames"][model.site(s).name or f"site{s}"] for s in range(model.nsite)]
+    f = ca.Function("frames", [m.q_sym], [m.frame_expr(name) for name in frames])
+    data = mujoco.MjData(model)
+    for q in m.random_q(SAMPLES, seed=0):
+        assert _max_fk_error(m, model, q, frames, f) < 1e-10
+        data.qpos[:] = to_qpos(m, q)
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        assert np.abs(m.com(q) - data.subtree_com[0]).max() < 1e-10
+
+
+def test_the_fk_benchmark_runs(capsys):
+    from optik.benchmarks import bench_mjcf_fk
+
+    assert bench_mjcf_fk.main(["--n", "2", "--max-models", "2"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("| `") == 2 and "2 models, largest error" in out

@@ -1,0 +1,369 @@
+"""`optik.plan_path` (issue 24): the least-motion joint path over every IK solution.
+
+The optimum is checked against brute force (every sequence of solutions enumerated), the
+relaxation of wrapping joints against the graph of every turn, and every answer by an
+independent FK per sample, the limits and the velocities recomputed from ``q`` and ``t``.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import optik
+from optik.path import graph, samples
+from optik.path.nodes import turn_copies
+
+
+def _robot(name):
+    try:
+        return optik.catalog.robot(name)
+    except optik.MissingExtraError as exc:
+        pytest.skip(f"the UR5 comes from the robots extra: {exc}")
+
+
+@pytest.fixture(scope="module")
+def ur5():
+    return _robot("ur5")
+
+
+@pytest.fixture(scope="module")
+def ur5_limited():
+    return _robot("ur5_limited")
+
+
+@pytest.fixture(scope="module")
+def puma():
+    return optik.catalog.puma560()
+
+
+Q0 = {"puma560": np.array([0.3, 0.5, -1.0, 0.4, 0.8, 0.2]), "ur5": np.array([0.3, -1.1, 1.2, -0.6, 0.8, 0.2])}
+
+
+def line(m, n=200, d=(0.05, 0.03, -0.02)):
+    """Poses along a straight line from ``fk(q0)``, orientation fixed."""
+    poses = np.repeat(m.fk(Q0.get(m.name, Q0["ur5"]))[None], n, axis=0)
+    poses[:, :3, 3] += np.linspace(0.0, 1.0, n)[:, None] * np.asarray(d)
+    return poses
+
+
+def length(q, w=None):
+    w = np.ones(q.shape[1]) if w is None else w
+    return float(np.linalg.norm(np.diff(q, axis=0) * w, axis=1).sum())
+
+
+def brute_force(layers, w, bounds=None):
+    """The least cost over every sequence of nodes (enumerated)."""
+    best = np.inf
+    for pick in itertools.product(*[range(len(layer)) for layer in layers]):
+        q = np.stack([layer[i] for layer, i in zip(layers, pick, strict=True)])
+        if bounds is not None and np.any(np.abs(np.diff(q, axis=0)) > bounds):
+            continue
+        best = min(best, length(q, w))
+    return best
+
+
+def independent_checks(m, path, poses, tol=1e-6):
+    """FK of every sample by ``m.fk`` (one call each), the limits exactly."""
+    for q, t in zip(path.q, poses, strict=True):
+        f = m.fk(q)
+        assert np.linalg.norm(f[:3, 3] - t[:3, 3]) <= tol
+        assert optik.spatial.angle_between(f[:3, :3], t[:3, :3]) <= tol
+    assert np.all(path.q >= m.lower) and np.all(path.q <= m.upper)
+
+
+@settings(max_examples=30)
+@given(st.integers(2, 4), st.integers(1, 4), st.integers(0, 10_000), st.booleans(), st.booleans())
+def test_dynamic_program_is_the_brute_force_optimum(n_layers, width, seed, bounded, periodic):
+    rng = np.random.default_rng(seed)
+    layers = [rng.uniform(-4, 4, (int(rng.integers(1, width + 1)), 3)) for _ in range(n_layers)]
+    w = rng.uniform(0.2, 2.0, 3)
+    bounds = np.full((n_layers - 1, 3), 4.0) if bounded else None
+    periods = np.array([2 * np.pi, 0.0, 2 * np.pi]) if periodic else np.zeros(3)
+    got_c = graph.least_motion(layers, w, bounds, periods)
+    got_np = graph.least_motion_numpy(layers, w, bounds, periods)
+    if periodic:  # the brute force over the wrapped differences
+        want = np.inf
+        for pick in itertools.product(*[range(len(layer)) for layer in layers]):
+            q = np.stack([layer[i] for layer, i in zip(layers, pick, strict=True)])
+            d = graph.differences(q[:-1], q[1:], periods)
+            if bounds is None or np.all(np.abs(d) <= bounds):
+                want = min(want, float(np.linalg.norm(d * w, axis=1).sum()))
+    else:
+        want = brute_force(layers, w, bounds)
+    for got in (got_c, got_np):
+        if np.isinf(want):
+            assert got.blocked >= 1 and np.isinf(got.cost)
+            continue
+        assert got.blocked == -1
+        assert got.cost == pytest.approx(want, abs=1e-9)
+        q = np.stack([layer[i] for layer, i in zip(layers, got.index, strict=True)])
+        d = graph.differences(q[:-1], q[1:], periods)
+        assert float(np.linalg.norm(d * w, axis=1).sum()) == pytest.approx(got.cost, abs=1e-9)
+
+
+def test_far_apart_poses_brute_force_over_every_solution(ur5_limited):
+    m = ur5_limited
+    rng = np.random.default_rng(3)
+    poses = optik.fk_batch(m, rng.uniform(m.lower, m.upper, (4, 6)))
+    w = np.array([2.0, 2.0, 1.5, 1.0, 1.0, 0.5])
+    path = optik.plan_path(m, poses, weights=w, max_flips=None)
+    assert path.success, path.message
+    layers = [optik.solve_ik_all(m, t).q for t in poses]
+    layers = [turn_copies(x, m.lower, m.upper, m.revolute_mask)[0] for x in layers]
+    assert length(path.q, w) == pytest.approx(brute_force(layers, w), abs=1e-9)
+    assert path.cost == pytest.approx(length(path.q, w), abs=1e-9)
+    independent_checks(m, path, poses)
+
+
+def test_relaxed_turns_equal_the_graph_of_every_turn(ur5):
+    """UR5 joints span +-2 pi: the plan on representatives modulo 2 pi, its turns counted, has
+    the optimum of the graph of every turn (up to 32 copies of each solution)."""
+    m = ur5
+    rng = np.random.default_rng(5)
+    q = rng.uniform(-np.pi, np.pi, (6, 6))
+    poses = optik.fk_batch(m, q)
+    path = optik.plan_path(m, poses, max_flips=None)
+    assert path.success, path.message
+    layers = [turn_copies(optik.solve_ik_all(m, t).q, m.lower, m.upper, m.revolute_mask)[0] for t in poses]
+    full = graph.least_motion(layers, np.ones(6))
+    assert length(path.q) == pytest.approx(full.cost, abs=1e-9)
+    independent_checks(m, path, poses)
+
+
+@pytest.mark.parametrize("arm", ["puma", "ur5", "ur5_limited"])
+def test_line_no_branch_change_fk_round_trip(arm, request):
+    m = request.getfixturevalue(arm)
+    poses = line(m)
+    path = optik.plan_path(m, poses, velocity=np.full(6, 1.0))
+    assert path.success, path.message
+    assert path.flips == 0 and np.all(path.branch == 0)
+    assert set(path.checks) == {"fk", "limits", "velocity", "branch"}
+    independent_checks(m, path, poses)
+    # a continuous path: no joint jumps between neighbouring samples
+    assert np.abs(np.diff(path.q, axis=0)).max() < 0.05
+    seg = np.abs(np.diff(path.q, axis=0)) / np.diff(path.t)[:, None]
+    assert np.all(seg <= 1.0 + 1e-9) and np.all(np.abs(path.qd) <= 1.0 + 1e-9)
+    # the nearest solution of each pose, stepped from the start, is no shorter
+    step = [path.q[0]]
+    for t in poses[1:]:
+        sols = optik.solve_ik_all(m, t).q
+        step.append(sols[np.argmin(np.linalg.norm(sols - step[-1], axis=1))])
+    assert path.cost <= length(np.array(step)) + 1e-9
+
+
+def test_circle_about_the_base_turns_past_pi(ur5):
+    """A base rotation of 1.3 turns: the path of a UR5 (+-2 pi) sweeps joint 1 continuously."""
+    m = ur5
+    angles = np.linspace(0.0, 1.3 * 2 * np.pi, 300)
+    q = np.tile(np.array([0.0, -1.2, 1.4, -0.5, 1.2, 0.3]), (300, 1))
+    q[:, 0] = angles - np.pi
+    poses = optik.fk_batch(m, q)
+    path = optik.plan_path(m, poses)
+    assert path.success, path.message
+    assert np.ptp(path.q[:, 0]) == pytest.approx(1.3 * 2 * np.pi, abs=1e-6)
+    assert np.abs(np.diff(path.q, axis=0)).max() < 0.05
+    independent_checks(m, path, poses)
+    tight = m.with_limits(lower=np.r_[-4.0, m.lower[1:]], upper=np.r_[4.0, m.upper[1:]])
+    q[:, 0] = angles - 4.0  # within the limits at every sample, but 8.2 rad of sweep
+    blocked = optik.plan_path(tight, optik.fk_batch(tight, q))
+    # the relaxed optimum does not fit: over every turn, the only way is another branch
+    assert "planned over every turn" in blocked.message
+    assert not blocked.success and blocked.flips >= 1 and blocked.checks["branch"] is False
+    assert blocked.checks["limits"] and blocked.checks["fk"]
+
+
+def test_given_times_remove_fast_edges_and_none_stretch(puma):
+    m = puma
+    poses = line(m, n=100)
+    ok = optik.plan_path(m, poses, times=np.linspace(0, 10, 100), velocity=np.full(6, 1.0))
+    assert ok.success and ok.checks["velocity"]
+    fast = optik.plan_path(m, poses, times=np.linspace(0, 1e-3, 100), velocity=np.full(6, 1.0))
+    assert not fast.success and "velocity limits" in fast.message and "pose 1" in fast.message
+    slow = optik.plan_path(m, poses, velocity=np.full(6, 0.01), speed=0.5)
+    assert slow.success and slow.stretched > 0 and f"{slow.stretched} segments stretched" in slow.message
+    seg = np.abs(np.diff(slow.q, axis=0)) / np.diff(slow.t)[:, None]
+    assert np.all(seg <= 0.01 * (1 + 1e-9))
+    # the nominal time of a segment at the tool speed, or longer
+    travel = np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=1)
+    assert np.all(np.diff(slow.t) >= travel / 0.5 - 1e-12)
+    acc = optik.plan_path(m, poses, velocity=np.full(6, 1.0), acceleration=np.full(6, 1e-6))
+    assert not acc.success and acc.checks["acceleration"] is False and "acceleration" in acc.message
+
+
+def test_unreachable_pose_is_a_failure_naming_it(puma):
+    poses = line(puma, n=20)
+    poses[7, :3, 3] += 10.0
+    path = optik.plan_path(puma, poses)
+    assert not path.success and "pose 7" in path.message and path.q.shape == (0, 6)
+
+
+def test_bad_input_names_the_argument(puma):
+    poses = line(puma, n=5)
+    cases = [
+        ({"poses": poses[:, :3]}, "poses"),
+        ({"poses": poses, "times": [0, 1, 1, 2, 3]}, "times"),
+        ({"poses": poses, "times": [0, 1, 2]}, "times"),
+        ({"poses": poses, "weights": [-1, 1, 1, 1, 1, 1]}, "weights"),
+        ({"poses": poses, "velocity": [0, 1, 1, 1, 1, 1]}, "velocity"),
+        ({"poses": poses, "speed": -1.0}, "speed"),
+    ]
+    for kwargs, name in cases:
+        with pytest.raises(optik.InvalidArgumentError) as err:
+            optik.plan_path(puma, **kwargs)
+        assert err.value.argument == name
+    bad = poses.copy()
+    bad[2, 0, 0] = np.nan
+    with pytest.raises(optik.NonFiniteError, match=r"poses\[2\]"):
+        optik.plan_path(puma, bad)
+    with pytest.raises(optik.SolverUnavailableError):
+        optik.plan_path(optik.catalog.panda(), np.eye(4)[None])
+
+
+def test_world_drops_colliding_solutions(ur5_limited):
+    pytest.importorskip("coal", reason="collision queries need coal (the collision extra)")
+    m = ur5_limited
+    poses = line(m, n=50)
+    free = optik.plan_path(m, poses)
+    ball = optik.World()
+    ball.add_sphere("ball", 0.08, optik.spatial.translation(*m.fk(free.q[25], "forearm_link")[:3, 3]))
+    path = optik.plan_path(m, poses, world=ball)
+    assert path.success and path.checks["collision"], path.message
+    assert "colliding configurations dropped" in path.message
+    hits = [optik.collision.check(m, q, world=ball).in_collision for q in path.q]
+    assert not any(hits)
+    assert any(optik.collision.check(m, q, world=ball).in_collision for q in free.q)
+    independent_checks(m, path, poses)
+
+
+def test_free_axis_absorbs_a_tool_spin(ur5_limited):
+    """The poses spin back and forth about the tool axis: with ``free_axis="z"`` the path need
+    not follow the spin, so it is shorter, and every sample still has the tool axis and point."""
+    m = ur5_limited
+    poses = line(m, n=120)
+    spin = 0.6 * np.sin(np.linspace(0, 6 * np.pi, 120))
+    poses[:, :3, :3] = poses[:, :3, :3] @ np.stack([optik.spatial.rot_z(a) for a in spin])
+    fixed = optik.plan_path(m, poses)
+    free = optik.plan_path(m, poses, free_axis="z", axis_step=np.pi / 18)
+    assert fixed.success and free.success, free.message
+    assert free.cost < 0.5 * fixed.cost
+    assert free.flips == 0
+    for q, t in zip(free.q, poses, strict=True):  # the tool point and axis, by one FK each
+        f = m.fk(q)
+        assert np.linalg.norm(f[:3, 3] - t[:3, 3]) <= 1e-6
+        assert np.arccos(np.clip(f[:3, 2] @ t[:3, 2], -1, 1)) <= 1e-6
+    assert np.all(free.q >= m.lower) and np.all(free.q <= m.upper)
+
+
+def test_axis_shortcut_equals_one_ik_per_sample(ur5, puma):
+    """Turning the last joint is the tool's z spin for both arms: the solutions so obtained are
+    those of the IK of every sampled pose."""
+    for m in (ur5, puma):
+        assert samples.axis_joint(m, "z", None) is not None
+        assert samples.axis_joint(m, "x", None) is None
+        poses = line(m, n=3)
+        sp = samples.sample_poses(poses, "z", np.pi / 4, None)
+        quick, qg = samples.sample_solutions(m, sp, None, samples.axis_joint(m, "z", None))
+        slow, sg = samples.sample_solutions(m, sp, None, None)
+        per = graph.differences  # compare modulo 2 pi on the wrapping joints
+        periods = optik.path.nodes.wrapping(m)
+        for a, ga, b, gb in zip(quick, qg, slow, sg, strict=True):
+            assert len(a) == len(b)
+            for g in np.unique(gb):
+                x, y = a[ga == g], b[gb == g]
+                d = np.abs(per(x[:, None], y[None], periods)).max(axis=-1)
+                assert d.min(axis=1).max() < 1e-9 and d.min(axis=0).max() < 1e-9
+
+
+def test_free_axis_optimum_over_the_sampled_graph(ur5_limited):
+    m = ur5_limited
+    rng = np.random.default_rng(11)
+    poses = optik.fk_batch(m, rng.uniform(-2, 2, (3, 6)))
+    path = optik.plan_path(m, poses, free_axis="z", axis_step=np.pi / 3, max_flips=None)
+    assert path.success, path.message
+    sp = samples.sample_poses(poses, "z", np.pi / 3, None)
+    layers, _ = samples.sample_solutions(m, sp, None, None)
+    want = graph.least_motion_numpy(layers, np.ones(6), None, np.zeros(6))
+    assert path.cost == pytest.approx(want.cost, abs=1e-9)
+    for q, t, a in zip(path.q, poses, path.axis_angle, strict=True):  # the reported turn
+        assert np.abs(m.fk(q)[:3, :3] - t[:3, :3] @ optik.spatial.rot_z(a)).max() < 1e-9
+
+
+def test_position_tolerance_widens_the_graph(puma):
+    m = puma
+    poses = line(m, n=60)
+    poses[::2, :3, 3] += [0.0, 0.0, 0.004]  # a 4 mm ripple
+    exact = optik.plan_path(m, poses)
+    loose = optik.plan_path(m, poses, position_tolerance=0.004)
+    assert exact.success and loose.success, loose.message
+    assert loose.cost < exact.cost
+    tips = optik.fk_batch(m, loose.q)[:, :3, 3]
+    assert np.all(np.linalg.norm(tips - poses[:, :3, 3], axis=1) <= 0.004 + 1e-6)
+    with pytest.raises(optik.InvalidArgumentError, match="position_tolerance"):
+        optik.plan_path(m, poses, position_tolerance=-1.0)
+    with pytest.raises(optik.InvalidArgumentError, match="free_axis"):
+        optik.plan_path(m, poses, free_axis="w")
+
+
+def test_densification_keeps_the_tool_near_the_segments(puma):
+    m = puma
+    poses = line(m, n=200, d=(0.0, 0.2, 0.0))[::40]  # 5 samples 4 cm apart
+    loose = optik.plan_path(m, poses)
+    assert loose.deviation.max() > 1e-4
+    dense = optik.plan_path(m, poses, max_deviation=1e-4)
+    assert dense.success and dense.checks["deviation"], dense.message
+    assert len(dense) > len(poses) and "samples inserted" in dense.message
+    for t in poses:  # the poses asked for are all still samples
+        assert np.min(np.abs(dense.poses - t).reshape(len(dense), -1).max(axis=1)) < 1e-12
+    mid = 0.5 * (dense.q[:-1] + dense.q[1:])  # independent: the tool at each joint midpoint
+    tips, p = optik.fk_batch(m, mid)[:, :3, 3], dense.poses[:, :3, 3]
+    ab = p[1:] - p[:-1]
+    s = np.clip(np.einsum("ij,ij->i", tips - p[:-1], ab) / np.einsum("ij,ij->i", ab, ab), 0, 1)
+    assert np.linalg.norm(tips - (p[:-1] + s[:, None] * ab), axis=1).max() <= 1e-4
+    independent_checks(m, dense, dense.poses)
+
+
+PANDA_Q0 = np.array([0.1, -0.3, 0.2, -2.0, 0.1, 1.8, 0.6])
+
+
+@pytest.fixture(scope="module")
+def panda_line():
+    m = optik.catalog.panda()
+    poses = np.repeat(m.fk(PANDA_Q0)[None], 60, axis=0)
+    poses[:, :3, 3] += np.linspace(0.0, 1.0, 60)[:, None] * [0.0, 0.2, 0.0]
+    return m, poses
+
+
+def test_redundant_arm_over_self_motion_samples(panda_line):
+    m, poses = panda_line
+    values = np.linspace(-2.8, 2.8, 15)
+    path = optik.plan_path(m, poses, self_motion=("q7", values))
+    assert path.success and path.flips == 0, path.message
+    assert np.all(np.isin(path.q[:, 6], values))  # every sample on a sampled self-motion value
+    independent_checks(m, path, poses)
+    layers, _ = samples.sample_solutions(
+        m, samples.sample_poses(poses, None, 1.0, None), None, None, (6, values)
+    )
+    want = graph.least_motion_numpy(layers, np.ones(7), None, optik.path.nodes.wrapping(m))
+    assert path.cost == pytest.approx(want.cost, abs=1e-9)
+    smooth = optik.plan_path(m, poses, self_motion=("q7", values), smooth=True)
+    assert smooth.success and "refined from" in smooth.message, smooth.message
+    assert smooth.cost < path.cost
+    assert smooth.cost == pytest.approx(length(smooth.q), abs=1e-9)
+    independent_checks(m, smooth, poses)
+
+
+def test_redundant_arm_bad_input(panda_line):
+    m, poses = panda_line
+    for value in [("q9", [0.0]), ("q7", [5.0]), "q7"]:
+        with pytest.raises(optik.InvalidArgumentError) as err:
+            optik.plan_path(m, poses[:3], self_motion=value)
+        assert err.value.argument == "self_motion"
+    with pytest.raises(optik.SolverUnavailableError, match="q1"):
+        optik.plan_path(m, poses[:3], self_motion=("q1", [0.0]))
+    with pytest.raises(optik.InvalidArgumentError, match="smooth"):
+        optik.plan_path(m, poses[:3], self_motion=("q7", [0.6]), free_axis="z", smooth=True)

@@ -57,7 +57,8 @@ def test_both_hands_placed(method):
         targets = {"left_tool": DUAL.fk(q, "left_tool"), "right_tool": DUAL.fk(q, "right_tool")}
         if method == "qp":  # mixed target types: the right hand only positioned
             targets["right_tool"] = Position(targets["right_tool"][:3, 3])
-        res = optik.solve_ik(DUAL, targets, method=method, time_limit=1.0)
+        # a generous limit: the test is about the answers, and a busy machine must not fail it
+        res = optik.solve_ik(DUAL, targets, method=method, time_limit=5.0)
         if res.success:
             _check(DUAL, res, targets)
             solved += 1

@@ -92,7 +92,7 @@ def deadline(at: float | None) -> Iterator[None]:
     past ``at`` (a ``time.perf_counter()`` value; None: no limit): it evaluates with CasADi
     instead. The solvers' entry points set it to the end of their time limit, so that no call
     waits for a C compile past its own limit."""
-    token = _DEADLINE.set(at)
+    token = _DEADLINE.set(at if at is not None and at < float("inf") else None)
     try:
         yield
     finally:

@@ -43,3 +43,13 @@ def test_the_fuzzer_holds_calls_to_their_limit_plus_the_slack():
     slow = Call("x", lambda: time.sleep(0.05 + OVERTIME_SLACK + 0.1), limit=0.05)
     assert classify(slow).kind == "overtime"  # 0.4 s for a 0.05 s limit: within the old 3 x + 0.5 s
     assert classify(Call("x", lambda: time.sleep(0.06), limit=0.05)).kind == "ok"
+
+
+def test_the_deadline_is_scoped_and_an_infinite_one_is_no_limit():
+    assert native._DEADLINE.get() is None
+    with native.deadline(12.5):
+        assert native._DEADLINE.get() == 12.5
+        with native.deadline(float("inf")):  # a wait without limit, not an overflow of the timeout
+            assert native._DEADLINE.get() is None
+        assert native._DEADLINE.get() == 12.5
+    assert native._DEADLINE.get() is None

@@ -11,42 +11,44 @@ installed as the package ``optik.problems`` (a ``package_dir`` mapping in ``setu
 through `importlib.resources` as `PROBLEM_DIR`, so that a wheel install,
 an editable install and a source tree on ``PYTHONPATH`` all see them; any other directory can
 be given instead (``optik --problems-dir DIR``), and any file by path. Schema (every table but
-``[mechanism]`` optional)::
+``[mechanism]`` optional):
 
-    [problem]
-    description = "..."          # required, one line
-    name = "five_bar"            # default: the file name without .toml
-    default = true               # part of the default set of `optik bench`
+```toml
+[problem]
+description = "..."          # required, one line
+name = "five_bar"            # default: the file name without .toml
+default = true               # part of the default set of `optik bench`
 
-    [mechanism]
-    constructor = "five_bar"     # a function of optik.catalog
-    task = "position2d"          # default: the mechanism's own task
-    urdf = "panda"               # shipped URDF (optik.catalog.URDF_CHAINS) for the peers
-    [mechanism.params]           # keyword arguments of the constructor
-    lengths = [1.0, 1.0, 1.2, 1.2]
+[mechanism]
+constructor = "five_bar"     # a function of optik.catalog
+task = "position2d"          # default: the mechanism's own task
+urdf = "panda"               # shipped URDF (optik.catalog.URDF_CHAINS) for the peers
+[mechanism.params]           # keyword arguments of the constructor
+lengths = [1.0, 1.0, 1.2, 1.2]
 
-    [limits]                     # radians / metres, one value per coordinate
-    lower = [...]
-    upper = [...]
+[limits]                     # radians / metres, one value per coordinate
+lower = [...]
+upper = [...]
 
-    [targets]
-    n = 200                      # targets of a full run
-    quick_n = 25                 # targets of `optik bench --quick`
-    seed = 0
-    sampling = "auto"            # "joint", "actuated", "pose" or "auto"
-    pose_center = [...]          # "pose": (x, y, phi) planar, (x, y, z, roll, pitch, yaw) spatial
-    pose_half_range = [...]
+[targets]
+n = 200                      # targets of a full run
+quick_n = 25                 # targets of `optik bench --quick`
+seed = 0
+sampling = "auto"            # "joint", "actuated", "pose" or "auto"
+pose_center = [...]          # "pose": (x, y, phi) planar, (x, y, z, roll, pitch, yaw) spatial
+pose_half_range = [...]
 
-    [tolerances]                 # the default success tolerances
-    position = 1e-6
-    orientation = 1e-6
-    closure = 1e-9
+[tolerances]                 # the default success tolerances
+position = 1e-6
+orientation = 1e-6
+closure = 1e-9
 
-    [solvers]
-    methods = ["closed_form", "lm", "nlp", "dls", "qp"]   # default: every registered method
-    peers = ["trac_ik", "pink", "ikpy"]                    # default: none
-    time_limit = 0.1             # seconds per IK call
-    quick_time_limit = 0.05
+[solvers]
+methods = ["closed_form", "lm", "nlp", "dls", "qp"]   # default: every registered method
+peers = ["trac_ik", "pink", "ikpy"]                    # default: none
+time_limit = 0.1             # seconds per IK call
+quick_time_limit = 0.05
+```
 
 Target sampling (the benchmark method): the reference configuration ``q`` is drawn so
 that it satisfies the limits and the loop closures, and the target is ``T = FK(q)``:

@@ -90,3 +90,11 @@ def test_fk_equals_mujoco(path: Path):
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
         assert np.abs(m.com(q) - data.subtree_com[0]).max() < 1e-10
+
+
+def test_the_fk_benchmark_runs(capsys):
+    from optik.benchmarks import bench_mjcf_fk
+
+    assert bench_mjcf_fk.main(["--n", "2", "--max-models", "2"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("| `") == 2 and "2 models, largest error" in out

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from optik import native
 from optik.closed_form import registry
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
@@ -120,12 +121,13 @@ def solve_ik(
             f"method {name!r} does not apply to {m.name!r} with task {request.task!r}"
             + ("" if own_frame else f" and frame {request.frame!r}")
         )
-    if method is None and name == "closed_form" and registry.costly(m):
-        return _numerical_first(request)
-    res = info.solve(request)
-    if method is None and name == "closed_form" and "uncertified" in res.extra:
-        return _numerical_fallback(request, res)
-    return res
+    with native.deadline(request.start + request.time_limit):  # no wait for a C build past it
+        if method is None and name == "closed_form" and registry.costly(m):
+            return _numerical_first(request)
+        res = info.solve(request)
+        if method is None and name == "closed_form" and "uncertified" in res.extra:
+            return _numerical_fallback(request, res)
+        return res
 
 
 NUMERICAL_SHARE = 0.5

@@ -147,19 +147,19 @@ def solve_lm(request: IKRequest) -> IKResult:
     k, base = _prepare(request)
     conf = base.copy()
     conf[3] = max(request.remaining(), 0.0)
-    seed = np.array([request_seed(request.seed) & (2**64 - 1)], dtype=np.uint64)
     params = target_parameters(request.target)
-    out = k.run(params[None], request.q0[None], seed, conf)
-    status = None if out.status[0] == 0 else STATUS[int(out.status[0])]
-    return make_result(
-        request,
-        out.q[0],
-        "lm",
-        int(out.iterations[0]),
-        int(out.restarts[0]),
-        status,
-        errors=lambda q: k.final_errors(q, params),  # the kernel's own check, as the batch's
+    q, err, iterations, restarts, code = k.run_one(
+        params, request.q0, request_seed(request.seed) & (2**64 - 1), conf
     )
+    answer = q.tolist()
+
+    def errors(qq: np.ndarray) -> tuple[float, float, float]:
+        """The kernel's own check, as the batch's: the errors it computed for its answer when
+        wrapping and clipping left that unchanged, else evaluated again."""
+        return err if qq.tolist() == answer else k.final_errors(qq, params)
+
+    status = None if code == 0 else STATUS[code]
+    return make_result(request, q, "lm", iterations, restarts, status, errors=errors)
 
 
 register_method(

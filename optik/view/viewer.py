@@ -4,18 +4,16 @@ The page is served by a `viser.ViserServer` (its own threads: the caller is neve
 Every interaction of the page has a Python twin on `Viewer`, so that scripts, notebooks and
 tests drive the same code paths as a mouse:
 
-========================  ==================================================================
-page                      Python
-========================  ==================================================================
-drag the target gizmo     `Viewer.set_target` (IK from the shown ``q`` as the seed)
-IK method dropdown        `Viewer.method`
-"all solutions" box       `Viewer.show_all_solutions` (every branch of ``solve_ik_all``)
-joint sliders             `Viewer.set_q` (FK)
-actuator sliders          `Viewer.set_actuated` (closed chains: every assembly mode)
-"next assembly mode"      `Viewer.show_mode`
-"track a circle", time    `Viewer.track`, `Viewer.show_path_sample`
-"capability map" box      `Viewer.show_reach`, `Viewer.set_reach_visible`
-========================  ==================================================================
+| page | Python |
+|---|---|
+| drag the target gizmo | `Viewer.set_target` (IK from the shown ``q`` as the seed) |
+| IK method dropdown | `Viewer.method` |
+| "all solutions" box | `Viewer.show_all_solutions` (every branch of ``solve_ik_all``) |
+| joint sliders | `Viewer.set_q` (FK) |
+| actuator sliders | `Viewer.set_actuated` (closed chains: every assembly mode) |
+| "next assembly mode" | `Viewer.show_mode` |
+| "track a circle", time | `Viewer.track`, `Viewer.show_path_sample` |
+| "capability map" box | `Viewer.show_reach`, `Viewer.set_reach_visible` |
 """
 
 from __future__ import annotations

@@ -134,6 +134,10 @@ def test_the_humanoid_benchmark_runs(capsys):
         robots_dir()
     except optik.OptikError as exc:
         pytest.skip(f"the G1 comes from example-robot-data: {exc}")
-    assert bench_balance.main(["--n", "2", "--time-limit", "5", "--pink-com-costs", "0"]) == 0
-    out = capsys.readouterr().out
-    assert "| optik nlp + balance | 2/2 |" in out
+    for robot in ("g1", "go2"):
+        assert (
+            bench_balance.main(["--robot", robot, "--n", "2", "--time-limit", "5", "--pink-com-costs", "0"])
+            == 0
+        )
+        out = capsys.readouterr().out
+        assert "| optik nlp + balance | 2/2 |" in out

@@ -55,9 +55,9 @@ converges where it is. A candidate near the real axis (``|Im(phi_3)| <= _REAL_RE
 polish does not end real is polished from its real part as well (on a singular pencil the
 eigenvalues mean nothing, but their real parts often lie next to real solutions). A candidate
 whose angles are real to `IMAG_TOL` is a real candidate: it is polished on the real model
-(for a mechanism on ``m.fk`` / ``m.jacobian`` where still needed), kept only when the final forward kinematics matches the target to `FK_TOL`
-(position relative to the arm's size, orientation in radians) and deduplicated (1e-6 rad,
-angles modulo 2 pi). The count check: a 6R arm has at most 16 isolated solutions in complex
+(for a mechanism on ``m.fk`` / ``m.jacobian`` where still needed), kept only when the final
+forward kinematics matches the target to `FK_TOL` (position relative to the arm's size,
+orientation in radians) and deduplicated (1e-6 rad, angles modulo 2 pi). The count check: a 6R arm has at most 16 isolated solutions in complex
 space (16 for a generic arm), so 16 distinct verified ones are all of them. The result reports
 the number of finite eigenvalues (``n_finite``, 16 expected), of distinct real and complex
 solutions, and flags (``count_ok = False``) any instance where they do not add up to 16, where

@@ -33,6 +33,9 @@ class IKResult:
             (`optik.solve_ik` with a ``{frame: target}`` dict), each from that frame's own FK;
             ``position_error`` and ``orientation_error`` are then the largest of them. Empty for
             one target.
+        min_distance: for a collision-aware solve (``world=`` or ``self_collision=True``), the
+            exact smallest signed distance of ``q`` to the world and to itself (m); None otherwise.
+        collision_pair: the closest pair at ``q`` (link, link or world object) of such a solve.
     """
 
     q: np.ndarray
@@ -49,6 +52,8 @@ class IKResult:
     restarts: int = 0
     extra: dict = field(default_factory=dict)
     frame_errors: dict[str, tuple[float, float]] = field(default_factory=dict)
+    min_distance: float | None = None
+    collision_pair: tuple[str, str] | None = None
 
 
 @dataclass

@@ -54,17 +54,18 @@ nearly singular, e.g. axes within 1e-5 rad of parallel) converges back to it, a 
 converges where it is. A candidate near the real axis (``|Im(phi_3)| <= _REAL_RETRY``) whose
 polish does not end real is polished from its real part as well (on a singular pencil the
 eigenvalues mean nothing, but their real parts often lie next to real solutions). A candidate
-whose angles are real to `IMAG_TOL` is a real candidate: it is polished on the real model
-(for a mechanism on ``m.fk`` / ``m.jacobian`` where still needed), kept only when the final
-forward kinematics matches the target to `FK_TOL` (position relative to the arm's size,
-orientation in radians) and deduplicated (1e-6 rad, angles modulo 2 pi). The count check: a 6R arm has at most 16 isolated solutions in complex
-space (16 for a generic arm), so 16 distinct verified ones are all of them. The result reports
-the number of finite eigenvalues (``n_finite``, 16 expected), of distinct real and complex
-solutions, and flags (``count_ok = False``) any instance where they do not add up to 16, where
-fewer than 16 finite eigenvalues were found, where ``M(x_3)`` is singular at two test points (a
-singular pencil, whose eigenvalues mean nothing), or where a candidate did not converge or a
-real one failed its check: the arm or the pose is then degenerate (special geometry, a pose on
-a singular boundary, a root that cannot be decided) and solutions may be missing.
+whose angles are real to `IMAG_TOL` is a real candidate: it is polished on the real model (for a
+mechanism on ``m.fk`` / ``m.jacobian`` where still needed), kept only when the final forward
+kinematics matches the target to `FK_TOL` (position relative to the arm's size, orientation in
+radians) and deduplicated (1e-6 rad, angles modulo 2 pi). The count check: a 6R arm has at most
+16 isolated solutions in complex space (16 for a generic arm), so 16 distinct verified ones are
+all of them. The result reports the number of finite eigenvalues (``n_finite``, 16 expected), of
+distinct real and complex solutions, and flags (``count_ok = False``) any instance where they do
+not add up to 16, where fewer than 16 finite eigenvalues were found, where ``M(x_3)`` is
+singular at two test points (a singular pencil, whose eigenvalues mean nothing), or where a
+candidate did not converge or a real one failed its check: the arm or the pose is then
+degenerate (special geometry, a pose on a singular boundary, a root that cannot be decided) and
+solutions may be missing.
 """
 
 from __future__ import annotations

@@ -340,3 +340,32 @@ def test_bench_chart_contenders_on_the_same_spot_stay_visible():
     sizes = [line.get_markersize() for line in ax.lines if line.get_marker() in ("o", "s")]
     assert sorted(sizes, reverse=True) == [18, 12, 6]  # concentric: none hides another
     assert sorted(t.get_text() for t in ax.texts) == ["closed_form", "lm", "nlp"]
+
+
+# ---------------------------------------------------------------------------- the viewer
+def test_view_and_reach_accept_catalog_robot_names(capsys):
+    from optik.problem_files import load_source
+
+    try:
+        m, problem = load_source("ur5", None, None)
+    except optik.MissingExtraError as exc:
+        assert 'pip install "optik[robots]"' in str(exc)
+        pytest.skip(str(exc))
+    assert problem is None and m.name == "ur5" and m.n_q == 6
+    m, problem = load_source("panda", None, None)  # a problem name wins over the robot of that name
+    assert problem is not None and problem.name == "panda"
+    code, out, _ = _run(["view", "--help"], capsys)
+    assert code == 0 and "ur5" in out and "PROBLEM|ROBOT|URDF" in out
+
+
+def test_the_viewer_opens_a_closed_chain_showing_its_shape():
+    pytest.importorskip("viser", reason="needs the view extra (pip install 'optik[view]')")
+    from optik.plot import geometry
+
+    m = optik.catalog.five_bar()
+    with optik.view(m, port=0) as v:
+        q = v.q
+    assert np.abs(m.closure(q)).max() < 1e-9
+    joints = geometry(m, q).parent_side
+    gaps = np.linalg.norm(joints[:, None] - joints[None, :], axis=-1)[np.triu_indices(len(joints), 1)]
+    assert gaps.min() > 0.2  # not theta = (0, 0), where the first arm lies on the base

@@ -179,14 +179,15 @@ def machine() -> str:
 
 
 def markdown_tables(text: str) -> list[list[str]]:
-    """The Markdown tables of ``text``: runs of lines starting with ``|``, header and separator
-    included."""
+    """The Markdown tables of ``text``: runs of lines starting with ``|`` (header and separator
+    included) up to a blank line; other lines inside a table (a library's message printed between
+    two rows) are left out of it."""
     tables: list[list[str]] = []
     current: list[str] = []
     for line in text.splitlines():
         if line.startswith("|"):
             current.append(line.rstrip())
-        elif current:
+        elif current and not line.strip():
             tables.append(current)
             current = []
     if current:

@@ -7,9 +7,9 @@ still highlighted as Python) is only shown, e.g. for signatures.
 
 Printed values are checked: a one-line ``print(...)  # TEXT`` whose ``TEXT`` starts with the
 first word of what the call prints claims to show that output, and must: the printed text
-(whitespace runs counted as one space) is ``TEXT`` itself, or ``TEXT`` with ``...`` standing for
-any text, or the start of ``TEXT`` followed by a space and an annotation. Any other comment is
-a description and is not compared.
+(whitespace runs counted as one space) is ``TEXT``, or the start of ``TEXT`` before an
+annotation (cut at a space or a colon), ``...`` standing for any text. Any other comment is a
+description and is not compared.
 """
 
 from __future__ import annotations
@@ -38,10 +38,13 @@ PRINT_WITH_COMMENT = re.compile(
 def output_matches(printed: str, text: str) -> bool:
     """``printed`` agrees with the comment ``text`` that claims to show it (module docstring)."""
     out, claim = " ".join(printed.split()), " ".join(text.split())
-    if claim == out or claim.startswith(out + " "):
-        return True
-    pattern = ".*".join(re.escape(part) for part in claim.split("..."))
-    return "..." in claim and re.fullmatch(pattern, out) is not None
+    # the claim itself, or its start before an annotation (after a space or a colon)
+    shown = [claim] + [claim[:i] for i, c in enumerate(claim) if c in " :" and i > 0]
+    for part in shown:
+        pattern = ".*".join(re.escape(piece) for piece in part.split("..."))
+        if re.fullmatch(pattern, out) is not None:
+            return True
+    return False
 
 
 def check_print(text: str, *args: object, sep: str = " ", **kwargs: object) -> None:
@@ -82,8 +85,9 @@ def test_printed_values_are_compared_with_the_comment(capsys):
     exec(with_checked_prints("print(1 + 1, True)   # 2 True\n"), ns)
     exec(with_checked_prints("print([1, 2])  # [1, 2]  both entries\n"), ns)
     exec(with_checked_prints("print('a b c d')  # a ... d\n"), ns)
+    exec(with_checked_prints("print(('x', 'y', 'z'))  # ('x', ..., 'z'): the names\n"), ns)
     exec(with_checked_prints("print(3)  # the count of things\n"), ns)  # a description: not compared
-    assert capsys.readouterr().out == "2 True\n[1, 2]\na b c d\n3\n"
+    assert capsys.readouterr().out == "2 True\n[1, 2]\na b c d\n('x', 'y', 'z')\n3\n"
     with pytest.raises(AssertionError, match="the page says"):
         exec(with_checked_prints("print(1 + 2, True)   # 3 False\n"), ns)
     with pytest.raises(AssertionError, match="the page says"):

@@ -10,16 +10,13 @@ problem-set benchmark lives in [`optik.harness`][optik.harness]; ``optik benchma
 
 Target and joint values are given as numbers, per task space of the problem:
 
-=============  ===========================================================
-task           ``--target`` values
-=============  ===========================================================
-position2d     ``x y``
-pose2d         ``x y phi``
-position       ``x y z``
-orientation    ``roll pitch yaw``
-pose           ``x y z roll pitch yaw`` (RPY: ``Rot(z, yaw) Rot(y, pitch) Rot(x, roll)``)
-               or 16 numbers of the 4x4 matrix, row by row
-=============  ===========================================================
+| task | ``--target`` values |
+|---|---|
+| position2d | ``x y`` |
+| pose2d | ``x y phi`` |
+| position | ``x y z`` |
+| orientation | ``roll pitch yaw`` |
+| pose | ``x y z roll pitch yaw`` (``Rot(z, yaw) Rot(y, pitch) Rot(x, roll)``), or 16 numbers row by row |
 """
 
 from __future__ import annotations
@@ -311,7 +308,8 @@ def _cmd_plot(args: argparse.Namespace) -> int:
         sols = [r.q for r in optik.solve_ik_all(m, target, task=task, tol=problem.tolerances) if r.success]
         what = f"{len(sols)} IK branch{'es' if len(sols) != 1 else ''}"
         title = f"{name}: {what} of {_pose_text(m, target, 3)}"
-        written.append(_save(draw_branches(m, sols, title=title), out_dir / f"{name}_branches.png"))
+        fig = draw_branches(m, sols, title=title, near=q_show)
+        written.append(_save(fig, out_dir / f"{name}_branches.png"))
     if "assembly" in modes and m.is_closed and q_show is not None:
         actuated = q_show[m.actuated_indices]
         sols = _assembly_modes(m, actuated)
@@ -550,6 +548,9 @@ def build_parser() -> argparse.ArgumentParser:
     from optik.reach import add_parser as add_reach  # optik reach: capability maps
 
     add_reach(sub)
+    from optik.path.command import add_parser as add_path  # optik path: Cartesian paths
+
+    add_path(sub)
     return parser
 
 

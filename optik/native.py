@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import contextvars
 import ctypes
 import functools
 import hashlib
@@ -56,7 +57,7 @@ import subprocess
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 import casadi as ca
@@ -80,6 +81,22 @@ _EXITING = threading.Event()  # set at interpreter exit: unfinished builds are s
 CACHE_MAX_BYTES = 512 * 1024 * 1024
 """Size of the compiled libraries in the cache above which the least recently used are removed
 after a build (``$OPTIK_CACHE_MAX_MB`` overrides it); a 7-joint arm's LM kernel takes about 0.2 MB."""
+
+
+_DEADLINE: contextvars.ContextVar[float | None] = contextvars.ContextVar("optik_deadline", default=None)
+
+
+@contextlib.contextmanager
+def deadline(at: float | None) -> Iterator[None]:
+    """Within this block (this thread or task), a call never waits for a library being built
+    past ``at`` (a ``time.perf_counter()`` value; None: no limit): it evaluates with CasADi
+    instead. The solvers' entry points set it to the end of their time limit, so that no call
+    waits for a C compile past its own limit."""
+    token = _DEADLINE.set(at if at is not None and at < float("inf") else None)
+    try:
+        yield
+    finally:
+        _DEADLINE.reset(token)
 
 
 def compiler() -> str | None:
@@ -290,9 +307,11 @@ class Library:
 
     def get(self) -> ctypes.CDLL | None:
         """The loaded library when it is ready, else None; blocks until the build is done only
-        once the callers have spent `EVALUATOR_BUDGET` seconds in CasADi's evaluator meanwhile."""
+        once the callers have spent `EVALUATOR_BUDGET` seconds in CasADi's evaluator meanwhile,
+        and never past the caller's `deadline`."""
         if not self._done.is_set() and self._evaluated > EVALUATOR_BUDGET:
-            self._done.wait()
+            until = _DEADLINE.get()
+            self._done.wait(None if until is None else max(0.0, until - time.perf_counter()))
         return self._cdll if self._done.is_set() else None
 
     def evaluated(self, seconds: float) -> None:

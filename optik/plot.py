@@ -29,6 +29,7 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
+from matplotlib import colormaps
 from matplotlib.axes import Axes
 from matplotlib.backend_bases import FigureCanvasBase
 from matplotlib.figure import Figure
@@ -38,6 +39,7 @@ from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
 from optik.problem_files import assemble
+from optik.solvers.base import joint_distance
 
 __all__ = [
     "Geometry",
@@ -47,6 +49,7 @@ __all__ = [
     "geometry",
     "ordered_outline",
     "save_figure",
+    "showcase_q",
     "workspace",
     "workspace_points",
     "write_atomic",
@@ -281,38 +284,72 @@ def draw(m: Mechanism, q: Any, ax: Axes | None = None, **style: Any) -> Axes:
     return ax
 
 
+MAX_PANELS = 8
+"""Most subplots `draw_branches` draws (two rows of four): beyond that the ticks and links of the
+panels are no longer readable."""
+
+
 def draw_branches(
-    m: Mechanism, qs: Sequence[Any], title: str | None = None, label: str = "branch", **style: Any
+    m: Mechanism,
+    qs: Sequence[Any],
+    title: str | None = None,
+    label: str = "branch",
+    *,
+    near: Any = None,
+    max_panels: int = MAX_PANELS,
+    **style: Any,
 ) -> Figure:
-    """One subplot per branch (IK) or assembly mode (FK), on common axis limits.
+    """One subplot per branch (IK) or assembly mode (FK), on common axis limits; at most
+    ``max_panels`` of them: with more configurations, those nearest ``near`` are drawn and the
+    figure says how many are not.
 
     Args:
         m: the mechanism.
         qs: one coordinate vector per branch (an empty list gives a figure saying so).
         title: figure title (default: the mechanism's name and the number of branches).
-        label: subplot titles are ``f"{label} {i}"`` (e.g. ``"assembly mode"``).
+        label: subplot titles are ``f"{label} {i}"`` (e.g. ``"assembly mode"``), ``i`` the index
+            in ``qs`` from 1.
+        near: with more than ``max_panels`` configurations, keep those nearest this one
+            (joint-space max-norm, angles modulo 2 pi; default: the middle of the limits).
+        max_panels: most subplots drawn.
         **style: passed to [`draw`][optik.plot.draw].
 
     Returns:
-        A figure with ``len(qs)`` axes (one axes with a note when ``qs`` is empty).
+        A figure with ``min(len(qs), max_panels)`` axes (one axes with a note when ``qs`` is
+        empty).
     """
-    geoms = [geometry(m, q) for q in qs]
+    max_panels = int(max_panels)
+    if max_panels < 1:
+        raise InvalidArgumentError("max_panels", f"expected a positive integer, got {max_panels}")
+    keep = list(range(len(qs)))
+    if len(qs) > max_panels:
+        ref = m.mid_q() if near is None else np.asarray(near, dtype=float)
+        nearest = sorted(keep, key=lambda i: joint_distance(m, np.asarray(qs[i], float), ref))
+        keep = sorted(nearest[:max_panels])
+    geoms = [geometry(m, qs[i]) for i in keep]
     n = len(geoms)
     cols = min(max(n, 1), 4)
     rows = max(1, math.ceil(n / cols))
-    fig = Figure(figsize=(3.6 * cols, 3.6 * rows + 0.4), layout="constrained")
-    fig.suptitle(title or f"{m.name}: {n} branch{'es' if n != 1 else ''}")
+    fig = Figure(figsize=(3.6 * cols, 3.6 * rows + 0.6), layout="constrained")
+    heading = title or f"{m.name}: {len(qs)} branch{'es' if len(qs) != 1 else ''}"
+    if len(qs) > n:
+        to = "the reference q" if near is not None else "mid-limit q"
+        heading += f"\n{n} of {len(qs)} drawn, the nearest to {to}; {len(qs) - n} more not drawn"
+    fig.suptitle(heading)
     if not geoms:
         ax = fig.add_subplot(1, 1, 1)
         ax.text(0.5, 0.5, "no configuration (unreachable or not assemblable)", ha="center", va="center")
         ax.set_axis_off()
         return fig
     pts = np.vstack([_limit_points(m, g) for g in geoms])
-    for i, g in enumerate(geoms):
-        ax = _new_axes(fig, m, rows, cols, i + 1)
+    for k, (i, g) in enumerate(zip(keep, geoms, strict=True)):
+        ax = _new_axes(fig, m, rows, cols, k + 1)
         _render(ax, m, g, style)
         _set_limits(ax, pts, m.planar)
         ax.set_title(f"{label} {i + 1}", fontsize=10)
+        if not m.planar:  # fewer, smaller ticks: 3-D panels side by side otherwise overlap
+            ax.tick_params(labelsize=7, pad=0)
+            ax.locator_params(nbins=4)
     return fig
 
 
@@ -354,8 +391,8 @@ def workspace(m: Mechanism, n: int = 2000, seed: int | np.random.Generator | Non
     """Scatter plot of sampled reachable end-effector positions within the joint limits.
 
     See [`workspace_points`][optik.plot.workspace_points] for the sampling. Points are coloured by assembly
-    mode; the mechanism is drawn in the mid-limit configuration of open chains, or in the first assembled
-    sample of closed chains.
+    mode, with a legend; the mechanism is drawn in the configuration of
+    [`showcase_q`][optik.plot.showcase_q].
 
     Args:
         m: the mechanism.
@@ -369,17 +406,19 @@ def workspace(m: Mechanism, n: int = 2000, seed: int | np.random.Generator | Non
         SolverUnavailableError: a closed chain has neither a closed-form FK nor ``optik.solve_fk``.
     """
     pts, modes, drawn = workspace_points(m, n, seed)
-    fig = Figure(figsize=(5.5, 5.5), layout="constrained")
+    fig = Figure(figsize=(5.5, 5.8), layout="constrained")
     ax = _new_axes(fig, m, 1, 1, 1)
-    what = "samples assemble" if m.is_closed else "samples"
-    ax.set_title(f"workspace of {m.name}: {len(pts)} points from {drawn} {what}", fontsize=10)
-    cmap = "tab10"
+    what = "actuator samples" if m.is_closed else "samples within the limits"
+    ax.set_title(f"workspace of {m.name}\n{len(pts)} end-effector points, {drawn} {what}", fontsize=10)
+    colours = colormaps["tab10"]
+    for k in np.unique(modes):
+        at = pts[modes == k]
+        name = f"assembly mode {k + 1}" if m.is_closed else "reachable end-effector points"
+        xyz = (at[:, 0], at[:, 1]) if m.planar else (at[:, 0], at[:, 1], at[:, 2])
+        ax.scatter(*xyz, s=2 if m.planar else 6, color=colours(int(k) % 10), alpha=0.5, label=name)
     if len(pts):
-        if m.planar:
-            ax.scatter(pts[:, 0], pts[:, 1], s=2, c=modes, cmap=cmap, vmin=0, vmax=9, alpha=0.5)
-        else:
-            ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=6, c=modes, cmap=cmap, vmin=0, vmax=9, alpha=0.6)
-    q_show = m.mid_q() if not m.is_closed else _first_assembly(m)
+        ax.legend(loc="upper right", fontsize=8, markerscale=4, framealpha=0.8)
+    q_show = showcase_q(m)
     lim = pts
     if q_show is not None:
         g = geometry(m, q_show)
@@ -390,19 +429,30 @@ def workspace(m: Mechanism, n: int = 2000, seed: int | np.random.Generator | Non
     return fig
 
 
-def _first_assembly(m: Mechanism) -> np.ndarray | None:
-    """An assembled configuration near the middle of the actuated limits (None if none found)."""
+def showcase_q(m: Mechanism, candidates: int = 24, seed: int = 0) -> np.ndarray | None:
+    """A configuration that shows the shape of ``m``: the middle of the limits for an open chain;
+    for a closed chain, among the assembly modes of the mid-limit actuated values and of
+    ``candidates`` seeded draws around them, the one whose joints lie farthest apart (the largest
+    smallest distance between two joint locations), so that no link lies folded along another or
+    on the base (a five-bar at ``theta = (0, 0)`` would put its first arm on the base). None
+    when no draw assembles."""
+    if not m.is_closed:
+        return m.mid_q()
     idx = m.actuated_indices
     lo, hi = m.sampling_bounds
     mid = 0.5 * (lo[idx] + hi[idx])
-    rng = np.random.default_rng(0)
-    for scale in (0.0, 0.1, 0.3, 0.6):
-        for _ in range(5):
-            a = mid + scale * (hi[idx] - lo[idx]) * rng.uniform(-0.5, 0.5, len(idx))
-            qs = assemble(m, a, numerical=not m.planar)
-            if qs:
-                return qs[0]
-    return None
+    rng = np.random.default_rng(seed)
+    spread = 0.6 * (hi[idx] - lo[idx])
+    draws = [mid, *(mid + spread * rng.uniform(-0.5, 0.5, len(idx)) for _ in range(candidates))]
+    best, best_gap = None, -1.0
+    for a in draws:
+        for q in assemble(m, a, numerical=not m.planar):
+            at = geometry(m, q).parent_side
+            gaps = np.linalg.norm(at[:, None] - at[None, :], axis=-1)[np.triu_indices(len(at), 1)]
+            gap = float(gaps.min()) if gaps.size else 0.0
+            if gap > best_gap:
+                best, best_gap = q, gap
+    return best
 
 
 def _umask() -> int:

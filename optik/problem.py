@@ -3,15 +3,13 @@
 For a mechanism with coordinates ``q``, a task frame with pose ``T(q) = [[R, p], [0, 1]]`` and a
 target ``T* = [[R*, p*], [0, 1]]``, the *task residual* ``r(q; T*)`` is, per task space:
 
-=============  ==========================================================================
-task           residual rows
-=============  ==========================================================================
-pose           ``p - p*`` (3) and ``vec(R - R*) / sqrt(2)`` (9)
-position       ``p - p*`` (3)
-orientation    ``vec(R - R*) / sqrt(2)`` (9)
-pose2d         ``(x - x*, y - y*)`` and ``(cos phi - cos phi*, sin phi - sin phi*)``
-position2d     ``(x - x*, y - y*)``
-=============  ==========================================================================
+| task | residual rows |
+|---|---|
+| pose | ``p - p*`` (3) and ``vec(R - R*) / sqrt(2)`` (9) |
+| position | ``p - p*`` (3) |
+| orientation | ``vec(R - R*) / sqrt(2)`` (9) |
+| pose2d | ``(x - x*, y - y*)`` and ``(cos phi - cos phi*, sin phi - sin phi*)`` |
+| position2d | ``(x - x*, y - y*)`` |
 
 The orientation rows satisfy ``|vec(R - R*)|^2 / 2 = 2 (1 - cos theta) = (2 sin(theta / 2))^2``
 with ``theta`` the geodesic angle between ``R`` and ``R*``: their squared norm is a function of
@@ -22,14 +20,16 @@ heading rows are the same construction in SO(2): their norm is ``2 sin(|phi - ph
 for both, ``theta = 2 asin(|r_o| / 2)`` recovers the angle error
 ([`angle_from_residual`][optik.problem.angle_from_residual]).
 
-The NLP ([`IKProblem`][optik.IKProblem]) is::
+The NLP ([`IKProblem`][optik.IKProblem]) is:
 
-    minimize_q   1/2 (w_p^2 |r_p|^2 + w_o^2 |r_o|^2)               task error
-               + 1/2 w_post |q - q_ref|^2                          posture (resolves redundancy)
-               - w_manip log(det(J J^T) + eps)                     manipulability (optional)
-               + 1/2 w_lim sum(((q - q_mid) / (q_max - q_min))^2)  distance to limits (optional)
-    subject to  q_min <= q <= q_max                                joint limits (bounds)
-                c(q) = 0                                           loop closures (closed chains)
+```text
+minimize_q   1/2 (w_p^2 |r_p|^2 + w_o^2 |r_o|^2)               task error
+           + 1/2 w_post |q - q_ref|^2                          posture (resolves redundancy)
+           - w_manip log(det(J J^T) + eps)                     manipulability (optional)
+           + 1/2 w_lim sum(((q - q_mid) / (q_max - q_min))^2)  distance to limits (optional)
+subject to  q_min <= q <= q_max                                joint limits (bounds)
+            c(q) = 0                                           loop closures (closed chains)
+```
 
 with the target, the weights and ``q_ref`` as NLP parameters: a new target or weight never
 rebuilds anything. [`build_ik_problem`][optik.build_ik_problem] returns the problem, cached per

@@ -123,3 +123,21 @@ def test_rejections(quad):
         optik.solve_ik(m, goal, frame="torso", contacts=feet, support=square, method="lm")
     with pytest.raises(InvalidArgumentError, match="support"):
         optik.solve_ik(m, goal, frame="torso", support=square[::-1])
+
+
+def test_the_humanoid_benchmark_runs(capsys):
+    pytest.importorskip("pinocchio", reason="the benchmark's judge is Pinocchio")
+    from optik.benchmarks import bench_balance
+    from optik.catalog.robots import robots_dir
+
+    try:
+        robots_dir()
+    except optik.OptikError as exc:
+        pytest.skip(f"the G1 comes from example-robot-data: {exc}")
+    for robot in ("g1", "go2"):
+        assert (
+            bench_balance.main(["--robot", robot, "--n", "2", "--time-limit", "5", "--pink-com-costs", "0"])
+            == 0
+        )
+        out = capsys.readouterr().out
+        assert "| optik nlp + balance | 2/2 |" in out

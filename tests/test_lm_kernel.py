@@ -114,3 +114,25 @@ def test_limits_are_inputs_of_one_kernel_per_geometry() -> None:
         assert pos == pytest.approx(a.errors[0, 0], abs=1e-12)
         if v == q_true[0]:  # q_true is within the pinned limits
             assert a.status[0] == 0
+
+
+def test_one_target_path_equals_the_chunk_run() -> None:
+    """``run_one`` (the packed one-target call of ``solve_ik``) gives what ``run`` gives, on the
+    compiled driver and in the Python loop, from threads that each use their own buffers."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    m = optik.catalog.iiwa14()
+    targets = np.stack([target_parameters(t) for t in m.fk(m.random_q(6, seed=8))])
+    q0 = m.random_q(6, seed=9)
+    seeds = target_seeds(3, 0, 6)
+    conf = _settings(m).conf(m)
+    for k in (LMKernel(m, "pose", None, 100.0, True), LMKernel(m, "pose", None, 100.0, False)):
+        want = k.run(targets, q0, seeds, conf)
+        with ThreadPoolExecutor(2) as pool:
+            got = list(pool.map(lambda i, k=k: k.run_one(targets[i], q0[i], int(seeds[i]), conf), range(6)))
+        for i, (q, err, iterations, restarts, status) in enumerate(got):
+            np.testing.assert_array_equal(q, want.q[i])
+            assert err == tuple(want.errors[i])
+            assert (iterations, restarts, status) == (want.iterations[i], want.restarts[i], want.status[i])
+            assert status == 0 and m.within_limits(q)
+            np.testing.assert_allclose(m.fk(q)[:3, 3], targets[i][9:], atol=1e-6)  # independent FK

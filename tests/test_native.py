@@ -35,6 +35,24 @@ def test_native_function_compiled_and_interpreted_agree() -> None:
         native_functions([f], "sometimes")
 
 
+def test_interpreted_calls_follow_the_buffers() -> None:
+    """The evaluator path reads `inputs` and writes `outputs` in place at every call (CasADi's
+    ``Function.buffer`` bound to them): the same numbers as a call through ``DM``, input after
+    input, with scalar and vector inputs and outputs."""
+    y = ca.SX.sym("y")
+    f = ca.Function("optik_test_buffers", [X, y], [ca.sin(X) * y, ca.sumsqr(X) + y])
+    fn = native_functions([f], False)[0]
+    out = fn.outputs
+    for value, scale in (([0.3, -1.2, 2.0], 2.0), ([1.0, 0.0, -0.5], -3.0), ([0.0, 0.0, 0.0], 0.5)):
+        fn.inputs[0][:] = value
+        fn.inputs[1][0] = scale
+        got = fn()
+        assert got[0] is out[0] and got[1] is out[1]
+        want = f(np.array(value), scale)
+        np.testing.assert_array_equal(got[0], np.asarray(want[0]).ravel())
+        np.testing.assert_array_equal(got[1], np.asarray(want[1]).ravel())
+
+
 def test_compiled_and_casadi_evaluation_agree(monkeypatch: pytest.MonkeyPatch) -> None:
     f = ca.Function("diffik_test_fun", [X], [ca.vertcat(ca.sin(X[0]) * X[1], X[2] ** 2), ca.mtimes(X, X.T)])
     compiled = CompiledFunction(f)
@@ -163,9 +181,10 @@ def test_panda_ik_answers_the_same_before_and_after_the_switch(
     first = optik.solve_ik(m, targets[0], method="lm", seed=0)
     kernel = lm_kernel.kernel(m, "pose", None, 100.0, "auto")
     assert kernel.library.state == "building"  # answered without waiting for the C build
-    interpreted = [optik.solve_ik(m, t, method="lm", seed=0, compile=False) for t in targets]
+    # a long limit: the Python loop must finish its starts on a loaded machine too (same answers)
+    interpreted = [optik.solve_ik(m, t, method="lm", seed=0, compile=False, time_limit=5.0) for t in targets]
     assert native.wait(timeout=120)
-    compiled = [optik.solve_ik(m, t, method="lm", seed=0) for t in targets]
+    compiled = [optik.solve_ik(m, t, method="lm", seed=0, time_limit=5.0) for t in targets]
     assert kernel.compiled and not lm_kernel.kernel(m, "pose", None, 100.0, False).compiled
     assert first.success
     np.testing.assert_allclose(first.q, compiled[0].q, rtol=0, atol=1e-12)

@@ -9,6 +9,7 @@ import re
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -45,6 +46,8 @@ def _one_line(err: str) -> str:
     ],
 )
 def test_a_missing_extra_is_one_line_naming_the_pip_command(blocked, argv, extra, capsys, monkeypatch):
+    if blocked == "trimesh":  # trimesh is imported after viser: without viser, viser is named
+        pytest.importorskip("viser", reason="the view extra is not installed (pip install 'optik[view]')")
     monkeypatch.setitem(sys.modules, blocked, None)  # import of `blocked` now fails as if absent
     code, _, err = _run(argv, capsys)
     line = _one_line(err)
@@ -255,3 +258,114 @@ def test_process_seconds_is_the_age_of_the_process():
     took = time.perf_counter() - started
     assert 0.5 <= float(out) <= took + 0.02  # clock ticks are 10 ms
     assert process_seconds() > 0
+
+
+# ---------------------------------------------------------------------------- figures and docs
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_every_install_line_of_the_docs_is_the_readmes_or_one_extra():
+    readme = [line for line in (ROOT / "README.md").read_text().splitlines() if "pip install -e" in line]
+    assert len(readme) == 2
+    for page in (ROOT / "docs").rglob("*.md"):
+        for line in page.read_text().splitlines():
+            if "pip install -e" not in line:
+                continue
+            extras = re.search(r'-e "\.\[([a-zA-Z,]+)\]"', line)
+            assert extras, f"{page.name}: {line}"
+            if "," in extras.group(1):
+                assert line.strip() in readme, f"{page.name}: {line!r} is not one of the README's"
+
+
+def test_no_restructuredtext_literal_blocks_or_tables_in_docstrings():
+    import ast
+
+    for path in (ROOT / "optik").rglob("*.py"):
+        tree = ast.parse(path.read_text())
+        nodes = [tree, *(n for n in ast.walk(tree) if isinstance(n, (ast.FunctionDef, ast.ClassDef)))]
+        for node in nodes:
+            doc = ast.get_docstring(node) or ""
+            for line in doc.splitlines():
+                assert not line.rstrip().endswith("::"), f"{path.name}: reST literal block: {line!r}"
+                assert not re.fullmatch(r"\s*=+( +=+)+\s*", line), f"{path.name}: reST table"
+
+
+def test_the_workspace_figure_has_a_legend_and_a_title_within_the_figure():
+    from optik.plot import workspace
+
+    fig = workspace(optik.catalog.five_bar(), n=200)
+    ax = fig.axes[0]
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["assembly mode 1", "assembly mode 2"]
+    fig.canvas.draw()
+    box, title = fig.bbox, ax.title.get_window_extent()
+    assert box.x0 <= title.x0 and title.x1 <= box.x1 and title.y1 <= box.y1
+
+
+def test_a_closed_chain_is_shown_in_a_configuration_that_shows_its_shape():
+    from optik.plot import geometry, showcase_q
+
+    m = optik.catalog.five_bar()
+    q = showcase_q(m)
+    assert np.abs(m.closure(q)).max() < 1e-9 and (q >= m.lower).all() and (q <= m.upper).all()
+    joints = geometry(m, q).parent_side
+    gaps = np.linalg.norm(joints[:, None] - joints[None, :], axis=-1)[np.triu_indices(len(joints), 1)]
+    assert gaps.min() > 0.2  # at theta = (0, 0) the first arm lies on the base: a gap of 0
+    np.testing.assert_array_equal(showcase_q(optik.catalog.planar_3r()), optik.catalog.planar_3r().mid_q())
+
+
+def test_many_branches_draw_a_readable_grid_of_the_nearest():
+    from optik.plot import MAX_PANELS, draw_branches
+
+    m = optik.catalog.planar_3r()
+    qs = [m.mid_q() + 0.05 * k for k in range(20)]
+    fig = draw_branches(m, qs, near=qs[11] + 0.01)
+    assert len(fig.axes) == MAX_PANELS
+    shown = sorted(int(ax.get_title().split()[-1]) - 1 for ax in fig.axes)
+    assert shown == list(range(8, 16))  # the eight nearest a point just past branch 12
+    assert "8 of 20 drawn, the nearest to the reference q; 12 more not drawn" in fig._suptitle.get_text()
+    width, height = fig.get_size_inches() * 110
+    assert width <= 1600 and height <= 900
+
+
+def test_bench_chart_contenders_on_the_same_spot_stay_visible():
+    from optik.harness.contenders import Call, ProblemRun, SolverRun
+    from optik.harness.report import _chart, coinciding
+    from optik.problem_files import find_problem
+
+    assert coinciding([(0.0, 100.0), (0.01, 100.0), (1.0, 50.0)]) == [(0, 2), (1, 2), (0, 1)]
+    call = Call(1e-3, True, 1e-12, 1e-12, 0.0, True, float("nan"), 0.0, "solved")
+    runs = [SolverRun(name, "method", [call] * 5) for name in ("closed_form", "lm", "nlp")]
+    fig = _chart(ProblemRun(find_problem("doggy"), None, runs, [], 1.0, 0.05))
+    ax = fig.axes[0]
+    sizes = [line.get_markersize() for line in ax.lines if line.get_marker() in ("o", "s")]
+    assert sorted(sizes, reverse=True) == [18, 12, 6]  # concentric: none hides another
+    assert sorted(t.get_text() for t in ax.texts) == ["closed_form", "lm", "nlp"]
+
+
+# ---------------------------------------------------------------------------- the viewer
+def test_view_and_reach_accept_catalog_robot_names(capsys):
+    from optik.problem_files import load_source
+
+    try:
+        m, problem = load_source("ur5", None, None)
+    except optik.MissingExtraError as exc:
+        assert 'pip install "optik[robots]"' in str(exc)
+        pytest.skip(str(exc))
+    assert problem is None and m.name == "ur5" and m.n_q == 6
+    m, problem = load_source("panda", None, None)  # a problem name wins over the robot of that name
+    assert problem is not None and problem.name == "panda"
+    code, out, _ = _run(["view", "--help"], capsys)
+    assert code == 0 and "ur5" in out and "PROBLEM|ROBOT|URDF" in out
+
+
+def test_the_viewer_opens_a_closed_chain_showing_its_shape():
+    pytest.importorskip("viser", reason="needs the view extra (pip install 'optik[view]')")
+    from optik.plot import geometry
+
+    m = optik.catalog.five_bar()
+    with optik.view(m, port=0) as v:
+        q = v.q
+    assert np.abs(m.closure(q)).max() < 1e-9
+    joints = geometry(m, q).parent_side
+    gaps = np.linalg.norm(joints[:, None] - joints[None, :], axis=-1)[np.triu_indices(len(joints), 1)]
+    assert gaps.min() > 0.2  # not theta = (0, 0), where the first arm lies on the base

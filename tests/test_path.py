@@ -325,3 +325,45 @@ def test_densification_keeps_the_tool_near_the_segments(puma):
     s = np.clip(np.einsum("ij,ij->i", tips - p[:-1], ab) / np.einsum("ij,ij->i", ab, ab), 0, 1)
     assert np.linalg.norm(tips - (p[:-1] + s[:, None] * ab), axis=1).max() <= 1e-4
     independent_checks(m, dense, dense.poses)
+
+
+PANDA_Q0 = np.array([0.1, -0.3, 0.2, -2.0, 0.1, 1.8, 0.6])
+
+
+@pytest.fixture(scope="module")
+def panda_line():
+    m = optik.catalog.panda()
+    poses = np.repeat(m.fk(PANDA_Q0)[None], 60, axis=0)
+    poses[:, :3, 3] += np.linspace(0.0, 1.0, 60)[:, None] * [0.0, 0.2, 0.0]
+    return m, poses
+
+
+def test_redundant_arm_over_self_motion_samples(panda_line):
+    m, poses = panda_line
+    values = np.linspace(-2.8, 2.8, 15)
+    path = optik.plan_path(m, poses, self_motion=("q7", values))
+    assert path.success and path.flips == 0, path.message
+    assert np.all(np.isin(path.q[:, 6], values))  # every sample on a sampled self-motion value
+    independent_checks(m, path, poses)
+    layers, _ = samples.sample_solutions(
+        m, samples.sample_poses(poses, None, 1.0, None), None, None, (6, values)
+    )
+    want = graph.least_motion_numpy(layers, np.ones(7), None, optik.path.nodes.wrapping(m))
+    assert path.cost == pytest.approx(want.cost, abs=1e-9)
+    smooth = optik.plan_path(m, poses, self_motion=("q7", values), smooth=True)
+    assert smooth.success and "refined from" in smooth.message, smooth.message
+    assert smooth.cost < path.cost
+    assert smooth.cost == pytest.approx(length(smooth.q), abs=1e-9)
+    independent_checks(m, smooth, poses)
+
+
+def test_redundant_arm_bad_input(panda_line):
+    m, poses = panda_line
+    for value in [("q9", [0.0]), ("q7", [5.0]), "q7"]:
+        with pytest.raises(optik.InvalidArgumentError) as err:
+            optik.plan_path(m, poses[:3], self_motion=value)
+        assert err.value.argument == "self_motion"
+    with pytest.raises(optik.SolverUnavailableError, match="q1"):
+        optik.plan_path(m, poses[:3], self_motion=("q1", [0.0]))
+    with pytest.raises(optik.InvalidArgumentError, match="smooth"):
+        optik.plan_path(m, poses[:3], self_motion=("q7", [0.6]), free_axis="z", smooth=True)

@@ -207,7 +207,7 @@ def test_the_registry_answers_say_they_are_not_certified() -> None:
     assert certified.certified and "certified" not in certified.message
 
 
-def _jaco_like() -> Mechanism:
+def _jaco_like(extra_joint: bool = False) -> Mechanism:
     """The Kinova-Jaco-like arm of issue 18 (IK-Geo's convention: joint axes ``H``, offsets ``P``
     between points on them; wrist axes bent at 55 degrees): axes 1-2, 3-4, 4-5 and 5-6 meet,
     2-3 are parallel, and no decomposable family applies."""
@@ -219,6 +219,10 @@ def _jaco_like() -> Mechanism:
         origin = spatial.translation(*p[i])
         joints.append(Joint(f"q{i + 1}", "revolute", prev, f"l{i + 1}", origin=origin, axis=h[i]))
         prev = f"l{i + 1}"
+    if extra_joint:  # a seventh joint before the tool: locked, it leaves the six above
+        origin = spatial.translation(0.0, 0.05, 0.1)
+        joints.append(Joint("q7", "revolute", prev, "l7", origin=origin, axis=[1, 0, 0]))
+        prev = "l7"
     return Mechanism(joints, frames={"tool": (prev, spatial.translation(*p[6]))}, ee="tool")
 
 
@@ -253,3 +257,17 @@ def test_default_solve_ik_does_not_call_unreachable_on_an_uncertified_search() -
     every = optik.solve_ik_all(m, far, time_limit=0.1, patience=3)
     assert every.method == "lm" and not every.certified
     assert "the closed form found none" in every.uncertified_reason
+
+
+def test_a_locked_joint_leaving_the_jaco_chain_gets_the_search() -> None:
+    """A 7-joint arm whose first six joints are the Jaco-like chain: with the seventh locked, the
+    remaining 6R (special at both ends, no decomposable family) gets the 1-D search, as the
+    standalone arm does (issue 18, item 3), its answers flagged as not certified."""
+    m = _jaco_like(extra_joint=True)
+    q = m.random_q(seed=4)
+    target = m.fk(q)
+    sols = optik.solve_ik_all(m, target, fixed={"q7": float(q[6])})
+    assert sols.method == "closed_form" and not sols.certified and "1-D search" in sols.uncertified_reason
+    assert min(np.abs(spatial.angle_distance(s.q, q)) for s in sols) < 1e-9
+    for s in sols:
+        assert s.q[6] == q[6] and np.abs(m.fk(s.q) - target).max() < 1e-9

@@ -5,10 +5,11 @@ Each entry point is warmed up (its C library built and loaded) before the single
 reference, so both runs go through the same compiled code. Each thread makes the reference's
 calls in its own order (rotated), so that threads are at different targets at the same time.
 Calls per thread: 1,000 for the fast entry points; fewer for the slow ones, so that the file
-stays well under 20 s on a shared 2-core machine: ``nlp`` (about 4 ms a solve: 40), the
-general 6R solver (about 12 ms: 20), batch
-solving (one call is a thread pool over 32 targets: 40), ``fk_batch`` (512 configurations a call: 100)
-and differential IK (0.2 to 1 ms a step: 300).
+stays under 20 s on a shared 2-core machine: ``nlp`` (about 4 ms a solve: 20), the general 6R
+solver (about 12 ms: 20), batch solving (one call is a thread pool over 32 targets: 20),
+``fk_batch`` (512 configurations a call: 100), differential IK by QP (300) and by DLS (200;
+0.2 to 1 ms a step), ``solve_fk`` of the five-bar (about 10 ms: 40) and the 3-RPR's assembly
+modes (about 10 ms: 40).
 """
 
 from __future__ import annotations
@@ -70,6 +71,23 @@ def _batch(i: int) -> bytes:
     return r.q.tobytes() + r.success.tobytes()
 
 
+FIVE_BAR = optik.catalog.five_bar()
+FIVE_BAR_INPUTS = [FIVE_BAR.mid_q()[FIVE_BAR.actuated_indices] + [d, -d] for d in np.linspace(-0.1, 0.1, 8)]
+RPR = optik.catalog.planar_3rpr()
+RPR_INPUTS = [RPR.mid_q()[RPR.actuated_indices] * s for s in (1.0, 1.05, 0.95, 1.1)]
+
+
+def _solve_fk(i: int) -> bytes:
+    r = optik.solve_fk(FIVE_BAR, FIVE_BAR_INPUTS[i % len(FIVE_BAR_INPUTS)], time_limit=30.0)
+    assert r.success  # assembled (a failure would run to the time limit: not what is tested)
+    return r.q.tobytes()
+
+
+def _solve_fk_all(i: int) -> bytes:
+    modes = optik.solve_fk_all(RPR, RPR_INPUTS[i % len(RPR_INPUTS)])
+    return b"".join(r.q.tobytes() for r in modes) + repr(len(modes.dropped)).encode()
+
+
 def _fk(i: int) -> bytes:
     q = Q[i % len(Q)]
     return M.fk(q).tobytes() + M.jacobian(q).tobytes()
@@ -81,15 +99,17 @@ def _fk_batch(i: int) -> bytes:
 
 ENTRY_POINTS = {
     "lm": (_ik("lm"), 1000),
-    "nlp": (_ik("nlp"), 40),
+    "nlp": (_ik("nlp"), 20),
     "closed_form method": (_ik("closed_form"), 1000),
     "closed_form.ik": (_closed_form, 1000),
     "solve_ik_all": (_all, 1000),
     "solve_ik_all general 6R": (_general_6r, 20),
     "diffik qp": (_diffik("qp"), 300),
-    "diffik dls": (_diffik("dls"), 300),
-    "solve_ik_batch": (_batch, 40),
+    "diffik dls": (_diffik("dls"), 200),
+    "solve_ik_batch": (_batch, 20),
     "fk and jacobian": (_fk, 1000),
+    "solve_fk": (_solve_fk, 40),
+    "solve_fk_all (3-RPR closed form)": (_solve_fk_all, 40),
     "fk_batch": (_fk_batch, 100),
 }
 

@@ -274,6 +274,30 @@ def test_capability_map_is_a_point_cloud_coloured_by_the_index(open_viewer, tmp_
         v.show_reach(tmp_path / "bad.npz")
 
 
+def test_a_spatial_map_is_drawn_one_small_layer_at_a_time(open_viewer):
+    from optik.view.viewer import REACH_POINT
+
+    m = catalog.panda()
+    rmap = optik.reach(m, resolution=0.3, orientations=2, samples=3000, workers=1, time_limit=0.002)
+    v = open_viewer(m)
+    levels = np.unique(np.round(rmap.centers[:, 2], 6))
+    assert len(levels) > 2
+    ee_z = m.fk(v.q)[2, 3]
+    first = v.show_reach(rmap)
+    nearest = levels[np.argmin(np.abs(levels - ee_z))]
+    assert first == int(np.sum(np.isclose(rmap.centers[:, 2], nearest))) < len(rmap.centers)
+    assert np.allclose(v._reach.points[:, 2], nearest, atol=1e-2)  # float16 on the wire
+    assert v._reach.point_size == pytest.approx(REACH_POINT * rmap.resolution) and REACH_POINT <= 0.2
+    assert f"layer z = {nearest:.3f} m" in v.panel.layer_text.content and not v.panel.reach_layer.disabled
+    drawn = sum(v.set_reach_layer(z) for z in levels)
+    assert drawn == len(rmap.centers)  # the layers partition the map
+    v.set_reach_visible(False)
+    v.set_reach_layer(levels[0])
+    assert not v._reach.visible  # moving the layer keeps the box's choice
+    with pytest.raises(optik.InvalidArgumentError, match=r"^z"):
+        v.set_reach_layer(float("nan"))
+
+
 URDF = """<robot name="two">
   <link name="base"><visual><geometry><box size="0.2 0.2 0.1"/></geometry></visual></link>
   <link name="upper">
@@ -310,7 +334,14 @@ def test_urdf_meshes_of_example_robot_data_resolve():
     meshes, notes = body_visuals(m)
     assert notes == []
     visuals = m.params["visuals"]
-    assert len(visuals) == 9  # link0..link7 and the hand (on the body of link7: fixed joints)
+    # link0..link7, the hand and its two fingers (carried by the chain off its path, joints held at 0),
+    # the hand and fingers on the body of link7
+    assert [v.link for v in visuals] == [
+        *(f"panda_link{i}" for i in range(8)),
+        "panda_hand",
+        "panda_leftfinger",
+        "panda_rightfinger",
+    ]
     assert set(meshes) == {m.frames[v.link][0] for v in visuals}
     assert all(len(mesh.faces) > 1000 for mesh in meshes.values())
 

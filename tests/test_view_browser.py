@@ -259,8 +259,15 @@ def _reach(v):
     v.set_target(optik.Pose2D(1.2, 0.8, 0.5))
 
 
+def _panda_reach(v):
+    _panda(v)
+    rmap = optik.reach(v.m, resolution=0.1, orientations=8, samples=20000)
+    assert 0 < v.show_reach(rmap) < len(rmap.centers)  # one layer
+
+
 SHOTS = {
     "view_panda": (_erd_panda, _panda),
+    "view_panda_reach": (_erd_panda, _panda_reach),
     "view_panda_capsules": (catalog.panda, _panda),
     "view_five_bar_mode1": (catalog.five_bar, _five_bar(0)),
     "view_five_bar_mode2": (catalog.five_bar, _five_bar(1)),
@@ -283,3 +290,51 @@ def test_documentation_screenshots(name):
             png = browser.screenshot(v.url, ready=settled(), timeout=60)
     assert drawn(png)
     write_atomic(Path(os.environ["OPTIK_VIEW_SHOTS"]) / f"{name}.png", lambda tmp: Path(tmp).write_bytes(png))
+
+
+def _capture(page, changed_since: bytes | None = None) -> bytes:
+    """A screenshot equal to the one before it (nothing still arriving); after a change made
+    from Python, one that differs from ``changed_since``; the first one a drawn scene."""
+    last: list[bytes] = []
+
+    def ready(png: bytes) -> bool:
+        same = bool(last) and last[-1] == png
+        last[:] = [png]
+        if changed_since is None:
+            return same and complete(png)
+        return same and _changed(changed_since, png) > 200
+
+    return page.screenshot(ready, timeout=60)
+
+
+def test_the_robot_stays_visible_through_its_capability_map(browser):
+    m = catalog.panda()
+    rmap = optik.reach(m, resolution=0.2, orientations=2, samples=3000, workers=1, time_limit=0.002)
+    with optik.view(m, port=free_port()) as v, browser, browser.open(v.url) as page:
+        _panda(v)
+        v.show_reach(rmap)
+        both = _capture(page)
+        v.robot.set_visible(False)
+        map_only = _capture(page, both)
+        v.set_reach_visible(False)
+        v.robot.set_visible(True)
+        robot_only = _capture(page, map_only)
+        v.robot.set_visible(False)
+        nothing = _capture(page, robot_only)
+    robot = _changed(robot_only, nothing)  # the robot's pixels without the map
+    seen = _changed(both, map_only)  # the robot's pixels that the map leaves visible
+    assert robot > 3000
+    assert seen >= 0.8 * robot, (seen, robot)
+
+
+def test_a_catalog_robot_opens_with_its_meshes(browser):
+    try:
+        m = catalog.robot("ur5")
+    except optik.MissingExtraError as exc:
+        pytest.skip(str(exc))
+    with optik.view(m, port=free_port()) as v, browser, browser.open(v.url) as page:
+        assert v.notes == []  # every visual mesh of the URDF resolved
+        meshes = _capture(page)  # settled: the meshes have streamed in
+        v.robot.set_visible(False)
+        bare = _capture(page, meshes)
+    assert _changed(meshes, bare) > 8000, _changed(meshes, bare)  # the arm's meshes, not joint spheres

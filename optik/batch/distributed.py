@@ -41,13 +41,14 @@ def client_of(scheduler: Any) -> Any:
         InvalidArgumentError: ``scheduler`` is neither a Client nor the address of a scheduler
             that answers (``"tcp://host:port"`` or ``"host:port"``).
     """
+    wrong = f"expected a dask.distributed.Client or an address, got {type(scheduler).__name__}"
+    if not isinstance(scheduler, str) and type(scheduler).__name__ != "Client":
+        raise InvalidArgumentError("scheduler", wrong)  # wrong whether Dask is installed or not
     distributed = require_extra("distributed", "dist", "solve_ik_batch(scheduler=...)")
     if isinstance(scheduler, distributed.Client):
         return scheduler
     if not isinstance(scheduler, str):
-        raise InvalidArgumentError(
-            "scheduler", f"expected a dask.distributed.Client or an address, got {type(scheduler).__name__}"
-        )
+        raise InvalidArgumentError("scheduler", wrong)
     try:
         return distributed.Client(scheduler)
     except (ValueError, TypeError, OSError) as exc:  # OSError: TimeoutError, refused connections

@@ -87,10 +87,12 @@ def seed_6r_arm(
     """The 6-joint arm of seed 001: ``A_n = Rot(z, theta_n) Trans(x, d_n) Rot(x, alpha_n)``.
 
     ``d = (0, d2, d3, d4, 0, 0)``, ``alpha = (90, 0, 0, -90, 90, 0)`` degrees. Its FK, derived
-    from the A-matrices (the seed prints ``n_y`` with a wrong sign), is::
+    from the A-matrices (the seed prints ``n_y`` with a wrong sign), is:
 
-        n_y = s1 (c234 c5 c6 - s234 s6) + c1 s5 c6
-        p   = (c1 rho, s1 rho, s234 d4 + s23 d3 + s2 d2),  rho = c234 d4 + c23 d3 + c2 d2
+    ```text
+    n_y = s1 (c234 c5 c6 - s234 s6) + c1 s5 c6
+    p   = (c1 rho, s1 rho, s234 d4 + s23 d3 + s2 d2),  rho = c234 d4 + c23 d3 + c2 d2
+    ```
     """
     ds = _positive((d2, d3, d4), "d2/d3/d4", 3)
     rows = [

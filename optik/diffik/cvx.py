@@ -1,10 +1,12 @@
 """The step's QP written in cvxpy, for cross-checking the other backends.
 
 The problem is built once per task structure with cvxpy parameters (disciplined parametrized
-programming), then re-solved with new values::
+programming), then re-solved with new values:
 
-    minimise    1/2 ||W J dq - t||^2 + mu/2 ||dq||^2
-    subject to  lb <= dq <= ub,  J_c dq = b
+```text
+minimise    1/2 ||W J dq - t||^2 + mu/2 ||dq||^2
+subject to  lb <= dq <= ub,  J_c dq = b
+```
 
 which has the same minimiser as ``1/2 dq^T H dq + c^T dq`` of [`optik.diffik.build_qp`][optik.diffik.build_qp]
 (``H = (WJ)^T WJ + mu I``, ``c = -(WJ)^T t``).

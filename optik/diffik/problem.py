@@ -2,12 +2,14 @@
 
 With the step ``dq = v dt`` (Pink's convention; ``v`` is returned), tasks ``k`` with error
 ``e_k``, Jacobian ``J_k``, costs ``W_k = diag(cost_k)``, gain ``alpha_k`` and LM damping
-``lambda_k``, limits giving ``lb <= dq <= ub`` and, for closed chains, the closure ``c(q)``::
+``lambda_k``, limits giving ``lb <= dq <= ub`` and, for closed chains, the closure ``c(q)``:
 
-    minimise    1/2 dq^T H dq + c^T dq
-    H = sum_k (W_k J_k)^T (W_k J_k) + mu I,   mu = damping + sum_k lambda_k ||alpha_k W_k e_k||^2
-    c = sum_k (W_k J_k)^T (alpha_k W_k e_k)
-    subject to  lb <= dq <= ub,   J_c dq = -gain_c c(q)
+```text
+minimise    1/2 dq^T H dq + c^T dq
+H = sum_k (W_k J_k)^T (W_k J_k) + mu I,   mu = damping + sum_k lambda_k ||alpha_k W_k e_k||^2
+c = sum_k (W_k J_k)^T (alpha_k W_k e_k)
+subject to  lb <= dq <= ub,   J_c dq = -gain_c c(q)
+```
 
 which is ``1/2 sum_k ||W_k (J_k dq + alpha_k e_k)||^2 + mu/2 ||dq||^2`` up to a constant. Every
 term is one compiled CasADi function per mechanism and task structure (see

@@ -30,7 +30,7 @@ from optik.harness.contenders import ProblemRun
 from optik.plot import save_figure, write_atomic
 from optik.problem_files import problem_summary
 
-__all__ = ["COLUMNS", "format_table", "machine_info", "write_outputs"]
+__all__ = ["COLUMNS", "coinciding", "format_table", "machine_info", "write_outputs"]
 
 COLUMNS = (
     ("solver", "solver", "{}"),
@@ -209,26 +209,67 @@ def _markdown(runs: Sequence[ProblemRun], meta: dict[str, Any], charts: dict[str
     return "\n".join(out)
 
 
+def coinciding(
+    points: Sequence[tuple[float, float]], dx: float = 0.04, dy: float = 3.0
+) -> list[tuple[int, int]]:
+    """For each ``(log10 time, success %)`` point of a chart, ``(rank, size)``: its place among
+    the points that coincide with it on the chart (within ``dx`` decades and ``dy`` %, linked
+    transitively) and how many those are; a point alone is ``(0, 1)``."""
+    group = list(range(len(points)))
+    for i, (xi, yi) in enumerate(points):
+        for j in range(i):
+            xj, yj = points[j]
+            if abs(xi - xj) <= dx and abs(yi - yj) <= dy:
+                old, new = group[i], group[j]
+                group = [new if g == old else g for g in group]
+    out = []
+    for i, g in enumerate(group):
+        members = [k for k, h in enumerate(group) if h == g]
+        out.append((members.index(i), len(members)))
+    return out
+
+
 def _chart(run: ProblemRun) -> Figure:
-    """Success vs median time (p5-p95 bars, log scale) and the final-error distributions."""
+    """Success vs median time (p5-p95 bars, log scale) and the final-error distributions.
+    Contenders that land on the same spot are drawn as concentric markers (the first the
+    largest) with their names stacked beside them, so that none hides another."""
     fig = Figure(figsize=(10, 4), layout="constrained")
     fig.suptitle(f"{run.problem.name}: {len(run.targets or [])} targets, {run.time_limit:g} s limit")
     ax1, ax2 = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
-    names, errors = [], []
+    names, errors, spots = [], [], []
+    for r in run.runs:
+        t = 1e3 * np.array([c.time for c in r.calls])
+        spots.append(
+            (float(np.log10(max(np.median(t), 1e-12))), 100.0 * float(np.mean([c.success for c in r.calls])))
+        )
+    places = coinciding(spots)
     for i, r in enumerate(run.runs):
         t = 1e3 * np.array([c.time for c in r.calls])
-        ok = 100.0 * np.mean([c.success for c in r.calls])
+        ok = spots[i][1]
         med, lo, hi = np.median(t), np.percentile(t, 5), np.percentile(t, 95)
         color = f"C{i % 10}"
+        rank, size = places[i]
         ax1.errorbar(
             [med],
             [ok],
             xerr=[[med - lo], [hi - med]],
             fmt="o" if r.kind == "method" else "s",
+            markersize=6 + 6 * (size - 1 - rank),
             color=color,
             capsize=3,
             label=r.name,
+            zorder=2 + rank,
         )
+        if size > 1:  # names stacked below the spot (above it near 0 %)
+            step = -10 if ok > 50 else 10
+            ax1.annotate(
+                r.name,
+                (med, ok),
+                xytext=(8, step * (rank + 1)),
+                textcoords="offset points",
+                fontsize=7,
+                color=color,
+            )
         names.append(r.name)
         e = np.array([max(c.position_error, c.orientation_error, c.closure_error) for c in r.calls])
         errors.append(np.log10(np.maximum(e, 1e-16)))

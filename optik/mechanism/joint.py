@@ -10,17 +10,14 @@ for joints of a serial chain, where the child body frame *is* the joint frame).
 
 Joint types and their coordinates (``dof`` = connectivity ``f`` in Gruebler-Kutzbach):
 
-===========  ===  ==============================================================
-type         dof  motion(q)
-===========  ===  ==============================================================
-revolute     1    ``Rot(axis, q)`` (Rodrigues)
-prismatic    1    ``Trans(q * axis)``
-fixed        0    identity
-universal    2    ``Rot(axis, q0) Rot(axis2, q1)``
-spherical    3    ``exp([q]x)``: q is a rotation vector (one chart covering SO(3))
-free         6    ``Trans(q[0:3]) exp([q[3:6]]x)``: a floating base (position in the parent
-                  frame, then a rotation vector: exponential coordinates)
-===========  ===  ==============================================================
+| type | dof | motion(q) |
+|---|---|---|
+| revolute | 1 | ``Rot(axis, q)`` (Rodrigues) |
+| prismatic | 1 | ``Trans(q * axis)`` |
+| fixed | 0 | identity |
+| universal | 2 | ``Rot(axis, q0) Rot(axis2, q1)`` |
+| spherical | 3 | ``exp([q]x)``: q is a rotation vector (one chart covering SO(3)) |
+| free | 6 | ``Trans(q[0:3]) exp([q[3:6]]x)``: a floating base (parent-frame position, rotation vector) |
 
 A free joint's six coordinates are unbounded by default; they are those of a spherical joint
 placed after three prismatic joints along the parent's axes, in one joint (MJCF ``<freejoint>``).

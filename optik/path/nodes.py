@@ -85,8 +85,9 @@ def closed_form_solutions(m: Mechanism, poses: Sequence[np.ndarray], frame: str 
     """Every solution within the limits of each pose, by ``m``'s closed form (certified complete).
 
     Raises:
-        SolverUnavailableError: ``m`` has no closed form, or its answer is not certified
-            complete (the graph would then miss solutions).
+        SolverUnavailableError: ``m`` has no closed form (a redundant arm: plan with
+            ``self_motion``), or its answer is not certified complete (the graph would then
+            miss solutions).
     """
     out = []
     for k, t in enumerate(poses):

@@ -32,6 +32,7 @@ from optik.mechanism import Mechanism
 from optik.path.densify import deviation, midpoints
 from optik.path.graph import branch_changes, least_motion
 from optik.path.nodes import realize, turn_copies, wrapping
+from optik.path.redundant import refine
 from optik.path.result import JointPath
 from optik.path.samples import AXES, axis_joint, chosen_angle, sample_poses, sample_solutions
 from optik.path.timing import derivatives, segment_times, step_bounds
@@ -87,6 +88,21 @@ def _tolerance(value: Any, n: int) -> np.ndarray | None:
     if not np.all(np.isfinite(a)) or np.any(a < 0.0):
         raise InvalidArgumentError("position_tolerance", f"must be finite and >= 0, got {value!r}")
     return a
+
+
+def _self_motion(m: Mechanism, value: Any) -> tuple[int, np.ndarray] | None:
+    if value is None:
+        return None
+    if not isinstance(value, tuple | list) or len(value) != 2:
+        raise InvalidArgumentError("self_motion", f"expected (joint name, values), got {value!r:.80}")
+    name = as_name(value[0], "self_motion", m.coordinate_names)
+    j = m.coordinate_names.index(name)
+    vals = as_vector(value[1], "self_motion")
+    if np.any(vals < m.lower[j]) or np.any(vals > m.upper[j]):
+        raise InvalidArgumentError(
+            "self_motion", f"values of {name!r} must lie within [{m.lower[j]:g}, {m.upper[j]:g}]"
+        )
+    return j, vals
 
 
 def _free_of_collisions(
@@ -161,6 +177,8 @@ def plan_path(
     world: World | None = None,
     margin: float = 0.0,
     max_flips: int | None = 0,
+    self_motion: tuple[str, Any] | None = None,
+    smooth: bool = False,
 ) -> JointPath:
     """A joint path through ``poses`` of least weighted joint motion, over every IK solution.
 
@@ -202,6 +220,12 @@ def plan_path(
         margin: clearance (m) of the collision check.
         max_flips: most branch changes the ``"branch"`` check accepts (None: any, for poses far
             apart, where the nearest solution says nothing about continuity).
+        self_motion: ``(joint, values)`` for a redundant (7-DOF) arm: its self-motion sampled
+            by locking the coordinate ``joint`` at each of ``values`` (within its limits), every
+            solution of the 6R chain left by its derived closed form (`optik.path.redundant`).
+        smooth: refine the graph's answer continuously (`optik.path.redundant.refine`: one NLP
+            over the whole path, warm-started from it), kept when shorter and every check
+            passes; with full poses only (no ``free_axis``, no ``position_tolerance``).
 
     Returns:
         A [`JointPath`][optik.path.JointPath]; ``success=False`` with a message when a pose has
@@ -229,8 +253,12 @@ def plan_path(
     spd = None if speed is None else as_float(speed, "speed", 0.0, strict=True)
     tols = Tolerances.from_arg(tol)
     flips_ok = None if max_flips is None else as_int(max_flips, "max_flips")
-    shortcut = None if free_axis is None else axis_joint(m, free_axis, frame)
-    plan = _Plan(m, frame, free_axis, step, shortcut, w, v, world, margin)
+    motion = _self_motion(m, self_motion)
+    smooth = bool(smooth)
+    if smooth and (free_axis is not None or radius is not None):
+        raise InvalidArgumentError("smooth", "needs full poses: no free_axis, no position_tolerance")
+    shortcut = None if free_axis is None or motion is not None else axis_joint(m, free_axis, frame)
+    plan = _Plan(m, frame, free_axis, step, shortcut, w, v, world, margin, motion)
     inserted = 0
     for round_ in range(rounds + 1):
         found = plan.solve(targets, t_given, radius)
@@ -245,23 +273,39 @@ def plan_path(
         inserted += far.size
     n = len(targets)
     branch = branch_changes(layers, index, w, groups, periods)
-    stretched = 0
-    if t_given is None:
-        travel = np.linalg.norm(np.diff(targets[:, :3, 3], axis=0), axis=1)
-        t, stretched = segment_times(q, travel, v, spd)
-    else:
-        t = t_given
-    qd, qdd = derivatives(q, t)
-    checks = check_path(m, q, t, qdd, targets, frame, tols, v, acc, free_axis, radius)
-    checks["branch"] = bool(flips_ok is None or branch[-1] <= flips_ok)
-    if world is not None:
-        checks["collision"] = True  # every node was checked free
-    if limit is not None:
-        checks["deviation"] = bool(np.all(dev <= limit))
+
+    def finish(qq: np.ndarray) -> tuple[np.ndarray, int, np.ndarray, np.ndarray, dict[str, bool]]:
+        stretched = 0
+        if t_given is None:
+            travel = np.linalg.norm(np.diff(targets[:, :3, 3], axis=0), axis=1)
+            tt, stretched = segment_times(qq, travel, v, spd)
+        else:
+            tt = t_given
+        qd, qdd = derivatives(qq, tt)
+        checks = check_path(m, qq, tt, qdd, targets, frame, tols, v, acc, free_axis, radius)
+        checks["branch"] = bool(flips_ok is None or branch[-1] <= flips_ok)
+        if world is not None:
+            checks["collision"] = not np.any(check_many(m, qq, world=world, margin=margin).in_collision)
+        if limit is not None:
+            checks["deviation"] = bool(np.all(deviation(m, qq, frame) <= limit))
+        return tt, stretched, qd, qdd, checks
+
+    t, stretched, qd, qdd, checks = finish(q)
+    refined = ""
+    if smooth:
+        q2 = refine(m, q, targets, frame, min(tols.position, tols.orientation))
+        cost2 = np.inf if q2 is None else float(np.linalg.norm(np.diff(q2, axis=0) * w, axis=1).sum())
+        got = finish(q) if q2 is None else finish(q2)
+        if q2 is not None and cost2 < cost and all(got[4].values()):
+            refined = f"; refined from {cost:.6g}"
+            q, cost, dev = q2, cost2, deviation(m, q2, frame)
+            t, stretched, qd, qdd, checks = got
+        else:
+            refined = "; the refinement was not kept (not shorter, or a check failed)"
     sizes = plan.sizes
     parts = [
         f"{n} poses, {sizes.mean():.3g} nodes per pose on average{note}",
-        f"joint-space length {cost:.6g}",
+        f"joint-space length {cost:.6g}{refined}",
         f"{int(branch[-1])} branch changes",
     ]
     if inserted:
@@ -282,7 +326,7 @@ def plan_path(
     failed = [name for name, ok in checks.items() if not ok]
     if failed:
         parts.append("failed checks: " + ", ".join(failed))
-    angle = chosen_angle(plan.samples, groups, index)
+    angle = chosen_angle(plan.samples, groups, index, 1 if motion is None else len(motion[1]))
     return JointPath(q, t, qd, qdd, branch, cost, checks, not failed, "; ".join(parts), stretched, angle,
                      sizes, targets, dev)  # fmt: skip
 
@@ -301,9 +345,10 @@ class _Plan:
         v: np.ndarray | None,
         world: World | None,
         margin: float,
+        motion: tuple[int, np.ndarray] | None,
     ) -> None:
         self.m, self.frame, self.free_axis, self.step, self.shortcut = m, frame, free_axis, step, shortcut
-        self.w, self.v, self.world, self.margin = w, v, world, margin
+        self.w, self.v, self.world, self.margin, self.motion = w, v, world, margin, motion
         self.sizes = np.zeros(0, dtype=int)
         self.dropped = 0
         self.samples = sample_poses(np.eye(4)[None], None, step, None)
@@ -313,7 +358,7 @@ class _Plan:
         cost, note)``, or the message of a failure."""
         m = self.m
         self.samples = sample_poses(targets, self.free_axis, self.step, radius)
-        solutions, groups = sample_solutions(m, self.samples, self.frame, self.shortcut)
+        solutions, groups = sample_solutions(m, self.samples, self.frame, self.shortcut, self.motion)
         layers, keep, self.dropped = _free_of_collisions(m, solutions, self.world, self.margin)
         groups = [g[k] for g, k in zip(groups, keep, strict=True)]
         self.sizes = np.array([len(layer) for layer in layers])

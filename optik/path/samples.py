@@ -26,6 +26,7 @@ import numpy as np
 
 from optik.mechanism import Mechanism
 from optik.path.nodes import closed_form_solutions
+from optik.path.redundant import self_motion_solutions
 from optik.spatial import rot_x, rot_y, rot_z
 
 AXES = {"x": rot_x, "y": rot_y, "z": rot_z}
@@ -129,10 +130,25 @@ def _into_limits(v: np.ndarray, lower: float, upper: float) -> np.ndarray:
 
 
 def sample_solutions(
-    m: Mechanism, samples: Samples, frame: str | None, shortcut: tuple[int, float] | None
+    m: Mechanism,
+    samples: Samples,
+    frame: str | None,
+    shortcut: tuple[int, float] | None,
+    self_motion: tuple[int, np.ndarray] | None = None,
 ) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """Per path sample, every solution of every sampled pose ``(K, n)`` and its group ``(K,)``."""
+    """Per path sample, every solution of every sampled pose ``(K, n)`` and its group ``(K,)``
+    (with ``self_motion = (j, values)``: the solutions with coordinate ``j`` at each value, the
+    group numbering pose sample and value, `optik.path.redundant`)."""
     n, s = samples.poses.shape[:2]
+    if self_motion is not None:
+        j, values = self_motion
+        rows, tags = self_motion_solutions(m, samples.poses.reshape(-1, 4, 4), j, values)
+        layers, groups = [], []
+        for k in range(n):
+            part = range(k * s, (k + 1) * s)
+            layers.append(np.concatenate([rows[i] for i in part]))
+            groups.append(np.concatenate([(i - k * s) * len(values) + tags[i] for i in part]))
+        return layers, groups
     units = s if shortcut is None else len(np.unique(samples.offset, axis=0))
     # one IK per sampled pose, or with the shortcut per offset (the groups of axis angle 0)
     flat = closed_form_solutions(m, samples.poses[:, :units].reshape(-1, 4, 4), frame)
@@ -153,8 +169,11 @@ def sample_solutions(
     return layers, groups
 
 
-def chosen_angle(samples: Samples, groups: Sequence[np.ndarray], index: np.ndarray) -> np.ndarray:
-    """The angle about the free axis of each sample's chosen node ``(N,)``, in ``(-pi, pi]``."""
-    g = np.array([g[i] for g, i in zip(groups, index, strict=True)], dtype=int)
+def chosen_angle(
+    samples: Samples, groups: Sequence[np.ndarray], index: np.ndarray, per_sample: int = 1
+) -> np.ndarray:
+    """The angle about the free axis of each sample's chosen node ``(N,)``, in ``(-pi, pi]``
+    (``per_sample`` groups per sampled pose: the self-motion values)."""
+    g = np.array([g[i] for g, i in zip(groups, index, strict=True)], dtype=int) // per_sample
     a = samples.angle[np.arange(len(g)), g]
     return np.pi - np.remainder(np.pi - a, 2.0 * np.pi)

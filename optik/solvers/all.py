@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from optik import native
 from optik.checks import as_bool, as_name, as_vector
 from optik.closed_form import registry, search_1d
 from optik.closed_form.derived import derive_locked, locked_axes
@@ -87,7 +88,10 @@ def solve_ik_all(
             numerical search answers within the time left (its ``uncertified_reason`` says so).
         task: task space (default from the target and the mechanism).
         frame: task frame (default: the end effector).
-        time_limit: wall-time budget of the whole search (s).
+        time_limit: wall-time budget of the whole search (s): the numerical search checks it
+            after every iteration; a closed form has no iteration to stop and runs to completion
+            (the general 6R solver takes 3 to 10 ms whatever the limit: ``docs/reliability.md``,
+            "Time limits").
         tol: success tolerances.
         seed: seed or Generator of the starts.
         patience: stop after this many consecutive starts without a new solution.
@@ -144,6 +148,21 @@ def solve_ik_all(
     if method is not None:
         as_name(method, "method")
     closed_form = as_bool(closed_form, "closed_form")
+    with native.deadline(request.start + request.time_limit):  # no wait for a C build past it
+        return _dispatch(request, method, fixed, patience, max_solutions, closed_form)
+
+
+def _dispatch(
+    request: IKRequest,
+    method: str | None,
+    fixed: Any,
+    patience: int,
+    max_solutions: int,
+    closed_form: bool,
+) -> IKSolutions:
+    """The search of `solve_ik_all` for a validated request: locked joints, the closed form,
+    or the numerical multi-start."""
+    m, frame = request.mechanism, request.frame
     if fixed is not None:
         return _locked_all(request, _locks(m, fixed), method, patience, max_solutions)
     applies = closed_form_applies(m, request.task) and frame in (None, m.ee)

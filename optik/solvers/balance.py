@@ -24,7 +24,9 @@ com_margin=0.01)``:
   subject to  q_min <= q <= q_max,  c(q) = 0,  N c_xy(q) <= b - margin
   ```
 
-  solved from ``q0`` and then from random starts until success or the time limit. Success
+  solved by IPOPT (exact second derivatives, adaptive barrier; ``posture`` 0 by default: a
+  positive weight biases the optimum and is then removed by a second solve from the answer)
+  from ``q0`` and then from random starts until success or the time limit. Success
   needs the targets, the contacts, the limits and the balance rows (to 1e-9 m) all met; the
   result's ``extra`` holds ``"com"`` (the centre of mass) and ``"com_inside"`` (its smallest
   distance inside the polygon's edges, ``>= com_margin`` on success).
@@ -34,7 +36,6 @@ from __future__ import annotations
 
 import threading
 import time
-import weakref
 from collections.abc import Mapping
 from typing import Any
 
@@ -44,6 +45,7 @@ import numpy as np
 from optik.checks import as_float, real_array
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.problem import build_ik_problem, target_parameters
 from optik.results import IKResult
 from optik.solvers.base import IKRequest, make_result, method_options, restart_stop, start_points
@@ -54,9 +56,7 @@ __all__ = ["BALANCE_TOL", "merge_contacts", "solve_balance", "support_halfplanes
 BALANCE_TOL = 1e-9
 """Largest violation (m) of a balance row that still counts as met."""
 
-_SOLVERS: weakref.WeakKeyDictionary[Mechanism, dict[Any, tuple[ca.Function, threading.Lock]]] = (
-    weakref.WeakKeyDictionary()
-)
+_SOLVERS: PerMechanism[dict[Any, tuple[ca.Function, threading.Lock]]] = PerMechanism()
 _SOLVERS_LOCK = threading.Lock()
 
 
@@ -135,6 +135,7 @@ def _solver(request: IKRequest, k: int) -> tuple[ca.Function, threading.Lock]:
         "ipopt.constr_viol_tol": 1e-11,
         "ipopt.bound_relax_factor": 0.0,
         "ipopt.max_iter": 200,
+        "ipopt.mu_strategy": "adaptive",
     }
     made = (ca.nlpsol("balance", "ipopt", nlp, options), threading.Lock())
     with _SOLVERS_LOCK:
@@ -147,10 +148,39 @@ def _inside(m: Mechanism, q: np.ndarray, normals: np.ndarray, b: np.ndarray) -> 
     return c, float(np.min(b - normals @ c[:2]))
 
 
+def _run(solver: ca.Function, lock: threading.Lock, x0: np.ndarray, p: np.ndarray, bounds: tuple) -> tuple:
+    """One IPOPT solve: ``(q, iterations)``."""
+    lbx, ubx, lbg, ubg = bounds
+    with lock:
+        sol = solver(x0=x0, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        iterations = int(solver.stats().get("iter_count", 0))
+    return np.asarray(sol["x"]).reshape(-1), iterations
+
+
+def _judged(
+    request: IKRequest,
+    run: tuple[np.ndarray, int],
+    iterations: int,
+    restarts: int,
+    normals: np.ndarray,
+    b: np.ndarray,
+    margin: float,
+) -> IKResult:
+    """The result of a solve, its success including the balance rows."""
+    q, its = run
+    res = make_result(request, q, "nlp", iterations + its, restarts)
+    com, inside = _inside(request.mechanism, res.q, normals, b)
+    res.extra.update({"com": com, "com_inside": inside})
+    if res.success and inside < margin - BALANCE_TOL:
+        res.success, res.status = False, "not_converged"
+        res.message = f"the centre of mass is {inside:.3g} m inside the support polygon, less than {margin:g}"
+    return res
+
+
 def solve_balance(request: IKRequest, support: Any, com_margin: Any) -> IKResult:
     """The NLP of the module docstring for a request whose targets include the contacts.
 
-    Options: ``posture`` (1e-6: weight of ``1/2 |q - q_ref|^2``), ``q_ref`` (``q0``),
+    Options: ``posture`` (0: weight of ``1/2 |q - q_ref|^2``), ``q_ref`` (``q0``),
     ``max_restarts`` (None: until success or the time limit).
 
     Raises:
@@ -160,7 +190,7 @@ def solve_balance(request: IKRequest, support: Any, com_margin: Any) -> IKResult
     normals, b = support_halfplanes(support)
     margin = as_float(com_margin, "com_margin", minimum=0.0)
     m = request.mechanism
-    opts = method_options(request, {"posture": 1e-6, "q_ref": None, "max_restarts": None})
+    opts = method_options(request, {"posture": 0.0, "q_ref": None, "max_restarts": None})
     since = time.perf_counter()
     solver, lock = _solver(request, len(b))
     request.exclude_setup(since)
@@ -182,28 +212,23 @@ def solve_balance(request: IKRequest, support: Any, com_margin: Any) -> IKResult
     ubg = np.zeros(n_closure + len(b))
     lbx = np.where(np.isfinite(m.lower), m.lower, -1e20)
     ubx = np.where(np.isfinite(m.upper), m.upper, 1e20)
+    bounds = (lbx, ubx, lbg, ubg)
     deadline = request.start + request.time_limit
     best: tuple[float, IKResult] | None = None
     restarts = iterations = 0
     stop = "time_limit"
     for x0 in start_points(request):
-        with lock:
-            q = x0
-            for weights in (p, polish):  # then without the posture term, which biases the optimum
-                sol = solver(x0=q, p=weights, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
-                iterations += int(solver.stats().get("iter_count", 0))
-                q = np.asarray(sol["x"]).reshape(-1)
-        res = make_result(request, q, "nlp", iterations, restarts)
-        com, inside = _inside(m, res.q, normals, b)
-        res.extra.update({"com": com, "com_inside": inside})
-        balanced = inside >= margin - BALANCE_TOL
-        if res.success and not balanced:
-            res.success, res.status = False, "not_converged"
-            res.message = (
-                f"the centre of mass is {inside:.3g} m inside the support polygon, less than {margin:g}"
+        res = _judged(request, _run(solver, lock, x0, p, bounds), iterations, restarts, normals, b, margin)
+        iterations = res.iterations
+        if not res.success:  # again without the posture term, which biases the optimum
+            res = _judged(
+                request, _run(solver, lock, res.q, polish, bounds), iterations, restarts, normals, b, margin
             )
+            iterations = res.iterations
         badness = (
-            0.0 if res.success else max(res.position_error, res.orientation_error, margin - inside, 1e-300)
+            0.0
+            if res.success
+            else max(res.position_error, res.orientation_error, margin - res.extra["com_inside"], 1e-300)
         )
         if best is None or badness < best[0]:
             best = (badness, res)

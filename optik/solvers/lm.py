@@ -26,7 +26,8 @@ Options (``solve_ik(..., method="lm", **options)``):
 
 * ``block`` (5): iterations per stall test.
 * ``max_iter`` (100): iterations per start before restarting.
-* ``mu0`` (1e-2): initial damping.
+* ``mu0`` (0.1): initial damping (0.1 takes 10-25 % fewer iterations than 1e-2 on the Panda,
+  iiwa14, Puma 560, seed 6R and planar 3R arms, from the mid-limit seed and from random starts).
 * ``stall`` (0.7): restart when a block's cost exceeds ``stall`` times the previous block's.
 * ``posture_gain`` (0.0): gain ``k`` of the null-space pull toward ``q_ref``.
 * ``q_ref`` (mid-limit): reference posture for that pull.
@@ -55,7 +56,7 @@ from optik.solvers.options import check_floats, check_max_restarts
 DEFAULTS: dict[str, Any] = {
     "block": 5,
     "max_iter": 100,
-    "mu0": 1e-2,
+    "mu0": 0.1,
     "stall": 0.7,
     "posture_gain": 0.0,
     "q_ref": None,
@@ -147,19 +148,19 @@ def solve_lm(request: IKRequest) -> IKResult:
     k, base = _prepare(request)
     conf = base.copy()
     conf[3] = max(request.remaining(), 0.0)
-    seed = np.array([request_seed(request.seed) & (2**64 - 1)], dtype=np.uint64)
     params = target_parameters(request.target)
-    out = k.run(params[None], request.q0[None], seed, conf)
-    status = None if out.status[0] == 0 else STATUS[int(out.status[0])]
-    return make_result(
-        request,
-        out.q[0],
-        "lm",
-        int(out.iterations[0]),
-        int(out.restarts[0]),
-        status,
-        errors=lambda q: k.final_errors(q, params),  # the kernel's own check, as the batch's
+    q, err, iterations, restarts, code = k.run_one(
+        params, request.q0, request_seed(request.seed) & (2**64 - 1), conf
     )
+    answer = q.tolist()
+
+    def errors(qq: np.ndarray) -> tuple[float, float, float]:
+        """The kernel's own check, as the batch's: the errors it computed for its answer when
+        wrapping and clipping left that unchanged, else evaluated again."""
+        return err if qq.tolist() == answer else k.final_errors(qq, params)
+
+    status = None if code == 0 else STATUS[code]
+    return make_result(request, q, "lm", iterations, restarts, status, errors=errors)
 
 
 register_method(

@@ -65,7 +65,7 @@ def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Funct
     m = problem.mechanism
     q = problem.q
     lo, hi = ca.SX.sym("lower", m.n_q), ca.SX.sym("upper", m.n_q)
-    e = problem.weighted_residual(closure_weight if m.is_closed else None)
+    e = problem.weighted_residual(closure_weight if problem.closure.shape[0] else None)
     at = ca.Function("at", [q, problem.target, problem.weights], [e, *problem.error_expressions()])
     mu, gain = ca.SX.sym("mu"), ca.SX.sym("gain")
     jac = ca.jacobian(e, q)
@@ -162,6 +162,21 @@ class Output:
 _P = ctypes.c_void_p
 
 
+class _OneTarget:
+    """One thread's buffers of a one-target run, and the packed argument array of the driver's
+    ``optik_lm_packed`` pointing at them (the addresses are taken once: reading
+    ``ndarray.ctypes.data`` costs microseconds per array, more than a whole solve's iterations)."""
+
+    def __init__(self, nq: int, nt: int, n_conf: int) -> None:
+        self.target, self.q0, self.conf = np.zeros(nt), np.zeros(nq), np.zeros(n_conf)
+        self.seed = np.zeros(1, dtype=np.uint64)
+        self.q, self.errors, self.time = np.zeros(nq), np.zeros(3), np.zeros(1)
+        self.counts = np.zeros(3, dtype=np.int64)  # iterations, restarts, status
+        c = self.counts.ctypes.data
+        bufs = (self.target, self.q0, self.seed, self.conf, self.q, self.errors)
+        self.args = (_P * 11)(1, *[b.ctypes.data for b in bufs], c, c + 8, c + 16, self.time.ctypes.data)
+
+
 class LMKernel:
     """The chunk kernel of one mechanism, task, frame and closure weight (thread-safe).
 
@@ -172,12 +187,22 @@ class LMKernel:
         closure_weight: weight of the loop-closure rows.
         compile: as in `optik.native.library` (False: the Python loop; ``"auto"``: the
             Python loop until the library built in the background is loaded).
+        problem: the problem to solve (default: `optik.problem.build_ik_problem` of ``m``,
+            ``task``, ``frame``); its ``closure`` rows are the weighted rows of the residual and
+            the closure error of the stop test (`optik.solvers.collision_free` appends its
+            collision rows there).
     """
 
     def __init__(
-        self, m: Mechanism, task: str, frame: str | None, closure_weight: float, compile: bool | str
+        self,
+        m: Mechanism,
+        task: str,
+        frame: str | None,
+        closure_weight: float,
+        compile: bool | str,
+        problem: IKProblem | None = None,
     ) -> None:
-        problem = build_ik_problem(m, task, frame)
+        problem = build_ik_problem(m, task, frame) if problem is None else problem
         self.mechanism = m
         self.n_target = int(problem.target.shape[0])
         """Target parameters per target (12 per frame target)."""
@@ -195,7 +220,8 @@ class LMKernel:
             None if driver is None else library([self.step, self.errors], compile, defines + driver)
         )
         self._fn: Any = None
-        self._local = threading.local()  # per-thread error evaluators
+        self._packed: Any = None
+        self._local = threading.local()  # per-thread error evaluators and one-target buffers
 
     def final_errors(self, q: np.ndarray, target: np.ndarray) -> tuple[float, float, float]:
         """Position, orientation and closure errors of ``q`` against target parameters
@@ -224,6 +250,46 @@ class LMKernel:
                 fn.restype = ctypes.c_int
                 self._fn = fn
         return self._fn
+
+    def run_one(
+        self, target: np.ndarray, q0: np.ndarray, seed: int, conf: np.ndarray
+    ) -> tuple[np.ndarray, tuple[float, float, float], int, int, int]:
+        """`run` for one target with the least per-call work (the path of `optik.solve_ik`):
+        the same driver on this thread's preallocated buffers, through one packed argument.
+
+        Args:
+            target: target parameters ``(12,)`` (``(12 k,)`` for ``k`` frame targets).
+            q0: the first start ``(n,)``.
+            seed: the restart seed (below 2^64).
+            conf: `Settings.conf`.
+
+        Returns:
+            ``(q, (position, orientation, closure) errors of q, iterations, restarts, status)``.
+        """
+        packed = self._packed
+        if packed is None and self._driver() is not None:
+            packed = self._packed = self.library.get().optik_lm_packed  # type: ignore[union-attr]
+            packed.argtypes, packed.restype = [_P], ctypes.c_int
+        if packed is None:
+            seeds = np.array([seed], dtype=np.uint64)
+            out = self.run(target[None], q0[None], seeds, conf)
+            e = out.errors[0].tolist()
+            counts = int(out.iterations[0]), int(out.restarts[0]), int(out.status[0])
+            return out.q[0], (e[0], e[1], e[2]), *counts
+        one = getattr(self._local, "one", None)
+        if one is None:
+            one = self._local.one = _OneTarget(self.mechanism.n_q, len(target), len(conf))
+        one.target[:] = target
+        one.q0[:] = q0
+        one.seed[0] = seed
+        one.conf[:] = conf
+        if packed(one.args) != 0:
+            from optik.errors import SolverUnavailableError
+
+            raise SolverUnavailableError("optik_lm_chunk: evaluation of the generated code failed")
+        e = one.errors.tolist()
+        it, restarts, status = one.counts.tolist()
+        return one.q.copy(), (e[0], e[1], e[2]), it, restarts, status
 
     def run(self, targets: np.ndarray, q0: np.ndarray, seeds: np.ndarray, conf: np.ndarray) -> Output:
         """Solve ``N`` targets.

@@ -1,10 +1,12 @@
 """Method ``"nlp"``: the IK NLP of [`optik.problem`][optik.problem] solved by CasADi ``nlpsol``, multi-start.
 
 The NLP (built once per mechanism, task, frame and secondary objectives; the target, weights and
-reference posture are parameters) is::
+reference posture are parameters) is:
 
-    minimize_q  1/2 (w_p^2 |r_p|^2 + w_o^2 |r_o|^2) + 1/2 w_post |q - q_ref|^2 (+ secondary terms)
-    subject to  q_min <= q <= q_max,  c(q) = 0
+```text
+minimize_q  1/2 (w_p^2 |r_p|^2 + w_o^2 |r_o|^2) + 1/2 w_post |q - q_ref|^2 (+ secondary terms)
+subject to  q_min <= q <= q_max,  c(q) = 0
+```
 
 solved by IPOPT (default) or CasADi's ``sqpmethod`` (option ``solver="sqpmethod"``, QP solver
 qpOASES). An iteration callback checks, after every iteration, the success tolerances on the

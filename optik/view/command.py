@@ -53,12 +53,14 @@ def add_parser(sub: Any) -> None:
 
 def _viewer(args: argparse.Namespace) -> Any:
     from optik.errors import InvalidArgumentError
-    from optik.view import Viewer
-    from optik.view.viewer import reach_points
 
     if not 0 <= args.port <= 65535:
         raise InvalidArgumentError("--port", f"expected 0..65535, got {args.port}")
     m, problem = load_source(args.source, args.base, args.tip, args.problems_dir)
+    # the viewer's extra is needed only once the arguments are known to be right
+    from optik.view import Viewer
+    from optik.view.viewer import reach_points
+
     task, tol = (problem.mechanism_task, problem.tolerances) if problem is not None else (None, None)
     if args.reach is not None:  # a bad map is a usage error before the server starts
         try:

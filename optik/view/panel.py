@@ -75,7 +75,10 @@ class Panel:
         with gui.add_folder("Capability map: optik.reach", expand_by_default=False):
             self.reach = gui.add_checkbox("capability map", True, disabled=True)
             self.reach.on_update(self._user(lambda: viewer.set_reach_visible(self.reach.value)))
+            self.reach_layer = gui.add_slider("height (m)", 0.0, 1.0, 0.1, 0.0, disabled=True)
+            self.reach_layer.on_update(self._user(lambda: viewer.set_reach_layer(self.reach_layer.value)))
             self.reach_text = gui.add_markdown("Load one with `--reach DIR` or `Viewer.show_reach`.")
+            self.layer_text = gui.add_markdown("")
 
     # ------------------------------------------------------------------ callbacks
     def _guarded(self, action: Callable[..., Any]) -> Callable[..., None]:
@@ -180,6 +183,17 @@ class Panel:
         self.reach_text.content = text + (
             f"; {pending} voxels not computed yet, not drawn" if pending else ""
         )
+
+    def show_reach_layers(self, low: float, high: float, step: float) -> None:
+        """Range the layer slider over the map's voxel heights."""
+        self.reach_layer.min, self.reach_layer.max = low, max(high, low + step)
+        self.reach_layer.step = step
+        self.reach_layer.disabled = high <= low
+
+    def show_reach_layer(self, z: float, count: int) -> None:
+        """Say which layer of the map is drawn."""
+        self.reach_layer.value = z
+        self.layer_text.content = f"layer z = {z:.3f} m: {count} voxels drawn"
 
     def show_path(self, result: TrackResult) -> None:
         """Enable playback of a tracked path and summarize it."""

@@ -4,18 +4,16 @@ The page is served by a `viser.ViserServer` (its own threads: the caller is neve
 Every interaction of the page has a Python twin on `Viewer`, so that scripts, notebooks and
 tests drive the same code paths as a mouse:
 
-========================  ==================================================================
-page                      Python
-========================  ==================================================================
-drag the target gizmo     `Viewer.set_target` (IK from the shown ``q`` as the seed)
-IK method dropdown        `Viewer.method`
-"all solutions" box       `Viewer.show_all_solutions` (every branch of ``solve_ik_all``)
-joint sliders             `Viewer.set_q` (FK)
-actuator sliders          `Viewer.set_actuated` (closed chains: every assembly mode)
-"next assembly mode"      `Viewer.show_mode`
-"track a circle", time    `Viewer.track`, `Viewer.show_path_sample`
-"capability map" box      `Viewer.show_reach`, `Viewer.set_reach_visible`
-========================  ==================================================================
+| page | Python |
+|---|---|
+| drag the target gizmo | `Viewer.set_target` (IK from the shown ``q`` as the seed) |
+| IK method dropdown | `Viewer.method` |
+| "all solutions" box | `Viewer.show_all_solutions` (every branch of ``solve_ik_all``) |
+| joint sliders | `Viewer.set_q` (FK) |
+| actuator sliders | `Viewer.set_actuated` (closed chains: every assembly mode) |
+| "next assembly mode" | `Viewer.show_mode` |
+| "track a circle", time | `Viewer.track`, `Viewer.show_path_sample` |
+| "capability map" box | `Viewer.show_reach`, `Viewer.set_reach_visible` |
 """
 
 from __future__ import annotations
@@ -36,6 +34,7 @@ from optik.diffik import circle_path, track
 from optik.diffik.track import TrackResult
 from optik.errors import InvalidArgumentError, SolverUnavailableError, require_extra
 from optik.mechanism import Mechanism
+from optik.plot import showcase_q
 from optik.reach import ReachMap
 from optik.results import IKResult
 from optik.solvers import methods, pick_method, solve_ik, solve_ik_all
@@ -52,6 +51,9 @@ __all__ = ["Viewer", "reach_points"]
 PLANAR_TASKS = ("pose2d", "position2d")
 RADIUS = 0.03
 """Link radius as a fraction of the mechanism's size."""
+REACH_POINT = 0.15
+"""Diameter of a capability-map point as a fraction of the voxel edge: small enough that the
+robot stays visible between the points of a dense map (the panel's box hides the map)."""
 GHOST = Style(link=(120, 170, 230), ground=(120, 120, 120), slide=(230, 150, 120), opacity=0.3, frames=False)
 
 
@@ -96,8 +98,9 @@ class Viewer:
 
     Args:
         m: the mechanism.
-        q: first configuration (default: mid-limit; for a closed chain, the assembly mode of the
-            mid-limit actuated values nearest to the mid-limit configuration).
+        q: first configuration (default: mid-limit; for a closed chain, the configuration of
+            `optik.plot.showcase_q` that shows its shape, else the assembly mode of the mid-limit
+            actuated values nearest to the mid-limit configuration).
         host: interface to bind (default ``127.0.0.1``: this machine only; ``0.0.0.0`` exposes
             the page to the network).
         port: TCP port (viser takes the next free one when it is busy; see `Viewer.url`).
@@ -150,6 +153,7 @@ class Viewer:
         """URDF visuals that are not drawn, with the reason (their bodies are capsule chains)."""
         self._all = False
         self._reach: Any = None
+        self._reach_map: tuple[np.ndarray, np.ndarray, float] | None = None
         self._q = self._first_q(q)
         with contextlib.redirect_stdout(io.StringIO()):  # viser prints a banner; `url` tells the address
             self.server = viser.ViserServer(host=host, port=int(port), label=f"optik: {m.name}")
@@ -173,6 +177,9 @@ class Viewer:
         mid = self.m.mid_q()
         if not self.m.is_closed:
             return mid
+        shown = showcase_q(self.m)  # a configuration that shows the chain's shape
+        if shown is not None:
+            return shown
         modes = solve_fk_all(self.m, mid[self.m.actuated_indices], time_limit=self.all_time_limit)
         if modes:  # the assembly mode nearest to the mid-limit configuration
             return np.asarray(min(modes, key=lambda r: joint_distance(self.m, r.q, mid)).q, dtype=float)
@@ -424,14 +431,17 @@ class Viewer:
             return q.copy()
 
     # ------------------------------------------------------------------ capability map
-    def show_reach(self, source: Any, visible: bool = True) -> int:
-        """Draw a capability map of `optik.reach` as a point cloud: one point per workspace voxel
-        centre, coloured by its reachability index (viridis: 0 dark blue, 1 yellow).
+    def show_reach(self, source: Any, visible: bool = True, z: float | None = None) -> int:
+        """Draw a capability map: one horizontal layer of its voxels, as small points coloured
+        by the reachability index (viridis: 0 blue, 1 yellow), so that the robot stays visible
+        through the map. The panel's box hides the map and its slider moves the layer.
 
         Args:
             source: a `optik.reach.ReachMap`, or a ``reach.npz`` written by ``optik reach`` /
                 ``optik.reach(out=DIR)`` (or its folder).
-            visible: show the cloud (the panel's "capability map" box toggles it).
+            visible: show the points (the panel's "capability map" box toggles them).
+            z: height of the layer (m; the nearest layer of voxels is drawn). Default: the
+                layer of the end effector in the shown configuration. A planar map has one layer.
 
         Returns:
             The number of points drawn (voxels whose index is not computed yet are left out,
@@ -442,20 +452,51 @@ class Viewer:
         """
         centers, index, resolution = reach_points(source)
         done = np.isfinite(index)
-        colors = (255 * colormaps["viridis"](index[done])[:, :3]).astype(np.uint8)
         with self._lock:
-            self._reach = self.server.scene.add_point_cloud(
-                "/reach",
-                centers[done],
-                colors,
-                point_size=0.5 * resolution,
-                point_shape="circle",
-                visible=visible,
-            )
+            self._reach_map = (centers[done], index[done], resolution)
             self.panel.show_reach(
                 int(done.sum()), int((~done).sum()), float(np.mean(index[done])) if done.any() else 0.0
             )
-        return int(done.sum())
+            if done.any():
+                self.panel.show_reach_layers(
+                    float(centers[done, 2].min()), float(centers[done, 2].max()), resolution
+                )
+            drawn = self.set_reach_layer(self.m.fk(self._q)[2, 3] if z is None else z)
+            self.set_reach_visible(visible)
+        return drawn
+
+    def set_reach_layer(self, z: float) -> int:
+        """Draw the layer of the capability map nearest height ``z`` (m); returns its number of
+        points (0 without a map)."""
+        height = float(as_vector(z, "z", 1)[0])
+        if not math.isfinite(height):
+            raise InvalidArgumentError("z", f"expected a finite height, got {z!r}")
+        if self._reach_map is None:
+            return 0
+        centers, index, resolution = self._reach_map
+        if not len(centers):
+            layer = np.zeros(0, dtype=bool)
+        else:
+            levels = np.unique(np.round(centers[:, 2] / resolution, 6))
+            nearest = levels[np.argmin(np.abs(levels - height / resolution))]
+            layer = np.abs(centers[:, 2] / resolution - nearest) < 1e-3
+        colors = (255 * colormaps["viridis"](index[layer])[:, :3]).astype(np.uint8)
+        with self._lock:
+            visible = self._reach.visible if self._reach is not None else True
+            if self._reach is not None:
+                self._reach.remove()
+            self._reach = self.server.scene.add_point_cloud(
+                "/reach",
+                centers[layer],
+                colors,
+                point_size=REACH_POINT * resolution,
+                point_shape="circle",
+                point_shading="flat",
+                visible=visible,
+            )
+            if len(centers):
+                self.panel.show_reach_layer(float(nearest * resolution), int(layer.sum()))
+        return int(layer.sum())
 
     def set_reach_visible(self, visible: bool) -> None:
         """Show or hide the capability map drawn by `show_reach`."""

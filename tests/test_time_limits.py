@@ -1,0 +1,55 @@
+"""Time limits (issue 18, item 6): no call waits for a C compile past its own time limit, and
+the fuzzer holds every call to its limit plus `OVERTIME_SLACK` (the promise of
+``docs/reliability.md``, measured by ``optik benchmark time_limits``)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+
+import optik
+from fuzz.harness import OVERTIME_SLACK, Call, classify
+from optik import native
+from optik.solvers import lm_kernel
+
+PANDA = Path(optik.__file__).parent / "data" / "urdf" / "panda.urdf"
+
+
+@pytest.mark.skipif(native.compiler() is None, reason="needs a C compiler (a build to wait for)")
+def test_no_call_waits_for_a_compile_past_its_time_limit(monkeypatch, tmp_path):
+    monkeypatch.setenv("OPTIK_CACHE_DIR", str(tmp_path))  # never compiled: the build starts now
+    m = optik.Mechanism.from_urdf(PANDA, "panda_link0", "panda_link8")
+    target = m.fk(m.random_q(seed=2))
+    first = optik.solve_ik(m, target, method="lm", seed=0, time_limit=0.05)
+    k = lm_kernel.kernel(m, "pose", None, 100.0, "auto")
+    assert k.library.state == "building"
+    k.library.evaluated(2 * native.EVALUATOR_BUDGET)  # the evaluator's budget is spent
+    start = time.perf_counter()
+    late = optik.solve_ik(m, target, method="lm", seed=0, time_limit=0.05)
+    wall = time.perf_counter() - start
+    building = k.library.state == "building"
+    native.wait()
+    assert building, "the compiler finished before the call: nothing was tested"
+    assert wall < 0.05 + OVERTIME_SLACK, f"{wall:.3f} s: the call waited for the compiler"
+    assert late.solve_time <= 0.05 + OVERTIME_SLACK
+    assert first.status in ("solved", "time_limit") and late.status in ("solved", "time_limit")
+    assert late.q.shape == (7,) and m.within_limits(late.q)  # an answer, from the evaluator
+
+
+def test_the_fuzzer_holds_calls_to_their_limit_plus_the_slack():
+    assert OVERTIME_SLACK == 0.25
+    slow = Call("x", lambda: time.sleep(0.05 + OVERTIME_SLACK + 0.1), limit=0.05)
+    assert classify(slow).kind == "overtime"  # 0.4 s for a 0.05 s limit: within the old 3 x + 0.5 s
+    assert classify(Call("x", lambda: time.sleep(0.06), limit=0.05)).kind == "ok"
+
+
+def test_the_deadline_is_scoped_and_an_infinite_one_is_no_limit():
+    assert native._DEADLINE.get() is None
+    with native.deadline(12.5):
+        assert native._DEADLINE.get() == 12.5
+        with native.deadline(float("inf")):  # a wait without limit, not an overflow of the timeout
+            assert native._DEADLINE.get() is None
+        assert native._DEADLINE.get() == 12.5
+    assert native._DEADLINE.get() is None

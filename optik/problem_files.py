@@ -781,7 +781,8 @@ def add_source_arguments(parser: Any) -> None:
         help=(
             "a problem name (e.g. panda, five_bar; see --problems-dir) or .toml file; a robot of "
             "optik.catalog.robot (needs the robots extra): "
-            f"{', '.join(catalog.robot_names())}; or a .urdf file with --base and --tip"
+            f"{', '.join(catalog.robot_names())}; a .urdf file with --base and --tip; or an MJCF "
+            "(.xml) file, loaded whole (needs the mjcf extra)"
         ),
     )
     parser.add_argument("--base", help="base link of a URDF chain (required with a .urdf file)")
@@ -805,14 +806,23 @@ def load_source(
     source: str, base: str | None, tip: str | None, problems_dir: str | Path | None = None
 ) -> tuple[Mechanism, Problem | None]:
     """The mechanism of a command's ``PROBLEM|ROBOT|URDF`` argument, and its problem (None for
-    a robot or a URDF). A name is a problem first, else a robot of `optik.catalog.robot`.
+    a robot, a URDF or an MJCF file). A name is a problem first, else a robot of
+    `optik.catalog.robot`; a ``.xml`` or ``.mjcf`` file is a MuJoCo model, loaded whole
+    (`Mechanism.from_mjcf`).
 
     Raises:
-        InvalidArgumentError: no such URDF file, or one without both ``--base`` and ``--tip``;
+        InvalidArgumentError: no such URDF or MJCF file, a URDF without both ``--base`` and
+            ``--tip``, an MJCF file with one of them;
             a name that is neither a problem nor a robot (the message lists both).
         ProblemFileError: the problem file is invalid.
         MissingExtraError: a robot name without the ``robots`` extra.
     """
+    if Path(source).suffix.lower() in (".xml", ".mjcf"):
+        if not Path(source).is_file():
+            raise InvalidArgumentError("PROBLEM|ROBOT|URDF", f"no such file: {source}")
+        if base is not None or tip is not None:
+            raise InvalidArgumentError("--base", "an MJCF model loads whole: no --base or --tip")
+        return Mechanism.from_mjcf(source), None
     if Path(source).suffix.lower() == ".urdf":
         if not Path(source).is_file():
             raise InvalidArgumentError("PROBLEM|ROBOT|URDF", f"no such file: {source}")

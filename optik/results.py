@@ -23,7 +23,9 @@ class IKResult:
         iterations: solver iterations (summed over restarts).
         solve_time: wall time of the call (s), failures included.
         method: the method that produced ``q`` (``"lm"``, ``"nlp"``, ``"closed_form"``, ...).
-        status: short machine-readable status (``"solved"``, ``"unreachable"``, ``"time_limit"``...).
+        status: short machine-readable status (``"solved"``, ``"unreachable"``, ``"time_limit"``,
+            ``"outside_limits"``, ``"not_found"``: a closed form not certified complete found no
+            branch within the limits, so it does not say the target is out of reach...).
         message: human-readable explanation, in particular why a solve failed.
         restarts: number of restarts used.
         extra: method-specific details (e.g. ``"setup_time"``).

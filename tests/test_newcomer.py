@@ -369,3 +369,29 @@ def test_the_viewer_opens_a_closed_chain_showing_its_shape():
     joints = geometry(m, q).parent_side
     gaps = np.linalg.norm(joints[:, None] - joints[None, :], axis=-1)[np.triu_indices(len(joints), 1)]
     assert gaps.min() > 0.2  # not theta = (0, 0), where the first arm lies on the base
+
+
+def test_the_three_path_builders_share_one_signature():
+    import inspect
+
+    from optik import diffik
+
+    builders = (diffik.line_path, diffik.circle_path, diffik.polyline_path)
+    for build in builders:
+        names = list(inspect.signature(build).parameters)
+        assert names[names.index("speed") :][:3] == ["speed", "dt", "rotation"], build.__name__
+    tool = optik.spatial.rot_x(np.pi)
+    paths = [
+        diffik.line_path([0.3, 0.0, 0.5], [0.5, 0.0, 0.5], 0.25, 0.01, tool),
+        diffik.circle_path([0.4, 0.0, 0.5], 0.1, 0.25, 0.01, tool),
+        diffik.polyline_path([[0.3, 0.0, 0.5], [0.4, 0.0, 0.5], [0.4, 0.1, 0.5]], 0.25, 0.01, tool),
+    ]
+    for path in paths:
+        steps = np.linalg.norm(np.diff(path[:, :3, 3], axis=0), axis=1)
+        assert np.allclose(steps[:-1], 0.0025, rtol=1e-3) and 0 < steps[-1] <= 0.0025 + 1e-12
+        np.testing.assert_allclose(path[:, :3, :3], np.broadcast_to(tool, (len(path), 3, 3)), atol=1e-12)
+    assert len(paths[0]) == 81  # 0.2 m in steps of 2.5 mm, both ends
+    turned = diffik.line_path(
+        np.eye(4), optik.spatial.transform(optik.spatial.rot_z(0.4), [0.1, 0, 0]), 1.0, 0.01
+    )
+    assert len(turned) == 11 and np.isclose(optik.spatial.rotation_angle(turned[5, :3, :3]), 0.2)

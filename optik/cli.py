@@ -548,6 +548,9 @@ def build_parser() -> argparse.ArgumentParser:
     from optik.reach import add_parser as add_reach  # optik reach: capability maps
 
     add_reach(sub)
+    from optik.path.command import add_parser as add_path  # optik path: Cartesian paths
+
+    add_path(sub)
     return parser
 
 

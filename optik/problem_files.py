@@ -48,6 +48,15 @@ methods = ["closed_form", "lm", "nlp", "dls", "qp"]   # default: every registere
 peers = ["trac_ik", "pink", "ikpy"]                    # default: none
 time_limit = 0.1             # seconds per IK call
 quick_time_limit = 0.05
+
+[path]                       # a tool path for `optik path` (Problem.path_poses, optik.path.shapes)
+kind = "line"                # "line", "arc", "polyline" or "waypoints"
+start_q = [...]              # first pose = FK(start_q) (line, arc, polyline)
+end = [0.0, 0.2, 0.0]        # line: offset of the end; arc: center, axis, angle (deg), turn_tool;
+n = 200                      # polyline: points (offsets); waypoints: [x, y, z, roll, pitch, yaw] rows
+dt = 0.02                    # s between samples; and plan_path's free_axis, axis_step (deg),
+                             # position_tolerance, max_deviation, self_motion_joint,
+                             # self_motion_samples, smooth
 ```
 
 Target sampling (the benchmark method): the reference configuration ``q`` is drawn so
@@ -74,7 +83,7 @@ import os
 import sys
 import typing
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from importlib import resources
 from pathlib import Path
@@ -118,6 +127,9 @@ PEERS = ("trac_ik", "rtb_lm", "pink", "ikpy")
 
 SAMPLING = ("auto", "joint", "actuated", "pose")
 """Target sampling modes."""
+
+PATH_KINDS = ("line", "arc", "polyline", "waypoints")
+"""Tool paths of the ``[path]`` table (`optik.path.shapes`)."""
 
 DEFAULT_TIME_LIMIT = 0.1
 """Seconds per IK call of a full run when the file does not say."""
@@ -214,6 +226,18 @@ def _subset(options: tuple[str, ...]) -> Callable[[Any], tuple[str, ...]]:
     return parse
 
 
+def _rows(width: int) -> Callable[[Any], tuple[tuple[float, ...], ...]]:
+    def parse(v: Any) -> tuple[tuple[float, ...], ...]:
+        if not isinstance(v, list) or not v:
+            raise ValueError(f"expected a non-empty array of {width}-number arrays, got {v!r}")
+        rows = tuple(_numbers(r) for r in v)
+        if any(len(r) != width for r in rows):
+            raise ValueError(f"expected arrays of {width} numbers each, got {v!r}")
+        return rows
+
+    return parse
+
+
 def _table(v: Any) -> dict[str, Any]:
     if not isinstance(v, dict):
         raise ValueError(f"expected a table, got {v!r}")
@@ -247,6 +271,26 @@ SCHEMA: dict[str, dict[str, _Key]] = {
         "peers": _Key(_subset(PEERS)),
         "time_limit": _Key(_positive),
         "quick_time_limit": _Key(_positive),
+    },
+    "path": {
+        "kind": _Key(_one_of(PATH_KINDS), required=True),
+        "start_q": _Key(_numbers),
+        "n": _Key(_count(2, MAX_TARGETS)),
+        "end": _Key(_numbers),
+        "center": _Key(_numbers),
+        "axis": _Key(_numbers),
+        "angle": _Key(_number),
+        "turn_tool": _Key(_boolean),
+        "points": _Key(_rows(3)),
+        "waypoints": _Key(_rows(6)),
+        "dt": _Key(_positive),
+        "free_axis": _Key(_one_of(("x", "y", "z"))),
+        "axis_step": _Key(_positive),
+        "position_tolerance": _Key(_positive),
+        "max_deviation": _Key(_positive),
+        "self_motion_joint": _Key(_string),
+        "self_motion_samples": _Key(_count(2, 10_000)),
+        "smooth": _Key(_boolean),
     },
 }
 """Tables, their keys and parsers; ``[problem]`` and ``[mechanism]`` are required tables."""
@@ -356,6 +400,7 @@ class Problem:
         methods: IK methods to run (None: every registered method that applies).
         peers: peer libraries to run.
         time_limit, quick_time_limit: seconds per IK call.
+        path_table: the parsed ``[path]`` table ({} without one; `path_poses`).
     """
 
     name: str
@@ -379,6 +424,7 @@ class Problem:
     peers: tuple[str, ...]
     time_limit: float
     quick_time_limit: float
+    path_table: dict[str, Any] = field(default_factory=dict)
 
     def _error(self, key: str, what: str) -> ProblemFileError:
         return ProblemFileError(f"{self.path}: {key}: {what}")
@@ -403,6 +449,65 @@ class Problem:
             except InvalidArgumentError as exc:
                 raise self._error("limits", str(exc)) from None
         return m
+
+    def path_poses(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """The tool poses ``(n, 4, 4)`` of the ``[path]`` table and their times (None without
+        ``dt``); the start pose is ``FK(start_q)``, every offset in metres in the base frame,
+        ``angle`` and ``axis_step`` in degrees, waypoints as ``(x, y, z, roll, pitch, yaw)``.
+
+        Raises:
+            ProblemFileError: no ``[path]`` table, or a key its kind needs is missing or wrong.
+        """
+        from optik.path import shapes
+
+        p = self.path_table
+        if not p:
+            raise self._error("[path]", "the problem has no [path] table")
+        kind, n = p["kind"], p.get("n", 200)
+        need = {"line": ("start_q", "end"), "arc": ("start_q", "center", "angle"),
+                "polyline": ("start_q", "points"), "waypoints": ("waypoints",)}[kind]  # fmt: skip
+        for key in need:
+            if key not in p:
+                raise self._error(f"path.{key}", f"missing: a {kind} needs {', '.join(need)}")
+        m = self.mechanism()
+        try:
+            start = m.fk(p["start_q"]) if "start_q" in p else None
+            if kind == "line":
+                poses = shapes.line(start, p["end"], n)
+            elif kind == "arc":
+                axis = p.get("axis", (0.0, 0.0, 1.0))
+                poses = shapes.arc(
+                    start, p["center"], axis, np.radians(p["angle"]), n, p.get("turn_tool", True)
+                )
+            elif kind == "polyline":
+                poses = shapes.polyline(start, p["points"], n)
+            else:
+                rows = [spatial.transform(spatial.rpy_to_rot(*w[3:]), w[:3]) for w in p["waypoints"]]
+                poses = shapes.waypoints(np.array([np.asarray(r, dtype=float) for r in rows]), n)
+        except InvalidArgumentError as exc:
+            raise self._error(f"path.{exc.argument}", str(exc)) from None
+        times = None if "dt" not in p else np.arange(n) * p["dt"]
+        return poses, times
+
+    def path_options(self) -> dict[str, Any]:
+        """The keyword arguments of `optik.plan_path` the ``[path]`` table sets."""
+        p, out = self.path_table, {}
+        for key in ("free_axis", "position_tolerance", "max_deviation", "smooth"):
+            if key in p:
+                out[key] = p[key]
+        if "axis_step" in p:
+            out["axis_step"] = float(np.radians(p["axis_step"]))
+        if "self_motion_joint" in p:
+            m = self.mechanism()
+            name = p["self_motion_joint"]
+            if name not in m.coordinate_names:
+                raise self._error(
+                    "path.self_motion_joint", f"unknown coordinate; known: {list(m.coordinate_names)}"
+                )
+            j = m.coordinate_names.index(name)
+            out["self_motion"] = (name, np.linspace(m.lower[j], m.upper[j], p.get("self_motion_samples", 29)))
+        out["tol"] = self.tolerances
+        return out
 
     def mechanism(self) -> Mechanism:
         """The catalog mechanism with its parameters and limits (built once per problem).
@@ -542,7 +647,7 @@ def constructors() -> list[str]:
 
 def _from_data(path: Path, data: dict[str, Any]) -> Problem:
     v = _validate(path, data)
-    prob, mech, lim, tg, tol, sol = (v[k] for k in SCHEMA)
+    prob, mech, lim, tg, tol, sol, path_table = (v[k] for k in SCHEMA)
     constructor = mech["constructor"]
     names = constructors()
     fn = getattr(catalog, constructor) if constructor in names else None
@@ -585,6 +690,7 @@ def _from_data(path: Path, data: dict[str, Any]) -> Problem:
         peers=sol.get("peers", ()),
         time_limit=sol.get("time_limit", DEFAULT_TIME_LIMIT),
         quick_time_limit=sol.get("quick_time_limit", DEFAULT_QUICK_TIME_LIMIT),
+        path_table=path_table,
     )
 
 
@@ -675,7 +781,8 @@ def add_source_arguments(parser: Any) -> None:
         help=(
             "a problem name (e.g. panda, five_bar; see --problems-dir) or .toml file; a robot of "
             "optik.catalog.robot (needs the robots extra): "
-            f"{', '.join(catalog.robot_names())}; or a .urdf file with --base and --tip"
+            f"{', '.join(catalog.robot_names())}; a .urdf file with --base and --tip; or an MJCF "
+            "(.xml) file, loaded whole (needs the mjcf extra)"
         ),
     )
     parser.add_argument("--base", help="base link of a URDF chain (required with a .urdf file)")
@@ -699,14 +806,23 @@ def load_source(
     source: str, base: str | None, tip: str | None, problems_dir: str | Path | None = None
 ) -> tuple[Mechanism, Problem | None]:
     """The mechanism of a command's ``PROBLEM|ROBOT|URDF`` argument, and its problem (None for
-    a robot or a URDF). A name is a problem first, else a robot of `optik.catalog.robot`.
+    a robot, a URDF or an MJCF file). A name is a problem first, else a robot of
+    `optik.catalog.robot`; a ``.xml`` or ``.mjcf`` file is a MuJoCo model, loaded whole
+    (`Mechanism.from_mjcf`).
 
     Raises:
-        InvalidArgumentError: no such URDF file, or one without both ``--base`` and ``--tip``;
+        InvalidArgumentError: no such URDF or MJCF file, a URDF without both ``--base`` and
+            ``--tip``, an MJCF file with one of them;
             a name that is neither a problem nor a robot (the message lists both).
         ProblemFileError: the problem file is invalid.
         MissingExtraError: a robot name without the ``robots`` extra.
     """
+    if Path(source).suffix.lower() in (".xml", ".mjcf"):
+        if not Path(source).is_file():
+            raise InvalidArgumentError("PROBLEM|ROBOT|URDF", f"no such file: {source}")
+        if base is not None or tip is not None:
+            raise InvalidArgumentError("--base", "an MJCF model loads whole: no --base or --tip")
+        return Mechanism.from_mjcf(source), None
     if Path(source).suffix.lower() == ".urdf":
         if not Path(source).is_file():
             raise InvalidArgumentError("PROBLEM|ROBOT|URDF", f"no such file: {source}")

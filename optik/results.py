@@ -23,7 +23,9 @@ class IKResult:
         iterations: solver iterations (summed over restarts).
         solve_time: wall time of the call (s), failures included.
         method: the method that produced ``q`` (``"lm"``, ``"nlp"``, ``"closed_form"``, ...).
-        status: short machine-readable status (``"solved"``, ``"unreachable"``, ``"time_limit"``...).
+        status: short machine-readable status (``"solved"``, ``"unreachable"``, ``"time_limit"``,
+            ``"outside_limits"``, ``"not_found"``: a closed form not certified complete found no
+            branch within the limits, so it does not say the target is out of reach...).
         message: human-readable explanation, in particular why a solve failed.
         restarts: number of restarts used.
         extra: method-specific details (e.g. ``"setup_time"``).
@@ -31,6 +33,9 @@ class IKResult:
             (`optik.solve_ik` with a ``{frame: target}`` dict), each from that frame's own FK;
             ``position_error`` and ``orientation_error`` are then the largest of them. Empty for
             one target.
+        min_distance: for a collision-aware solve (``world=`` or ``self_collision=True``), the
+            exact smallest signed distance of ``q`` to the world and to itself (m); None otherwise.
+        collision_pair: the closest pair at ``q`` (link, link or world object) of such a solve.
     """
 
     q: np.ndarray
@@ -47,6 +52,8 @@ class IKResult:
     restarts: int = 0
     extra: dict = field(default_factory=dict)
     frame_errors: dict[str, tuple[float, float]] = field(default_factory=dict)
+    min_distance: float | None = None
+    collision_pair: tuple[str, str] | None = None
 
 
 @dataclass

@@ -3,6 +3,7 @@
 import os
 
 import matplotlib
+import pytest
 from hypothesis import HealthCheck, settings
 
 matplotlib.use("Agg")
@@ -12,3 +13,33 @@ matplotlib.use("Agg")
 settings.register_profile("ci", derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 settings.register_profile("explore", deadline=None)
 settings.load_profile(os.environ.get("OPTIK_HYPOTHESIS", "ci"))
+
+
+# A two-link arm: base cylinder, upper arm a box, forearm a capsule-like cylinder, a ball hand
+# on a fixed joint, and a sensor hanging off the chain on a fixed joint.
+TOY_ARM_URDF = """
+<robot name="toy">
+  <link name="base"><collision><origin xyz="0 0 0.05"/>
+    <geometry><cylinder radius="0.1" length="0.1"/></geometry></collision></link>
+  <link name="upper"><collision><origin xyz="0.25 0 0"/>
+    <geometry><box size="0.5 0.06 0.06"/></geometry></collision></link>
+  <link name="fore"><collision><origin xyz="0.2 0 0" rpy="0 1.5707963267948966 0"/>
+    <geometry><cylinder radius="0.03" length="0.4"/></geometry></collision></link>
+  <link name="hand"><collision><geometry><sphere radius="0.05"/></geometry></collision></link>
+  <link name="tip"/>
+  <link name="sensor"><collision><geometry><sphere radius="0.02"/></geometry></collision></link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="upper"/><origin xyz="0 0 0.1"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3"/></joint>
+  <joint name="j2" type="revolute"><parent link="upper"/><child link="fore"/><origin xyz="0.5 0 0"/>
+    <axis xyz="0 0 1"/><limit lower="-2.9" upper="2.9"/></joint>
+  <joint name="j3" type="fixed"><parent link="fore"/><child link="hand"/><origin xyz="0.45 0 0"/></joint>
+  <joint name="j4" type="fixed"><parent link="hand"/><child link="tip"/><origin xyz="0.05 0 0"/></joint>
+  <joint name="j5" type="fixed"><parent link="upper"/><child link="sensor"/><origin xyz="0.1 0 0.08"/></joint>
+</robot>
+"""
+
+
+@pytest.fixture(scope="session")
+def toy_arm_urdf() -> str:
+    """A planar two-link arm with box, cylinder and sphere collision geometry (tests of optik.collision)."""
+    return TOY_ARM_URDF

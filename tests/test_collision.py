@@ -15,33 +15,10 @@ from optik.errors import InvalidArgumentError, UnknownFrameError
 
 coal = pytest.importorskip("coal", reason="collision checks need coal (extra 'collision')")
 
-# A two-link arm: base cylinder, upper arm a box, forearm a capsule-like cylinder, a ball hand
-# on a fixed joint, and a sensor hanging off the chain on a fixed joint.
-ARM = """
-<robot name="toy">
-  <link name="base"><collision><origin xyz="0 0 0.05"/>
-    <geometry><cylinder radius="0.1" length="0.1"/></geometry></collision></link>
-  <link name="upper"><collision><origin xyz="0.25 0 0"/>
-    <geometry><box size="0.5 0.06 0.06"/></geometry></collision></link>
-  <link name="fore"><collision><origin xyz="0.2 0 0" rpy="0 1.5707963267948966 0"/>
-    <geometry><cylinder radius="0.03" length="0.4"/></geometry></collision></link>
-  <link name="hand"><collision><geometry><sphere radius="0.05"/></geometry></collision></link>
-  <link name="tip"/>
-  <link name="sensor"><collision><geometry><sphere radius="0.02"/></geometry></collision></link>
-  <joint name="j1" type="revolute"><parent link="base"/><child link="upper"/><origin xyz="0 0 0.1"/>
-    <axis xyz="0 0 1"/><limit lower="-3" upper="3"/></joint>
-  <joint name="j2" type="revolute"><parent link="upper"/><child link="fore"/><origin xyz="0.5 0 0"/>
-    <axis xyz="0 0 1"/><limit lower="-2.9" upper="2.9"/></joint>
-  <joint name="j3" type="fixed"><parent link="fore"/><child link="hand"/><origin xyz="0.45 0 0"/></joint>
-  <joint name="j4" type="fixed"><parent link="hand"/><child link="tip"/><origin xyz="0.05 0 0"/></joint>
-  <joint name="j5" type="fixed"><parent link="upper"/><child link="sensor"/><origin xyz="0.1 0 0.08"/></joint>
-</robot>
-"""
-
 
 @pytest.fixture(scope="module")
-def arm() -> optik.Mechanism:
-    return optik.Mechanism.from_urdf(ARM, "base", "tip")
+def arm(toy_arm_urdf) -> optik.Mechanism:
+    return optik.Mechanism.from_urdf(toy_arm_urdf, "base", "tip")
 
 
 def _panda(srdf: bool = True):
@@ -111,12 +88,12 @@ def test_world_from_problem_table(tmp_path):
 # ------------------------------------------------------------------ robot geometry
 
 
-def test_chain_keeps_links_off_its_path(arm):
+def test_chain_keeps_links_off_its_path(arm, toy_arm_urdf):
     """The sensor hangs off the chain on a fixed joint: it is a frame and keeps its geometry."""
     assert "sensor" in arm.frames
     links = {c.link for c in arm.params["collisions"]}
     assert links == {"base", "upper", "fore", "hand", "sensor"}
-    whole = optik.Mechanism.from_urdf(ARM)
+    whole = optik.Mechanism.from_urdf(toy_arm_urdf)
     q = np.array([0.4, -0.9])
     assert np.allclose(arm.fk(q, "sensor"), whole.fk(q, "sensor"), atol=1e-12)
 
@@ -144,7 +121,7 @@ def test_srdf_pairs_are_not_checked():
     assert ("panda_link0", "panda_link2") not in checked
     assert ("panda_link1", "panda_link7") in checked or ("panda_link1", "panda_link7") not in geo.disabled
     with pytest.raises(InvalidArgumentError, match="srdf"):
-        optik.Mechanism.from_urdf(ARM, "base", "tip", srdf="/no/such.srdf")
+        optik.Mechanism.from_urdf(m.params["urdf"], "panda_link0", srdf="/no/such.srdf")
 
 
 def test_structural_pairs_without_srdf(arm):
@@ -282,3 +259,34 @@ def test_panda_distances_match_pinocchio_and_coal():
                 )
         r = check(m, q, w, self_collision=False)
         assert r.min_distance == pytest.approx(best, abs=1e-6)
+
+
+def test_sphere_model_bounds_never_exceed_exact_distances(arm, tmp_path):
+    """Conservative where the solvers rely on it: when a part's spheres are all clear by ``b >= 0``,
+    the part is clear by ``b`` (smallest row <= exact coal distance; penetration depths of a
+    union of spheres are not ordered so, and no constraint uses them)."""
+    import casadi as ca
+
+    from optik.collision.distance import signed_distance
+    from optik.collision.spheres import distance_expressions, sphere_model
+
+    w = World()
+    w.add_box("box", (0.2, 0.3, 0.1), spatial.transform(spatial.rot_z(0.4), [0.5, 0.3, 0.1]))
+    w.add_sphere("ball", 0.05, spatial.translation(-0.4, 0.2, 0.15))
+    w.add_cylinder("post", 0.04, 0.5, spatial.translation(0.2, -0.5, 0.2))
+    w.add_capsule("rod", 0.03, 0.3, spatial.transform(spatial.rot_x(1.2), [-0.3, -0.4, 0.1]))
+    geo = robot_geometry(arm)
+    model = sphere_model(geo)
+    d, names = distance_expressions(geo, [arm.frame_expr(link) for link in geo.links], w.parts(), False)
+    f = ca.Function("d", [arm.q_sym], [d])
+    obstacles = w.parts()
+    for q in arm.random_q(30, seed=8):
+        rows = np.asarray(f(q)).ravel()
+        poses = geo.part_poses(q)
+        rows = rows.reshape(len(model.part), len(obstacles))
+        assert len(names) == rows.size
+        for k, part in enumerate(geo.parts):
+            exact = [signed_distance(part, poses[k], o, o.offset)[0] for o in obstacles]
+            bound = rows[model.part == k].min(axis=0)
+            clear = bound >= 0
+            assert np.all(bound[clear] <= np.array(exact)[clear] + 1e-6)

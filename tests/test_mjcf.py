@@ -271,3 +271,17 @@ def test_equalities_as_closures_and_couplings():
         assert abs(m.fk(q, "follower")[1, 3] - data.xpos[model.body("follower").id][1]) < 1e-12
     fk = optik.solve_fk(m, [0.3, 0.1, 0.2], q0=m.mid_q())  # the crank drives the closed four-bar
     assert fk.success and np.abs(m.closure(fk.q)).max() < 1e-9
+
+
+def test_commands_take_mjcf_files(tmp_path):
+    """``optik view`` / ``optik reach`` load their mechanism through load_source."""
+    from optik.problem_files import load_source
+
+    path = tmp_path / "fourbar.xml"
+    path.write_text(FOURBAR)
+    m, problem = load_source(str(path), None, None)
+    assert problem is None and m.coordinate_names == ("a", "b", "c", "d", "f")
+    with pytest.raises(InvalidArgumentError, match="--base"):
+        load_source(str(path), "crank", None)
+    with pytest.raises(InvalidArgumentError, match="no such file"):
+        load_source(str(tmp_path / "missing.xml"), None, None)

@@ -98,3 +98,31 @@ def test_the_fk_benchmark_runs(capsys):
     assert bench_mjcf_fk.main(["--n", "2", "--max-models", "2"]) == 0
     out = capsys.readouterr().out
     assert out.count("| `") == 2 and "2 models, largest error" in out
+
+
+def test_mesh_visuals_sit_where_mujoco_puts_them():
+    """A mesh visual placed by optik (asset file, ``origin``, ``scale``, the frame's FK) covers
+    MuJoCo's compiled, re-centred vertices at ``geom_xpos`` / ``geom_xmat`` (float32 in MuJoCo)."""
+    trimesh = pytest.importorskip("trimesh", reason="reading mesh files needs trimesh (extra 'view')")
+    from scipy.spatial import cKDTree
+
+    path = next((p for i, p in FILES if i == "gymnasium_robotics/envs/assets/fetch/reach.xml"), None)
+    if path is None:
+        pytest.skip("gymnasium-robotics (the Fetch) is not installed")
+    model = mujoco.MjModel.from_xml_path(str(path))
+    m = optik.Mechanism.from_mjcf(model)
+    data = mujoco.MjData(model)
+    q = m.random_q(seed=2)
+    data.qpos[:] = to_qpos(m, q)
+    mujoco.mj_kinematics(model, data)
+    visuals = [v for v in m.params["visuals"] if v.geometry == "mesh"]
+    geoms = [g for g in range(model.ngeom) if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH]
+    assert len(visuals) == len(geoms) > 10
+    for v, g in zip(visuals, geoms, strict=True):
+        mesh = int(model.geom_dataid[g])
+        start, count = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
+        want = model.mesh_vert[start : start + count] @ data.geom_xmat[g].reshape(3, 3).T + data.geom_xpos[g]
+        t = m.fk(q, v.link) @ v.origin
+        points = np.asarray(trimesh.load(v.path, force="mesh", process=False).vertices) * np.asarray(v.scale)
+        distance, _ = cKDTree(points @ t[:3, :3].T + t[:3, 3]).query(want)
+        assert distance.max() < 1e-5, v.filename

@@ -51,18 +51,21 @@ candidate (``theta_1 .. theta_6`` complex, from the eigenvector and the back-sub
 Newton-polished in complex space on the full pose residual (six equations, six unknowns) of the
 DH model: a real root that rounding moved off the real axis (which happens when the pencil is
 nearly singular, e.g. axes within 1e-5 rad of parallel) converges back to it, a complex root
-converges where it is. A converged candidate whose angles are real to `IMAG_TOL` is a real
-candidate: it is polished on the real model (for a mechanism on ``m.fk`` / ``m.jacobian`` where
-still needed), kept only when the final forward kinematics matches the target to `FK_TOL`
-(position relative to the arm's size, orientation in radians) and deduplicated (1e-6 rad,
-angles modulo 2 pi). The count check: a 6R arm has at most 16 isolated solutions in complex
-space (16 for a generic arm), so 16 distinct verified ones are all of them. The result reports
-the number of finite eigenvalues (``n_finite``, 16 expected), of distinct real and complex
-solutions, and flags (``count_ok = False``) any instance where they do not add up to 16, where
-fewer than 16 finite eigenvalues were found, where ``M(x_3)`` is singular at two test points (a
-singular pencil, whose eigenvalues mean nothing), or where a candidate did not converge or a
-real one failed its check: the arm or the pose is then degenerate (special geometry, a pose on
-a singular boundary, a root that cannot be decided) and solutions may be missing.
+converges where it is. A candidate near the real axis (``|Im(phi_3)| <= _REAL_RETRY``) whose
+polish does not end real is polished from its real part as well (on a singular pencil the
+eigenvalues mean nothing, but their real parts often lie next to real solutions). A candidate
+whose angles are real to `IMAG_TOL` is a real candidate: it is polished on the real model (for a
+mechanism on ``m.fk`` / ``m.jacobian`` where still needed), kept only when the final forward
+kinematics matches the target to `FK_TOL` (position relative to the arm's size, orientation in
+radians) and deduplicated (1e-6 rad, angles modulo 2 pi). The count check: a 6R arm has at most
+16 isolated solutions in complex space (16 for a generic arm), so 16 distinct verified ones are
+all of them. The result reports the number of finite eigenvalues (``n_finite``, 16 expected), of
+distinct real and complex solutions, and flags (``count_ok = False``) any instance where they do
+not add up to 16, where fewer than 16 finite eigenvalues were found, where ``M(x_3)`` is
+singular at two test points (a singular pencil, whose eigenvalues mean nothing), or where a
+candidate did not converge or a real one failed its check: the arm or the pose is then
+degenerate (special geometry, a pose on a singular boundary, a root that cannot be decided) and
+solutions may be missing.
 """
 
 from __future__ import annotations
@@ -103,6 +106,10 @@ below this (a complex solution otherwise); the FK check on the real part then de
 
 _CONVERGED = 1e-10
 """Largest pose residual (unit scale, times `_magnitude`) of a converged candidate."""
+
+_REAL_RETRY = 1e-3
+"""A candidate with ``|Im(phi_3)| <= _REAL_RETRY`` whose complex polish does not end real is
+polished from its real part as well."""
 
 _FAR = 1.0
 """An eigenvalue with ``|Im(phi_3)| > _FAR`` of a well-posed pencil (`_WELL_POSED`) is counted
@@ -542,10 +549,10 @@ def _eigen(m_poly: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return vals, vecs
 
 
-def _half_angle(w: np.ndarray) -> np.ndarray:
+def _half_angle(w: np.ndarray, real: bool = False) -> np.ndarray:
     """``phi = 2 atan(x)`` from the eigenvector blocks ``w = (x^i y^j)``: least-squares ratios,
     taken the way round that keeps them bounded. ``w``: ``(..., 4, 3)`` -> ``(phi_4, phi_5)``,
-    complex (real up to rounding for a real root)."""
+    complex (real up to rounding for a real root), or with ``real`` from the ratios' real parts."""
 
     def angle(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         fwd = np.sum(np.conj(lo) * hi, axis=(-2, -1)) / np.maximum(
@@ -554,6 +561,8 @@ def _half_angle(w: np.ndarray) -> np.ndarray:
         rev = np.sum(np.conj(hi) * lo, axis=(-2, -1)) / np.maximum(
             np.sum(np.abs(hi) ** 2, axis=(-2, -1)), 1e-300
         )
+        if real:
+            fwd, rev = fwd.real, rev.real
         # 2 atan(1 / rev) = pi - 2 atan(rev) modulo 2 pi, analytic: complex roots keep their value
         return np.where(np.abs(fwd) <= 1.0, 2.0 * np.arctan(fwd), np.pi - 2.0 * np.arctan(rev))
 
@@ -703,34 +712,52 @@ def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[Ge
     idx_n, idx_e = np.nonzero(good & ~far)
     flat = vecs[idx_n, idx_e]  # (K, 12), normalized by the largest entry: real for a real root
     flat = flat / flat[np.arange(len(flat)), np.argmax(np.abs(flat), axis=1)][:, None]
-    phi = np.concatenate([phi3[idx_n, idx_e][:, None], _half_angle(flat.reshape(-1, 4, 3))], 1)
-    lhs = left.values(phi[:, 0], phi[:, 1], phi[:, 2])
+    w = flat.reshape(-1, 4, 3)
+    phi = np.concatenate([phi3[idx_n, idx_e][:, None], _half_angle(w)], 1)
     pinv = np.swapaxes(vt[:, :8], 1, 2) @ (u[:, :, :8] / sv[:, None, :8]).transpose(0, 2, 1)
-    x_r = np.einsum("kij,kj->ki", pinv[idx_n], lhs - r0[idx_n])
-    theta = np.zeros((len(idx_n), 6), dtype=complex)
-    theta[:, 0] = _angle(x_r[:, 2], x_r[:, 5])
-    theta[:, 1] = _angle(x_r[:, 0], x_r[:, 1])
-    theta[:, 2:5] = phi + np.array(ROTATIONS)
-    a6 = _inv(_chain(left, theta)[:, 5]) @ tp[idx_n] @ left.inv6
-    theta[:, 5] = _angle(a6[:, 0, 0], a6[:, 1, 0])
-    theta, residual = _polish(left, np.where(np.isfinite(theta), theta, 0.0), tp[idx_n])
+
+    def back_substitute(phi: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """``theta (K, 6)`` (complex) of ``(phi_3, phi_4, phi_5)`` of targets ``rows``."""
+        lhs = left.values(phi[:, 0], phi[:, 1], phi[:, 2])
+        x_r = np.einsum("kij,kj->ki", pinv[rows], lhs - r0[rows])
+        theta = np.zeros((len(rows), 6), dtype=complex)
+        theta[:, 0] = _angle(x_r[:, 2], x_r[:, 5])
+        theta[:, 1] = _angle(x_r[:, 0], x_r[:, 1])
+        theta[:, 2:5] = phi + np.array(ROTATIONS)
+        a6 = _inv(_chain(left, theta)[:, 5]) @ tp[rows] @ left.inv6
+        theta[:, 5] = _angle(a6[:, 0, 0], a6[:, 1, 0])
+        return np.where(np.isfinite(theta), theta, 0.0)
+
+    theta, residual = _polish(left, back_substitute(phi, idx_n), tp[idx_n])
     converged = residual <= _CONVERGED * _magnitude(theta)
-    real = converged & (np.max(np.abs(theta.imag), axis=1, initial=0.0) <= IMAG_TOL)
+    # real to IMAG_TOL: a real candidate, which the last polish and the FK check decide (the DH
+    # description of an inverse chain may be too coarse for its residual to converge)
+    real = np.max(np.abs(theta.imag), axis=1, initial=0.0) <= IMAG_TOL
+    # a candidate near the real axis that did not end real is polished from its real part too
+    # (on a singular pencil the eigenvalues mean nothing, yet their real parts often lie next
+    # to real solutions); one that passes the FK check is a real solution, not a complex one
+    retry = np.flatnonzero(~real & (np.abs(phi[:, 0].imag) <= _REAL_RETRY))
+    flat_phi = np.concatenate([phi[retry, :1].real, _half_angle(w[retry], real=True)], 1)
+    again = _polish(left, back_substitute(flat_phi, idx_n[retry]).real, tp[idx_n[retry]])[0]
     at = np.flatnonzero(real)
-    q = refine(_wrap(theta[at].real - arm.offset), idx_n[at])
+    owner = np.concatenate([idx_n[at], idx_n[retry]])
+    q = refine(_wrap(np.concatenate([theta[at].real, again]) - arm.offset), owner)
     ok = np.zeros(len(q), dtype=bool)
     fk_err = np.full(len(q), np.inf)
     if len(q):
-        dp, dr = _pose_errors(fk(q), targets[idx_n[at]])
+        dp, dr = _pose_errors(fk(q), targets[owner])
         fk_err = np.maximum(dp / arm.scale, dr)
         ok = fk_err <= FK_TOL
+    rescued = np.zeros(len(theta), dtype=bool)
+    rescued[retry[ok[len(at) :]]] = True
+    first = np.arange(len(q)) < len(at)  # the real candidates (the rest: the retried ones)
     out = []
     for k in range(n):
-        mine, mine_real = idx_n == k, idx_n[at] == k
+        mine, mine_real = idx_n == k, owner == k
         sols = _dedup(q[mine_real & ok])
         n_finite = int(np.sum(good[k]))
-        n_complex = len(_dedup(theta[mine & converged & ~real])) + int(np.sum(far[k]))
-        n_rejected = int(np.sum(mine & ~converged) + np.sum(mine_real & ~ok))
+        n_complex = len(_dedup(theta[mine & converged & ~real & ~rescued])) + int(np.sum(far[k]))
+        n_rejected = int(np.sum(mine & ~real & ~converged & ~rescued) + np.sum(mine_real & first & ~ok))
         count_ok = (
             bool(rank_ok[k] and regular[k])
             and n_finite == 16
@@ -749,7 +776,7 @@ def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[Ge
         elif not len(sols):
             reason = "unreachable: all 16 solutions are complex"
         err = float(np.max(fk_err[mine_real & ok], initial=0.0))
-        n_real = int(np.sum(mine & real))
+        n_real = int(np.sum(mine & (real | rescued)))
         out.append(General6RSolutions(sols, n_finite, n_real, n_complex, n_rejected, err, count_ok, reason))
     return out
 

@@ -359,7 +359,6 @@ def _permutations(b: int) -> np.ndarray:
     return np.array(list(itertools.permutations(range(b))))
 
 
-
 @dataclass(frozen=True)
 class Search1D:
     """The 1-D search IK of one 6R chain (module docstring).

@@ -39,35 +39,63 @@ static void sort_by(int *idx, int *tmp, int k, const double *key) {
     for (int q = 0; q < k; ++q) idx[q] = tmp[q];
 }
 
-/* Returns -1 with index[] and *total set, or the first layer no node of which is reachable. */
+static double wrapped(double d, double p) {
+    if (p > 0.0) { /* |d| is a few periods at most: subtract whole ones */
+        double half = 0.5 * p;
+        while (d > half) d -= p;
+        while (d < -half) d += p;
+    }
+    return d;
+}
+
+/* Returns -1 with index[] and *total set, or the first layer no node of which is reachable.
+ * key[] (one per node) receives the nodes' first coordinate. */
 int optik_path_dp(int n_layers, const int *offset, const double *nodes, int n, const double *w,
-                  const double *period, const double *bounds, double *cost, int *back, int *order, int *tmp, int *index,
-                  double *total) {
+                  const double *period, const double *bounds, double *cost, int *back, int *order,
+                  int *tmp, int *index, double *total, double *key) {
+    for (int a = 0; a < offset[n_layers]; ++a) key[a] = nodes[(long)a * n];
     for (int a = offset[0]; a < offset[1]; ++a) cost[a] = 0.0;
+    const double w0 = fabs(w[0]), p0d = period[0];
     for (int k = 1; k < n_layers; ++k) {
         int p0 = offset[k - 1], kp = offset[k] - p0;
         for (int i = 0; i < kp; ++i) order[i] = p0 + i;
-        sort_by(order, tmp, kp, cost);
+        sort_by(order, tmp, kp, key);
+        double cmin = INFINITY;
+        for (int i = 0; i < kp; ++i)
+            if (cost[p0 + i] < cmin) cmin = cost[p0 + i];
         const double *bd = bounds ? bounds + (long)(k - 1) * n : 0;
         int reached = 0;
         for (int b = offset[k]; b < offset[k + 1]; ++b) {
             const double *qb = nodes + (long)b * n;
-            double best = INFINITY;
-            int arg = -1;
-            for (int i = 0; i < kp; ++i) {
-                int a = order[i];
-                double ca = cost[a];
-                if (!(ca < best)) break; /* sorted: no later predecessor can do better */
+            double b0 = qb[0], best = INFINITY;
+            int arg = -1, lo = 0, hi = kp;
+            while (lo < hi) { /* first predecessor with key >= b0 */
+                int mid = (lo + hi) / 2;
+                if (key[order[mid]] < b0) lo = mid + 1;
+                else hi = mid;
+            }
+            int r = lo, l = lo - 1;
+            for (int seen = 0; seen < kp; ++seen) {
+                /* the nearer unvisited predecessor in the first coordinate, on either side */
+                int ir = p0d > 0.0 ? r % kp : r, il = p0d > 0.0 ? ((l % kp) + kp) % kp : l;
+                double dr = (p0d > 0.0 || r < kp) ? fabs(wrapped(key[order[ir]] - b0, p0d)) : INFINITY;
+                double dl = (p0d > 0.0 || l >= 0) ? fabs(wrapped(key[order[il]] - b0, p0d)) : INFINITY;
+                int take;
+                double d0;
+                if (dr <= dl) {
+                    take = order[ir], d0 = dr, ++r;
+                } else {
+                    take = order[il], d0 = dl, --l;
+                }
+                /* every unvisited predecessor is at least d0 away in the first coordinate */
+                if (!(cmin + w0 * d0 < best) || (bd && d0 > bd[0])) break;
+                double ca = cost[take];
+                if (!(ca + w0 * d0 < best)) continue;
                 double room = best - ca, room2 = room * room, s = 0.0;
-                const double *qa = nodes + (long)a * n;
+                const double *qa = nodes + (long)take * n;
                 int ok = 1;
                 for (int j = 0; j < n; ++j) {
-                    double d = qb[j] - qa[j];
-                    if (period[j] > 0.0) { /* |d| is a few periods at most: subtract whole ones */
-                        double p = period[j], half = 0.5 * p;
-                        while (d > half) d -= p;
-                        while (d < -half) d += p;
-                    }
+                    double d = wrapped(qb[j] - qa[j], period[j]);
                     if (bd && fabs(d) > bd[j]) {
                         ok = 0;
                         break;
@@ -83,7 +111,7 @@ int optik_path_dp(int n_layers, const int *offset, const double *nodes, int n, c
                 double c = ca + sqrt(s);
                 if (c < best) {
                     best = c;
-                    arg = a;
+                    arg = take;
                 }
             }
             cost[b] = best;

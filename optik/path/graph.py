@@ -24,7 +24,8 @@ the cheapest way to it.
 
 The recursion runs in C (``dp.c``, compiled once per machine by `optik.native.source_library`;
 the call releases the GIL) with an exact branch and bound: the predecessors of a node are
-visited by increasing cost, stopping at the first whose cost alone reaches the best found, and
+visited outwards from it in the coordinate that tells the nodes apart most, stopping once that
+coordinate's distance alone, added to the least predecessor cost, reaches the best found, and
 an edge's squared length is summed joint by joint, stopping when it can no longer improve.
 Without a C compiler the same recursion runs in numpy (`least_motion_numpy`), one vectorized
 step per layer. Equal totals (ties, e.g. two copies of one node) may resolve differently on the
@@ -91,7 +92,7 @@ def compiled() -> ctypes.CDLL | None:
             if lib is not None:
                 fn = lib.optik_path_dp
                 ptr, i32 = ctypes.c_void_p, ctypes.c_int
-                fn.argtypes = [i32, ptr, ptr, i32, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr]
+                fn.argtypes = [i32, ptr, ptr, i32, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr]
                 fn.restype = i32
             _LIB.append(lib)
         return _LIB[0]
@@ -99,6 +100,23 @@ def compiled() -> ctypes.CDLL | None:
 
 def _ptr(a: np.ndarray | None) -> int | None:
     return None if a is None else a.ctypes.data
+
+
+def _joint_order(layers: Sequence[np.ndarray], weights: np.ndarray) -> np.ndarray:
+    """The joints in the order the C kernel reads them: first the (weighted) one with the most
+    distinct values among a layer's nodes (over up to 16 layers; ties by spread), so that the
+    window of predecessors it scans is the narrowest, then by decreasing weighted spread (an
+    edge's partial sum then exceeds its room sooner)."""
+    picked = layers[:: max(1, len(layers) // 16)]
+    distinct = np.zeros(len(weights))
+    spread = np.zeros(len(weights))
+    for layer in picked:
+        distinct += [len(np.unique(np.round(layer[:, j], 9))) for j in range(layer.shape[1])]
+        spread += np.abs(layer - layer.mean(axis=0)).sum(axis=0)
+    score = np.where(weights > 0, distinct + spread * weights / (1.0 + (spread * weights).max()), -1.0)
+    first = int(np.argmax(score))
+    rest = [j for j in np.argsort(-spread * weights, kind="stable") if j != first]
+    return np.array([first, *rest])
 
 
 def least_motion(
@@ -126,9 +144,7 @@ def least_motion(
     sizes = np.array([len(layer) for layer in layers], dtype=np.int32)
     offset = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int32)
     stacked = np.concatenate(layers)
-    # the joints that tell a layer's nodes apart most first: the bound prunes an edge sooner
-    spread = np.add.reduceat(np.abs(stacked - stacked.mean(axis=0)), offset[:-1], axis=0).sum(axis=0)
-    perm = np.argsort(-spread * np.asarray(weights), kind="stable")
+    perm = _joint_order(layers, np.asarray(weights, dtype=float))
     nodes = np.ascontiguousarray(stacked[:, perm], dtype=float)
     w = np.ascontiguousarray(np.asarray(weights, dtype=float)[perm])
     per = np.ascontiguousarray(per[perm])
@@ -136,10 +152,10 @@ def least_motion(
     total = len(nodes)
     cost, back = np.empty(total), np.empty(total, dtype=np.int32)
     order, tmp = np.empty(int(sizes.max()), dtype=np.int32), np.empty(int(sizes.max()), dtype=np.int32)
-    index, best = np.empty(len(layers), dtype=np.int32), np.zeros(1)
+    index, best, key = np.empty(len(layers), dtype=np.int32), np.zeros(1), np.empty(total)
     blocked = lib.optik_path_dp(
         len(layers), _ptr(offset), _ptr(nodes), nodes.shape[1], _ptr(w), _ptr(per), _ptr(bounds), _ptr(cost),
-        _ptr(back), _ptr(order), _ptr(tmp), _ptr(index), _ptr(best),
+        _ptr(back), _ptr(order), _ptr(tmp), _ptr(index), _ptr(best), _ptr(key),
     )  # fmt: skip
     if blocked >= 0:
         return GraphPath(np.full(len(layers), -1), float("inf"), int(blocked))

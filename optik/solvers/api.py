@@ -9,11 +9,13 @@ import numpy as np
 
 from optik import native
 from optik.closed_form import registry
+from optik.collision import World
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.results import IKResult
 from optik.solvers.balance import merge_contacts, solve_balance
 from optik.solvers.base import IKRequest, Tolerances, get_method, make_request, methods
+from optik.solvers.collision_free import solve_collision_free
 
 DEFAULT_ORDER = ("closed_form", "lm", "nlp")
 """Preference of ``method=None``: the first registered method that applies."""
@@ -52,6 +54,9 @@ def solve_ik(
     contacts: Any = None,
     support: Any = None,
     com_margin: float = 0.0,
+    world: World | None = None,
+    self_collision: bool | None = None,
+    margin: float = 0.0,
     **options: Any,
 ) -> IKResult:
     """Inverse kinematics with joint limits (and loop closures for closed chains).
@@ -79,6 +84,13 @@ def solve_ik(
             mass's ground projection must stay inside it by ``com_margin`` (method ``"nlp"``,
             the default then; the mechanism needs masses).
         com_margin: the balance margin (m, ``>= 0``; only with ``support``).
+        world: obstacles ([`optik.World`][optik.World]) the answer must clear; with it or with
+            ``self_collision=True`` the solve is collision-aware (``lm`` or ``nlp``, default ``lm``:
+            see `optik.solvers.collision_free`), success needs the exact check at ``margin`` to pass
+            and the result carries ``min_distance`` and ``collision_pair``.
+        self_collision: keep the robot clear of itself (its allowed-collision matrix aside);
+            None: True when ``world`` is given.
+        margin: clearance (m) the exact check requires of a collision-aware answer.
         **options: method-specific options (see each method's documentation).
 
     Returns:
@@ -103,6 +115,9 @@ def solve_ik(
                 "(method 'nlp'); contacts alone work with every method that takes several targets"
             )
         return solve_balance(request, support, com_margin)
+    if world is not None or self_collision:
+        own = True if self_collision is None else bool(self_collision)
+        return solve_collision_free(request, method or "lm", world, own, margin)
     multi = request.multi_target
     own_frame = not multi and request.frame in (None, m.ee)  # closed forms solve for the end effector only
     if method is None:

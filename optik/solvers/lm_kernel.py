@@ -65,7 +65,7 @@ def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Funct
     m = problem.mechanism
     q = problem.q
     lo, hi = ca.SX.sym("lower", m.n_q), ca.SX.sym("upper", m.n_q)
-    e = problem.weighted_residual(closure_weight if m.is_closed else None)
+    e = problem.weighted_residual(closure_weight if problem.closure.shape[0] else None)
     at = ca.Function("at", [q, problem.target, problem.weights], [e, *problem.error_expressions()])
     mu, gain = ca.SX.sym("mu"), ca.SX.sym("gain")
     jac = ca.jacobian(e, q)
@@ -187,12 +187,22 @@ class LMKernel:
         closure_weight: weight of the loop-closure rows.
         compile: as in `optik.native.library` (False: the Python loop; ``"auto"``: the
             Python loop until the library built in the background is loaded).
+        problem: the problem to solve (default: `optik.problem.build_ik_problem` of ``m``,
+            ``task``, ``frame``); its ``closure`` rows are the weighted rows of the residual and
+            the closure error of the stop test (`optik.solvers.collision_free` appends its
+            collision rows there).
     """
 
     def __init__(
-        self, m: Mechanism, task: str, frame: str | None, closure_weight: float, compile: bool | str
+        self,
+        m: Mechanism,
+        task: str,
+        frame: str | None,
+        closure_weight: float,
+        compile: bool | str,
+        problem: IKProblem | None = None,
     ) -> None:
-        problem = build_ik_problem(m, task, frame)
+        problem = build_ik_problem(m, task, frame) if problem is None else problem
         self.mechanism = m
         self.n_target = int(problem.target.shape[0])
         """Target parameters per target (12 per frame target)."""

@@ -1,0 +1,283 @@
+"""Collision-aware IK: ``solve_ik(m, T, world=W, self_collision=True, margin=0.01)``.
+
+Two methods take the constraints, from the conservative sphere model of
+`optik.collision.spheres` (``d_k(q)``: lower bounds of the signed distances of the robot to the
+world and to itself, one row per sphere pair), required to stay above
+``b = margin + buffer`` (``buffer`` option, default 2 mm, the room between the model and the
+exact check):
+
+* ``lm``: the rows ``max(0, b - d_k(q))`` join the loop-closure rows of the compiled
+  Levenberg-Marquardt kernel (`optik.solvers.lm_kernel`, weight ``closure_weight``): a squared
+  hinge penalty that is zero wherever the model is clear, so a start stops only when the task
+  is met *and* every row is zero; restarts as for ``lm``. Before that, one unconstrained start
+  from ``q0`` is tried (no restart): a target whose nearest answer is clear needs no constraint.
+* ``nlp``: IPOPT with the inequality constraints ``d_k(q) >= b`` (and the loop closures),
+  objective as `optik.IKProblem`'s, multi-start until the time limit.
+
+The world is read once per call (a snapshot) and baked into the generated code, which is
+cached per mechanism, task, frame and world version (a moved object builds new code).
+
+**Success** is decided by the exact check (`optik.collision.check` at ``margin``) of the final
+answer, after the tolerances: a start whose answer the check finds closer than the margin is
+rejected and the search goes on from a new random start until the time limit. The result
+carries ``min_distance`` and ``collision_pair`` (the closest pair at ``q``); a failure says
+which pair blocked when the pose was reached but the answer collides.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+import time
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from optik.checks import as_float
+from optik.collision.check import CollisionReport, check, world_parts
+from optik.collision.robot import robot_geometry
+from optik.collision.spheres import distance_expressions
+from optik.collision.world import World
+from optik.errors import InvalidArgumentError, SolverUnavailableError
+from optik.problem import IKProblem, build_ik_problem, target_parameters
+from optik.results import IKResult
+from optik.solvers.base import IKRequest, make_result, positive_int
+from optik.solvers.lm import lm_settings, request_seed
+from optik.solvers.lm_kernel import LMKernel
+
+__all__ = ["METHODS", "collision_problem", "solve_collision_free"]
+
+METHODS = ("lm", "nlp")
+"""Methods that take collision constraints."""
+
+_OWN_OPTIONS = {"buffer": 0.002}
+"""Options of the collision-aware solve itself (the rest go to the method)."""
+
+
+def collision_problem(
+    request: IKRequest, world: World | None, self_collision: bool, bound: float
+) -> tuple[IKProblem, ca.SX]:
+    """The request's `IKProblem` with the rows ``max(0, bound - d_k(q))`` appended to its
+    closures, and the distance bounds ``d_k(q)`` themselves."""
+    m = request.mechanism
+    geo = robot_geometry(m)
+    problem = build_ik_problem(m, request.task, request.frame)
+    d, _ = distance_expressions(
+        geo, [m.frame_expr(link) for link in geo.links], world_parts(world), self_collision, bound
+    )
+    hinge = ca.fmax(0, bound - d)
+    return dataclasses.replace(problem, closure=ca.vertcat(problem.closure, hinge)), d
+
+
+_CACHE: dict[tuple[Any, ...], Any] = {}
+_CACHE_MAX = 32
+_LOCK = threading.Lock()
+
+
+def _cached(key: tuple[Any, ...], build: Any) -> Any:
+    with _LOCK:
+        hit = _CACHE.get(key)
+    if hit is None:
+        hit = build()
+        with _LOCK:
+            if len(_CACHE) >= _CACHE_MAX:
+                _CACHE.clear()
+            hit = _CACHE.setdefault(key, hit)
+    return hit
+
+
+def _world_key(world: World | None) -> tuple[int, int]:
+    return (0, 0) if world is None else (id(world), world.version)
+
+
+def _finish(
+    request: IKRequest,
+    q: np.ndarray,
+    method: str,
+    iterations: int,
+    restarts: int,
+    status: str | None,
+    report_of: Any,
+) -> IKResult:
+    res = make_result(request, q, method, iterations, restarts, status)
+    report = report_of(res.q)
+    res.min_distance = report.min_distance
+    res.collision_pair = report.pair
+    if res.success and report.in_collision:
+        pair = report.close_pairs[0]
+        res.success, res.status = False, "in_collision"
+        res.message = (
+            f"the pose is reached but {pair.a!r} and {pair.b!r} are {pair.distance:.4g} m apart "
+            f"(margin {report.margin:g} m)"
+        )
+    return res
+
+
+def _split_options(request: IKRequest) -> tuple[IKRequest, float]:
+    opts = dict(request.options)
+    buffer = as_float(opts.pop("buffer", _OWN_OPTIONS["buffer"]), "buffer", 0.0)
+    return dataclasses.replace(request, options=opts), buffer
+
+
+def _solve_lm(
+    request: IKRequest, world: World | None, self_collision: bool, margin: float, buffer: float
+) -> IKResult:
+    m = request.mechanism
+    settings, closure_weight, compile = lm_settings(request)
+    setup = time.perf_counter()
+    key = (
+        "lm",
+        m,
+        request.task,
+        request.frame,
+        closure_weight,
+        compile,
+        _world_key(world),
+        self_collision,
+        margin + buffer,
+    )
+
+    def build() -> tuple[LMKernel, LMKernel]:
+        problem, _ = collision_problem(request, world, self_collision, margin + buffer)
+        plain = LMKernel(m, request.task, request.frame, closure_weight, compile)
+        return plain, LMKernel(m, request.task, request.frame, closure_weight, compile, problem=problem)
+
+    plain, constrained = _cached(key, build)
+    request.exclude_setup(setup)
+    conf = settings.conf(m)
+    params = target_parameters(request.target)[None]
+
+    def report_of(q: np.ndarray) -> CollisionReport:
+        return check(m, q, world, margin, self_collision)
+
+    seed = request_seed(request.seed) & (2**63 - 1)
+    first = conf.copy()
+    first[2], first[3] = 0, max(request.remaining(), 0.0)  # one start, no restart
+    out = plain.run(params, request.q0[None], np.array([seed], dtype=np.uint64), first)
+    iterations, restarts = int(out.iterations[0]), 0
+    res = _finish(request, out.q[0], "lm", iterations, restarts, None, report_of)
+    q0 = request.q0
+    while not res.success and request.remaining() > 0:
+        conf[3] = request.remaining()
+        seed = (seed * 6364136223846793005 + 1442695040888963407) & (2**63 - 1)
+        out = constrained.run(params, q0[None], np.array([seed], dtype=np.uint64), conf)
+        iterations += int(out.iterations[0])
+        restarts += int(out.restarts[0]) + 1
+        status = None if out.status[0] == 0 else "time_limit"
+        res = _finish(request, out.q[0], "lm", iterations, restarts, status, report_of)
+        q0 = m.random_q(seed=seed)
+    return res
+
+
+class _IpoptPool:
+    """IPOPT instances of one constrained problem, one per concurrent solve (nlpsol instances
+    are not safe to share between threads)."""
+
+    def __init__(self, problem: IKProblem, d: ca.SX, bound: float, max_iter: int) -> None:
+        g = ca.vertcat(problem.mechanism.closure_expr, d)
+        self.nlp = {"x": problem.q, "p": problem.parameters, "f": problem.objective, "g": g}
+        n_c = problem.mechanism.n_closure
+        self.lbg = ca.DM(np.concatenate([np.zeros(n_c), np.full(d.shape[0], bound)]))
+        self.ubg = ca.DM(np.concatenate([np.zeros(n_c), np.full(d.shape[0], np.inf)]))
+        self.problem = problem
+        self.options = {
+            "print_time": False,
+            "ipopt": {
+                "print_level": 0,
+                "sb": "yes",
+                "max_iter": max_iter,
+                "tol": 1e-14,
+                "acceptable_iter": 0,
+            },
+        }
+        self._free: list[Any] = []
+        self._lock = threading.Lock()
+
+    def take(self) -> Any:
+        with self._lock:
+            if self._free:
+                return self._free.pop()
+        return ca.nlpsol("optik_collision_ipopt", "ipopt", self.nlp, self.options)
+
+    def give(self, solver: Any) -> None:
+        with self._lock:
+            self._free.append(solver)
+
+
+def _solve_nlp(
+    request: IKRequest, world: World | None, self_collision: bool, margin: float, buffer: float
+) -> IKResult:
+    m = request.mechanism
+    opts = dict(request.options)
+    max_iter = positive_int(opts.pop("max_iter", 200), "max_iter")
+    posture = as_float(opts.pop("posture", 1e-9), "posture", 0.0)
+    if opts:
+        raise InvalidArgumentError(
+            next(iter(opts)), "unknown option of the collision-aware nlp (max_iter, posture, buffer)"
+        )
+    setup = time.perf_counter()
+    key = (
+        "nlp",
+        m,
+        request.task,
+        request.frame,
+        _world_key(world),
+        self_collision,
+        margin + buffer,
+        max_iter,
+    )
+
+    def build() -> _IpoptPool:
+        base = build_ik_problem(m, request.task, request.frame)
+        _, d = collision_problem(request, world, self_collision, margin + buffer)
+        return _IpoptPool(base, d, margin + buffer, max_iter)
+
+    pool = _cached(key, build)
+    solver = pool.take()
+    request.exclude_setup(setup)
+    params = ca.DM(pool.problem.parameter_values(request.target, posture=posture))
+    bounds = {"lbx": ca.DM(m.lower), "ubx": ca.DM(m.upper), "lbg": pool.lbg, "ubg": pool.ubg}
+
+    def report_of(q: np.ndarray) -> CollisionReport:
+        return check(m, q, world, margin, self_collision)
+
+    rng = request.rng
+    q0, iterations, restarts = request.q0, 0, -1
+    try:
+        while True:
+            restarts += 1
+            sol = solver.call({"x0": ca.DM(q0), "p": params, **bounds})
+            iterations += int(solver.stats().get("iter_count", 0))
+            status = None if request.remaining() > 0 else "time_limit"
+            res = _finish(
+                request, np.asarray(sol["x"]).ravel(), "nlp", iterations, restarts, status, report_of
+            )
+            if res.success or request.remaining() <= 0:
+                return res
+            q0 = m.random_q(seed=rng)
+    finally:
+        pool.give(solver)
+
+
+def solve_collision_free(
+    request: IKRequest, method: str, world: Any, self_collision: bool, margin: Any
+) -> IKResult:
+    """Solve a request with collision constraints (see the module docstring).
+
+    Raises:
+        InvalidArgumentError: a bad ``world`` or ``margin``, or an unknown option.
+        SolverUnavailableError: a method without collision constraints.
+    """
+    if method not in METHODS:
+        raise SolverUnavailableError(
+            f"method {method!r} takes no collision constraints; use one of {METHODS}"
+        )
+    if request.multi_target:
+        raise SolverUnavailableError("collision-aware IK solves one frame target at a time")
+    if world is not None and not isinstance(world, World):
+        raise InvalidArgumentError("world", f"expected an optik.World or None, got {type(world).__name__}")
+    mg = as_float(margin, "margin", 0.0)
+    request, buffer = _split_options(request)
+    solve = _solve_lm if method == "lm" else _solve_nlp
+    return solve(request, world, bool(self_collision), mg, buffer)

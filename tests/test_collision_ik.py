@@ -1,0 +1,110 @@
+"""Collision-aware IK (optik.solvers.collision_free): lm and nlp avoid the world and themselves, and
+every success passes an exact check recomputed here from q."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import optik
+from optik import spatial
+from optik.collision import World, check
+from optik.errors import InvalidArgumentError, SolverUnavailableError
+
+pytest.importorskip("coal", reason="collision checks need coal (extra 'collision')")
+
+MARGIN = 0.01
+
+
+@pytest.fixture(scope="module")
+def arm(toy_arm_urdf) -> optik.Mechanism:
+    return optik.Mechanism.from_urdf(toy_arm_urdf, "base", "tip")
+
+
+def _branches(arm):
+    """Two elbow branches of one tip position (equal link lengths: ``(a + b, -b)`` mirrors ``(a, b)``)."""
+    qa = np.array([0.3, 1.2])
+    qb = np.array([1.5, -1.2])
+    assert np.allclose(arm.fk(qa)[:3, 3], arm.fk(qb)[:3, 3], atol=1e-12)
+    return qa, qb
+
+
+def _blocking_world(arm, qa):
+    """A ball on branch ``qa``'s elbow: that branch collides, the other is clear."""
+    w = World()
+    w.add_sphere("ball", 0.05, spatial.translation(*arm.fk(qa, "fore")[:3, 3]))
+    return w
+
+
+def _independent(arm, res, target, w):
+    """Recompute from q: FK position, limits, and the exact distance at the margin."""
+    assert np.linalg.norm(arm.fk(res.q)[:3, 3] - target) <= 1e-6
+    assert np.all(res.q >= arm.lower) and np.all(res.q <= arm.upper)
+    r = check(arm, res.q, w, margin=MARGIN)
+    assert not r.in_collision and r.min_distance >= MARGIN
+    assert res.min_distance == pytest.approx(r.min_distance, abs=1e-12)
+
+
+@pytest.mark.parametrize("method", ["lm", "nlp"])
+def test_avoids_an_obstacle_on_the_nearest_branch(arm, method):
+    qa, qb = _branches(arm)
+    w = _blocking_world(arm, qa)
+    target = arm.fk(qa)[:3, 3]
+    assert check(arm, qa, w, margin=MARGIN).in_collision and not check(arm, qb, w, margin=MARGIN).in_collision
+    plain = optik.solve_ik(arm, optik.Position(target), q0=qa + 0.05, method=method)
+    assert plain.success and check(arm, plain.q, w, margin=MARGIN).in_collision  # without the world
+    res = optik.solve_ik(
+        arm,
+        optik.Position(target),
+        q0=qa + 0.05,
+        method=method,
+        world=w,
+        margin=MARGIN,
+        time_limit=5.0,
+        seed=2,
+    )
+    assert res.success, res.message
+    _independent(arm, res, target, w)
+    assert res.collision_pair is not None
+
+
+def test_no_collision_free_answer_says_which_pair_blocks(arm):
+    qa, qb = _branches(arm)
+    w = _blocking_world(arm, qa)
+    w.add_sphere("ball2", 0.05, spatial.translation(*arm.fk(qb, "fore")[:3, 3]))
+    target = arm.fk(qa)[:3, 3]
+    res = optik.solve_ik(arm, optik.Position(target), q0=qa, world=w, margin=MARGIN, time_limit=0.3)
+    assert not res.success
+    assert res.min_distance is not None and res.collision_pair is not None
+    if res.status == "in_collision":
+        assert "ball" in res.message
+
+
+def test_every_success_is_clear_by_the_exact_check(arm):
+    """Random boxes, targets by FK of clear configurations: no success the exact check rejects."""
+    rng = np.random.default_rng(4)
+    solved = 0
+    for _ in range(6):
+        w = World()
+        for k in range(3):
+            c = rng.uniform([-0.9, -0.9, 0.0], [0.9, 0.9, 0.2])
+            w.add_box(f"b{k}", rng.uniform(0.05, 0.2, 3), spatial.translation(*c))
+        q = arm.random_q(seed=rng)
+        if check(arm, q, w, margin=MARGIN).in_collision:
+            continue
+        target = arm.fk(q)[:3, 3]
+        res = optik.solve_ik(arm, optik.Position(target), world=w, margin=MARGIN, time_limit=1.0, seed=1)
+        if res.success:
+            solved += 1
+            _independent(arm, res, target, w)
+    assert solved >= 1
+
+
+def test_bad_arguments(arm):
+    target = optik.Position(arm.fk(np.zeros(2))[:3, 3])
+    with pytest.raises(InvalidArgumentError, match="margin"):
+        optik.solve_ik(arm, target, world=World(), margin=-0.1)
+    with pytest.raises(InvalidArgumentError, match="world"):
+        optik.solve_ik(arm, target, world="table")
+    with pytest.raises(SolverUnavailableError, match="dls"):
+        optik.solve_ik(arm, target, world=World(), method="dls")

@@ -156,7 +156,7 @@ def _subcommands() -> dict[str, argparse.ArgumentParser]:
 
 def test_every_subcommand_option_says_its_default_and_choices():
     commands = _subcommands()
-    assert set(commands) == {"bench", "solve", "fk", "plot", "benchmark", "view", "reach"}
+    assert {"bench", "solve", "fk", "plot", "benchmark", "view", "reach"} <= set(commands)
     for name, parser in commands.items():
         for action in parser._actions:
             if not action.option_strings or action.help == argparse.SUPPRESS or action.dest == "help":
@@ -169,7 +169,7 @@ def test_every_subcommand_option_says_its_default_and_choices():
                 assert action.metavar is None, f"{where} hides its choices"
 
 
-@pytest.mark.parametrize("command", ["bench", "solve", "fk", "plot", "benchmark", "view", "reach"])
+@pytest.mark.parametrize("command", sorted(_subcommands()))
 def test_every_subcommand_has_help(command, capsys):
     code, out, _ = _run([command, "--help"], capsys)
     assert code == 0 and out.startswith(f"usage: optik {command}")

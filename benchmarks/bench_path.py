@@ -27,6 +27,10 @@ optimum, velocity violations (segments with some ``|dq_j| / dt > v_j``), jumps (
 (median of ``--repeat`` runs, one run for the brute force and ``diffik.track``; every method
 warmed up once before).
 
+Panda (7-DOF): a spin of the tool by 1.6 rad about its axis at a fixed point from
+``q7 = 1.5`` (``min(--n, 300)`` poses): ``plan_path`` over 39 self-motion values of ``q7``, with
+and without ``smooth``, against ``diffik.track`` from the same start (one run each).
+
 The timing goal of issue 24 (a 1,000-pose line, 8 solutions x 36 tool-axis samples per pose,
 <= 50 ms) is measured on the UR5 line with ``free_axis="z"`` and ``axis_step = 10`` degrees:
 the whole call, and the DP alone on the same graph (`optik.path.graph.least_motion`).
@@ -216,6 +220,46 @@ def goal(m: Mechanism, n: int, repeat: int) -> str:
     )
 
 
+PANDA_Q0 = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 1.9, 1.5])
+"""Panda start of the spin workload: q7 = 1.5, 1.4 rad from its upper limit."""
+
+
+def panda_spin(n: int, dt: float) -> list[str]:
+    """The 7-DOF workload: a tool spin of 1.6 rad about its axis at a fixed point, ``n`` poses,
+    ``plan_path`` over 39 self-motion values of q7 (with and without ``smooth``) against
+    ``diffik.track`` from the same start; rows of a markdown table."""
+    m = optik.catalog.panda()
+    poses = np.repeat(m.fk(PANDA_Q0)[None], n, axis=0)
+    poses[:, :3, :3] = poses[0, :3, :3] @ np.asarray(optik.spatial.rot_z(np.linspace(0.0, 1.6, n)))
+    motion = ("q7", np.linspace(-2.85, 2.85, 39))
+    out = []
+    runs = [
+        ("plan_path, 39 q7 samples", lambda: optik.plan_path(m, poses, self_motion=motion).q),
+        ("plan_path + smooth", lambda: optik.plan_path(m, poses, self_motion=motion, smooth=True).q),
+        ("diffik.track", lambda: optik.diffik.track(m, PANDA_Q0, poses[1:], dt).q),
+    ]
+    for name, fn in runs:
+        t0 = time.perf_counter()
+        q = fn()
+        sec = time.perf_counter() - t0
+        f = optik.fk_batch(m, q)
+        pos = np.linalg.norm(f[:, :3, 3] - poses[: len(q), :3, 3], axis=1).max()
+        ori = max(optik.spatial.angle_between(a[:3, :3], b[:3, :3]) for a, b in zip(f, poses, strict=False))
+        outside = int(np.count_nonzero(np.any((q < m.lower) | (q > m.upper), axis=1)))
+        length = float(np.linalg.norm(np.diff(q, axis=0), axis=1).sum())
+        out.append(
+            f"| {name} | {len(q)} | {length:.4f} | {pos:.1e} | {ori:.1e} | {outside} | {1e3 * sec:.0f} |"
+        )
+    return [
+        f"Panda, tool spin of 1.6 rad from q7 = 1.5 ({n} poses):",
+        "",
+        "| method | samples | joint length (rad) | max position error (m) | max orientation error (rad) "
+        "| outside limits | time (ms) |",
+        "|---|---|---|---|---|---|---|",
+        *out,
+    ]
+
+
 def report(rows: list[Row], notes: list[str], command: str) -> str:
     lines = [
         f"`{command}`",
@@ -250,6 +294,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     rows = [row for m in arms for row in run_arm(m, args.n, args.dt, args.repeat)]
     if ur5 is not None:
         notes.append(goal(ur5, args.n, args.repeat))
+    notes += ["", *panda_spin(min(args.n, 300), args.dt)]
     text = report(rows, notes, ("optik benchmark path " + " ".join(argv or [])).strip())
     print(text)
     if args.out is not None:

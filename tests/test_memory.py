@@ -48,6 +48,26 @@ def _arm() -> optik.Mechanism:
     return optik.dh_chain([(0.3, 0.2, 1.1), (0.1, 0.5, -0.7), (0.2, 0.4, 0.9)])
 
 
+BOXED = (
+    '<robot name="boxed"><link name="base"/><link name="l1"><collision><geometry>'
+    '<box size="0.1 0.1 0.3"/></geometry></collision></link><joint name="j1" type="revolute">'
+    '<parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>'
+    '<limit lower="-2" upper="2" effort="1" velocity="1"/></joint></robot>'
+)
+
+
+def _self_motion(m: optik.Mechanism) -> object:
+    from optik.path.redundant import self_motion_solutions
+
+    return self_motion_solutions(m, m.fk(m.mid_q())[None], 2, np.array([0.3]))
+
+
+def _geometry(m: optik.Mechanism) -> object:
+    from optik.collision import robot_geometry
+
+    return robot_geometry(m)
+
+
 USES: dict[str, tuple[Callable[[], optik.Mechanism], Callable[[optik.Mechanism], object]]] = {
     "solve_ik lm": (_arm, lambda m: optik.solve_ik(m, P3, method="lm", time_limit=0.05)),
     "solve_ik nlp": (_arm, lambda m: optik.solve_ik(m, P3, method="nlp", time_limit=0.05)),
@@ -57,6 +77,8 @@ USES: dict[str, tuple[Callable[[], optik.Mechanism], Callable[[optik.Mechanism],
     "diffik step": (_arm, lambda m: diffik.step(m, m.mid_q(), [diffik.PositionTask(target=P3.xyz)], 0.01)),
     "closed form (derived)": (optik.catalog.puma560, lambda m: optik.solve_ik(m, T6, method="closed_form")),
     "solve_ik_all (derived)": (optik.catalog.puma560, lambda m: optik.solve_ik_all(m, T6)),
+    "self-motion (locked closed forms)": (optik.catalog.iiwa14, _self_motion),
+    "collision geometry": (lambda: optik.Mechanism.from_urdf(BOXED), _geometry),
 }
 
 

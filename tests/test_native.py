@@ -186,8 +186,9 @@ def test_panda_ik_answers_the_same_before_and_after_the_switch(
     assert native.wait(timeout=120)
     compiled = [optik.solve_ik(m, t, method="lm", seed=0, time_limit=5.0) for t in targets]
     assert kernel.compiled and not lm_kernel.kernel(m, "pose", None, 100.0, False).compiled
-    assert first.success
-    np.testing.assert_allclose(first.q, compiled[0].q, rtol=0, atol=1e-12)
+    # the first answer came from the evaluator within the default 0.1 s: right, but on a loaded
+    # machine from another number of restarts than the compiled run, so it is checked by its FK
+    assert first.success and np.abs(m.fk(first.q) - targets[0]).max() < 1e-5
     for a, b in zip(interpreted, compiled, strict=True):
         assert a.success and b.success and a.iterations == b.iterations
         np.testing.assert_allclose(a.q, b.q, rtol=0, atol=1e-12)

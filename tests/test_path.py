@@ -367,3 +367,17 @@ def test_redundant_arm_bad_input(panda_line):
         optik.plan_path(m, poses[:3], self_motion=("q1", [0.0]))
     with pytest.raises(optik.InvalidArgumentError, match="smooth"):
         optik.plan_path(m, poses[:3], self_motion=("q7", [0.6]), free_axis="z", smooth=True)
+
+
+def test_redundant_spin_that_diffik_track_cannot_follow():
+    """A tool spin of 1.6 rad from q7 = 1.5: tracking turns q7 into its limit (2.90) and loses
+    the pose; the plan over the self-motion finds an exact path within the limits."""
+    m = optik.catalog.panda()
+    q0 = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 1.9, 1.5])
+    poses = np.repeat(m.fk(q0)[None], 150, axis=0)
+    poses[:, :3, :3] = poses[0, :3, :3] @ np.asarray(optik.spatial.rot_z(np.linspace(0.0, 1.6, 150)))
+    tracked = optik.diffik.track(m, q0, poses[1:], 0.01)
+    assert tracked.position_error.max() > 0.01
+    path = optik.plan_path(m, poses, self_motion=("q7", np.linspace(-2.85, 2.85, 39)), smooth=True)
+    assert path.success and path.flips == 0, path.message
+    independent_checks(m, path, poses)

@@ -24,7 +24,6 @@ reference: it goes when the mechanism goes).
 from __future__ import annotations
 
 import threading
-import weakref
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -36,6 +35,7 @@ from optik.collision.parts import Part, parts_of
 from optik.collision.shapes import Shape
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 
 __all__ = ["RobotGeometry", "robot_geometry"]
 
@@ -150,7 +150,7 @@ def _always_colliding(geo: RobotGeometry, samples: int, seed: int) -> dict[tuple
     return out
 
 
-_CACHE: weakref.WeakKeyDictionary[Mechanism, RobotGeometry] = weakref.WeakKeyDictionary()
+_CACHE: PerMechanism[RobotGeometry] = PerMechanism()  # the geometry holds its mechanism: not a weak dict
 _LOCK = threading.Lock()
 
 

@@ -15,19 +15,29 @@ every check of `optik.path.plan`.
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import casadi as ca
 import numpy as np
 
 from optik.closed_form.derived import DerivedIK, derive_locked
 from optik.errors import SolverUnavailableError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
+
+_LOCKED: PerMechanism[dict[tuple[int, float], DerivedIK | None]] = PerMechanism()
+_LOCKED_MAX = 256
+"""Locked closed forms kept per mechanism (all are dropped past it)."""
 
 
-@lru_cache(maxsize=256)
 def _locked(m: Mechanism, index: int, value: float) -> DerivedIK | None:
-    return derive_locked(m, {index: value})
+    """The closed form of ``m`` with coordinate ``index`` locked at ``value`` (cached on ``m``)."""
+    per = _LOCKED.setdefault(m, {})
+    key = (index, value)
+    found = per.get(key, per)  # the dict itself: a sentinel (the cached value may be None)
+    if found is not per:
+        return found
+    if len(per) >= _LOCKED_MAX:
+        per.clear()
+    return per.setdefault(key, derive_locked(m, {index: value}))
 
 
 def _into_limits(q: np.ndarray, m: Mechanism) -> np.ndarray:

@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import threading
 import time
-import weakref
 from collections.abc import Mapping
 from typing import Any
 
@@ -46,6 +45,7 @@ import numpy as np
 from optik.checks import as_float, real_array
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.problem import build_ik_problem, target_parameters
 from optik.results import IKResult
 from optik.solvers.base import IKRequest, make_result, method_options, restart_stop, start_points
@@ -56,9 +56,7 @@ __all__ = ["BALANCE_TOL", "merge_contacts", "solve_balance", "support_halfplanes
 BALANCE_TOL = 1e-9
 """Largest violation (m) of a balance row that still counts as met."""
 
-_SOLVERS: weakref.WeakKeyDictionary[Mechanism, dict[Any, tuple[ca.Function, threading.Lock]]] = (
-    weakref.WeakKeyDictionary()
-)
+_SOLVERS: PerMechanism[dict[Any, tuple[ca.Function, threading.Lock]]] = PerMechanism()
 _SOLVERS_LOCK = threading.Lock()
 
 

@@ -110,6 +110,22 @@ def test_tolerances_accept_numbers():
     assert (t.position, t.closure) == (1.0, 1.0) and type(t.orientation) is float
 
 
+def test_a_float_tol_is_validated_once_per_value():
+    """``tol=<float>`` gives one shared frozen `Tolerances` per value; a bad float is refused
+    every time (NaN is never a hit), and a subclass still gets its own instances."""
+    a = optik.Tolerances.from_arg(1e-5)
+    assert a is optik.Tolerances.from_arg(1e-5)
+    assert (a.position, a.orientation, a.closure) == (1e-5, 1e-5, 1e-9)
+    assert optik.Tolerances.from_arg(2e-5).position == 2e-5
+    for bad in (float("nan"), float("nan"), -1.0, -1.0, 0.0, math.inf):
+        _raises("tol", optik.Tolerances.from_arg, bad)
+
+    class Loose(optik.Tolerances):
+        pass
+
+    assert type(Loose.from_arg(1e-5)) is Loose
+
+
 # -------------------------------------------------------------------------------- unhashable names
 @pytest.mark.parametrize(
     ("kwargs", "argument"), [({"task": ["pose"]}, "task"), ({"method": ["lm"]}, "method")]

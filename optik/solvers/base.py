@@ -59,11 +59,21 @@ class Tolerances:
             return _DEFAULT_TOL if cls is Tolerances else cls()
         if isinstance(tol, Tolerances):
             return tol
+        if type(tol) is float and cls is Tolerances:  # frozen: one shared instance per value
+            hit = _FLOAT_TOL.get(tol)  # NaN is never found: it is validated (and refused) below
+            if hit is not None:
+                return hit
         t = as_float(tol, "tol", 0.0, strict=True)
-        return cls(position=t, orientation=t)
+        made = cls(position=t, orientation=t)
+        if type(tol) is float and cls is Tolerances:
+            if len(_FLOAT_TOL) >= 64:
+                _FLOAT_TOL.clear()
+            _FLOAT_TOL[tol] = made
+        return made
 
 
 _DEFAULT_TOL = Tolerances()  # frozen: one shared instance for the common ``tol=None``
+_FLOAT_TOL: dict[float, Tolerances] = {}  # ``tol`` given as a float: validated once per value
 
 SETUP_THRESHOLD = 1e-3
 """Seconds above which a method's setup counts as a first-time build (see

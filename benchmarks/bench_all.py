@@ -1,7 +1,11 @@
 """Every benchmark the README and the docs quote, in one sitting on one machine, written as Markdown.
 
-``optik benchmark all --out DIR`` runs the benchmarks of `RUNS` one after the other in this
-process (full settings, or the smaller ``--quick`` ones), captures what each prints, and writes:
+``optik benchmark all --out DIR`` runs the benchmarks of `RUNS` one after the other, each in a
+fresh Python process (``python -m optik.benchmarks.bench_NAME``) whose BLAS and OpenMP thread
+pools are pinned to one thread through the environment (``OMP_NUM_THREADS=1`` etc., which a
+library reads when it loads: a benchmark started from the ``optik`` command has numpy loaded
+before its own pinning), with full settings or the smaller ``--quick`` ones; it captures what
+each prints and writes:
 
 * ``DIR/NAME.md`` per benchmark: a header with the date (UTC), the commit of the source tree
   (``git describe``; ``+ uncommitted changes`` when the tree differs from it), the machine
@@ -22,8 +26,6 @@ Run: ``optik benchmark all --out docs/measured [--quick] [--only ik,batch] [--re
 from __future__ import annotations
 
 import argparse
-import contextlib
-import io
 import os
 import platform
 import re
@@ -129,6 +131,12 @@ RUNS: tuple[Run, ...] = (
         ("--n", "100000", "--n-6r", "20000", "--repeat", "2", "--verify", "2000"),
     ),
     Run(
+        "path",
+        "Cartesian paths, UR5 and PUMA 560: plan_path against brute force over EAIK and diffik.track",
+        ("--n", "1000", "--repeat", "3"),
+        ("--n", "200", "--repeat", "1"),
+    ),
+    Run(
         "view",
         "Viewer: IK re-solve per gizmo move",
         (
@@ -177,14 +185,15 @@ def machine() -> str:
 
 
 def markdown_tables(text: str) -> list[list[str]]:
-    """The Markdown tables of ``text``: runs of lines starting with ``|``, header and separator
-    included."""
+    """The Markdown tables of ``text``: runs of lines starting with ``|`` (header and separator
+    included) up to a blank line; other lines inside a table (a library's message printed between
+    two rows) are left out of it."""
     tables: list[list[str]] = []
     current: list[str] = []
     for line in text.splitlines():
         if line.startswith("|"):
             current.append(line.rstrip())
-        elif current:
+        elif current and not line.strip():
             tables.append(current)
             current = []
     if current:
@@ -239,31 +248,34 @@ class Outcome:
     started: str
 
 
-def run_one(run: Run, argv: Sequence[str]) -> Outcome:
-    """Run one benchmark in this process, its standard output captured (a crash is recorded as
-    its output with exit code 1)."""
-    from optik.benchmarks import run as run_benchmark
+PINNED = {name: "1" for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+"""Thread pools of the benchmark processes: one thread each (the benchmarks' own threads and
+processes are their ``--workers``)."""
 
+
+def run_one(run: Run, argv: Sequence[str]) -> Outcome:
+    """Run one benchmark in a fresh process, its standard output captured (its standard error
+    passes through; a crash is its output and exit code)."""
     command = " ".join(["optik benchmark", run.name, *argv])
     started = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     before = load_average()
-    buffer = io.StringIO()
     t0 = time.perf_counter()
-    try:
-        with contextlib.redirect_stdout(buffer):
-            code = run_benchmark(run.name, list(argv))
-    except Exception as exc:  # a failed benchmark is reported, the sitting goes on
-        buffer.write(f"\nthe benchmark raised {type(exc).__name__}: {exc}\n")
-        code = 1
-    return Outcome(
-        run, command, buffer.getvalue(), code, time.perf_counter() - t0, before, load_average(), started
+    proc = subprocess.run(
+        [sys.executable, "-m", f"optik.benchmarks.bench_{run.name}", *argv],
+        stdout=subprocess.PIPE,
+        text=True,
+        env={**os.environ, **PINNED},
+        check=False,
     )
+    seconds = time.perf_counter() - t0
+    return Outcome(run, command, proc.stdout, proc.returncode, seconds, before, load_average(), started)
 
 
 def _header(o: Outcome, commit: str) -> str:
     return (
         f"Run {o.started}, commit `{commit}`, {machine()}; load average {o.load_before} before, "
-        f"{o.load_after} after; {o.seconds:.0f} s; exit code {o.code}.\n\nCommand: `{o.command}`\n"
+        f"{o.load_after} after; {o.seconds:.0f} s; exit code {o.code}; BLAS/OpenMP pinned to 1 thread."
+        f"\n\nCommand: `{o.command}`\n"
     )
 
 

@@ -151,12 +151,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"{args.time_limit * 1e3:g} ms, tol {args.tol:g}; every solver asked for tol / 2, answers clipped "
         "into the limits, success by Pinocchio's FK and the exact limits\n"
     )
-    print(HEADER)
     runs = []
-    for name in names:
-        r = run_arm(name, args.n, args.fk, args.time_limit, args.tol, args.seed, args.method)
-        runs.append(r)
-        print(row_text(r), flush=True)
+    for name in names:  # the libraries' own messages come first, then one table
+        runs.append(run_arm(name, args.n, args.fk, args.time_limit, args.tol, args.seed, args.method))
+        print(f"{name}: done", file=sys.stderr, flush=True)
+    print(HEADER)
+    for r in runs:
+        print(row_text(r))
     both = [r for r in runs if r.tracik is not None]
     if both:
         total = ArmRun(

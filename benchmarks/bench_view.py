@@ -131,3 +131,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ]
     print("\n".join([HEADER, *rows]))  # after the servers' own messages, as one table
     return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -21,9 +21,11 @@ OUTPUT = """intro line
 | a | b |
 |---|--:|
 | x | 1 |
+a library's message printed between two rows
 | all 3 | 2 |
 
 | not a table |
+
 text
 | c |
 |:-:|

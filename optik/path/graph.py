@@ -202,12 +202,16 @@ def branch_changes(
     branch, so a step to any other is a jump to another branch. Differences are taken modulo
     ``periods`` as in `least_motion`.
     """
-    out = np.zeros(len(index), dtype=int)
-    for k in range(len(index) - 1):
-        nxt = layers[k + 1]
-        same = groups[k + 1] == groups[k + 1][index[k + 1]]
-        dist = np.linalg.norm(differences(layers[k][index[k]], nxt, periods) * weights, axis=1)
-        dist[~same] = np.inf
-        flip = dist[index[k + 1]] > dist.min()
-        out[k + 1] = out[k] + int(flip)
-    return out
+    if len(index) < 2:
+        return np.zeros(len(index), dtype=int)
+    sizes = np.array([len(layer) for layer in layers[1:]])
+    start = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    nodes = np.concatenate(layers[1:])
+    owner = np.repeat(np.arange(len(sizes)), sizes)  # layer k + 1 of each node, as k
+    chosen = np.stack([layer[i] for layer, i in zip(layers, index, strict=True)])
+    group = np.concatenate(groups[1:])
+    picked = start + index[1:]
+    dist = np.linalg.norm(differences(chosen[:-1][owner], nodes, periods) * weights, axis=1)
+    dist[group != group[picked][owner]] = np.inf  # only the chosen node's own group
+    flips = dist[picked] > np.minimum.reduceat(dist, start)
+    return np.concatenate([[0], np.cumsum(flips)])

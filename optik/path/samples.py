@@ -152,21 +152,22 @@ def sample_solutions(
     units = s if shortcut is None else len(np.unique(samples.offset, axis=0))
     # one IK per sampled pose, or with the shortcut per offset (the groups of axis angle 0)
     flat = closed_form_solutions(m, samples.poses[:, :units].reshape(-1, 4, 4), frame)
-    source = np.arange(s) % units
-    layers, groups = [], []
-    for k in range(n):
-        base = [flat[k * units + u] for u in source]
-        group = np.repeat(np.arange(s), [len(b) for b in base])
-        q = np.concatenate(base)
-        if shortcut is not None:
-            j, sign = shortcut
-            turn = samples.angle[k, group] - samples.angle[k, 0]  # from the solved groups' angle
-            q[:, j] = _into_limits(q[:, j] + sign * turn, m.lower[j], m.upper[j])
-            fits = np.isfinite(q[:, j])
-            q, group = q[fits], group[fits]
-        layers.append(q)
-        groups.append(group)
-    return layers, groups
+    counts = np.array([len(f) for f in flat])
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    pose_of, group_of = np.divmod(np.arange(n * s), s)  # every (pose, group)
+    source = pose_of * units + group_of % units  # the solved pose it copies
+    size = counts[source]
+    ramp = np.arange(size.sum()) - np.repeat(np.cumsum(size) - size, size)
+    q = np.concatenate(flat)[np.repeat(first[source], size) + ramp] if size.sum() else np.zeros((0, m.n_q))
+    pose, group = np.repeat(pose_of, size), np.repeat(group_of, size)
+    if shortcut is not None:
+        j, sign = shortcut
+        turn = samples.angle[pose, group] - samples.angle[pose, 0]  # from the solved groups' angle
+        q[:, j] = _into_limits(q[:, j] + sign * turn, m.lower[j], m.upper[j])
+        fits = np.isfinite(q[:, j])
+        q, pose, group = q[fits], pose[fits], group[fits]
+    cuts = np.cumsum(np.bincount(pose, minlength=n))[:-1]
+    return np.split(q, cuts), np.split(group, cuts)
 
 
 def chosen_angle(

@@ -39,7 +39,6 @@ REF_DH = [
 REF_Q = np.array([0.86, 0.99, -0.84, -2.66, -0.31, 0.22])
 
 
-
 def _random_arm(rng: np.random.Generator) -> Mechanism:
     """Random standard DH rows: no two axes parallel or intersecting (with probability one)."""
     rows = [(rng.uniform(-1, 1), rng.uniform(0.1, 1), rng.uniform(-np.pi, np.pi)) for _ in range(6)]

@@ -52,9 +52,7 @@ def _assembled(m: optik.Mechanism, actuated: list[float]) -> np.ndarray:
     return modes[0]
 
 
-@pytest.mark.parametrize(
-    ("name", "actuated"), [("five_bar", [1.5, 1.2]), ("planar_3rpr", [1.0, 1.2, 1.1])]
-)
+@pytest.mark.parametrize(("name", "actuated"), [("five_bar", [1.5, 1.2]), ("planar_3rpr", [1.0, 1.2, 1.1])])
 @pytest.mark.parametrize("method", ("closed_form", *NUMERIC))
 def test_methods_solve_closed_chains(name: str, method: str, actuated: list[float]) -> None:
     m = _arm(name)

@@ -22,6 +22,7 @@ ARMS = {
 }
 TASKS = {"seed_6r_arm": ("pose", "position", "orientation"), "planar_3r": ("pose2d", "position2d")}
 
+
 @settings(max_examples=40, deadline=None)
 @given(w=st.lists(st.floats(-3.0, 3.0), min_size=3, max_size=3), angle=st.floats(0.0, np.pi))
 def test_orientation_residual_norm_is_a_function_of_the_angle(w: list[float], angle: float) -> None:

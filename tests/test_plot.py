@@ -18,8 +18,18 @@ from optik import plot
 from optik.errors import InvalidArgumentError
 
 MECHANISMS = (
-    "planar_2r", "planar_3r", "rp_arm", "pp_arm", "seed_6r_arm", "five_bar", "doggy", "slider_crank",
-    "planar_3rpr", "stewart_gough", "panda", "iiwa14",
+    "planar_2r",
+    "planar_3r",
+    "rp_arm",
+    "pp_arm",
+    "seed_6r_arm",
+    "five_bar",
+    "doggy",
+    "slider_crank",
+    "planar_3rpr",
+    "stewart_gough",
+    "panda",
+    "iiwa14",
 )
 CATALOG = [getattr(optik.catalog, name) for name in MECHANISMS if hasattr(optik.catalog, name)]
 
@@ -65,8 +75,12 @@ def test_planar_3r_joint_locations_are_the_partial_sums(q):
     m = optik.catalog.planar_3r(lengths=(1.0, 0.8, 0.5))
     g = plot.geometry(m, q)
     angles = np.cumsum(q)
-    tips = np.cumsum(np.column_stack([np.array([1.0, 0.8, 0.5]) * np.cos(angles),
-                                      np.array([1.0, 0.8, 0.5]) * np.sin(angles)]), axis=0)
+    tips = np.cumsum(
+        np.column_stack(
+            [np.array([1.0, 0.8, 0.5]) * np.cos(angles), np.array([1.0, 0.8, 0.5]) * np.sin(angles)]
+        ),
+        axis=0,
+    )
     np.testing.assert_allclose(g.parent_side[1:, :2], tips[:2], atol=1e-12)
     np.testing.assert_allclose(g.ee[:2, 3], tips[2], atol=1e-12)
     np.testing.assert_allclose(g.ee, m.fk(q), atol=1e-12)

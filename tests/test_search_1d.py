@@ -30,8 +30,6 @@ CASES = {
 }
 
 
-
-
 def _check(m: Mechanism, q: np.ndarray, target: np.ndarray) -> None:
     """Every answer reproduces the target by the mechanism's own FK; at most 16, all distinct."""
     assert len(q) <= 16

@@ -185,7 +185,8 @@ def distance_expressions(
     Args:
         geo: the robot geometry.
         link_poses: symbolic 4x4 pose of each of ``geo.links`` (e.g. ``m.frame_expr(link)``).
-        obstacles: the world's parts (`optik.World.parts`).
+        obstacles: the world's parts (`optik.World.parts`); parts on the base body get no rows
+            against them (constant in ``q``: the exact check alone judges them).
         self_collision: include the robot's self-collision pairs (`RobotGeometry.self_pairs`).
         bound: the distance the solver will require: self pairs the model cannot keep that far
             apart are left out (`separable_pairs`; None: keep every pair).
@@ -200,7 +201,11 @@ def distance_expressions(
     by_part: dict[int, list[int]] = {}
     for s, k in enumerate(model.part):
         by_part.setdefault(int(k), []).append(s)
+    m = geo.mechanism
+    moving = [m.frames[link][0] != m.base for link in geo.links]
     for s, k in enumerate(model.part):
+        if not moving[int(geo.part_link[k])]:
+            continue  # a part on the base body never moves: no constraint can change its rows
         for o in obstacles:
             rows.append(_sdf(o, centres[s]) - model.radii[s])
             names.append((geo.parts[k].name, o.name))

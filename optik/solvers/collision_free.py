@@ -6,11 +6,13 @@ world and to itself, one row per sphere pair), required to stay above
 ``b = margin + buffer`` (``buffer`` option, default 2 mm, the room between the model and the
 exact check):
 
-* ``lm``: the rows ``max(0, b - d_k(q))`` join the loop-closure rows of the compiled
+* ``lm``: the rows ``max(0, b - d_k(q))`` join the loop-closure rows of a second compiled
   Levenberg-Marquardt kernel (`optik.solvers.lm_kernel`, weight ``closure_weight``): a squared
   hinge penalty that is zero wherever the model is clear, so a start stops only when the task
-  is met *and* every row is zero; restarts as for ``lm``. Before that, one unconstrained start
-  from ``q0`` is tried (no restart): a target whose nearest answer is clear needs no constraint.
+  is met *and* every row is zero. Each round runs the unconstrained kernel (with its restarts)
+  until the pose is met; when the exact check finds that answer colliding, the constrained
+  kernel starts from it (one start: it slides the arm out along the self-motion while keeping
+  the pose); the next round starts from a new random configuration, until the time limit.
 * ``nlp``: IPOPT with the inequality constraints ``d_k(q) >= b`` (and the loop closures),
   objective as `optik.IKProblem`'s, multi-start until the time limit.
 
@@ -46,7 +48,7 @@ from optik.solvers.base import IKRequest, make_result, positive_int
 from optik.solvers.lm import lm_settings, request_seed
 from optik.solvers.lm_kernel import LMKernel
 
-__all__ = ["METHODS", "collision_problem", "solve_collision_free"]
+__all__ = ["METHODS", "collision_problem", "compiled_kernels", "solve_collision_free"]
 
 METHODS = ("lm", "nlp")
 """Methods that take collision constraints."""
@@ -85,6 +87,14 @@ def _cached(key: tuple[Any, ...], build: Any) -> Any:
                 _CACHE.clear()
             hit = _CACHE.setdefault(key, hit)
     return hit
+
+
+def compiled_kernels() -> dict[str, bool]:
+    """``{mechanism name: compiled}`` of the constrained ``lm`` kernels built so far (False: still
+    answering through CasADi's evaluator while the C compiler runs)."""
+    with _LOCK:
+        hits = [(key[1].name, v) for key, v in _CACHE.items() if key[0] == "lm"]
+    return {name: kernels[1].compiled for name, kernels in hits}
 
 
 def _world_key(world: World | None) -> tuple[int, int]:
@@ -152,21 +162,26 @@ def _solve_lm(
         return check(m, q, world, margin, self_collision)
 
     seed = request_seed(request.seed) & (2**63 - 1)
-    first = conf.copy()
-    first[2], first[3] = 0, max(request.remaining(), 0.0)  # one start, no restart
-    out = plain.run(params, request.q0[None], np.array([seed], dtype=np.uint64), first)
-    iterations, restarts = int(out.iterations[0]), 0
-    res = _finish(request, out.q[0], "lm", iterations, restarts, None, report_of)
-    q0 = request.q0
-    while not res.success and request.remaining() > 0:
-        conf[3] = request.remaining()
-        seed = (seed * 6364136223846793005 + 1442695040888963407) & (2**63 - 1)
-        out = constrained.run(params, q0[None], np.array([seed], dtype=np.uint64), conf)
+    iterations, restarts, q0 = 0, -1, request.q0
+    res: IKResult | None = None
+    while res is None or (not res.success and request.remaining() > 0):
+        # the unconstrained kernel (its own restarts) until the pose is met ...
+        conf[3] = max(request.remaining(), 0.0)
+        out = plain.run(params, q0[None], np.array([seed], dtype=np.uint64), conf)
         iterations += int(out.iterations[0])
         restarts += int(out.restarts[0]) + 1
-        status = None if out.status[0] == 0 else "time_limit"
-        res = _finish(request, out.q[0], "lm", iterations, restarts, status, report_of)
+        res = _finish(request, out.q[0], "lm", iterations, restarts, None, report_of)
+        if res.status == "in_collision" and request.remaining() > 0:
+            # ... then, from that colliding answer, the constrained kernel (one start)
+            once = conf.copy()
+            once[2], once[3] = 0, request.remaining()
+            out = constrained.run(params, res.q[None], np.array([seed], dtype=np.uint64), once)
+            iterations += int(out.iterations[0])
+            res = _finish(request, out.q[0], "lm", iterations, restarts, None, report_of)
+        seed = (seed * 6364136223846793005 + 1442695040888963407) & (2**63 - 1)
         q0 = m.random_q(seed=seed)
+    if not res.success and res.status == "not_converged":
+        res.status = "time_limit"
     return res
 
 

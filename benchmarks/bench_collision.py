@@ -1,0 +1,210 @@
+"""Collision-free IK of the Panda in a cluttered scene (table, shelf with two boards, three boxes):
+optik's collision-aware ``lm`` against TRAC-IK with coal rejection, in the same run, every success
+judged by an independent Pinocchio + coal query.
+
+Method (docs/benchmarks.md): the Panda of example-robot-data from ``panda_link0`` to
+``panda_hand_tcp`` (fingers held closed) with its SRDF; targets are FK poses of configurations
+drawn uniformly within the limits (seeded) and kept when optik's exact check finds them clear by
+``--margin`` (so every target is reachable collision-free). optik: ``optik.solve_ik(m, T,
+world=W, margin=margin, time_limit=...)``. TRAC-IK (pytracik, solve type Speed): solve from the
+mid-limit seed, check the answer with `optik.collision.check` (coal) at the margin, and while it
+collides solve again from a uniformly random seed until the time limit (what MoveIt does).
+
+The judge is Pinocchio's own model of the whole URDF (finger joints at 0) and its collision
+geometry (``buildGeomFromUrdf``, meshes as their convex hulls, as coal queries them), its
+self-collision pairs ``addAllCollisionPairs`` minus the SRDF's (``removeCollisionPairs``), every
+geometry against every obstacle, coal distances: a success needs the pose within ``--tol``
+(Pinocchio's FK), the limits, and every distance ``>= margin - 1e-9``. Calls are interleaved
+target by target; each solver has one untimed warm-up call (optik builds its constrained code
+then; the C compiler may still be running during the run: the kernel then answers through
+CasADi's evaluator, and the table says whether it was compiled).
+
+Run: ``optik benchmark collision [--n 50] [--time-limit 0.05] [--margin 0.01] [--tol 1e-6] [--seed 0]
+[--compile-wait 600]`` (the wait for the C build of the constrained kernel is not timed).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+import optik
+from optik import spatial
+from optik.benchmarks import benchmark_parser
+
+Solver = Callable[[np.ndarray, float, int], "np.ndarray | None"]
+"""``(target, time_limit, seed) -> q or None``."""
+
+
+def scene() -> optik.World:
+    """Table, a shelf (two sides, two boards) in front of the robot, three boxes on the table."""
+    w = optik.World()
+    w.add_box("table", (1.4, 1.6, 0.04), spatial.translation(0.3, 0.0, -0.04))
+    for side, y in (("left", 0.42), ("right", -0.42)):
+        w.add_box(f"shelf_{side}", (0.3, 0.02, 0.9), spatial.translation(0.75, y, 0.43))
+    w.add_box("shelf_board_low", (0.3, 0.84, 0.02), spatial.translation(0.75, 0.0, 0.35))
+    w.add_box("shelf_board_high", (0.3, 0.84, 0.02), spatial.translation(0.75, 0.0, 0.7))
+    w.add_box("box_a", (0.1, 0.1, 0.12), spatial.translation(0.35, 0.45, 0.04))
+    w.add_box("box_b", (0.08, 0.15, 0.2), spatial.translation(0.3, -0.45, 0.08))
+    w.add_box("box_c", (0.12, 0.12, 0.1), spatial.translation(-0.35, 0.35, 0.03))
+    return w
+
+
+class Judge:
+    """Pinocchio + coal on Pinocchio's own model of the whole Panda URDF."""
+
+    def __init__(self, urdf: str, srdf: str, package_dir: str, world: optik.World) -> None:
+        import coal
+        import pinocchio as pin
+
+        self.pin, self.coal = pin, coal
+        self.model = pin.buildModelFromUrdf(urdf)
+        self.geom = pin.buildGeomFromUrdf(
+            self.model, urdf, pin.GeometryType.COLLISION, package_dirs=[package_dir]
+        )
+        self.geom.addAllCollisionPairs()
+        pin.removeCollisionPairs(self.model, self.geom, srdf)
+        self.data, self.gdata = self.model.createData(), self.geom.createData()
+        self.shapes = []
+        for go in self.geom.geometryObjects:
+            g = go.geometry
+            if isinstance(g, coal.BVHModelBase):
+                g.buildConvexHull(True, "Qt")
+                g = g.convex
+            self.shapes.append(g)
+        self.obstacles = [
+            (coal.Box(*o.shape.size), coal.Transform3s(o.pose[:3, :3], o.pose[:3, 3]))
+            for o in world.snapshot()
+        ]
+        self.tcp = self.model.getFrameId("panda_hand_tcp")
+
+    def ok(
+        self, q: np.ndarray | None, target: np.ndarray, m: optik.Mechanism, tol: float, margin: float
+    ) -> bool:
+        if q is None or np.any(q < m.lower) or np.any(q > m.upper):
+            return False
+        pin, coal = self.pin, self.coal
+        qp = pin.neutral(self.model)
+        qp[:7] = q
+        pin.framesForwardKinematics(self.model, self.data, qp)
+        t = self.data.oMf[self.tcp]
+        if np.linalg.norm(t.translation - target[:3, 3]) > tol:
+            return False
+        if spatial.angle_between(target[:3, :3], t.rotation) > tol:
+            return False
+        pin.updateGeometryPlacements(self.model, self.data, self.geom, self.gdata, qp)
+        tf = [coal.Transform3s(p.rotation, p.translation) for p in self.gdata.oMg]
+        for pair in self.geom.collisionPairs:
+            a, b = pair.first, pair.second
+            d = coal.distance(
+                self.shapes[a], tf[a], self.shapes[b], tf[b], coal.DistanceRequest(), coal.DistanceResult()
+            )
+            if d < margin - 1e-9:
+                return False
+        for k, shape in enumerate(self.shapes):
+            for box, tb in self.obstacles:
+                d = coal.distance(shape, tf[k], box, tb, coal.DistanceRequest(), coal.DistanceResult())
+                if d < margin - 1e-9:
+                    return False
+        return True
+
+
+def optik_solver(m: optik.Mechanism, w: optik.World, margin: float, tol: float) -> Solver:
+    def solve(target: np.ndarray, time_limit: float, seed: int) -> np.ndarray | None:
+        r = optik.solve_ik(m, target, world=w, margin=margin, time_limit=time_limit, tol=tol, seed=seed)
+        return r.q if r.success else None
+
+    return solve
+
+
+def tracik_solver(m: optik.Mechanism, urdf, w: optik.World, margin: float, tol: float) -> Solver:
+    from optik.harness.peers.tracik_peer import TracIK
+
+    peer = TracIK(m, urdf, "panda_link0", "panda_hand_tcp")
+    tolerances = optik.Tolerances(position=tol, orientation=tol)
+
+    def solve(target: np.ndarray, time_limit: float, seed: int) -> np.ndarray | None:
+        start = time.perf_counter()
+        rng = np.random.default_rng(seed)
+        q0 = m.mid_q()
+        while (left := time_limit - (time.perf_counter() - start)) > 1e-4:
+            q, found = peer.attempt(q0, target, left, tolerances)
+            if found and not optik.collision.check(m, q, w, margin=margin).in_collision:
+                return q
+            q0 = m.random_q(seed=rng)
+        return None
+
+    return solve
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the benchmark and print a markdown table with the ratio to optik; returns 0."""
+    ap = benchmark_parser("collision", __doc__)
+    ap.add_argument("--n", type=int, default=50, help="targets")
+    ap.add_argument("--time-limit", type=float, default=0.05, help="seconds per call")
+    ap.add_argument("--margin", type=float, default=0.01, help="clearance (m)")
+    ap.add_argument("--tol", type=float, default=1e-6, help="position (m) and orientation (rad) tolerance")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the random draws")
+    ap.add_argument("--compile-wait", type=float, default=600.0, help="seconds to wait for optik's C build")
+    args = ap.parse_args(argv)
+    if args.n < 1 or not args.time_limit > 0 or not args.tol > 0 or args.margin < 0:
+        ap.error("--n must be >= 1, --time-limit and --tol > 0, --margin >= 0")
+    try:
+        from optik.catalog.robots import robots_dir
+
+        d = robots_dir() / "panda_description"
+        urdf, srdf = d / "urdf" / "panda.urdf", d / "srdf" / "panda.srdf"
+        m = optik.Mechanism.from_urdf(urdf, "panda_link0", "panda_hand_tcp", srdf=srdf)
+        w = scene()
+        judge = Judge(str(urdf), str(srdf), str(d.parents[2]), w)
+    except (ImportError, optik.OptikError) as exc:
+        print(f"needs coal, pinocchio and example-robot-data (extras 'collision', 'peers', 'robots'): {exc}")
+        return 0
+    rng = np.random.default_rng(args.seed)
+    targets = []
+    while len(targets) < args.n:
+        q = m.random_q(seed=rng)
+        if not optik.collision.check(m, q, w, margin=args.margin).in_collision:
+            targets.append(m.fk(q))
+    solvers: dict[str, Solver] = {"optik lm + collisions": optik_solver(m, w, args.margin, args.tol)}
+    try:
+        solvers["TRAC-IK + coal rejection"] = tracik_solver(m, urdf, w, args.margin, args.tol)
+    except (ImportError, optik.OptikError) as exc:
+        print(f"pytracik is not available ({exc}): TRAC-IK skipped")
+    for solve in solvers.values():  # untimed warm-up (optik builds its constrained code here)
+        solve(targets[0], 60.0, 0)
+    from optik.solvers.collision_free import compiled_kernels
+
+    waited = time.perf_counter()
+    while not all(compiled_kernels().values()) and time.perf_counter() - waited < args.compile_wait:
+        time.sleep(1.0)
+    results: dict[str, tuple[list[float], int]] = {name: ([], 0) for name in solvers}
+    for i, target in enumerate(targets):
+        for name, solve in solvers.items():
+            t0 = time.perf_counter()
+            q = solve(target, args.time_limit, i)
+            elapsed = time.perf_counter() - t0
+            times, ok = results[name]
+            times.append(elapsed)
+            results[name] = (times, ok + judge.ok(q, target, m, args.tol, args.margin))
+    ref = np.mean(results["optik lm + collisions"][0])
+    print(
+        f"Panda ({m.n_q} joints) in a cluttered scene ({len(w)} boxes), {args.n} targets by FK of "
+        f"configurations clear by {args.margin:g} m, time limit {args.time_limit * 1e3:g} ms, "
+        f"tol {args.tol:g}, judged by Pinocchio + coal; constrained kernel compiled: {compiled_kernels()}"
+    )
+    print("| solver | success | mean ms | median ms | p95 ms | mean / optik |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for name, (times, ok) in results.items():
+        t = np.array(times) * 1e3
+        print(
+            f"| {name} | {ok}/{args.n} | {t.mean():.2f} | {np.median(t):.2f} | {np.percentile(t, 95):.2f} "
+            f"| {t.mean() / (ref * 1e3):.2f} |"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

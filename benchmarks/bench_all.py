@@ -131,6 +131,12 @@ RUNS: tuple[Run, ...] = (
         ("--n", "100000", "--n-6r", "20000", "--repeat", "2", "--verify", "2000"),
     ),
     Run(
+        "path",
+        "Cartesian paths, UR5 and PUMA 560: plan_path against brute force over EAIK and diffik.track",
+        ("--n", "1000", "--repeat", "3"),
+        ("--n", "200", "--repeat", "1"),
+    ),
+    Run(
         "view",
         "Viewer: IK re-solve per gizmo move",
         (

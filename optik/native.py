@@ -129,12 +129,42 @@ def c_source(functions: Sequence[ca.Function], extra_source: str = "") -> str:
 @functools.lru_cache(maxsize=8)
 def compiler_version(cc: str) -> str:
     """The first line of ``cc --version`` (empty when it cannot be run): part of the cache key,
-    so that a library built by another compiler is never loaded."""
+    so that a library built by another compiler is never loaded.
+
+    Running the compiler costs a process start (about 8 ms, more on a loaded machine), which a
+    first solve or first `optik.diffik.step` of a fresh process would wait for: the answer is
+    kept in the cache directory, in ``compilers/<hash>.txt`` keyed by the compiler executable's
+    resolved path, size and modification time (an upgraded compiler is a new key), written
+    atomically; a missing or unreadable record runs the compiler again."""
+    memo = _version_memo(cc)
+    if memo is not None:
+        with contextlib.suppress(OSError):
+            return memo.read_text()
     try:
         out = subprocess.run([cc, "--version"], capture_output=True, text=True, timeout=30, check=False)
     except (OSError, subprocess.SubprocessError):
         return ""
-    return out.stdout.partition("\n")[0].strip()
+    version = out.stdout.partition("\n")[0].strip()
+    if memo is not None and out.returncode == 0:
+        with contextlib.suppress(OSError):
+            memo.parent.mkdir(exist_ok=True)
+            fd, tmp = tempfile.mkstemp(dir=memo.parent, prefix=".version-")
+            with os.fdopen(fd, "w") as f:
+                f.write(version)
+            os.replace(tmp, memo)
+    return version
+
+
+def _version_memo(cc: str) -> Path | None:
+    """The record of `compiler_version` for the executable ``cc`` resolves to, or None (the
+    executable or the cache directory cannot be found)."""
+    try:
+        exe = os.path.realpath(shutil.which(cc) or cc)
+        st = os.stat(exe)
+        stamp = f"{exe}\0{st.st_size}\0{st.st_mtime_ns}"
+        return cache_dir() / "compilers" / f"{hashlib.sha256(stamp.encode()).hexdigest()[:20]}.txt"
+    except OSError:
+        return None
 
 
 def _library_file(stem: str, source: str, cc: str, flags: Sequence[str]) -> Path:

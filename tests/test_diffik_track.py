@@ -23,9 +23,9 @@ def test_line_on_the_seed_arm(method: str) -> None:
     m = optik.catalog.seed_6r_arm()
     q0 = np.array([0.2, 0.6, -1.2, 0.3, 0.8, -0.2])
     start = m.fk(q0)
-    path = diffik.line_path(
-        start, spatial.translation(0.1, 0.1, 0.1) @ start @ spatial.transform(spatial.rot_x(0.2)), 100
-    )
+    end = spatial.translation(0.1, 0.1, 0.1) @ start @ spatial.transform(spatial.rot_x(0.2))
+    path = diffik.line_path(start, end, np.sqrt(0.03) / 0.99, 0.01)  # 99 steps of 0.01 s
+    assert len(path) == 100
     res = diffik.track(m, q0, path, 0.01, method)
     assert res.within_limits
     assert res.position_error.max() < 1e-4 and res.orientation_error.max() < 1e-4
@@ -36,7 +36,7 @@ def test_circle_with_the_planar_3r_heading_fixed() -> None:
     m = optik.catalog.planar_3r()
     q0 = np.array([0.3, 1.0, 0.5])
     pose = optik.spatial.planar_pose_of(m.fk(q0))
-    path = diffik.circle_path([pose[0] - 0.2, pose[1], 0.0], 0.2, 150, spatial.rot_z(pose[2]))
+    path = diffik.circle_path([pose[0] - 0.2, pose[1], 0.0], 0.2, 0.85, 0.01, spatial.rot_z(pose[2]))
     res = diffik.track(m, q0, path, 0.01, "qp")
     assert res.position_error.max() < 1e-4 and res.orientation_error.max() < 1e-4
     assert res.within_limits
@@ -63,7 +63,10 @@ def test_dls_passes_the_2r_elbow_singularity_without_velocity_blow_up() -> None:
     m = optik.catalog.planar_2r()
     reach = sum(m.params["lengths"])
     start, end = spatial.translation(1.0, 0.0, 0.0), spatial.translation(reach + 0.05, 0.0, 0.0)
-    path = np.concatenate([diffik.line_path(start, end, 100), diffik.line_path(end, start, 100)])
+    speed = (reach + 0.05 - 1.0) / 0.99  # 99 steps of 0.01 s each way
+    path = np.concatenate(
+        [diffik.line_path(start, end, speed, 0.01), diffik.line_path(end, start, speed, 0.01)]
+    )
     q0 = _start(m, optik.Position(1.0, 0.0), np.array([0.5, -1.5]))
     dls = diffik.track(m, q0, path, 0.01, "dls")
     pinv = diffik.track(m, q0, path, 0.01, "pinv")
@@ -75,7 +78,7 @@ def test_dls_passes_the_2r_elbow_singularity_without_velocity_blow_up() -> None:
 def test_five_bar_driven_along_a_circle_keeps_the_loop_closed() -> None:
     m = optik.catalog.five_bar()
     q0 = _start(m, optik.Position(0.5, 1.5), np.array([2.0, 1.2, -1.0, 1.0]))
-    path = diffik.circle_path([0.5, 1.4, 0.0], 0.1, 120, start_angle=np.pi / 2)
+    path = diffik.circle_path([0.5, 1.4, 0.0], 0.1, 0.53, 0.01, start_angle=np.pi / 2)
     for method in ("qp", "dls"):
         res = diffik.track(m, q0, path, 0.01, method)
         assert res.closure_error.max() < 1e-11
@@ -100,7 +103,7 @@ def test_self_motion_of_a_7dof_arm_keeps_the_end_effector_fixed() -> None:
 def test_doggy_body_driven_along_a_circle_keeps_both_legs_closed() -> None:
     m = optik.catalog.doggy()
     q0 = _start(m, optik.Pose2D(0.0, 0.8, 0.0), np.array([1.2, 0.8, -2.0, 1.9, -0.8]))
-    path = diffik.circle_path([0.0, 0.75, 0.0], 0.05, 100, start_angle=np.pi / 2)  # heading 0
+    path = diffik.circle_path([0.0, 0.75, 0.0], 0.05, 0.32, 0.01, start_angle=np.pi / 2)  # heading 0
     res = diffik.track(m, q0, path, 0.01, "qp")
     assert res.closure_error.max() < 1e-11
     assert res.position_error.max() < 1e-4 and res.orientation_error.max() < 1e-4

@@ -210,3 +210,23 @@ def test_diffik_step_answers_the_same_before_and_after_the_switch(
     assert native.wait(timeout=120) and stack.function.compiled
     again = diffik.step(m, q0, [task], dt=0.01)
     np.testing.assert_allclose(again.q, first.q, rtol=0, atol=1e-12)
+
+
+def test_compiler_version_is_kept_per_executable(monkeypatch: pytest.MonkeyPatch, tmp_path) -> None:
+    """``cc --version`` runs once per compiler executable (its record in the cache directory is
+    read by later processes) and again when the executable changes."""
+    monkeypatch.setenv("OPTIK_CACHE_DIR", str(tmp_path / "cache"))
+    cc = tmp_path / "fakecc"
+    cc.write_text("#!/bin/sh\necho 'fakecc 1.0'\necho second line\n")
+    cc.chmod(0o755)
+    native.compiler_version.cache_clear()
+    assert native.compiler_version(str(cc)) == "fakecc 1.0"
+    (memo,) = (tmp_path / "cache" / "compilers").iterdir()
+    assert memo.read_text() == "fakecc 1.0"
+    memo.write_text("recorded")  # a later process reads the record instead of running cc
+    native.compiler_version.cache_clear()
+    assert native.compiler_version(str(cc)) == "recorded"
+    cc.write_text("#!/bin/sh\necho 'fakecc 2.0 (upgraded)'\n")  # another size: another key
+    native.compiler_version.cache_clear()
+    assert native.compiler_version(str(cc)) == "fakecc 2.0 (upgraded)"
+    native.compiler_version.cache_clear()

@@ -183,9 +183,9 @@ def test_joint_without_parent_and_child_is_a_type_error_of_python():
         (lambda: diffik.ManipulabilityTask(3, space=["pose"]), "space"),
         (lambda: diffik.VelocityLimit("a"), "v_max"),
         (lambda: diffik.ConfigurationLimit("a"), "gain"),
-        (lambda: diffik.line_path(np.eye(4), np.eye(4), float("nan")), "n"),
-        (lambda: diffik.line_path(np.eye(4), np.eye(4), 10**7), "n"),
-        (lambda: diffik.circle_path([0, 0, 0], 0.1, 10, turns="x"), "turns"),
+        (lambda: diffik.line_path(np.eye(4), [1, 0, 0], float("nan"), 0.01), "speed"),
+        (lambda: diffik.line_path(np.eye(4), [1, 0, 0], 1.0, 1e-9), "speed/dt"),
+        (lambda: diffik.circle_path([0, 0, 0], 0.1, 1.0, 0.01, turns="x"), "turns"),
         (lambda: diffik.polyline_path([[0, 0, 0], [1, 0]], 0.1, 0.01), "points"),
     ],
 )

@@ -338,3 +338,19 @@ def test_a_catalog_robot_opens_with_its_meshes(browser):
         v.robot.set_visible(False)
         bare = _capture(page, meshes)
     assert _changed(meshes, bare) > 8000, _changed(meshes, bare)  # the arm's meshes, not joint spheres
+
+
+@pytest.mark.parametrize(
+    "source",
+    [
+        ["five_bar"],  # a closed chain (problem file)
+        [str(catalog.urdf_path("panda")), "--base", "panda_link0", "--tip", "panda_link8"],  # a URDF arm
+    ],
+)
+def test_the_newcomer_sources_open_as_drawn_scenes(source, browser):
+    from optik.problem_files import load_source
+
+    m, _ = load_source(source[0], *(source[2::2] if len(source) > 1 else (None, None)))
+    with optik.view(m, port=free_port()) as v, browser, browser.open(v.url) as page:
+        png = _capture(page)
+    assert drawn(png) and complete(png)

@@ -63,7 +63,10 @@ def singularity() -> Path:
     m = optik.catalog.planar_2r()
     reach = sum(m.params["lengths"])
     start, end = spatial.translation(1.0, 0.0, 0.0), spatial.translation(reach + 0.05, 0.0, 0.0)
-    path = np.concatenate([diffik.line_path(start, end, 100), diffik.line_path(end, start, 100)])
+    speed = (reach + 0.05 - 1.0) / 0.99  # 99 steps of 0.01 s each way
+    path = np.concatenate(
+        [diffik.line_path(start, end, speed, 0.01), diffik.line_path(end, start, speed, 0.01)]
+    )
     q0 = optik.solve_ik(m, optik.Position(1.0, 0.0), q0=[0.5, -1.5], method="qp").q
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.6))
     for method, style in (("pinv", "-"), ("dls", "-"), ("qp", "--")):

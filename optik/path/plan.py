@@ -294,14 +294,15 @@ def plan_path(
     refined = ""
     if smooth:
         q2 = refine(m, q, targets, frame, min(tols.position, tols.orientation))
-        cost2 = np.inf if q2 is None else float(np.linalg.norm(np.diff(q2, axis=0) * w, axis=1).sum())
-        got = finish(q) if q2 is None else finish(q2)
-        if q2 is not None and cost2 < cost and all(got[4].values()):
-            refined = f"; refined from {cost:.6g}"
-            q, cost, dev = q2, cost2, deviation(m, q2, frame)
-            t, stretched, qd, qdd, checks = got
-        else:
+        refined = "; the refinement did not converge"
+        if q2 is not None:
+            cost2 = float(np.linalg.norm(np.diff(q2, axis=0) * w, axis=1).sum())
+            got = finish(q2)
             refined = "; the refinement was not kept (not shorter, or a check failed)"
+            if cost2 < cost and all(got[4].values()):
+                refined = f"; refined from {cost:.6g}"
+                q, cost, dev = q2, cost2, deviation(m, q2, frame)
+                t, stretched, qd, qdd, checks = got
     sizes = plan.sizes
     parts = [
         f"{n} poses, {sizes.mean():.3g} nodes per pose on average{note}",

@@ -394,9 +394,9 @@ class Viewer:
         playback (`show_path_sample`, the time slider).
 
         Args:
-            path: ``(N, 4, 4)`` poses (default: a circle of 100 poses around the end effector,
-                radius a sixth of the mechanism's size, in the horizontal plane, at the current
-                tool orientation).
+            path: ``(N, 4, 4)`` poses (default: a circle of 100 poses, one per ``dt``, around the
+                end effector, radius a sixth of the mechanism's size, in the horizontal plane, at
+                the current tool orientation).
             dt: control period (s).
             method: differential-IK method of `optik.diffik.step`.
         """
@@ -405,7 +405,8 @@ class Viewer:
                 pose = self.m.fk(self._q)
                 r = self.size / 6
                 center = pose[:3, 3] - np.array([r, 0.0, 0.0])
-                path = circle_path(center, r, 100, rotation=pose[:3, :3])
+                speed = 2 * np.pi * r / (99 * dt)  # the circle in 99 steps of dt
+                path = circle_path(center, r, speed, dt, rotation=pose[:3, :3])
             result = track(self.m, self._q, path, dt, method, space=self.task)
             self.path = result
             self._path_targets = np.asarray(path, dtype=float)

@@ -1171,7 +1171,7 @@ def track_call(draw: Any) -> Call:
     t1 = t0.copy()
     t1[0, 3] += shift
     if kind == "line":
-        path: Any = diffik.line_path(t0, t1, n)
+        path: Any = diffik.line_path(t0, t1, shift / ((n - 1) * 0.01), 0.01)  # n samples
     elif kind == "positions":
         path = [optik.Position(t0[:3, 3] + [shift * k / n, 0.0, 0.0]) for k in range(n)]
     elif kind == "points":
@@ -1198,12 +1198,12 @@ def track_call(draw: Any) -> Call:
 def path_call(draw: Any) -> Call:
     kind = draw(st.sampled_from(["line", "circle", "polyline"]))
     if kind == "line":
-        n = draw(st.one_of(st.integers(2, 50), number, st.just(10**7)))
+        speed = draw(st.one_of(number, st.just(1e-9)))
         end = draw(st.one_of(st.just(spatial.translation(1.0, 0.0, 0.0)), bad))
-        run = lambda: diffik.line_path(np.eye(4), end, n)  # noqa: E731
-        label = f"line_path(n={_short(n)}, end={_short(end)})"
+        run = lambda: diffik.line_path(np.eye(4), end, speed, 0.01)  # noqa: E731
+        label = f"line_path(speed={_short(speed)}, end={_short(end)})"
     elif kind == "circle":
-        args = [draw(st.one_of(vector(3), bad)), draw(number), draw(st.one_of(st.integers(2, 50), number))]
+        args = [draw(st.one_of(vector(3), bad)), draw(number), draw(st.one_of(number, st.just(1e-9))), 0.01]
         kw = draw(
             st.dictionaries(
                 st.sampled_from(["turns", "start_angle", "normal", "rotation"]),

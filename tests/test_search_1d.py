@@ -257,6 +257,29 @@ def test_default_solve_ik_does_not_call_unreachable_on_an_uncertified_search() -
     assert "the closed form found none" in every.uncertified_reason
 
 
+def test_the_numerical_fallback_gets_the_time_that_is_left(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The fallback after an uncertified closed form ran with ``time_limit = remaining()`` from
+    the request's own start, so the time the closed form spent was counted twice: it must get
+    the request itself, whose start and limit are the deadline."""
+    from optik.solvers import api
+
+    seen = []
+    real = api.get_method
+
+    class Spy:
+        def __init__(self, method):
+            self.method = method
+
+        def solve(self, request):
+            seen.append(request)
+            return self.method.solve(request)
+
+    monkeypatch.setattr(api, "get_method", lambda name: Spy(real(name)) if name == "lm" else real(name))
+    res = optik.solve_ik(_jaco_like(), spatial.translation(3.0, 0.0, 0.0), time_limit=0.5)
+    assert not res.success and res.method == "lm" and len(seen) == 1
+    assert seen[0].time_limit == 0.5  # the deadline is start + 0.5 s: the time left, counted once
+
+
 def test_a_locked_joint_leaving_the_jaco_chain_gets_the_search() -> None:
     """A 7-joint arm whose first six joints are the Jaco-like chain: with the seventh locked, the
     remaining 6R (special at both ends, no decomposable family) gets the 1-D search, as the

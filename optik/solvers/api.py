@@ -180,8 +180,9 @@ def _numerical_fallback(request: IKRequest, closed: IKResult) -> IKResult:
     limit, with the closed form's finding in its message and ``extra["closed_form"]``."""
     m = request.mechanism
     name = pick_method(m, request.task, tuple(n for n in DEFAULT_ORDER if n != "closed_form"))
-    rest = dataclasses.replace(request, time_limit=max(request.remaining(), 1e-6))  # same start
-    return _noted(get_method(name).solve(rest), closed)
+    # the same request: its start and time limit are the deadline, so the method gets exactly
+    # what is left (a limit of `remaining()` from the same start would count the time spent twice)
+    return _noted(get_method(name).solve(request), closed)
 
 
 def _noted(res: IKResult, closed: IKResult) -> IKResult:

@@ -21,6 +21,7 @@ import contextlib
 import socket
 import time
 from collections.abc import Callable, Iterator, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -28,7 +29,9 @@ import optik
 from optik import catalog
 from optik.benchmarks import benchmark_parser
 from optik.harness.tally import timing_ms
-from optik.view import Viewer
+
+if TYPE_CHECKING:  # the view extra is imported where the benchmark runs, so --help works without it
+    from optik.view import Viewer
 
 
 def _port() -> int:
@@ -82,6 +85,8 @@ def gizmo_moves(name: str, method: str | None, moves: int, all_solutions: bool, 
     """The table row of the latency of ``moves`` gizmo moves on catalog mechanism ``name``."""
     m = getattr(catalog, name)()
     targets = [m.fk(q) for q in drag(m, moves + 1)]
+    from optik.view import Viewer
+
     with Viewer(m, port=_port(), method=method) as v, _page(v, browser):
         v.set_target(targets[0])  # warm up: compiled solvers, first scene messages
         if all_solutions:
@@ -102,6 +107,8 @@ def actuator_moves(name: str, values: Sequence[float], moves: int, browser: bool
     m = getattr(catalog, name)()
     a = np.asarray(values, dtype=float)
     path = a + 0.05 * np.sin(2 * np.pi * np.arange(moves)[:, None] / moves + np.arange(len(a)))
+    from optik.view import Viewer
+
     with Viewer(m, port=_port()) as v, _page(v, browser):
         v.set_actuated(a)
         times, modes = _timed(lambda x=x: v.set_actuated(x) for x in path)

@@ -62,6 +62,7 @@ def test_the_section_between_the_markers_is_replaced_and_the_rest_kept():
 
 
 def test_a_quick_sitting_writes_the_page_the_index_and_the_readme(tmp_path, monkeypatch):
+    pytest.importorskip("eaik", reason="the all_solutions page compares with EAIK (extra 'peers')")
     monkeypatch.setenv("OPTIK_NO_CODEGEN", "1")  # no C compiler runs in the test suite
     readme = tmp_path / "README.md"
     readme.write_text(f"# x\n{START}\nold figure\n{END}\nend\n", encoding="utf-8")

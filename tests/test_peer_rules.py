@@ -81,6 +81,18 @@ def test_the_referee_is_pinocchio_and_rejects_wrong_or_violating_answers():
     assert verdict.success and verdict.overshoot == pytest.approx(1e-8, rel=1e-6)
 
 
+def test_an_answer_a_rounding_past_a_limit_beyond_pi_is_clipped_not_wrapped():
+    """TRAC-IK's answer 3.7525 + 5.7e-8 on the Panda's joint 6 (upper limit 3.7525) was wrapped
+    to -2.53 and clipped to the lower limit: a claimed success judged 0.26 m off."""
+    m, _ = _panda()
+    q = m.mid_q()
+    q[5] = m.upper[5] + 5.7e-8
+    settled = settle(m, q)
+    assert settled[5] == m.upper[5] and np.array_equal(np.delete(settled, 5), np.delete(q, 5))
+    q[5] = m.upper[5] + 2 * np.pi  # a whole turn past: wrapped back onto the limit's side
+    assert settle(m, q)[5] == pytest.approx(m.upper[5], abs=1e-12)
+
+
 def test_the_referee_refuses_another_chain():
     pytest.importorskip("pinocchio", reason="the referee's independent FK")
     m, (path, base, _) = _panda()

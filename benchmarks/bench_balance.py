@@ -41,6 +41,7 @@ import numpy as np
 
 import optik
 from optik.benchmarks import benchmark_parser
+from optik.harness.tally import success_table
 from optik.solvers.balance import support_halfplanes
 
 Solver = Callable[[np.ndarray, float], np.ndarray]
@@ -218,20 +219,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             times, ok = results[name]
             times.append(elapsed)
             results[name] = (times, ok + h.ok(qp, target, args.tol, args.margin))
-    ref = np.mean(results["optik nlp + balance"][0])
     print(
         f"{args.robot} ({h.m.n_q - 6} joints + free base), {args.n} targets of {h.frame}, "
         f"{len(h.feet)} feet held, CoM margin {args.margin:g} m, "
         f"time limit {args.time_limit * 1e3:g} ms, tol {args.tol:g}, judged by Pinocchio"
     )
-    print("| solver | success | mean ms | median ms | p95 ms | mean / optik |")
-    print("|---|---:|---:|---:|---:|---:|")
-    for name, (times, ok) in results.items():
-        t = np.array(times) * 1e3
-        print(
-            f"| {name} | {ok}/{args.n} | {t.mean():.2f} | {np.median(t):.2f} | {np.percentile(t, 95):.2f} "
-            f"| {t.mean() / (ref * 1e3):.2f} |"
-        )
+    print(success_table(results, args.n, "optik nlp + balance"))
     return 0
 
 

@@ -33,6 +33,7 @@ import numpy as np
 import optik
 from optik import spatial
 from optik.benchmarks import benchmark_parser
+from optik.harness.tally import success_table
 
 Solver = Callable[[np.ndarray, float, int], "np.ndarray | None"]
 """``(target, time_limit, seed) -> q or None``."""
@@ -189,20 +190,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             times, ok = results[name]
             times.append(elapsed)
             results[name] = (times, ok + judge.ok(q, target, m, args.tol, args.margin))
-    ref = np.mean(results["optik lm + collisions"][0])
     print(
         f"Panda ({m.n_q} joints) in a cluttered scene ({len(w)} boxes), {args.n} targets by FK of "
         f"configurations clear by {args.margin:g} m, time limit {args.time_limit * 1e3:g} ms, "
         f"tol {args.tol:g}, judged by Pinocchio + coal; constrained kernel compiled: {compiled_kernels()}"
     )
-    print("| solver | success | mean ms | median ms | p95 ms | mean / optik |")
-    print("|---|---:|---:|---:|---:|---:|")
-    for name, (times, ok) in results.items():
-        t = np.array(times) * 1e3
-        print(
-            f"| {name} | {ok}/{args.n} | {t.mean():.2f} | {np.median(t):.2f} | {np.percentile(t, 95):.2f} "
-            f"| {t.mean() / (ref * 1e3):.2f} |"
-        )
+    print(success_table(results, args.n, "optik lm + collisions"))
     return 0
 
 

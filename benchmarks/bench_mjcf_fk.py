@@ -31,7 +31,8 @@ PACKAGES = ("dm_control", "gymnasium", "gymnasium_robotics")
 
 
 def model_files() -> list[tuple[str, Path]]:
-    """``(package-relative id, path)`` of every distinct ``.xml`` file of the installed packages."""
+    """``(package-relative id, path)`` of every distinct ``.xml`` file of the installed packages
+    (a file shipped twice, e.g. gymnasium's envs copied into gymnasium-robotics, counts once)."""
     out, seen = [], set()
     for pkg in PACKAGES:
         spec = importlib.util.find_spec(pkg)

@@ -8,8 +8,6 @@ skipped with MuJoCo's message. The table in ``docs/mjcf.md`` lists the outcome p
 
 from __future__ import annotations
 
-import hashlib
-import importlib.util
 from pathlib import Path
 
 import casadi as ca
@@ -20,30 +18,12 @@ import optik
 from optik.errors import ModelError
 
 mujoco = pytest.importorskip("mujoco", reason="MJCF import needs MuJoCo (extra 'mjcf')")
-from optik.mechanism.mjcf import to_qpos  # noqa: E402  (after the importorskip)
+from optik.benchmarks.bench_mjcf_fk import model_files  # noqa: E402  (after the importorskip)
+from optik.mechanism.mjcf import to_qpos  # noqa: E402
 
-PACKAGES = ("dm_control", "gymnasium", "gymnasium_robotics")
 SAMPLES = 3
 
-
-def _model_files() -> list[tuple[str, Path]]:
-    """``(package-relative id, path)`` of every distinct ``.xml`` file of the installed packages
-    (a file shipped twice, e.g. gymnasium's envs copied into gymnasium-robotics, counts once)."""
-    out, seen = [], set()
-    for pkg in PACKAGES:
-        spec = importlib.util.find_spec(pkg)
-        if spec is None or not spec.submodule_search_locations:
-            continue
-        root = Path(next(iter(spec.submodule_search_locations)))
-        for path in sorted(root.rglob("*.xml")):
-            digest = hashlib.sha1(path.read_bytes()).hexdigest()
-            if digest not in seen:
-                seen.add(digest)
-                out.append((f"{pkg}/{path.relative_to(root)}", path))
-    return out
-
-
-FILES = _model_files()
+FILES = model_files()  # each distinct file once (gymnasium's envs are copied into gymnasium-robotics)
 
 
 def test_the_test_sets_are_installed():

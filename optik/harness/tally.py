@@ -13,7 +13,7 @@ import numpy as np
 
 from optik.harness.peers.rules import Verdict
 
-__all__ = ["Tally", "timing_ms"]
+__all__ = ["Tally", "success_table", "timing_ms"]
 
 
 def timing_ms(times: Sequence[float]) -> tuple[float, float, float]:
@@ -22,6 +22,17 @@ def timing_ms(times: Sequence[float]) -> tuple[float, float, float]:
     if t.size == 0:
         return float("nan"), float("nan"), float("nan")
     return float(t.mean()), float(np.median(t)), float(np.percentile(t, 95))
+
+
+def success_table(results: dict[str, tuple[Sequence[float], int]], n: int, reference: str) -> str:
+    """The Markdown table of solvers judged by one referee: per solver ``(times (s), successes)``
+    over ``n`` targets, with mean / median / p95 in ms and the ratio of means to ``reference``."""
+    ref = timing_ms(results[reference][0])[0]
+    lines = ["| solver | success | mean ms | median ms | p95 ms | mean / optik |", "|---" + "|---:" * 5 + "|"]
+    for name, (times, ok) in results.items():
+        mean, median, p95 = timing_ms(times)
+        lines.append(f"| {name} | {ok}/{n} | {mean:.2f} | {median:.2f} | {p95:.2f} | {mean / ref:.2f} |")
+    return "\n".join(lines)
 
 
 @dataclass

@@ -64,6 +64,7 @@ import optik  # noqa: E402
 from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.catalog.industrial import PUMA560_DH  # noqa: E402
 from optik.closed_form.derived import chain_axes, derive, derive_axes  # noqa: E402
+from optik.harness.tally import timing_ms  # noqa: E402
 from optik.mechanism import Mechanism  # noqa: E402
 from optik.solvers.base import joint_distance  # noqa: E402
 
@@ -206,8 +207,9 @@ class Row:
 
 
 def _stats(times: list[float]) -> tuple[float, float, float]:
-    a = np.asarray(times) * 1e6
-    return float(a.mean()), float(np.median(a)), float(np.percentile(a, 95))
+    """``(mean, median, p95)`` in us."""
+    mean, median, p95 = timing_ms(times)
+    return 1e3 * mean, 1e3 * median, 1e3 * p95
 
 
 def run_arm(m: Mechanism, n: int, seed: int) -> Row:

@@ -53,12 +53,13 @@ from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.closed_form import parallel  # noqa: E402
 from optik.harness.peers import PeerUnavailable  # noqa: E402
 from optik.harness.peers.fksgp_peer import Postures, load_fksgp  # noqa: E402
+from optik.harness.tally import timing_ms  # noqa: E402
 from optik.solvers.fk import same_mode  # noqa: E402
 
 
 def _stats(times: Sequence[float]) -> str:
-    t = np.asarray(times) * 1e3
-    return f"{t.mean():9.2f} | {np.median(t):9.2f} | {np.percentile(t, 95):9.2f}"
+    """Mean, median and p95 in ms, as table cells."""
+    return " | ".join(f"{v:9.2f}" for v in timing_ms(times))
 
 
 def bench_3rpr(n: int, rng: np.random.Generator) -> None:

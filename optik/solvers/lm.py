@@ -49,6 +49,7 @@ from optik.errors import InvalidArgumentError
 from optik.mechanism.memo import PerMechanism
 from optik.problem import target_parameters
 from optik.results import IKResult
+from optik.solvers import generic_chain
 from optik.solvers.base import IKRequest, make_result, method_options, positive_int, register_method
 from optik.solvers.lm_kernel import STATUS, LMKernel, Settings, kernel
 from optik.solvers.options import check_floats, check_max_restarts
@@ -106,9 +107,13 @@ def lm_settings(request: IKRequest) -> tuple[Settings, float, bool | str]:
 def request_seed(seed: int | np.random.Generator | None) -> int:
     """The kernel's seed of a request: the int itself (None: 0, as for every method), or one
     drawn from a Generator."""
+    if seed is None:
+        return 0
+    if isinstance(seed, int | np.integer):  # first: np.random is imported on first use (20 ms)
+        return int(seed)
     if isinstance(seed, np.random.Generator):
         return int(seed.integers(0, 2**63))
-    return 0 if seed is None else int(seed)
+    return int(seed)
 
 
 _PREPARED: PerMechanism[dict[tuple[Any, ...], tuple[LMKernel, np.ndarray]]] = PerMechanism()
@@ -116,9 +121,10 @@ _PREPARED_MAX = 256
 """Prepared requests kept per mechanism (all are dropped past it: option values drawn anew per call)."""
 
 
-def _prepare(request: IKRequest) -> tuple[LMKernel, np.ndarray]:
+def _prepare(request: IKRequest, build: bool = True) -> tuple[LMKernel, np.ndarray] | None:
     """The kernel and the driver's ``conf`` of a request, cached per mechanism, task, frame,
-    tolerances and option values when those are hashable (validation costs more than a solve)."""
+    tolerances and option values when those are hashable (validation costs more than a solve);
+    None when not cached and ``build`` is False."""
     try:
         key: tuple[Any, ...] | None = (
             request.task,
@@ -130,6 +136,8 @@ def _prepare(request: IKRequest) -> tuple[LMKernel, np.ndarray]:
         hit = prepared.get(key)  # type: ignore[arg-type]
     except TypeError:  # an unhashable option value (an array q_ref): validate every time
         key, hit = None, None
+    if hit is None and not build:
+        return None
     if hit is None:
         settings, closure_weight, compile = lm_settings(request)
         setup = time.perf_counter()
@@ -144,14 +152,21 @@ def _prepare(request: IKRequest) -> tuple[LMKernel, np.ndarray]:
 
 
 def solve_lm(request: IKRequest) -> IKResult:
-    """Solve an IK request by bounded LM with random restarts (see the module docstring)."""
-    k, base = _prepare(request)
+    """Solve an IK request by bounded LM with random restarts (see the module docstring); until
+    the kernel of the mechanism is compiled, by the generic chain kernel where it applies
+    (`optik.solvers.generic_chain`)."""
+    seed = request_seed(request.seed) & (2**64 - 1)
+    prepared = _prepare(request, build=False)
+    if prepared is None or not prepared[0].compiled:
+        settings, closure_weight, compile = lm_settings(request)
+        first = generic_chain.solve_first(request, settings, closure_weight, compile, _prepare, seed)
+        if first is not None:
+            return first
+    k, base = prepared or _prepare(request)  # type: ignore[misc]  # built when None
     conf = base.copy()
     conf[3] = max(request.remaining(), 0.0)
     params = target_parameters(request.target)
-    q, err, iterations, restarts, code = k.run_one(
-        params, request.q0, request_seed(request.seed) & (2**64 - 1), conf
-    )
+    q, err, iterations, restarts, code = k.run_one(params, request.q0, seed, conf)
     answer = q.tolist()
 
     def errors(qq: np.ndarray) -> tuple[float, float, float]:

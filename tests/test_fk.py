@@ -239,4 +239,5 @@ def test_closed_form_modes_are_measured_as_the_general_path_measures(name):
         rpr = optik.catalog.planar_3rpr(leg_limits=(0.1, 1.0))
         legs = rpr.upper[rpr.actuated_indices] * 1.02
         modes = optik.solve_fk_all(rpr, legs, within_limits=False)
-        assert len(modes) and all("the actuated values are outside their limits: rho" in r.message for r in modes)
+        assert len(modes)
+        assert all("the actuated values are outside their limits: rho" in r.message for r in modes)

@@ -557,15 +557,40 @@ def _library(
     return lib
 
 
+_PREPARING: set[threading.Thread] = set()  # threads of `in_background` still running
+_PREPARING_LOCK = threading.Lock()
+
+
+def in_background(work: Callable[[], object], name: str) -> None:
+    """Run ``work`` in a daemon thread that `wait` waits for too: the preparation of a library
+    (its code generation) that a caller does not wait for (`optik.solvers.generic_chain`)."""
+
+    def run() -> None:
+        try:
+            work()
+        finally:
+            with _PREPARING_LOCK:
+                _PREPARING.discard(thread)
+
+    thread = threading.Thread(target=run, name=name, daemon=True)
+    with _PREPARING_LOCK:
+        _PREPARING.add(thread)
+    thread.start()
+
+
 def wait(timeout: float | None = None) -> bool:
     """Wait until every background build of this process is done (at most ``timeout`` seconds
-    in all); True when none is left running."""
+    in all), the preparations started by `in_background` first; True when none is left running."""
     deadline = None if timeout is None else time.monotonic() + timeout
+    with _PREPARING_LOCK:
+        preparing = list(_PREPARING)
+    for thread in preparing:
+        thread.join(None if deadline is None else max(0.0, deadline - time.monotonic()))
     with _BUILDS_LOCK:
         builds = list(_BUILDS.values())
     for lib in builds:
         lib.wait(None if deadline is None else max(0.0, deadline - time.monotonic()))
-    return all(lib.state != "building" for lib in builds)
+    return not any(t.is_alive() for t in preparing) and all(lib.state != "building" for lib in builds)
 
 
 def _check_buffers(lib: ctypes.CDLL, name: str, side: str, buffers: Sequence[np.ndarray]) -> None:

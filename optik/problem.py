@@ -352,9 +352,7 @@ def _build(m: Mechanism, task: Tasks, frame: Frames, secondary: tuple[str, ...])
     weights = ca.SX.sym("weights", 2)
     q_ref = ca.SX.sym("q_ref", m.n_q)
     sec = ca.SX.sym("secondary_weights", 3)
-    blocks = [
-        task_blocks(t, m.frame_expr(f), target[12 * i : 12 * i + 12]) for i, (f, t) in enumerate(pairs)
-    ]
+    blocks = [task_blocks(t, m.frame_expr(f), target[12 * i : 12 * i + 12]) for i, (f, t) in enumerate(pairs)]
     r_p, r_o = ca.vertcat(*(b[0] for b in blocks)), ca.vertcat(*(b[1] for b in blocks))
     f = 0.5 * (weights[0] ** 2 * ca.sumsqr(r_p) + weights[1] ** 2 * ca.sumsqr(r_o))
     f += 0.5 * sec[0] * ca.sumsqr(q - q_ref)

@@ -57,16 +57,15 @@ from optik import spatial
 from optik.errors import SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
-from optik.native import CCall, Library, c_source, driver_source, keyed_library
+from optik.native import CCall, Library, c_source, driver_source, in_background, keyed_library
 from optik.problem import frame_errors, target_parameters, task_blocks
 from optik.results import IKResult
-from optik.solvers.base import IKRequest, make_result
+from optik.solvers.base import IKRequest
 from optik.solvers.evaluation import error_function
 from optik.solvers.lm_kernel import (
     _ERRORS,
     DRIVER,
-    STATUS,
-    _OneTarget,
+    OneTarget,
     cached_kernel,
     driver_defines,
     lm_iteration_function,
@@ -241,12 +240,12 @@ class ChainKernel:
             self._packed = packed
         return self._packed is not None
 
-    def _buffers(self) -> tuple[_OneTarget, CCall, list[np.ndarray]]:
+    def _buffers(self) -> tuple[OneTarget, CCall, list[np.ndarray]]:
         """This thread's driver buffers, its error function and that function's buffers
         ``[q, target, position, orientation, closure]``."""
         local = self._local
         if not hasattr(local, "one"):
-            local.one = _OneTarget(self.n, self.n_target, 12 + 5 * self.n)
+            local.one = OneTarget(self.n, self.n_target, 12 + 5 * self.n)
             local.bufs = [np.zeros(self.n), np.zeros(self.n_target), np.zeros(1), np.zeros(1), np.zeros(1)]
             local.errors = CCall(self.library.get(), _ERRORS, local.bufs[:2], local.bufs[2:])  # type: ignore[union-attr, arg-type]
         return local.one, local.errors, local.bufs
@@ -272,8 +271,9 @@ class ChainKernel:
         it, restarts, status = one.counts.tolist()[:3]
         return one.q.copy(), (e[0], e[1], e[2]), it, restarts, status
 
-    def errors(self, q: np.ndarray, target: np.ndarray) -> tuple[float, float, float]:
-        """Position, orientation and closure (0) errors of ``q`` against ``[target; chain]``."""
+    def final_errors(self, q: np.ndarray, target: np.ndarray) -> tuple[float, float, float]:
+        """Position, orientation and closure (0) errors of ``q`` against ``[target; chain]`` (as
+        `optik.solvers.lm_kernel.LMKernel.final_errors`)."""
         _, fn, bufs = self._buffers()
         bufs[0][:] = q
         bufs[1][:] = target
@@ -319,7 +319,7 @@ class _Builder:
             if self._started:
                 return
             self._started = True
-        threading.Thread(target=self._run, name="optik-lm-kernel", daemon=True).start()
+        in_background(self._run, "optik-lm-kernel")
 
     def _run(self) -> None:
         time.sleep(_HANDOVER)
@@ -348,6 +348,7 @@ def solve_first(
     compile: bool | str,
     prepare: Callable[[IKRequest], Any],
     seed: int,
+    result_of: Callable[..., IKResult],
 ) -> IKResult | None:
     """The ``"lm"`` answer by the generic kernel while the per-robot kernel is not compiled, or
     None (the per-robot path answers): see the module docstring for when it applies.
@@ -358,6 +359,8 @@ def solve_first(
         closure_weight, compile: its options (``compile`` must be ``"auto"``).
         prepare: builds the per-robot kernel of a request (run in a daemon thread).
         seed: the kernel's restart seed.
+        result_of: the result of a kernel's run (`optik.solvers.lm.lm_result`, given a kernel
+            with ``final_errors``).
     """
     if (
         compile != "auto"
@@ -391,13 +394,6 @@ def solve_first(
     conf[3] = max(request.remaining(), 0.0)
     params = np.concatenate([target_parameters(request.target), chain])
     q, err, iterations, restarts, code = k.run_one(params, request.q0, seed, conf)
-    answer = q.tolist()
-
-    def errors(qq: np.ndarray) -> tuple[float, float, float]:
-        return err if qq.tolist() == answer else k.errors(qq, params)
-
-    result = make_result(
-        request, q, "lm", iterations, restarts, None if code == 0 else STATUS[code], errors=errors
-    )
+    result = result_of(request, k, q, err, iterations, restarts, code, params)
     builder.start()
     return result

@@ -20,6 +20,7 @@ CasADi's evaluator, with the same generator (same answers, slower).
 from __future__ import annotations
 
 import ctypes
+import math
 import threading
 import time
 from dataclasses import dataclass
@@ -29,6 +30,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from optik.checks import ORTHO_DIAG, ORTHO_OFF
 from optik.errors import InvalidArgumentError, ShapeError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
@@ -162,19 +164,23 @@ class Output:
 _P = ctypes.c_void_p
 
 
-class _OneTarget:
-    """One thread's buffers of a one-target run, and the packed argument array of the driver's
-    ``optik_lm_packed`` pointing at them (the addresses are taken once: reading
+class OneTarget:
+    """One thread's buffers of a one-target run, and the packed argument arrays of the driver's
+    ``optik_lm_packed`` and ``optik_lm_call`` pointing at them (the addresses are taken once: reading
     ``ndarray.ctypes.data`` costs microseconds per array, more than a whole solve's iterations)."""
 
     def __init__(self, nq: int, nt: int, n_conf: int) -> None:
         self.target, self.q0, self.conf = np.zeros(nt), np.zeros(nq), np.zeros(n_conf)
         self.seed = np.zeros(1, dtype=np.uint64)
         self.q, self.errors, self.time = np.zeros(nq), np.zeros(3), np.zeros(1)
-        self.counts = np.zeros(3, dtype=np.int64)  # iterations, restarts, status
+        self.counts = np.zeros(4, dtype=np.int64)  # iterations, restarts, status, canonical
+        self.transform = np.zeros((4, 4))
         c = self.counts.ctypes.data
         bufs = (self.target, self.q0, self.seed, self.conf, self.q, self.errors)
         self.args = (_P * 11)(1, *[b.ctypes.data for b in bufs], c, c + 8, c + 16, self.time.ctypes.data)
+        bufs = (self.transform, self.q0, self.seed, self.conf, self.q, self.errors, self.counts, self.time)
+        self.call_args = (_P * 8)(*[b.ctypes.data for b in bufs])
+        """The argument array of ``optik_lm_call`` (a 4x4 transform in place of the parameters)."""
 
 
 class LMKernel:
@@ -214,6 +220,8 @@ class LMKernel:
             f"\n#define OPTIK_NQ {m.n_q}\n#define OPTIK_NT {problem.target.shape[0]}\n"
             f"#define OPTIK_STEP {_STEP}\n#define OPTIK_STEP_WORK {_STEP}_work\n"
             f"#define OPTIK_ERRORS {_ERRORS}\n#define OPTIK_ERRORS_WORK {_ERRORS}_work\n"
+            f"#define OPTIK_ORTHO_DIAG {ORTHO_DIAG!r}\n#define OPTIK_ORTHO_OFF {ORTHO_OFF!r}\n"
+            f"#define OPTIK_PI {math.pi!r}\n"
         )
         driver = driver_source(DRIVER, compile)
         self.library = (
@@ -221,6 +229,7 @@ class LMKernel:
         )
         self._fn: Any = None
         self._packed: Any = None
+        self._call: Any = None
         self._local = threading.local()  # per-thread error evaluators and one-target buffers
 
     def final_errors(self, q: np.ndarray, target: np.ndarray) -> tuple[float, float, float]:
@@ -251,6 +260,16 @@ class LMKernel:
                 self._fn = fn
         return self._fn
 
+    def call_entry(self) -> Any:
+        """The driver's ``optik_lm_call`` (one whole ``solve_ik`` call: `optik.solvers.lm.LMCall`)
+        once the library is loaded, else None (it is never waited for)."""
+        call = self._call
+        if call is None and self.library is not None and self.library.state == "ready" and self._driver():
+            call = self.library.get().optik_lm_call  # type: ignore[union-attr]
+            call.argtypes, call.restype = [_P], ctypes.c_int
+            self._call = call
+        return call
+
     def run_one(
         self, target: np.ndarray, q0: np.ndarray, seed: int, conf: np.ndarray
     ) -> tuple[np.ndarray, tuple[float, float, float], int, int, int]:
@@ -278,17 +297,15 @@ class LMKernel:
             return out.q[0], (e[0], e[1], e[2]), *counts
         one = getattr(self._local, "one", None)
         if one is None:
-            one = self._local.one = _OneTarget(self.mechanism.n_q, len(target), len(conf))
+            one = self._local.one = OneTarget(self.mechanism.n_q, len(target), len(conf))
         one.target[:] = target
         one.q0[:] = q0
         one.seed[0] = seed
         one.conf[:] = conf
         if packed(one.args) != 0:
-            from optik.errors import SolverUnavailableError
-
             raise SolverUnavailableError("optik_lm_chunk: evaluation of the generated code failed")
         e = one.errors.tolist()
-        it, restarts, status = one.counts.tolist()
+        it, restarts, status, _ = one.counts.tolist()
         return one.q.copy(), (e[0], e[1], e[2]), it, restarts, status
 
     def run(self, targets: np.ndarray, q0: np.ndarray, seeds: np.ndarray, conf: np.ndarray) -> Output:

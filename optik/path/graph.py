@@ -140,7 +140,7 @@ def compiled() -> ctypes.CDLL | None:
             if lib is not None:
                 fn = lib.optik_path_dp
                 ptr, i32 = ctypes.c_void_p, ctypes.c_int
-                fn.argtypes = [i32, ptr, ptr, i32, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr]
+                fn.argtypes = [i32, ptr, ptr, i32, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr]
                 fn.restype = i32
             _LIB.append(lib)
         return _LIB[0]
@@ -159,7 +159,7 @@ def _joint_order(layers: Sequence[np.ndarray], weights: np.ndarray) -> np.ndarra
     distinct = np.zeros(len(weights))
     spread = np.zeros(len(weights))
     for layer in picked:
-        distinct += [len(np.unique(np.round(layer[:, j], 9))) for j in range(layer.shape[1])]
+        distinct += 1 + np.count_nonzero(np.diff(np.sort(layer, axis=0), axis=0) > 1e-9, axis=0)
         spread += np.abs(layer - layer.mean(axis=0)).sum(axis=0)
     score = np.where(weights > 0, distinct + spread * weights / (1.0 + (spread * weights).max()), -1.0)
     first = int(np.argmax(score))
@@ -199,11 +199,11 @@ def least_motion(
     bounds = None if step_bounds is None else np.ascontiguousarray(step_bounds[:, perm], dtype=float)
     total = len(nodes)
     cost, back = np.empty(total), np.empty(total, dtype=np.int32)
-    order, tmp = np.empty(int(sizes.max()), dtype=np.int32), np.empty(int(sizes.max()), dtype=np.int32)
+    order, tmp, here = (np.empty(int(sizes.max()), dtype=np.int32) for _ in range(3))
     index, best, key = np.empty(len(layers), dtype=np.int32), np.zeros(1), np.empty(total)
     blocked = lib.optik_path_dp(
         len(layers), _ptr(offset), _ptr(nodes), nodes.shape[1], _ptr(w), _ptr(per), _ptr(bounds), _ptr(cost),
-        _ptr(back), _ptr(order), _ptr(tmp), _ptr(index), _ptr(best), _ptr(key),
+        _ptr(back), _ptr(order), _ptr(tmp), _ptr(index), _ptr(best), _ptr(key), _ptr(here),
     )  # fmt: skip
     if blocked >= 0:
         return GraphPath(np.full(len(layers), -1), float("inf"), int(blocked))

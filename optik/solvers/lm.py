@@ -7,7 +7,8 @@ One iteration at ``q`` with gradient ``g = J^T e`` and Gauss-Newton matrix ``A =
 1. *Active set*: coordinate ``i`` is frozen when it sits on a bound and the descent direction
    ``-g_i`` points outside (``q_i = lo_i, g_i > 0`` or ``q_i = hi_i, g_i < 0``); ``D`` is the
    diagonal 0/1 matrix of the free coordinates.
-2. *Step*: ``(D A D + mu I + (I - D)) dq = -D g + k mu D (q_ref - q)``. The last term is a
+2. *Step*: ``(D A D + mu I + (I - D)) dq = -D g + k mu D (q_ref - q)``, solved by Cholesky on
+   the lower triangle (`optik.solvers.lm_kernel`). The last term is a
    null-space posture pull: for ``mu -> 0`` it vanishes in the range of ``J^T`` and keeps moving
    along the null space of ``J`` toward ``q_ref`` (gain ``k = posture_gain``, 0 by default).
 3. *Projection and acceptance*: ``q+ = clip(q + dq, lo, hi)``; accepted when

@@ -75,10 +75,14 @@ def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Funct
     jac = ca.jacobian(e, q)
     g = ca.mtimes(jac.T, e)
     free = 1 - ca.logic_or(ca.logic_and(q <= lo, g > 0), ca.logic_and(q >= hi, g < 0))
-    d = ca.diag(free)
-    lhs = ca.mtimes([d, ca.mtimes(jac.T, jac), d]) + mu * ca.SX.eye(n) + ca.diag(1 - free)
+    cols = [jac[:, j] for j in range(n)]
+    diag = [mu + 1 - free[i] for i in range(n)]
+    lhs = [  # the lower triangle of D J^T J D + mu I + (I - D), row by row
+        [free[i] * free[j] * ca.dot(cols[i], cols[j]) + (diag[i] if i == j else 0) for j in range(i + 1)]
+        for i in range(n)
+    ]
     rhs = free * (-g + gain * mu * (problem.q_ref - q))
-    q_trial = ca.fmin(ca.fmax(q + ca.solve(lhs, rhs), lo), hi)
+    q_trial = ca.fmin(ca.fmax(q + _cholesky_solve(lhs, rhs), lo), hi)
     e_trial, pos, ori, clo = at(q_trial, problem.target, problem.weights)
     cost, cost_trial = 0.5 * ca.sumsqr(e), 0.5 * ca.sumsqr(e_trial)
     accept = cost_trial < cost
@@ -106,6 +110,34 @@ def driver_defines(n_q: int, n_target: int) -> str:
         f"#define OPTIK_ORTHO_DIAG {ORTHO_DIAG!r}\n#define OPTIK_ORTHO_OFF {ORTHO_OFF!r}\n"
         f"#define OPTIK_PI {math.pi!r}\n"
     )
+
+
+def _cholesky_solve(lower: list[list[ca.SX]], b: ca.SX) -> ca.SX:
+    """``x = A^-1 b`` for a symmetric positive definite ``A`` given by its lower triangle
+    (``lower[i][j] = A_ij``, ``j <= i``), by Cholesky ``A = L L^T`` and two triangular solves:
+    about n^3 / 6 multiply-adds and n square roots, where CasADi's general ``solve`` (a QR) takes
+    several times more operations, and ``J^T J`` is formed on one triangle (the LM matrix, with
+    ``mu > 0`` on its diagonal, is positive definite; where rounding loses definiteness the step is
+    NaN, which the projection maps onto a bound or leaves NaN, and the acceptance test keeps only a
+    trial point of lower cost either way, NaN comparing false)."""
+    n = len(lower)
+    chol: list[list[ca.SX]] = [[] for _ in range(n)]
+    inv_diag: list[ca.SX] = []
+    for j in range(n):
+        for i in range(j, n):
+            s = lower[i][j] - sum((chol[i][k] * chol[j][k] for k in range(j)), ca.SX(0))
+            if i == j:
+                chol[j].append(ca.sqrt(s))
+                inv_diag.append(1 / chol[j][j])
+            else:
+                chol[i].append(s * inv_diag[j])
+    y: list[ca.SX] = []
+    for i in range(n):  # L y = b
+        y.append((b[i] - sum((chol[i][k] * y[k] for k in range(i)), ca.SX(0))) * inv_diag[i])
+    x: list[ca.SX] = [ca.SX(0)] * n
+    for i in reversed(range(n)):  # L^T x = y
+        x[i] = (y[i] - sum((chol[k][i] * x[k] for k in range(i + 1, n)), ca.SX(0))) * inv_diag[i]
+    return ca.vertcat(*x)
 
 
 def target_seeds(seed: int, start: int, count: int) -> np.ndarray:

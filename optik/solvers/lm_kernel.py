@@ -52,7 +52,9 @@ _MASK = (1 << 64) - 1
 _STEP, _ERRORS = "optik_lm_step", "optik_ik_errors"
 
 
-def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Function:
+def lm_iteration_function(
+    problem: IKProblem, closure_weight: float, inequalities: ca.SX | None = None
+) -> ca.Function:
     """One bounded LM iteration with the errors of the trial point, as an ``SX`` function.
 
     ``(q, mu, target, weights, q_ref, gain, lo, hi) -> (q+, mu+, cost+, accepted, position error,
@@ -61,6 +63,21 @@ def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Funct
     ``|e(q_t)|^2 / 2`` is below that of ``q``; the errors are those of ``q_t`` (the driver keeps
     the previous ones when the trial is rejected). The limits ``lo, hi`` are inputs (infinite
     entries: unbounded), so one compiled kernel serves every limits of one geometry.
+
+    ``inequalities``: rows ``g(q) <= 0`` whose hinges ``max(0, g)`` are the last ``k`` rows of
+    ``problem.closure`` (static balance, `optik.solvers.balance`). A hinge has no gradient
+    where it is inactive, so a plain Gauss-Newton step from inside overshoots across the
+    boundary and is rejected again and again while ``mu`` grows. The step is therefore taken
+    twice, for a working set ``A`` of rows treated as the equations ``w_c g_i = 0`` (their
+    linearization, onto the boundary): first ``A_1 = {i : g_i > 0}`` (the hinges' own
+    Gauss-Newton step), then ``A_2 = A_1 + {i : g_i + J_g,i dq_1 > 0}`` (the rows the first step
+    would cross), the step taken. With ``M_0 = D J_t^T J_t D + mu I + (I - D)`` of the other rows
+    ``J_t`` (free set ``D`` from the whole gradient), ``U = D J_g^T``, ``S = w_c^2 diag(A)`` and
+    ``r_0`` the other rows' right-hand side, the step of a working set solves
+    ``(M_0 + U S U^T) dq = r_0 - U S g``; by the Woodbury identity, with
+    ``M_0 [X_0, Y] = [r_0, U]`` solved once (``M_0`` keeps the other rows' sparsity: the balance
+    rows couple every joint) and ``B = X_0 - Y S g``,
+    ``dq = B - Y S (I + U^T Y S)^-1 U^T B``: a ``k x k`` solve per working set.
     """
     m = problem.mechanism
     q = problem.q
@@ -69,12 +86,32 @@ def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Funct
     at = ca.Function("at", [q, problem.target, problem.weights], [e, *problem.error_expressions()])
     mu, gain = ca.SX.sym("mu"), ca.SX.sym("gain")
     jac = ca.jacobian(e, q)
-    g = ca.mtimes(jac.T, e)
-    free = 1 - ca.logic_or(ca.logic_and(q <= lo, g > 0), ca.logic_and(q >= hi, g < 0))
+    grad = ca.mtimes(jac.T, e)
+    free = 1 - ca.logic_or(ca.logic_and(q <= lo, grad > 0), ca.logic_and(q >= hi, grad < 0))
     d = ca.diag(free)
-    lhs = ca.mtimes([d, ca.mtimes(jac.T, jac), d]) + mu * ca.SX.eye(m.n_q) + ca.diag(1 - free)
-    rhs = free * (-g + gain * mu * (problem.q_ref - q))
-    q_trial = ca.fmin(ca.fmax(q + ca.solve(lhs, rhs), lo), hi)
+    k = 0 if inequalities is None else int(inequalities.shape[0])
+    top = e.shape[0] - k  # the rows other than the hinges
+    jt, et = jac[:top, :], e[:top]
+    lhs = ca.mtimes([d, ca.mtimes(jt.T, jt), d]) + mu * ca.SX.eye(m.n_q) + ca.diag(1 - free)
+    rhs = free * (-(ca.mtimes(jt.T, et) if k else grad) + gain * mu * (problem.q_ref - q))
+    if not k:
+        dq = ca.solve(lhs, rhs)
+    else:
+        g = inequalities
+        u = ca.mtimes(d, ca.jacobian(g, q).T)
+        xy = ca.solve(lhs, ca.horzcat(rhs, u))
+        x0, y = xy[:, 0], xy[:, 1:]
+
+        def working_step(active: ca.SX) -> ca.SX:
+            sg = closure_weight**2 * active * g
+            b = x0 - ca.mtimes(y, sg)
+            small = ca.SX.eye(k) + ca.mtimes(ca.mtimes(u.T, y), ca.diag(closure_weight**2 * active))
+            return b - ca.mtimes(ca.mtimes(y, ca.diag(closure_weight**2 * active)), ca.solve(small, ca.mtimes(u.T, b)))
+
+        violated = g > 0
+        dq1 = working_step(violated)
+        dq = working_step(ca.logic_or(violated, g + ca.mtimes(u.T, dq1) > 0))
+    q_trial = ca.fmin(ca.fmax(q + dq, lo), hi)
     e_trial, pos, ori, clo = at(q_trial, problem.target, problem.weights)
     cost, cost_trial = 0.5 * ca.sumsqr(e), 0.5 * ca.sumsqr(e_trial)
     accept = cost_trial < cost
@@ -191,6 +228,8 @@ class LMKernel:
             ``task``, ``frame``); its ``closure`` rows are the weighted rows of the residual and
             the closure error of the stop test (`optik.solvers.collision_free` appends its
             collision rows there).
+        inequalities: rows ``g(q) <= 0`` whose hinges end ``problem.closure`` (see
+            `lm_iteration_function`).
     """
 
     def __init__(
@@ -201,6 +240,7 @@ class LMKernel:
         closure_weight: float,
         compile: bool | str,
         problem: IKProblem | None = None,
+        inequalities: ca.SX | None = None,
     ) -> None:
         problem = build_ik_problem(m, task, frame) if problem is None else problem
         self.mechanism = m
@@ -208,7 +248,7 @@ class LMKernel:
         """Target parameters per target (12 per frame target)."""
         self.n_conf = 12 + 5 * m.n_q
         """Length of `Settings.conf`: 12 scalars, sampling bounds, ``q_ref`` and the limits."""
-        self.step = lm_iteration_function(problem, closure_weight)
+        self.step = lm_iteration_function(problem, closure_weight, inequalities)
         self.errors = error_function(problem)
         defines = (
             f"\n#define OPTIK_NQ {m.n_q}\n#define OPTIK_NT {problem.target.shape[0]}\n"

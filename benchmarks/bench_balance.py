@@ -13,16 +13,16 @@ and y, -6 to +2 cm in z and a rotation vector of up to 0.1 rad per axis (small e
 reachable with the feet held; not certified).
 
 optik: ``optik.solve_ik(m, {frame: T}, q0=standing, contacts=feet, support=polygon,
-com_margin=margin, time_limit=..., method=...)`` for each of ``--methods`` (``lm``, the default:
-the compiled kernel with the balance hinges; ``nlp``: IPOPT with the balance inequalities; flat
-feet held as poses, point feet as positions). The C build of the ``lm`` kernel runs before the
-timed calls and is not timed (``--compile-wait``). Pink: ``pink.solve_ik`` iterated from the standing configuration (``dt = 1``, daqp)
-with a ``FrameTask`` for the target frame (cost 1), one per foot (cost 100; orientation cost 0
-for point feet), a ``ComTask`` toward the standing centre of mass (``--pink-com-costs``, one
-Pink run per cost, 0 for none; Pink has no polygon constraint, so its CoM task holds the CoM
-near the middle of the feet, and pulls the target frame off by a cost-weighted compromise) and a
-``PostureTask`` (1e-6), until the target and the feet are within the tolerance, the time limit
-or a QP without solution.
+com_margin=margin, time_limit=..., method=...)`` for each of ``--methods`` (``lm``, the default: the
+compiled kernel with the balance hinges; ``nlp``: IPOPT with the balance inequalities; flat feet
+held as poses, point feet as positions). The C build of the ``lm`` kernel runs before the timed
+calls and is not timed (``--compile-wait``). Pink: ``pink.solve_ik`` iterated from the standing
+configuration (``dt = 1``, daqp) with a ``FrameTask`` for the target frame (cost 1), one per foot
+(cost 100; orientation cost 0 for point feet), a ``ComTask`` toward the standing centre of mass
+(``--pink-com-costs``, one Pink run per cost, 0 for none; Pink has no polygon constraint, so its CoM
+task holds the CoM near the middle of the feet, and pulls the target frame off by a cost-weighted
+compromise) and a ``PostureTask`` (1e-6), until the target and the feet are within the tolerance,
+the time limit or a QP without solution.
 
 Every answer is judged by Pinocchio, on its own model of the URDF: the target frame and the
 feet within ``--tol`` (position and geodesic angle; position only for point feet;

@@ -61,7 +61,7 @@ def test_contacts_hold_the_feet(quad, method):
     assert np.abs(m.fk(r.q, "torso")[:3, 3] - goal[:3, 3]).max() < 1e-6
 
 
-@pytest.mark.parametrize("method", ["lm", "nlp"])
+@pytest.mark.parametrize("method", ["lm", "nlp", "qp"])
 def test_balance_on_three_feet(quad, method):
     """Three feet hold, the fourth reaches out: the centre of mass must stay over the triangle
     of the three by the margin; without the balance rows the same reach leaves it outside
@@ -155,9 +155,53 @@ def test_the_humanoid_benchmark_runs(capsys):
     for robot in ("g1", "go2"):
         assert (
             bench_balance.main(
-                ["--robot", robot, "--n", "2", "--time-limit", "5", "--pink-com-costs", "0", "--methods", "nlp"]
+                [
+                    "--robot",
+                    robot,
+                    "--n",
+                    "2",
+                    "--time-limit",
+                    "5",
+                    "--pink-com-costs",
+                    "0",
+                    "--methods",
+                    "nlp",
+                ]
             )
             == 0
         )
         out = capsys.readouterr().out
         assert "| optik nlp + balance | 2/2 |" in out
+
+
+@pytest.mark.filterwarnings("ignore:Converted matrix")  # qpsolvers hands clarabel sparse copies
+@pytest.mark.parametrize("solver", ["daqp", "osqp", "cvxpy", "clarabel"])
+def test_a_qp_step_holds_the_balance_rows(quad, solver):
+    """One diffik.step toward the fourth foot's far reach: without ``support`` the step's
+    linearized centre of mass leaves the triangle of the held feet; with it every backend's
+    step satisfies ``G dq <= h`` (the rows of build_qp: N (c + J_com dq) <= b - margin)."""
+    if solver != "cvxpy":
+        pytest.importorskip(solver)
+    m, stand = quad
+    held = FEET[:3]
+    tasks = []
+    for f in held:
+        t = optik.diffik.PositionTask(f, cost=10.0)
+        t.set_target(m.fk(stand, f))
+        tasks.append(t)
+    reach = optik.diffik.PositionTask(FEET[3])
+    goal = m.fk(stand, FEET[3])
+    goal[:3, 3] += [-0.12, -0.06, 0.08]
+    reach.set_target(goal)
+    polygon = _hull(np.array([m.fk(stand, f)[:2, 3] for f in held]))
+    free = optik.diffik.step(m, stand, [*tasks, reach], 1.0, "qp", solver)
+    res = optik.diffik.step(m, stand, [*tasks, reach], 1.0, "qp", solver, support=polygon, com_margin=0.01)
+    g, h = res.problem.G, res.problem.h
+    assert g.shape == (3, m.n_q) and res.ok, res.message
+    assert np.any(g @ free.v > h + 1e-3)  # the free step leaves the polygon (linearized)
+    assert np.all(g @ res.v <= h + 1e-6)
+    n, b = support_halfplanes(polygon)
+    np.testing.assert_allclose(h, b - 0.01 - n @ m.com(stand)[:2], atol=1e-12)
+    np.testing.assert_allclose(g, n @ m.com_jacobian(stand)[:2], atol=1e-12)
+    with pytest.raises(InvalidArgumentError, match="support"):
+        optik.diffik.step(m, stand, tasks, 1.0, "dls", support=polygon)

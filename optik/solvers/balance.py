@@ -17,7 +17,11 @@ com_margin=0.01)``:
   n_i . c_xy(q) <= n_i . v_i - com_margin,      i = 1 ... k
   ```
 
-  These are inequality constraints of the IK NLP (`solve_balance`, method ``"nlp"``, IPOPT):
+  Method ``"lm"`` (the default) adds the hinges ``max(0, n_i . c_xy(q) - b_i + com_margin)``
+  to the compiled kernel's residual (`balance_problem`, with the active-set step of
+  `optik.solvers.lm_kernel.lm_iteration_function`); method ``"qp"`` puts the linearized rows
+  into each differential-IK step's QP (`optik.diffik.build_qp`); method ``"nlp"`` has them as
+  inequality constraints of the IK NLP (IPOPT):
 
   ```
   minimize_q  1/2 (|r_p|^2 + |r_o|^2) + 1/2 w_post |q - q_ref|^2     targets and contacts
@@ -49,14 +53,22 @@ from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
 from optik.problem import IKProblem, build_ik_problem, target_parameters
 from optik.results import IKResult
-from optik.solvers.base import IKRequest, make_result, method_options, restart_stop, start_points
+from optik.solvers.base import IKRequest, get_method, make_result, method_options, restart_stop, start_points
 from optik.solvers.lm import lm_settings, request_seed
 from optik.solvers.lm_kernel import STATUS, LMKernel
 from optik.targets import Position
 
-__all__ = ["BALANCE_METHODS", "BALANCE_TOL", "balance_problem", "compiled_kernels", "merge_contacts", "solve_balance", "support_halfplanes"]
+__all__ = [
+    "BALANCE_METHODS",
+    "BALANCE_TOL",
+    "balance_problem",
+    "compiled_kernels",
+    "merge_contacts",
+    "solve_balance",
+    "support_halfplanes",
+]
 
-BALANCE_METHODS = ("lm", "nlp")
+BALANCE_METHODS = ("lm", "nlp", "qp")
 """Methods that take ``support=`` (the first is the default)."""
 
 BALANCE_TOL = 1e-9
@@ -196,7 +208,9 @@ def _lm_kernel(request: IKRequest, k: int, closure_weight: float, compile: bool 
     if cached is not None:
         return cached
     problem, rows = balance_problem(request, k)
-    made = LMKernel(m, request.task, request.frame, closure_weight, compile, problem=problem, inequalities=rows)
+    made = LMKernel(
+        m, request.task, request.frame, closure_weight, compile, problem=problem, inequalities=rows
+    )
     with _SOLVERS_LOCK:
         return _SOLVERS[m].setdefault(key, made)
 
@@ -264,13 +278,26 @@ def solve_balance(request: IKRequest, support: Any, com_margin: Any, method: str
         method = BALANCE_METHODS[0]
     if method not in BALANCE_METHODS:
         raise SolverUnavailableError(
-            f"method {method!r} does not take support= (the balance constraints); use one of {BALANCE_METHODS}, "
-            "or contacts alone, which every method that takes several targets holds"
+            f"method {method!r} does not take support= (the balance constraints); use one of "
+            f"{BALANCE_METHODS}, or contacts alone, which every method that takes several targets holds"
         )
     normals, b = support_halfplanes(support)
     margin = as_float(com_margin, "com_margin", minimum=0.0)
+    if method == "qp":
+        return _solve_qp(request, support, normals, b, margin)
     solve = _solve_lm if method == "lm" else _solve_nlp
     return solve(request, normals, b, margin)
+
+
+def _solve_qp(
+    request: IKRequest, support: Any, normals: np.ndarray, b: np.ndarray, margin: float
+) -> IKResult:
+    """Method ``"qp"`` (iterated differential IK, `optik.diffik.ik`) with the balance rows as each
+    step's QP inequalities; the answer judged again with the exact balance check."""
+    options = {**request.options, "support": support, "com_margin": margin}
+    res = get_method("qp").solve(dataclasses.replace(request, options=options))
+    status = None if res.success else res.status
+    return _judged(request, res.q, "qp", res.iterations, res.restarts, normals, b, margin, status)
 
 
 def _solve_lm(request: IKRequest, normals: np.ndarray, b: np.ndarray, margin: float) -> IKResult:
@@ -286,8 +313,12 @@ def _solve_lm(request: IKRequest, normals: np.ndarray, b: np.ndarray, margin: fl
     params = np.concatenate(
         [target_parameters(request.target), halfplane_parameters(normals, b, margin + LM_BUFFER)]
     )
-    q, _, iterations, restarts, code = k.run_one(params, request.q0, request_seed(request.seed) & (2**64 - 1), conf)
-    return _judged(request, q, "lm", iterations, restarts, normals, b, margin, None if code == 0 else STATUS[code])
+    q, _, iterations, restarts, code = k.run_one(
+        params, request.q0, request_seed(request.seed) & (2**64 - 1), conf
+    )
+    return _judged(
+        request, q, "lm", iterations, restarts, normals, b, margin, None if code == 0 else STATUS[code]
+    )
 
 
 def _solve_nlp(request: IKRequest, normals: np.ndarray, b: np.ndarray, margin: float) -> IKResult:

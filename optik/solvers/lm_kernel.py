@@ -106,7 +106,9 @@ def lm_iteration_function(
             sg = closure_weight**2 * active * g
             b = x0 - ca.mtimes(y, sg)
             small = ca.SX.eye(k) + ca.mtimes(ca.mtimes(u.T, y), ca.diag(closure_weight**2 * active))
-            return b - ca.mtimes(ca.mtimes(y, ca.diag(closure_weight**2 * active)), ca.solve(small, ca.mtimes(u.T, b)))
+            return b - ca.mtimes(
+                ca.mtimes(y, ca.diag(closure_weight**2 * active)), ca.solve(small, ca.mtimes(u.T, b))
+            )
 
         violated = g > 0
         dq1 = working_step(violated)

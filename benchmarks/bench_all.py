@@ -2,12 +2,13 @@
 
 ``optik benchmark all --out DIR`` runs the benchmarks of `RUNS` one after the other, each in a
 fresh Python process (``python -m optik.benchmarks.bench_NAME``) whose BLAS and OpenMP thread
-pools are pinned to one thread through the environment (``OMP_NUM_THREADS=1`` etc., which a
-library reads when it loads: a benchmark started from the ``optik`` command has numpy loaded
-before its own pinning), with full settings or the smaller ``--quick`` ones; it captures what
+pools are pinned to one thread through the environment (`optik.benchmarks.PINNED`, as for a
+single ``optik benchmark NAME``), with full settings or the smaller ``--quick`` ones; an
+argument ``{out}`` is the folder ``DIR`` (a figure written beside the tables); it captures what
 each prints and writes:
 
-* ``DIR/NAME.md`` per benchmark: a header with the date (UTC), the commit of the source tree
+* ``DIR/KEY.md`` per run (``KEY``: the benchmark's name, or `Run.page` for a benchmark run
+  twice): a header with the date (UTC), the commit of the source tree
   (``git describe``; ``+ uncommitted changes`` when the tree differs from it), the machine
   (platform, CPU count, Python), the load average before and after, the exact command, and the
   benchmark's own output (its tables are Markdown);
@@ -20,7 +21,8 @@ to ``FILE``), so that the README's "Measured" section is generated, never hand-c
 is written atomically (a temporary file in the same folder, then ``os.replace``).
 
 Run: ``optik benchmark all --out docs/measured [--quick] [--only ik,batch] [--readme README.md]
-[--fksgp DIR]``.
+[--fksgp DIR]``. ``--only`` takes benchmark names or page names (``balance`` selects both of
+its pages, ``balance_go2`` one). How long a sitting takes is in docs/benchmarks.md.
 """
 
 from __future__ import annotations
@@ -38,6 +40,8 @@ from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 
+from optik import benchmarks
+
 __all__ = ["RUNS", "Run", "headline", "main", "markdown_tables", "replace_between_markers"]
 
 START, END = "<!-- measured:start -->", "<!-- measured:end -->"
@@ -53,6 +57,10 @@ class Run:
         full, quick: its arguments in a full and in a quick sitting.
         table: which Markdown table of its output is the headline (0: the first).
         rows: keep only the rows containing one of these strings (empty: every row).
+        page: the generated page ``DIR/PAGE.md`` (empty: ``NAME``), for a benchmark run twice
+            with different arguments.
+        in_readme: its headline goes into the README's section too (else only into
+            ``DIR/index.md``; the docs pages that quote it link to its page).
     """
 
     name: str
@@ -61,7 +69,17 @@ class Run:
     quick: tuple[str, ...]
     table: int = 0
     rows: tuple[str, ...] = field(default_factory=tuple)
+    page: str = ""
+    in_readme: bool = True
 
+    @property
+    def key(self) -> str:
+        """The page's name (``DIR/KEY.md``) and the name ``--only`` selects it by."""
+        return self.page or self.name
+
+
+COUNTS_PLOT = ("--plot", "{out}/general_6r_counts.png")
+"""The general 6R page's histogram of real-solution counts, drawn beside the tables."""
 
 RUNS: tuple[Run, ...] = (
     Run(
@@ -147,6 +165,64 @@ RUNS: tuple[Run, ...] = (
             "--moves",
             "20",
         ),
+    ),
+    Run(
+        "general_6r",
+        "General 6R arms, all solutions: the eigenvalue solver against ik-geo and multi-start lm",
+        ("--arms", "200", "--poses", "5", "--multistart-arms", "20", "--special", "20", *COUNTS_PLOT),
+        ("--arms", "10", "--poses", "2", "--multistart-arms", "2", "--special", "2", *COUNTS_PLOT),
+        in_readme=False,
+    ),
+    Run(
+        "search_1d",
+        "6R arms special at one or both ends: the 1-D search against the general 6R solver and ik-geo",
+        ("--arms", "20", "--poses", "50", "--geometries", "all"),
+        ("--arms", "2", "--poses", "5", "--geometries", "all"),
+        in_readme=False,
+    ),
+    Run(
+        "two_hands",
+        "Dual Panda, both hands at once: optik's solvers against Pink",
+        ("--n", "200"),
+        ("--n", "20"),
+        in_readme=False,
+    ),
+    Run(
+        "balance",
+        "Whole-body IK with balance, Unitree G1 hand reach: optik nlp against Pink",
+        ("--n", "50"),
+        ("--n", "5"),
+        page="balance_g1",
+        in_readme=False,
+    ),
+    Run(
+        "balance",
+        "Whole-body IK with balance, Unitree Go2 base pose: optik nlp against Pink",
+        ("--robot", "go2", "--n", "30", "--pink-com-costs", "1e-4,0"),
+        ("--robot", "go2", "--n", "5", "--pink-com-costs", "1e-4,0"),
+        page="balance_go2",
+        in_readme=False,
+    ),
+    Run(
+        "collision",
+        "Collision-free IK, Panda in clutter: optik against TRAC-IK + coal rejection",
+        ("--n", "100", "--time-limit", "0.05"),
+        ("--n", "10", "--time-limit", "0.05"),
+        in_readme=False,
+    ),
+    Run(
+        "mjcf_fk",
+        "MJCF models: optik's FK against MuJoCo's mj_kinematics",
+        ("--n", "200"),
+        ("--n", "20", "--max-models", "5"),
+        in_readme=False,
+    ),
+    Run(
+        "time_limits",
+        "Time limits: how far past its time_limit each solver returns",
+        ("--calls", "1000"),
+        ("--calls", "20"),
+        in_readme=False,
     ),
 )
 """The benchmarks the README and the docs quote, in the order they run."""
@@ -248,11 +324,6 @@ class Outcome:
     started: str
 
 
-PINNED = {name: "1" for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
-"""Thread pools of the benchmark processes: one thread each (the benchmarks' own threads and
-processes are their ``--workers``)."""
-
-
 def run_one(run: Run, argv: Sequence[str]) -> Outcome:
     """Run one benchmark in a fresh process, its standard output captured (its standard error
     passes through; a crash is its output and exit code)."""
@@ -261,10 +332,10 @@ def run_one(run: Run, argv: Sequence[str]) -> Outcome:
     before = load_average()
     t0 = time.perf_counter()
     proc = subprocess.run(
-        [sys.executable, "-m", f"optik.benchmarks.bench_{run.name}", *argv],
+        benchmarks.command(run.name, argv),
         stdout=subprocess.PIPE,
         text=True,
-        env={**os.environ, **PINNED},
+        env=benchmarks.pinned_environment(),
         check=False,
     )
     seconds = time.perf_counter() - t0
@@ -287,24 +358,87 @@ def page(o: Outcome, commit: str) -> str:
     )
 
 
-def summary(outcomes: Sequence[Outcome], commit: str, command: str, link_prefix: str) -> str:
-    """The headline section: the sitting's header, then per benchmark its command, a link to its
-    page (``link_prefix + NAME.md``) and its headline table."""
-    loads = (
-        f"{outcomes[0].load_before} at the start, {outcomes[-1].load_after} at the end" if outcomes else "n/a"
+HEADER = re.compile(
+    r"^Run (?P<started>[^,]+), commit `(?P<commit>[^`]*)`, (?P<machine>[^;]+); load average "
+    r"(?P<before>[^;]+?) before, (?P<after>[^;]+?) after; (?P<seconds>\d+) s; exit code (?P<code>-?\d+)",
+    re.MULTILINE,
+)
+"""The header line `page` writes."""
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One generated page read back: its run, the header's fields and the benchmark's output."""
+
+    run: Run
+    command: str
+    started: str
+    commit: str
+    machine: str
+    load_before: str
+    load_after: str
+    seconds: int
+    code: int
+    output: str
+
+
+def read_page(run: Run, text: str) -> Entry | None:
+    """The `Entry` of a page `page` wrote, or None for a page of another form (hand-made, damaged)."""
+    head, command = HEADER.search(text), re.search(r"^Command: `([^`]*)`$", text, re.MULTILINE)
+    if head is None or command is None:
+        return None
+    return Entry(
+        run,
+        command.group(1),
+        head["started"],
+        head["commit"],
+        head["machine"],
+        head["before"],
+        head["after"],
+        int(head["seconds"]),
+        int(head["code"]),
+        text[command.end() :],
     )
-    started = outcomes[0].started if outcomes else "-"
+
+
+def read_pages(folder: Path, runs: Sequence[Run] = RUNS) -> list[Entry]:
+    """The entries of every run of ``runs`` whose page ``folder/KEY.md`` exists and reads back,
+    in the order of ``runs``; a page that does not read back is left out with a warning."""
+    entries = []
+    for run in runs:
+        path = folder / f"{run.key}.md"
+        if not path.is_file():
+            continue
+        entry = read_page(run, path.read_text(encoding="utf-8"))
+        if entry is None:
+            print(f"warning: {path} does not read back as a generated page: left out", file=sys.stderr)
+        else:
+            entries.append(entry)
+    return entries
+
+
+def summary(entries: Sequence[Entry], command: str, link_prefix: str) -> str:
+    """The headline section: the command that wrote it and the machine, then per page its title,
+    command, link (``link_prefix + KEY.md``), run (date, commit, load average before and after)
+    and headline table. The pages may come from several sittings (``--only``): each says its own."""
+    machines = sorted({e.machine for e in entries})
+    where = f" on {machines[0]}" if len(machines) == 1 else ""
     lines = [
-        f"Generated by `{command}` on {started}, commit `{commit}`, {machine()}; "
-        f"load average {loads}. Every peer gets what optik gets (the rules of "
-        "`optik.harness.peers.rules`); success is re-checked by one independent FK.",
+        f"Generated by `{command}`{where}: the headline of every page of the folder, each page "
+        "with its own run (a sitting with `--only` rewrites only its pages). Every peer gets what "
+        "optik gets (the rules of `optik.harness.peers.rules`); success is re-checked by one independent FK. "
+        f"The {len(entries)} runs took {sum(e.seconds for e in entries)} s together.",
         "",
     ]
-    for o in outcomes:
+    for e in entries:
+        machine_note = f", {e.machine}" if len(machines) > 1 else ""
+        failed = f"; exit code {e.code}" if e.code else ""
         lines += [
-            f"**{o.run.title}**: `{o.command}` ([full output]({link_prefix}{o.run.name}.md))",
+            f"**{e.run.title}**: `{e.command}` ([full output]({link_prefix}{e.run.key}.md)); run "
+            f"{e.started}, commit `{e.commit}`{machine_note}, load average {e.load_before} before, "
+            f"{e.load_after} after, {e.seconds} s{failed}",
             "",
-            *headline(o.run, o.output),
+            *headline(e.run, e.output),
             "",
         ]
     return "\n".join(lines)
@@ -319,7 +453,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--readme", type=Path, help="replace this file's measured section (between the markers)")
     ap.add_argument("--fksgp", help="folder of a fkSGP checkout, passed to parallel_fk")
     args = ap.parse_args(argv)
-    names = [r.name for r in RUNS]
+    names = sorted({r.name for r in RUNS} | {r.key for r in RUNS})
     only = names if not args.only else [s.strip() for s in args.only.split(",") if s.strip()]
     unknown = sorted(set(only) - set(names))
     if unknown:
@@ -329,23 +463,28 @@ def main(argv: Sequence[str] | None = None) -> int:
     command = " ".join(["optik benchmark all", *(argv if argv is not None else sys.argv[1:])])
     commit = source_commit()
     outcomes = []
+    started = time.perf_counter()
     for run in RUNS:
-        if run.name not in only:
+        if run.name not in only and run.key not in only:
             continue
         extra = ("--fksgp", args.fksgp) if run.name == "parallel_fk" and args.fksgp else ()
-        outcome = run_one(run, [*(run.quick if args.quick else run.full), *extra])
-        write_atomic(args.out / f"{run.name}.md", page(outcome, commit))
-        print(f"{run.name}: exit code {outcome.code}, {outcome.seconds:.0f} s", flush=True)
+        settings = [a.format(out=args.out) for a in (run.quick if args.quick else run.full)]
+        outcome = run_one(run, [*settings, *extra])
+        write_atomic(args.out / f"{run.key}.md", page(outcome, commit))
+        print(f"{run.key}: exit code {outcome.code}, {outcome.seconds:.0f} s", flush=True)
         outcomes.append(outcome)
+    print(f"the sitting took {time.perf_counter() - started:.0f} s", flush=True)
+    entries = read_pages(args.out)
     write_atomic(
         args.out / "index.md",
         "# Measured\n\n<!-- generated by `optik benchmark all`; do not edit -->\n\n"
-        + summary(outcomes, commit, command, ""),
+        + summary(entries, command, ""),
     )
     if args.readme is not None:
         prefix = os.path.relpath(args.out.resolve(), args.readme.resolve().parent).replace(os.sep, "/") + "/"
         text = args.readme.read_text(encoding="utf-8")
-        write_atomic(args.readme, replace_between_markers(text, summary(outcomes, commit, command, prefix)))
+        quoted = [e for e in entries if e.run.in_readme]
+        write_atomic(args.readme, replace_between_markers(text, summary(quoted, command, prefix)))
     print(f"wrote {len(outcomes) + 1} files into {args.out}")
     return 0 if all(o.code == 0 for o in outcomes) else 1
 

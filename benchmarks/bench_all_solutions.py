@@ -36,9 +36,10 @@ solutions that no valid EAIK solution matches. The checks run on every pose of t
 
 Before timing, each arm's single-target kernel is built and compiled to C and each peer solves
 one pose (untimed warm-up for every solver). Times: mean / median / p95 per pose of every solver,
-the ratio of medians (optik / peer), and optik's vectorized throughput (``DerivedIK.solve`` on
-all ``--n`` targets at once: every branch, FK-checked and deduplicated, no limit filter) in
-targets per second.
+the ratio of medians (optik / peer). Then all ``--n`` targets at once, per pose, in
+`BATCH_RUNS` interleaved runs: ``optik.solve_ik_all_batch(m, targets)`` (one C call; every row of
+its answer is FK- and limit-checked as above and compared with the single calls' answer) against
+EAIK's ``calculate_IK`` in a Python loop and EAIK's ``calculate_IK_batched`` on one thread.
 
 Run: ``optik benchmark all_solutions [--n 1000] [--seed 0] [--out report.md]`` (or
 ``python -m optik.benchmarks.bench_all_solutions``).
@@ -78,6 +79,8 @@ try:  # an optional peer
 except ImportError:  # pragma: no cover - depends on the environment
     eaik_dh = eaik_urdf = None
 
+BATCH_RUNS = 5
+"""Interleaved runs of the whole-batch timings (median per pose reported)."""
 SAME = 1e-4
 """Joint distance under which two solutions are the same (the same-branch rule)."""
 FK_TOL = 1e-6
@@ -203,7 +206,11 @@ class Row:
     duplicates: int = 0
     extra: int = 0
     outside_limits: int = 0
-    throughput: float = 0.0
+    batch_times: list[float] = field(default_factory=list)
+    eaik_loop_times: list[float] = field(default_factory=list)
+    eaik_batched_times: list[float] = field(default_factory=list)
+    batch_failed_check: int = 0
+    batch_differs: int = 0
 
 
 def _stats(times: list[float]) -> tuple[float, float, float]:
@@ -265,12 +272,32 @@ def run_arm(m: Mechanism, n: int, seed: int) -> Row:
         row.found += sum(any(joint_distance(m, v, o) < SAME for o in ours) for v in valid)
         if robot is not None:
             row.extra += sum(all(joint_distance(m, o, v) >= SAME for v in valid) for o in ours)
-    if solver is not None:
-        solver.solve(targets[:10])
-        t0 = time.perf_counter()
-        solver.solve(targets)
-        row.throughput = n / (time.perf_counter() - t0)
+    _run_batches(m, row, targets, robot, list(theirs_targets))
     return row
+
+
+def _run_batches(m: Mechanism, row: Row, targets: np.ndarray, robot: object, theirs: list) -> None:
+    """All targets at once, per pose: optik's ``solve_ik_all_batch`` (one C call), EAIK's
+    ``calculate_IK`` looped in Python and its ``calculate_IK_batched`` on 1 thread, interleaved
+    over `BATCH_RUNS` runs; every row of optik's answer is checked (FK and limits) and compared
+    with the single calls'."""
+    optik.solve_ik_all_batch(m, targets[:10])  # warm-up, as the peers'
+    for _ in range(BATCH_RUNS):
+        t0 = time.perf_counter()
+        batch = optik.solve_ik_all_batch(m, targets)
+        row.batch_times.append((time.perf_counter() - t0) / len(targets))
+        if robot is not None:
+            t0 = time.perf_counter()
+            for t in theirs:
+                robot.calculate_IK(t)
+            row.eaik_loop_times.append((time.perf_counter() - t0) / len(targets))
+            t0 = time.perf_counter()
+            robot.calculate_IK_batched(theirs, 1)
+            row.eaik_batched_times.append((time.perf_counter() - t0) / len(targets))
+    for i, t in enumerate(targets):  # the last run's answer, every row
+        rows = batch[i].q
+        row.batch_failed_check += len(rows) - len(_valid(m, rows, t))
+        row.batch_differs += not np.array_equal(rows, optik.solve_ik_all(m, t).q)
 
 
 def report(rows: list[Row], notes: list[str], command: str) -> str:
@@ -282,8 +309,8 @@ def report(rows: list[Row], notes: list[str], command: str) -> str:
         "| failed FK/limit check | extra | optik mean / median / p95 | EAIK mean / median / p95 "
         "| ratio of means / medians (optik / EAIK) | ik-geo solutions in limits | found by optik "
         "| ik-geo mean / median / p95 | ratio of means / medians (optik / ik-geo) "
-        "| IKResult objects (mean) | vectorized (targets/s) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| IKResult objects (mean) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         om, omed, op95 = _stats(r.optik_times)
@@ -308,8 +335,30 @@ def report(rows: list[Row], notes: list[str], command: str) -> str:
             f"| {r.optik_solutions} | {r.duplicates} | {r.optik_failed_check} "
             f"| {r.extra if r.eaik_times else '-'} "
             f"| {om:.1f} / {omed:.1f} / {op95:.1f} | {peer} | {ratio} | {geo} "
-            f"| {_stats(r.results_times)[0]:.1f} "
-            f"| {r.throughput:,.0f} |"
+            f"| {_stats(r.results_times)[0]:.1f} |"
+        )
+    lines += [
+        "",
+        f"All poses in one call (per pose in us, median of {BATCH_RUNS} interleaved runs; optik's rows "
+        "each FK- and limit-checked and compared with its single calls):",
+        "",
+        "| arm | optik `solve_ik_all_batch` | EAIK `calculate_IK` looped "
+        "| EAIK `calculate_IK_batched` (1 thread) "
+        "| ratio (optik / looped, / batched) | optik single call (median) | EAIK single call (median) "
+        "| failed FK/limit check | differs from single calls |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        b = 1e6 * float(np.median(r.batch_times))
+        single, theirs = _stats(r.optik_times)[1], (_stats(r.eaik_times)[1] if r.eaik_times else None)
+        if r.eaik_loop_times:
+            loop, batched = (1e6 * float(np.median(x)) for x in (r.eaik_loop_times, r.eaik_batched_times))
+            peer = f"{loop:.2f} | {batched:.2f} | {b / loop:.2f} / {b / batched:.2f}"
+        else:
+            peer = "EAIK not installed | - | -"
+        lines.append(
+            f"| {r.name} | {b:.2f} | {peer} | {single:.2f} "
+            f"| {'-' if theirs is None else f'{theirs:.2f}'} | {r.batch_failed_check} | {r.batch_differs} |"
         )
     lines += ["", *(f"- {note}" for note in notes)]
     lines.append(
@@ -354,6 +403,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         and r.ikgeo_found == r.ikgeo_valid
         and r.duplicates == 0
         and r.optik_failed_check == 0
+        and r.batch_failed_check == 0
+        and r.batch_differs == 0
         for r in rows
     )
     return 0 if ok else 1

@@ -53,6 +53,7 @@ from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.catalog.arms import URDF_CHAINS, urdf_path  # noqa: E402
 from optik.harness.peers import PeerUnavailable, TracIK  # noqa: E402
 from optik.harness.peers.rules import Referee, warm_up  # noqa: E402
+from optik.harness.tally import timing_ms  # noqa: E402
 from optik.solvers.lm_kernel import target_seeds  # noqa: E402
 
 
@@ -251,8 +252,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         verdicts = [referee.judge(q, t, tolerances) for q, t in zip(answers[name], targets, strict=True)]
         ok = 100.0 * float(np.mean([v.success for v in verdicts]))
         over = max(v.overshoot for v in verdicts)
-        per_target = 1e6 * np.asarray(walls[name]) / np.asarray([b - a for a, b in blocks])
-        mean, median, p95 = per_target.mean(), np.median(per_target), np.percentile(per_target, 95)
+        per_target = np.asarray(walls[name]) / np.asarray([b - a for a, b in blocks])  # s
+        mean, median, p95 = (1e3 * ms for ms in timing_ms(per_target))  # us
         peer = same_cores[name]
         ratio = f"{rate[name] / rate[peer]:.2f}" if peer in rate else "-"
         print(

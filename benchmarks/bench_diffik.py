@@ -31,6 +31,7 @@ import numpy as np
 import optik
 from optik import diffik, native, spatial
 from optik.benchmarks import benchmark_parser
+from optik.harness.tally import timing_ms
 
 Stepper = Callable[[np.ndarray, np.ndarray], Callable[[], np.ndarray]]
 """``(q0, goal) -> step()``: prepares a run to one goal; each ``step()`` returns the new ``q``."""
@@ -134,11 +135,11 @@ def pink_stepper(urdf: str, tip: str, dt: float, solver: str) -> Stepper:
 
 
 def _stats(row: Row, n_goals: int, ref: float | None) -> str:
-    t = np.array(row.times) * 1e6
-    ratio = f"{np.median(t) / ref:6.2f}" if ref else "     -"
+    mean, median, p95 = (1e3 * ms for ms in timing_ms(row.times))  # us
+    ratio = f"{median / ref:6.2f}" if ref else "     -"
     steps = f"{np.mean(row.steps_to_goal):7.1f}" if row.steps_to_goal else "      -"
     return (
-        f"| {row.name:<24} | {np.median(t):9.1f} | {np.mean(t):9.1f} | {np.percentile(t, 95):9.1f} "
+        f"| {row.name:<24} | {median:9.1f} | {mean:9.1f} | {p95:9.1f} "
         f"| {ratio} | "
         f"{row.converged:3d}/{n_goals:<3d} | {steps} | {row.violations:5d} | {row.setup * 1e3:8.1f} |"
     )

@@ -57,6 +57,7 @@ import optik  # noqa: E402
 from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.closed_form.general_6r import General6R, covers, solve_general_6r  # noqa: E402
 from optik.closed_form.structure import axes_of  # noqa: E402
+from optik.harness.tally import timing_ms  # noqa: E402
 from optik.mechanism import Mechanism, dh_chain  # noqa: E402
 from optik.spatial import angle_distance  # noqa: E402
 
@@ -169,12 +170,12 @@ def run(arms: int, poses: int, multistart_arms: int, seed: int, plot: str | None
     )
     print("|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|")
     for name, t in tallies.items():
-        ms = np.asarray(t.times) * 1e3
+        mean, median, p95 = timing_ms(t.times)
         share = 100.0 * t.found_of_ours / max(t.ours, 1)
         print(
             f"| {name} | {len(t.times)} | {100.0 * t.round_trips / len(t.times):.1f} | "
-            f"{t.solutions / len(t.times):.2f} | {share:.1f} % | {t.extra} | {ms.mean():.3f} | "
-            f"{np.median(ms):.3f} | {np.percentile(ms, 95):.3f} | {ms.mean() / 1e3 / base:.2f} |"
+            f"{t.solutions / len(t.times):.2f} | {share:.1f} % | {t.extra} | {mean:.3f} | "
+            f"{median:.3f} | {p95:.3f} | {mean / 1e3 / base:.2f} |"
         )
     print(
         f"\nCount check passed on {count_ok} of {n} targets; largest FK error of a returned solution "

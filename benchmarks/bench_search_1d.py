@@ -51,6 +51,7 @@ from optik.closed_form.derived import chain_axes, derive  # noqa: E402
 from optik.closed_form.general_6r import covers, solve_general_6r  # noqa: E402
 from optik.closed_form.search_1d import search_of, solve_search_1d  # noqa: E402
 from optik.closed_form.structure import intersection  # noqa: E402
+from optik.harness.tally import timing_ms  # noqa: E402
 from optik.mechanism import Mechanism, dh_chain  # noqa: E402
 from optik.spatial import angle_distance  # noqa: E402
 
@@ -241,7 +242,7 @@ def run_geometry(
     for name, t in tallies.items():
         if not t.targets:
             continue
-        ts = np.array(t.times) * 1e3
+        mean, median, p95 = timing_ms(t.times)
         cells = [
             name,
             f"{t.targets}",
@@ -250,10 +251,10 @@ def run_geometry(
             f"{100.0 * t.of_union / max(t.union, 1):.1f}",
             f"{t.duplicates}",
             f"{t.failed_check}",
-            f"{ts.mean():.3f}",
-            f"{np.median(ts):.3f}",
-            f"{np.percentile(ts, 95):.3f}",
-            f"{ts.mean() / 1e3 / base:.2f}",
+            f"{mean:.3f}",
+            f"{median:.3f}",
+            f"{p95:.3f}",
+            f"{mean / 1e3 / base:.2f}",
         ]
         print("| " + " | ".join(cells) + " |")
 

@@ -10,11 +10,15 @@ from optik.benchmarks.bench_all import (
     END,
     RUNS,
     START,
+    Outcome,
     Run,
     headline,
     main,
     markdown_tables,
+    page,
+    read_pages,
     replace_between_markers,
+    summary,
 )
 
 OUTPUT = """intro line
@@ -33,11 +37,41 @@ text
 """
 
 
+QUOTED = (
+    *("ik", "batch", "all_solutions", "robots", "parallel_fk", "diffik", "first_solve", "closed_form"),
+    *("path", "view", "general_6r", "search_1d", "two_hands", "collision", "mjcf_fk", "time_limits"),
+)
+"""The benchmarks whose figures README and docs quote (docs/benchmarks.md, the solver pages)."""
+
+
 def test_every_run_is_a_benchmark_and_the_quoted_ones_are_all_there():
-    names = [r.name for r in RUNS]
-    assert set(names) <= set(available()) and len(set(names)) == len(names)
-    for quoted in ("ik", "batch", "all_solutions", "robots", "parallel_fk", "diffik", "first_solve"):
-        assert quoted in names
+    names, keys = {r.name for r in RUNS}, [r.key for r in RUNS]
+    assert names <= set(available()) and len(set(keys)) == len(keys)
+    assert set(QUOTED) <= names
+    assert {"balance_g1", "balance_go2"} <= set(keys)  # one benchmark, two pages
+
+
+def _outcome(run: Run, output: str, code: int = 0) -> Outcome:
+    return Outcome(
+        run, f"optik benchmark {run.name} --n 1", output, code, 3.0, "1.0 2.0 3.0", "4.0 5.0 6.0", "D"
+    )
+
+
+def test_the_index_holds_every_page_of_the_folder_each_with_its_own_run(tmp_path, capsys):
+    first, second, absent = RUNS[0], RUNS[2], RUNS[1]
+    (tmp_path / f"{first.key}.md").write_text(page(_outcome(first, OUTPUT), "abc1234"), encoding="utf-8")
+    (tmp_path / f"{second.key}.md").write_text(page(_outcome(second, OUTPUT, 1), "def5678"), encoding="utf-8")
+    (tmp_path / f"{RUNS[3].key}.md").write_text("# hand-made page\n| a |\n|---|\n", encoding="utf-8")
+    entries = read_pages(tmp_path)
+    assert [e.run.key for e in entries] == [first.key, second.key]  # the order of RUNS
+    assert "does not read back" in capsys.readouterr().err  # the hand-made page, left out and said
+    assert (entries[0].commit, entries[0].load_before, entries[0].code) == ("abc1234", "1.0 2.0 3.0", 0)
+    assert entries[1].code == 1 and entries[0].command == f"optik benchmark {first.name} --n 1"
+    text = summary(entries, "optik benchmark all --out x", "measured/")
+    assert f"([full output](measured/{first.key}.md)); run D, commit `abc1234`" in text
+    assert "load average 1.0 2.0 3.0 before, 4.0 5.0 6.0 after, 3 s; exit code 1" in text
+    assert "The 2 runs took 6 s together." in text
+    assert text.count("| x | 1 |") == 2 and "| all 3 | 2 |" in text and absent.title not in text
 
 
 def test_tables_and_headline_rows_are_read_from_the_output():

@@ -357,6 +357,22 @@ def test_redundant_arm_over_self_motion_samples(panda_line):
     independent_checks(m, smooth, poses)
 
 
+def test_refinement_nlp_is_cached_with_the_poses_as_parameters(panda_line):
+    """A second path of the same length reuses the built NLP and meets its own poses (not the
+    first path's: the poses are parameters, not constants of the build)."""
+    m, poses = panda_line
+    values = np.linspace(-2.8, 2.8, 15)
+    first = optik.plan_path(m, poses, self_motion=("q7", values), smooth=True)
+    built = optik.path.redundant.refiner(m, None, len(poses), 1e-6)
+    shifted = poses.copy()
+    shifted[:, :3, 3] += [0.0, 0.0, -0.05]
+    second = optik.plan_path(m, shifted, self_motion=("q7", values), smooth=True)
+    assert optik.path.redundant.refiner(m, None, len(poses), 1e-6) is built
+    for path, want in ((first, poses), (second, shifted)):
+        assert path.success and "refined from" in path.message, path.message
+        independent_checks(m, path, want)
+
+
 def test_redundant_arm_bad_input(panda_line):
     m, poses = panda_line
     for value in [("q9", [0.0]), ("q7", [5.0]), "q7"]:

@@ -25,12 +25,12 @@ from typing import Any
 import numpy as np
 
 from optik.batch import fk_batch
-from optik.checks import as_float, as_int, as_name, as_transform, as_vector, real_array
+from optik.checks import ORTHO_DIAG, ORTHO_OFF, as_float, as_int, as_name, as_transform, as_vector, real_array
 from optik.collision import World, check_many
 from optik.errors import InvalidArgumentError, ShapeError
 from optik.mechanism import Mechanism
-from optik.path.densify import deviation, midpoints
-from optik.path.graph import branch_changes, least_motion
+from optik.path.densify import midpoints, tool_deviation
+from optik.path.graph import Layered, branch_changes, least_motion
 from optik.path.nodes import realize, turn_copies, wrapping
 from optik.path.redundant import refine
 from optik.path.result import JointPath
@@ -45,9 +45,24 @@ rounding)."""
 
 
 def _poses(poses: Any) -> np.ndarray:
+    """The poses ``(N, 4, 4)``, each a proper transform: checked at once to `as_transform`'s
+    tolerances, and pose by pose (its error naming the first bad one) when that fails."""
     a = real_array(poses, "poses")
     if a.ndim != 3 or a.shape[1:] != (4, 4) or len(a) == 0:
         raise ShapeError("poses", f"expected N >= 1 transforms of shape (N, 4, 4), got {a.shape}")
+    r = a[:, :3, :3]
+    gram = np.einsum("nji,njk->nik", r, r) - np.eye(3)
+    off = np.abs(gram - np.einsum("nii->ni", gram)[:, :, None] * np.eye(3))
+    ok = (
+        np.isfinite(a).all()
+        and np.all(np.abs(a[:, 3, :3]) <= 1e-9)
+        and np.all(np.abs(a[:, 3, 3] - 1.0) <= 1e-9 + 1e-5)
+        and np.all(np.abs(np.einsum("nii->ni", gram)) <= ORTHO_DIAG)
+        and np.all(off <= ORTHO_OFF)
+        and np.all(np.linalg.det(r) >= 0.0)
+    )
+    if ok:
+        return np.array(a)
     return np.stack([as_transform(t, f"poses[{k}]") for k, t in enumerate(a)])
 
 
@@ -106,17 +121,14 @@ def _self_motion(m: Mechanism, value: Any) -> tuple[int, np.ndarray] | None:
 
 
 def _free_of_collisions(
-    m: Mechanism, solutions: list[np.ndarray], world: World | None, margin: float
-) -> tuple[list[np.ndarray], list[np.ndarray], int]:
-    """The solutions free of collisions with ``world`` and with the robot itself (all of them
-    without a world), the masks kept, and how many were dropped."""
-    keep = [np.ones(len(s), dtype=bool) for s in solutions]
-    stacked = np.concatenate(solutions)
-    if world is None or not len(stacked):
-        return solutions, keep, 0
-    free = ~check_many(m, stacked, world=world, margin=margin).in_collision
-    keep = np.split(free, np.cumsum([len(s) for s in solutions])[:-1])
-    return [s[k] for s, k in zip(solutions, keep, strict=True)], keep, int(np.count_nonzero(~free))
+    m: Mechanism, solutions: Layered, world: World | None, margin: float
+) -> tuple[np.ndarray | None, int]:
+    """Which nodes are free of collisions with ``world`` and with the robot itself ``(M,)``
+    (None without a world: all of them), and how many are not."""
+    if world is None or not len(solutions.data):
+        return None, 0
+    free = ~check_many(m, solutions.data, world=world, margin=margin).in_collision
+    return free, int(np.count_nonzero(~free))
 
 
 def check_path(
@@ -131,12 +143,14 @@ def check_path(
     acceleration: np.ndarray | None,
     free_axis: str | None = None,
     position_tolerance: np.ndarray | None = None,
+    fk: np.ndarray | None = None,
 ) -> dict[str, bool]:
     """The checks of a path recomputed from its samples alone: FK of every sample against its
     target pose (the position within ``position_tolerance`` more, only the direction of the free
     axis when there is one), joint limits, segment velocities ``|dq| / dt`` against ``velocity``
-    and accelerations against ``acceleration`` (when given)."""
-    fk = fk_batch(m, q, frame)
+    and accelerations against ``acceleration`` (when given). ``fk``: the poses of ``q`` when
+    already computed (`optik.path.densify.tool_deviation`)."""
+    fk = fk_batch(m, q, frame) if fk is None else fk
     pos = np.linalg.norm(fk[:, :3, 3] - targets[:, :3, 3], axis=1)
     if position_tolerance is not None:
         pos = np.maximum(pos - position_tolerance, 0.0)
@@ -265,7 +279,7 @@ def plan_path(
         if isinstance(found, str):
             return _failed(m, plan.sizes, found, targets)
         q, index, groups, layers, periods, cost, note = found
-        dev = deviation(m, q, frame)
+        tool, dev = tool_deviation(m, q, frame)
         far = np.flatnonzero(dev > limit) if limit is not None else np.zeros(0, dtype=int)
         if not far.size or round_ == rounds:
             break
@@ -274,7 +288,9 @@ def plan_path(
     n = len(targets)
     branch = branch_changes(layers, index, w, groups, periods)
 
-    def finish(qq: np.ndarray) -> tuple[np.ndarray, int, np.ndarray, np.ndarray, dict[str, bool]]:
+    def finish(
+        qq: np.ndarray, fk: np.ndarray, dq: np.ndarray
+    ) -> tuple[np.ndarray, int, np.ndarray, np.ndarray, dict[str, bool]]:
         stretched = 0
         if t_given is None:
             travel = np.linalg.norm(np.diff(targets[:, :3, 3], axis=0), axis=1)
@@ -282,26 +298,27 @@ def plan_path(
         else:
             tt = t_given
         qd, qdd = derivatives(qq, tt)
-        checks = check_path(m, qq, tt, qdd, targets, frame, tols, v, acc, free_axis, radius)
+        checks = check_path(m, qq, tt, qdd, targets, frame, tols, v, acc, free_axis, radius, fk)
         checks["branch"] = bool(flips_ok is None or branch[-1] <= flips_ok)
         if world is not None:
             checks["collision"] = not np.any(check_many(m, qq, world=world, margin=margin).in_collision)
         if limit is not None:
-            checks["deviation"] = bool(np.all(deviation(m, qq, frame) <= limit))
+            checks["deviation"] = bool(np.all(dq <= limit))
         return tt, stretched, qd, qdd, checks
 
-    t, stretched, qd, qdd, checks = finish(q)
+    t, stretched, qd, qdd, checks = finish(q, tool, dev)
     refined = ""
     if smooth:
         q2 = refine(m, q, targets, frame, min(tols.position, tols.orientation))
         refined = "; the refinement did not converge"
         if q2 is not None:
             cost2 = float(np.linalg.norm(np.diff(q2, axis=0) * w, axis=1).sum())
-            got = finish(q2)
+            tool2, dev2 = tool_deviation(m, q2, frame)
+            got = finish(q2, tool2, dev2)
             refined = "; the refinement was not kept (not shorter, or a check failed)"
             if cost2 < cost and all(got[4].values()):
                 refined = f"; refined from {cost:.6g}"
-                q, cost, dev = q2, cost2, deviation(m, q2, frame)
+                q, cost, dev = q2, cost2, dev2
                 t, stretched, qd, qdd, checks = got
     sizes = plan.sizes
     parts = [
@@ -360,9 +377,10 @@ class _Plan:
         m = self.m
         self.samples = sample_poses(targets, self.free_axis, self.step, radius)
         solutions, groups = sample_solutions(m, self.samples, self.frame, self.shortcut, self.motion)
-        layers, keep, self.dropped = _free_of_collisions(m, solutions, self.world, self.margin)
-        groups = [g[k] for g, k in zip(groups, keep, strict=True)]
-        self.sizes = np.array([len(layer) for layer in layers])
+        free, self.dropped = _free_of_collisions(m, solutions, self.world, self.margin)
+        layers = solutions if free is None else solutions.keep(free)
+        groups = groups if free is None else groups.keep(free)
+        self.sizes = layers.sizes
         empty = np.flatnonzero(self.sizes == 0)
         if empty.size:
             why = (
@@ -378,14 +396,14 @@ class _Plan:
             k = best.blocked
             why = f"no solution of pose {k} is reachable from pose {k - 1} in {times[k] - times[k - 1]:g} s"
             return f"no joint path within the velocity limits at the given times: {why}"
-        rows = np.stack([layer[i] for layer, i in zip(layers, best.index, strict=True)])
+        rows = layers.rows(best.index)
         q = realize(rows, periods, m.lower, m.upper)
         note = ""
         if q is None:  # the relaxed optimum turns a joint past its limits: plan over every turn
             angles = np.asarray(m.revolute_mask, dtype=bool)
             copies = [turn_copies(layer, m.lower, m.upper, angles) for layer in layers]
-            layers = [c[0] for c in copies]
-            groups = [g[c[1]] for g, c in zip(groups, copies, strict=True)]
+            layers = Layered.of([c[0] for c in copies])
+            groups = Layered.of([g[c[1]] for g, c in zip(groups, copies, strict=True)])
             periods = np.zeros(m.n_q)
             best = least_motion(layers, self.w, bounds, periods)
             if best.blocked >= 0:
@@ -393,7 +411,7 @@ class _Plan:
                     f"no joint path within the joint limits and the velocity limits: pose {best.blocked} "
                     "is not reachable on any turn of the joints"
                 )
-            q = np.stack([layer[i] for layer, i in zip(layers, best.index, strict=True)])
-            per_pose = np.mean([len(x) for x in layers])
+            q = layers.rows(best.index)
+            per_pose = layers.sizes.mean()
             note = f"; turns reach the joint limits: planned over every turn ({per_pose:.3g} nodes per pose)"
         return q, best.index, groups, layers, periods, best.cost, note

@@ -20,6 +20,7 @@ CasADi's evaluator, with the same generator (same answers, slower).
 from __future__ import annotations
 
 import ctypes
+import math
 import threading
 import time
 from dataclasses import dataclass
@@ -29,6 +30,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from optik.checks import ORTHO_DIAG, ORTHO_OFF
 from optik.errors import InvalidArgumentError, ShapeError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
@@ -88,27 +90,30 @@ def lm_iteration_function(
     jac = ca.jacobian(e, q)
     grad = ca.mtimes(jac.T, e)
     free = 1 - ca.logic_or(ca.logic_and(q <= lo, grad > 0), ca.logic_and(q >= hi, grad < 0))
-    d = ca.diag(free)
+    n = m.n_q
     k = 0 if inequalities is None else int(inequalities.shape[0])
     top = e.shape[0] - k  # the rows other than the hinges
-    jt, et = jac[:top, :], e[:top]
-    lhs = ca.mtimes([d, ca.mtimes(jt.T, jt), d]) + mu * ca.SX.eye(m.n_q) + ca.diag(1 - free)
-    rhs = free * (-(ca.mtimes(jt.T, et) if k else grad) + gain * mu * (problem.q_ref - q))
+    jt = jac[:top, :]
+    cols = [jt[:, j] for j in range(n)]
+    diag = [mu + 1 - free[i] for i in range(n)]
+    lhs = [  # the lower triangle of D J_t^T J_t D + mu I + (I - D), row by row
+        [free[i] * free[j] * ca.dot(cols[i], cols[j]) + (diag[i] if i == j else 0) for j in range(i + 1)]
+        for i in range(n)
+    ]
+    rhs = free * (-(ca.mtimes(jt.T, e[:top]) if k else grad) + gain * mu * (problem.q_ref - q))
     if not k:
-        dq = ca.solve(lhs, rhs)
+        dq = _cholesky_solve(lhs, rhs)
     else:
         g = inequalities
-        u = ca.mtimes(d, ca.jacobian(g, q).T)
-        xy = ca.solve(lhs, ca.horzcat(rhs, u))
+        u = ca.mtimes(ca.diag(free), ca.jacobian(g, q).T)  # D J_g^T
+        xy = _cholesky_solve(lhs, ca.horzcat(rhs, u))
         x0, y = xy[:, 0], xy[:, 1:]
 
         def working_step(active: ca.SX) -> ca.SX:
-            sg = closure_weight**2 * active * g
-            b = x0 - ca.mtimes(y, sg)
-            small = ca.SX.eye(k) + ca.mtimes(ca.mtimes(u.T, y), ca.diag(closure_weight**2 * active))
-            return b - ca.mtimes(
-                ca.mtimes(y, ca.diag(closure_weight**2 * active)), ca.solve(small, ca.mtimes(u.T, b))
-            )
+            s = ca.diag(closure_weight**2 * active)
+            b = x0 - ca.mtimes([y, s, g])
+            small = ca.SX.eye(k) + ca.mtimes([u.T, y, s])
+            return b - ca.mtimes([y, s, ca.solve(small, ca.mtimes(u.T, b))])
 
         violated = g > 0
         dq1 = working_step(violated)
@@ -128,6 +133,34 @@ def lm_iteration_function(
     ]
     ins = [q, mu, problem.target, problem.weights, problem.q_ref, gain, lo, hi]
     return ca.Function(_STEP, ins, [ca.densify(v) for v in outs])
+
+
+def _cholesky_solve(lower: list[list[ca.SX]], b: ca.SX) -> ca.SX:
+    """``x = A^-1 b`` (``b`` a vector or a matrix of right-hand sides, one factorization) for a symmetric positive definite ``A`` given by its lower triangle
+    (``lower[i][j] = A_ij``, ``j <= i``), by Cholesky ``A = L L^T`` and two triangular solves:
+    about n^3 / 6 multiply-adds and n square roots, where CasADi's general ``solve`` (a QR) takes
+    several times more operations, and ``J^T J`` is formed on one triangle (the LM matrix, with
+    ``mu > 0`` on its diagonal, is positive definite; where rounding loses definiteness the step is
+    NaN, which the projection maps onto a bound or leaves NaN, and the acceptance test keeps only a
+    trial point of lower cost either way, NaN comparing false)."""
+    n = len(lower)
+    chol: list[list[ca.SX]] = [[] for _ in range(n)]
+    inv_diag: list[ca.SX] = []
+    for j in range(n):
+        for i in range(j, n):
+            s = lower[i][j] - sum((chol[i][k] * chol[j][k] for k in range(j)), ca.SX(0))
+            if i == j:
+                chol[j].append(ca.sqrt(s))
+                inv_diag.append(1 / chol[j][j])
+            else:
+                chol[i].append(s * inv_diag[j])
+    y: list[ca.SX] = []
+    for i in range(n):  # L y = b
+        y.append((b[i, :] - sum((chol[i][k] * y[k] for k in range(i)), ca.SX(0))) * inv_diag[i])
+    x: list[ca.SX] = [ca.SX(0)] * n
+    for i in reversed(range(n)):  # L^T x = y
+        x[i] = (y[i] - sum((chol[k][i] * x[k] for k in range(i + 1, n)), ca.SX(0))) * inv_diag[i]
+    return ca.vertcat(*x)
 
 
 def target_seeds(seed: int, start: int, count: int) -> np.ndarray:
@@ -201,19 +234,23 @@ class Output:
 _P = ctypes.c_void_p
 
 
-class _OneTarget:
-    """One thread's buffers of a one-target run, and the packed argument array of the driver's
-    ``optik_lm_packed`` pointing at them (the addresses are taken once: reading
+class OneTarget:
+    """One thread's buffers of a one-target run, and the packed argument arrays of the driver's
+    ``optik_lm_packed`` and ``optik_lm_call`` pointing at them (the addresses are taken once: reading
     ``ndarray.ctypes.data`` costs microseconds per array, more than a whole solve's iterations)."""
 
     def __init__(self, nq: int, nt: int, n_conf: int) -> None:
         self.target, self.q0, self.conf = np.zeros(nt), np.zeros(nq), np.zeros(n_conf)
         self.seed = np.zeros(1, dtype=np.uint64)
         self.q, self.errors, self.time = np.zeros(nq), np.zeros(3), np.zeros(1)
-        self.counts = np.zeros(3, dtype=np.int64)  # iterations, restarts, status
+        self.counts = np.zeros(4, dtype=np.int64)  # iterations, restarts, status, canonical
+        self.transform = np.zeros((4, 4))
         c = self.counts.ctypes.data
         bufs = (self.target, self.q0, self.seed, self.conf, self.q, self.errors)
         self.args = (_P * 11)(1, *[b.ctypes.data for b in bufs], c, c + 8, c + 16, self.time.ctypes.data)
+        bufs = (self.transform, self.q0, self.seed, self.conf, self.q, self.errors, self.counts, self.time)
+        self.call_args = (_P * 8)(*[b.ctypes.data for b in bufs])
+        """The argument array of ``optik_lm_call`` (a 4x4 transform in place of the parameters)."""
 
 
 class LMKernel:
@@ -256,6 +293,8 @@ class LMKernel:
             f"\n#define OPTIK_NQ {m.n_q}\n#define OPTIK_NT {problem.target.shape[0]}\n"
             f"#define OPTIK_STEP {_STEP}\n#define OPTIK_STEP_WORK {_STEP}_work\n"
             f"#define OPTIK_ERRORS {_ERRORS}\n#define OPTIK_ERRORS_WORK {_ERRORS}_work\n"
+            f"#define OPTIK_ORTHO_DIAG {ORTHO_DIAG!r}\n#define OPTIK_ORTHO_OFF {ORTHO_OFF!r}\n"
+            f"#define OPTIK_PI {math.pi!r}\n"
         )
         driver = driver_source(DRIVER, compile)
         self.library = (
@@ -263,6 +302,7 @@ class LMKernel:
         )
         self._fn: Any = None
         self._packed: Any = None
+        self._call: Any = None
         self._local = threading.local()  # per-thread error evaluators and one-target buffers
 
     def final_errors(self, q: np.ndarray, target: np.ndarray) -> tuple[float, float, float]:
@@ -293,6 +333,16 @@ class LMKernel:
                 self._fn = fn
         return self._fn
 
+    def call_entry(self) -> Any:
+        """The driver's ``optik_lm_call`` (one whole ``solve_ik`` call: `optik.solvers.lm.LMCall`)
+        once the library is loaded, else None (it is never waited for)."""
+        call = self._call
+        if call is None and self.library is not None and self.library.state == "ready" and self._driver():
+            call = self.library.get().optik_lm_call  # type: ignore[union-attr]
+            call.argtypes, call.restype = [_P], ctypes.c_int
+            self._call = call
+        return call
+
     def run_one(
         self, target: np.ndarray, q0: np.ndarray, seed: int, conf: np.ndarray
     ) -> tuple[np.ndarray, tuple[float, float, float], int, int, int]:
@@ -320,17 +370,15 @@ class LMKernel:
             return out.q[0], (e[0], e[1], e[2]), *counts
         one = getattr(self._local, "one", None)
         if one is None:
-            one = self._local.one = _OneTarget(self.mechanism.n_q, len(target), len(conf))
+            one = self._local.one = OneTarget(self.mechanism.n_q, len(target), len(conf))
         one.target[:] = target
         one.q0[:] = q0
         one.seed[0] = seed
         one.conf[:] = conf
         if packed(one.args) != 0:
-            from optik.errors import SolverUnavailableError
-
             raise SolverUnavailableError("optik_lm_chunk: evaluation of the generated code failed")
         e = one.errors.tolist()
-        it, restarts, status = one.counts.tolist()
+        it, restarts, status, _ = one.counts.tolist()
         return one.q.copy(), (e[0], e[1], e[2]), it, restarts, status
 
     def run(self, targets: np.ndarray, q0: np.ndarray, seeds: np.ndarray, conf: np.ndarray) -> Output:

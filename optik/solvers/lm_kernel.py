@@ -64,7 +64,9 @@ def lm_iteration_function(
     projected trial point ``q_t = clip(q + dq, lo, hi)``, accepted when its cost
     ``|e(q_t)|^2 / 2`` is below that of ``q``; the errors are those of ``q_t`` (the driver keeps
     the previous ones when the trial is rejected). The limits ``lo, hi`` are inputs (infinite
-    entries: unbounded), so one compiled kernel serves every limits of one geometry.
+    entries: unbounded), so one compiled kernel serves every limits of one geometry. ``problem``
+    may be any object with the attributes and methods of `IKProblem` that are read here
+    (`optik.solvers.generic_chain.ChainProblem`: a chain whose geometry is in the target).
 
     ``inequalities``: rows ``g(q) <= 0`` whose hinges ``max(0, g)`` are the last ``k`` rows of
     ``problem.closure`` (static balance, `optik.solvers.balance`). A hinge has no gradient
@@ -81,16 +83,15 @@ def lm_iteration_function(
     rows couple every joint) and ``B = X_0 - Y S g``,
     ``dq = B - Y S (I + U^T Y S)^-1 U^T B``: a ``k x k`` solve per working set.
     """
-    m = problem.mechanism
     q = problem.q
-    lo, hi = ca.SX.sym("lower", m.n_q), ca.SX.sym("upper", m.n_q)
+    n = int(q.shape[0])
+    lo, hi = ca.SX.sym("lower", n), ca.SX.sym("upper", n)
     e = problem.weighted_residual(closure_weight if problem.closure.shape[0] else None)
     at = ca.Function("at", [q, problem.target, problem.weights], [e, *problem.error_expressions()])
     mu, gain = ca.SX.sym("mu"), ca.SX.sym("gain")
     jac = ca.jacobian(e, q)
     grad = ca.mtimes(jac.T, e)
     free = 1 - ca.logic_or(ca.logic_and(q <= lo, grad > 0), ca.logic_and(q >= hi, grad < 0))
-    n = m.n_q
     k = 0 if inequalities is None else int(inequalities.shape[0])
     top = e.shape[0] - k  # the rows other than the hinges
     jt = jac[:top, :]
@@ -135,14 +136,28 @@ def lm_iteration_function(
     return ca.Function(_STEP, ins, [ca.densify(v) for v in outs])
 
 
+def driver_defines(n_q: int, n_target: int) -> str:
+    """The C definitions ``lm_chunk.c`` is compiled with (after the generated functions
+    `lm_iteration_function` and `optik.solvers.evaluation.error_function`): ``n_q`` coordinates,
+    ``n_target`` target parameters per target."""
+    return (
+        f"\n#define OPTIK_NQ {n_q}\n#define OPTIK_NT {n_target}\n"
+        f"#define OPTIK_STEP {_STEP}\n#define OPTIK_STEP_WORK {_STEP}_work\n"
+        f"#define OPTIK_ERRORS {_ERRORS}\n#define OPTIK_ERRORS_WORK {_ERRORS}_work\n"
+        f"#define OPTIK_ORTHO_DIAG {ORTHO_DIAG!r}\n#define OPTIK_ORTHO_OFF {ORTHO_OFF!r}\n"
+        f"#define OPTIK_PI {math.pi!r}\n"
+    )
+
+
 def _cholesky_solve(lower: list[list[ca.SX]], b: ca.SX) -> ca.SX:
-    """``x = A^-1 b`` (``b`` a vector or a matrix of right-hand sides, one factorization) for a symmetric positive definite ``A`` given by its lower triangle
-    (``lower[i][j] = A_ij``, ``j <= i``), by Cholesky ``A = L L^T`` and two triangular solves:
-    about n^3 / 6 multiply-adds and n square roots, where CasADi's general ``solve`` (a QR) takes
-    several times more operations, and ``J^T J`` is formed on one triangle (the LM matrix, with
-    ``mu > 0`` on its diagonal, is positive definite; where rounding loses definiteness the step is
-    NaN, which the projection maps onto a bound or leaves NaN, and the acceptance test keeps only a
-    trial point of lower cost either way, NaN comparing false)."""
+    """``x = A^-1 b`` (``b`` a vector, or a matrix of right-hand sides on one factorization) for a
+    symmetric positive definite ``A`` given by its lower triangle (``lower[i][j] = A_ij``, ``j <=
+    i``), by Cholesky ``A = L L^T`` and two triangular solves: about n^3 / 6 multiply-adds and n
+    square roots, where CasADi's general ``solve`` (a QR) takes several times more operations, and
+    ``J^T J`` is formed on one triangle (the LM matrix, with ``mu > 0`` on its diagonal, is positive
+    definite; where rounding loses definiteness the step is NaN, which the projection maps onto a
+    bound or leaves NaN, and the acceptance test keeps only a trial point of lower cost either way,
+    NaN comparing false)."""
     n = len(lower)
     chol: list[list[ca.SX]] = [[] for _ in range(n)]
     inv_diag: list[ca.SX] = []
@@ -289,16 +304,11 @@ class LMKernel:
         """Length of `Settings.conf`: 12 scalars, sampling bounds, ``q_ref`` and the limits."""
         self.step = lm_iteration_function(problem, closure_weight, inequalities)
         self.errors = error_function(problem)
-        defines = (
-            f"\n#define OPTIK_NQ {m.n_q}\n#define OPTIK_NT {problem.target.shape[0]}\n"
-            f"#define OPTIK_STEP {_STEP}\n#define OPTIK_STEP_WORK {_STEP}_work\n"
-            f"#define OPTIK_ERRORS {_ERRORS}\n#define OPTIK_ERRORS_WORK {_ERRORS}_work\n"
-            f"#define OPTIK_ORTHO_DIAG {ORTHO_DIAG!r}\n#define OPTIK_ORTHO_OFF {ORTHO_OFF!r}\n"
-            f"#define OPTIK_PI {math.pi!r}\n"
-        )
         driver = driver_source(DRIVER, compile)
         self.library = (
-            None if driver is None else library([self.step, self.errors], compile, defines + driver)
+            None
+            if driver is None
+            else library([self.step, self.errors], compile, driver_defines(m.n_q, self.n_target) + driver)
         )
         self._fn: Any = None
         self._packed: Any = None
@@ -522,6 +532,14 @@ class LMKernel:
 
 
 _KERNELS: PerMechanism[dict[tuple, LMKernel]] = PerMechanism()
+
+
+def cached_kernel(
+    m: Mechanism, task: str, frame: str | None, closure_weight: float, compile: bool | str
+) -> LMKernel | None:
+    """The `kernel` of these arguments when it was built already, else None (builds nothing)."""
+    per = _KERNELS.get(m.geometry)
+    return None if per is None else per.get((task, frame, closure_weight, compile))
 
 
 def kernel(

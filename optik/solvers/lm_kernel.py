@@ -62,21 +62,27 @@ def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Funct
     projected trial point ``q_t = clip(q + dq, lo, hi)``, accepted when its cost
     ``|e(q_t)|^2 / 2`` is below that of ``q``; the errors are those of ``q_t`` (the driver keeps
     the previous ones when the trial is rejected). The limits ``lo, hi`` are inputs (infinite
-    entries: unbounded), so one compiled kernel serves every limits of one geometry.
+    entries: unbounded), so one compiled kernel serves every limits of one geometry. ``problem``
+    may be any object with the attributes and methods of `IKProblem` that are read here
+    (`optik.solvers.generic_chain.ChainProblem`: a chain whose geometry is in the target).
     """
-    m = problem.mechanism
     q = problem.q
-    lo, hi = ca.SX.sym("lower", m.n_q), ca.SX.sym("upper", m.n_q)
+    n = int(q.shape[0])
+    lo, hi = ca.SX.sym("lower", n), ca.SX.sym("upper", n)
     e = problem.weighted_residual(closure_weight if problem.closure.shape[0] else None)
     at = ca.Function("at", [q, problem.target, problem.weights], [e, *problem.error_expressions()])
     mu, gain = ca.SX.sym("mu"), ca.SX.sym("gain")
     jac = ca.jacobian(e, q)
     g = ca.mtimes(jac.T, e)
     free = 1 - ca.logic_or(ca.logic_and(q <= lo, g > 0), ca.logic_and(q >= hi, g < 0))
-    d = ca.diag(free)
-    lhs = ca.mtimes([d, ca.mtimes(jac.T, jac), d]) + mu * ca.SX.eye(m.n_q) + ca.diag(1 - free)
+    cols = [jac[:, j] for j in range(n)]
+    diag = [mu + 1 - free[i] for i in range(n)]
+    lhs = [  # the lower triangle of D J^T J D + mu I + (I - D), row by row
+        [free[i] * free[j] * ca.dot(cols[i], cols[j]) + (diag[i] if i == j else 0) for j in range(i + 1)]
+        for i in range(n)
+    ]
     rhs = free * (-g + gain * mu * (problem.q_ref - q))
-    q_trial = ca.fmin(ca.fmax(q + ca.solve(lhs, rhs), lo), hi)
+    q_trial = ca.fmin(ca.fmax(q + _cholesky_solve(lhs, rhs), lo), hi)
     e_trial, pos, ori, clo = at(q_trial, problem.target, problem.weights)
     cost, cost_trial = 0.5 * ca.sumsqr(e), 0.5 * ca.sumsqr(e_trial)
     accept = cost_trial < cost
@@ -91,6 +97,47 @@ def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Funct
     ]
     ins = [q, mu, problem.target, problem.weights, problem.q_ref, gain, lo, hi]
     return ca.Function(_STEP, ins, [ca.densify(v) for v in outs])
+
+
+def driver_defines(n_q: int, n_target: int) -> str:
+    """The C definitions ``lm_chunk.c`` is compiled with (after the generated functions
+    `lm_iteration_function` and `optik.solvers.evaluation.error_function`): ``n_q`` coordinates,
+    ``n_target`` target parameters per target."""
+    return (
+        f"\n#define OPTIK_NQ {n_q}\n#define OPTIK_NT {n_target}\n"
+        f"#define OPTIK_STEP {_STEP}\n#define OPTIK_STEP_WORK {_STEP}_work\n"
+        f"#define OPTIK_ERRORS {_ERRORS}\n#define OPTIK_ERRORS_WORK {_ERRORS}_work\n"
+        f"#define OPTIK_ORTHO_DIAG {ORTHO_DIAG!r}\n#define OPTIK_ORTHO_OFF {ORTHO_OFF!r}\n"
+        f"#define OPTIK_PI {math.pi!r}\n"
+    )
+
+
+def _cholesky_solve(lower: list[list[ca.SX]], b: ca.SX) -> ca.SX:
+    """``x = A^-1 b`` for a symmetric positive definite ``A`` given by its lower triangle
+    (``lower[i][j] = A_ij``, ``j <= i``), by Cholesky ``A = L L^T`` and two triangular solves:
+    about n^3 / 6 multiply-adds and n square roots, where CasADi's general ``solve`` (a QR) takes
+    several times more operations, and ``J^T J`` is formed on one triangle (the LM matrix, with
+    ``mu > 0`` on its diagonal, is positive definite; where rounding loses definiteness the step is
+    NaN, which the projection maps onto a bound or leaves NaN, and the acceptance test keeps only a
+    trial point of lower cost either way, NaN comparing false)."""
+    n = len(lower)
+    chol: list[list[ca.SX]] = [[] for _ in range(n)]
+    inv_diag: list[ca.SX] = []
+    for j in range(n):
+        for i in range(j, n):
+            s = lower[i][j] - sum((chol[i][k] * chol[j][k] for k in range(j)), ca.SX(0))
+            if i == j:
+                chol[j].append(ca.sqrt(s))
+                inv_diag.append(1 / chol[j][j])
+            else:
+                chol[i].append(s * inv_diag[j])
+    y: list[ca.SX] = []
+    for i in range(n):  # L y = b
+        y.append((b[i] - sum((chol[i][k] * y[k] for k in range(i)), ca.SX(0))) * inv_diag[i])
+    x: list[ca.SX] = [ca.SX(0)] * n
+    for i in reversed(range(n)):  # L^T x = y
+        x[i] = (y[i] - sum((chol[k][i] * x[k] for k in range(i + 1, n)), ca.SX(0))) * inv_diag[i]
+    return ca.vertcat(*x)
 
 
 def target_seeds(seed: int, start: int, count: int) -> np.ndarray:
@@ -216,16 +263,11 @@ class LMKernel:
         """Length of `Settings.conf`: 12 scalars, sampling bounds, ``q_ref`` and the limits."""
         self.step = lm_iteration_function(problem, closure_weight)
         self.errors = error_function(problem)
-        defines = (
-            f"\n#define OPTIK_NQ {m.n_q}\n#define OPTIK_NT {problem.target.shape[0]}\n"
-            f"#define OPTIK_STEP {_STEP}\n#define OPTIK_STEP_WORK {_STEP}_work\n"
-            f"#define OPTIK_ERRORS {_ERRORS}\n#define OPTIK_ERRORS_WORK {_ERRORS}_work\n"
-            f"#define OPTIK_ORTHO_DIAG {ORTHO_DIAG!r}\n#define OPTIK_ORTHO_OFF {ORTHO_OFF!r}\n"
-            f"#define OPTIK_PI {math.pi!r}\n"
-        )
         driver = driver_source(DRIVER, compile)
         self.library = (
-            None if driver is None else library([self.step, self.errors], compile, defines + driver)
+            None
+            if driver is None
+            else library([self.step, self.errors], compile, driver_defines(m.n_q, self.n_target) + driver)
         )
         self._fn: Any = None
         self._packed: Any = None
@@ -449,6 +491,14 @@ class LMKernel:
 
 
 _KERNELS: PerMechanism[dict[tuple, LMKernel]] = PerMechanism()
+
+
+def cached_kernel(
+    m: Mechanism, task: str, frame: str | None, closure_weight: float, compile: bool | str
+) -> LMKernel | None:
+    """The `kernel` of these arguments when it was built already, else None (builds nothing)."""
+    per = _KERNELS.get(m.geometry)
+    return None if per is None else per.get((task, frame, closure_weight, compile))
 
 
 def kernel(

@@ -74,7 +74,10 @@ class _Num:
 
     @staticmethod
     def mat(rows: list[list[Any]]) -> np.ndarray:
-        flat = np.broadcast_arrays(*[np.asarray(e, dtype=float) for r in rows for e in r])
+        entries = [np.asarray(e, dtype=float) for r in rows for e in r]
+        if all(e.ndim == 0 for e in entries):  # one matrix: no broadcasting and stacking (tens of us)
+            return np.array(rows, dtype=float)
+        flat = np.broadcast_arrays(*entries)
         n_cols = len(rows[0])
         stacked = [np.stack(flat[i * n_cols : (i + 1) * n_cols], axis=-1) for i in range(len(rows))]
         return np.stack(stacked, axis=-2)

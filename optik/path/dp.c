@@ -75,12 +75,22 @@ static void sort_layer(int *out, int *tmp, const int *prev, int kprev, int pprev
     }
 }
 
+/* whether the predecessor `a` is among the `count` removed predecessors `list` of a node */
+static int banned(const int *list, int count, int a) {
+    for (int i = 0; i < count; ++i)
+        if (list[i] == a) return 1;
+    return 0;
+}
+
 /* Returns -1 with index[] and *total set, or the first layer no node of which is reachable.
  * key[] (one per node) receives the nodes' first coordinate; order[] and here[] (each of the
- * largest layer's size) hold the sorted orders of the previous and the current layer. */
+ * largest layer's size) hold the sorted orders of the previous and the current layer. When
+ * fstart is not NULL, the edges from fpred[fstart[b] .. fstart[b + 1]) to node b are removed
+ * (edges in collision: optik.path.plan). */
 int optik_path_dp(int n_layers, const int *offset, const double *nodes, int n, const double *w,
                   const double *period, const double *bounds, double *cost, int *back, int *order,
-                  int *tmp, int *index, double *total, double *key, int *here) {
+                  int *tmp, int *index, double *total, double *key, int *here, const int *fstart,
+                  const int *fpred) {
     for (int a = 0; a < offset[n_layers]; ++a) key[a] = nodes[(long)a * n];
     for (int a = offset[0]; a < offset[1]; ++a) cost[a] = 0.0;
     const double w0 = fabs(w[0]), p0d = period[0];
@@ -135,7 +145,7 @@ int optik_path_dp(int n_layers, const int *offset, const double *nodes, int n, c
                 }
                 if (!ok) continue;
                 double c = ca + sqrt(s);
-                if (c < best) {
+                if (c < best && !(fstart && banned(fpred + fstart[b], fstart[b + 1] - fstart[b], take))) {
                     best = c;
                     arg = take;
                 }

@@ -54,6 +54,20 @@ _MASK = (1 << 64) - 1
 _STEP, _ERRORS = "optik_lm_step", "optik_ik_errors"
 
 
+def projected_trial(
+    q: ca.SX, jtj: ca.SX, g: ca.SX, mu: ca.SX, gain: ca.SX, q_ref: ca.SX, lo: ca.SX, hi: ca.SX
+) -> ca.SX:
+    """The projected LM trial point ``clip(q + dq, lo, hi)`` from the Gauss-Newton matrix
+    ``jtj = J^T J`` and the gradient ``g = J^T e``: coordinates at a limit that the gradient
+    pushes outwards are held (``free = 0``), the others solve
+    ``(D J^T J D + mu I) dq = -g + gain mu (q_ref - q)``."""
+    free = 1 - ca.logic_or(ca.logic_and(q <= lo, g > 0), ca.logic_and(q >= hi, g < 0))
+    d = ca.diag(free)
+    lhs = ca.mtimes([d, jtj, d]) + mu * ca.SX.eye(q.shape[0]) + ca.diag(1 - free)
+    rhs = free * (-g + gain * mu * (q_ref - q))
+    return ca.fmin(ca.fmax(q + ca.solve(lhs, rhs), lo), hi)
+
+
 def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Function:
     """One bounded LM iteration with the errors of the trial point, as an ``SX`` function.
 
@@ -71,12 +85,7 @@ def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Funct
     at = ca.Function("at", [q, problem.target, problem.weights], [e, *problem.error_expressions()])
     mu, gain = ca.SX.sym("mu"), ca.SX.sym("gain")
     jac = ca.jacobian(e, q)
-    g = ca.mtimes(jac.T, e)
-    free = 1 - ca.logic_or(ca.logic_and(q <= lo, g > 0), ca.logic_and(q >= hi, g < 0))
-    d = ca.diag(free)
-    lhs = ca.mtimes([d, ca.mtimes(jac.T, jac), d]) + mu * ca.SX.eye(m.n_q) + ca.diag(1 - free)
-    rhs = free * (-g + gain * mu * (problem.q_ref - q))
-    q_trial = ca.fmin(ca.fmax(q + ca.solve(lhs, rhs), lo), hi)
+    q_trial = projected_trial(q, ca.mtimes(jac.T, jac), ca.mtimes(jac.T, e), mu, gain, problem.q_ref, lo, hi)
     e_trial, pos, ori, clo = at(q_trial, problem.target, problem.weights)
     cost, cost_trial = 0.5 * ca.sumsqr(e), 0.5 * ca.sumsqr(e_trial)
     accept = cost_trial < cost
@@ -195,8 +204,11 @@ class LMKernel:
             Python loop until the library built in the background is loaded).
         problem: the problem to solve (default: `optik.problem.build_ik_problem` of ``m``,
             ``task``, ``frame``); its ``closure`` rows are the weighted rows of the residual and
-            the closure error of the stop test (`optik.solvers.collision_free` appends its
-            collision rows there).
+            the closure error of the stop test.
+        functions: the step and error functions themselves, with the signatures of
+            `lm_iteration_function` and `optik.solvers.evaluation.error_function` (named
+            ``optik_lm_step`` and ``optik_ik_errors``; default: those of ``problem``): the
+            collision-aware kernel (`optik.solvers.collision_kernel`) builds its own.
     """
 
     def __init__(
@@ -207,17 +219,19 @@ class LMKernel:
         closure_weight: float,
         compile: bool | str,
         problem: IKProblem | None = None,
+        functions: tuple[ca.Function, ca.Function] | None = None,
     ) -> None:
-        problem = build_ik_problem(m, task, frame) if problem is None else problem
+        if functions is None:
+            problem = build_ik_problem(m, task, frame) if problem is None else problem
+            functions = lm_iteration_function(problem, closure_weight), error_function(problem)
         self.mechanism = m
-        self.n_target = int(problem.target.shape[0])
+        self.step, self.errors = functions
+        self.n_target = int(self.step.size1_in(2))
         """Target parameters per target (12 per frame target)."""
         self.n_conf = 12 + 5 * m.n_q
         """Length of `Settings.conf`: 12 scalars, sampling bounds, ``q_ref`` and the limits."""
-        self.step = lm_iteration_function(problem, closure_weight)
-        self.errors = error_function(problem)
         defines = (
-            f"\n#define OPTIK_NQ {m.n_q}\n#define OPTIK_NT {problem.target.shape[0]}\n"
+            f"\n#define OPTIK_NQ {m.n_q}\n#define OPTIK_NT {self.n_target}\n"
             f"#define OPTIK_STEP {_STEP}\n#define OPTIK_STEP_WORK {_STEP}_work\n"
             f"#define OPTIK_ERRORS {_ERRORS}\n#define OPTIK_ERRORS_WORK {_ERRORS}_work\n"
             f"#define OPTIK_ORTHO_DIAG {ORTHO_DIAG!r}\n#define OPTIK_ORTHO_OFF {ORTHO_OFF!r}\n"

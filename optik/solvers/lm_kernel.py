@@ -234,6 +234,8 @@ class LMKernel:
             f"\n#define OPTIK_NQ {m.n_q}\n#define OPTIK_NT {self.n_target}\n"
             f"#define OPTIK_STEP {_STEP}\n#define OPTIK_STEP_WORK {_STEP}_work\n"
             f"#define OPTIK_ERRORS {_ERRORS}\n#define OPTIK_ERRORS_WORK {_ERRORS}_work\n"
+            f"#define OPTIK_SZ_ARG {max(8, self.step.sz_arg(), self.errors.sz_arg())}\n"
+            f"#define OPTIK_SZ_RES {max(7, self.step.sz_res(), self.errors.sz_res())}\n"
             f"#define OPTIK_ORTHO_DIAG {ORTHO_DIAG!r}\n#define OPTIK_ORTHO_OFF {ORTHO_OFF!r}\n"
             f"#define OPTIK_PI {math.pi!r}\n"
         )

@@ -71,6 +71,23 @@ static int optik_valid_transform(const double *t, double diag, double off) {
              0.0;
 }
 
+/* optik.spatial.wrap_to_limits, rule 3, for a wrapped angle c outside [lo, hi], by the same
+   arithmetic: of c + 2 pi k for k = base - 1 .. base + 2 (base: whole turns from c to the nearest
+   point of the interval), the one of least gap to the interval; of gap 0, the one of least |k| */
+static double optik_nearest_turn(double c, double lo, double hi) {
+  double base = floor((fmin(fmax(c, lo), hi) - c) / OPTIK_TWO_PI), best = c, best_key = INFINITY;
+  for (int step = -1; step <= 2; ++step) {
+    double k = base + (double)step, x = c + OPTIK_TWO_PI * k;
+    double gap = fmax(fmax(lo - x, x - hi), 0.0);
+    double key = gap > 0.0 ? gap : -1.0 / (1.0 + fabs(k));
+    if (key < best_key) {
+      best_key = key;
+      best = x;
+    }
+  }
+  return best;
+}
+
 /* whether the max-norm distance of two wrapped angle rows modulo 2 pi is below `same` (the
  * first angle at least `same` apart decides) */
 static int optik_close(const double *a, const double *b, double same) {
@@ -169,21 +186,14 @@ CASADI_SYMBOL_EXPORT int optik_ik_all(const double *in, double *out) {
         out[0] = 2.0; /* two close solutions: the numpy path merges them by their accuracy */
         return 0;
       }
-  /* the 2 pi shift into the limits (closed_form.registry.wrap_rows), then the limit split */
+  /* the 2 pi shift into the limits (optik.spatial.wrap_to_limits), then the limit split */
   int order[B], n_in = 0, n_out = 0;
   double dist[B];
   for (int s = 0; s < n; ++s) {
     double *q = kept + 6 * s;
     int inside = 1;
     for (int k = 0; k < 6; ++k) {
-      if (!(lo[k] <= q[k] && q[k] <= hi[k])) {
-        const double shifts[4] = {OPTIK_TWO_PI, -OPTIK_TWO_PI, 2.0 * OPTIK_TWO_PI, -2.0 * OPTIK_TWO_PI};
-        for (int r = 0; r < 4; ++r)
-          if (lo[k] <= q[k] + shifts[r] && q[k] + shifts[r] <= hi[k]) {
-            q[k] += shifts[r];
-            break;
-          }
-      }
+      if (!(lo[k] <= q[k] && q[k] <= hi[k])) q[k] = optik_nearest_turn(q[k], lo[k], hi[k]);
       inside &= lo[k] <= q[k] && q[k] <= hi[k];
     }
     if (!inside) {

@@ -17,9 +17,9 @@ optik's driver ``ik_all.c``, compiled with them, does for one target:
    polishes it, `DerivedIK.finish`);
 3. wrap the kept ones to ``(-pi, pi]``; two closer than ``same`` (max-norm, angles modulo
    ``2 pi``) answer *status 2* (the numpy path merges them by their accuracy);
-4. shift each angle outside the limits by the first of ``2 pi, -2 pi, 4 pi, -4 pi`` that lands
-   within them ([`wrap_rows`][optik.closed_form.registry.wrap_rows]), and split the solutions
-   into those within every limit and the others;
+4. shift each angle outside the limits by the whole turns that land within them, or nearest
+   them ([`spatial.wrap_to_limits`][optik.spatial.wrap_to_limits], the same rules and
+   arithmetic), and split the solutions into those within every limit and the others;
 5. with ``sort``, order the ones within the limits by their max-norm distance to ``q0``
    (angles modulo ``2 pi``), stable.
 

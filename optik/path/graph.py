@@ -140,7 +140,7 @@ def compiled() -> ctypes.CDLL | None:
             if lib is not None:
                 fn = lib.optik_path_dp
                 ptr, i32 = ctypes.c_void_p, ctypes.c_int
-                fn.argtypes = [i32, ptr, ptr, i32, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr]
+                fn.argtypes = [i32, ptr, ptr, i32, *[ptr] * 13]
                 fn.restype = i32
             _LIB.append(lib)
         return _LIB[0]
@@ -159,7 +159,7 @@ def _joint_order(layers: Sequence[np.ndarray], weights: np.ndarray) -> np.ndarra
     distinct = np.zeros(len(weights))
     spread = np.zeros(len(weights))
     for layer in picked:
-        distinct += [len(np.unique(np.round(layer[:, j], 9))) for j in range(layer.shape[1])]
+        distinct += 1 + np.count_nonzero(np.diff(np.sort(layer, axis=0), axis=0) > 1e-9, axis=0)
         spread += np.abs(layer - layer.mean(axis=0)).sum(axis=0)
     score = np.where(weights > 0, distinct + spread * weights / (1.0 + (spread * weights).max()), -1.0)
     first = int(np.argmax(score))
@@ -172,6 +172,7 @@ def least_motion(
     weights: np.ndarray,
     step_bounds: np.ndarray | None = None,
     periods: np.ndarray | None = None,
+    removed: np.ndarray | None = None,
 ) -> GraphPath:
     """The path of least weighted joint motion through ``layers`` (module docstring).
 
@@ -181,6 +182,8 @@ def least_motion(
         step_bounds: ``(N - 1, n)`` largest allowed ``|q_{k+1} - q_k|`` per joint and segment,
             or None (no bound).
         periods: per joint, the period of its differences (0: none; default none).
+        removed: edges taken out of the graph ``(F, 3)``, each ``(k, a, b)``: from node ``a`` of
+            layer ``k - 1`` to node ``b`` of layer ``k`` (None: none).
 
     Returns:
         The optimal `GraphPath`.
@@ -188,7 +191,7 @@ def least_motion(
     per = np.zeros(layers[0].shape[1]) if periods is None else np.ascontiguousarray(periods, dtype=float)
     lib = compiled()
     if lib is None:
-        return least_motion_numpy(layers, weights, step_bounds, per)
+        return least_motion_numpy(layers, weights, step_bounds, per, removed)
     graph = Layered.of(layers)
     sizes = graph.sizes
     offset = graph.offset.astype(np.int32)
@@ -199,11 +202,20 @@ def least_motion(
     bounds = None if step_bounds is None else np.ascontiguousarray(step_bounds[:, perm], dtype=float)
     total = len(nodes)
     cost, back = np.empty(total), np.empty(total, dtype=np.int32)
-    order, tmp = np.empty(int(sizes.max()), dtype=np.int32), np.empty(int(sizes.max()), dtype=np.int32)
+    order, tmp, here = (np.empty(int(sizes.max()), dtype=np.int32) for _ in range(3))
     index, best, key = np.empty(len(layers), dtype=np.int32), np.zeros(1), np.empty(total)
+    fstart = fpred = None
+    if removed is not None and len(removed):
+        e = np.asarray(removed, dtype=np.int64).reshape(-1, 3)
+        target = graph.offset[e[:, 0]] + e[:, 2]
+        by = np.argsort(target, kind="stable")
+        fpred = np.ascontiguousarray(graph.offset[e[by, 0] - 1] + e[by, 1], dtype=np.int32)
+        counts = np.bincount(target, minlength=total)
+        fstart = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
     blocked = lib.optik_path_dp(
         len(layers), _ptr(offset), _ptr(nodes), nodes.shape[1], _ptr(w), _ptr(per), _ptr(bounds), _ptr(cost),
-        _ptr(back), _ptr(order), _ptr(tmp), _ptr(index), _ptr(best), _ptr(key),
+        _ptr(back), _ptr(order), _ptr(tmp), _ptr(index), _ptr(best), _ptr(key), _ptr(here), _ptr(fstart),
+        _ptr(fpred),
     )  # fmt: skip
     if blocked >= 0:
         return GraphPath(np.full(len(layers), -1), float("inf"), int(blocked))
@@ -211,16 +223,27 @@ def least_motion(
 
 
 def least_motion_numpy(
-    layers: Sequence[np.ndarray], weights: np.ndarray, step_bounds: np.ndarray | None, periods: np.ndarray
+    layers: Sequence[np.ndarray],
+    weights: np.ndarray,
+    step_bounds: np.ndarray | None,
+    periods: np.ndarray,
+    removed: np.ndarray | None = None,
 ) -> GraphPath:
     """`least_motion` in numpy, one vectorized step per layer (without compiled code)."""
     n_layers = len(layers)
     cost = np.zeros(len(layers[0]))
     back: list[np.ndarray] = []
+    e = (
+        np.zeros((0, 3), dtype=np.int64)
+        if removed is None
+        else np.asarray(removed, dtype=np.int64).reshape(-1, 3)
+    )
     for k in range(1, n_layers):
         c, d = edge_costs(layers[k - 1], layers[k], weights, periods)
         if step_bounds is not None:
             c[(np.abs(d) > step_bounds[k - 1]).any(axis=-1)] = np.inf
+        here = e[e[:, 0] == k]
+        c[here[:, 1], here[:, 2]] = np.inf
         total = cost[:, None] + c
         arg = total.argmin(axis=0)
         cost = total[arg, np.arange(total.shape[1])]

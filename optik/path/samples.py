@@ -184,9 +184,7 @@ def sample_solutions(
         return Layered.of(layers), Layered.of(groups)
     units = s if shortcut is None else len(np.unique(samples.offset, axis=0))
     copies = s // units
-    flat = closed_form_solutions(m, samples.columns(units).reshape(-1, 4, 4), frame)
-    counts = np.array([len(f) for f in flat], dtype=np.int64)
-    solved = np.concatenate(flat) if counts.sum() else np.zeros((0, m.n_q))
+    solved, counts = closed_form_solutions(m, samples.columns(units).reshape(-1, 4, 4), frame)
     unit = np.repeat(np.arange(n * units) % units, counts)  # the offset unit of each solved row
     block = counts.reshape(n, units).sum(axis=1)  # solved rows per path sample
     start = np.concatenate([[0], np.cumsum(block)[:-1]])

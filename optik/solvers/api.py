@@ -129,12 +129,8 @@ def solve_ik(
     request = make_request(m, target, q0, task, frame, time_limit, tol, seed, options)
     request.start = start
     if support is not None:
-        if method not in (None, "nlp"):
-            raise SolverUnavailableError(
-                f"method {method!r} does not take support=: the balance constraints are NLP inequalities "
-                "(method 'nlp'); contacts alone work with every method that takes several targets"
-            )
-        return solve_balance(request, support, com_margin)
+        with native.deadline(request.start + request.time_limit):
+            return solve_balance(request, support, com_margin, method)
     if world is not None or self_collision:
         own = True if self_collision is None else bool(self_collision)
         return solve_collision_free(request, method or "lm", world, own, margin)

@@ -13,8 +13,8 @@ is built in three pieces:
   ``dh/dq = (dh/dc) J_s`` (3 columns instead of ``n``);
 * the step (``MX``): that row **mapped** over spheres and slots (a loop in the generated C), the
   Gauss-Newton matrix ``J^T J`` and gradient ``J^T e`` of the stacked rows, and the projected LM
-  trial of `optik.solvers.lm_kernel.projected_trial`, accepted as in
-  `optik.solvers.lm_kernel.lm_iteration_function` (same inputs and outputs).
+  trial (`_trial_function`), accepted as in `optik.solvers.lm_kernel.lm_iteration_function`
+  (same inputs and outputs).
 
 Target parameters: the 12 of the pose target, then the ``capacity * SLOT_SIZE`` slot values.
 """
@@ -28,7 +28,7 @@ from optik.collision.robot import RobotGeometry
 from optik.collision.slots import SLOT_SIZE, slot_distance
 from optik.collision.spheres import segment_distance, separable_pairs, sphere_model
 from optik.problem import IKProblem
-from optik.solvers.lm_kernel import MU_MAX, MU_MIN, projected_trial
+from optik.solvers.lm_kernel import MU_MAX, MU_MIN
 
 __all__ = ["constrained_functions"]
 
@@ -82,6 +82,23 @@ def _self_row(n: int, bound: float) -> tuple[ca.Function, ca.Function]:
     return (
         ca.Function("self_row", [li, dli, lj, dlj, ends, rho], [h, grad.T]),
         ca.Function("self_row_value", [li, lj, ends, rho], [h]),
+    )
+
+
+def _trial_function(n: int) -> ca.Function:
+    """``(q, H, g, mu, gain, q_ref, lo, hi) -> clip(q + dq, lo, hi)``, the projected LM trial of
+    `optik.solvers.lm_kernel.lm_iteration_function` from ``H = J^T J`` and ``g = J^T e``: with
+    ``D`` the coordinates not held at a limit that ``g`` pushes outwards,
+    ``(D H D + mu I + (I - D)) dq = D (-g + gain mu (q_ref - q))``."""
+    q, jtj, g = ca.SX.sym("q", n), ca.SX.sym("jtj", n, n), ca.SX.sym("g", n)
+    mu, gain, q_ref = ca.SX.sym("mu"), ca.SX.sym("gain"), ca.SX.sym("q_ref", n)
+    lo, hi = ca.SX.sym("lower", n), ca.SX.sym("upper", n)
+    free = 1 - ca.logic_or(ca.logic_and(q <= lo, g > 0), ca.logic_and(q >= hi, g < 0))
+    d = ca.diag(free)
+    lhs = ca.mtimes([d, jtj, d]) + ca.diag(mu + 1 - free)
+    dq = ca.solve(lhs, free * (-g + gain * mu * (q_ref - q)))
+    return ca.Function(
+        "projected_trial", [q, jtj, g, mu, gain, q_ref, lo, hi], [ca.fmin(ca.fmax(q + dq, lo), hi)]
     )
 
 
@@ -189,15 +206,7 @@ def constrained_functions(
         j_rows.append(closure_weight * grad.T)
     e, jac = ca.vertcat(*e_rows), ca.vertcat(*j_rows)
     jtj, g = ca.mtimes(jac.T, jac), ca.mtimes(jac.T, e)
-    qs, hs, gs = ca.SX.sym("q", n), ca.SX.sym("jtj", n, n), ca.SX.sym("g", n)
-    mus, gains, refs = ca.SX.sym("mu"), ca.SX.sym("gain"), ca.SX.sym("q_ref", n)
-    los, his = ca.SX.sym("lower", n), ca.SX.sym("upper", n)
-    trial_fn = ca.Function(
-        "projected_trial",
-        [qs, hs, gs, mus, gains, refs, los, his],
-        [projected_trial(qs, hs, gs, mus, gains, refs, los, his)],
-    )
-    q_trial = trial_fn(q, jtj, g, mu, gain, q_ref, lo, hi)
+    q_trial = _trial_function(n)(q, jtj, g, mu, gain, q_ref, lo, hi)
     e_trial, pos, ori, clo = rows_at(q_trial, weights)
     cost, cost_trial = 0.5 * ca.sumsqr(e), 0.5 * ca.sumsqr(e_trial)
     accept = cost_trial < cost

@@ -54,21 +54,9 @@ _MASK = (1 << 64) - 1
 _STEP, _ERRORS = "optik_lm_step", "optik_ik_errors"
 
 
-def projected_trial(
-    q: ca.SX, jtj: ca.SX, g: ca.SX, mu: ca.SX, gain: ca.SX, q_ref: ca.SX, lo: ca.SX, hi: ca.SX
-) -> ca.SX:
-    """The projected LM trial point ``clip(q + dq, lo, hi)`` from the Gauss-Newton matrix
-    ``jtj = J^T J`` and the gradient ``g = J^T e``: coordinates at a limit that the gradient
-    pushes outwards are held (``free = 0``), the others solve
-    ``(D J^T J D + mu I) dq = -g + gain mu (q_ref - q)``."""
-    free = 1 - ca.logic_or(ca.logic_and(q <= lo, g > 0), ca.logic_and(q >= hi, g < 0))
-    d = ca.diag(free)
-    lhs = ca.mtimes([d, jtj, d]) + mu * ca.SX.eye(q.shape[0]) + ca.diag(1 - free)
-    rhs = free * (-g + gain * mu * (q_ref - q))
-    return ca.fmin(ca.fmax(q + ca.solve(lhs, rhs), lo), hi)
-
-
-def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Function:
+def lm_iteration_function(
+    problem: IKProblem, closure_weight: float, inequalities: ca.SX | None = None
+) -> ca.Function:
     """One bounded LM iteration with the errors of the trial point, as an ``SX`` function.
 
     ``(q, mu, target, weights, q_ref, gain, lo, hi) -> (q+, mu+, cost+, accepted, position error,
@@ -76,16 +64,62 @@ def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Funct
     projected trial point ``q_t = clip(q + dq, lo, hi)``, accepted when its cost
     ``|e(q_t)|^2 / 2`` is below that of ``q``; the errors are those of ``q_t`` (the driver keeps
     the previous ones when the trial is rejected). The limits ``lo, hi`` are inputs (infinite
-    entries: unbounded), so one compiled kernel serves every limits of one geometry.
+    entries: unbounded), so one compiled kernel serves every limits of one geometry. ``problem``
+    may be any object with the attributes and methods of `IKProblem` that are read here
+    (`optik.solvers.generic_chain.ChainProblem`: a chain whose geometry is in the target).
+
+    ``inequalities``: rows ``g(q) <= 0`` whose hinges ``max(0, g)`` are the last ``k`` rows of
+    ``problem.closure`` (static balance, `optik.solvers.balance`). A hinge has no gradient
+    where it is inactive, so a plain Gauss-Newton step from inside overshoots across the
+    boundary and is rejected again and again while ``mu`` grows. The step is therefore taken
+    twice, for a working set ``A`` of rows treated as the equations ``w_c g_i = 0`` (their
+    linearization, onto the boundary): first ``A_1 = {i : g_i > 0}`` (the hinges' own
+    Gauss-Newton step), then ``A_2 = A_1 + {i : g_i + J_g,i dq_1 > 0}`` (the rows the first step
+    would cross), the step taken. With ``M_0 = D J_t^T J_t D + mu I + (I - D)`` of the other rows
+    ``J_t`` (free set ``D`` from the whole gradient), ``U = D J_g^T``, ``S = w_c^2 diag(A)`` and
+    ``r_0`` the other rows' right-hand side, the step of a working set solves
+    ``(M_0 + U S U^T) dq = r_0 - U S g``; by the Woodbury identity, with
+    ``M_0 [X_0, Y] = [r_0, U]`` solved once (``M_0`` keeps the other rows' sparsity: the balance
+    rows couple every joint) and ``B = X_0 - Y S g``,
+    ``dq = B - Y S (I + U^T Y S)^-1 U^T B``: a ``k x k`` solve per working set.
     """
-    m = problem.mechanism
     q = problem.q
-    lo, hi = ca.SX.sym("lower", m.n_q), ca.SX.sym("upper", m.n_q)
+    n = int(q.shape[0])
+    lo, hi = ca.SX.sym("lower", n), ca.SX.sym("upper", n)
     e = problem.weighted_residual(closure_weight if problem.closure.shape[0] else None)
     at = ca.Function("at", [q, problem.target, problem.weights], [e, *problem.error_expressions()])
     mu, gain = ca.SX.sym("mu"), ca.SX.sym("gain")
     jac = ca.jacobian(e, q)
-    q_trial = projected_trial(q, ca.mtimes(jac.T, jac), ca.mtimes(jac.T, e), mu, gain, problem.q_ref, lo, hi)
+    grad = ca.mtimes(jac.T, e)
+    free = 1 - ca.logic_or(ca.logic_and(q <= lo, grad > 0), ca.logic_and(q >= hi, grad < 0))
+    k = 0 if inequalities is None else int(inequalities.shape[0])
+    top = e.shape[0] - k  # the rows other than the hinges
+    jt = jac[:top, :]
+    cols = [jt[:, j] for j in range(n)]
+    diag = [mu + 1 - free[i] for i in range(n)]
+    lhs = [  # the lower triangle of D J_t^T J_t D + mu I + (I - D), row by row
+        [free[i] * free[j] * ca.dot(cols[i], cols[j]) + (diag[i] if i == j else 0) for j in range(i + 1)]
+        for i in range(n)
+    ]
+    rhs = free * (-(ca.mtimes(jt.T, e[:top]) if k else grad) + gain * mu * (problem.q_ref - q))
+    if not k:
+        dq = _cholesky_solve(lhs, rhs)
+    else:
+        g = inequalities
+        u = ca.mtimes(ca.diag(free), ca.jacobian(g, q).T)  # D J_g^T
+        xy = _cholesky_solve(lhs, ca.horzcat(rhs, u))
+        x0, y = xy[:, 0], xy[:, 1:]
+
+        def working_step(active: ca.SX) -> ca.SX:
+            s = ca.diag(closure_weight**2 * active)
+            b = x0 - ca.mtimes([y, s, g])
+            small = ca.SX.eye(k) + ca.mtimes([u.T, y, s])
+            return b - ca.mtimes([y, s, ca.solve(small, ca.mtimes(u.T, b))])
+
+        violated = g > 0
+        dq1 = working_step(violated)
+        dq = working_step(ca.logic_or(violated, g + ca.mtimes(u.T, dq1) > 0))
+    q_trial = ca.fmin(ca.fmax(q + dq, lo), hi)
     e_trial, pos, ori, clo = at(q_trial, problem.target, problem.weights)
     cost, cost_trial = 0.5 * ca.sumsqr(e), 0.5 * ca.sumsqr(e_trial)
     accept = cost_trial < cost
@@ -100,6 +134,51 @@ def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Funct
     ]
     ins = [q, mu, problem.target, problem.weights, problem.q_ref, gain, lo, hi]
     return ca.Function(_STEP, ins, [ca.densify(v) for v in outs])
+
+
+def driver_defines(n_q: int, n_target: int, sz_arg: int = 8, sz_res: int = 7) -> str:
+    """The C definitions ``lm_chunk.c`` is compiled with (after the generated functions
+    `lm_iteration_function` and `optik.solvers.evaluation.error_function`): ``n_q`` coordinates,
+    ``n_target`` target parameters per target, and the length of the argument and result
+    pointer arrays (the functions' ``sz_arg()`` and ``sz_res()``, at least 8 and 7: a function
+    that calls others uses the entries past its own as scratch)."""
+    return (
+        f"\n#define OPTIK_SZ_ARG {max(8, sz_arg)}\n#define OPTIK_SZ_RES {max(7, sz_res)}"
+        f"\n#define OPTIK_NQ {n_q}\n#define OPTIK_NT {n_target}\n"
+        f"#define OPTIK_STEP {_STEP}\n#define OPTIK_STEP_WORK {_STEP}_work\n"
+        f"#define OPTIK_ERRORS {_ERRORS}\n#define OPTIK_ERRORS_WORK {_ERRORS}_work\n"
+        f"#define OPTIK_ORTHO_DIAG {ORTHO_DIAG!r}\n#define OPTIK_ORTHO_OFF {ORTHO_OFF!r}\n"
+        f"#define OPTIK_PI {math.pi!r}\n"
+    )
+
+
+def _cholesky_solve(lower: list[list[ca.SX]], b: ca.SX) -> ca.SX:
+    """``x = A^-1 b`` (``b`` a vector, or a matrix of right-hand sides on one factorization) for a
+    symmetric positive definite ``A`` given by its lower triangle (``lower[i][j] = A_ij``, ``j <=
+    i``), by Cholesky ``A = L L^T`` and two triangular solves: about n^3 / 6 multiply-adds and n
+    square roots, where CasADi's general ``solve`` (a QR) takes several times more operations, and
+    ``J^T J`` is formed on one triangle (the LM matrix, with ``mu > 0`` on its diagonal, is positive
+    definite; where rounding loses definiteness the step is NaN, which the projection maps onto a
+    bound or leaves NaN, and the acceptance test keeps only a trial point of lower cost either way,
+    NaN comparing false)."""
+    n = len(lower)
+    chol: list[list[ca.SX]] = [[] for _ in range(n)]
+    inv_diag: list[ca.SX] = []
+    for j in range(n):
+        for i in range(j, n):
+            s = lower[i][j] - sum((chol[i][k] * chol[j][k] for k in range(j)), ca.SX(0))
+            if i == j:
+                chol[j].append(ca.sqrt(s))
+                inv_diag.append(1 / chol[j][j])
+            else:
+                chol[i].append(s * inv_diag[j])
+    y: list[ca.SX] = []
+    for i in range(n):  # L y = b
+        y.append((b[i, :] - sum((chol[i][k] * y[k] for k in range(i)), ca.SX(0))) * inv_diag[i])
+    x: list[ca.SX] = [ca.SX(0)] * n
+    for i in reversed(range(n)):  # L^T x = y
+        x[i] = (y[i] - sum((chol[k][i] * x[k] for k in range(i + 1, n)), ca.SX(0))) * inv_diag[i]
+    return ca.vertcat(*x)
 
 
 def target_seeds(seed: int, start: int, count: int) -> np.ndarray:
@@ -205,10 +284,12 @@ class LMKernel:
         problem: the problem to solve (default: `optik.problem.build_ik_problem` of ``m``,
             ``task``, ``frame``); its ``closure`` rows are the weighted rows of the residual and
             the closure error of the stop test.
+        inequalities: rows ``g(q) <= 0`` whose hinges end ``problem.closure`` (see
+            `lm_iteration_function`).
         functions: the step and error functions themselves, with the signatures of
             `lm_iteration_function` and `optik.solvers.evaluation.error_function` (named
             ``optik_lm_step`` and ``optik_ik_errors``; default: those of ``problem``): the
-            collision-aware kernel (`optik.solvers.collision_kernel`) builds its own.
+            collision-aware kernel builds its own (`optik.solvers.collision_kernel`).
     """
 
     def __init__(
@@ -219,29 +300,26 @@ class LMKernel:
         closure_weight: float,
         compile: bool | str,
         problem: IKProblem | None = None,
+        inequalities: ca.SX | None = None,
         functions: tuple[ca.Function, ca.Function] | None = None,
     ) -> None:
         if functions is None:
             problem = build_ik_problem(m, task, frame) if problem is None else problem
-            functions = lm_iteration_function(problem, closure_weight), error_function(problem)
+            functions = lm_iteration_function(problem, closure_weight, inequalities), error_function(problem)
         self.mechanism = m
         self.step, self.errors = functions
         self.n_target = int(self.step.size1_in(2))
         """Target parameters per target (12 per frame target)."""
         self.n_conf = 12 + 5 * m.n_q
         """Length of `Settings.conf`: 12 scalars, sampling bounds, ``q_ref`` and the limits."""
-        defines = (
-            f"\n#define OPTIK_NQ {m.n_q}\n#define OPTIK_NT {self.n_target}\n"
-            f"#define OPTIK_STEP {_STEP}\n#define OPTIK_STEP_WORK {_STEP}_work\n"
-            f"#define OPTIK_ERRORS {_ERRORS}\n#define OPTIK_ERRORS_WORK {_ERRORS}_work\n"
-            f"#define OPTIK_SZ_ARG {max(8, self.step.sz_arg(), self.errors.sz_arg())}\n"
-            f"#define OPTIK_SZ_RES {max(7, self.step.sz_res(), self.errors.sz_res())}\n"
-            f"#define OPTIK_ORTHO_DIAG {ORTHO_DIAG!r}\n#define OPTIK_ORTHO_OFF {ORTHO_OFF!r}\n"
-            f"#define OPTIK_PI {math.pi!r}\n"
-        )
         driver = driver_source(DRIVER, compile)
+        sizes = max(self.step.sz_arg(), self.errors.sz_arg()), max(self.step.sz_res(), self.errors.sz_res())
         self.library = (
-            None if driver is None else library([self.step, self.errors], compile, defines + driver)
+            None
+            if driver is None
+            else library(
+                [self.step, self.errors], compile, driver_defines(m.n_q, self.n_target, *sizes) + driver
+            )
         )
         self._fn: Any = None
         self._packed: Any = None
@@ -465,6 +543,14 @@ class LMKernel:
 
 
 _KERNELS: PerMechanism[dict[tuple, LMKernel]] = PerMechanism()
+
+
+def cached_kernel(
+    m: Mechanism, task: str, frame: str | None, closure_weight: float, compile: bool | str
+) -> LMKernel | None:
+    """The `kernel` of these arguments when it was built already, else None (builds nothing)."""
+    per = _KERNELS.get(m.geometry)
+    return None if per is None else per.get((task, frame, closure_weight, compile))
 
 
 def kernel(

@@ -197,7 +197,7 @@ RUNS: tuple[Run, ...] = (
     ),
     Run(
         "balance",
-        "Whole-body IK with balance, Unitree G1 hand reach: optik nlp against Pink",
+        "Whole-body IK with balance, Unitree G1 hand reach: optik lm and nlp against Pink",
         ("--n", "50"),
         ("--n", "5"),
         page="balance_g1",
@@ -205,9 +205,9 @@ RUNS: tuple[Run, ...] = (
     ),
     Run(
         "balance",
-        "Whole-body IK with balance, Unitree Go2 base pose: optik nlp against Pink",
-        ("--robot", "go2", "--n", "30", "--pink-com-costs", "1e-4,0"),
-        ("--robot", "go2", "--n", "5", "--pink-com-costs", "1e-4,0"),
+        "Whole-body IK with balance, Unitree Go2 base pose: optik lm and nlp against Pink",
+        ("--robot", "go2", "--n", "50"),
+        ("--robot", "go2", "--n", "5"),
         page="balance_go2",
         in_readme=False,
     ),

@@ -13,14 +13,16 @@ and y, -6 to +2 cm in z and a rotation vector of up to 0.1 rad per axis (small e
 reachable with the feet held; not certified).
 
 optik: ``optik.solve_ik(m, {frame: T}, q0=standing, contacts=feet, support=polygon,
-com_margin=margin, time_limit=...)`` (method ``"nlp"``; flat feet held as poses, point feet as
-positions). Pink: ``pink.solve_ik`` iterated from the standing configuration (``dt = 1``, daqp)
-with a ``FrameTask`` for the target frame (cost 1), one per foot (cost 100; orientation cost 0
-for point feet), a ``ComTask`` toward the standing centre of mass (``--pink-com-costs``, one
-Pink run per cost, 0 for none; Pink has no polygon constraint, so its CoM task holds the CoM
-near the middle of the feet, and pulls the target frame off by a cost-weighted compromise) and a
-``PostureTask`` (1e-6), until the target and the feet are within the tolerance, the time limit
-or a QP without solution.
+com_margin=margin, time_limit=..., method=...)`` for each of ``--methods`` (``lm``, the default: the
+compiled kernel with the balance hinges; ``nlp``: IPOPT with the balance inequalities; flat feet
+held as poses, point feet as positions). The C build of the ``lm`` kernel runs before the timed
+calls and is not timed (``--compile-wait``). Pink: ``pink.solve_ik`` iterated from the standing
+configuration (``dt = 1``, daqp) with a ``FrameTask`` for the target frame (cost 1), one per foot
+(cost 100; orientation cost 0 for point feet), a ``ComTask`` toward the standing centre of mass
+(``--pink-com-costs``, one Pink run per cost, 0 for none; Pink has no polygon constraint, so its CoM
+task holds the CoM near the middle of the feet, and pulls the target frame off by a cost-weighted
+compromise) and a ``PostureTask`` (1e-6), until the target and the feet are within the tolerance,
+the time limit or a QP without solution.
 
 Every answer is judged by Pinocchio, on its own model of the URDF: the target frame and the
 feet within ``--tol`` (position and geodesic angle; position only for point feet;
@@ -29,7 +31,7 @@ feet within ``--tol`` (position and geodesic angle; position only for point feet
 untimed warm-up call.
 
 Run: ``optik benchmark balance [--robot g1] [--n 50] [--time-limit 0.5] [--tol 1e-6]
-[--margin 0.01] [--seed 0] [--pink-com-costs 1e-2,1e-4]``.
+[--margin 0.01] [--seed 0] [--methods lm,nlp] [--pink-com-costs 1e-2,1e-4] [--compile-wait 600]``.
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ import numpy as np
 import optik
 from optik.benchmarks import benchmark_parser
 from optik.harness.tally import success_table
-from optik.solvers.balance import support_halfplanes
+from optik.solvers.balance import BALANCE_METHODS, compiled_kernels, support_halfplanes
 
 Solver = Callable[[np.ndarray, float], np.ndarray]
 """``(target pose, time_limit) -> Pinocchio configuration``."""
@@ -118,12 +120,13 @@ class Legged:
         return out
 
 
-def optik_solver(h: Legged, tol: float, margin: float) -> Solver:
+def optik_solver(h: Legged, tol: float, margin: float, method: str) -> Solver:
     def solve(target: np.ndarray, time_limit: float) -> np.ndarray:
         r = optik.solve_ik(
             h.m,
             {h.frame: target},
             q0=h.stand,
+            method=method,
             contacts=h.contacts,
             support=h.polygon,
             com_margin=margin,
@@ -188,19 +191,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--tol", type=float, default=1e-6, help="position (m) and orientation (rad) tolerance")
     ap.add_argument("--margin", type=float, default=0.01, help="balance margin (m)")
     ap.add_argument("--seed", type=int, default=0, help="seed of the random draws")
+    ap.add_argument("--methods", default="lm,nlp", help="optik methods, comma-separated (lm, nlp)")
+    ap.add_argument("--compile-wait", type=float, default=600.0, help="seconds to wait for optik's C build")
     ap.add_argument("--no-pink", action="store_true", help="skip the Pink peer")
     ap.add_argument(
         "--pink-com-costs", default="1e-2,1e-4", help="costs of Pink's CoM task, one Pink run each (0: none)"
     )
     args = ap.parse_args(argv)
+    methods = [m for m in args.methods.split(",") if m]
     if args.n < 1 or not args.time_limit > 0 or not args.tol > 0 or args.margin < 0:
         ap.error("--n must be >= 1, --time-limit and --tol > 0, --margin >= 0")
+    if not methods or set(methods) - set(BALANCE_METHODS):
+        ap.error(f"--methods: some of {', '.join(BALANCE_METHODS)}")
     try:
         h = Legged(args.robot)
     except (ImportError, optik.OptikError) as exc:
         print(f"needs pinocchio and example-robot-data (extras 'peers', 'robots'): {exc}")
         return 0
-    solvers: dict[str, Solver] = {"optik nlp + balance": optik_solver(h, args.tol, args.margin)}
+    solvers: dict[str, Solver] = {
+        f"optik {method} + balance": optik_solver(h, args.tol, args.margin, method) for method in methods
+    }
     if not args.no_pink:
         try:
             for cost in (float(c) for c in args.pink_com_costs.split(",") if c):
@@ -208,8 +218,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         except ImportError:
             print('pin-pink is not installed (pip install "optik[peers]"): Pink skipped')
     targets = h.targets(args.n, args.seed, args.margin)
-    for solve in solvers.values():  # untimed warm-up
+    for solve in solvers.values():  # untimed warm-up (optik starts the C build of its lm kernel)
         solve(targets[0], args.time_limit)
+    waited = time.perf_counter()
+    while not all(compiled_kernels(h.m)) and time.perf_counter() - waited < args.compile_wait:
+        time.sleep(1.0)
     results: dict[str, tuple[list[float], int]] = {name: ([], 0) for name in solvers}
     for target in targets:
         for name, solve in solvers.items():
@@ -222,9 +235,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(
         f"{args.robot} ({h.m.n_q - 6} joints + free base), {args.n} targets of {h.frame}, "
         f"{len(h.feet)} feet held, CoM margin {args.margin:g} m, "
-        f"time limit {args.time_limit * 1e3:g} ms, tol {args.tol:g}, judged by Pinocchio"
+        f"time limit {args.time_limit * 1e3:g} ms, tol {args.tol:g}, judged by Pinocchio; "
+        f"lm kernel compiled: {all(compiled_kernels(h.m))}"
     )
-    print(success_table(results, args.n, "optik nlp + balance"))
+    print(success_table(results, args.n, f"optik {methods[0]} + balance"))
     return 0
 
 

@@ -5,7 +5,8 @@ Method (docs/benchmarks.md): each arm's chain is loaded from the shipped URDF
 iiwa_link_ee``) by optik and by the peers of `optik.harness.peers`: TRAC-IK (``pytracik``, Speed
 mode) and the Robotics Toolbox (``ETS.ik_LM``, C++, joint limits on). ``--n`` joint vectors are
 drawn uniformly within the limits (seeded), the targets are their FK poses, and every solver starts
-from the mid-limit seed with the time limit ``--time-limit`` (5 ms; ``ik_LM`` has no time limit,
+from the mid-limit seed (``--starts random``: from a random configuration per target, the same for
+every solver) with the time limit ``--time-limit`` (5 ms; ``ik_LM`` has no time limit,
 its iteration caps bound it) and tolerance ``--tol`` (1e-5). Every solver is held to the rules of
 `optik.harness.peers.rules`: asked for half the tolerance (TRAC-IK: ``eps = tol / 2`` per twist
 component; ``ik_LM``: residual ``E <= (tol / 2)^2 / 2``), one untimed warm-up call each, every answer
@@ -19,7 +20,7 @@ on a shared machine hit all of them alike; the table reports success rate, mean 
 time and the ratio of each median time to the fastest peer's median.
 
 Run: ``optik benchmark ik [--n 10000] [--robots panda,iiwa14] [--time-limit 0.005] [--tol 1e-5]
-[--methods lm,nlp,nlp-sqp,trac_ik,rtb_lm] [--n-nlp 1000] [--nlp-time-limit 0.3]``.
+[--methods lm,nlp,nlp-sqp,trac_ik,rtb_lm] [--n-nlp 1000] [--nlp-time-limit 0.3] [--starts mid,random]``.
 """
 
 from __future__ import annotations
@@ -42,8 +43,8 @@ from optik.harness.peers import ADAPTERS, PeerUnavailable  # noqa: E402
 from optik.harness.peers.rules import Referee, warm_up  # noqa: E402
 from optik.harness.tally import Tally  # noqa: E402
 
-Solver = Callable[[np.ndarray], tuple[np.ndarray | None, bool]]
-"""``target 4x4 -> (raw q or None, the solver's own success flag)``."""
+Solver = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray | None, bool]]
+"""``(target 4x4, start q0) -> (raw q or None, the solver's own success flag)``."""
 
 PEER_LABELS = {"trac_ik": "TRAC-IK (Speed)", "rtb_lm": "Robotics Toolbox ik_LM (C++)"}
 
@@ -54,10 +55,8 @@ HEADER = (
 )
 
 
-def _optik_solver(
-    m: optik.Mechanism, method: str, q0: np.ndarray, limit: float, tol: float, **options: object
-) -> Solver:
-    def solve(target: np.ndarray) -> tuple[np.ndarray | None, bool]:
+def _optik_solver(m: optik.Mechanism, method: str, limit: float, tol: float, **options: object) -> Solver:
+    def solve(target: np.ndarray, q0: np.ndarray) -> tuple[np.ndarray | None, bool]:
         res = optik.solve_ik(m, target, q0, method=method, time_limit=limit, tol=tol, **options)
         return res.q, res.success
 
@@ -68,14 +67,13 @@ def _peer_solver(
     name: str,
     m: optik.Mechanism,
     chain: tuple[str, str, str],
-    q0: np.ndarray,
     limit: float,
     tol: optik.Tolerances,
 ) -> Solver:
     peer = ADAPTERS[name](m, *chain)
     peer.check_fk()
 
-    def solve(target: np.ndarray) -> tuple[np.ndarray | None, bool]:
+    def solve(target: np.ndarray, q0: np.ndarray) -> tuple[np.ndarray | None, bool]:
         return peer.attempt(q0, target, limit, tol)
 
     return solve
@@ -90,14 +88,20 @@ def run(
     n_nlp: int = 1000,
     nlp_time_limit: float = 0.3,
     seed: int = 0,
+    starts: str = "mid",
 ) -> tuple[dict[str, Tally], list[str]]:
     """Run the benchmark on one arm; the tallies by solver label (peers' labels in
-    `PEER_LABELS`) and notes on the solvers that could not run."""
+    `PEER_LABELS`) and notes on the solvers that could not run. ``starts``: ``"mid"`` (every
+    solver starts from the mid-limit seed) or ``"random"`` (target ``i`` from the ``i``-th of
+    ``n`` configurations drawn within the limits with seed ``seed + 1``, the same for every
+    solver)."""
     path = str(urdf_path(robot))
     base, tip = URDF_CHAINS[robot]
     m = optik.Mechanism.from_urdf(path, base, tip)
-    q0 = m.mid_q()
     targets = m.fk(m.random_q(n, seed=seed))
+    if starts not in ("mid", "random"):
+        raise ValueError(f"starts: 'mid' or 'random', got {starts!r}")
+    q0s = np.tile(m.mid_q(), (n, 1)) if starts == "mid" else m.random_q(n, seed=seed + 1)
     tolerances = optik.Tolerances(position=tol, orientation=tol)
     referee = Referee(m, path, base, tip)
     notes = [] if referee.source == "pinocchio" else ["pinocchio not installed: success judged by optik's FK"]
@@ -106,7 +110,7 @@ def run(
         if name in ADAPTERS:
             try:
                 solvers[PEER_LABELS.get(name, name)] = (
-                    _peer_solver(name, m, (path, base, tip), q0, time_limit, tolerances),
+                    _peer_solver(name, m, (path, base, tip), time_limit, tolerances),
                     n,
                 )
             except PeerUnavailable as exc:
@@ -114,11 +118,11 @@ def run(
         elif name in ("nlp", "nlp-sqp"):
             solver = "ipopt" if name == "nlp" else "sqpmethod"
             label = f"optik nlp {solver} ({nlp_time_limit * 1e3:g} ms)"
-            nlp = _optik_solver(m, "nlp", q0, nlp_time_limit, tol, solver=solver)
+            nlp = _optik_solver(m, "nlp", nlp_time_limit, tol, solver=solver)
             solvers[label] = (nlp, min(n, n_nlp))
         else:
-            solvers[f"optik {name}"] = (_optik_solver(m, name, q0, time_limit, tol), n)
-    warm_up(lambda s=s: s(targets[0]) for s, _ in solvers.values())
+            solvers[f"optik {name}"] = (_optik_solver(m, name, time_limit, tol), n)
+    warm_up(lambda s=s: s(targets[0], q0s[0]) for s, _ in solvers.values())
     native.wait()  # the C libraries built in the background: time the compiled code
     tallies = {label: Tally(label) for label in solvers}
     for i, target in enumerate(targets):
@@ -126,7 +130,7 @@ def run(
             if i >= count:
                 continue
             t0 = time.perf_counter()
-            q, own = solve(target)
+            q, own = solve(target, q0s[i])
             elapsed = time.perf_counter() - t0
             tallies[label].add(elapsed, referee.judge(q, target, tolerances), own)
     return tallies, notes
@@ -162,22 +166,33 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--n-nlp", type=int, default=1000, help="targets for the (slower) nlp method")
     p.add_argument("--nlp-time-limit", type=float, default=0.3, help="time limit of nlp calls (s)")
     p.add_argument("--seed", type=int, default=0, help="seed of the random draws")
+    p.add_argument(
+        "--starts",
+        default="mid",
+        help="comma list of mid (the mid-limit seed) and random (a random start per target, the same for "
+        "every solver)",
+    )
     args = p.parse_args(argv)
+    starts = [s.strip() for s in args.starts.split(",") if s.strip()]
+    for kind in starts:
+        if kind not in ("mid", "random"):
+            p.error(f"--starts: mid or random, got {kind!r}")
     methods = [s.strip() for s in args.methods.split(",") if s.strip()]
     robots = [s.strip() for s in args.robots.split(",") if s.strip()]
     print(
-        f"{args.n} random targets within limits per arm (URDF), mid-limit seed, time limit "
+        f"{args.n} random targets within limits per arm (URDF), starts {'/'.join(starts)}, time limit "
         f"{args.time_limit * 1e3:g} ms, tol {args.tol:g}; every solver asked for tol / 2, its answer clipped "
         "into the limits, success by Pinocchio's FK and the exact limits\n"
     )
     print(HEADER)
     all_notes = []
     for robot in robots:
-        tallies, notes = run(
-            robot, args.n, args.time_limit, args.tol, methods, args.n_nlp, args.nlp_time_limit, args.seed
-        )
-        print("\n".join(table_rows(robot, tallies)), flush=True)
-        all_notes += [f"{robot}: {note}" for note in notes]
+        for kind in starts:
+            nlp = (args.n_nlp, args.nlp_time_limit)
+            tallies, notes = run(robot, args.n, args.time_limit, args.tol, methods, *nlp, args.seed, kind)
+            label = robot if kind == "mid" else f"{robot} (random starts)"
+            print("\n".join(table_rows(label, tallies)), flush=True)
+            all_notes += [f"{robot}: {note}" for note in notes]
     for note in dict.fromkeys(all_notes):
         print(f"\n- {note}")
     return 0

@@ -11,7 +11,11 @@ one ``casadi.Function`` with one ``4 x 4k`` output), compared with MuJoCo's ``xp
 Times: the mean per call of that function and of ``mj_kinematics`` (which computes the same
 poses and the geoms', cameras' and lights' too) over the ``--n`` configurations, after one warm-up call each.
 
-Run: ``optik benchmark mjcf_fk [--n 100] [--seed 0] [--max-models 0]``.
+``--menagerie DIR`` adds the models of a MuJoCo Menagerie checkout (google-deepmind/mujoco_menagerie,
+with its mesh assets) to the test sets; the same files are tested by tests/test_mjcf_models.py
+when ``$OPTIK_MENAGERIE`` names that folder.
+
+Run: ``optik benchmark mjcf_fk [--n 100] [--seed 0] [--max-models 0] [--menagerie DIR]``.
 """
 
 from __future__ import annotations
@@ -30,15 +34,19 @@ from optik.benchmarks import benchmark_parser
 PACKAGES = ("dm_control", "gymnasium", "gymnasium_robotics")
 
 
-def model_files() -> list[tuple[str, Path]]:
+def model_files(menagerie: Path | None = None) -> list[tuple[str, Path]]:
     """``(package-relative id, path)`` of every distinct ``.xml`` file of the installed packages
-    (a file shipped twice, e.g. gymnasium's envs copied into gymnasium-robotics, counts once)."""
+    and of a Menagerie folder ``menagerie`` (ids ``menagerie/...``; a file shipped twice, e.g.
+    gymnasium's envs copied into gymnasium-robotics, counts once)."""
     out, seen = [], set()
+    roots = []
     for pkg in PACKAGES:
         spec = importlib.util.find_spec(pkg)
-        if spec is None or not spec.submodule_search_locations:
-            continue
-        root = Path(next(iter(spec.submodule_search_locations)))
+        if spec is not None and spec.submodule_search_locations:
+            roots.append((pkg, Path(next(iter(spec.submodule_search_locations)))))
+    if menagerie is not None:
+        roots.append(("menagerie", Path(menagerie)))
+    for pkg, root in roots:
         for path in sorted(root.rglob("*.xml")):
             digest = hashlib.sha1(path.read_bytes()).hexdigest()
             if digest not in seen:
@@ -88,9 +96,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--n", type=int, default=100, help="configurations per model")
     ap.add_argument("--seed", type=int, default=0, help="seed of the random draws")
     ap.add_argument("--max-models", type=int, default=0, help="stop after this many models (0: all)")
+    ap.add_argument("--menagerie", type=Path, default=None, help="a MuJoCo Menagerie checkout to test too")
     args = ap.parse_args(argv)
     if args.n < 1 or args.max_models < 0:
         ap.error("--n must be >= 1, --max-models >= 0")
+    if args.menagerie is not None and not args.menagerie.is_dir():
+        ap.error(f"--menagerie: no such folder {args.menagerie}")
     try:
         import mujoco
     except ImportError:
@@ -100,7 +111,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     print("| model | n_q | frames | max error | optik us | mj_kinematics us | optik / MuJoCo |")
     print("|---|---:|---:|---:|---:|---:|---:|")
     done, worst = 0, 0.0
-    for rid, path in model_files():
+    for rid, path in model_files(args.menagerie):
         try:
             model = mujoco.MjModel.from_xml_path(str(path))
         except ValueError:

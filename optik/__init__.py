@@ -25,8 +25,8 @@ from optik.mechanism import Joint, Mechanism, dh_chain, planar_chain
 from optik.path import JointPath, plan_path
 from optik.problem import IKProblem, build_ik_problem
 from optik.reach import ReachMap, reach
-from optik.results import FKModes, FKResult, IKResult
-from optik.solvers import Tolerances, self_motion, solve_ik, solve_ik_all
+from optik.results import FKModes, FKResult, IKResult, IKSolutions, IKSolutionsBatch
+from optik.solvers import Tolerances, self_motion, solve_ik, solve_ik_all, solve_ik_all_batch
 from optik.solvers.fk import solve_fk, solve_fk_all
 from optik.targets import Pose2D, Position
 from optik.view import view
@@ -39,6 +39,8 @@ __all__ = [
     "FKResult",
     "IKProblem",
     "IKResult",
+    "IKSolutions",
+    "IKSolutionsBatch",
     "InvalidArgumentError",
     "Joint",
     "JointPath",
@@ -73,6 +75,7 @@ __all__ = [
     "solve_fk_all",
     "solve_ik",
     "solve_ik_all",
+    "solve_ik_all_batch",
     "solve_ik_batch",
     "spatial",
     "view",

@@ -377,6 +377,24 @@ class Library:
             if not isinstance(exc, OSError):  # OSError: the compiler could not be started
                 raise
 
+    def _make_later(self, make_source: Callable[[], str], cc: str) -> None:
+        """Load the cached file here when it is sound, else make the source and compile it in a
+        daemon thread (`keyed_library`)."""
+        if self.path.exists() and _damage(self.path) is None:
+            self._settle(None, None)
+            return
+
+        def build() -> None:
+            try:
+                source = make_source()
+            except Exception as exc:  # the source generation failed: logged, no library
+                self._fail(exc)
+                return
+            with contextlib.suppress(Exception):  # _make records and logs its own failures
+                self._make(source, cc, False)
+
+        threading.Thread(target=build, name=f"optik-build-{self.path.stem}", daemon=True).start()
+
     def _settle(self, proc: subprocess.Popen | None, tmp: Path | None) -> None:
         """Finish the build (when ``proc`` runs) and load the library; record a failure."""
         try:
@@ -455,6 +473,28 @@ def source_library(
     return None if lib is None else lib.wait()
 
 
+def keyed_library(stem: str, key: str, make_source: Callable[[], str]) -> Library | None:
+    """The library cached under ``key`` (a digest of everything its source is made from), its
+    source made only when it is not cached: for code whose generation costs more than a first
+    call may wait (`optik.solvers.generic_chain`).
+
+    A cached, undamaged library is loaded here (about a millisecond). Otherwise a daemon thread
+    calls ``make_source()`` and compiles it (``compile="auto"`` of `library`); the returned
+    `Library` is then ``"building"``. A failure of either is logged and leaves it ``"failed"``.
+    None without a C compiler or a usable cache directory (logged).
+
+    Args:
+        stem: file name stem of the library (``<stem>_<hash>.so`` in `cache_dir`).
+        key: identifies the source; with the compiler, its version and the architecture it
+            makes the file name.
+        make_source: returns the C source of ``key``.
+    """
+    cc = compiler()
+    if cc is None:
+        return None
+    return _library(key, stem, cc, "auto", True, (), make_source)
+
+
 def driver_source(path: Path, compile: bool | str = "auto") -> str | None:
     """The text of the hand-written C driver ``path`` that is compiled with generated code, or
     None when it cannot be read (a damaged or partial install): the caller then evaluates with
@@ -484,10 +524,18 @@ def _no_library(compile: bool | str) -> None:
 
 
 def _library(
-    source: str, stem: str, cc: str, compile: bool | str, background: bool, flags: Sequence[str]
+    source: str,
+    stem: str,
+    cc: str,
+    compile: bool | str,
+    background: bool,
+    flags: Sequence[str],
+    make_source: Callable[[], str] | None = None,
 ) -> Library | None:
     """The `Library` of ``source`` (one per file and process): loaded from the cache, or built
-    here or, when ``background``, by the compiler started here and a daemon thread waiting for it."""
+    here or, when ``background``, by the compiler started here and a daemon thread waiting for it.
+    With ``make_source``, ``source`` is only the key of the file name and the source to compile
+    is ``make_source()``, made in that daemon thread (see `keyed_library`)."""
     try:
         path = _library_file(stem, source, cc, flags)
     except OSError as exc:  # the cache directory cannot be created
@@ -500,22 +548,49 @@ def _library(
         fresh = lib is None
         if fresh:
             lib = _BUILDS[path] = Library(path, flags)
-    if fresh:
+    if fresh and make_source is not None:
+        lib._make_later(make_source, cc)
+    elif fresh:
         lib._make(source, cc, background)  # cached: loading takes a millisecond
     if compile is True and lib.wait() is None:
         raise SolverUnavailableError(lib.error or f"{path.name}: no library")
     return lib
 
 
+_PREPARING: set[threading.Thread] = set()  # threads of `in_background` still running
+_PREPARING_LOCK = threading.Lock()
+
+
+def in_background(work: Callable[[], object], name: str) -> None:
+    """Run ``work`` in a daemon thread that `wait` waits for too: the preparation of a library
+    (its code generation) that a caller does not wait for (`optik.solvers.generic_chain`)."""
+
+    def run() -> None:
+        try:
+            work()
+        finally:
+            with _PREPARING_LOCK:
+                _PREPARING.discard(thread)
+
+    thread = threading.Thread(target=run, name=name, daemon=True)
+    with _PREPARING_LOCK:
+        _PREPARING.add(thread)
+    thread.start()
+
+
 def wait(timeout: float | None = None) -> bool:
     """Wait until every background build of this process is done (at most ``timeout`` seconds
-    in all); True when none is left running."""
+    in all), the preparations started by `in_background` first; True when none is left running."""
     deadline = None if timeout is None else time.monotonic() + timeout
+    with _PREPARING_LOCK:
+        preparing = list(_PREPARING)
+    for thread in preparing:
+        thread.join(None if deadline is None else max(0.0, deadline - time.monotonic()))
     with _BUILDS_LOCK:
         builds = list(_BUILDS.values())
     for lib in builds:
         lib.wait(None if deadline is None else max(0.0, deadline - time.monotonic()))
-    return all(lib.state != "building" for lib in builds)
+    return not any(t.is_alive() for t in preparing) and all(lib.state != "building" for lib in builds)
 
 
 def _check_buffers(lib: ctypes.CDLL, name: str, side: str, buffers: Sequence[np.ndarray]) -> None:

@@ -103,8 +103,9 @@ def frame_tasks(frame: Frames, task: Tasks) -> tuple[tuple[str | None, str], ...
     return tuple(zip(frames, tasks, strict=True))
 
 
-def _task_blocks(task: str, t: ca.SX, target: ca.SX) -> tuple[ca.SX, ca.SX]:
-    """Position and orientation residual blocks of a task (either may be empty)."""
+def task_blocks(task: str, t: ca.SX, target: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """Position and orientation residual blocks ``(r_p, r_o)`` of the pose ``t`` (4x4 ``SX``)
+    against the 12 target parameters ``target`` for a task space (either may be empty)."""
     r_star = ca.reshape(target[:9], 3, 3)
     p_star = target[9:12]
     p, r = t[:3, 3], t[:3, :3]
@@ -119,6 +120,24 @@ def _task_blocks(task: str, t: ca.SX, target: ca.SX) -> tuple[ca.SX, ca.SX]:
         heading = ca.vertcat(r[0, 0] - r_star[0, 0], r[1, 0] - r_star[1, 0])
         return p[:2] - p_star[:2], heading
     return p[:2] - p_star[:2], empty
+
+
+def frame_errors(task: str, t: ca.SX, target: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """Position and orientation error of the pose ``t`` (4x4 ``SX``) against the 12 target
+    parameters ``target`` for a task space (the definitions of `IKProblem.error_expressions`)."""
+    r_star = ca.reshape(target[:9], 3, 3)
+    dp = t[:3, 3] - target[9:12]
+    zero = ca.SX.zeros(1, 1)
+    planar = task in ("pose2d", "position2d")
+    pos = zero if task == "orientation" else ca.norm_2(dp[:2] if planar else dp)
+    if task in ("pose", "orientation"):
+        ori = spatial.angle_between(r_star, t[:3, :3])
+    elif task == "pose2d":
+        dphi = ca.atan2(t[1, 0], t[0, 0]) - ca.atan2(r_star[1, 0], r_star[0, 0])
+        ori = ca.fabs(spatial.wrap_angle(dphi))
+    else:
+        ori = zero
+    return pos, ori
 
 
 @dataclass(frozen=True)
@@ -257,24 +276,11 @@ class IKProblem:
 
     def frame_error_expressions(self) -> list[tuple[ca.SX, ca.SX]]:
         """Position and orientation error of each frame (see `error_expressions`), in frame order."""
-        out = []
-        for i, (frame, task) in enumerate(frame_tasks(self.frame, self.task)):
-            t = self.mechanism.frame_expr(frame)
-            target = self.target[12 * i : 12 * i + 12]
-            r_star = ca.reshape(target[:9], 3, 3)
-            dp = t[:3, 3] - target[9:12]
-            zero = ca.SX.zeros(1, 1)
-            planar = task in ("pose2d", "position2d")
-            pos = zero if task == "orientation" else ca.norm_2(dp[:2] if planar else dp)
-            if task in ("pose", "orientation"):
-                ori = spatial.angle_between(r_star, t[:3, :3])
-            elif task == "pose2d":
-                dphi = ca.atan2(t[1, 0], t[0, 0]) - ca.atan2(r_star[1, 0], r_star[0, 0])
-                ori = ca.fabs(spatial.wrap_angle(dphi))
-            else:
-                ori = zero
-            out.append((pos, ori))
-        return out
+        pairs = frame_tasks(self.frame, self.task)
+        return [
+            frame_errors(task, self.mechanism.frame_expr(frame), self.target[12 * i : 12 * i + 12])
+            for i, (frame, task) in enumerate(pairs)
+        ]
 
     def residual_function(self, closure_weight: float | None = None) -> ca.Function:
         """``(q, target, weights) -> (e, de/dq)`` with ``e = [w_p r_p; w_o r_o; w_c c]``.
@@ -346,9 +352,7 @@ def _build(m: Mechanism, task: Tasks, frame: Frames, secondary: tuple[str, ...])
     weights = ca.SX.sym("weights", 2)
     q_ref = ca.SX.sym("q_ref", m.n_q)
     sec = ca.SX.sym("secondary_weights", 3)
-    blocks = [
-        _task_blocks(t, m.frame_expr(f), target[12 * i : 12 * i + 12]) for i, (f, t) in enumerate(pairs)
-    ]
+    blocks = [task_blocks(t, m.frame_expr(f), target[12 * i : 12 * i + 12]) for i, (f, t) in enumerate(pairs)]
     r_p, r_o = ca.vertcat(*(b[0] for b in blocks)), ca.vertcat(*(b[1] for b in blocks))
     f = 0.5 * (weights[0] ** 2 * ca.sumsqr(r_p) + weights[1] ** 2 * ca.sumsqr(r_o))
     f += 0.5 * sec[0] * ca.sumsqr(q - q_ref)

@@ -746,6 +746,12 @@ def default_problems(directory: str | Path | None = None) -> list[Problem]:
     return [p for p in list_problems(directory) if p.default]
 
 
+def default_constructors(directory: str | Path | None = None) -> list[str]:
+    """The [`optik.catalog`][optik.catalog] constructors of the default problems (`default_problems`),
+    sorted, each once: the mechanisms ``optik bench`` covers (the twelve of the shipped set)."""
+    return sorted({p.constructor for p in default_problems(directory)})
+
+
 def find_problem(name: str, directory: str | Path | None = None) -> Problem:
     """A problem by name (``five_bar``) or by path (``my/problem.toml``).
 

@@ -235,3 +235,63 @@ class IKSolutions(Sequence[IKResult]):
         if not self.certified:
             text += f"; not certified complete ({self.uncertified_reason})"
         return text
+
+
+@dataclass(eq=False)
+class IKSolutionsBatch(Sequence[IKSolutions]):
+    """Every solution of many targets (``optik.solve_ik_all_batch``) as arrays: no Python
+    object per solution. Target ``i`` holds rows ``offsets[i]:offsets[i + 1]`` of `q` (nearest
+    its start first); ``batch[i]`` is its `IKSolutions` (made when read).
+
+    Attributes:
+        q: ``(K, n)`` the solutions within the joint limits, target after target.
+        errors: ``(K, 2)`` their position and orientation errors (every one within the
+            tolerances: each passed the FK check).
+        counts: ``(M,)`` the number of solutions of each target.
+        outside_limits: ``(L, n)`` the solutions outside the joint limits, target after target.
+        outside_counts: ``(M,)`` how many of those each target has.
+        certified: ``(M,)`` True where a closed form proves the target's solutions complete.
+        solve_time: wall time of the whole call (s).
+        general: the targets answered one by one by ``optik.solve_ik_all`` (a candidate to
+            polish, two close candidates, no compiled driver), ``{index: its IKSolutions}``;
+            their rows are in the arrays too.
+    """
+
+    q: np.ndarray
+    errors: np.ndarray
+    counts: np.ndarray
+    outside_limits: np.ndarray
+    outside_counts: np.ndarray
+    certified: np.ndarray
+    solve_time: float
+    general: dict[int, IKSolutions] = field(default_factory=dict)
+
+    @property
+    def offsets(self) -> np.ndarray:
+        """``(M + 1,)``: target ``i``'s solutions are rows ``offsets[i]:offsets[i + 1]`` of `q`."""
+        return np.concatenate(([0], np.cumsum(self.counts)))
+
+    @property
+    def target(self) -> np.ndarray:
+        """``(K,)``: the index of each solution's target."""
+        return np.repeat(np.arange(len(self.counts)), self.counts)
+
+    def __len__(self) -> int:
+        return len(self.counts)
+
+    @overload
+    def __getitem__(self, index: int) -> IKSolutions: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> list[IKSolutions]: ...
+
+    def __getitem__(self, index: int | slice) -> IKSolutions | list[IKSolutions]:
+        if isinstance(index, slice):
+            return [self[i] for i in range(len(self))[index]]
+        i = range(len(self))[index]  # negative indices; IndexError past the end
+        if i in self.general:
+            return self.general[i]
+        a, b = self.offsets[i : i + 2]
+        c = int(np.sum(self.outside_counts[:i]))
+        outside = self.outside_limits[c : c + int(self.outside_counts[i])]
+        return IKSolutions.from_arrays(self.q[a:b], self.errors[a:b], outside, "closed_form", self.solve_time)

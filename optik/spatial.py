@@ -19,7 +19,6 @@ Conventions:
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import casadi as ca
@@ -52,6 +51,7 @@ __all__ = [
     "vee",
     "wrap_angle",
     "wrap_rotation_vector",
+    "wrap_to_limits",
     "zyz_to_rot",
 ]
 
@@ -74,7 +74,10 @@ class _Num:
 
     @staticmethod
     def mat(rows: list[list[Any]]) -> np.ndarray:
-        flat = np.broadcast_arrays(*[np.asarray(e, dtype=float) for r in rows for e in r])
+        entries = [np.asarray(e, dtype=float) for r in rows for e in r]
+        if all(e.ndim == 0 for e in entries):  # one matrix: no broadcasting and stacking (tens of us)
+            return np.array(rows, dtype=float)
+        flat = np.broadcast_arrays(*entries)
         n_cols = len(rows[0])
         stacked = [np.stack(flat[i * n_cols : (i + 1) * n_cols], axis=-1) for i in range(len(rows))]
         return np.stack(stacked, axis=-2)
@@ -156,15 +159,79 @@ def wrap_rotation_vector(w: np.ndarray) -> np.ndarray:
 
     ``w = theta u`` with ``theta = |w| > pi`` is replaced by ``wrap_angle(theta) u``: the angle
     reduced modulo 2 pi in one step (a negative reduced angle is the rotation about ``-u``), so
-    the cost does not grow with ``|w|``.
+    the cost does not grow with ``|w|``. A vector with ``|w| <= pi`` is returned unchanged.
 
     Args:
-        w: a finite rotation vector (numpy, 3 entries).
+        w: finite rotation vector(s) (numpy, shape ``(..., 3)``).
     """
-    norm = math.hypot(*w.tolist())  # no overflow for huge finite entries (unlike the dot product)
-    if norm <= np.pi:
+    w = np.asarray(w, dtype=float)
+    # nested hypot: no overflow for huge finite entries (unlike the dot product)
+    norm = np.hypot(np.hypot(w[..., 0], w[..., 1]), w[..., 2])
+    over = norm > np.pi
+    if not over.any():
         return w
-    return w * (wrap_angle(norm) / norm)
+    scale = np.where(over, wrap_angle(norm) / np.where(over, norm, 1.0), 1.0)
+    return w * scale[..., None]
+
+
+def wrap_to_limits(q: Any, lower: Any, upper: Any, angular: Any) -> np.ndarray:
+    """The angles of ``q`` shifted by whole turns to their canonical value within the limits.
+
+    For each angle coordinate ``i`` (``angular[i]``) the result is ``q_i + 2 pi k`` with the
+    integer ``k`` chosen by these rules, in order:
+
+    1. ``c = q_i`` when ``-pi < q_i <= pi``, else ``c = wrap_angle(q_i)``, the value in
+       ``(-pi, pi]``; ``c`` when ``lower_i <= c <= upper_i``;
+    2. else ``q_i`` itself when it lies within the limits (a value on a limit beyond pi, such as
+       -3.9, is not shifted out and back: that could round it just outside);
+    3. else, of ``c + 2 pi k``, the one nearest the interval ``[lower_i, upper_i]``, i.e. minimizing
+       ``max(lower_i - x, x - upper_i, 0)``: one inside when any is (the smallest ``|k|`` of
+       those), otherwise the nearest outside, which a clip then moves onto the near limit (a
+       value a rounding past a limit beyond pi, 3.7525 + 6e-8 on the Panda's joint 6, stays
+       there instead of wrapping to -2.53, past the other limit).
+
+    Other coordinates are returned unchanged; a value within the limits never leaves them, and
+    one in ``(-pi, pi]`` within them is returned exactly. NaN stays NaN.
+
+    Args:
+        q: coordinates, shape ``(..., n)`` (numpy, float).
+        lower, upper: limits, shape ``(n,)`` (``-inf`` / ``inf`` allowed).
+        angular: boolean mask ``(n,)`` of the angle coordinates.
+
+    Returns:
+        A new float array of the shape of ``q``.
+    """
+    out = np.array(q, dtype=float)
+    mask = np.asarray(angular, dtype=bool)
+    if not mask.any():
+        return out
+    a = out[..., mask]
+    lo, hi = np.asarray(lower, dtype=float)[mask], np.asarray(upper, dtype=float)[mask]
+    canonical = (a > -np.pi) & (a <= np.pi)
+    keep = (lo <= a) & (a <= hi)
+    if (canonical & keep).all():  # the common case: nothing to do
+        return out
+    c = np.where(canonical, a, wrap_angle(a))
+    ok = (lo <= c) & (c <= hi)
+    if (ok | keep).all():
+        out[..., mask] = np.where(ok, c, a)
+        return out
+    with np.errstate(invalid="ignore", over="ignore"):
+        # whole turns from c to the nearest point of the interval, and that count's neighbours
+        # (rounding): the candidate of least gap wins, of gap 0 the one of least |k|
+        base = np.floor((np.minimum(np.maximum(c, lo), hi) - c) / _TWO_PI)
+        k = base[..., None] + _STEPS
+        x = c[..., None] + _TWO_PI * k
+        gap = np.maximum(np.maximum(lo[:, None] - x, x - hi[:, None]), 0.0)
+        key = np.where(gap > 0.0, gap, -1.0 / (1.0 + np.abs(k)))  # inside: negative, least |k| least
+        pick = np.argmin(key, axis=-1)  # (NaN: any pick, all candidates are NaN)
+        best = c + _TWO_PI * (base + _STEPS[pick])  # the picked x, by the same arithmetic
+    out[..., mask] = np.where(ok, c, np.where(keep, a, best))
+    return out
+
+
+_TWO_PI = 2.0 * np.pi
+_STEPS = np.array([-1.0, 0.0, 1.0, 2.0])
 
 
 def rot_x(a: Any) -> Any:

@@ -61,9 +61,12 @@ def test_contacts_hold_the_feet(quad, method):
     assert np.abs(m.fk(r.q, "torso")[:3, 3] - goal[:3, 3]).max() < 1e-6
 
 
-def test_balance_on_three_feet(quad):
+@pytest.mark.parametrize("method", ["lm", "nlp", "qp"])
+def test_balance_on_three_feet(quad, method):
     """Three feet hold, the fourth reaches out: the centre of mass must stay over the triangle
-    of the three by the margin; without the balance rows the same reach leaves it outside."""
+    of the three by the margin; without the balance rows the same reach leaves it outside
+    (``lm`` through CasADi's evaluator, ``compile=False``: the same step as the C kernel, see
+    test_lm_kernel, without a compiler run in the suite)."""
     m, stand = quad
     held = FEET[:3]
     contacts = {f: optik.Position(m.fk(stand, f)[:3, 3]) for f in held}
@@ -72,10 +75,22 @@ def test_balance_on_three_feet(quad):
     target = {FEET[3]: optik.Position(reach)}
     free = optik.solve_ik(m, target, q0=stand, contacts=contacts, method="nlp", time_limit=10.0)
     assert free.success and _inside(m, free.q, polygon) < 0.0  # falls over without the rows
+    options = {"compile": False} if method == "lm" else {}
     r = optik.solve_ik(
-        m, target, q0=stand, contacts=contacts, support=polygon, com_margin=0.01, time_limit=10.0
+        m,
+        target,
+        q0=stand,
+        contacts=contacts,
+        support=polygon,
+        com_margin=0.01,
+        time_limit=10.0,
+        method=method,
+        **options,
     )
     assert r.success, r.message
+    assert r.method == method
+    if method == "lm":  # the active-set step (lm_kernel) converges from the first start; the
+        assert r.restarts == 0 and r.iterations <= 12  # hinges' plain step takes 22 and a restart
     assert _inside(m, r.q, polygon) >= 0.01 - 1e-9 and r.extra["com_inside"] == pytest.approx(
         _inside(m, r.q, polygon)
     )
@@ -85,7 +100,8 @@ def test_balance_on_three_feet(quad):
     assert m.within_limits(r.q)
 
 
-def test_an_impossible_margin_fails_with_the_reason(quad):
+@pytest.mark.parametrize("method", ["lm", "nlp"])
+def test_an_impossible_margin_fails_with_the_reason(quad, method):
     m, stand = quad
     contacts = {f: optik.Position(m.fk(stand, f)[:3, 3]) for f in FEET}
     polygon = _hull(np.array([m.fk(stand, f)[:2, 3] for f in FEET]))
@@ -99,6 +115,8 @@ def test_an_impossible_margin_fails_with_the_reason(quad):
         com_margin=0.5,
         time_limit=0.5,
         max_restarts=1,
+        method=method,
+        **({"compile": False} if method == "lm" else {}),
     )
     assert not r.success and r.extra["com_inside"] < 0.5
     assert "centre of mass" in r.message or "tolerances not met" in r.message
@@ -120,7 +138,7 @@ def test_rejections(quad):
     with pytest.raises(InvalidArgumentError, match="com_margin"):
         optik.solve_ik(m, goal, frame="torso", support=square, com_margin=-0.1)
     with pytest.raises(SolverUnavailableError, match="support"):
-        optik.solve_ik(m, goal, frame="torso", contacts=feet, support=square, method="lm")
+        optik.solve_ik(m, goal, frame="torso", contacts=feet, support=square, method="dls")
     with pytest.raises(InvalidArgumentError, match="support"):
         optik.solve_ik(m, goal, frame="torso", support=square[::-1])
 
@@ -136,8 +154,54 @@ def test_the_humanoid_benchmark_runs(capsys):
         pytest.skip(f"the G1 comes from example-robot-data: {exc}")
     for robot in ("g1", "go2"):
         assert (
-            bench_balance.main(["--robot", robot, "--n", "2", "--time-limit", "5", "--pink-com-costs", "0"])
+            bench_balance.main(
+                [
+                    "--robot",
+                    robot,
+                    "--n",
+                    "2",
+                    "--time-limit",
+                    "5",
+                    "--pink-com-costs",
+                    "0",
+                    "--methods",
+                    "nlp",
+                ]
+            )
             == 0
         )
         out = capsys.readouterr().out
         assert "| optik nlp + balance | 2/2 |" in out
+
+
+@pytest.mark.filterwarnings("ignore:Converted matrix")  # qpsolvers hands clarabel sparse copies
+@pytest.mark.parametrize("solver", ["daqp", "osqp", "cvxpy", "clarabel"])
+def test_a_qp_step_holds_the_balance_rows(quad, solver):
+    """One diffik.step toward the fourth foot's far reach: without ``support`` the step's
+    linearized centre of mass leaves the triangle of the held feet; with it every backend's
+    step satisfies ``G dq <= h`` (the rows of build_qp: N (c + J_com dq) <= b - margin)."""
+    if solver != "cvxpy":
+        pytest.importorskip(solver)
+    m, stand = quad
+    held = FEET[:3]
+    tasks = []
+    for f in held:
+        t = optik.diffik.PositionTask(f, cost=10.0)
+        t.set_target(m.fk(stand, f))
+        tasks.append(t)
+    reach = optik.diffik.PositionTask(FEET[3])
+    goal = m.fk(stand, FEET[3])
+    goal[:3, 3] += [-0.12, -0.06, 0.08]
+    reach.set_target(goal)
+    polygon = _hull(np.array([m.fk(stand, f)[:2, 3] for f in held]))
+    free = optik.diffik.step(m, stand, [*tasks, reach], 1.0, "qp", solver)
+    res = optik.diffik.step(m, stand, [*tasks, reach], 1.0, "qp", solver, support=polygon, com_margin=0.01)
+    g, h = res.problem.G, res.problem.h
+    assert g.shape == (3, m.n_q) and res.ok, res.message
+    assert np.any(g @ free.v > h + 1e-3)  # the free step leaves the polygon (linearized)
+    assert np.all(g @ res.v <= h + 1e-6)
+    n, b = support_halfplanes(polygon)
+    np.testing.assert_allclose(h, b - 0.01 - n @ m.com(stand)[:2], atol=1e-12)
+    np.testing.assert_allclose(g, n @ m.com_jacobian(stand)[:2], atol=1e-12)
+    with pytest.raises(InvalidArgumentError, match="support"):
+        optik.diffik.step(m, stand, tasks, 1.0, "dls", support=polygon)

@@ -9,7 +9,6 @@ import pytest
 
 import optik
 from optik.batch import BatchResult, fk_batch, solve_ik_batch
-from optik.batch.chunk import wrap_rows
 from optik.batch.fk import CHUNK
 
 PANDA = optik.catalog.panda()
@@ -171,14 +170,14 @@ def test_bad_input_names_the_argument(kwargs: dict, error: type, name: str) -> N
         solve_ik_batch(PANDA, **args)
 
 
-def test_fk_batch_matches_fk_and_wrap_rows_matches_wrap() -> None:
+def test_fk_batch_matches_fk_and_wrap_of_rows_matches_wrap() -> None:
     q = PANDA.random_q(CHUNK * 2 + 17, seed=3)
     np.testing.assert_array_equal(fk_batch(PANDA, q, workers=2), PANDA.fk(q))
     np.testing.assert_array_equal(fk_batch(PANDA, q[:3], frame="ee"), PANDA.fk(q[:3]))
     with pytest.raises(optik.UnknownFrameError):
         fk_batch(PANDA, q, frame="nope")
     wild = np.random.default_rng(0).uniform(-12, 12, (300, 7))  # joint 6's limits exceed pi
-    np.testing.assert_array_equal(wrap_rows(PANDA, wild), np.array([PANDA.wrap(r) for r in wild]))
+    np.testing.assert_array_equal(PANDA.wrap(wild), np.array([PANDA.wrap(r) for r in wild]))
 
 
 def test_mechanism_pickles_by_definition() -> None:

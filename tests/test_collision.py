@@ -262,12 +262,14 @@ def test_panda_distances_match_pinocchio_and_coal():
 
 
 def test_sphere_model_bounds_never_exceed_exact_distances(arm, tmp_path):
-    """Conservative where the solvers rely on it: when a part's spheres are all clear by ``b >= 0``,
-    the part is clear by ``b`` (smallest row <= exact coal distance; penetration depths of a
-    union of spheres are not ordered so, and no constraint uses them)."""
+    """Conservative where the solvers rely on it: when a part's spheres are all clear by ``b >= 0``
+    of an obstacle's slot (a rounded box containing it: a cylinder's box), the part is clear by ``b``
+    (smallest row <= exact coal distance; penetration depths of a union of spheres are not ordered
+    so, and no constraint uses them); empty slots are inactive."""
     import casadi as ca
 
     from optik.collision.distance import signed_distance
+    from optik.collision.slots import SLOT_SIZE, capacity_for, slot_values
     from optik.collision.spheres import distance_expressions, sphere_model
 
     w = World()
@@ -277,19 +279,81 @@ def test_sphere_model_bounds_never_exceed_exact_distances(arm, tmp_path):
     w.add_capsule("rod", 0.03, 0.3, spatial.transform(spatial.rot_x(1.2), [-0.3, -0.4, 0.1]))
     geo = robot_geometry(arm)
     model = sphere_model(geo)
-    d, names = distance_expressions(geo, [arm.frame_expr(link) for link in geo.links], w.parts(), False)
-    f = ca.Function("d", [arm.q_sym], [d])
     obstacles = w.parts()
+    capacity = capacity_for(len(obstacles))
+    slots = ca.SX.sym("slots", capacity * SLOT_SIZE)
+    rows = distance_expressions(geo, [arm.frame_expr(link) for link in geo.links], slots, False)
+    f = ca.Function("d", [arm.q_sym, slots], [rows.world, rows.active])
+    values = slot_values(obstacles, capacity)
     for q in arm.random_q(30, seed=8):
-        rows = np.asarray(f(q)).ravel()
-        poses = geo.part_poses(q)
+        d, active = (np.asarray(v).ravel() for v in f(q, values))
         moving = model.part != 0  # part 0, the base, is on the base body: no rows
-        rows = rows.reshape(int(moving.sum()), len(obstacles))
-        assert len(names) == rows.size
+        d = d.reshape(int(moving.sum()), capacity)
+        assert len(rows.world_pairs) == d.size
+        assert np.all(active.reshape(d.shape) == (np.arange(capacity) < len(obstacles)))
+        poses = geo.part_poses(q)
         for k, part in enumerate(geo.parts):
             if k == 0:
                 continue
             exact = [signed_distance(part, poses[k], o, o.offset)[0] for o in obstacles]
-            bound = rows[model.part[moving] == k].min(axis=0)
+            bound = d[model.part[moving] == k][:, : len(obstacles)].min(axis=0)
             clear = bound >= 0
             assert np.all(bound[clear] <= np.array(exact)[clear] + 1e-6)
+
+
+def test_slots_contain_their_obstacles(tmp_path):
+    """Every slot's rounded box holds its obstacle (points of the solid have slot distance <= 0) and
+    is exact for boxes, spheres and capsules (coal's distance of a probe sphere, shifted by its radius)."""
+    import casadi as ca
+    import trimesh
+
+    from optik.collision.distance import signed_distance
+    from optik.collision.parts import parts_of
+    from optik.collision.shapes import Shape
+    from optik.collision.slots import SLOT_SIZE, slot_distance, slot_values
+
+    mesh = trimesh.creation.icosphere(subdivisions=1, radius=0.1)
+    mesh.apply_transform(np.diag([1.0, 0.4, 0.7, 1.0]))
+    mesh.export(tmp_path / "blob.stl")
+    w = World()
+    w.add_box("box", (0.2, 0.3, 0.1), spatial.transform(spatial.rot_z(0.4), [0.5, 0.3, 0.1]))
+    w.add_sphere("ball", 0.05, spatial.translation(-0.4, 0.2, 0.15))
+    w.add_capsule("rod", 0.03, 0.3, spatial.transform(spatial.rot_x(1.2), [-0.3, -0.4, 0.1]))
+    w.add_cylinder("post", 0.04, 0.5, spatial.transform(spatial.rot_y(0.3), [0.2, -0.5, 0.2]))
+    w.add_mesh("blob", tmp_path / "blob.stl", spatial.transform(spatial.rot_x(0.7), [0.1, 0.1, 0.6]))
+    parts = w.parts()
+    slot, p = ca.SX.sym("slot", SLOT_SIZE), ca.SX.sym("p", 3)
+    f = ca.Function("sdf", [slot, p], [slot_distance(slot, p, 0.0)])
+    values = slot_values(parts, 8).reshape(8, SLOT_SIZE)
+    probe = parts_of("probe", Shape("sphere", (1e-3,)), np.eye(4))[0]
+    rng = np.random.default_rng(3)
+    for part, row in zip(parts, values[: len(parts)], strict=True):
+        inside = 0
+        for x in part.centre + rng.uniform(-0.7, 0.7, (100, 3)) * part.radius:
+            exact = signed_distance(probe, spatial.translation(*x), part, part.offset)[0] + 1e-3
+            bound = float(f(row, x))
+            assert bound <= exact + 1e-6  # inside the solid (exact < 0): inside the slot
+            inside += exact < 0
+            if part.shape.kind in ("box", "sphere", "capsule"):
+                assert bound == pytest.approx(exact, abs=1e-6)
+        assert inside >= 2
+    assert np.all(values[len(parts) :] == 0)
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.lists(st.floats(-1, 1), min_size=12, max_size=12))
+def test_segment_distance_is_the_minimum_over_both_segments(xs):
+    import casadi as ca
+
+    from optik.collision.spheres import segment_distance
+
+    p1, q1, p2, q2 = (np.array(xs[i : i + 3]) for i in range(0, 12, 3))
+    if len(set(map(tuple, (p1, q1)))) == 1:
+        q1 = p1.copy()  # a point, also covered
+    d = float(segment_distance(*(ca.DM(v) for v in (p1, q1, p2, q2))))
+    t = np.linspace(0, 1, 401)
+    a = p1 + t[:, None] * (q1 - p1)
+    b = p2 + t[:, None] * (q2 - p2)
+    grid = np.linalg.norm(a[:, None] - b[None], axis=2).min()
+    assert d <= grid + 1e-9
+    assert d >= grid - 2e-3 * (np.linalg.norm(q1 - p1) + np.linalg.norm(q2 - p2)) - 1e-9

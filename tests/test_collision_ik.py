@@ -108,3 +108,25 @@ def test_bad_arguments(arm):
         optik.solve_ik(arm, target, world="table")
     with pytest.raises(SolverUnavailableError, match="dls"):
         optik.solve_ik(arm, target, world=World(), method="dls")
+
+
+@pytest.mark.parametrize("method", ["lm", "nlp"])
+def test_a_moved_object_reuses_the_kernel(arm, method):
+    """The world is a parameter of the generated code: moving, adding or removing objects (within
+    the slot capacity) builds nothing new, and each answer avoids the world as it is now."""
+    from optik.solvers import collision_free
+
+    qa, qb = _branches(arm)
+    w = _blocking_world(arm, qa)
+    target = arm.fk(qa)[:3, 3]
+    kw = dict(method=method, world=w, margin=MARGIN, time_limit=5.0, seed=2)
+    res = optik.solve_ik(arm, optik.Position(target), q0=qa + 0.05, **kw)
+    assert res.success, res.message
+    built = set(collision_free._CACHE)
+    w.move("ball", spatial.translation(*arm.fk(qb, "fore")[:3, 3]))  # now on the other branch
+    w.add_box("far", (0.1, 0.1, 0.1), spatial.translation(5.0, 5.0, 5.0))
+    res = optik.solve_ik(arm, optik.Position(target), q0=qb + 0.05, **kw)
+    assert res.success, res.message
+    _independent(arm, res, target, w)
+    assert np.allclose(arm.fk(res.q, "fore")[:3, 3], arm.fk(qa, "fore")[:3, 3], atol=0.05)
+    assert set(collision_free._CACHE) == built

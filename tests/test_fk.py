@@ -213,3 +213,31 @@ def test_stewart_fk_all_honours_its_time_limit():
     with pytest.warns(RuntimeWarning, match="completeness not certified"):
         optik.solve_fk_all(sg, legs, time_limit=0.005)
     assert time.perf_counter() - start < 3 * 0.005 + 0.5
+
+
+@pytest.mark.parametrize("name", ["five_bar", "planar_3rpr", "doggy", "slider_crank"])
+def test_closed_form_modes_are_measured_as_the_general_path_measures(name):
+    """The closed-form modes' pose, residual and condition number (one buffered evaluation of
+    closure, Jacobian and pose per mode, one stacked SVD) equal what ``m.fk``, the closure and
+    `_measures` give at the returned ``q``, and actuated values outside their limits are
+    reported on every mode."""
+    m = getattr(optik.catalog, name)()
+    cm = fk_mod._compiled(m)
+    rng = np.random.default_rng(5)
+    checked = 0
+    for target in _targets(name, rng, 6):
+        for q in cf.ik(m, target):
+            modes = optik.solve_fk_all(m, q[m.actuated_indices], within_limits=False)
+            for r in modes:
+                np.testing.assert_allclose(r.pose, m.fk(r.q), atol=1e-14)
+                residual, cond = fk_mod._residual_and_condition(cm, r.q)
+                assert r.residual == pytest.approx(residual, abs=1e-15)
+                assert r.condition_number == pytest.approx(cond, rel=1e-9)
+                checked += 1
+    assert checked >= 6
+    if name == "planar_3rpr":  # legs a little past their upper limit: still assembling
+        rpr = optik.catalog.planar_3rpr(leg_limits=(0.1, 1.0))
+        legs = rpr.upper[rpr.actuated_indices] * 1.02
+        modes = optik.solve_fk_all(rpr, legs, within_limits=False)
+        assert len(modes)
+        assert all("the actuated values are outside their limits: rho" in r.message for r in modes)

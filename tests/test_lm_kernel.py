@@ -136,3 +136,23 @@ def test_one_target_path_equals_the_chunk_run() -> None:
             assert (iterations, restarts, status) == (want.iterations[i], want.restarts[i], want.status[i])
             assert status == 0 and m.within_limits(q)
             np.testing.assert_allclose(m.fk(q)[:3, 3], targets[i][9:], atol=1e-6)  # independent FK
+
+
+def test_cholesky_solve_of_the_step_matches_a_dense_solve() -> None:
+    """The step's Cholesky solve (`optik.solvers.lm_kernel._cholesky_solve`) against numpy on LM
+    matrices ``J^T J + mu I`` of rank-deficient ``J`` (a redundant arm's), down to ``mu = 1e-9``."""
+    import casadi as ca
+
+    from optik.solvers.lm_kernel import _cholesky_solve
+
+    n = 7
+    a, b = ca.SX.sym("a", n, n), ca.SX.sym("b", n)
+    f = ca.Function("f", [a, b], [_cholesky_solve([[a[i, j] for j in range(i + 1)] for i in range(n)], b)])
+    rng = np.random.default_rng(0)
+    for mu in (1.0, 1e-3, 1e-6, 1e-9):
+        jac = rng.normal(size=(12, 6)) @ rng.normal(size=(6, n))  # rank 6
+        lhs, rhs = jac.T @ jac + mu * np.eye(n), rng.normal(size=n)
+        x = np.asarray(f(lhs, rhs)).ravel()
+        np.testing.assert_allclose(lhs @ x, rhs, atol=1e-7 * np.linalg.norm(lhs) * np.linalg.norm(x))
+        forward = 1e-12 * np.linalg.cond(lhs) + 1e-9  # a backward-stable solve's bound, with room
+        np.testing.assert_allclose(x, np.linalg.solve(lhs, rhs), rtol=forward)

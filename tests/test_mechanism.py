@@ -11,8 +11,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from optik import catalog, spatial
-from optik.batch import chunk
-from optik.closed_form import registry
 from optik.errors import (
     InvalidArgumentError,
     LimitsError,
@@ -357,9 +355,7 @@ def test_wrap_keeps_an_angle_on_a_limit_beyond_pi():
     w = m.wrap(np.array([-3.9, 0.2]))
     assert w[0] == -3.9 and w[1] == pytest.approx(0.2, abs=1e-15)
     rows = np.array([[-3.9, 0.2], [0.8, -1.0], [5.0, 0.3], [-6.0, 0.9]])
-    expected = np.array([m.wrap(r) for r in rows])
-    np.testing.assert_array_equal(registry.wrap_rows(m, rows), expected)  # the vectorized twins
-    np.testing.assert_array_equal(chunk.wrap_rows(m, rows), expected)
+    np.testing.assert_array_equal(m.wrap(rows), np.array([m.wrap(r) for r in rows]))  # rows at once
     target = m.fk(np.array([-3.9, 0.2]))
     res = solve_ik(m, target, q0=[-3.85, 0.1], method="lm", compile=False)
     assert res.success and np.allclose(m.fk(res.q), target, atol=1e-6)

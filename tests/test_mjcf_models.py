@@ -4,10 +4,12 @@ every body and site equals MuJoCo's ``mj_kinematics`` (``xpos``, ``xmat``, ``sit
 ``site_xmat``) to 1e-10 on random configurations, and so does the centre of mass (MuJoCo's
 ``subtree_com`` of the world); a model without joints is refused. Files that
 MuJoCo itself cannot compile (include fragments, schemas, files whose assets are missing) are
-skipped with MuJoCo's message. The table in ``docs/mjcf.md`` lists the outcome per file."""
+skipped with MuJoCo's message. With ``$OPTIK_MENAGERIE`` naming a MuJoCo Menagerie checkout, its
+models are tested the same way. The table in ``docs/mjcf.md`` lists the outcome per file."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import casadi as ca
@@ -23,7 +25,9 @@ from optik.mechanism.mjcf import to_qpos  # noqa: E402
 
 SAMPLES = 3
 
-FILES = model_files()  # each distinct file once (gymnasium's envs are copied into gymnasium-robotics)
+MENAGERIE = os.environ.get("OPTIK_MENAGERIE")
+# each distinct file once (gymnasium's envs are copied into gymnasium-robotics)
+FILES = model_files(Path(MENAGERIE) if MENAGERIE and Path(MENAGERIE).is_dir() else None)
 
 
 def test_the_test_sets_are_installed():

@@ -226,6 +226,29 @@ def test_stewart_general_geometry_all_forty_and_pose_found():
         assert np.allclose(np.linalg.norm(p @ r2.T + t2 - b, axis=1), rho, atol=1e-9)
 
 
+def test_stewart_polish_of_many_postures_is_the_polish_of_each():
+    """`polish_stewart_many` (all real candidates at once, each with its own stopping rule)
+    gives each posture exactly what `polish_stewart` gives it alone: perturbed postures of a
+    random platform, one exact already (no step) and one far off."""
+    from optik.closed_form.parallel.stewart_gough import polish_stewart_many
+
+    rng = np.random.default_rng(8)
+    b, p = rng.normal(size=(6, 3)), 0.6 * rng.normal(size=(6, 3))
+    r, t = _random_pose(rng)
+    rho = np.linalg.norm(p @ r.T + t - b, axis=1)
+    rs = np.stack(
+        [optik.spatial.so3_exp(rng.normal(scale=s, size=3)) @ r for s in (0.0, 1e-6, 1e-3, 0.05, 0.5)]
+    )
+    ts = t + rng.normal(size=(5, 3)) * np.array([0.0, 1e-6, 1e-3, 0.05, 0.5])[:, None]
+    r_all, t_all, err_all = polish_stewart_many(b, p, rho, rs, ts)
+    for k in range(5):
+        r1, t1, err1 = par.polish_stewart(b, p, rho, rs[k], ts[k])
+        np.testing.assert_array_equal(r_all[k], r1)
+        np.testing.assert_array_equal(t_all[k], t1)
+        assert err_all[k] == err1
+    assert np.all(err_all[:4] < 1e-12)  # the near ones converge
+
+
 def test_stewart_catalog_round_trip_with_half_turn():
     """Pose -> IK -> FK (all) -> contains the pose; one pose is a half-turn about z, which a
     Cayley chart cannot reach."""

@@ -76,25 +76,36 @@ def independent_checks(m, path, poses, tol=1e-6):
     assert np.all(path.q >= m.lower) and np.all(path.q <= m.upper)
 
 
-@settings(max_examples=30)
-@given(st.integers(2, 4), st.integers(1, 4), st.integers(0, 10_000), st.booleans(), st.booleans())
-def test_dynamic_program_is_the_brute_force_optimum(n_layers, width, seed, bounded, periodic):
+@settings(max_examples=40)
+@given(
+    st.integers(2, 4), st.integers(1, 4), st.integers(0, 10_000), st.booleans(), st.booleans(), st.booleans()
+)
+def test_dynamic_program_is_the_brute_force_optimum(n_layers, width, seed, bounded, periodic, cut):
     rng = np.random.default_rng(seed)
     layers = [rng.uniform(-4, 4, (int(rng.integers(1, width + 1)), 3)) for _ in range(n_layers)]
     w = rng.uniform(0.2, 2.0, 3)
     bounds = np.full((n_layers - 1, 3), 4.0) if bounded else None
     periods = np.array([2 * np.pi, 0.0, 2 * np.pi]) if periodic else np.zeros(3)
-    got_c = graph.least_motion(layers, w, bounds, periods)
-    got_np = graph.least_motion_numpy(layers, w, bounds, periods)
-    if periodic:  # the brute force over the wrapped differences
-        want = np.inf
-        for pick in itertools.product(*[range(len(layer)) for layer in layers]):
-            q = np.stack([layer[i] for layer, i in zip(layers, pick, strict=True)])
-            d = graph.differences(q[:-1], q[1:], periods)
-            if bounds is None or np.all(np.abs(d) <= bounds):
-                want = min(want, float(np.linalg.norm(d * w, axis=1).sum()))
-    else:
-        want = brute_force(layers, w, bounds)
+    every = [
+        (k, a, b)
+        for k in range(1, n_layers)
+        for a in range(len(layers[k - 1]))
+        for b in range(len(layers[k]))
+    ]
+    removed = np.array([e for e in every if rng.random() < 0.4] if cut else [], dtype=int).reshape(-1, 3)
+    got_c = graph.least_motion(layers, w, bounds, periods, removed)
+    got_np = graph.least_motion_numpy(layers, w, bounds, periods, removed)
+    gone = {tuple(e) for e in removed.tolist()}
+    want = np.inf  # the brute force over the wrapped differences and the edges left
+    for pick in itertools.product(*[range(len(layer)) for layer in layers]):
+        if any((k, pick[k - 1], pick[k]) in gone for k in range(1, n_layers)):
+            continue
+        q = np.stack([layer[i] for layer, i in zip(layers, pick, strict=True)])
+        d = graph.differences(q[:-1], q[1:], periods)
+        if bounds is None or np.all(np.abs(d) <= bounds):
+            want = min(want, float(np.linalg.norm(d * w, axis=1).sum()))
+    if not periodic and not cut:
+        assert brute_force(layers, w, bounds) == pytest.approx(want, abs=1e-12)
     for got in (got_c, got_np):
         if np.isinf(want):
             assert got.blocked >= 1 and np.isinf(got.cost)
@@ -104,6 +115,7 @@ def test_dynamic_program_is_the_brute_force_optimum(n_layers, width, seed, bound
         q = np.stack([layer[i] for layer, i in zip(layers, got.index, strict=True)])
         d = graph.differences(q[:-1], q[1:], periods)
         assert float(np.linalg.norm(d * w, axis=1).sum()) == pytest.approx(got.cost, abs=1e-9)
+        assert not any((k, got.index[k - 1], got.index[k]) in gone for k in range(1, n_layers))
 
 
 def test_far_apart_poses_brute_force_over_every_solution(ur5_limited):
@@ -240,6 +252,37 @@ def test_world_drops_colliding_solutions(ur5_limited):
     independent_checks(m, path, poses)
 
 
+def test_world_removes_edges_colliding_between_samples(ur5_limited):
+    """A ball in the sweep of the free optimum's single segment (the base turning 1.5 rad), at
+    the elbow halfway: no solution of either pose touches it, so only the edge collides; the
+    plan removes it and takes another branch whose sweep is clear, checked here independently
+    at 400 configurations along the segment."""
+    pytest.importorskip("coal", reason="collision queries need coal (the collision extra)")
+    m = ur5_limited
+    qa = np.array([0.0, -1.2, 1.5, -1.9, -1.57, 0.0])
+    poses = optik.fk_batch(m, np.array([qa, qa + np.array([1.5, 0, 0, 0, 0, 0])]))
+    free = optik.plan_path(m, poses, max_flips=None)
+    ball = optik.World()
+    ball.add_sphere(
+        "ball", 0.03, optik.spatial.translation(*m.fk(free.q.mean(axis=0), "forearm_link")[:3, 3])
+    )
+    for t in poses:
+        assert not optik.collision.check_many(m, optik.solve_ik_all(m, t).q, world=ball).in_collision.any()
+
+    def sweep_hits(q):
+        s = np.linspace(0.0, 1.0, 400)[:, None]
+        return optik.collision.check_many(m, q[0] + s * (q[1] - q[0]), world=ball).in_collision
+
+    assert sweep_hits(free.q).any()
+    path = optik.plan_path(m, poses, max_flips=None, world=ball)
+    assert path.success and path.checks["collision"], path.message
+    assert "edges colliding between their samples removed" in path.message
+    assert not sweep_hits(path.q).any()
+    assert np.abs(path.q - free.q).max() > 1.0  # another branch
+    assert path.cost == pytest.approx(free.cost, abs=1e-9)  # as short: the free optimum's length
+    independent_checks(m, path, poses)
+
+
 def test_free_axis_absorbs_a_tool_spin(ur5_limited):
     """The poses spin back and forth about the tool axis: with ``free_axis="z"`` the path need
     not follow the spin, so it is shorter, and every sample still has the tool axis and point."""
@@ -355,6 +398,22 @@ def test_redundant_arm_over_self_motion_samples(panda_line):
     assert smooth.cost < path.cost
     assert smooth.cost == pytest.approx(length(smooth.q), abs=1e-9)
     independent_checks(m, smooth, poses)
+
+
+def test_refinement_nlp_is_cached_with_the_poses_as_parameters(panda_line):
+    """A second path of the same length reuses the built NLP and meets its own poses (not the
+    first path's: the poses are parameters, not constants of the build)."""
+    m, poses = panda_line
+    values = np.linspace(-2.8, 2.8, 15)
+    first = optik.plan_path(m, poses, self_motion=("q7", values), smooth=True)
+    built = optik.path.redundant.refiner(m, None, len(poses), 1e-6)
+    shifted = poses.copy()
+    shifted[:, :3, 3] += [0.0, 0.0, -0.05]
+    second = optik.plan_path(m, shifted, self_motion=("q7", values), smooth=True)
+    assert optik.path.redundant.refiner(m, None, len(poses), 1e-6) is built
+    for path, want in ((first, poses), (second, shifted)):
+        assert path.success and "refined from" in path.message, path.message
+        independent_checks(m, path, want)
 
 
 def test_redundant_arm_bad_input(panda_line):

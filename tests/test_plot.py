@@ -14,23 +14,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import optik
-from optik import plot
+from optik import plot, problem_files
 from optik.errors import InvalidArgumentError
 
-MECHANISMS = (
-    "planar_2r",
-    "planar_3r",
-    "rp_arm",
-    "pp_arm",
-    "seed_6r_arm",
-    "five_bar",
-    "doggy",
-    "slider_crank",
-    "planar_3rpr",
-    "stewart_gough",
-    "panda",
-    "iiwa14",
-)
+MECHANISMS = problem_files.default_constructors()
 CATALOG = [getattr(optik.catalog, name) for name in MECHANISMS if hasattr(optik.catalog, name)]
 
 

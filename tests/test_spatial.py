@@ -83,6 +83,58 @@ def test_wrap_angle_boundaries_and_arrays():
     assert np.all((w > -np.pi) & (w <= np.pi))
 
 
+def _gap(x, lo, hi):
+    return max(lo - x, x - hi, 0.0)
+
+
+SHIFT_EPS = 1e-9
+"""Rounding allowance (rad) of the wrap properties: a shift within this of a limit may land on
+either side of it."""
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    q=st.one_of(st.floats(-60, 60), st.sampled_from([np.pi, -np.pi, 0.0, 3.7525 + 6e-8, -3.9])),
+    lo=st.one_of(st.floats(-20, 20), st.sampled_from([-np.pi, -3.9, -0.0175])),
+    width=st.one_of(st.floats(0, 15), st.sampled_from([0.0, np.inf, 3.7700])),
+    unbounded_below=st.booleans(),
+)
+def test_wrap_to_limits_properties(q, lo, width, unbounded_below):
+    """The result is q + 2 pi k; a value within the limits stays within them (unchanged when it is
+    in (-pi, pi]); the result is within the limits when some whole-turn shift of q is, else it is
+    the shift nearest the limits; the value in (-pi, pi] is taken when it is within them."""
+    lo, hi = (-np.inf if unbounded_below else lo), lo + width
+    w = float(spatial.wrap_to_limits(np.array([q, q]), [lo, -np.inf], [hi, np.inf], [True, False])[0])
+    assert spatial.wrap_to_limits(np.array([q, q]), [lo, -np.inf], [hi, np.inf], [True, False])[1] == q
+    turns = (w - q) / (2 * np.pi)
+    assert abs(turns - round(turns)) * 2 * np.pi <= SHIFT_EPS
+    if lo <= q <= hi:
+        assert lo <= w <= hi
+        if -np.pi < q <= np.pi:
+            assert w == q
+    shifts = [q + 2 * np.pi * k for k in range(-30, 31)]
+    if any(lo + SHIFT_EPS <= x <= hi - SHIFT_EPS for x in shifts):
+        assert lo <= w <= hi
+    assert _gap(w, lo, hi) <= min(_gap(x, lo, hi) for x in shifts) + SHIFT_EPS
+    c = spatial.wrap_angle(q)
+    if lo + SHIFT_EPS <= c <= hi - SHIFT_EPS and not lo <= q <= hi:
+        assert w == pytest.approx(c, abs=SHIFT_EPS)
+
+
+def test_wrap_to_limits_keeps_a_rounding_past_a_limit_beyond_pi_on_its_side():
+    """The Panda's joint 6, limits [-0.0175, 3.7525]: 3.7525 + 6e-8 used to wrap to -2.53, past
+    the other limit, where a clip moved it (another pose, 0.26 m away)."""
+    lo, hi = np.array([-0.0175, -3.9]), np.array([3.7525, 0.8])
+    q = np.array([[3.7525 + 6e-8, -3.9 - 1e-9], [3.7525 + 6e-8 + 2 * np.pi, 0.8 + 1e-9 - 2 * np.pi]])
+    got = np.clip(spatial.wrap_to_limits(q, lo, hi, [True, True]), lo, hi)
+    np.testing.assert_allclose(got, [[3.7525, -3.9], [3.7525, 0.8]], rtol=0, atol=1e-12)
+    rows = np.random.default_rng(0).uniform(-20, 20, (50, 2))  # rows are wrapped one by one
+    np.testing.assert_array_equal(
+        spatial.wrap_to_limits(rows, lo, hi, [True, True]),
+        [spatial.wrap_to_limits(r, lo, hi, [True, True]) for r in rows],
+    )
+
+
 # ---------------------------------------------------------------------------- RPY and ZYZ
 @settings(max_examples=150, deadline=None)
 @given(r=rotations())

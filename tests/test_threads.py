@@ -6,7 +6,8 @@ reference, so both runs go through the same compiled code. Each thread makes the
 calls in its own order (rotated), so that threads are at different targets at the same time.
 Calls per thread: 1,000 for the fast entry points; fewer for the slow ones, so that the file
 stays under 20 s on a shared 2-core machine: ``nlp`` (about 4 ms a solve: 20), the general 6R
-solver (about 12 ms: 20), batch solving (one call is a thread pool over 32 targets: 20),
+solver (about 12 ms: 20), ``solve_ik_all_batch`` (64 targets a call: 100), batch solving (one
+call is a thread pool over 32 targets: 20),
 ``fk_batch`` (512 configurations a call: 100), differential IK by QP (300) and by DLS (200;
 0.2 to 1 ms a step), ``solve_fk`` of the five-bar (about 10 ms: 40) and the 3-RPR's assembly
 modes (about 10 ms: 40).
@@ -45,6 +46,11 @@ def _ik(method: str, **options: object) -> Callable[[int], bytes]:
 def _all(i: int) -> bytes:
     s = optik.solve_ik_all(M, TARGETS[i % len(TARGETS)])
     return np.asarray(s.q).tobytes() + repr((s.method, s.certified)).encode()
+
+
+def _all_batch(i: int) -> bytes:
+    b = optik.solve_ik_all_batch(M, np.roll(np.array(TARGETS), i, axis=0))  # the interpreter lock released
+    return b.q.tobytes() + b.counts.tobytes() + b.outside_limits.tobytes()
 
 
 def _general_6r(i: int) -> bytes:
@@ -103,6 +109,7 @@ ENTRY_POINTS = {
     "closed_form method": (_ik("closed_form"), 1000),
     "closed_form.ik": (_closed_form, 1000),
     "solve_ik_all": (_all, 1000),
+    "solve_ik_all_batch": (_all_batch, 100),
     "solve_ik_all general 6R": (_general_6r, 20),
     "diffik qp": (_diffik("qp"), 300),
     "diffik dls": (_diffik("dls"), 200),

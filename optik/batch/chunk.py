@@ -110,7 +110,10 @@ def finish_rows(m: Mechanism, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
     redo = np.flatnonzero(~(inside & (np.abs(q) < np.pi).all(axis=1)))
     changed = []
     if len(redo):
-        fixed = np.clip(wrap_rows(m, q[redo]), m.lower, m.upper)
+        fixed = q[redo]
+        finite = np.isfinite(fixed).all(axis=1)  # a non-finite row stays as it is (it fails)
+        fixed[finite] = m.wrap(fixed[finite])
+        fixed = np.clip(fixed, m.lower, m.upper)
         inside[redo] = ((fixed >= m.lower) & (fixed <= m.upper)).all(axis=1)
         for i, row in zip(redo, fixed, strict=True):
             if not np.array_equal(row, q[i]):
@@ -194,28 +197,6 @@ def target_rows(targets: np.ndarray) -> np.ndarray:
     """`optik.problem.target_parameters` of ``(N, 4, 4)`` transforms, one row each ``(N, 12)``."""
     rot = targets[:, :3, :3].transpose(0, 2, 1).reshape(len(targets), 9)  # column-major vec(R)
     return np.concatenate([rot, targets[:, :3, 3]], axis=1)
-
-
-def wrap_rows(m: Mechanism, q: np.ndarray) -> np.ndarray:
-    """``Mechanism.wrap`` of each row of ``q`` ``(k, n)``, vectorized (the same operations, so
-    the same values); mechanisms with spherical joints go row by row."""
-    if m.spherical_slices:
-        return np.array([m.wrap(row) for row in q]).reshape(q.shape)
-    w = q.copy()
-    ang = m.revolute_mask
-    w[:, ang] = spatial.wrap_angle(q[:, ang])
-    for k in np.flatnonzero(ang):
-        lo, hi = m.lower[k], m.upper[k]
-        todo = ~((lo <= w[:, k]) & (w[:, k] <= hi))
-        keep = todo & (lo <= q[:, k]) & (q[:, k] <= hi)  # as m.wrap: within the limits already
-        w[keep, k] = q[keep, k]
-        todo &= ~keep
-        for shift in (2 * np.pi, -2 * np.pi, 4 * np.pi, -4 * np.pi):
-            moved = w[:, k] + shift
-            hit = todo & (lo <= moved) & (moved <= hi)
-            w[hit, k] = moved[hit]
-            todo &= ~hit
-    return w
 
 
 def _solve_loop(

@@ -404,17 +404,21 @@ class _Compiled:
 def _driver_kernel(solver: DerivedIK) -> AllSolutionsKernel:
     """The driver of `optik.closed_form.ik_all` for ``solver``: its candidates (the symbolic
     kernel, with the cosines and sines it makes remembered, `optik.closed_form.vec3.remembering`)
-    and the FK check of one candidate, with the check and polish tolerances of `finish`."""
+    and the FK check of one candidate (on the cosines and sines of its angles), with the check
+    and polish tolerances of `finish`."""
     t = ca.SX.sym("t", 16)
     rt = tuple(tuple(t[4 * i + j] for j in range(3)) for i in range(3))
     pt = (t[3], t[7], t[11])
     raw = solver.branches(rt, pt, v3.remembering(v3.CASADI))
-    q = ca.SX.sym("q", 6)
-    err = solver.errors_c(tuple(q[i] for i in range(6)), rt, pt, v3.CASADI)
+    # the check takes the cosines and sines of the candidate (the driver evaluates them from q)
+    q, cs = ca.SX.sym("q", 6), ca.SX.sym("cs", 12)
+    ops = v3.remembering(v3.CASADI)
+    angles = tuple(ops.known(q[i], cs[i], cs[6 + i]) for i in range(6))
+    err = solver.errors_c(angles, rt, pt, ops)
     size, span = solver.axes.size, solver.polish_range
     return AllSolutionsKernel(
         ca.Function("optik_ik_branches", [t], [ca.vertcat(*[a for b in raw for a in b])]),
-        ca.Function("optik_ik_check", [q, t], [ca.vertcat(*err)]),
+        ca.Function("optik_ik_check", [cs, t], [ca.vertcat(*err)]),
         solver.stand_ins(len(raw)),
         (CHECK_TOL * size, CHECK_TOL),
         (span * size, span),

@@ -1,9 +1,9 @@
 /* optik: every solution of one IK target of a derived closed form, in one call.
  *
  * Compiled together with two CasADi-generated functions: OPTIK_BRANCHES (the 16 entries of a
- * row-major 4x4 target -> the OPTIK_B candidate branches, 6 angles each) and OPTIK_CHECK (one
- * candidate q and the target -> its position and orientation errors on the
- * product-of-exponentials model). optik/closed_form/ik_all.py defines OPTIK_B, OPTIK_BRANCHES,
+ * row-major 4x4 target -> the OPTIK_B candidate branches, 6 angles each) and OPTIK_CHECK (the
+ * cosines and then the sines of one candidate's 6 angles, and the target -> its position and
+ * orientation errors on the product-of-exponentials model). optik/closed_form/ik_all.py defines OPTIK_B, OPTIK_BRANCHES,
  * OPTIK_CHECK, the work sizes OPTIK_IW, OPTIK_W and the table optik_stand_in before this file and
  * documents the algorithm. Reentrant: all memory is on the stack.
  */
@@ -25,23 +25,28 @@ enum { OPTIK_T = 0, OPTIK_Q0 = 16, OPTIK_LO = 22, OPTIK_HI = 28, OPTIK_CONF = 34
 static const double OPTIK_PI = 3.14159265358979323846;
 static const double OPTIK_TWO_PI = 6.28318530717958647692;
 
+/* fmod(x, 2 pi), skipped where it is the identity (fmod is exact: the same number either way) */
+static double optik_mod_two_pi(double x) {
+  return x >= 0.0 && x < OPTIK_TWO_PI ? x : fmod(x, OPTIK_TWO_PI);
+}
+
 /* a to (-pi, pi] with the arithmetic of numpy's remainder (and the symbolic kernel's):
  * r = fmod(a + pi, 2 pi), + 2 pi when negative, - pi, then + 2 pi when at -pi */
 static double optik_wrap(double a) {
-  double r = fmod(a + OPTIK_PI, OPTIK_TWO_PI);
+  double r = optik_mod_two_pi(a + OPTIK_PI);
   double w = (r < 0.0 ? r + OPTIK_TWO_PI : r) - OPTIK_PI;
   return w <= -OPTIK_PI ? w + OPTIK_TWO_PI : w;
 }
 
 /* |a - b| modulo 2 pi (in [0, pi]) as the symbolic kernel: min(d, 2 pi - d), d = |a - b| */
 static double optik_gap(double a, double b) {
-  double d = fabs(a - b);
-  return fmin(d, OPTIK_TWO_PI - d);
+  double d = fabs(a - b), e = OPTIK_TWO_PI - d; /* finite: a comparison, not the call of fmin */
+  return e < d ? e : d;
 }
 
 /* |d| with d wrapped as Python's (d + pi) % (2 pi) - pi (the distance to q0 of the solvers) */
 static double optik_turn_gap(double d) {
-  double m = fmod(d + OPTIK_PI, OPTIK_TWO_PI);
+  double m = optik_mod_two_pi(d + OPTIK_PI);
   if (m < 0.0) m += OPTIK_TWO_PI;
   return fabs(m - OPTIK_PI);
 }
@@ -66,11 +71,29 @@ static int optik_valid_transform(const double *t, double diag, double off) {
              0.0;
 }
 
-/* max-norm distance of two wrapped angle rows modulo 2 pi */
-static double optik_distance(const double *a, const double *b) {
-  double worst = 0.0;
-  for (int k = 0; k < 6; ++k) worst = fmax(worst, optik_gap(a[k], b[k]));
-  return worst;
+/* optik.spatial.wrap_to_limits, rule 3, for a wrapped angle c outside [lo, hi], by the same
+   arithmetic: of c + 2 pi k for k = base - 1 .. base + 2 (base: whole turns from c to the nearest
+   point of the interval), the one of least gap to the interval; of gap 0, the one of least |k| */
+static double optik_nearest_turn(double c, double lo, double hi) {
+  double base = floor((fmin(fmax(c, lo), hi) - c) / OPTIK_TWO_PI), best = c, best_key = INFINITY;
+  for (int step = -1; step <= 2; ++step) {
+    double k = base + (double)step, x = c + OPTIK_TWO_PI * k;
+    double gap = fmax(fmax(lo - x, x - hi), 0.0);
+    double key = gap > 0.0 ? gap : -1.0 / (1.0 + fabs(k));
+    if (key < best_key) {
+      best_key = key;
+      best = x;
+    }
+  }
+  return best;
+}
+
+/* whether the max-norm distance of two wrapped angle rows modulo 2 pi is below `same` (the
+ * first angle at least `same` apart decides) */
+static int optik_close(const double *a, const double *b, double same) {
+  for (int k = 0; k < 6; ++k)
+    if (!(optik_gap(a[k], b[k]) < same)) return 0;
+  return 1;
 }
 
 /* max-norm distance of a row to q0, angles modulo 2 pi */
@@ -119,7 +142,8 @@ CASADI_SYMBOL_EXPORT int optik_ik_all(const double *in, double *out) {
   const double *arg[2] = {t, 0};
   double *res[1] = {raw};
   if (OPTIK_BRANCHES(arg, res, iw, w, 0)) return -1;
-  int n = 0, passed[B];
+  int n = 0, passed[B], n_cs = 0, from[B];
+  double cs[12 * B]; /* cosines, then sines, of the checked candidates' angles */
   for (int b = 0; b < B; ++b) {
     const double *q = raw + 6 * b;
     passed[b] = 0;
@@ -127,7 +151,22 @@ CASADI_SYMBOL_EXPORT int optik_ik_all(const double *in, double *out) {
     int finite = 1;
     for (int k = 0; k < 6; ++k) finite &= isfinite(q[k]);
     if (!finite) continue;
-    const double *carg[2] = {q, t};
+    /* candidates share angles (an elbow flip keeps the shoulder angle): the cosine and sine of
+     * an angle equal to one already evaluated are copied, the others evaluated */
+    double *c = cs + 12 * n_cs;
+    for (int k = 0; k < 6; ++k) {
+      int j = 0;
+      while (j < n_cs && memcmp(raw + 6 * from[j] + k, q + k, sizeof(double)) != 0) ++j; /* same bits */
+      if (j < n_cs) {
+        c[k] = cs[12 * j + k];
+        c[6 + k] = cs[12 * j + 6 + k];
+      } else {
+        c[k] = cos(q[k]);
+        c[6 + k] = sin(q[k]);
+      }
+    }
+    from[n_cs++] = b;
+    const double *carg[2] = {c, t};
     double *cres[1] = {e};
     if (OPTIK_CHECK(carg, cres, iw, w, 0)) return -1;
     if (e[0] <= conf[0] && e[1] <= conf[1]) {
@@ -143,25 +182,18 @@ CASADI_SYMBOL_EXPORT int optik_ik_all(const double *in, double *out) {
   }
   for (int j = 1; j < n; ++j)
     for (int i = 0; i < j; ++i)
-      if (optik_distance(kept + 6 * i, kept + 6 * j) < conf[4]) {
+      if (optik_close(kept + 6 * i, kept + 6 * j, conf[4])) {
         out[0] = 2.0; /* two close solutions: the numpy path merges them by their accuracy */
         return 0;
       }
-  /* the 2 pi shift into the limits (closed_form.registry.wrap_rows), then the limit split */
+  /* the 2 pi shift into the limits (optik.spatial.wrap_to_limits), then the limit split */
   int order[B], n_in = 0, n_out = 0;
   double dist[B];
   for (int s = 0; s < n; ++s) {
     double *q = kept + 6 * s;
     int inside = 1;
     for (int k = 0; k < 6; ++k) {
-      if (!(lo[k] <= q[k] && q[k] <= hi[k])) {
-        const double shifts[4] = {OPTIK_TWO_PI, -OPTIK_TWO_PI, 2.0 * OPTIK_TWO_PI, -2.0 * OPTIK_TWO_PI};
-        for (int r = 0; r < 4; ++r)
-          if (lo[k] <= q[k] + shifts[r] && q[k] + shifts[r] <= hi[k]) {
-            q[k] += shifts[r];
-            break;
-          }
-      }
+      if (!(lo[k] <= q[k] && q[k] <= hi[k])) q[k] = optik_nearest_turn(q[k], lo[k], hi[k]);
       inside &= lo[k] <= q[k] && q[k] <= hi[k];
     }
     if (!inside) {
@@ -201,13 +233,13 @@ CASADI_SYMBOL_EXPORT int optik_ik_all(const double *in, double *out) {
 }
 
 #ifdef OPTIK_PYTHON
-/* The Python binding: optik_ik_all_function() (called once, through ctypes.PyDLL) returns a
- * builtin function ik_all(t, q0, lower, upper, sort) -> (q within, errors, q outside), False
+/* The Python binding: optik_ik_all_function() (called once, through ctypes.PyDLL) returns two
+ * builtin functions, ik_all(t, q0, lower, upper, sort) -> (q within, errors, q outside), False
  * or None, taking float64 arrays (any strides): t (4, 4), q0 (6,) or None, lower and upper
  * (6,); with sort true the solutions are ordered by their distance to q0, or to the middle of
  * the limits when q0 is None (sort 2 of conf). False: status 1 or 2 (the caller's general path
  * decides). None: an argument of another type, shape or layout (which the ctypes path, with its
- * conversions, takes). */
+ * conversions, takes). And ik_all_many, the same over many targets (below). */
 #include <Python.h>
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
@@ -279,11 +311,133 @@ static PyObject *optik_py_ik_all(PyObject *self, PyObject *const *args, Py_ssize
   return res;
 }
 
+/* a growing buffer of doubles (PyMem_Raw*: usable without the GIL) */
+typedef struct {
+  double *data;
+  size_t size, capacity;
+} optik_rows;
+
+static int optik_rows_add(optik_rows *r, const double *src, size_t count) {
+  if (r->size + count > r->capacity) {
+    size_t cap = r->capacity ? 2 * r->capacity : 1024;
+    while (cap < r->size + count) cap *= 2;
+    double *grown = (double *)PyMem_RawRealloc(r->data, cap * sizeof(double));
+    if (!grown) return 0;
+    r->data = grown;
+    r->capacity = cap;
+  }
+  if (count) memcpy(r->data + r->size, src, count * sizeof(double));
+  r->size += count;
+  return 1;
+}
+
+static PyObject *optik_py_ints(npy_intp n) {
+  npy_intp dims[1] = {n};
+  return PyArray_SimpleNew(1, dims, NPY_INT64);
+}
+
+/* ik_all_many(t (M, 4, 4) C-contiguous float64, q0 None or (6,) or C-contiguous (M, 6), lower,
+ * upper (6,), sort) -> (q within (K, 6), errors (K, 2), counts within (M,), q outside (L, 6),
+ * counts outside (M,), status (M,)): optik_ik_all target by target with the GIL released; the
+ * rows of the targets whose status is not 0 are absent (their counts are 0); None for arrays of
+ * another type, shape or layout. */
+static PyObject *optik_py_ik_all_many(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+  (void)self;
+  if (nargs != 5) {
+    PyErr_SetString(PyExc_TypeError, "ik_all_many(t, q0, lower, upper, sort)");
+    return NULL;
+  }
+  double in[OPTIK_CONF + 8], out[3 + 14 * OPTIK_B];
+  int sort = PyObject_IsTrue(args[4]);
+  if (!PyArray_Check(args[0]) || !optik_py_copy(args[2], 1, in + OPTIK_LO) ||
+      !optik_py_copy(args[3], 1, in + OPTIK_HI) || sort < 0) {
+    PyErr_Clear();
+    Py_RETURN_NONE;
+  }
+  PyArrayObject *ta = (PyArrayObject *)args[0];
+  if (PyArray_TYPE(ta) != NPY_DOUBLE || PyArray_NDIM(ta) != 3 || PyArray_DIM(ta, 1) != 4 ||
+      PyArray_DIM(ta, 2) != 4 || !PyArray_IS_C_CONTIGUOUS(ta) || !PyArray_ISNOTSWAPPED(ta))
+    Py_RETURN_NONE;
+  const npy_intp m = PyArray_DIM(ta, 0);
+  const double *t = (const double *)PyArray_DATA(ta), *q0s = NULL;
+  npy_intp q0_step = 0;
+  if (args[1] != Py_None) {
+    if (!PyArray_Check(args[1])) Py_RETURN_NONE;
+    PyArrayObject *qa = (PyArrayObject *)args[1];
+    int nd = PyArray_NDIM(qa);
+    if (PyArray_TYPE(qa) != NPY_DOUBLE || !PyArray_IS_C_CONTIGUOUS(qa) || !PyArray_ISNOTSWAPPED(qa) ||
+        !((nd == 1 && PyArray_DIM(qa, 0) == 6) || (nd == 2 && PyArray_DIM(qa, 0) == m && PyArray_DIM(qa, 1) == 6)))
+      Py_RETURN_NONE;
+    q0s = (const double *)PyArray_DATA(qa);
+    q0_step = nd == 2 ? 6 : 0;
+  }
+  PyObject *counts = optik_py_ints(m), *counts_out = optik_py_ints(m), *status = optik_py_ints(m);
+  if (!counts || !counts_out || !status) {
+    Py_XDECREF(counts);
+    Py_XDECREF(counts_out);
+    Py_XDECREF(status);
+    return NULL;
+  }
+  npy_int64 *n_in = (npy_int64 *)PyArray_DATA((PyArrayObject *)counts);
+  npy_int64 *n_out = (npy_int64 *)PyArray_DATA((PyArrayObject *)counts_out);
+  npy_int64 *st = (npy_int64 *)PyArray_DATA((PyArrayObject *)status);
+  memcpy(in + OPTIK_CONF, optik_conf, sizeof(double) * 7);
+  in[OPTIK_CONF + 7] = sort ? (q0s ? 1.0 : 2.0) : 0.0;
+  if (!q0s) memset(in + OPTIK_Q0, 0, sizeof(double) * 6);
+  optik_rows q_in = {0}, q_out = {0}, err = {0};
+  int failed = 0, memory = 1; /* failed: the generated code reported an error */
+  Py_BEGIN_ALLOW_THREADS;
+  for (npy_intp i = 0; i < m && !failed && memory; ++i) {
+    memcpy(in + OPTIK_T, t + 16 * i, sizeof(double) * 16);
+    if (q0s) memcpy(in + OPTIK_Q0, q0s + q0_step * i, sizeof(double) * 6);
+    if (optik_ik_all(in, out) != 0) {
+      failed = 1;
+      break;
+    }
+    st[i] = (npy_int64)out[0];
+    n_in[i] = n_out[i] = 0;
+    if (out[0] != 0.0) continue;
+    const size_t a = (size_t)out[1], b = (size_t)out[2];
+    memory = optik_rows_add(&q_in, out + 3, 6 * a) && optik_rows_add(&q_out, out + 3 + 6 * a, 6 * b) &&
+             optik_rows_add(&err, out + 3 + 6 * (a + b), 2 * a);
+    n_in[i] = (npy_int64)a;
+    n_out[i] = (npy_int64)b;
+  }
+  Py_END_ALLOW_THREADS;
+  PyObject *res = NULL;
+  if (failed)
+    PyErr_SetString(PyExc_RuntimeError, "optik_ik_all: evaluation of the generated code failed");
+  else if (!memory)
+    PyErr_NoMemory();
+  else {
+    PyObject *a = optik_py_rows(q_in.data, (npy_intp)(q_in.size / 6), 6);
+    PyObject *e = optik_py_rows(err.data, (npy_intp)(err.size / 2), 2);
+    PyObject *b = optik_py_rows(q_out.data, (npy_intp)(q_out.size / 6), 6);
+    if (a && e && b) res = PyTuple_Pack(6, a, e, counts, b, counts_out, status);
+    Py_XDECREF(a);
+    Py_XDECREF(e);
+    Py_XDECREF(b);
+  }
+  PyMem_RawFree(q_in.data);
+  PyMem_RawFree(q_out.data);
+  PyMem_RawFree(err.data);
+  Py_DECREF(counts);
+  Py_DECREF(counts_out);
+  Py_DECREF(status);
+  return res;
+}
+
 static PyMethodDef optik_py_def = {"ik_all", (PyCFunction)(void (*)(void))optik_py_ik_all, METH_FASTCALL,
                                    "Every solution of one target (optik.closed_form.ik_all)."};
+static PyMethodDef optik_py_many_def = {"ik_all_many", (PyCFunction)(void (*)(void))optik_py_ik_all_many,
+                                        METH_FASTCALL, "Every solution of many targets (optik.closed_form.ik_all)."};
 
 CASADI_SYMBOL_EXPORT PyObject *optik_ik_all_function(void) {
   if (PyArray_API == NULL && _import_array() < 0) return NULL;
-  return PyCFunction_New(&optik_py_def, NULL);
+  PyObject *one = PyCFunction_New(&optik_py_def, NULL), *many = PyCFunction_New(&optik_py_many_def, NULL);
+  PyObject *both = one && many ? PyTuple_Pack(2, one, many) : NULL;
+  Py_XDECREF(one);
+  Py_XDECREF(many);
+  return both;
 }
 #endif

@@ -17,14 +17,18 @@ optik's driver ``ik_all.c``, compiled with them, does for one target:
    polishes it, `DerivedIK.finish`);
 3. wrap the kept ones to ``(-pi, pi]``; two closer than ``same`` (max-norm, angles modulo
    ``2 pi``) answer *status 2* (the numpy path merges them by their accuracy);
-4. shift each angle outside the limits by the first of ``2 pi, -2 pi, 4 pi, -4 pi`` that lands
-   within them ([`wrap_rows`][optik.closed_form.registry.wrap_rows]), and split the solutions
-   into those within every limit and the others;
+4. shift each angle outside the limits by the whole turns that land within them, or nearest
+   them ([`spatial.wrap_to_limits`][optik.spatial.wrap_to_limits], the same rules and
+   arithmetic), and split the solutions into those within every limit and the others;
 5. with ``sort``, order the ones within the limits by their max-norm distance to ``q0``
    (angles modulo ``2 pi``), stable.
 
-One call costs about 1 us of ``ctypes`` and buffer copies besides the arithmetic. The driver is
-reentrant (stack memory only); the Python buffers of one kernel are guarded by a lock.
+The FK check takes the cosines and sines of a candidate's angles, which the driver evaluates
+from those angles once per distinct value (candidates share angles). One call costs about 1 us of
+``ctypes`` and buffer copies besides the arithmetic, well under 1 us through the Python binding
+(`AllSolutionsKernel.fast`); `AllSolutionsKernel.many` runs the driver over many targets in one
+call. The driver is reentrant (stack memory only); the Python buffers of one kernel are guarded by
+a lock.
 """
 
 from __future__ import annotations
@@ -70,7 +74,8 @@ class AllSolutionsKernel:
 
     Args:
         branches: ``t (16) -> candidates (6 B)``, the candidates as one column.
-        check: ``(q (6), t (16)) -> (position error, orientation error)``, one output of 2.
+        check: ``(cs (12), t (16)) -> (position error, orientation error)``, one output of 2:
+            the FK check of one candidate given the cosines and then the sines of its angles.
         stand_ins: per candidate, the earlier candidate it stands in for (-1: none): it is not
             checked, and not kept, when that one passes the check.
         check_tol: ``(position, orientation)`` tolerances of the FK check.
@@ -106,15 +111,13 @@ class AllSolutionsKernel:
             f"static const int optik_stand_in[{self.size}] = {{{', '.join(map(str, stand_ins))}}};\n"
             f"static const double optik_conf[7] = {{{', '.join(float(v).hex() for v in conf)}}};\n"
         )
-        # errno is never read: sqrt becomes one instruction
+        # errno is never read: sqrt becomes one instruction, sin and cos of one angle one sincos;
+        # the generated functions are called only from the driver: inlined into it (about 0.6 us
+        # of 3.4 per target), not interposable exported symbols
         driver = native.driver_source(DRIVER, compile)
-        self.library = (
-            None
-            if driver is None
-            else native.library(
-                [branches, check], compile, defines + driver, ("-fno-math-errno", *python_flags())
-            )
-        )
+        flags = ("-fno-math-errno", "-fno-semantic-interposition", *python_flags())
+        source = None if driver is None else defines + driver
+        self.library = None if source is None else native.library([branches, check], compile, source, flags)
         self._in = np.zeros(_IN)
         self._in[34:41] = conf
         self._out = np.zeros(3 + 14 * self.size)
@@ -124,6 +127,13 @@ class AllSolutionsKernel:
         """The Python binding ``fast(t, q0, lower, upper, sort)`` once loaded, when the library
         has one: the answer of `__call__`, False for status 1 or 2, None for arrays of another
         type or layout than float64 of the right shape."""
+        self.many: Callable[..., tuple[np.ndarray, ...] | None] | None = None
+        """The Python binding over many targets ``many(t (M, 4, 4), q0, lower, upper, sort)``
+        once loaded, when the library has one (``q0``: None, ``(6,)`` or ``(M, 6)``; arrays
+        C-contiguous float64): ``(q within (K, 6), errors (K, 2), counts within (M,), q outside
+        (L, 6), counts outside (M,), status (M,))``, the targets one after the other (those of
+        status 1 or 2 have no rows: the caller decides them), with the interpreter lock released
+        during the loop; None for arrays of another type or layout."""
         self._args = (ctypes.c_void_p(self._in.ctypes.data), ctypes.c_void_p(self._out.ctypes.data))
         self.lock = threading.Lock()
 
@@ -141,7 +151,7 @@ class AllSolutionsKernel:
                     make.argtypes = []
                     make.restype = ctypes.py_object
                     try:
-                        self.fast = make()
+                        self.fast, self.many = make()
                     except Exception as exc:  # e.g. numpy's C API refused: the ctypes path stays
                         _LOG.warning("optik: no Python binding for %s: %s", self.library.path.name, exc)
                 self._fn = fn

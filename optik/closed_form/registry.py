@@ -6,9 +6,10 @@ kind, an IK solver ``ik(m, T) -> list[q]`` (``T`` a 4x4 target) and/or an FK sol
 mode (an empty list when unreachable or not assemblable). The functions here add validation,
 the 2 pi shift of angles into the limits and the optional filtering by joint limits.
 
-The shift and the limit filter ([`wrap_rows`][optik.closed_form.registry.wrap_rows],
-[`within_limits`][optik.closed_form.registry.within_limits]) work on the few branches of one target as plain
-floats, with the same arithmetic as [`Mechanism.wrap`][optik.Mechanism.wrap] and
+The shift ([`wrap_rows`][optik.closed_form.registry.wrap_rows]) is
+[`Mechanism.wrap`][optik.Mechanism.wrap] of all the branches at once; the limit filter
+([`within_limits`][optik.closed_form.registry.within_limits]) works on the few branches of one target as plain
+floats, with the same arithmetic as
 [`Mechanism.within_limits`][optik.Mechanism.within_limits]; [`branches`][optik.closed_form.registry.branches]
 is the unvalidated core that [`optik.solvers.closed`][optik.solvers.closed] calls with an already validated
 target.
@@ -17,7 +18,6 @@ target.
 from __future__ import annotations
 
 import inspect
-import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -27,7 +27,6 @@ from optik.checks import as_bool, as_vector
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
-from optik.spatial import wrap_rotation_vector
 from optik.targets import target_transform
 
 IKSolver = Callable[[Mechanism, np.ndarray], Sequence[Sequence[float]]]
@@ -131,8 +130,6 @@ polynomials raise them to powers up to 6, which overflows beyond (the 3-RPR and 
 solvers raised OverflowError, IndexError or LinAlgError there)."""
 
 _TWO_PI = 2.0 * np.pi
-_SHIFTS = (2 * np.pi, -2 * np.pi, 4 * np.pi, -4 * np.pi)
-"""The shifts [`Mechanism.wrap`][optik.Mechanism.wrap] tries, in its order."""
 
 
 def _coordinates(m: Mechanism) -> _Coordinates:
@@ -161,38 +158,15 @@ def wrap_angle_one(a: float) -> float:
 
 
 def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]]:
-    """[`Mechanism.wrap`][optik.Mechanism.wrap] of every row (branches of one target: a few short rows).
+    """[`Mechanism.wrap`][optik.Mechanism.wrap] of every row (branches of one target), as lists
+    of floats (``[]`` for no rows).
 
-    Plain floats: for a handful of branches this is several times cheaper than numpy calls on
-    tiny arrays. Same arithmetic as ``m.wrap`` (angles to ``(-pi, pi]``; a coordinate that this
-    takes out of its limits keeps its value when that is within them, else takes the first of
-    the shifts ``2 pi, -2 pi, 4 pi, -4 pi`` that lands within them; rotation vectors of
-    spherical joints as ``m.wrap`` does); falls back to ``m.wrap`` for rows of the wrong length
-    and non-finite rows (which ``m.wrap`` rejects with its own error)."""
-    mask, spherical, angles = _coordinates(m)
-    out = [row.tolist() if isinstance(row, np.ndarray) else [float(v) for v in row] for row in rows]
-    # a non-finite sum flags NaN / infinity (and, harmlessly, overflow: m.wrap then decides)
-    if any(len(row) != len(mask) or not math.isfinite(sum(row)) for row in out):
-        return [m.wrap(row).tolist() for row in rows]
-    for row in out:
-        for sl in spherical:  # rotation vectors: angle above pi -> 2 pi - angle, opposite axis
-            row[sl] = wrap_rotation_vector(np.array(row[sl])).tolist()
-    lo, hi = m.lower.tolist(), m.upper.tolist()
-    pi, two_pi = np.pi, _TWO_PI
-    for row in out:
-        for k in angles:
-            w = (row[k] + pi) % two_pi - pi  # wrap_angle_one, inlined
-            if w <= -pi:
-                w += two_pi
-            if not lo[k] <= w <= hi[k] and lo[k] <= row[k] <= hi[k]:
-                w = row[k]  # within the limits already (a shift back could round it outside)
-            elif not lo[k] <= w <= hi[k]:
-                for shift in _SHIFTS:
-                    if lo[k] <= w + shift <= hi[k]:
-                        w += shift
-                        break
-            row[k] = w
-    return out
+    Raises:
+        OptikError: a row of the wrong length or not finite (from ``m.wrap``).
+    """
+    if not len(rows):
+        return []
+    return m.wrap(np.array(rows, dtype=float)).tolist()
 
 
 LIMIT_TOL = 1e-9

@@ -1,4 +1,4 @@
-"""Conservative sphere models of the robot and smooth distance bounds, as CasADi expressions.
+"""Conservative sphere and capsule models of the robot and smooth distance bounds, as CasADi expressions.
 
 The solvers cannot call coal inside their iterations, so they constrain a model that contains
 the robot: each part's geometry (`optik.collision.shapes.shape_vertices`: hull vertices ``V``
@@ -9,15 +9,14 @@ of ``V`` on the axis; the radius is the largest distance of a vertex from the ax
 ``s = L / (n - 1) <= rho`` apart, of radius ``R = sqrt(rho^2 + (s / 2)^2)``: every point of
 the capsule is within ``R`` of a sphere centre, so the spheres contain the part.
 
-Distances (`distance_expressions`), each a lower bound of the exact signed distance of the
-sphere to the other body, so that ``bound >= margin`` implies clearance ``>= margin``:
+Distances (`distance_expressions`), each a lower bound of the exact signed distance, so that
+``bound >= margin`` implies clearance ``>= margin``:
 
-* sphere to sphere: ``|c_a - c_b| - R_a - R_b``;
-* sphere to a world object, through the object's signed distance function at the centre
-  ``p`` (in the object's frame), minus ``R``: a sphere ``|p| - r``; a box
-  ``|max(|p| - h, 0)| + min(max_i(|p_i| - h_i), 0)``; a capsule the distance to its segment
-  minus its radius; a cylinder the 2-D box function of ``(|p_xy| - r, |p_z| - L / 2)``; a convex
-  mesh ``max_k(n_k . p + o_k)`` over its face planes (exact inside, a lower bound outside).
+* part to part (self-collision): the distance of the two capsules, ``|x_a - x_b| - rho_a - rho_b``
+  at the closest points of their segments (`segment_distance`): one row per part pair;
+* sphere to a world obstacle: the obstacle's rounded box (`optik.collision.slots`, which contains
+  it) through its signed distance function at the centre, minus ``R``: one row per moving
+  sphere and slot, the slots being parameters of the generated code.
 
 Euclidean norms are smoothed as ``sqrt(x^2 + e^2) - e`` (``e = 1e-9`` m; never more than the
 norm) so that every bound has a gradient everywhere.
@@ -33,11 +32,19 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from optik.collision.parts import Part
 from optik.collision.robot import RobotGeometry
 from optik.collision.shapes import shape_vertices
+from optik.collision.slots import SLOT_SIZE, slot_distance, smooth_norm
 
-__all__ = ["SphereModel", "distance_expressions", "fit_capsule", "separable_pairs", "sphere_model"]
+__all__ = [
+    "DistanceRows",
+    "SphereModel",
+    "distance_expressions",
+    "fit_capsule",
+    "segment_distance",
+    "separable_pairs",
+    "sphere_model",
+]
 
 _EPS = 1e-9
 
@@ -61,17 +68,21 @@ def fit_capsule(v: np.ndarray, r: float) -> tuple[np.ndarray, np.ndarray, float]
 
 @dataclass(frozen=True)
 class SphereModel:
-    """Spheres containing a robot's parts.
+    """Capsules and spheres containing a robot's parts.
 
     Attributes:
         part: index of the part (`RobotGeometry.parts`) each sphere covers.
         centres: ``(S, 3)`` centres in the frame of the part's link.
         radii: ``(S,)`` radii.
+        segments: ``(P, 2, 3)`` each part's capsule segment in its link frame.
+        capsule_radii: ``(P,)`` the capsules' radii.
     """
 
     part: np.ndarray
     centres: np.ndarray
     radii: np.ndarray
+    segments: np.ndarray
+    capsule_radii: np.ndarray
 
 
 def _cover(a: np.ndarray, b: np.ndarray, rho: float) -> tuple[np.ndarray, np.ndarray]:
@@ -92,7 +103,7 @@ def sphere_model(geo: RobotGeometry) -> SphereModel:
         hit = _CACHE.get(geo)
     if hit is not None:
         return hit
-    parts, centres, radii = [], [], []
+    parts, centres, radii, segments, rhos = [], [], [], [], []
     for k, p in enumerate(geo.parts):
         v, r = shape_vertices(p.shape)
         v = v @ p.offset[:3, :3].T + p.offset[:3, 3]  # into the link frame
@@ -101,7 +112,15 @@ def sphere_model(geo: RobotGeometry) -> SphereModel:
         parts += [k] * len(c)
         centres.append(c)
         radii.append(rr)
-    model = SphereModel(np.array(parts, dtype=int), np.concatenate(centres), np.concatenate(radii))
+        segments.append((a, b))
+        rhos.append(rho)
+    model = SphereModel(
+        np.array(parts, dtype=int),
+        np.concatenate(centres),
+        np.concatenate(radii),
+        np.array(segments, dtype=float).reshape(-1, 2, 3),
+        np.array(rhos, dtype=float),
+    )
     with _LOCK:
         return _CACHE.setdefault(geo, model)
 
@@ -111,32 +130,22 @@ SEPARABLE_SAMPLES = 200
 
 
 def separable_pairs(geo: RobotGeometry, bound: float) -> np.ndarray:
-    """The self-collision part pairs (rows of ``geo.self_pairs``) that the sphere model keeps
-    apart by ``bound`` in at least 5 % of `SEPARABLE_SAMPLES` configurations drawn within the
-    limits (seeded). The others (the model of a squat base against a link fixed just above
-    it, say) would make every configuration infeasible: the solvers leave them to the exact
-    check, which still decides success."""
+    """The self-collision part pairs (rows of ``geo.self_pairs``) whose capsules are apart by
+    ``bound`` in at least 5 % of `SEPARABLE_SAMPLES` configurations drawn within the limits
+    (seeded). The others (the capsule of a squat base against a link fixed just above it, say)
+    would make every configuration infeasible: the solvers leave them to the exact check, which
+    still decides success."""
     key = (geo, bound)
     with _LOCK:
         hit = _SEPARABLE.get(key)
     if hit is not None:
         return hit
     m = geo.mechanism
-    model = sphere_model(geo)
-    by_part: dict[int, np.ndarray] = {k: np.flatnonzero(model.part == k) for k in range(len(geo.parts))}
-    clear = np.zeros(len(geo.self_pairs))
-    for q in m.random_q(SEPARABLE_SAMPLES, seed=0):
-        links = geo.link_poses(q)[geo.part_link[model.part]]
-        c = np.einsum("sij,sj->si", links[:, :3, :3], model.centres) + links[:, :3, 3]
-        for row, (i, j) in enumerate(geo.self_pairs):
-            a, b = by_part[int(i)], by_part[int(j)]
-            gap = (
-                np.linalg.norm(c[a][:, None] - c[b][None], axis=2)
-                - model.radii[a][:, None]
-                - model.radii[b][None]
-            )
-            clear[row] += gap.min() >= bound
-    keep = clear >= 0.05 * SEPARABLE_SAMPLES
+    poses = [m.frame_expr(link) for link in geo.links]
+    d = _self_rows(geo, sphere_model(geo), poses, geo.self_pairs)
+    f = ca.Function("capsule_self_distances", [m.q_sym], [d]).map(SEPARABLE_SAMPLES)
+    gaps = np.asarray(f(m.random_q(SEPARABLE_SAMPLES, seed=0).T)).reshape(-1, SEPARABLE_SAMPLES)
+    keep = (gaps >= bound).sum(axis=1) >= 0.05 * SEPARABLE_SAMPLES
     with _LOCK:
         return _SEPARABLE.setdefault(key, keep)
 
@@ -144,76 +153,106 @@ def separable_pairs(geo: RobotGeometry, bound: float) -> np.ndarray:
 _SEPARABLE: dict[tuple[RobotGeometry, float], np.ndarray] = {}
 
 
-def _norm(x: ca.SX) -> ca.SX:
-    return ca.sqrt(ca.sumsqr(x) + _EPS**2) - _EPS
+def _clamp01(x: ca.SX) -> ca.SX:
+    return ca.fmin(ca.fmax(x, 0), 1)
 
 
-def _sdf(part: Part, p: ca.SX) -> ca.SX:
-    """Signed distance (or a lower bound: convex meshes) of point ``p`` (base frame) to a placed part."""
-    t = part.offset
-    local = ca.mtimes(ca.DM(t[:3, :3].T), p - ca.DM(t[:3, 3]))
-    s = part.shape.size
-    kind = part.shape.kind
-    if kind == "sphere":
-        return _norm(local) - s[0]
-    if kind == "box":
-        q = ca.fabs(local) - ca.DM(np.asarray(s) / 2)
-        return _norm(ca.fmax(q, 0)) + ca.fmin(ca.mmax(q), 0)
-    if kind == "capsule":
-        z = ca.fmin(ca.fmax(local[2], -s[1] / 2), s[1] / 2)
-        return _norm(local - ca.vertcat(0, 0, z)) - s[0]
-    if kind == "cylinder":
-        q = ca.vertcat(_norm(local[:2]) - s[0], ca.fabs(local[2]) - s[1] / 2)
-        return _norm(ca.fmax(q, 0)) + ca.fmin(ca.mmax(q), 0)
-    # a convex mesh: coal's face planes n . x + o <= 0 inside
-    hull = part.geometry
-    normals = np.array(hull.normals(), dtype=float).reshape(-1, 3)
-    offsets = np.array(hull.offsets(), dtype=float).ravel()
-    return ca.mmax(ca.mtimes(ca.DM(normals), local) + ca.DM(offsets))
+def segment_distance(p1: ca.SX, q1: ca.SX, p2: ca.SX, q2: ca.SX) -> ca.SX:
+    """The distance of segments ``p1 q1`` and ``p2 q2`` (the norm smoothed as in the module
+    docstring): the closest parameters of the two lines, ``s`` clamped to ``[0, 1]``, then ``t``
+    the closest to that point, clamped, then ``s`` the closest to that one, clamped (Ericson,
+    *Real-Time Collision Detection*, 5.1.9; each step can only shorten a distance between two
+    points of the segments, and the first gives the minimum whenever ``t`` needs no clamping).
+    Degenerate segments (points) and parallel ones are covered by a floor on the divisors."""
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a, e, b = ca.dot(d1, d1), ca.dot(d2, d2), ca.dot(d1, d2)
+    c, f = ca.dot(d1, r), ca.dot(d2, r)
+    tiny = 1e-12
+    s = _clamp01((b * f - c * e) / ca.fmax(a * e - b * b, tiny))
+    t = _clamp01((b * s + f) / ca.fmax(e, tiny))
+    s = _clamp01((b * t - c) / ca.fmax(a, tiny))
+    return smooth_norm(r + s * d1 - t * d2, _EPS)
+
+
+def _segments(
+    model: SphereModel, geo: RobotGeometry, link_poses: Sequence[ca.SX], k: int
+) -> tuple[ca.SX, ca.SX]:
+    t = link_poses[int(geo.part_link[k])]
+    a, b = model.segments[k]
+    return ca.mtimes(t[:3, :3], ca.DM(a)) + t[:3, 3], ca.mtimes(t[:3, :3], ca.DM(b)) + t[:3, 3]
+
+
+def _self_rows(
+    geo: RobotGeometry, model: SphereModel, link_poses: Sequence[ca.SX], pairs: np.ndarray
+) -> ca.SX:
+    ends = [_segments(model, geo, link_poses, k) for k in range(len(geo.parts))]
+    rows = [
+        segment_distance(*ends[int(i)], *ends[int(j)]) - model.capsule_radii[i] - model.capsule_radii[j]
+        for i, j in pairs
+    ]
+    return ca.vertcat(*rows) if rows else ca.SX(0, 1)
+
+
+@dataclass(frozen=True)
+class DistanceRows:
+    """Lower bounds of the robot's signed distances to a world of slots and to itself.
+
+    Attributes:
+        world: one row per (moving sphere, slot): the sphere's distance to the slot's rounded box.
+        active: the slot's active flag of each ``world`` row (0: an empty slot).
+        world_pairs: names of each ``world`` row: the part and the slot index.
+        self_rows: one row per self-collision part pair: the distance of their capsules.
+        self_pairs: names of each ``self_rows`` row.
+    """
+
+    world: ca.SX
+    active: ca.SX
+    world_pairs: list[tuple[str, int]]
+    self_rows: ca.SX
+    self_pairs: list[tuple[str, str]]
 
 
 def distance_expressions(
     geo: RobotGeometry,
     link_poses: Sequence[ca.SX],
-    obstacles: Sequence[Part],
+    slots: ca.SX,
     self_collision: bool,
     bound: float | None = None,
-) -> tuple[ca.SX, list[tuple[str, str]]]:
-    """Lower bounds of the signed distances of the sphere model, one row per sphere pair, with the
-    names of each row's pair.
+) -> DistanceRows:
+    """Lower bounds of the signed distances of the robot model, to the world's slots and to itself.
 
     Args:
         geo: the robot geometry.
         link_poses: symbolic 4x4 pose of each of ``geo.links`` (e.g. ``m.frame_expr(link)``).
-        obstacles: the world's parts (`optik.World.parts`); parts on the base body get no rows
-            against them (constant in ``q``: the exact check alone judges them).
+        slots: the world as ``capacity * SLOT_SIZE`` symbols (`optik.collision.slots`); spheres of
+            parts on the base body get no rows (constant in ``q``: the exact check alone judges them).
         self_collision: include the robot's self-collision pairs (`RobotGeometry.self_pairs`).
-        bound: the distance the solver will require: self pairs the model cannot keep that far
+        bound: the distance the solver will require: self pairs the capsules cannot keep that far
             apart are left out (`separable_pairs`; None: keep every pair).
     """
     model = sphere_model(geo)
-    centres = []
-    for k, c in zip(model.part, model.centres, strict=True):
-        t = link_poses[int(geo.part_link[k])]
-        centres.append(ca.mtimes(t[:3, :3], ca.DM(c)) + t[:3, 3])
-    rows: list[ca.SX] = []
-    names: list[tuple[str, str]] = []
-    by_part: dict[int, list[int]] = {}
-    for s, k in enumerate(model.part):
-        by_part.setdefault(int(k), []).append(s)
     m = geo.mechanism
     moving = [m.frames[link][0] != m.base for link in geo.links]
+    world, active, names = [], [], []
+    n_slots = slots.shape[0] // SLOT_SIZE
     for s, k in enumerate(model.part):
         if not moving[int(geo.part_link[k])]:
-            continue  # a part on the base body never moves: no constraint can change its rows
-        for o in obstacles:
-            rows.append(_sdf(o, centres[s]) - model.radii[s])
-            names.append((geo.parts[k].name, o.name))
+            continue
+        t = link_poses[int(geo.part_link[k])]
+        centre = ca.mtimes(t[:3, :3], ca.DM(model.centres[s])) + t[:3, 3]
+        for j in range(n_slots):
+            slot = slots[j * SLOT_SIZE : (j + 1) * SLOT_SIZE]
+            world.append(slot_distance(slot, centre, _EPS) - model.radii[s])
+            active.append(slot[SLOT_SIZE - 1])
+            names.append((geo.parts[k].name, j))
+    pairs = np.zeros((0, 2), dtype=int)
     if self_collision:
         pairs = geo.self_pairs if bound is None else geo.self_pairs[separable_pairs(geo, bound)]
-        for i, j in pairs:
-            for a in by_part[int(i)]:
-                for b in by_part[int(j)]:
-                    rows.append(_norm(centres[a] - centres[b]) - model.radii[a] - model.radii[b])
-                    names.append((geo.parts[i].name, geo.parts[j].name))
-    return (ca.vertcat(*rows) if rows else ca.SX(0, 1)), names
+    empty = ca.SX(0, 1)
+    return DistanceRows(
+        ca.vertcat(*world) if world else empty,
+        ca.vertcat(*active) if active else empty,
+        names,
+        _self_rows(geo, model, link_poses, pairs),
+        [(geo.parts[i].name, geo.parts[j].name) for i, j in pairs],
+    )

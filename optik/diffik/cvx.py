@@ -5,7 +5,7 @@ programming), then re-solved with new values:
 
 ```text
 minimise    1/2 ||W J dq - t||^2 + mu/2 ||dq||^2
-subject to  lb <= dq <= ub,  J_c dq = b
+subject to  lb <= dq <= ub,  J_c dq = b,  G dq <= h
 ```
 
 which has the same minimiser as ``1/2 dq^T H dq + c^T dq`` of [`optik.diffik.build_qp`][optik.diffik.build_qp]
@@ -43,6 +43,11 @@ class CvxpyStepProblem:
             self.a = cp.Parameter((m_eq, n))
             self.b = cp.Parameter(m_eq)
             cons.append(self.a @ self.dq == self.b)
+        self.g = self.h = None
+        if problem.G.shape[0]:
+            self.g = cp.Parameter(problem.G.shape)
+            self.h = cp.Parameter(problem.G.shape[0])
+            cons.append(self.g @ self.dq <= self.h)
         self.problem = cp.Problem(cp.Minimize(objective), cons)
 
     def solve(self, problem: DiffIKProblem, **settings: Any) -> QPOutcome:
@@ -54,6 +59,9 @@ class CvxpyStepProblem:
         if self.a is not None:
             self.a.value = problem.A
             self.b.value = problem.b
+        if self.g is not None:
+            self.g.value = problem.G
+            self.h.value = problem.h
         try:
             self.problem.solve(**settings)
         except Exception as exc:  # solver errors become a status
@@ -67,7 +75,7 @@ class CvxpyStepProblem:
 def solve_cvxpy(problem: DiffIKProblem, **settings: Any) -> QPOutcome:
     """Solve with the cached cvxpy problem of this task structure (``settings``: ``Problem.solve``
     keyword arguments, e.g. ``solver="CLARABEL"``)."""
-    key = "cvxpy"
+    key = f"cvxpy {problem.G.shape[0]}"  # the inequality rows' count is part of the problem
     cached = problem.cache.backends.get(key) if problem.cache is not None else None
     if cached is None:
         cached = CvxpyStepProblem(problem)

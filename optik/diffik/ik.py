@@ -21,7 +21,10 @@ singularity, where the adaptive damping alone converged linearly: 14 iterations 
 within 1 s on a seed 6R target with ``s5 = 0.03``) or
 ``solver`` (QP backend) and ``lm_damping`` (QP, default [`LM_DAMPING`][optik.diffik.ik.LM_DAMPING]: the QP
 Hessian gets ``lm_damping ||e||^2 I``, which shortens the Gauss-Newton steps far from the target and vanishes
-at it; 40/40 Panda targets within 50 ms instead of 35/40 without).
+at it; 40/40 Panda targets within 50 ms instead of 35/40 without). ``solve_ik(..., support=polygon,
+com_margin=..., method="qp")`` passes ``support`` and ``com_margin`` here (`optik.solvers.balance`): each
+step's QP then has the balance rows of [`build_qp`][optik.diffik.build_qp], and an iterate counts as solved
+only with its centre of mass inside by the margin.
 """
 
 from __future__ import annotations
@@ -38,11 +41,12 @@ from optik.diffik.track import tracking_task
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 from optik.results import IKResult
+from optik.solvers.balance import BALANCE_TOL
 from optik.solvers.base import IKRequest, make_result, positive_int, register_method
 
 _OPTIONS = {
     "dls": {"max_iterations", "stall_iterations", "damping", "threshold"},
-    "qp": {"max_iterations", "stall_iterations", "solver", "lm_damping"},
+    "qp": {"max_iterations", "stall_iterations", "solver", "lm_damping", "support", "com_margin"},
 }
 """Options each method reads; any other option is an error (never silently ignored)."""
 
@@ -72,7 +76,7 @@ def iterate(request: IKRequest, method: str) -> IKResult:
         raise InvalidArgumentError("options", f"unknown options for method {method!r}: {sorted(unknown)}")
     max_iter = _int_option(opts, "max_iterations", 100)
     stall = _int_option(opts, "stall_iterations", 10)
-    step_opts = {k: opts[k] for k in ("damping", "threshold") if k in opts}
+    step_opts = {k: opts[k] for k in ("damping", "threshold", "support", "com_margin") if k in opts}
     solver = opts.get("solver")
     tasks = []
     for frame, space, target in request.frame_targets():  # one frame task per target
@@ -101,6 +105,8 @@ def iterate(request: IKRequest, method: str) -> IKResult:
         per_task = [_errors_of(t.rows, et) for t, et in zip(tasks, res.problem.task_errors(), strict=True)]
         pos, ori = max(p for p, _ in per_task), max(o for _, o in per_task)
         inside = bool(np.all(q >= m.lower) and np.all(q <= m.upper))
+        if res.problem.h.size:  # balance rows: h = b - margin - N c_xy(q) >= 0 inside
+            inside = inside and float(np.min(res.problem.h)) >= -BALANCE_TOL
         err = max(pos / tol.position, ori / tol.orientation, res.closure_error / tol.closure)
         if inside and err < best_err:
             best_q, best_err = q.copy(), err

@@ -8,8 +8,14 @@ With the step ``dq = v dt`` (Pink's convention; ``v`` is returned), tasks ``k`` 
 minimise    1/2 dq^T H dq + c^T dq
 H = sum_k (W_k J_k)^T (W_k J_k) + mu I,   mu = damping + sum_k lambda_k ||alpha_k W_k e_k||^2
 c = sum_k (W_k J_k)^T (alpha_k W_k e_k)
-subject to  lb <= dq <= ub,   J_c dq = -gain_c c(q)
+subject to  lb <= dq <= ub,   J_c dq = -gain_c c(q),   G dq <= h
 ```
+
+``G dq <= h`` are inequality rows: static balance (``support=`` polygon with the unit outward
+edge normals ``N`` and offsets ``b``, `optik.solvers.balance.support_halfplanes`) keeps the
+linearized ground projection of the centre of mass inside by ``com_margin``,
+``N (c_xy(q) + J_com,xy(q) dq) <= b - com_margin``, so ``G = N J_com,xy`` and
+``h = b - com_margin - N c_xy(q)`` (none without ``support``).
 
 which is ``1/2 sum_k ||W_k (J_k dq + alpha_k e_k)||^2 + mu/2 ||dq||^2`` up to a constant. Every
 term is one compiled CasADi function per mechanism and task structure (see
@@ -35,6 +41,7 @@ from optik.diffik.limits import ClosureConstraint, ConfigurationLimit, VelocityL
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
+from optik.solvers.balance import support_halfplanes
 
 
 @dataclass
@@ -54,6 +61,7 @@ class DiffIKProblem:
         slices: rows of each task in the stacked arrays.
         priorities: priority of each task.
         q: the configuration; dt: the time step.
+        G, h: inequality rows ``G dq <= h`` (static balance; ``0 x n`` without it).
     """
 
     H: np.ndarray
@@ -72,6 +80,8 @@ class DiffIKProblem:
     q: np.ndarray
     dt: float
     cache: Any = field(default=None, repr=False)
+    G: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    h: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def n(self) -> int:
@@ -258,6 +268,8 @@ def build_qp(
     v_prev: Any = None,
     damping: float = 1e-12,
     closure_gain: float = 1.0,
+    support: Any = None,
+    com_margin: float = 0.0,
 ) -> DiffIKProblem:
     """The QP of one differential-IK step at ``q`` (see the module docstring for the formulas).
 
@@ -273,6 +285,9 @@ def build_qp(
             zero).
         damping: Tikhonov regularisation ``mu`` (``>= 0``).
         closure_gain: gain of the loop-closure constraint (closed chains).
+        support: the world x-y support polygon, counter-clockwise ``(k, 2)``: the balance rows
+            ``G dq <= h`` of the module docstring (the mechanism needs masses).
+        com_margin: the balance margin (m, ``>= 0``; only with ``support``).
 
     Returns:
         The [`DiffIKProblem`][optik.diffik.problem.DiffIKProblem].
@@ -294,6 +309,7 @@ def build_qp(
     parts.append(np.array([_positive_float(damping, "damping")]))
     h, c, lb, ub, a, b, jw, tw, e, cres, mu = stack(qq, parts, step, vp)
     rows = jw.shape[0]
+    g_rows, h_rows = balance_rows(m, qq, support, com_margin)
     return DiffIKProblem(
         H=h.reshape(m.n_q, m.n_q),
         c=c,
@@ -311,4 +327,25 @@ def build_qp(
         q=qq,
         dt=step,
         cache=stack,
+        G=g_rows,
+        h=h_rows,
     )
+
+
+def balance_rows(m: Mechanism, q: np.ndarray, support: Any, com_margin: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``(G, h)``: the linearized balance rows ``G dq <= h`` at ``q`` (module docstring; ``0 x n``
+    without ``support``).
+
+    Raises:
+        InvalidArgumentError: a malformed ``support`` or ``com_margin``, or a margin without a polygon.
+        ModelError: the mechanism has no mass.
+    """
+    margin = as_float(com_margin, "com_margin", 0.0)
+    if support is None:
+        if margin != 0.0:
+            raise InvalidArgumentError("com_margin", "a balance margin needs a support polygon (support=...)")
+        return np.zeros((0, m.n_q)), np.zeros(0)
+    normals, b = support_halfplanes(support)
+    com, jac = m.com_function(q)
+    com, jac = np.asarray(com).reshape(-1), np.asarray(jac)
+    return normals @ jac[:2], b - margin - normals @ com[:2]

@@ -36,19 +36,34 @@ def default_solver() -> str:
 _SENSE: dict[int, np.ndarray] = {}
 
 
+_FREE = 1e30
+"""DAQP's stand-in for an absent lower bound of an inequality row."""
+
+
+def _rows(problem: DiffIKProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The general constraint rows ``l <= C dq <= u``: the equalities ``A dq = b``, then the
+    inequalities ``G dq <= h``."""
+    k = problem.G.shape[0]
+    if not k:
+        return problem.A, problem.b, problem.b
+    c = np.vstack([problem.A, problem.G])
+    return c, np.concatenate([problem.b, np.full(k, -_FREE)]), np.concatenate([problem.b, problem.h])
+
+
 def solve_daqp(problem: DiffIKProblem, **settings: Any) -> QPOutcome:
     """DAQP on the dense problem (``settings`` are DAQP settings, e.g. ``primal_tol``)."""
     daqp = require_backend("daqp", "daqp")
     n, m_eq = problem.n, problem.A.shape[0]
-    if m_eq:
-        upper = np.concatenate([problem.ub, problem.b])
-        lower = np.concatenate([problem.lb, problem.b])
-        sense = np.zeros(n + m_eq, dtype=np.int32)
-        sense[n:] = 5
+    rows, lo_rows, up_rows = _rows(problem)
+    if rows.shape[0]:
+        upper = np.concatenate([problem.ub, up_rows])
+        lower = np.concatenate([problem.lb, lo_rows])
+        sense = np.zeros(n + rows.shape[0], dtype=np.int32)
+        sense[n : n + m_eq] = 5
     else:
         upper, lower, sense = problem.ub, problem.lb, _SENSE.setdefault(n, np.zeros(n, dtype=np.int32))
     try:
-        x, _, flag, _ = daqp.solve(problem.H, problem.c, problem.A, upper, lower, sense, **settings)
+        x, _, flag, _ = daqp.solve(problem.H, problem.c, rows, upper, lower, sense, **settings)
     except TypeError as exc:
         raise InvalidArgumentError("options", f"daqp: {exc}") from exc
     if flag in (1, 2):
@@ -62,7 +77,7 @@ class OsqpWorkspace:
     def __init__(self, problem: DiffIKProblem, settings: dict[str, Any]) -> None:
         osqp = require_backend("osqp", "osqp")
         sp = importlib.import_module("scipy.sparse")  # imported on first use: it is slow to import
-        n, m_eq = problem.n, problem.A.shape[0]
+        n, m_eq = problem.n, problem.A.shape[0] + problem.G.shape[0]
         self._triu = np.triu_indices(n)
         order = np.lexsort((self._triu[0], self._triu[1]))  # CSC order: by column, then row
         self._p_rows, self._p_cols = self._triu[0][order], self._triu[1][order]
@@ -82,13 +97,14 @@ class OsqpWorkspace:
 
     def solve(self, problem: DiffIKProblem) -> QPOutcome:
         n = self.n
-        a_full = np.vstack([np.eye(n), problem.A])
+        rows, lo_rows, up_rows = _rows(problem)
+        a_full = np.vstack([np.eye(n), rows])
         self.solver.update(
             Px=problem.H[self._p_rows, self._p_cols],
             Ax=a_full[self._a_rows, self._a_cols],
             q=problem.c,
-            l=np.concatenate([problem.lb, problem.b]),
-            u=np.concatenate([problem.ub, problem.b]),
+            l=np.concatenate([problem.lb, lo_rows]),
+            u=np.concatenate([problem.ub, up_rows]),
         )
         res = self.solver.solve(raise_error=False)
         status = str(res.info.status)
@@ -99,7 +115,8 @@ class OsqpWorkspace:
 
 def solve_osqp(problem: DiffIKProblem, **settings: Any) -> QPOutcome:
     """OSQP with a persistent workspace per task structure (``settings``: OSQP settings)."""
-    key = ("osqp", repr(sorted(settings.items())))  # repr: settings values may be unhashable
+    # repr: settings values may be unhashable; the rows' count is part of the workspace's pattern
+    key = ("osqp", problem.G.shape[0], repr(sorted(settings.items())))
     ws = problem.cache.backends.get(key) if problem.cache is not None else None
     if ws is None:
         ws = OsqpWorkspace(problem, settings)
@@ -116,10 +133,12 @@ def solve_qpsolvers(problem: DiffIKProblem, solver: str, **settings: Any) -> QPO
             f"QP solver {solver!r} is not installed; available: {sorted(qpsolvers.available_solvers)} "
             f"(pip install qpsolvers[{solver}])"
         )
-    has_eq = problem.A.shape[0] > 0
+    has_eq, has_ineq = problem.A.shape[0] > 0, problem.G.shape[0] > 0
     qp = qpsolvers.Problem(
         problem.H,
         problem.c,
+        G=problem.G if has_ineq else None,
+        h=problem.h if has_ineq else None,
         A=problem.A if has_eq else None,
         b=problem.b if has_eq else None,
         lb=problem.lb,

@@ -184,6 +184,8 @@ def step(
     v_prev: Any = None,
     damping: float | None = None,
     closure_gain: float = 1.0,
+    support: Any = None,
+    com_margin: float = 0.0,
     **options: Any,
 ) -> StepResult:
     """One differential-IK step: the joint velocity that best achieves the tasks within the limits.
@@ -216,6 +218,12 @@ def step(
         v_prev: previous velocity (acceleration limits).
         damping: QP Tikhonov weight (default 1e-12) or DLS ``lambda`` (see above).
         closure_gain: gain of the loop-closure constraint.
+        support: the world x-y support polygon, counter-clockwise ``(k, 2)`` (``method="qp"``
+            only): static balance as the QP's inequality rows, the linearized ground projection of
+            the centre of mass inside every edge by ``com_margin`` after the step
+            ([`build_qp`][optik.diffik.build_qp]); feet held in place are frame tasks (or
+            `optik.solve_ik`'s ``contacts``).
+        com_margin: the balance margin (m, ``>= 0``; only with ``support``).
         **options: method options (``threshold``, ``adaptive``, ``joint_weights`` for the
             pseudo-inverse methods; backend settings for ``"qp"``).
 
@@ -230,7 +238,22 @@ def step(
     if solver is not None:
         as_name(solver, "solver")
     qp_damping = 1e-12 if damping is None or method != "qp" else damping
-    problem = build_qp(m, q, tasks, dt, limits, v_prev=v_prev, damping=qp_damping, closure_gain=closure_gain)
+    if support is not None and method != "qp":
+        raise InvalidArgumentError(
+            "support", f"balance rows are QP inequalities: method 'qp' takes support=, not {method!r}"
+        )
+    problem = build_qp(
+        m,
+        q,
+        tasks,
+        dt,
+        limits,
+        v_prev=v_prev,
+        damping=qp_damping,
+        closure_gain=closure_gain,
+        support=support,
+        com_margin=com_margin,
+    )
     status, message, used = "ok", "", None
     if not all(np.isfinite(a).all() for a in (problem.H, problem.c, problem.jacobian, problem.target)):
         # finite task errors whose products overflow (a target 1e300 away): no step to take
@@ -245,6 +268,8 @@ def step(
             dq, _, _ = _dls(problem, "dls", {})
             status = f"qp_{out.status}_fallback"
             message = f"QP {out.status} ({out.detail}); used the DLS step within the bounds"
+            if problem.G.shape[0]:
+                message += " (which does not hold the balance rows)"
     else:
         if damping is not None:
             options = {**options, "damping": damping}

@@ -604,31 +604,26 @@ class Mechanism:
         return np.clip(self.check_q(q), self.lower, self.upper)
 
     def wrap(self, q: Any) -> np.ndarray:
-        """Canonical coordinates of the same configuration.
+        """Canonical coordinates of the same configuration(s).
 
         Angles are shifted by multiples of 2 pi into ``(-pi, pi]``, or into the limits when the
-        limits allow a shifted value there. A spherical joint's rotation vector ``w`` with
-        ``|w| > pi`` is replaced by ``w (1 - 2 pi / |w|)``, the same rotation with angle
-        ``2 pi - |w| < pi`` about the opposite axis, so that every rotation has one coordinate
-        vector (up to the sign at exactly a half-turn).
+        limits allow a shifted value there, or else as near the limits as a shift gets
+        ([`spatial.wrap_to_limits`][optik.spatial.wrap_to_limits] gives the rules). A spherical
+        joint's rotation vector ``w`` with ``|w| > pi`` is replaced by ``w (1 - 2 pi / |w|)``,
+        the same rotation with angle ``2 pi - |w| < pi`` about the opposite axis, so that every
+        rotation has one coordinate vector (up to the sign at exactly a half-turn).
+
+        Args:
+            q: coordinates, shape ``(n_q,)`` or ``(N, n_q)`` (rows wrapped independently).
+
+        Returns:
+            A new array of the shape of ``q``.
         """
-        qq = np.array(self.check_q(q), dtype=float)
-        ang = self.revolute_mask
-        w = qq.copy()
-        w[ang] = spatial.wrap_angle(qq[ang])
+        qb, single = as_batch(q, "q", self.n_q)
+        w = spatial.wrap_to_limits(qb, self.lower, self.upper, self.revolute_mask)
         for sl in self.spherical_slices:
-            w[sl] = spatial.wrap_rotation_vector(w[sl])
-        for k in np.flatnonzero(ang):
-            if self.lower[k] <= w[k] <= self.upper[k]:
-                continue
-            if self.lower[k] <= qq[k] <= self.upper[k]:  # e.g. on a limit beyond pi: wrapping and
-                w[k] = qq[k]  # shifting back by 2 pi can round it just outside
-                continue
-            for shift in (2 * np.pi, -2 * np.pi, 4 * np.pi, -4 * np.pi):
-                if self.lower[k] <= w[k] + shift <= self.upper[k]:
-                    w[k] += shift
-                    break
-        return w
+            w[:, sl] = spatial.wrap_rotation_vector(w[:, sl])
+        return w[0] if single else w
 
     def with_limits(self, lower: Any = None, upper: Any = None) -> Mechanism:
         """A copy with new coordinate limits (same joints, frames and end effector).

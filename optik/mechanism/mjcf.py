@@ -57,7 +57,7 @@ polynomials, inactive equalities, and tendons.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -67,43 +67,15 @@ from optik import spatial
 from optik.checks import as_vector
 from optik.errors import InvalidArgumentError, MissingExtraError, ModelError
 from optik.mechanism.joint import Joint, Mimic
+from optik.mechanism.parsed import ParsedModel
 from optik.mechanism.urdf_visuals import Visual
 
-__all__ = ["MjcfModel", "from_qpos", "load_mjmodel", "parse_mjcf", "to_qpos"]
+__all__ = ["from_qpos", "load_mjmodel", "parse_mjcf", "to_qpos"]
 
 _FREE, _BALL, _SLIDE, _HINGE = 0, 1, 2, 3
 _GEOM_PLANE, _GEOM_HFIELD, _GEOM_SPHERE, _GEOM_CAPSULE = 0, 1, 2, 3
 _GEOM_ELLIPSOID, _GEOM_CYLINDER, _GEOM_BOX, _GEOM_MESH = 4, 5, 6, 7
 _EQ_CONNECT, _EQ_JOINT, _OBJ_SITE = 0, 2, 6
-
-
-@dataclass(frozen=True)
-class MjcfModel:
-    """What `parse_mjcf` read: the arguments of a `Mechanism` and its ``params``.
-
-    Attributes:
-        name: the ``<mujoco model>`` name (``"mjcf"`` when absent).
-        base: ``"world"``.
-        frames: fixed bodies and sites, ``{name: (body, 4x4 offset)}``.
-        ee: the end-effector frame: the body with the most joints above it (the first on a tie).
-        joints: one `Joint` per MuJoCo joint, in MuJoCo's joint order, then one cut joint per
-            modelled ``connect`` equality.
-        params: ``"mjcf"`` (source label), ``"qpos_map"`` (per joint with a coordinate: MuJoCo
-            type, optik coordinate index, ``qpos`` address; used by `to_qpos` and `from_qpos`),
-            ``"qpos_mimics"`` (per coupled joint: ``qpos`` address, source coordinate,
-            multiplier, offset), ``"nq"`` (MuJoCo's ``nq``), ``"site_frames"``, ``"visuals"``
-            and ``"notes"`` (what was not read and why, when anything was not).
-        inertials: ``{body: (body_mass, body_ipos)}`` of the bodies with a mass (fixed bodies
-            included; MuJoCo's compiler has already derived masses from geoms where asked).
-    """
-
-    name: str
-    base: str
-    joints: tuple[Joint, ...]
-    frames: dict[str, tuple[str, np.ndarray]]
-    ee: str
-    params: dict[str, object] = field(default_factory=dict)
-    inertials: dict[str, tuple[float, np.ndarray]] = field(default_factory=dict)
 
 
 def load_mjmodel(source: Any) -> tuple[Any, str]:
@@ -262,7 +234,7 @@ def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
 
 
-def parse_mjcf(source: Any) -> MjcfModel:
+def parse_mjcf(source: Any) -> ParsedModel:
     """A MuJoCo model's whole body tree as optik joints and frames.
 
     Args:
@@ -270,7 +242,14 @@ def parse_mjcf(source: Any) -> MjcfModel:
             ``mujoco.MjModel``.
 
     Returns:
-        The model (see `MjcfModel`); coordinates in MuJoCo's joint order.
+        The model (a [`ParsedModel`][optik.mechanism.parsed.ParsedModel]); coordinates in
+        MuJoCo's joint order; ``params``: ``"mjcf"`` (source label), ``"qpos_map"`` (per joint
+        with a coordinate: MuJoCo type, optik coordinate index, ``qpos`` address; used by
+        `to_qpos` and `from_qpos`), ``"qpos_mimics"`` (per coupled joint: ``qpos`` address,
+        source coordinate, multiplier, offset), ``"nq"`` (MuJoCo's ``nq``), ``"site_frames"``,
+        ``"visuals"`` and ``"notes"`` (what was not read and why, when anything was not);
+        ``inertials``: the bodies with a mass (fixed bodies included; MuJoCo's compiler has
+        already derived masses from geoms where asked).
 
     Raises:
         MissingExtraError: MuJoCo is not installed (``pip install "optik[mjcf]"``).
@@ -356,7 +335,7 @@ def parse_mjcf(source: Any) -> MjcfModel:
         for b in range(1, model.nbody)
         if model.body_mass[b] > 0
     }
-    return MjcfModel(name, "world", tuple(joints), frames, ee, params, inertials)
+    return ParsedModel(name, "world", tuple(joints), frames, ee, params, inertials)
 
 
 def _equalities(

@@ -50,7 +50,7 @@ from __future__ import annotations
 
 import os
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from lxml import etree
@@ -59,43 +59,14 @@ from optik import spatial
 from optik.checks import as_name
 from optik.errors import ModelError, UnknownFrameError
 from optik.mechanism.joint import Joint, Mimic, axis_rotation
+from optik.mechanism.parsed import ParsedModel
 from optik.mechanism.urdf_visuals import read_visuals
 from optik.mechanism.urdf_xml import UrdfXml, read_urdf_xml
 
-__all__ = ["UrdfModel", "parse_urdf"]
+__all__ = ["parse_urdf"]
 
 _MOVING = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic"}
 _REJECTED = ("floating", "planar")
-
-
-@dataclass(frozen=True)
-class UrdfModel:
-    """What `parse_urdf` read: the arguments of a `Mechanism` and its ``params``.
-
-    Attributes:
-        name: the ``<robot name>`` (``"urdf"`` when absent).
-        base: the base link (the fixed body).
-        joints: one `Joint` per moving joint (mimic joints included), in coordinate order.
-        frames: links reached through fixed joints, ``{link: (body, 4x4 offset)}``.
-        ee: the end-effector link: ``tip_link``, or for a tree the deepest leaf (most moving
-            joints from the base; the first in depth-first order on a tie).
-        inertials: ``{link: (mass, centre of mass in the link frame)}`` of the loaded links that
-            have an ``<inertial>`` with a ``<mass>``.
-        params: ``"urdf"`` (source label), ``"base_link"``, ``"tip_link"`` (None for a tree),
-            ``"visuals"`` and ``"collisions"`` (tuples of `Visual`), ``"held_joints"``
-            (``{joint: value}`` of the moving joints off a chain, see the module docstring; only
-            for a chain that carries some), ``"notes"`` (what was ignored and why, when
-            anything was) and, when every joint with a coordinate has a
-            positive ``<limit velocity>``, ``"velocity_limits"`` (rad/s or m/s per coordinate).
-    """
-
-    name: str
-    base: str
-    joints: tuple[Joint, ...]
-    frames: dict[str, tuple[str, np.ndarray]]
-    ee: str
-    params: dict[str, object] = field(default_factory=dict)
-    inertials: dict[str, tuple[float, np.ndarray]] = field(default_factory=dict)
 
 
 def _inertials(src: UrdfXml, links: list[etree._Element]) -> dict[str, tuple[float, np.ndarray]]:
@@ -381,7 +352,7 @@ def parse_urdf(
     base_link: str | None = None,
     tip_link: str | None = None,
     floating_base: bool = False,
-) -> UrdfModel:
+) -> ParsedModel:
     """A URDF robot's whole tree, the subtree below ``base_link``, or the chain to ``tip_link``.
 
     Every moving joint becomes a `Joint` named after the URDF joint; its pose is
@@ -399,7 +370,14 @@ def parse_urdf(
             of the model) above ``base_link``, as Pinocchio's ``JointModelFreeFlyer``.
 
     Returns:
-        The model named after the ``<robot name>`` (see `UrdfModel`).
+        The model (a [`ParsedModel`][optik.mechanism.parsed.ParsedModel]) named after the
+        ``<robot name>``; ``params``: ``"urdf"`` (source label), ``"base_link"``,
+        ``"tip_link"`` (None for a tree), ``"visuals"`` and ``"collisions"`` (tuples of
+        `Visual`), ``"held_joints"`` (``{joint: value}`` of the moving joints off a chain, see
+        the module docstring; only for a chain that carries some), ``"notes"`` (what was ignored
+        and why, when anything was) and, when every joint with a coordinate has a positive
+        ``<limit velocity>``, ``"velocity_limits"`` (rad/s or m/s per coordinate);
+        ``inertials``: the loaded links that have an ``<inertial>`` with a ``<mass>``.
 
     Raises:
         InvalidArgumentError: ``source`` is neither an existing file nor XML text (or not valid
@@ -499,4 +477,4 @@ def parse_urdf(
         params["velocity_limits"] = np.array(velocities, dtype=float)
     inertials = _inertials(src, links)
     name = src.root.get("name") or "urdf"
-    return UrdfModel(name, FLOATING_WORLD if floating_base else base, joints, frames, ee, params, inertials)
+    return ParsedModel(name, FLOATING_WORLD if floating_base else base, joints, frames, ee, params, inertials)

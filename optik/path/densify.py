@@ -29,15 +29,15 @@ def segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.linalg.norm(p - (a + s[..., None] * ab), axis=-1)
 
 
-def deviation(m: Mechanism, q: np.ndarray, frame: str | None) -> np.ndarray:
-    """Largest tool deviation ``(N - 1,)`` of each joint segment from the straight segment
-    between the tool points of its ends (module docstring)."""
-    if len(q) < 2:
-        return np.zeros(0)
+def tool_deviation(m: Mechanism, q: np.ndarray, frame: str | None) -> tuple[np.ndarray, np.ndarray]:
+    """The tool poses of the samples ``(N, 4, 4)`` and the largest tool deviation ``(N - 1,)``
+    of each joint segment from the straight segment between the tool points of its ends
+    (module docstring), from one FK batch over the samples and the inner points."""
     inner = q[:-1, None] + FRACTIONS[None, :, None] * np.diff(q, axis=0)[:, None]  # (N-1, F, n)
-    tips = fk_batch(m, q, frame)[:, :3, 3]
-    mid = fk_batch(m, inner.reshape(-1, m.n_q), frame)[:, :3, 3].reshape(len(q) - 1, len(FRACTIONS), 3)
-    return segment_distance(mid, tips[:-1, None], tips[1:, None]).max(axis=1)
+    fk = fk_batch(m, np.concatenate([q, inner.reshape(-1, m.n_q)]), frame)
+    tips = fk[: len(q), :3, 3]
+    mid = fk[len(q) :, :3, 3].reshape(len(q) - 1, len(FRACTIONS), 3)
+    return fk[: len(q)], segment_distance(mid, tips[:-1, None], tips[1:, None]).max(axis=1, initial=0.0)
 
 
 def halfway(a: np.ndarray, b: np.ndarray) -> np.ndarray:

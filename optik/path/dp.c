@@ -48,36 +48,72 @@ static double wrapped(double d, double p) {
     return d;
 }
 
+/* Sorts the nodes [p0, p0 + k) into out[0..k) by key, warm-started from `prev`, the sorted
+ * order of the previous layer (its `kprev` nodes start at `pprev`): consecutive layers hold the
+ * solutions of nearby poses in the same order, so that order is nearly sorted and an insertion
+ * sort finishes in about k steps. Past a budget of shifts it falls back to the merge sort. */
+static void sort_layer(int *out, int *tmp, const int *prev, int kprev, int pprev, int p0, int k,
+                       const double *key) {
+    int m = 0;
+    for (int i = 0; i < kprev; ++i)
+        if (prev[i] - pprev < k) out[m++] = p0 + prev[i] - pprev;
+    for (int i = kprev; i < k; ++i) out[m++] = p0 + i; /* the local indices past the previous layer */
+    long budget = 16L * k;
+    for (int i = 1; i < k; ++i) {
+        int v = out[i];
+        int j = i - 1;
+        while (j >= 0 && key[out[j]] > key[v]) {
+            out[j + 1] = out[j];
+            --j;
+            if (--budget < 0) {
+                out[j + 1] = v;
+                sort_by(out, tmp, k, key);
+                return;
+            }
+        }
+        out[j + 1] = v;
+    }
+}
+
+/* whether the predecessor `a` is among the `count` removed predecessors `list` of a node */
+static int banned(const int *list, int count, int a) {
+    for (int i = 0; i < count; ++i)
+        if (list[i] == a) return 1;
+    return 0;
+}
+
 /* Returns -1 with index[] and *total set, or the first layer no node of which is reachable.
- * key[] (one per node) receives the nodes' first coordinate. */
+ * key[] (one per node) receives the nodes' first coordinate; order[] and here[] (each of the
+ * largest layer's size) hold the sorted orders of the previous and the current layer. When
+ * fstart is not NULL, the edges from fpred[fstart[b] .. fstart[b + 1]) to node b are removed
+ * (edges in collision: optik.path.plan). */
 int optik_path_dp(int n_layers, const int *offset, const double *nodes, int n, const double *w,
                   const double *period, const double *bounds, double *cost, int *back, int *order,
-                  int *tmp, int *index, double *total, double *key) {
+                  int *tmp, int *index, double *total, double *key, int *here, const int *fstart,
+                  const int *fpred) {
     for (int a = 0; a < offset[n_layers]; ++a) key[a] = nodes[(long)a * n];
     for (int a = offset[0]; a < offset[1]; ++a) cost[a] = 0.0;
     const double w0 = fabs(w[0]), p0d = period[0];
+    for (int i = 0; i < offset[1] - offset[0]; ++i) order[i] = offset[0] + i;
+    sort_by(order, tmp, offset[1] - offset[0], key);
     for (int k = 1; k < n_layers; ++k) {
-        int p0 = offset[k - 1], kp = offset[k] - p0;
-        for (int i = 0; i < kp; ++i) order[i] = p0 + i;
-        sort_by(order, tmp, kp, key);
+        int p0 = offset[k - 1], kp = offset[k] - p0, kb = offset[k + 1] - offset[k];
+        sort_layer(here, tmp, order, kp, p0, offset[k], kb, key);
         double cmin = INFINITY;
         for (int i = 0; i < kp; ++i)
             if (cost[p0 + i] < cmin) cmin = cost[p0 + i];
         const double *bd = bounds ? bounds + (long)(k - 1) * n : 0;
-        int reached = 0;
-        for (int b = offset[k]; b < offset[k + 1]; ++b) {
+        int reached = 0, lo = 0;
+        for (int ib = 0; ib < kb; ++ib) { /* the nodes in increasing key: lo only moves up */
+            int b = here[ib];
             const double *qb = nodes + (long)b * n;
             double b0 = qb[0], best = INFINITY;
-            int arg = -1, lo = 0, hi = kp;
-            while (lo < hi) { /* first predecessor with key >= b0 */
-                int mid = (lo + hi) / 2;
-                if (key[order[mid]] < b0) lo = mid + 1;
-                else hi = mid;
-            }
+            int arg = -1;
+            while (lo < kp && key[order[lo]] < b0) ++lo; /* first predecessor with key >= b0 */
             int r = lo, l = lo - 1;
             for (int seen = 0; seen < kp; ++seen) {
                 /* the nearer unvisited predecessor in the first coordinate, on either side */
-                int ir = p0d > 0.0 ? r % kp : r, il = p0d > 0.0 ? ((l % kp) + kp) % kp : l;
+                int ir = p0d > 0.0 && r >= kp ? r - kp : r, il = p0d > 0.0 && l < 0 ? l + kp : l; /* r < 2 kp, l >= -kp */
                 double dr = (p0d > 0.0 || r < kp) ? fabs(wrapped(key[order[ir]] - b0, p0d)) : INFINITY;
                 double dl = (p0d > 0.0 || l >= 0) ? fabs(wrapped(key[order[il]] - b0, p0d)) : INFINITY;
                 int take;
@@ -109,7 +145,7 @@ int optik_path_dp(int n_layers, const int *offset, const double *nodes, int n, c
                 }
                 if (!ok) continue;
                 double c = ca + sqrt(s);
-                if (c < best) {
+                if (c < best && !(fstart && banned(fpred + fstart[b], fstart[b + 1] - fstart[b], take))) {
                     best = c;
                     arg = take;
                 }
@@ -119,6 +155,8 @@ int optik_path_dp(int n_layers, const int *offset, const double *nodes, int n, c
             reached |= arg >= 0;
         }
         if (!reached) return k;
+        int *swap = order; /* the current order is the next layer's previous one */
+        order = here, here = swap;
     }
     int l0 = offset[n_layers - 1], best_b = l0;
     for (int b = l0 + 1; b < offset[n_layers]; ++b)

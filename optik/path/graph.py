@@ -50,6 +50,54 @@ _LIB: list[ctypes.CDLL | None] = []
 _LOCK = threading.Lock()
 
 
+class Layered(Sequence[np.ndarray]):
+    """Rows in consecutive layers, stored contiguously: layer ``k`` is
+    ``data[offset[k] : offset[k + 1]]`` (a view). The graph's nodes ``(M, n)`` and their
+    groups ``(M,)`` take this form, so that the dynamic program and the checks read one array
+    and no per-layer objects are built; it is a sequence of its layers (``len``, index, iterate).
+    """
+
+    def __init__(self, data: np.ndarray, offset: np.ndarray) -> None:
+        self.data, self.offset = data, np.asarray(offset, dtype=np.int64)
+
+    @classmethod
+    def of(cls, layers: Sequence[np.ndarray]) -> Layered:
+        """``layers`` as a `Layered` (itself when it already is one)."""
+        if isinstance(layers, Layered):
+            return layers
+        sizes = np.array([len(x) for x in layers], dtype=np.int64)
+        return cls(np.concatenate(layers), np.concatenate([[0], np.cumsum(sizes)]))
+
+    @classmethod
+    def by_owner(cls, data: np.ndarray, owner: np.ndarray, count: int) -> Layered:
+        """Rows ``data`` whose layers ``owner`` (ascending) are given, over ``count`` layers."""
+        return cls(data, np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=count))]))
+
+    @property
+    def sizes(self) -> np.ndarray:
+        """Rows per layer ``(N,)``."""
+        return np.diff(self.offset)
+
+    def owner(self) -> np.ndarray:
+        """The layer of each row ``(M,)``."""
+        return np.repeat(np.arange(len(self)), self.sizes)
+
+    def rows(self, index: np.ndarray) -> np.ndarray:
+        """Row ``index[k]`` of each layer ``k`` (``(N, ...)``)."""
+        return self.data[self.offset[:-1] + index]
+
+    def keep(self, mask: np.ndarray) -> Layered:
+        """The rows where ``mask (M,)`` holds, in their layers."""
+        return Layered.by_owner(self.data[mask], self.owner()[mask], len(self))
+
+    def __len__(self) -> int:
+        return len(self.offset) - 1
+
+    def __getitem__(self, k):  # type: ignore[override]  # a layer (int), not slices
+        k = range(len(self))[k]
+        return self.data[self.offset[k] : self.offset[k + 1]]
+
+
 @dataclass(frozen=True)
 class GraphPath:
     """The optimum through a layered graph.
@@ -92,7 +140,7 @@ def compiled() -> ctypes.CDLL | None:
             if lib is not None:
                 fn = lib.optik_path_dp
                 ptr, i32 = ctypes.c_void_p, ctypes.c_int
-                fn.argtypes = [i32, ptr, ptr, i32, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr]
+                fn.argtypes = [i32, ptr, ptr, i32, *[ptr] * 13]
                 fn.restype = i32
             _LIB.append(lib)
         return _LIB[0]
@@ -107,11 +155,11 @@ def _joint_order(layers: Sequence[np.ndarray], weights: np.ndarray) -> np.ndarra
     distinct values among a layer's nodes (over up to 16 layers; ties by spread), so that the
     window of predecessors it scans is the narrowest, then by decreasing weighted spread (an
     edge's partial sum then exceeds its room sooner)."""
-    picked = layers[:: max(1, len(layers) // 16)]
+    picked = [layers[k] for k in range(0, len(layers), max(1, len(layers) // 16))]
     distinct = np.zeros(len(weights))
     spread = np.zeros(len(weights))
     for layer in picked:
-        distinct += [len(np.unique(np.round(layer[:, j], 9))) for j in range(layer.shape[1])]
+        distinct += 1 + np.count_nonzero(np.diff(np.sort(layer, axis=0), axis=0) > 1e-9, axis=0)
         spread += np.abs(layer - layer.mean(axis=0)).sum(axis=0)
     score = np.where(weights > 0, distinct + spread * weights / (1.0 + (spread * weights).max()), -1.0)
     first = int(np.argmax(score))
@@ -124,6 +172,7 @@ def least_motion(
     weights: np.ndarray,
     step_bounds: np.ndarray | None = None,
     periods: np.ndarray | None = None,
+    removed: np.ndarray | None = None,
 ) -> GraphPath:
     """The path of least weighted joint motion through ``layers`` (module docstring).
 
@@ -133,6 +182,8 @@ def least_motion(
         step_bounds: ``(N - 1, n)`` largest allowed ``|q_{k+1} - q_k|`` per joint and segment,
             or None (no bound).
         periods: per joint, the period of its differences (0: none; default none).
+        removed: edges taken out of the graph ``(F, 3)``, each ``(k, a, b)``: from node ``a`` of
+            layer ``k - 1`` to node ``b`` of layer ``k`` (None: none).
 
     Returns:
         The optimal `GraphPath`.
@@ -140,22 +191,31 @@ def least_motion(
     per = np.zeros(layers[0].shape[1]) if periods is None else np.ascontiguousarray(periods, dtype=float)
     lib = compiled()
     if lib is None:
-        return least_motion_numpy(layers, weights, step_bounds, per)
-    sizes = np.array([len(layer) for layer in layers], dtype=np.int32)
-    offset = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int32)
-    stacked = np.concatenate(layers)
-    perm = _joint_order(layers, np.asarray(weights, dtype=float))
-    nodes = np.ascontiguousarray(stacked[:, perm], dtype=float)
+        return least_motion_numpy(layers, weights, step_bounds, per, removed)
+    graph = Layered.of(layers)
+    sizes = graph.sizes
+    offset = graph.offset.astype(np.int32)
+    perm = _joint_order(graph, np.asarray(weights, dtype=float))
+    nodes = np.ascontiguousarray(graph.data[:, perm], dtype=float)
     w = np.ascontiguousarray(np.asarray(weights, dtype=float)[perm])
     per = np.ascontiguousarray(per[perm])
     bounds = None if step_bounds is None else np.ascontiguousarray(step_bounds[:, perm], dtype=float)
     total = len(nodes)
     cost, back = np.empty(total), np.empty(total, dtype=np.int32)
-    order, tmp = np.empty(int(sizes.max()), dtype=np.int32), np.empty(int(sizes.max()), dtype=np.int32)
+    order, tmp, here = (np.empty(int(sizes.max()), dtype=np.int32) for _ in range(3))
     index, best, key = np.empty(len(layers), dtype=np.int32), np.zeros(1), np.empty(total)
+    fstart = fpred = None
+    if removed is not None and len(removed):
+        e = np.asarray(removed, dtype=np.int64).reshape(-1, 3)
+        target = graph.offset[e[:, 0]] + e[:, 2]
+        by = np.argsort(target, kind="stable")
+        fpred = np.ascontiguousarray(graph.offset[e[by, 0] - 1] + e[by, 1], dtype=np.int32)
+        counts = np.bincount(target, minlength=total)
+        fstart = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
     blocked = lib.optik_path_dp(
         len(layers), _ptr(offset), _ptr(nodes), nodes.shape[1], _ptr(w), _ptr(per), _ptr(bounds), _ptr(cost),
-        _ptr(back), _ptr(order), _ptr(tmp), _ptr(index), _ptr(best), _ptr(key),
+        _ptr(back), _ptr(order), _ptr(tmp), _ptr(index), _ptr(best), _ptr(key), _ptr(here), _ptr(fstart),
+        _ptr(fpred),
     )  # fmt: skip
     if blocked >= 0:
         return GraphPath(np.full(len(layers), -1), float("inf"), int(blocked))
@@ -163,16 +223,27 @@ def least_motion(
 
 
 def least_motion_numpy(
-    layers: Sequence[np.ndarray], weights: np.ndarray, step_bounds: np.ndarray | None, periods: np.ndarray
+    layers: Sequence[np.ndarray],
+    weights: np.ndarray,
+    step_bounds: np.ndarray | None,
+    periods: np.ndarray,
+    removed: np.ndarray | None = None,
 ) -> GraphPath:
     """`least_motion` in numpy, one vectorized step per layer (without compiled code)."""
     n_layers = len(layers)
     cost = np.zeros(len(layers[0]))
     back: list[np.ndarray] = []
+    e = (
+        np.zeros((0, 3), dtype=np.int64)
+        if removed is None
+        else np.asarray(removed, dtype=np.int64).reshape(-1, 3)
+    )
     for k in range(1, n_layers):
         c, d = edge_costs(layers[k - 1], layers[k], weights, periods)
         if step_bounds is not None:
             c[(np.abs(d) > step_bounds[k - 1]).any(axis=-1)] = np.inf
+        here = e[e[:, 0] == k]
+        c[here[:, 1], here[:, 2]] = np.inf
         total = cost[:, None] + c
         arg = total.argmin(axis=0)
         cost = total[arg, np.arange(total.shape[1])]
@@ -200,18 +271,19 @@ def branch_changes(
     own group (the nodes of one tool pose: one free-axis sample, one self-motion sample). On a
     densely sampled path the nearest solution of the next pose is the continuation of the same
     branch, so a step to any other is a jump to another branch. Differences are taken modulo
-    ``periods`` as in `least_motion`.
+    ``periods`` as in `least_motion`. Only the nodes of the chosen groups are measured.
     """
     if len(index) < 2:
         return np.zeros(len(index), dtype=int)
-    sizes = np.array([len(layer) for layer in layers[1:]])
-    start = np.concatenate([[0], np.cumsum(sizes)[:-1]])
-    nodes = np.concatenate(layers[1:])
-    owner = np.repeat(np.arange(len(sizes)), sizes)  # layer k + 1 of each node, as k
-    chosen = np.stack([layer[i] for layer, i in zip(layers, index, strict=True)])
-    group = np.concatenate(groups[1:])
-    picked = start + index[1:]
-    dist = np.linalg.norm(differences(chosen[:-1][owner], nodes, periods) * weights, axis=1)
-    dist[group != group[picked][owner]] = np.inf  # only the chosen node's own group
-    flips = dist[picked] > np.minimum.reduceat(dist, start)
+    nodes, tags = Layered.of(layers), Layered.of(groups)
+    owner = nodes.owner()
+    picked = nodes.offset[:-1] + index
+    chosen = nodes.data[picked]
+    # the nodes of layers 1.. in the chosen node's group (each layer's chosen node among them)
+    rest = np.arange(nodes.offset[1], nodes.offset[-1])
+    same = rest[tags.data[rest] == tags.data[picked][owner[rest]]]
+    layer = owner[same]
+    dist = np.linalg.norm(differences(chosen[layer - 1], nodes.data[same], periods) * weights, axis=1)
+    nearest = np.minimum.reduceat(dist, np.searchsorted(layer, np.arange(1, len(index))))
+    flips = dist[np.searchsorted(same, picked[1:])] > nearest
     return np.concatenate([[0], np.cumsum(flips)])

@@ -14,13 +14,12 @@ counting its turns; only when the turns do not fit the limits is the graph of ev
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import numpy as np
 
 from optik.errors import SolverUnavailableError
 from optik.mechanism import Mechanism
-from optik.solvers import solve_ik_all
+from optik.solvers import solve_ik_all, solve_ik_all_batch
+from optik.solvers.closed import many_binding_of
 
 SHIFTS = 2.0 * np.pi * np.array([0.0, 1.0, -1.0, 2.0, -2.0])
 """Multiples of ``2 pi`` tried on each angle."""
@@ -81,21 +80,39 @@ def realize(rows: np.ndarray, periods: np.ndarray, lower: np.ndarray, upper: np.
     return q
 
 
-def closed_form_solutions(m: Mechanism, poses: Sequence[np.ndarray], frame: str | None) -> list[np.ndarray]:
-    """Every solution within the limits of each pose, by ``m``'s closed form (certified complete).
+def closed_form_solutions(
+    m: Mechanism, poses: np.ndarray, frame: str | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Every solution within the limits of each of ``poses (P, 4, 4)``, by ``m``'s closed form
+    (certified complete), as rows ``(K, n)`` pose after pose and the count of each pose
+    ``(P,)``: one `optik.solve_ik_all_batch` call (one C call over every pose) when the closed
+    form has a compiled many-target driver and the tool is the end effector, else
+    `optik.solve_ik_all` pose by pose.
 
     Raises:
         SolverUnavailableError: ``m`` has no closed form (a redundant arm: plan with
             ``self_motion``), or its answer is not certified complete (the graph would then
             miss solutions).
     """
+    if frame is None and m.n_q == 6 and many_binding_of(m) is not None:
+        batch = solve_ik_all_batch(m, poses)
+        bad = np.flatnonzero(~batch.certified)
+        if bad.size:
+            k = int(bad[0])
+            _uncertified(m, k, batch[k].uncertified_reason)
+        return batch.q, np.asarray(batch.counts, dtype=np.int64)
     out = []
     for k, t in enumerate(poses):
         sols = solve_ik_all(m, t, method="closed_form", frame=frame)
         if not sols.certified:
-            raise SolverUnavailableError(
-                f"the closed form of {m.name!r} does not certify that it found every solution of "
-                f"pose {k} ({sols.uncertified_reason}); plan_path needs every solution"
-            )
+            _uncertified(m, k, sols.uncertified_reason)
         out.append(np.asarray(sols.q, dtype=float).reshape(-1, m.n_q))
-    return out
+    counts = np.array([len(x) for x in out], dtype=np.int64)
+    return (np.concatenate(out) if out else np.zeros((0, m.n_q))), counts
+
+
+def _uncertified(m: Mechanism, k: int, reason: str | None) -> None:
+    raise SolverUnavailableError(
+        f"the closed form of {m.name!r} does not certify that it found every solution of "
+        f"pose {k} ({reason}); plan_path needs every solution"
+    )

@@ -25,12 +25,13 @@ from typing import Any
 import numpy as np
 
 from optik.batch import fk_batch
-from optik.checks import as_float, as_int, as_name, as_transform, as_vector, real_array
+from optik.checks import ORTHO_DIAG, ORTHO_OFF, as_float, as_int, as_name, as_transform, as_vector, real_array
 from optik.collision import World, check_many
 from optik.errors import InvalidArgumentError, ShapeError
 from optik.mechanism import Mechanism
-from optik.path.densify import deviation, midpoints
-from optik.path.graph import branch_changes, least_motion
+from optik.path.densify import midpoints, tool_deviation
+from optik.path.edges import EDGE_STEP, colliding_segments
+from optik.path.graph import Layered, branch_changes, least_motion
 from optik.path.nodes import realize, turn_copies, wrapping
 from optik.path.redundant import refine
 from optik.path.result import JointPath
@@ -39,15 +40,32 @@ from optik.path.timing import derivatives, segment_times, step_bounds
 from optik.solvers import Tolerances
 from optik.spatial import angle_between
 
+MAX_CUT_ROUNDS = 100
+"""Most rounds of removing the edges of the optimum that collide between samples."""
 VELOCITY_SLACK = 1e-9
 """Relative rounding allowed on the velocity check (times equal to ``|dq| / v`` give ``v`` to
 rounding)."""
 
 
 def _poses(poses: Any) -> np.ndarray:
+    """The poses ``(N, 4, 4)``, each a proper transform: checked at once to `as_transform`'s
+    tolerances, and pose by pose (its error naming the first bad one) when that fails."""
     a = real_array(poses, "poses")
     if a.ndim != 3 or a.shape[1:] != (4, 4) or len(a) == 0:
         raise ShapeError("poses", f"expected N >= 1 transforms of shape (N, 4, 4), got {a.shape}")
+    r = a[:, :3, :3]
+    gram = np.einsum("nji,njk->nik", r, r) - np.eye(3)
+    off = np.abs(gram - np.einsum("nii->ni", gram)[:, :, None] * np.eye(3))
+    ok = (
+        np.isfinite(a).all()
+        and np.all(np.abs(a[:, 3, :3]) <= 1e-9)
+        and np.all(np.abs(a[:, 3, 3] - 1.0) <= 1e-9 + 1e-5)
+        and np.all(np.abs(np.einsum("nii->ni", gram)) <= ORTHO_DIAG)
+        and np.all(off <= ORTHO_OFF)
+        and np.all(np.linalg.det(r) >= 0.0)
+    )
+    if ok:
+        return np.array(a)
     return np.stack([as_transform(t, f"poses[{k}]") for k, t in enumerate(a)])
 
 
@@ -106,17 +124,14 @@ def _self_motion(m: Mechanism, value: Any) -> tuple[int, np.ndarray] | None:
 
 
 def _free_of_collisions(
-    m: Mechanism, solutions: list[np.ndarray], world: World | None, margin: float
-) -> tuple[list[np.ndarray], list[np.ndarray], int]:
-    """The solutions free of collisions with ``world`` and with the robot itself (all of them
-    without a world), the masks kept, and how many were dropped."""
-    keep = [np.ones(len(s), dtype=bool) for s in solutions]
-    stacked = np.concatenate(solutions)
-    if world is None or not len(stacked):
-        return solutions, keep, 0
-    free = ~check_many(m, stacked, world=world, margin=margin).in_collision
-    keep = np.split(free, np.cumsum([len(s) for s in solutions])[:-1])
-    return [s[k] for s, k in zip(solutions, keep, strict=True)], keep, int(np.count_nonzero(~free))
+    m: Mechanism, solutions: Layered, world: World | None, margin: float
+) -> tuple[np.ndarray | None, int]:
+    """Which nodes are free of collisions with ``world`` and with the robot itself ``(M,)``
+    (None without a world: all of them), and how many are not."""
+    if world is None or not len(solutions.data):
+        return None, 0
+    free = ~check_many(m, solutions.data, world=world, margin=margin).in_collision
+    return free, int(np.count_nonzero(~free))
 
 
 def check_path(
@@ -131,12 +146,14 @@ def check_path(
     acceleration: np.ndarray | None,
     free_axis: str | None = None,
     position_tolerance: np.ndarray | None = None,
+    fk: np.ndarray | None = None,
 ) -> dict[str, bool]:
     """The checks of a path recomputed from its samples alone: FK of every sample against its
     target pose (the position within ``position_tolerance`` more, only the direction of the free
     axis when there is one), joint limits, segment velocities ``|dq| / dt`` against ``velocity``
-    and accelerations against ``acceleration`` (when given)."""
-    fk = fk_batch(m, q, frame)
+    and accelerations against ``acceleration`` (when given). ``fk``: the poses of ``q`` when
+    already computed (`optik.path.densify.tool_deviation`)."""
+    fk = fk_batch(m, q, frame) if fk is None else fk
     pos = np.linalg.norm(fk[:, :3, 3] - targets[:, :3, 3], axis=1)
     if position_tolerance is not None:
         pos = np.maximum(pos - position_tolerance, 0.0)
@@ -176,6 +193,7 @@ def plan_path(
     tol: float | Tolerances | None = None,
     world: World | None = None,
     margin: float = 0.0,
+    edge_step: float = EDGE_STEP,
     max_flips: int | None = 0,
     self_motion: tuple[str, Any] | None = None,
     smooth: bool = False,
@@ -218,6 +236,10 @@ def plan_path(
         world: obstacles; configurations in collision with them or with the robot itself are
             no nodes (`optik.collision.check_many`).
         margin: clearance (m) of the collision check.
+        edge_step: with a world, the largest joint step (rad) between the configurations checked
+            along each segment of the path (the joints move linearly between samples): a graph
+            edge whose segment collides is removed and the path planned again
+            (`optik.path.edges`).
         max_flips: most branch changes the ``"branch"`` check accepts (None: any, for poses far
             apart, where the nearest solution says nothing about continuity).
         self_motion: ``(joint, values)`` for a redundant (7-DOF) arm: its self-motion sampled
@@ -252,20 +274,21 @@ def plan_path(
     acc = None if acceleration is None else _positive(acceleration, "acceleration", m.n_q)
     spd = None if speed is None else as_float(speed, "speed", 0.0, strict=True)
     tols = Tolerances.from_arg(tol)
+    edge = as_float(edge_step, "edge_step", 0.0, strict=True)
     flips_ok = None if max_flips is None else as_int(max_flips, "max_flips")
     motion = _self_motion(m, self_motion)
     smooth = bool(smooth)
     if smooth and (free_axis is not None or radius is not None):
         raise InvalidArgumentError("smooth", "needs full poses: no free_axis, no position_tolerance")
     shortcut = None if free_axis is None or motion is not None else axis_joint(m, free_axis, frame)
-    plan = _Plan(m, frame, free_axis, step, shortcut, w, v, world, margin, motion)
+    plan = _Plan(m, frame, free_axis, step, shortcut, w, v, world, margin, motion, edge)
     inserted = 0
     for round_ in range(rounds + 1):
         found = plan.solve(targets, t_given, radius)
         if isinstance(found, str):
             return _failed(m, plan.sizes, found, targets)
         q, index, groups, layers, periods, cost, note = found
-        dev = deviation(m, q, frame)
+        tool, dev = tool_deviation(m, q, frame)
         far = np.flatnonzero(dev > limit) if limit is not None else np.zeros(0, dtype=int)
         if not far.size or round_ == rounds:
             break
@@ -274,7 +297,9 @@ def plan_path(
     n = len(targets)
     branch = branch_changes(layers, index, w, groups, periods)
 
-    def finish(qq: np.ndarray) -> tuple[np.ndarray, int, np.ndarray, np.ndarray, dict[str, bool]]:
+    def finish(
+        qq: np.ndarray, fk: np.ndarray, dq: np.ndarray
+    ) -> tuple[np.ndarray, int, np.ndarray, np.ndarray, dict[str, bool]]:
         stretched = 0
         if t_given is None:
             travel = np.linalg.norm(np.diff(targets[:, :3, 3], axis=0), axis=1)
@@ -282,26 +307,29 @@ def plan_path(
         else:
             tt = t_given
         qd, qdd = derivatives(qq, tt)
-        checks = check_path(m, qq, tt, qdd, targets, frame, tols, v, acc, free_axis, radius)
+        checks = check_path(m, qq, tt, qdd, targets, frame, tols, v, acc, free_axis, radius, fk)
         checks["branch"] = bool(flips_ok is None or branch[-1] <= flips_ok)
         if world is not None:
-            checks["collision"] = not np.any(check_many(m, qq, world=world, margin=margin).in_collision)
+            checks["collision"] = not np.any(
+                check_many(m, qq, world=world, margin=margin).in_collision
+            ) and not len(colliding_segments(m, qq, world, margin, edge))
         if limit is not None:
-            checks["deviation"] = bool(np.all(deviation(m, qq, frame) <= limit))
+            checks["deviation"] = bool(np.all(dq <= limit))
         return tt, stretched, qd, qdd, checks
 
-    t, stretched, qd, qdd, checks = finish(q)
+    t, stretched, qd, qdd, checks = finish(q, tool, dev)
     refined = ""
     if smooth:
         q2 = refine(m, q, targets, frame, min(tols.position, tols.orientation))
         refined = "; the refinement did not converge"
         if q2 is not None:
             cost2 = float(np.linalg.norm(np.diff(q2, axis=0) * w, axis=1).sum())
-            got = finish(q2)
+            tool2, dev2 = tool_deviation(m, q2, frame)
+            got = finish(q2, tool2, dev2)
             refined = "; the refinement was not kept (not shorter, or a check failed)"
             if cost2 < cost and all(got[4].values()):
                 refined = f"; refined from {cost:.6g}"
-                q, cost, dev = q2, cost2, deviation(m, q2, frame)
+                q, cost, dev = q2, cost2, dev2
                 t, stretched, qd, qdd, checks = got
     sizes = plan.sizes
     parts = [
@@ -313,6 +341,8 @@ def plan_path(
         parts.append(f"{inserted} samples inserted to keep the tool within {limit:g} m of the segments")
     if plan.dropped:
         parts.append(f"{plan.dropped} colliding configurations dropped")
+    if plan.cut:
+        parts.append(f"{plan.cut} edges colliding between their samples removed")
     if t_given is None:
         if v is None:
             parts.append(
@@ -347,22 +377,27 @@ class _Plan:
         world: World | None,
         margin: float,
         motion: tuple[int, np.ndarray] | None,
+        edge_step: float,
     ) -> None:
         self.m, self.frame, self.free_axis, self.step, self.shortcut = m, frame, free_axis, step, shortcut
         self.w, self.v, self.world, self.margin, self.motion = w, v, world, margin, motion
         self.sizes = np.zeros(0, dtype=int)
-        self.dropped = 0
+        self.dropped = self.cut = 0
+        self.edge_step = edge_step
         self.samples = sample_poses(np.eye(4)[None], None, step, None)
 
     def solve(self, targets: np.ndarray, times: np.ndarray | None, radius: np.ndarray | None) -> Any:
         """The optimum over the graph of ``targets`` as ``(q, index, groups, layers, periods,
-        cost, note)``, or the message of a failure."""
+        cost, note)``, or the message of a failure. With a world, the segments of the optimum
+        are checked between its samples (`optik.path.edges`); the edges that collide are
+        removed from the graph and the optimum found again, until none collides."""
         m = self.m
         self.samples = sample_poses(targets, self.free_axis, self.step, radius)
         solutions, groups = sample_solutions(m, self.samples, self.frame, self.shortcut, self.motion)
-        layers, keep, self.dropped = _free_of_collisions(m, solutions, self.world, self.margin)
-        groups = [g[k] for g, k in zip(groups, keep, strict=True)]
-        self.sizes = np.array([len(layer) for layer in layers])
+        free, self.dropped = _free_of_collisions(m, solutions, self.world, self.margin)
+        layers = solutions if free is None else solutions.keep(free)
+        groups = groups if free is None else groups.keep(free)
+        self.sizes = layers.sizes
         empty = np.flatnonzero(self.sizes == 0)
         if empty.size:
             why = (
@@ -372,28 +407,69 @@ class _Plan:
             )
             return f"pose {empty[0]} has {why} ({empty.size} such poses)"
         bounds = None if times is None or self.v is None else step_bounds(times, self.v)
+        removed: dict[bool, list[tuple[int, int, int]]] = {False: [], True: []}  # per graph: turns or not
+        every_turn: list[Any] = []  # the graph of every turn, made when first needed
+        self.cut = 0
+        for _ in range(MAX_CUT_ROUNDS):
+            got = self._optimum(layers, groups, bounds, times, removed, every_turn)
+            if isinstance(got, str) or self.world is None:
+                return got
+            q, index, turns = got[0], got[1], bool(got[-1])
+            hit = colliding_segments(m, q, self.world, self.margin, self.edge_step)
+            if not hit.size:
+                return got
+            removed[turns] += [(int(k) + 1, int(index[k]), int(index[k + 1])) for k in hit]
+            self.cut += hit.size
+        return (
+            f"no path free of collisions between its samples found: {self.cut} colliding edges removed "
+            f"in {MAX_CUT_ROUNDS} rounds"
+        )
+
+    def _optimum(
+        self,
+        layers: Layered,
+        groups: Layered,
+        bounds: np.ndarray | None,
+        times: np.ndarray | None,
+        removed: dict[bool, list[tuple[int, int, int]]],
+        every_turn: list[Any],
+    ) -> Any:
+        """The optimum over ``layers`` without the ``removed`` edges (module docstring of
+        `optik.path.nodes`: the relaxed graph first, the graph of every turn when its turns do
+        not fit the limits), or the message of a failure."""
+        m = self.m
         periods = wrapping(m)
-        best = least_motion(layers, self.w, bounds, periods)
+        best = least_motion(layers, self.w, bounds, periods, _edges(removed[False]))
         if best.blocked >= 0:
             k = best.blocked
+            if removed[False] or times is None:
+                return f"no joint path within the velocity limits and free of collisions reaches pose {k}"
             why = f"no solution of pose {k} is reachable from pose {k - 1} in {times[k] - times[k - 1]:g} s"
             return f"no joint path within the velocity limits at the given times: {why}"
-        rows = np.stack([layer[i] for layer, i in zip(layers, best.index, strict=True)])
+        rows = layers.rows(best.index)
         q = realize(rows, periods, m.lower, m.upper)
         note = ""
         if q is None:  # the relaxed optimum turns a joint past its limits: plan over every turn
-            angles = np.asarray(m.revolute_mask, dtype=bool)
-            copies = [turn_copies(layer, m.lower, m.upper, angles) for layer in layers]
-            layers = [c[0] for c in copies]
-            groups = [g[c[1]] for g, c in zip(groups, copies, strict=True)]
+            if not every_turn:
+                angles = np.asarray(m.revolute_mask, dtype=bool)
+                copies = [turn_copies(layer, m.lower, m.upper, angles) for layer in layers]
+                every_turn += [
+                    Layered.of([c[0] for c in copies]),
+                    Layered.of([g[c[1]] for g, c in zip(groups, copies, strict=True)]),
+                ]
+            layers, groups = every_turn
             periods = np.zeros(m.n_q)
-            best = least_motion(layers, self.w, bounds, periods)
+            best = least_motion(layers, self.w, bounds, periods, _edges(removed[True]))
             if best.blocked >= 0:
                 return (
                     f"no joint path within the joint limits and the velocity limits: pose {best.blocked} "
                     "is not reachable on any turn of the joints"
                 )
-            q = np.stack([layer[i] for layer, i in zip(layers, best.index, strict=True)])
-            per_pose = np.mean([len(x) for x in layers])
+            q = layers.rows(best.index)
+            per_pose = layers.sizes.mean()
             note = f"; turns reach the joint limits: planned over every turn ({per_pose:.3g} nodes per pose)"
         return q, best.index, groups, layers, periods, best.cost, note
+
+
+def _edges(removed: list[tuple[int, int, int]]) -> np.ndarray | None:
+    return np.array(removed, dtype=np.int64).reshape(-1, 3) if removed else None

@@ -15,6 +15,9 @@ every check of `optik.path.plan`.
 
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
+
 import casadi as ca
 import numpy as np
 
@@ -88,6 +91,70 @@ def self_motion_solutions(
     return [np.concatenate(r) for r in rows], [np.concatenate(t) for t in tags]
 
 
+class _Refiner:
+    """The refinement NLP of one (frame, path length, tolerance): the poses are parameters, so
+    one build serves every path of that length; calls are serialized (one ipopt memory)."""
+
+    def __init__(self, m: Mechanism, frame: str | None, n: int, tol: float) -> None:
+        dof = m.n_q
+        x = ca.MX.sym("q", dof, n)
+        p = ca.MX.sym("poses", 12, n)  # per pose: the position, then the rotation column-major
+        poses = m.fk_function(frame).map(n)(x)  # 4 x 4n
+        rows = []
+        for k in range(n):
+            r = poses[:3, 4 * k : 4 * k + 3]
+            s = ca.reshape(p[3:, k], 3, 3).T @ r
+            rows += [
+                poses[:3, 4 * k + 3] - p[:3, k],
+                ca.vertcat(s[2, 1] - s[1, 2], s[0, 2] - s[2, 0], s[1, 0] - s[0, 1]),
+            ]
+        d = x[:, 1:] - x[:, :-1]
+        nlp = {"x": ca.vec(x), "p": ca.vec(p), "f": ca.sumsqr(d), "g": ca.vertcat(*rows)}
+        opts = {
+            "ipopt.print_level": 0,
+            "print_time": False,
+            "ipopt.sb": "yes",
+            "ipopt.max_iter": 200,
+            "ipopt.tol": 1e-12,
+            "ipopt.constr_viol_tol": 0.1 * tol,
+            "ipopt.bound_relax_factor": 0.0,  # the limits are exact: no relaxed bounds
+        }
+        self.solver = ca.nlpsol("refine", "ipopt", nlp, opts)
+        self.lbx, self.ubx = np.tile(m.lower, n), np.tile(m.upper, n)
+        self.lock = threading.Lock()
+
+    def __call__(self, q: np.ndarray, targets: np.ndarray) -> np.ndarray | None:
+        p = np.concatenate([targets[:, :3, 3], targets[:, :3, :3].transpose(0, 2, 1).reshape(-1, 9)], axis=1)
+        with self.lock:
+            out = self.solver(x0=q.reshape(-1), p=p.reshape(-1), lbx=self.lbx, ubx=self.ubx, lbg=0.0, ubg=0.0)
+            ok = bool(self.solver.stats().get("success", False))
+        return np.asarray(out["x"]).reshape(q.shape) if ok else None
+
+
+_REFINERS: PerMechanism[OrderedDict[tuple[str | None, int, float], _Refiner]] = PerMechanism()
+_REFINERS_MAX = 8
+"""Refinement NLPs kept per mechanism (the least recently used is dropped past it)."""
+_REFINERS_LOCK = threading.Lock()
+
+
+def refiner(m: Mechanism, frame: str | None, n: int, tol: float) -> _Refiner:
+    """The cached refinement NLP of ``m`` for paths of ``n`` samples (built on first use)."""
+    key = (frame, n, float(tol))
+    with _REFINERS_LOCK:
+        per = _REFINERS.setdefault(m, OrderedDict())
+        found = per.get(key)
+        if found is not None:
+            per.move_to_end(key)
+            return found
+    built = _Refiner(m, frame, n, tol)  # outside the lock: a build takes a while
+    with _REFINERS_LOCK:
+        found = per.setdefault(key, built)
+        per.move_to_end(key)
+        while len(per) > _REFINERS_MAX:
+            per.popitem(last=False)
+        return found
+
+
 def refine(
     m: Mechanism, q: np.ndarray, targets: np.ndarray, frame: str | None, tol: float
 ) -> np.ndarray | None:
@@ -100,38 +167,9 @@ def refine(
     ```
 
     warm-started from ``q``; the sum of squares is the smooth stand-in of the length (its
-    minimizers move at even joint-space speed along the same least-motion route).
+    minimizers move at even joint-space speed along the same least-motion route). The NLP takes
+    the poses as parameters and is cached per (mechanism, frame, ``N``, ``tol``) (`refiner`, at
+    most `_REFINERS_MAX` per mechanism): planning again on a path of the same length builds
+    nothing.
     """
-    n, dof = q.shape
-    fk = m.fk_function(frame).map(n)
-    x = ca.MX.sym("q", dof, n)
-    poses = fk(x)  # 4 x 4n
-    pt = ca.DM(np.hstack([t[:3, 3][:, None] for t in targets]))
-    rt = ca.DM(np.hstack([t[:3, :3] for t in targets]))  # 3 x 3n
-    rows = []
-    for k in range(n):
-        r = poses[:3, 4 * k : 4 * k + 3]
-        s = rt[:, 3 * k : 3 * k + 3].T @ r
-        rows += [
-            poses[:3, 4 * k + 3] - pt[:, k],
-            ca.vertcat(s[2, 1] - s[1, 2], s[0, 2] - s[2, 0], s[1, 0] - s[0, 1]),
-        ]
-    g = ca.vertcat(*rows)
-    d = x[:, 1:] - x[:, :-1]
-    nlp = {"x": ca.vec(x), "f": ca.sumsqr(d), "g": g}
-    opts = {
-        "ipopt.print_level": 0,
-        "print_time": False,
-        "ipopt.sb": "yes",
-        "ipopt.max_iter": 200,
-        "ipopt.tol": 1e-12,
-        "ipopt.constr_viol_tol": 0.1 * tol,
-        "ipopt.bound_relax_factor": 0.0,  # the limits are exact: no relaxed bounds
-    }
-    solver = ca.nlpsol("refine", "ipopt", nlp, opts)
-    lbx = np.tile(m.lower, n)
-    ubx = np.tile(m.upper, n)
-    out = solver(x0=q.reshape(-1), lbx=lbx, ubx=ubx, lbg=0.0, ubg=0.0)
-    if not solver.stats().get("success", False):
-        return None
-    return np.asarray(out["x"]).reshape(n, dof)
+    return refiner(m, frame, len(q), tol)(q, targets)

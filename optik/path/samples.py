@@ -19,12 +19,15 @@ per pose instead of ``S``.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from optik.mechanism import Mechanism
+from optik.path.graph import Layered
 from optik.path.nodes import closed_form_solutions
 from optik.path.redundant import self_motion_solutions
 from optik.spatial import rot_x, rot_y, rot_z
@@ -39,30 +42,58 @@ SHORTCUT_TOL = 1e-9
 
 @dataclass(frozen=True)
 class Samples:
-    """The sampled poses of a path: ``poses (N, S, 4, 4)``, per pose and group its angle about
-    the free axis ``angle (N, S)``, per group its position offset direction ``offset (S, 3)``
-    (times the pose's tolerance)."""
+    """The sampled poses of a path: per pose and group its angle about the free axis
+    ``angle (N, S)``, per group its position offset direction ``offset (S, 3)`` (times the
+    pose's tolerance ``radius (N,)``), from the ``targets (N, 4, 4)``; the poses themselves
+    ``(N, S, 4, 4)`` are built on demand (`poses`, `columns`)."""
 
-    poses: np.ndarray
+    targets: np.ndarray
+    free_axis: str | None
     angle: np.ndarray
     offset: np.ndarray
+    radius: np.ndarray
+
+    def columns(self, count: int) -> np.ndarray:
+        """The sampled poses of the first ``count`` groups of every pose ``(N, count, 4, 4)``."""
+        n = len(self.targets)
+        total = self.angle[:, :count]
+        poses = np.repeat(self.targets[:, None], count, axis=1)  # (N, count, 4, 4)
+        if self.free_axis is not None:
+            rot = np.asarray(AXES[self.free_axis](total.reshape(-1)), dtype=float).reshape(n, count, 3, 3)
+            poses[..., :3, :3] = np.einsum("nij,ncjk->ncik", self.targets[:, :3, :3], rot)
+        poses[..., :3, 3] += self.radius[:, None, None] * self.offset[None, :count]
+        return poses
+
+    @cached_property
+    def poses(self) -> np.ndarray:
+        """Every sampled pose ``(N, S, 4, 4)``."""
+        return self.columns(self.angle.shape[1])
 
 
 def transported(targets: np.ndarray, free_axis: str) -> np.ndarray:
     """Per pose, the angle ``psi_k`` about its free axis that carries the first pose's
-    perpendicular axis along the path without twist (module docstring)."""
+    perpendicular axis along the path without twist (module docstring).
+
+    A sequential recursion (each step projects the carried axis), run on plain floats: numpy's
+    per-call overhead on 3-vectors would dominate it."""
     a = "xyz".index(free_axis)
     b, c = (a + 1) % 3, (a + 2) % 3
-    out = np.zeros(len(targets))
-    carried = targets[0, :3, b]
+    rot = targets[:, :3, :3]
+    axes, bs, cs = rot[:, :, a].tolist(), rot[:, :, b].tolist(), rot[:, :, c].tolist()
+    out = [0.0] * len(targets)
+    x0, x1, x2 = bs[0]
     for k in range(1, len(targets)):
-        r = targets[k, :3, :3]
-        x = carried - (carried @ r[:, a]) * r[:, a]
-        norm = np.linalg.norm(x)
-        x = r[:, b] if norm < 1e-9 else x / norm
-        out[k] = np.arctan2(x @ r[:, c], x @ r[:, b])
-        carried = x
-    return out
+        (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = axes[k], bs[k], cs[k]
+        dot = x0 * a0 + x1 * a1 + x2 * a2
+        y0, y1, y2 = x0 - dot * a0, x1 - dot * a1, x2 - dot * a2
+        norm = math.sqrt(y0 * y0 + y1 * y1 + y2 * y2)
+        if norm < 1e-9:
+            y0, y1, y2 = b0, b1, b2
+        else:
+            y0, y1, y2 = y0 / norm, y1 / norm, y2 / norm
+        out[k] = math.atan2(y0 * c0 + y1 * c1 + y2 * c2, y0 * b0 + y1 * b1 + y2 * b2)
+        x0, x1, x2 = y0, y1, y2
+    return np.array(out)
 
 
 def sample_poses(
@@ -76,18 +107,9 @@ def sample_poses(
         angles, psi = np.arange(count) * (2.0 * np.pi / count), transported(targets, free_axis)
     units = OFFSETS if tolerance is not None else OFFSETS[:1]
     total = psi[:, None] + angles[None]  # (N, A)
-    spin = np.tile(np.eye(4), (*total.shape, 1, 1))
-    if free_axis is not None:
-        rot = np.asarray(AXES[free_axis](total.reshape(-1)), dtype=float)
-        spin[..., :3, :3] = rot.reshape(*total.shape, 3, 3)
-    turned = targets[:, None] @ spin  # (N, A, 4, 4)
     radius = np.zeros(len(targets)) if tolerance is None else tolerance
-    shift = radius[:, None, None] * units[None]  # (N, P, 3)
-    poses = np.repeat(turned[:, :, None], len(units), axis=2)  # (N, A, P, 4, 4)
-    poses[..., :3, 3] += shift[:, None]
-    n = len(targets)
     return Samples(
-        poses.reshape(n, -1, 4, 4), np.repeat(total, len(units), axis=1), np.tile(units, (len(angles), 1))
+        targets, free_axis, np.repeat(total, len(units), axis=1), np.tile(units, (len(angles), 1)), radius
     )
 
 
@@ -121,11 +143,15 @@ def axis_joint(m: Mechanism, free_axis: str, frame: str | None, seed: int = 0) -
 def _into_limits(v: np.ndarray, lower: float, upper: float) -> np.ndarray:
     """Angles shifted by the first of ``0, 2 pi, -2 pi, 4 pi, -4 pi`` (after wrapping to
     ``[-pi, pi)``) that lands within ``[lower, upper]``; NaN where none does."""
-    w = np.remainder(v + np.pi, 2.0 * np.pi) - np.pi
-    out = np.full_like(w, np.nan)
-    for shift in 2.0 * np.pi * np.array([0.0, 1.0, -1.0, 2.0, -2.0]):
-        fits = np.isnan(out) & (w + shift >= lower) & (w + shift <= upper)
-        out[fits] = w[fits] + shift
+    out = np.remainder(v + np.pi, 2.0 * np.pi) - np.pi
+    bad = (out < lower) | (out > upper)  # the shift 0 fits everywhere else
+    if bad.any():
+        w = out[bad]
+        fixed = np.full_like(w, np.nan)
+        for shift in 2.0 * np.pi * np.array([1.0, -1.0, 2.0, -2.0]):
+            fits = np.isnan(fixed) & (w + shift >= lower) & (w + shift <= upper)
+            fixed[fits] = w[fits] + shift
+        out[bad] = fixed
     return out
 
 
@@ -135,11 +161,18 @@ def sample_solutions(
     frame: str | None,
     shortcut: tuple[int, float] | None,
     self_motion: tuple[int, np.ndarray] | None = None,
-) -> tuple[list[np.ndarray], list[np.ndarray]]:
+) -> tuple[Layered, Layered]:
     """Per path sample, every solution of every sampled pose ``(K, n)`` and its group ``(K,)``
     (with ``self_motion = (j, values)``: the solutions with coordinate ``j`` at each value, the
-    group numbering pose sample and value, `optik.path.redundant`)."""
-    n, s = samples.poses.shape[:2]
+    group numbering pose sample and value, `optik.path.redundant`), as layers of one array.
+
+    Without the shortcut every sampled pose is solved (``units = S`` per path sample); with it,
+    only the ``units`` poses of the first axis angle (one per position offset), and the other
+    ``S / units`` angles copy their solutions with the axis joint turned. A layer is then the
+    block of its solved rows repeated once per angle, ordered angle by angle: group
+    ``a * units + u`` of the block's row of unit ``u``.
+    """
+    n, s = samples.angle.shape
     if self_motion is not None:
         j, values = self_motion
         rows, tags = self_motion_solutions(m, samples.poses.reshape(-1, 4, 4), j, values)
@@ -148,26 +181,30 @@ def sample_solutions(
             part = range(k * s, (k + 1) * s)
             layers.append(np.concatenate([rows[i] for i in part]))
             groups.append(np.concatenate([(i - k * s) * len(values) + tags[i] for i in part]))
-        return layers, groups
+        return Layered.of(layers), Layered.of(groups)
     units = s if shortcut is None else len(np.unique(samples.offset, axis=0))
-    # one IK per sampled pose, or with the shortcut per offset (the groups of axis angle 0)
-    flat = closed_form_solutions(m, samples.poses[:, :units].reshape(-1, 4, 4), frame)
-    counts = np.array([len(f) for f in flat])
-    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    pose_of, group_of = np.divmod(np.arange(n * s), s)  # every (pose, group)
-    source = pose_of * units + group_of % units  # the solved pose it copies
-    size = counts[source]
+    copies = s // units
+    solved, counts = closed_form_solutions(m, samples.columns(units).reshape(-1, 4, 4), frame)
+    unit = np.repeat(np.arange(n * units) % units, counts)  # the offset unit of each solved row
+    block = counts.reshape(n, units).sum(axis=1)  # solved rows per path sample
+    start = np.concatenate([[0], np.cumsum(block)[:-1]])
+    size = copies * block  # rows per layer
     ramp = np.arange(size.sum()) - np.repeat(np.cumsum(size) - size, size)
-    q = np.concatenate(flat)[np.repeat(first[source], size) + ramp] if size.sum() else np.zeros((0, m.n_q))
-    pose, group = np.repeat(pose_of, size), np.repeat(group_of, size)
+    width = np.repeat(block, size)
+    angle, row = np.divmod(ramp, np.maximum(width, 1))
+    source = np.repeat(start, size) + row
+    q = solved[source]
+    group = angle * units + unit[source]
+    pose = np.repeat(np.arange(n), size)
     if shortcut is not None:
         j, sign = shortcut
-        turn = samples.angle[pose, group] - samples.angle[pose, 0]  # from the solved groups' angle
-        q[:, j] = _into_limits(q[:, j] + sign * turn, m.lower[j], m.upper[j])
+        turn = samples.angle[0, ::units] - samples.angle[0, 0]  # the same turns at every pose
+        turned = _into_limits(solved[:, j, None] + sign * turn[None, :], m.lower[j], m.upper[j])
+        q[:, j] = turned[source, angle]
         fits = np.isfinite(q[:, j])
-        q, pose, group = q[fits], pose[fits], group[fits]
-    cuts = np.cumsum(np.bincount(pose, minlength=n))[:-1]
-    return np.split(q, cuts), np.split(group, cuts)
+        if not fits.all():
+            q, group, pose = q[fits], group[fits], pose[fits]
+    return Layered.by_owner(q, pose, n), Layered.by_owner(group, pose, n)
 
 
 def chosen_angle(
@@ -175,6 +212,6 @@ def chosen_angle(
 ) -> np.ndarray:
     """The angle about the free axis of each sample's chosen node ``(N,)``, in ``(-pi, pi]``
     (``per_sample`` groups per sampled pose: the self-motion values)."""
-    g = np.array([g[i] for g, i in zip(groups, index, strict=True)], dtype=int) // per_sample
+    g = Layered.of(groups).rows(index).astype(int) // per_sample
     a = samples.angle[np.arange(len(g)), g]
     return np.pi - np.remainder(np.pi - a, 2.0 * np.pi)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import time
 from typing import Any
 
 import numpy as np
@@ -12,9 +13,18 @@ from optik.closed_form import registry
 from optik.collision import World
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.results import IKResult
 from optik.solvers.balance import merge_contacts, solve_balance
-from optik.solvers.base import IKRequest, Tolerances, get_method, make_request, methods
+from optik.solvers.base import (
+    IKRequest,
+    MethodInfo,
+    PreparedCall,
+    Tolerances,
+    get_method,
+    make_request,
+    methods,
+)
 from optik.solvers.collision_free import solve_collision_free
 
 DEFAULT_ORDER = ("closed_form", "lm", "nlp")
@@ -103,18 +113,24 @@ def solve_ik(
     Raises:
         OptikError: malformed input (named argument), unknown or inapplicable method.
     """
+    start = time.perf_counter()
+    key = None
+    plain = type(target) is np.ndarray and contacts is None and support is None and world is None
+    if plain and not self_collision and com_margin == 0.0 and isinstance(m, Mechanism):
+        key = _call_key(method, task, frame, time_limit, tol, options)  # a prepared call, if any
+        call = _CALLS.get(m, _NO_CALLS).get(key) if key is not None else None
+        res = None if call is None else call(start, target, q0, seed)
+        if res is not None:
+            return res
     if contacts is not None:
         target, frame = merge_contacts(m, target, frame, contacts), None
     if support is None and com_margin != 0.0:
         raise InvalidArgumentError("com_margin", "a balance margin needs a support polygon (support=...)")
     request = make_request(m, target, q0, task, frame, time_limit, tol, seed, options)
+    request.start = start
     if support is not None:
-        if method not in (None, "nlp"):
-            raise SolverUnavailableError(
-                f"method {method!r} does not take support=: the balance constraints are NLP inequalities "
-                "(method 'nlp'); contacts alone work with every method that takes several targets"
-            )
-        return solve_balance(request, support, com_margin)
+        with native.deadline(request.start + request.time_limit):
+            return solve_balance(request, support, com_margin, method)
     if world is not None or self_collision:
         own = True if self_collision is None else bool(self_collision)
         return solve_collision_free(request, method or "lm", world, own, margin)
@@ -139,10 +155,43 @@ def solve_ik(
     with native.deadline(request.start + request.time_limit):  # no wait for a C build past it
         if method is None and name == "closed_form" and registry.costly(m):
             return _numerical_first(request)
+        if key is not None and key not in _CALLS.get(m, _NO_CALLS):
+            _remember(m, key, info, request)
         res = info.solve(request)
         if method is None and name == "closed_form" and "uncertified" in res.extra:
             return _numerical_fallback(request, res)
         return res
+
+
+_CALLS: PerMechanism[dict[tuple[Any, ...], PreparedCall | None]] = PerMechanism()
+"""The prepared calls of each mechanism by `_call_key` (None: the method has none)."""
+_CALLS_MAX = 256
+"""Prepared calls kept per mechanism (all are dropped past it: option values drawn anew per call)."""
+_NO_CALLS: dict[tuple[Any, ...], PreparedCall | None] = {}
+
+
+def _call_key(
+    method: Any, task: Any, frame: Any, time_limit: Any, tol: Any, options: dict[str, Any]
+) -> tuple[Any, ...] | None:
+    """The key of a call's prepared call: every argument but the target, ``q0`` and the seed,
+    with the type of each value (``True == 1`` but ``compile=1`` is refused where ``compile=True``
+    is not); None when a value is unhashable (no prepared call then)."""
+    opts = tuple((k, type(v), v) for k, v in options.items()) if options else ()
+    key = (method, task, frame, type(time_limit), time_limit, type(tol), tol, opts)
+    try:
+        hash(key)
+    except TypeError:
+        return None
+    return key
+
+
+def _remember(m: Mechanism, key: tuple[Any, ...], info: MethodInfo, request: IKRequest) -> None:
+    """Keep the prepared call of a validated single-target ``request`` (made by the method's
+    ``prepare``; None when it has none) for the later calls of `solve_ik` with ``key``."""
+    calls = _CALLS.setdefault(m, {})
+    if len(calls) >= _CALLS_MAX:
+        calls.clear()
+    calls[key] = None if info.prepare is None else info.prepare(request)
 
 
 NUMERICAL_SHARE = 0.5

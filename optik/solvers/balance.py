@@ -17,7 +17,11 @@ com_margin=0.01)``:
   n_i . c_xy(q) <= n_i . v_i - com_margin,      i = 1 ... k
   ```
 
-  These are inequality constraints of the IK NLP (`solve_balance`, method ``"nlp"``, IPOPT):
+  Method ``"lm"`` (the default) adds the hinges ``max(0, n_i . c_xy(q) - b_i + com_margin)``
+  to the compiled kernel's residual (`balance_problem`, with the active-set step of
+  `optik.solvers.lm_kernel.lm_iteration_function`); method ``"qp"`` puts the linearized rows
+  into each differential-IK step's QP (`optik.diffik.build_qp`); method ``"nlp"`` has them as
+  inequality constraints of the IK NLP (IPOPT):
 
   ```
   minimize_q  1/2 (|r_p|^2 + |r_o|^2) + 1/2 w_post |q - q_ref|^2     targets and contacts
@@ -34,6 +38,7 @@ com_margin=0.01)``:
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 from collections.abc import Mapping
@@ -43,20 +48,38 @@ import casadi as ca
 import numpy as np
 
 from optik.checks import as_float, real_array
-from optik.errors import InvalidArgumentError
+from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
-from optik.problem import build_ik_problem, target_parameters
+from optik.problem import IKProblem, build_ik_problem, target_parameters
 from optik.results import IKResult
-from optik.solvers.base import IKRequest, make_result, method_options, restart_stop, start_points
+from optik.solvers.base import IKRequest, get_method, make_result, method_options, restart_stop, start_points
+from optik.solvers.lm import lm_settings, request_seed
+from optik.solvers.lm_kernel import STATUS, LMKernel
 from optik.targets import Position
 
-__all__ = ["BALANCE_TOL", "merge_contacts", "solve_balance", "support_halfplanes"]
+__all__ = [
+    "BALANCE_METHODS",
+    "BALANCE_TOL",
+    "balance_problem",
+    "compiled_kernels",
+    "merge_contacts",
+    "solve_balance",
+    "support_halfplanes",
+]
+
+BALANCE_METHODS = ("lm", "nlp", "qp")
+"""Methods that take ``support=`` (the first is the default)."""
 
 BALANCE_TOL = 1e-9
 """Largest violation (m) of a balance row that still counts as met."""
 
-_SOLVERS: PerMechanism[dict[Any, tuple[ca.Function, threading.Lock]]] = PerMechanism()
+LM_BUFFER = 1e-6
+"""Extra margin (m) of the ``lm`` kernel's balance hinges: its stop test allows each closure row
+half the closure tolerance, and the exact check of the answer then passes with room."""
+
+_SOLVERS: PerMechanism[dict[Any, Any]] = PerMechanism()
+"""Per mechanism: the nlp balance solvers (with their locks) and the lm balance kernels."""
 _SOLVERS_LOCK = threading.Lock()
 
 
@@ -108,19 +131,52 @@ def support_halfplanes(support: Any) -> tuple[np.ndarray, np.ndarray]:
     return n, np.einsum("ij,ij->i", n, v)
 
 
-def _solver(request: IKRequest, k: int) -> tuple[ca.Function, threading.Lock]:
+def _balance_rows(m: Mechanism, q: ca.SX, k: int) -> tuple[ca.SX, ca.SX]:
+    """``(halfplanes, rows)``: the ``k x 3`` parameter ``[n_x, n_y, b - margin]`` of the polygon's
+    edges and the balance rows ``N c_xy(q) - (b - margin)`` (``<= 0`` inside)."""
+    halfplanes = ca.SX.sym("halfplanes", k, 3)
+    c = m.com_function(q)[0]
+    return halfplanes, ca.mtimes(halfplanes[:, :2], c[:2]) - halfplanes[:, 2]
+
+
+def halfplane_parameters(normals: np.ndarray, b: np.ndarray, margin: float) -> np.ndarray:
+    """The values of the ``halfplanes`` parameter of `_balance_rows`, column-major (``(3 k,)``)."""
+    return np.column_stack([normals, b - margin]).reshape(-1, order="F")
+
+
+def balance_problem(request: IKRequest, k: int) -> tuple[IKProblem, ca.SX]:
+    """The request's `IKProblem` with static balance as penalty rows, for method ``"lm"``.
+
+    The target parameters get the ``3 k`` polygon parameters appended (`halfplane_parameters`,
+    so one kernel serves every polygon of ``k`` edges and every margin) and the closure rows get
+    the hinges ``max(0, n_i . c_xy(q) - (b_i - margin))``: zero wherever the centre of mass is
+    inside by the margin, so the kernel's stop test (every closure row below its tolerance) holds
+    only when the targets are met *and* the centre of mass is inside. Returned with the rows
+    ``n_i . c_xy(q) - (b_i - margin)`` themselves (the kernel's active-set step,
+    `optik.solvers.lm_kernel.lm_iteration_function`).
+    """
+    m = request.mechanism
+    base = build_ik_problem(m, request.task, request.frame)
+    halfplanes, rows = _balance_rows(m, base.q, k)
+    problem = dataclasses.replace(
+        base,
+        target=ca.vertcat(base.target, ca.vec(halfplanes)),
+        closure=ca.vertcat(base.closure, ca.fmax(0, rows)),
+    )
+    return problem, rows
+
+
+def _nlp_solver(request: IKRequest, k: int) -> tuple[ca.Function, threading.Lock]:
     """IPOPT on the IK NLP of the request's frames plus ``k`` balance rows (built once per
     mechanism, tasks, frames and ``k``; one lock per instance: an nlpsol is not re-entrant)."""
     m = request.mechanism
-    key = (request.task, request.frame, k)
+    key = ("nlp", request.task, request.frame, k)
     with _SOLVERS_LOCK:
         cached = _SOLVERS.setdefault(m, {}).get(key)
     if cached is not None:
         return cached
     problem = build_ik_problem(m, request.task, request.frame)
-    halfplanes = ca.SX.sym("halfplanes", k, 3)  # rows [n_x, n_y, b - margin]
-    c = m.com_function(problem.q)[0]
-    rows = ca.mtimes(halfplanes[:, :2], c[:2]) - halfplanes[:, 2]
+    halfplanes, rows = _balance_rows(m, problem.q, k)
     nlp = {
         "x": problem.q,
         "p": ca.vertcat(problem.parameters, ca.vec(halfplanes)),
@@ -142,6 +198,31 @@ def _solver(request: IKRequest, k: int) -> tuple[ca.Function, threading.Lock]:
         return _SOLVERS[m].setdefault(key, made)
 
 
+def _lm_kernel(request: IKRequest, k: int, closure_weight: float, compile: bool | str) -> LMKernel:
+    """The ``lm`` kernel of `balance_problem` (built once per mechanism, tasks, frames, ``k``,
+    closure weight and ``compile``)."""
+    m = request.mechanism
+    key = ("lm", request.task, request.frame, k, closure_weight, compile)
+    with _SOLVERS_LOCK:
+        cached = _SOLVERS.setdefault(m, {}).get(key)
+    if cached is not None:
+        return cached
+    problem, rows = balance_problem(request, k)
+    made = LMKernel(
+        m, request.task, request.frame, closure_weight, compile, problem=problem, inequalities=rows
+    )
+    with _SOLVERS_LOCK:
+        return _SOLVERS[m].setdefault(key, made)
+
+
+def compiled_kernels(m: Mechanism) -> list[bool]:
+    """Whether each ``lm`` balance kernel built for ``m`` so far calls compiled C (False: still
+    answering through CasADi's evaluator while the C compiler runs)."""
+    with _SOLVERS_LOCK:
+        kernels = [v for v in _SOLVERS.get(m, {}).values() if isinstance(v, LMKernel)]
+    return [k.compiled for k in kernels]
+
+
 def _inside(m: Mechanism, q: np.ndarray, normals: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:
     """The centre of mass and its smallest distance inside the polygon (negative outside)."""
     c = m.com(q)
@@ -159,40 +240,97 @@ def _run(solver: ca.Function, lock: threading.Lock, x0: np.ndarray, p: np.ndarra
 
 def _judged(
     request: IKRequest,
-    run: tuple[np.ndarray, int],
+    q: np.ndarray,
+    method: str,
     iterations: int,
     restarts: int,
     normals: np.ndarray,
     b: np.ndarray,
     margin: float,
+    status: str | None = None,
 ) -> IKResult:
-    """The result of a solve, its success including the balance rows."""
-    q, its = run
-    res = make_result(request, q, "nlp", iterations + its, restarts)
+    """The result of a solve, its success including the balance rows (checked again here, on
+    the final answer, by `optik.Mechanism.com`)."""
+    res = make_result(request, q, method, iterations, restarts, status)
     com, inside = _inside(request.mechanism, res.q, normals, b)
     res.extra.update({"com": com, "com_inside": inside})
     if res.success and inside < margin - BALANCE_TOL:
-        res.success, res.status = False, "not_converged"
+        res.success, res.status = False, status or "not_converged"
         res.message = f"the centre of mass is {inside:.3g} m inside the support polygon, less than {margin:g}"
     return res
 
 
-def solve_balance(request: IKRequest, support: Any, com_margin: Any) -> IKResult:
-    """The NLP of the module docstring for a request whose targets include the contacts.
+def solve_balance(request: IKRequest, support: Any, com_margin: Any, method: str | None = None) -> IKResult:
+    """Solve a request whose targets include the contacts with static balance (module docstring).
+
+    Args:
+        request: the request (its targets include the contacts, `merge_contacts`).
+        support: the counter-clockwise ``(k, 2)`` support polygon.
+        com_margin: the balance margin (m).
+        method: one of `BALANCE_METHODS` (None: the first).
+
+    Raises:
+        InvalidArgumentError: a malformed ``support`` or ``com_margin``, or a bad option.
+        SolverUnavailableError: a method without balance constraints.
+        ModelError: the mechanism has no mass.
+    """
+    if method is None:
+        method = BALANCE_METHODS[0]
+    if method not in BALANCE_METHODS:
+        raise SolverUnavailableError(
+            f"method {method!r} does not take support= (the balance constraints); use one of "
+            f"{BALANCE_METHODS}, or contacts alone, which every method that takes several targets holds"
+        )
+    normals, b = support_halfplanes(support)
+    margin = as_float(com_margin, "com_margin", minimum=0.0)
+    if method == "qp":
+        return _solve_qp(request, support, normals, b, margin)
+    solve = _solve_lm if method == "lm" else _solve_nlp
+    return solve(request, normals, b, margin)
+
+
+def _solve_qp(
+    request: IKRequest, support: Any, normals: np.ndarray, b: np.ndarray, margin: float
+) -> IKResult:
+    """Method ``"qp"`` (iterated differential IK, `optik.diffik.ik`) with the balance rows as each
+    step's QP inequalities; the answer judged again with the exact balance check."""
+    options = {**request.options, "support": support, "com_margin": margin}
+    res = get_method("qp").solve(dataclasses.replace(request, options=options))
+    status = None if res.success else res.status
+    return _judged(request, res.q, "qp", res.iterations, res.restarts, normals, b, margin, status)
+
+
+def _solve_lm(request: IKRequest, normals: np.ndarray, b: np.ndarray, margin: float) -> IKResult:
+    """Method ``"lm"`` on `balance_problem` (options as ``"lm"``'s): the whole multi-start
+    loop in the compiled kernel, the answer judged again with the exact balance check."""
+    m = request.mechanism
+    settings, closure_weight, compile = lm_settings(request)
+    since = time.perf_counter()
+    k = _lm_kernel(request, len(b), closure_weight, compile)
+    request.exclude_setup(since)
+    conf = settings.conf(m)
+    conf[3] = max(request.remaining(), 0.0)
+    params = np.concatenate(
+        [target_parameters(request.target), halfplane_parameters(normals, b, margin + LM_BUFFER)]
+    )
+    q, _, iterations, restarts, code = k.run_one(
+        params, request.q0, request_seed(request.seed) & (2**64 - 1), conf
+    )
+    return _judged(
+        request, q, "lm", iterations, restarts, normals, b, margin, None if code == 0 else STATUS[code]
+    )
+
+
+def _solve_nlp(request: IKRequest, normals: np.ndarray, b: np.ndarray, margin: float) -> IKResult:
+    """Method ``"nlp"``: IPOPT with the balance rows as inequalities (module docstring).
 
     Options: ``posture`` (0: weight of ``1/2 |q - q_ref|^2``), ``q_ref`` (``q0``),
     ``max_restarts`` (None: until success or the time limit).
-
-    Raises:
-        InvalidArgumentError: a malformed ``support`` or ``com_margin``.
-        ModelError: the mechanism has no mass.
     """
-    normals, b = support_halfplanes(support)
-    margin = as_float(com_margin, "com_margin", minimum=0.0)
     m = request.mechanism
     opts = method_options(request, {"posture": 0.0, "q_ref": None, "max_restarts": None})
     since = time.perf_counter()
-    solver, lock = _solver(request, len(b))
+    solver, lock = _nlp_solver(request, len(b))
     request.exclude_setup(since)
     problem = build_ik_problem(m, request.task, request.frame)
     q_ref = request.q0 if opts["q_ref"] is None else m.check_q(opts["q_ref"], "q_ref")
@@ -202,7 +340,7 @@ def solve_balance(request: IKRequest, support: Any, com_margin: Any) -> IKResult
             [1.0, 1.0],
             q_ref,
             [as_float(opts["posture"], "posture", minimum=0.0), 0.0, 0.0],
-            np.column_stack([normals, b - margin]).reshape(-1, order="F"),
+            halfplane_parameters(normals, b, margin),
         ]
     )
     polish = p.copy()
@@ -217,13 +355,16 @@ def solve_balance(request: IKRequest, support: Any, com_margin: Any) -> IKResult
     best: tuple[float, IKResult] | None = None
     restarts = iterations = 0
     stop = "time_limit"
+
+    def judged(x0: np.ndarray, p: np.ndarray) -> IKResult:
+        q, its = _run(solver, lock, x0, p, bounds)
+        return _judged(request, q, "nlp", iterations + its, restarts, normals, b, margin)
+
     for x0 in start_points(request):
-        res = _judged(request, _run(solver, lock, x0, p, bounds), iterations, restarts, normals, b, margin)
+        res = judged(x0, p)
         iterations = res.iterations
         if not res.success:  # again without the posture term, which biases the optimum
-            res = _judged(
-                request, _run(solver, lock, res.q, polish, bounds), iterations, restarts, normals, b, margin
-            )
+            res = judged(res.q, polish)
             iterations = res.iterations
         badness = (
             0.0

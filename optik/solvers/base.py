@@ -408,17 +408,27 @@ def restart_stop(deadline: float, restarts: int, max_restarts: int | None) -> st
 
 IKMethod = Callable[[IKRequest], IKResult]
 
+PreparedCall = Callable[[float, np.ndarray, Any, Any], "IKResult | None"]
+"""``(start, target, q0, seed) -> IKResult or None``: a method's solve of later calls that
+differ from a first request only by the target (a float64 4x4 array), ``q0`` and ``seed``, with
+``start`` the ``perf_counter()`` of the call. It validates what it takes (the same checks and
+outcomes as `make_request` and the method) and returns None, before solving, when it cannot
+answer a call (input that may be invalid, code not yet compiled): `optik.solve_ik` then takes its
+general path, which raises the named error or solves."""
+
 
 @dataclass(frozen=True)
 class MethodInfo:
-    """A registered method: its solve function, a predicate saying whether it applies, and
-    whether it solves several frame targets at once (``multi_target``)."""
+    """A registered method: its solve function, a predicate saying whether it applies, whether
+    it solves several frame targets at once (``multi_target``), and optionally ``prepare``:
+    ``request -> PreparedCall or None`` (None: this request's options have no prepared call)."""
 
     name: str
     solve: IKMethod
     applies: Callable[[Mechanism, str], bool]
     description: str
     multi_target: bool = False
+    prepare: Callable[[IKRequest], PreparedCall | None] | None = None
 
 
 _METHODS: dict[str, MethodInfo] = {}
@@ -430,12 +440,15 @@ def register_method(
     applies: Callable[[Mechanism, str], bool] = lambda m, task: True,
     description: str = "",
     multi_target: bool = False,
+    prepare: Callable[[IKRequest], PreparedCall | None] | None = None,
 ) -> None:
     """Register an IK method under ``name`` (replacing a previous registration).
 
     ``multi_target=True`` says that ``solve`` handles requests with several frame targets
-    (`IKRequest.multi_target`; ``applies`` is then called with the tuple of task spaces)."""
-    _METHODS[name] = MethodInfo(name, solve, applies, description, multi_target)
+    (`IKRequest.multi_target`; ``applies`` is then called with the tuple of task spaces).
+    ``prepare`` makes the `PreparedCall` of a request, which `optik.solve_ik` keeps and uses for
+    the later calls with the same options."""
+    _METHODS[name] = MethodInfo(name, solve, applies, description, multi_target, prepare)
 
 
 def methods() -> dict[str, MethodInfo]:

@@ -136,8 +136,9 @@ def _compiled_errors(request: IKRequest) -> Callable[[np.ndarray], tuple[float, 
     return errors
 
 
-BINDINGS: dict[int, tuple[weakref.ref, int, Callable[..., Any]]] = {}
-"""``id(m) -> (weak reference to m, registry generation, the driver's Python binding)``."""
+BINDINGS: dict[int, tuple[weakref.ref, int, Callable[..., Any], Callable[..., Any] | None]] = {}
+"""``id(m) -> (weak reference to m, registry generation, the driver's Python binding, its
+binding over many targets)``."""
 
 
 _TOL = Tolerances.from_arg(None)
@@ -150,6 +151,16 @@ def binding_of(m: Mechanism) -> Callable[..., Any] | None:
     if entry is not None and entry[0]() is m and entry[1] == registry.generation():
         return entry[2]
     return compiled_binding(m)
+
+
+def many_binding_of(m: Mechanism) -> Callable[..., Any] | None:
+    """The binding over many targets of ``m``'s compiled driver
+    (``AllSolutionsKernel.many`` of `optik.closed_form.ik_all`), when
+    `binding_of` has one; else None."""
+    if binding_of(m) is None:
+        return None
+    entry = BINDINGS.get(id(m))
+    return entry[3] if entry is not None else None
 
 
 def compile_closed_form(m: Mechanism) -> None:
@@ -178,7 +189,7 @@ def compiled_binding(m: Mechanism) -> Callable[..., Any] | None:
         return None
     key = id(m)
     alive = weakref.ref(m, lambda _, key=key: BINDINGS.pop(key, None))
-    BINDINGS[key] = (alive, registry.generation(), driver.fast)
+    BINDINGS[key] = (alive, registry.generation(), driver.fast, driver.many)
     return driver.fast
 
 

@@ -1,10 +1,10 @@
 """Collision-aware IK: ``solve_ik(m, T, world=W, self_collision=True, margin=0.01)``.
 
-Two methods take the constraints, from the conservative sphere model of
+Two methods take the constraints, from the conservative sphere and capsule model of
 `optik.collision.spheres` (``d_k(q)``: lower bounds of the signed distances of the robot to the
-world and to itself, one row per sphere pair), required to stay above
-``b = margin + buffer`` (``buffer`` option, default 2 mm, the room between the model and the
-exact check):
+world, one row per moving sphere and world slot, and to itself, one row per capsule pair),
+required to stay above ``b = margin + buffer`` (``buffer`` option, default 2 mm, the room
+between the model and the exact check):
 
 * ``lm``: the rows ``max(0, b - d_k(q))`` join the loop-closure rows of a second compiled
   Levenberg-Marquardt kernel (`optik.solvers.lm_kernel`, weight ``closure_weight``): a squared
@@ -16,8 +16,9 @@ exact check):
 * ``nlp``: IPOPT with the inequality constraints ``d_k(q) >= b`` (and the loop closures),
   objective as `optik.IKProblem`'s, multi-start until the time limit.
 
-The world is read once per call (a snapshot) and baked into the generated code, which is
-cached per mechanism, task, frame and world version (a moved object builds new code).
+The world is read once per call (a snapshot) and handed to the generated code as parameter
+values (`optik.collision.slots`): the code is cached per mechanism, task, frame, bound and slot
+capacity, so a moved, added or removed object builds nothing new.
 
 **Success** is decided by the exact check (`optik.collision.check` at ``margin``) of the final
 answer, after the tolerances: a start whose answer the check finds closer than the margin is
@@ -39,7 +40,8 @@ import numpy as np
 from optik.checks import as_float
 from optik.collision.check import CollisionReport, check, world_parts
 from optik.collision.robot import robot_geometry
-from optik.collision.spheres import distance_expressions
+from optik.collision.slots import SLOT_SIZE, capacity_for, slot_values
+from optik.collision.spheres import DistanceRows, distance_expressions
 from optik.collision.world import World
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.problem import IKProblem, build_ik_problem, target_parameters
@@ -58,18 +60,22 @@ _OWN_OPTIONS = {"buffer": 0.002}
 
 
 def collision_problem(
-    request: IKRequest, world: World | None, self_collision: bool, bound: float
-) -> tuple[IKProblem, ca.SX]:
-    """The request's `IKProblem` with the rows ``max(0, bound - d_k(q))`` appended to its
-    closures, and the distance bounds ``d_k(q)`` themselves."""
+    request: IKRequest, capacity: int, self_collision: bool, bound: float
+) -> tuple[IKProblem, DistanceRows, ca.SX]:
+    """The request's `IKProblem` with the world's ``capacity`` slots (`optik.collision.slots`)
+    appended to its target parameters and the rows ``max(0, bound - d_k(q))`` (times the slot's
+    active flag for world rows) appended to its closures; with the distance rows and the slot
+    symbols."""
     m = request.mechanism
     geo = robot_geometry(m)
     problem = build_ik_problem(m, request.task, request.frame)
-    d, _ = distance_expressions(
-        geo, [m.frame_expr(link) for link in geo.links], world_parts(world), self_collision, bound
+    slots = ca.SX.sym("world_slots", capacity * SLOT_SIZE)
+    rows = distance_expressions(geo, [m.frame_expr(link) for link in geo.links], slots, self_collision, bound)
+    hinge = ca.vertcat(rows.active * ca.fmax(0, bound - rows.world), ca.fmax(0, bound - rows.self_rows))
+    extended = dataclasses.replace(
+        problem, target=ca.vertcat(problem.target, slots), closure=ca.vertcat(problem.closure, hinge)
     )
-    hinge = ca.fmax(0, bound - d)
-    return dataclasses.replace(problem, closure=ca.vertcat(problem.closure, hinge)), d
+    return extended, rows, slots
 
 
 _CACHE: dict[tuple[Any, ...], Any] = {}
@@ -97,8 +103,11 @@ def compiled_kernels() -> dict[str, bool]:
     return {name: kernels[1].compiled for name, kernels in hits}
 
 
-def _world_key(world: World | None) -> tuple[int, int]:
-    return (0, 0) if world is None else (id(world), world.version)
+def _world_slots(world: World | None) -> tuple[int, np.ndarray]:
+    """The slot capacity for the world as it is now and its slot values (`optik.collision.slots`)."""
+    parts = world_parts(world)
+    capacity = capacity_for(len(parts))
+    return capacity, slot_values(parts, capacity)
 
 
 def _finish(
@@ -136,6 +145,7 @@ def _solve_lm(
     m = request.mechanism
     settings, closure_weight, compile = lm_settings(request)
     setup = time.perf_counter()
+    capacity, slots = _world_slots(world)
     key = (
         "lm",
         m,
@@ -143,20 +153,21 @@ def _solve_lm(
         request.frame,
         closure_weight,
         compile,
-        _world_key(world),
+        capacity,
         self_collision,
         margin + buffer,
     )
 
     def build() -> tuple[LMKernel, LMKernel]:
-        problem, _ = collision_problem(request, world, self_collision, margin + buffer)
+        problem, _, _ = collision_problem(request, capacity, self_collision, margin + buffer)
         plain = LMKernel(m, request.task, request.frame, closure_weight, compile)
         return plain, LMKernel(m, request.task, request.frame, closure_weight, compile, problem=problem)
 
     plain, constrained = _cached(key, build)
     request.exclude_setup(setup)
     conf = settings.conf(m)
-    params = target_parameters(request.target)[None]
+    pose = target_parameters(request.target)[None]
+    params = np.concatenate([pose, slots[None]], axis=1)
 
     def report_of(q: np.ndarray) -> CollisionReport:
         return check(m, q, world, margin, self_collision)
@@ -167,7 +178,7 @@ def _solve_lm(
     while res is None or (not res.success and request.remaining() > 0):
         # the unconstrained kernel (its own restarts) until the pose is met ...
         conf[3] = max(request.remaining(), 0.0)
-        out = plain.run(params, q0[None], np.array([seed], dtype=np.uint64), conf)
+        out = plain.run(pose, q0[None], np.array([seed], dtype=np.uint64), conf)
         iterations += int(out.iterations[0])
         restarts += int(out.restarts[0]) + 1
         res = _finish(request, out.q[0], "lm", iterations, restarts, None, report_of)
@@ -189,12 +200,16 @@ class _IpoptPool:
     """IPOPT instances of one constrained problem, one per concurrent solve (nlpsol instances
     are not safe to share between threads)."""
 
-    def __init__(self, problem: IKProblem, d: ca.SX, bound: float, max_iter: int) -> None:
-        g = ca.vertcat(problem.mechanism.closure_expr, d)
-        self.nlp = {"x": problem.q, "p": problem.parameters, "f": problem.objective, "g": g}
+    def __init__(
+        self, problem: IKProblem, rows: DistanceRows, slots: ca.SX, bound: float, max_iter: int
+    ) -> None:
+        world = rows.active * (rows.world - bound)  # an empty slot's rows are 0 >= 0
+        g = ca.vertcat(problem.mechanism.closure_expr, world, rows.self_rows - bound)
+        p = ca.vertcat(problem.parameters, slots)
+        self.nlp = {"x": problem.q, "p": p, "f": problem.objective, "g": g}
         n_c = problem.mechanism.n_closure
-        self.lbg = ca.DM(np.concatenate([np.zeros(n_c), np.full(d.shape[0], bound)]))
-        self.ubg = ca.DM(np.concatenate([np.zeros(n_c), np.full(d.shape[0], np.inf)]))
+        self.lbg = ca.DM(np.zeros(g.shape[0]))
+        self.ubg = ca.DM(np.concatenate([np.zeros(n_c), np.full(g.shape[0] - n_c, np.inf)]))
         self.problem = problem
         self.options = {
             "print_time": False,
@@ -232,12 +247,13 @@ def _solve_nlp(
             next(iter(opts)), "unknown option of the collision-aware nlp (max_iter, posture, buffer)"
         )
     setup = time.perf_counter()
+    capacity, slots = _world_slots(world)
     key = (
         "nlp",
         m,
         request.task,
         request.frame,
-        _world_key(world),
+        capacity,
         self_collision,
         margin + buffer,
         max_iter,
@@ -245,13 +261,13 @@ def _solve_nlp(
 
     def build() -> _IpoptPool:
         base = build_ik_problem(m, request.task, request.frame)
-        _, d = collision_problem(request, world, self_collision, margin + buffer)
-        return _IpoptPool(base, d, margin + buffer, max_iter)
+        _, rows, symbols = collision_problem(request, capacity, self_collision, margin + buffer)
+        return _IpoptPool(base, rows, symbols, margin + buffer, max_iter)
 
     pool = _cached(key, build)
     solver = pool.take()
     request.exclude_setup(setup)
-    params = ca.DM(pool.problem.parameter_values(request.target, posture=posture))
+    params = ca.DM(np.concatenate([pool.problem.parameter_values(request.target, posture=posture), slots]))
     bounds = {"lbx": ca.DM(m.lower), "ubx": ca.DM(m.upper), "lbg": pool.lbg, "ubg": pool.ubg}
 
     def report_of(q: np.ndarray) -> CollisionReport:

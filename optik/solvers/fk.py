@@ -35,6 +35,7 @@ assembly, where two modes merge.
 
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -71,6 +72,7 @@ class _Compiled:
     pas: np.ndarray
     act_angular: np.ndarray  # mask over act: revolute-type actuated coordinates
     mapped: dict[int, ca.Function] = field(default_factory=dict)
+    modes: _ModeCheck | None = None
 
     def evaluate(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Closure ``c`` (``(N, m)``) and passive Jacobian (``(N, m, p)``) at the rows of ``qs``."""
@@ -85,6 +87,33 @@ class _Compiled:
         return np.asarray(c).T, np.asarray(jac).reshape(rows, n, cols).transpose(1, 0, 2)
 
 
+class _ModeCheck:
+    """The check of closed-form assembly modes: ``q -> (closure, passive Jacobian, end-effector
+    pose)`` in one evaluation of CasADi's virtual machine on preallocated buffers
+    (``Function.buffer``: no conversion to ``DM`` and back), guarded by a lock."""
+
+    def __init__(self, m: Mechanism, closure: ca.Function) -> None:
+        q = m.q_sym
+        c, jac = closure(q)
+        f = ca.Function("fk_mode", [q], [ca.densify(c), ca.densify(jac), ca.densify(m.frame_expr(m.ee))])
+        self.q = np.zeros(m.n_q)
+        self.c = np.zeros(c.shape[0])
+        self.jac = np.zeros(jac.shape[::-1])  # column-major out: the transpose, row-major
+        self.pose = np.zeros((4, 4))
+        self.buffer, self.call = f.buffer()
+        self.buffer.set_arg(0, memoryview(self.q))
+        for k, out in enumerate((self.c, self.jac, self.pose)):
+            self.buffer.set_res(k, memoryview(out.reshape(-1)))
+        self.lock = threading.Lock()
+
+    def __call__(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(c, dc/dx, T)`` at ``q``, copies."""
+        with self.lock:
+            self.q[:] = q
+            self.call()
+            return self.c.copy(), self.jac.T.copy(), self.pose.T.copy()
+
+
 _CACHE: PerMechanism[_Compiled] = PerMechanism()
 
 
@@ -95,7 +124,9 @@ def _compiled(m: Mechanism) -> _Compiled:
         c = m.closure_expr
         jac = ca.jacobian(c, q[[int(i) for i in pas]]) if len(pas) else ca.SX(c.shape[0], 0)
         f = ca.Function("fk_closure", [q], [c, jac])
-        _CACHE[m] = _Compiled(f, m.actuated_indices, pas, m.revolute_mask[m.actuated_indices])
+        cm = _Compiled(f, m.actuated_indices, pas, m.revolute_mask[m.actuated_indices])
+        cm.modes = _ModeCheck(m, f)
+        _CACHE[m] = cm
     return _CACHE[m]
 
 
@@ -170,6 +201,17 @@ def _measures(c: np.ndarray, jac: np.ndarray) -> tuple[float, float]:
     return residual, float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
 
 
+def _conditions(jacs: list[np.ndarray]) -> list[float]:
+    """`_measures`' condition numbers of several passive Jacobians of one shape (one stacked
+    singular value decomposition)."""
+    if not jacs:
+        return []
+    if jacs[0].size == 0:
+        return [1.0] * len(jacs)
+    s = np.linalg.svd(np.stack(jacs), compute_uv=False)
+    return [float(hi / lo) if lo > 0 else float("inf") for hi, lo in s[:, [0, -1]].tolist()]
+
+
 def _closure_tol(tol: float | Tolerances | None) -> float:
     if tol is None:
         return Tolerances().closure
@@ -218,14 +260,21 @@ def _result(
     start: float,
     singular_condition: float,
     note: str = "",
-    measured: tuple[float, float] | None = None,
+    measured: tuple[float, float, np.ndarray] | None = None,
+    actuated_out: str | None = None,
     **extra: Any,
 ) -> FKResult:
     """An [`FKResult`][optik.FKResult] for ``q``: residual, success, limits (which coordinates
-    are out), condition number, message. ``measured``: ``(residual, condition)`` at ``q``
-    when already known (they do not change under the 2 pi shifts of `Mechanism.wrap`)."""
-    qq = m.wrap(q)
-    residual, cond = measured if measured is not None else _residual_and_condition(cm, qq)
+    are out), condition number, message. ``measured``: ``(residual, condition, pose)`` at
+    ``q`` when already known (``q`` is then wrapped already: `Mechanism.wrap` leaves it);
+    ``actuated_out``: `_actuated_out` of ``q`` when known."""
+    if measured is None:
+        qq = m.wrap(q)
+        residual, cond = _residual_and_condition(cm, qq)
+        pose = m.fk(qq)
+    else:
+        qq = q
+        residual, cond, pose = measured
     closed = residual <= tol
     bad = _violations(m, qq)
     messages = [note] if note else []
@@ -234,7 +283,8 @@ def _result(
             f"the actuated values cannot assemble (or no assembly was found): least-squares closure "
             f"residual {residual:.3g} > tol {tol:.3g}"
         )
-    actuated_out = _actuated_out(m, qq[cm.act])
+    if actuated_out is None:
+        actuated_out = _actuated_out(m, qq[cm.act])
     if actuated_out:
         messages.append(f"the actuated values are outside their limits: {actuated_out}")
     if bad:
@@ -246,7 +296,7 @@ def _result(
             "to the passive coordinates"
         )
     return FKResult(
-        pose=m.fk(qq),
+        pose=pose,
         q=qq,
         success=bool(closed and not bad),
         residual=float(residual),
@@ -431,15 +481,16 @@ def solve_fk_all(
     cm = _compiled(m)
     use_closed = method == "closed_form" or (method is None and closed_form.has_fk(m))
     found: list[np.ndarray] = []
-    measured: list[tuple[float, float] | None] = []
+    measured: list[tuple[float, float, np.ndarray] | None] = []
     if use_closed:
         remaining = None if time_limit is None else max(limit - (time.perf_counter() - start), 1e-3)
-        for q_exact in closed_form.fk(m, a, respect_limits=False, time_limit=remaining):
-            c, jac = cm.evaluate(q_exact[None])
-            known = _measures(c[0], jac[0])
-            if known[0] <= tol_c * 1e-3:
-                q = q_exact  # the usual case: the closed form is exact to rounding
-            else:  # the closed form lost digits, e.g. near a singularity: polish
+        rows = closed_form.fk(m, a, respect_limits=False, time_limit=remaining)  # wrapped (m.wrap)
+        checks = [cm.modes(q) for q in rows]  # type: ignore[misc]
+        conditions = _conditions([jac for _, jac, _ in checks])
+        for q_exact, (c, _, pose), cond in zip(rows, checks, conditions, strict=True):
+            residual = float(np.max(np.abs(c), initial=0.0))
+            q, known = q_exact, (residual, cond, pose)  # the usual case: exact to rounding
+            if residual > tol_c * 1e-3:  # the closed form lost digits, e.g. near a singularity: polish
                 q, known = _levenberg_marquardt(cm, q_exact, tol_c, max_iter, start + limit).q[0], None
             if not any(same_mode(m, q, f) for f in found):
                 found.append(q)
@@ -462,8 +513,22 @@ def solve_fk_all(
                     idle += 1
         label = "numeric"
     kept, dropped, unclosed = [], [], 0
+    notes: dict[tuple[float, ...], str] = {}  # _actuated_out by actuated values (the modes share them)
     for q, known in zip(found, measured, strict=True):
-        res = _result(m, cm, q, tol_c, start, singular_condition, measured=known, method=label)
+        act = tuple(q[cm.act].tolist()) if known is not None else ()
+        if known is not None and act not in notes:
+            notes[act] = _actuated_out(m, q[cm.act])
+        res = _result(
+            m,
+            cm,
+            q,
+            tol_c,
+            start,
+            singular_condition,
+            measured=known,
+            actuated_out=notes.get(act),
+            method=label,
+        )
         if res.residual > tol_c:
             unclosed += 1  # not a mode: a closed-form candidate that the polish could not close
             continue

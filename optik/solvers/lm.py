@@ -7,7 +7,8 @@ One iteration at ``q`` with gradient ``g = J^T e`` and Gauss-Newton matrix ``A =
 1. *Active set*: coordinate ``i`` is frozen when it sits on a bound and the descent direction
    ``-g_i`` points outside (``q_i = lo_i, g_i > 0`` or ``q_i = hi_i, g_i < 0``); ``D`` is the
    diagonal 0/1 matrix of the free coordinates.
-2. *Step*: ``(D A D + mu I + (I - D)) dq = -D g + k mu D (q_ref - q)``. The last term is a
+2. *Step*: ``(D A D + mu I + (I - D)) dq = -D g + k mu D (q_ref - q)``, solved by Cholesky on
+   the lower triangle (`optik.solvers.lm_kernel`). The last term is a
    null-space posture pull: for ``mu -> 0`` it vanishes in the range of ``J^T`` and keeps moving
    along the null space of ``J`` toward ``q_ref`` (gain ``k = posture_gain``, 0 by default).
 3. *Projection and acceptance*: ``q+ = clip(q + dq, lo, hi)``; accepted when
@@ -21,6 +22,10 @@ generator seeded with the request's seed (`optik.solvers.lm_kernel.target_seeds`
 the seeds of a batch, so `optik.solve_ik_batch` answers as this method does). The answer
 is the first start that meets the tolerances, or the lowest cost configuration seen when the
 time limit or ``max_restarts`` ends the search.
+
+Later `optik.solve_ik` calls with options already validated once go through a prepared call,
+`LMCall`: one C call that checks the target and ``q0``, solves and judges the answer, with the
+same results as `solve_lm` (``docs/solvers/lm.md``, "Prepared calls").
 
 Options (``solve_ik(..., method="lm", **options)``):
 
@@ -39,18 +44,22 @@ Options (``solve_ik(..., method="lm", **options)``):
 
 from __future__ import annotations
 
+import dataclasses
+import threading
 import time
 from typing import Any
 
 import numpy as np
 
 from optik.checks import as_vector
-from optik.errors import InvalidArgumentError
+from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism.memo import PerMechanism
+from optik.native import compiler
 from optik.problem import target_parameters
 from optik.results import IKResult
+from optik.solvers import generic_chain
 from optik.solvers.base import IKRequest, make_result, method_options, positive_int, register_method
-from optik.solvers.lm_kernel import STATUS, LMKernel, Settings, kernel
+from optik.solvers.lm_kernel import STATUS, LMKernel, OneTarget, Settings, kernel
 from optik.solvers.options import check_floats, check_max_restarts
 
 DEFAULTS: dict[str, Any] = {
@@ -106,9 +115,13 @@ def lm_settings(request: IKRequest) -> tuple[Settings, float, bool | str]:
 def request_seed(seed: int | np.random.Generator | None) -> int:
     """The kernel's seed of a request: the int itself (None: 0, as for every method), or one
     drawn from a Generator."""
+    if seed is None:
+        return 0
+    if isinstance(seed, int | np.integer):  # first: np.random is imported on first use (20 ms)
+        return int(seed)
     if isinstance(seed, np.random.Generator):
         return int(seed.integers(0, 2**63))
-    return 0 if seed is None else int(seed)
+    return int(seed)
 
 
 _PREPARED: PerMechanism[dict[tuple[Any, ...], tuple[LMKernel, np.ndarray]]] = PerMechanism()
@@ -116,9 +129,10 @@ _PREPARED_MAX = 256
 """Prepared requests kept per mechanism (all are dropped past it: option values drawn anew per call)."""
 
 
-def _prepare(request: IKRequest) -> tuple[LMKernel, np.ndarray]:
+def _prepare(request: IKRequest, build: bool = True) -> tuple[LMKernel, np.ndarray] | None:
     """The kernel and the driver's ``conf`` of a request, cached per mechanism, task, frame,
-    tolerances and option values when those are hashable (validation costs more than a solve)."""
+    tolerances and option values when those are hashable (validation costs more than a solve);
+    None when not cached and ``build`` is False."""
     try:
         key: tuple[Any, ...] | None = (
             request.task,
@@ -130,6 +144,8 @@ def _prepare(request: IKRequest) -> tuple[LMKernel, np.ndarray]:
         hit = prepared.get(key)  # type: ignore[arg-type]
     except TypeError:  # an unhashable option value (an array q_ref): validate every time
         key, hit = None, None
+    if hit is None and not build:
+        return None
     if hit is None:
         settings, closure_weight, compile = lm_settings(request)
         setup = time.perf_counter()
@@ -144,23 +160,155 @@ def _prepare(request: IKRequest) -> tuple[LMKernel, np.ndarray]:
 
 
 def solve_lm(request: IKRequest) -> IKResult:
-    """Solve an IK request by bounded LM with random restarts (see the module docstring)."""
-    k, base = _prepare(request)
+    """Solve an IK request by bounded LM with random restarts (see the module docstring); until
+    the kernel of the mechanism is compiled, by the generic chain kernel where it applies
+    (`optik.solvers.generic_chain`)."""
+    seed = request_seed(request.seed) & (2**64 - 1)
+    prepared = _prepare(request, build=False)
+    if prepared is None or not prepared[0].compiled:
+        settings, closure_weight, compile = lm_settings(request)
+        first = generic_chain.solve_first(
+            request, settings, closure_weight, compile, _prepare, seed, lm_result
+        )
+        if first is not None:
+            return first
+    k, base = prepared or _prepare(request)  # type: ignore[misc]  # built when None
     conf = base.copy()
     conf[3] = max(request.remaining(), 0.0)
     params = target_parameters(request.target)
-    q, err, iterations, restarts, code = k.run_one(
-        params, request.q0, request_seed(request.seed) & (2**64 - 1), conf
-    )
+    q, err, iterations, restarts, code = k.run_one(params, request.q0, seed, conf)
+    return lm_result(request, k, q, err, iterations, restarts, code, params)
+
+
+_MASK = 2**64 - 1
+
+
+def lm_result(
+    request: IKRequest,
+    k: LMKernel,
+    q: np.ndarray,
+    err: tuple[float, float, float],
+    iterations: int,
+    restarts: int,
+    code: int,
+    params: np.ndarray | None = None,
+) -> IKResult:
+    """The result of a kernel run by `optik.solvers.base.make_result`, which wraps and clips
+    ``q`` and judges it: with the kernel's errors ``err`` of ``q`` when that leaves ``q``
+    unchanged, else the errors of the final ``q`` evaluated again (against ``params``, the
+    request's target parameters, computed when not given)."""
     answer = q.tolist()
 
     def errors(qq: np.ndarray) -> tuple[float, float, float]:
-        """The kernel's own check, as the batch's: the errors it computed for its answer when
-        wrapping and clipping left that unchanged, else evaluated again."""
-        return err if qq.tolist() == answer else k.final_errors(qq, params)
+        """The kernel's own check, as the batch's."""
+        if qq.tolist() == answer:
+            return err
+        return k.final_errors(qq, target_parameters(request.target) if params is None else params)
 
     status = None if code == 0 else STATUS[code]
     return make_result(request, q, "lm", iterations, restarts, status, errors=errors)
+
+
+_F64 = np.dtype(np.float64)
+
+
+class LMCall:
+    """The prepared call of ``lm`` (a `optik.solvers.base.PreparedCall`): the later calls
+    of `optik.solve_ik` with the options of ``request`` (time limit, tolerances, method options,
+    task and frame, all validated once) solve through one C call, ``optik_lm_call`` of
+    ``lm_chunk.c``, which checks the target transform as `optik.checks.as_transform` does and
+    ``q0`` for finiteness, runs the solve as `solve_lm` does and says whether the answer is
+    canonical (within the limits, every coordinate in ``(-pi, pi)``). A canonical answer that
+    meets the tolerances is the result as it is (what `optik.solvers.base.make_result` makes of
+    it); any other answer goes through `lm_result`. It returns None, before solving, for input
+    it does not take (a ``q0`` other than a float64 vector or None, a seed other than an int
+    ``>= 0`` or None, a target the C check refuses: the general path then raises the named
+    error) and while the kernel is not built or its library is being built (the kernel is built
+    by the general path, by `solve_lm` or in the background by `optik.solvers.generic_chain`, and
+    found here). Thread-safe: buffers per thread.
+    """
+
+    def __init__(self, request: IKRequest) -> None:
+        self._prepared: tuple[LMKernel, np.ndarray] | None = None
+        self.request = request
+        m = request.mechanism
+        self._mid = m.mid_q()
+        self._shape = (m.n_q,)
+        tol = request.tol
+        self._tol = (tol.position, tol.orientation, tol.closure)
+        self._local = threading.local()
+
+    @property
+    def kernel(self) -> LMKernel | None:
+        """The kernel once it is built (None before)."""
+        if self._prepared is None:
+            self._prepared = _prepare(self.request, build=False)
+        return None if self._prepared is None else self._prepared[0]
+
+    def _buffers(self, k: LMKernel, conf: np.ndarray) -> OneTarget:
+        one = self._local.one = OneTarget(len(self._mid), k.n_target, len(conf))
+        one.conf[:] = conf
+        return one
+
+    def __call__(self, start: float, target: np.ndarray, q0: Any, seed: Any) -> IKResult | None:
+        """Solve for ``target`` from ``q0`` (None: mid-limit) with restart seed ``seed``; None
+        when this call is left to the general path (see the class)."""
+        prepared = self._prepared
+        if prepared is None:
+            prepared = self._prepared = _prepare(self.request, build=False)
+            if prepared is None:
+                return None
+        k = prepared[0]
+        call = k.call_entry()
+        if call is None or target.dtype != _F64 or target.shape != (4, 4):
+            return None
+        if q0 is None:
+            q0 = self._mid
+        elif type(q0) is not np.ndarray or q0.dtype != _F64 or q0.shape != self._shape:
+            return None
+        if seed is None:
+            s = 0
+        elif type(seed) is int and seed >= 0:
+            s = seed & _MASK
+        else:
+            return None
+        one = getattr(self._local, "one", None) or self._buffers(*prepared)
+        one.transform[:] = target
+        one.q0[:] = q0
+        one.seed[0] = s
+        one.conf[3] = max(self.request.time_limit - (time.perf_counter() - start), 0.0)
+        rc = call(one.call_args)
+        if rc != 0:
+            if rc in (2, 3):  # the target or q0 failed the check: the general path names it
+                return None
+            raise SolverUnavailableError("optik_lm_call: evaluation of the generated code failed")
+        iterations, restarts, code, canonical = one.counts.tolist()
+        pos, ori, clo = one.errors.tolist()
+        q = one.q.copy()
+        tp, to, tc = self._tol
+        if canonical and pos <= tp and ori <= to and clo <= tc:
+            # the fields in order: q, success, the three errors, limits_ok, iterations, solve_time,
+            # method, status, message, restarts
+            elapsed = time.perf_counter() - start
+            return IKResult(q, True, pos, ori, clo, True, iterations, elapsed, "lm", "solved", "", restarts)
+        request = dataclasses.replace(
+            self.request,
+            target=target,
+            q0=q0,
+            seed=seed,
+            options=dict(self.request.options),
+            start=start,
+            setup_time=0.0,
+        )
+        return lm_result(request, k, q, (pos, ori, clo), iterations, restarts, code)
+
+
+def prepare_lm(request: IKRequest) -> LMCall | None:
+    """The `LMCall` of a request, None for several frame targets or without a C library
+    (``compile=False``, no compiler)."""
+    if request.multi_target or lm_settings(request)[2] is False or compiler() is None:
+        return None
+    return LMCall(request)
 
 
 register_method(
@@ -168,4 +316,5 @@ register_method(
     solve_lm,
     description="bounded Levenberg-Marquardt compiled to C, random restarts until the time limit",
     multi_target=True,
+    prepare=prepare_lm,
 )

@@ -141,3 +141,49 @@ CASADI_SYMBOL_EXPORT int optik_lm_packed(void *const *args) {
                         (double *)args[6], (casadi_int *)args[7], (casadi_int *)args[8],
                         (casadi_int *)args[9], (double *)args[10]);
 }
+
+/* The whole per-call work of one solve_ik call, for optik.solvers.lm.LMCall.
+ * args: [transform (4x4, row-major), q0[n], seed, conf, q_out[n], err_out[3], counts[4], time_out]
+ * with counts = (iterations, restarts, status, canonical) as 64-bit integers. The transform is
+ * checked first, as optik.checks.as_transform checks it (the same expressions in the same order,
+ * the tolerances OPTIK_ORTHO_DIAG / OPTIK_ORTHO_OFF defined from it), then q0 for finiteness;
+ * they become the 12 target parameters [vec(R) column-major; p] and the solve runs as
+ * optik_lm_chunk's for one target. canonical = 1 when the answer lies within
+ * [limit_lo, limit_hi] and every coordinate in (-pi, pi): the answer make_result keeps as it is.
+ * Returns 0, 2 (the transform fails the check: Python raises the named error), 3 (q0 is not
+ * finite) or -1 (evaluation error). */
+CASADI_SYMBOL_EXPORT int optik_lm_call(void *const *args) {
+  enum { N = OPTIK_NQ };
+  const double *t = (const double *)args[0], *q0 = (const double *)args[1];
+  const double *conf = (const double *)args[3];
+  double *q_out = (double *)args[4];
+  casadi_int *counts = (casadi_int *)args[6];
+  for (int i = 0; i < 16; ++i)
+    if (!isfinite(t[i])) return 2;
+  if (!(fabs(t[12]) <= 1e-9 && fabs(t[13]) <= 1e-9 && fabs(t[14]) <= 1e-9 &&
+        fabs(t[15] - 1.0) <= 1e-9 + 1e-5))
+    return 2;
+  const double r00 = t[0], r01 = t[1], r02 = t[2], r10 = t[4], r11 = t[5], r12 = t[6];
+  const double r20 = t[8], r21 = t[9], r22 = t[10];
+  if (!(fabs(r00 * r00 + r10 * r10 + r20 * r20 - 1.0) <= OPTIK_ORTHO_DIAG &&
+        fabs(r01 * r01 + r11 * r11 + r21 * r21 - 1.0) <= OPTIK_ORTHO_DIAG &&
+        fabs(r02 * r02 + r12 * r12 + r22 * r22 - 1.0) <= OPTIK_ORTHO_DIAG &&
+        fabs(r00 * r01 + r10 * r11 + r20 * r21) <= OPTIK_ORTHO_OFF &&
+        fabs(r00 * r02 + r10 * r12 + r20 * r22) <= OPTIK_ORTHO_OFF &&
+        fabs(r01 * r02 + r11 * r12 + r21 * r22) <= OPTIK_ORTHO_OFF &&
+        r00 * (r11 * r22 - r21 * r12) - r10 * (r01 * r22 - r21 * r02) + r20 * (r01 * r12 - r11 * r02) >=
+            0.0))
+    return 2;
+  for (int j = 0; j < N; ++j)
+    if (!isfinite(q0[j])) return 3;
+  const double params[12] = {r00, r10, r20, r01, r11, r21, r02, r12, r22, t[3], t[7], t[11]};
+  int rc = optik_lm_chunk(1, params, q0, (const unsigned long long *)args[2], conf, q_out,
+                          (double *)args[5], &counts[0], &counts[1], &counts[2], (double *)args[7]);
+  const double *limit_lo = conf + OPTIK_CONF_SCALARS + 3 * N, *limit_hi = limit_lo + N;
+  casadi_int canonical = 1;
+  for (int j = 0; j < N; ++j)
+    if (!(limit_lo[j] <= q_out[j] && q_out[j] <= limit_hi[j] && -OPTIK_PI < q_out[j] && q_out[j] < OPTIK_PI))
+      canonical = 0;
+  counts[3] = canonical;
+  return rc;
+}

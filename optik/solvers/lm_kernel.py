@@ -20,6 +20,7 @@ CasADi's evaluator, with the same generator (same answers, slower).
 from __future__ import annotations
 
 import ctypes
+import math
 import threading
 import time
 from dataclasses import dataclass
@@ -29,6 +30,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from optik.checks import ORTHO_DIAG, ORTHO_OFF
 from optik.errors import InvalidArgumentError, ShapeError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
@@ -52,7 +54,9 @@ _MASK = (1 << 64) - 1
 _STEP, _ERRORS = "optik_lm_step", "optik_ik_errors"
 
 
-def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Function:
+def lm_iteration_function(
+    problem: IKProblem, closure_weight: float, inequalities: ca.SX | None = None
+) -> ca.Function:
     """One bounded LM iteration with the errors of the trial point, as an ``SX`` function.
 
     ``(q, mu, target, weights, q_ref, gain, lo, hi) -> (q+, mu+, cost+, accepted, position error,
@@ -60,21 +64,62 @@ def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Funct
     projected trial point ``q_t = clip(q + dq, lo, hi)``, accepted when its cost
     ``|e(q_t)|^2 / 2`` is below that of ``q``; the errors are those of ``q_t`` (the driver keeps
     the previous ones when the trial is rejected). The limits ``lo, hi`` are inputs (infinite
-    entries: unbounded), so one compiled kernel serves every limits of one geometry.
+    entries: unbounded), so one compiled kernel serves every limits of one geometry. ``problem``
+    may be any object with the attributes and methods of `IKProblem` that are read here
+    (`optik.solvers.generic_chain.ChainProblem`: a chain whose geometry is in the target).
+
+    ``inequalities``: rows ``g(q) <= 0`` whose hinges ``max(0, g)`` are the last ``k`` rows of
+    ``problem.closure`` (static balance, `optik.solvers.balance`). A hinge has no gradient
+    where it is inactive, so a plain Gauss-Newton step from inside overshoots across the
+    boundary and is rejected again and again while ``mu`` grows. The step is therefore taken
+    twice, for a working set ``A`` of rows treated as the equations ``w_c g_i = 0`` (their
+    linearization, onto the boundary): first ``A_1 = {i : g_i > 0}`` (the hinges' own
+    Gauss-Newton step), then ``A_2 = A_1 + {i : g_i + J_g,i dq_1 > 0}`` (the rows the first step
+    would cross), the step taken. With ``M_0 = D J_t^T J_t D + mu I + (I - D)`` of the other rows
+    ``J_t`` (free set ``D`` from the whole gradient), ``U = D J_g^T``, ``S = w_c^2 diag(A)`` and
+    ``r_0`` the other rows' right-hand side, the step of a working set solves
+    ``(M_0 + U S U^T) dq = r_0 - U S g``; by the Woodbury identity, with
+    ``M_0 [X_0, Y] = [r_0, U]`` solved once (``M_0`` keeps the other rows' sparsity: the balance
+    rows couple every joint) and ``B = X_0 - Y S g``,
+    ``dq = B - Y S (I + U^T Y S)^-1 U^T B``: a ``k x k`` solve per working set.
     """
-    m = problem.mechanism
     q = problem.q
-    lo, hi = ca.SX.sym("lower", m.n_q), ca.SX.sym("upper", m.n_q)
+    n = int(q.shape[0])
+    lo, hi = ca.SX.sym("lower", n), ca.SX.sym("upper", n)
     e = problem.weighted_residual(closure_weight if problem.closure.shape[0] else None)
     at = ca.Function("at", [q, problem.target, problem.weights], [e, *problem.error_expressions()])
     mu, gain = ca.SX.sym("mu"), ca.SX.sym("gain")
     jac = ca.jacobian(e, q)
-    g = ca.mtimes(jac.T, e)
-    free = 1 - ca.logic_or(ca.logic_and(q <= lo, g > 0), ca.logic_and(q >= hi, g < 0))
-    d = ca.diag(free)
-    lhs = ca.mtimes([d, ca.mtimes(jac.T, jac), d]) + mu * ca.SX.eye(m.n_q) + ca.diag(1 - free)
-    rhs = free * (-g + gain * mu * (problem.q_ref - q))
-    q_trial = ca.fmin(ca.fmax(q + ca.solve(lhs, rhs), lo), hi)
+    grad = ca.mtimes(jac.T, e)
+    free = 1 - ca.logic_or(ca.logic_and(q <= lo, grad > 0), ca.logic_and(q >= hi, grad < 0))
+    k = 0 if inequalities is None else int(inequalities.shape[0])
+    top = e.shape[0] - k  # the rows other than the hinges
+    jt = jac[:top, :]
+    cols = [jt[:, j] for j in range(n)]
+    diag = [mu + 1 - free[i] for i in range(n)]
+    lhs = [  # the lower triangle of D J_t^T J_t D + mu I + (I - D), row by row
+        [free[i] * free[j] * ca.dot(cols[i], cols[j]) + (diag[i] if i == j else 0) for j in range(i + 1)]
+        for i in range(n)
+    ]
+    rhs = free * (-(ca.mtimes(jt.T, e[:top]) if k else grad) + gain * mu * (problem.q_ref - q))
+    if not k:
+        dq = _cholesky_solve(lhs, rhs)
+    else:
+        g = inequalities
+        u = ca.mtimes(ca.diag(free), ca.jacobian(g, q).T)  # D J_g^T
+        xy = _cholesky_solve(lhs, ca.horzcat(rhs, u))
+        x0, y = xy[:, 0], xy[:, 1:]
+
+        def working_step(active: ca.SX) -> ca.SX:
+            s = ca.diag(closure_weight**2 * active)
+            b = x0 - ca.mtimes([y, s, g])
+            small = ca.SX.eye(k) + ca.mtimes([u.T, y, s])
+            return b - ca.mtimes([y, s, ca.solve(small, ca.mtimes(u.T, b))])
+
+        violated = g > 0
+        dq1 = working_step(violated)
+        dq = working_step(ca.logic_or(violated, g + ca.mtimes(u.T, dq1) > 0))
+    q_trial = ca.fmin(ca.fmax(q + dq, lo), hi)
     e_trial, pos, ori, clo = at(q_trial, problem.target, problem.weights)
     cost, cost_trial = 0.5 * ca.sumsqr(e), 0.5 * ca.sumsqr(e_trial)
     accept = cost_trial < cost
@@ -89,6 +134,48 @@ def lm_iteration_function(problem: IKProblem, closure_weight: float) -> ca.Funct
     ]
     ins = [q, mu, problem.target, problem.weights, problem.q_ref, gain, lo, hi]
     return ca.Function(_STEP, ins, [ca.densify(v) for v in outs])
+
+
+def driver_defines(n_q: int, n_target: int) -> str:
+    """The C definitions ``lm_chunk.c`` is compiled with (after the generated functions
+    `lm_iteration_function` and `optik.solvers.evaluation.error_function`): ``n_q`` coordinates,
+    ``n_target`` target parameters per target."""
+    return (
+        f"\n#define OPTIK_NQ {n_q}\n#define OPTIK_NT {n_target}\n"
+        f"#define OPTIK_STEP {_STEP}\n#define OPTIK_STEP_WORK {_STEP}_work\n"
+        f"#define OPTIK_ERRORS {_ERRORS}\n#define OPTIK_ERRORS_WORK {_ERRORS}_work\n"
+        f"#define OPTIK_ORTHO_DIAG {ORTHO_DIAG!r}\n#define OPTIK_ORTHO_OFF {ORTHO_OFF!r}\n"
+        f"#define OPTIK_PI {math.pi!r}\n"
+    )
+
+
+def _cholesky_solve(lower: list[list[ca.SX]], b: ca.SX) -> ca.SX:
+    """``x = A^-1 b`` (``b`` a vector, or a matrix of right-hand sides on one factorization) for a
+    symmetric positive definite ``A`` given by its lower triangle (``lower[i][j] = A_ij``, ``j <=
+    i``), by Cholesky ``A = L L^T`` and two triangular solves: about n^3 / 6 multiply-adds and n
+    square roots, where CasADi's general ``solve`` (a QR) takes several times more operations, and
+    ``J^T J`` is formed on one triangle (the LM matrix, with ``mu > 0`` on its diagonal, is positive
+    definite; where rounding loses definiteness the step is NaN, which the projection maps onto a
+    bound or leaves NaN, and the acceptance test keeps only a trial point of lower cost either way,
+    NaN comparing false)."""
+    n = len(lower)
+    chol: list[list[ca.SX]] = [[] for _ in range(n)]
+    inv_diag: list[ca.SX] = []
+    for j in range(n):
+        for i in range(j, n):
+            s = lower[i][j] - sum((chol[i][k] * chol[j][k] for k in range(j)), ca.SX(0))
+            if i == j:
+                chol[j].append(ca.sqrt(s))
+                inv_diag.append(1 / chol[j][j])
+            else:
+                chol[i].append(s * inv_diag[j])
+    y: list[ca.SX] = []
+    for i in range(n):  # L y = b
+        y.append((b[i, :] - sum((chol[i][k] * y[k] for k in range(i)), ca.SX(0))) * inv_diag[i])
+    x: list[ca.SX] = [ca.SX(0)] * n
+    for i in reversed(range(n)):  # L^T x = y
+        x[i] = (y[i] - sum((chol[k][i] * x[k] for k in range(i + 1, n)), ca.SX(0))) * inv_diag[i]
+    return ca.vertcat(*x)
 
 
 def target_seeds(seed: int, start: int, count: int) -> np.ndarray:
@@ -162,19 +249,23 @@ class Output:
 _P = ctypes.c_void_p
 
 
-class _OneTarget:
-    """One thread's buffers of a one-target run, and the packed argument array of the driver's
-    ``optik_lm_packed`` pointing at them (the addresses are taken once: reading
+class OneTarget:
+    """One thread's buffers of a one-target run, and the packed argument arrays of the driver's
+    ``optik_lm_packed`` and ``optik_lm_call`` pointing at them (the addresses are taken once: reading
     ``ndarray.ctypes.data`` costs microseconds per array, more than a whole solve's iterations)."""
 
     def __init__(self, nq: int, nt: int, n_conf: int) -> None:
         self.target, self.q0, self.conf = np.zeros(nt), np.zeros(nq), np.zeros(n_conf)
         self.seed = np.zeros(1, dtype=np.uint64)
         self.q, self.errors, self.time = np.zeros(nq), np.zeros(3), np.zeros(1)
-        self.counts = np.zeros(3, dtype=np.int64)  # iterations, restarts, status
+        self.counts = np.zeros(4, dtype=np.int64)  # iterations, restarts, status, canonical
+        self.transform = np.zeros((4, 4))
         c = self.counts.ctypes.data
         bufs = (self.target, self.q0, self.seed, self.conf, self.q, self.errors)
         self.args = (_P * 11)(1, *[b.ctypes.data for b in bufs], c, c + 8, c + 16, self.time.ctypes.data)
+        bufs = (self.transform, self.q0, self.seed, self.conf, self.q, self.errors, self.counts, self.time)
+        self.call_args = (_P * 8)(*[b.ctypes.data for b in bufs])
+        """The argument array of ``optik_lm_call`` (a 4x4 transform in place of the parameters)."""
 
 
 class LMKernel:
@@ -191,6 +282,8 @@ class LMKernel:
             ``task``, ``frame``); its ``closure`` rows are the weighted rows of the residual and
             the closure error of the stop test (`optik.solvers.collision_free` appends its
             collision rows there).
+        inequalities: rows ``g(q) <= 0`` whose hinges end ``problem.closure`` (see
+            `lm_iteration_function`).
     """
 
     def __init__(
@@ -201,6 +294,7 @@ class LMKernel:
         closure_weight: float,
         compile: bool | str,
         problem: IKProblem | None = None,
+        inequalities: ca.SX | None = None,
     ) -> None:
         problem = build_ik_problem(m, task, frame) if problem is None else problem
         self.mechanism = m
@@ -208,19 +302,17 @@ class LMKernel:
         """Target parameters per target (12 per frame target)."""
         self.n_conf = 12 + 5 * m.n_q
         """Length of `Settings.conf`: 12 scalars, sampling bounds, ``q_ref`` and the limits."""
-        self.step = lm_iteration_function(problem, closure_weight)
+        self.step = lm_iteration_function(problem, closure_weight, inequalities)
         self.errors = error_function(problem)
-        defines = (
-            f"\n#define OPTIK_NQ {m.n_q}\n#define OPTIK_NT {problem.target.shape[0]}\n"
-            f"#define OPTIK_STEP {_STEP}\n#define OPTIK_STEP_WORK {_STEP}_work\n"
-            f"#define OPTIK_ERRORS {_ERRORS}\n#define OPTIK_ERRORS_WORK {_ERRORS}_work\n"
-        )
         driver = driver_source(DRIVER, compile)
         self.library = (
-            None if driver is None else library([self.step, self.errors], compile, defines + driver)
+            None
+            if driver is None
+            else library([self.step, self.errors], compile, driver_defines(m.n_q, self.n_target) + driver)
         )
         self._fn: Any = None
         self._packed: Any = None
+        self._call: Any = None
         self._local = threading.local()  # per-thread error evaluators and one-target buffers
 
     def final_errors(self, q: np.ndarray, target: np.ndarray) -> tuple[float, float, float]:
@@ -251,6 +343,16 @@ class LMKernel:
                 self._fn = fn
         return self._fn
 
+    def call_entry(self) -> Any:
+        """The driver's ``optik_lm_call`` (one whole ``solve_ik`` call: `optik.solvers.lm.LMCall`)
+        once the library is loaded, else None (it is never waited for)."""
+        call = self._call
+        if call is None and self.library is not None and self.library.state == "ready" and self._driver():
+            call = self.library.get().optik_lm_call  # type: ignore[union-attr]
+            call.argtypes, call.restype = [_P], ctypes.c_int
+            self._call = call
+        return call
+
     def run_one(
         self, target: np.ndarray, q0: np.ndarray, seed: int, conf: np.ndarray
     ) -> tuple[np.ndarray, tuple[float, float, float], int, int, int]:
@@ -278,17 +380,15 @@ class LMKernel:
             return out.q[0], (e[0], e[1], e[2]), *counts
         one = getattr(self._local, "one", None)
         if one is None:
-            one = self._local.one = _OneTarget(self.mechanism.n_q, len(target), len(conf))
+            one = self._local.one = OneTarget(self.mechanism.n_q, len(target), len(conf))
         one.target[:] = target
         one.q0[:] = q0
         one.seed[0] = seed
         one.conf[:] = conf
         if packed(one.args) != 0:
-            from optik.errors import SolverUnavailableError
-
             raise SolverUnavailableError("optik_lm_chunk: evaluation of the generated code failed")
         e = one.errors.tolist()
-        it, restarts, status = one.counts.tolist()
+        it, restarts, status, _ = one.counts.tolist()
         return one.q.copy(), (e[0], e[1], e[2]), it, restarts, status
 
     def run(self, targets: np.ndarray, q0: np.ndarray, seeds: np.ndarray, conf: np.ndarray) -> Output:
@@ -432,6 +532,14 @@ class LMKernel:
 
 
 _KERNELS: PerMechanism[dict[tuple, LMKernel]] = PerMechanism()
+
+
+def cached_kernel(
+    m: Mechanism, task: str, frame: str | None, closure_weight: float, compile: bool | str
+) -> LMKernel | None:
+    """The `kernel` of these arguments when it was built already, else None (builds nothing)."""
+    per = _KERNELS.get(m.geometry)
+    return None if per is None else per.get((task, frame, closure_weight, compile))
 
 
 def kernel(

@@ -47,7 +47,7 @@ import numpy as np
 from hypothesis import strategies as st
 
 import optik
-from optik import catalog, closed_form, diffik, spatial
+from optik import catalog, closed_form, diffik, problem_files, spatial
 from optik.errors import OptikError
 
 CLASSES = ("ok", "optik_error", "leak", "false_success", "overtime")
@@ -507,22 +507,7 @@ def check_track(m: optik.Mechanism, q0: Any) -> Callable:
 
 
 # ------------------------------------------------------------------------------ the mechanism pool
-POOL_NAMES = (
-    "planar_2r",
-    "planar_3r",
-    "rp_arm",
-    "pp_arm",
-    "seed_6r_arm",
-    "five_bar",
-    "doggy",
-    "slider_crank",
-    "planar_3rpr",
-    "stewart_gough",
-    "panda",
-    "iiwa14",
-    "planar_2r_fixed",
-    "planar_3r_thin",
-)
+POOL_NAMES = (*problem_files.default_constructors(), "planar_2r_fixed", "planar_3r_thin")
 """The mechanisms the solver entries draw from (catalog defaults and two degenerate variants)."""
 
 

@@ -21,10 +21,12 @@ from optik.mechanism import Mechanism
 
 
 def _sg_residual(b: np.ndarray, p: np.ndarray, rho: np.ndarray, r: np.ndarray, t: np.ndarray):
-    rp = p @ r.T
-    v = rp + t - b
-    f = np.sum(v * v, axis=1) - rho * rho
-    jac = 2 * np.hstack([v, np.cross(rp, v)])
+    """Leg residuals ``f (K, 6)`` and their Jacobians ``(K, 6, 6)`` in ``(t, w)`` of the
+    postures ``r (K, 3, 3)``, ``t (K, 3)``."""
+    rp = p @ np.swapaxes(r, -1, -2)
+    v = rp + t[:, None, :] - b
+    f = np.sum(v * v, axis=-1) - rho * rho
+    jac = 2 * np.concatenate([v, np.cross(rp, v)], axis=-1)
     return f, jac
 
 
@@ -35,17 +37,40 @@ def polish_stewart(
 
     Returns ``(R, t, max leg-length error)``.
     """
+    rs, ts, err = polish_stewart_many(b, p, rho, np.asarray(r)[None], np.asarray(t)[None], iters)
+    return rs[0], ts[0], float(err[0])
+
+
+def polish_stewart_many(
+    b: np.ndarray, p: np.ndarray, rho: np.ndarray, r: np.ndarray, t: np.ndarray, iters: int = 8
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`polish_stewart` of the postures ``r (K, 3, 3)``, ``t (K, 3)`` at once, each with its own
+    stopping rule (a posture stops when its legs are met to ``1e-15 (1 + max rho^2)`` or its step
+    falls below the quadratic stop).
+
+    Returns ``(R (K, 3, 3), t (K, 3), max leg-length error (K,))``.
+    """
+    r, t = np.array(r, dtype=float), np.array(t, dtype=float)
+    todo = np.arange(len(r))
+    exact = 1e-15 * (1 + np.max(rho) ** 2)
     for _ in range(iters):
-        f, jac = _sg_residual(b, p, rho, r, t)
-        if np.max(np.abs(f)) <= 1e-15 * (1 + np.max(rho) ** 2):
+        if not len(todo):
             break
-        step = newton_step(jac, f)
-        t = t - step[:3]
-        r = spatial.so3_exp(-step[3:]) @ r
-        if np.max(np.abs(step)) < QUADRATIC_STOP * (1 + np.max(np.abs(t))):
+        f, jac = _sg_residual(b, p, rho, r[todo], t[todo])
+        off = np.max(np.abs(f), axis=1) > exact  # the others are exact already
+        todo, f, jac = todo[off], f[off], jac[off]
+        if not len(todo):
             break
-    v = p @ r.T + t - b
-    return r, t, float(np.max(np.abs(np.linalg.norm(v, axis=1) - rho)))
+        try:
+            step = np.linalg.solve(jac, f[..., None])[..., 0]
+        except np.linalg.LinAlgError:  # a singular Jacobian: each posture its own step
+            step = np.stack([newton_step(j, e) for j, e in zip(jac, f, strict=True)])
+        t[todo] -= step[:, :3]
+        r[todo] = spatial.so3_exp(-step[:, 3:]) @ r[todo]
+        moving = np.max(np.abs(step), axis=1) >= QUADRATIC_STOP * (1 + np.max(np.abs(t[todo]), axis=1))
+        todo = todo[moving]
+    v = p @ np.swapaxes(r, -1, -2) + t[:, None, :] - b
+    return r, t, np.max(np.abs(np.linalg.norm(v, axis=-1) - rho), axis=1)
 
 
 def stewart_jacobian(b: np.ndarray, p: np.ndarray, r: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -299,18 +324,26 @@ def _real_poses(
         return poses
     w = sols / sols[np.arange(len(sols)), np.argmax(np.abs(sols[:, :4]), axis=1)][:, None]
     real = np.max(np.abs(w.imag), axis=1) <= 1e-5 * np.max(np.abs(w), axis=1)
-    for v in w[real].real:
-        e, g = v[:4], v[4:]
-        e_conj = e * np.array([1.0, -1.0, -1.0, -1.0])
-        t = 2 * (quat_left(g) @ e_conj)[1:] / (e @ e)
-        r, t, err = polish_stewart(b, p, rho, quat_to_rot(e), t * size)
-        if err > tol * max(size, 1.0):
-            continue
-        if all(
-            np.linalg.norm(t - t2) > 1e-7 * size or spatial.angle_between(r, r2) > 1e-7 for r2, t2 in poses
-        ):
-            poses.append((r, t))
-    return poses
+    v = w[real].real
+    if not len(v):
+        return poses
+    e, g = v[:, :4], v[:, 4:]
+    e_conj = e * np.array([1.0, -1.0, -1.0, -1.0])
+    left = np.moveaxis(quat_left(g.T), -1, 0)  # (K, 4, 4)
+    t0 = 2 * np.einsum("kij,kj->ki", left, e_conj)[:, 1:] / np.sum(e * e, axis=1)[:, None]
+    r0 = np.stack([quat_to_rot(q) for q in e])
+    rs, ts, err = polish_stewart_many(b, p, rho, r0, t0 * size)  # every real candidate at once
+    ok = np.flatnonzero(err <= tol * max(size, 1.0))
+    rs, ts = rs[ok], ts[ok]
+    # pairwise: translation gap and rotation angle of R_i^T R_j (spatial.angle_between)
+    gap = np.linalg.norm(ts[:, None] - ts[None], axis=-1)
+    angle = spatial.rotation_angle(np.swapaxes(rs, -1, -2)[:, None] @ rs[None])
+    same = (gap <= 1e-7 * size) & (angle <= 1e-7)
+    kept: list[int] = []
+    for i in range(len(rs)):  # first come: a posture the same as a kept one is left out
+        if not any(same[i, k] for k in kept):
+            kept.append(i)
+    return [(rs[i], ts[i]) for i in kept]
 
 
 def stewart_gough_fk(m: Mechanism, actuated: np.ndarray, time_limit: float = 5.0) -> list[np.ndarray]:

@@ -95,23 +95,15 @@ def overshoot(m: Mechanism, q: np.ndarray) -> float:
     return float(max(0.0, np.max(m.lower - q), np.max(q - m.upper)))
 
 
-ROUNDING_PAST_LIMIT = 1e-6
-"""How far past a limit a raw answer may lie and still be only clipped onto it, not wrapped first
-(a float32 limit overshoots by about 1e-7): wrapping 3.7525 + 6e-8 past the Panda's joint-6
-upper limit of 3.7525 by 2 pi gives -2.53, outside too, which a clip then moves to the lower
-limit: another pose, 0.26 m away."""
-
-
 def settle(m: Mechanism, q: np.ndarray) -> np.ndarray:
-    """``q`` wrapped and clipped into the limits, the treatment optik's `solve_ik` gives its own
-    answers (`optik.solvers.base.make_result`), except that a coordinate at most
-    `ROUNDING_PAST_LIMIT` past a limit is clipped onto it without wrapping; a non-finite ``q`` is
-    returned as it is (it fails)."""
+    """``q`` wrapped and clipped into the limits, ``clip(m.wrap(q))``: the treatment optik's
+    `solve_ik` gives its own answers (`optik.solvers.base.make_result`). A value a rounding past a
+    limit stays on that side ([`Mechanism.wrap`][optik.Mechanism.wrap] takes the shift nearest the
+    limits) and is clipped onto it; a non-finite ``q`` is returned as it is (it fails)."""
     q = np.asarray(q, dtype=float)
     if q.shape != m.lower.shape or not np.all(np.isfinite(q)):
         return q
-    near = (q >= m.lower - ROUNDING_PAST_LIMIT) & (q <= m.upper + ROUNDING_PAST_LIMIT)
-    return np.where(near, np.clip(q, m.lower, m.upper), np.clip(m.wrap(q), m.lower, m.upper))
+    return np.clip(m.wrap(q), m.lower, m.upper)
 
 
 def warm_up(calls: Iterable[Callable[[], object]]) -> None:

@@ -118,6 +118,60 @@ _HALFPLANES: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
 _HALFPLANES_MAX = 64
 
 
+def auto_support(m: Mechanism, contacts: Mapping[str, Any]) -> np.ndarray:
+    """``support="auto"``: the counter-clockwise convex hull ``(k, 2)`` of the contacts' ground
+    projections.
+
+    A flat contact (a 4x4 held pose ``T_f`` of frame ``f`` on body ``B``, ``m.frames[f] = (B,
+    O_f)``) contributes the collision geometry of every link on ``B`` (`optik.collision.robot`,
+    a link ``L`` at ``T_f O_f^-1 O_L``), projected onto the ground (x-y): a box's, cylinder's or
+    mesh's vertices, a sphere's or capsule's centres (a round foot touches the ground below its
+    centre); a point contact (`Position`) its point.
+
+    Raises:
+        InvalidArgumentError: no ``contacts``, a flat contact whose body has no collision
+            geometry, or fewer than three points in general position.
+    """
+    from scipy.spatial import ConvexHull, QhullError
+
+    from optik.collision.robot import robot_geometry
+    from optik.collision.shapes import shape_vertices
+
+    if not isinstance(contacts, Mapping) or not contacts:
+        raise InvalidArgumentError("support", 'support="auto" needs contacts={frame: 4x4 or Position}')
+    points: list[np.ndarray] = []
+    geo = None
+    for name, value in contacts.items():
+        if isinstance(value, Position):
+            points.append(np.asarray(value.xyz, dtype=float)[None, :2])
+            continue
+        geo = robot_geometry(m) if geo is None else geo
+        m._frame(name)  # raises for an unknown frame
+        body, offset = m.frames[name]
+        body_pose = real_array(value, f"contacts[{name!r}]") @ np.linalg.inv(offset)
+        found = 0
+        for part, link in zip(geo.parts, geo.part_link, strict=True):
+            on, link_offset = m.frames[geo.links[link]]
+            if on != body:
+                continue
+            pose = body_pose @ link_offset @ part.offset
+            local, _ = shape_vertices(part.shape)  # a sphere's centre, a capsule's two: radius dropped
+            points.append((local @ pose[:3, :3].T + pose[:3, 3])[:, :2])
+            found += 1
+        if not found:
+            raise InvalidArgumentError(
+                "support", f'support="auto": the body {body!r} of contact {name!r} has no collision geometry'
+            )
+    pts = np.concatenate(points)
+    try:
+        hull = ConvexHull(pts)
+    except (QhullError, ValueError) as exc:
+        raise InvalidArgumentError(
+            "support", f'support="auto": the contacts\' ground points span no polygon ({len(pts)} points)'
+        ) from exc
+    return pts[hull.vertices]
+
+
 def support_halfplanes(support: Any) -> tuple[np.ndarray, np.ndarray]:
     """``(N, b)``: the polygon's inside is ``N x <= b`` (unit outward edge normals, ``(k, 2)``, ``(k,)``;
     read-only, kept for the last polygons seen: a solve per target on one polygon checks it once).

@@ -34,7 +34,9 @@ it (max-norm, angles modulo 2 pi). Every optik solution must pass the same FK an
 *duplicates* are pairs of optik solutions of one target closer than 1e-4 rad; *extra* are optik
 solutions that no valid EAIK solution matches. The checks run on every pose of the timed run.
 
-Before timing, each arm's single-target kernel is built and compiled to C and each peer solves
+The solvers take turns: pose ``k`` starts with the ``k``-th of them (cyclically), since the first
+call after the previous pose's checks runs with colder caches. Before timing, each arm's
+single-target kernel is built and compiled to C and each peer solves
 one pose (untimed warm-up for every solver). Times: mean / median / p95 per pose of every solver,
 the ratio of medians (optik / peer). Then all ``--n`` targets at once, per pose, in
 `BATCH_RUNS` interleaved runs: ``optik.solve_ik_all_batch(m, targets)`` (one C call; every row of
@@ -54,10 +56,11 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import tempfile  # noqa: E402
 import time  # noqa: E402
-from collections.abc import Sequence  # noqa: E402
+from collections.abc import Callable, Sequence  # noqa: E402
 from dataclasses import dataclass, field  # noqa: E402
 from importlib import metadata  # noqa: E402
 from pathlib import Path  # noqa: E402
+from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -206,11 +209,17 @@ class Row:
     duplicates: int = 0
     extra: int = 0
     outside_limits: int = 0
-    batch_times: list[float] = field(default_factory=list)
-    eaik_loop_times: list[float] = field(default_factory=list)
-    eaik_batched_times: list[float] = field(default_factory=list)
+    batch_times: list[tuple[float, float]] = field(default_factory=list)  # (wall, CPU) per pose
+    eaik_loop_times: list[tuple[float, float]] = field(default_factory=list)
+    eaik_batched_times: list[tuple[float, float]] = field(default_factory=list)
     batch_failed_check: int = 0
     batch_differs: int = 0
+
+
+def _medians(times: list[tuple[float, float]]) -> tuple[float, float]:
+    """Median wall and CPU time per pose in us."""
+    wall, cpu = np.median(np.asarray(times), axis=0)
+    return 1e6 * float(wall), 1e6 * float(cpu)
 
 
 def _stats(times: list[float]) -> tuple[float, float, float]:
@@ -239,27 +248,22 @@ def run_arm(m: Mechanism, n: int, seed: int) -> Row:
     if geo:
         geo[0].get_ik(*geo_targets[0])
     for k, (t, t_eaik) in enumerate(zip(targets, theirs_targets, strict=True)):
-        t0 = time.perf_counter()
-        sols = optik.solve_ik_all(m, t)
+        calls = [("optik", lambda t=t: optik.solve_ik_all(m, t))]
+        if robot is not None:
+            calls.append(("eaik", lambda t=t_eaik: robot.calculate_IK(t)))
+        if geo:
+            calls.append(("ikgeo", lambda k=k: geo[0].get_ik(*geo_targets[k])))
+        got = _timed_in_turn(calls, k, row)
+        sols = got["optik"]
         assert sols.q.shape[0] == len(sols)  # the solutions as one array, like EAIK.Q
-        row.optik_times.append(time.perf_counter() - t0)
         t0 = time.perf_counter()
         list(sols)
         row.results_times.append(time.perf_counter() - t0)
-        if robot is not None:
-            t0 = time.perf_counter()
-            theirs = robot.calculate_IK(t_eaik)
-            row.eaik_times.append(time.perf_counter() - t0)
-            valid = _valid(m, np.asarray(theirs.Q), t)
-        else:
-            valid = []
+        valid = _valid(m, np.asarray(got["eaik"].Q), t) if robot is not None else []
         ours = [s.q for s in sols]
         if geo:
-            t0 = time.perf_counter()
-            geo_sols = geo[0].get_ik(*geo_targets[k])
-            row.ikgeo_times.append(time.perf_counter() - t0)
             geo_valid = _valid(
-                m, [np.asarray(q, dtype=float) for q, least_squares in geo_sols if not least_squares], t
+                m, [np.asarray(q, dtype=float) for q, least_squares in got["ikgeo"] if not least_squares], t
             )
             row.ikgeo_valid += len(geo_valid)
             row.ikgeo_found += sum(any(joint_distance(m, v, o) < SAME for o in ours) for v in geo_valid)
@@ -276,24 +280,40 @@ def run_arm(m: Mechanism, n: int, seed: int) -> Row:
     return row
 
 
+def _timed_in_turn(calls: list[tuple[str, Callable[[], object]]], k: int, row: Row) -> dict[str, object]:
+    """Each call timed once, pose ``k`` starting with call ``k mod len(calls)`` (the first call
+    after the previous pose's checks runs with colder caches: the turns share that out); the
+    answers by name."""
+    got: dict[str, object] = {}
+    times = {"optik": row.optik_times, "eaik": row.eaik_times, "ikgeo": row.ikgeo_times}
+    for name, call in calls[k % len(calls) :] + calls[: k % len(calls)]:
+        t0 = time.perf_counter()
+        got[name] = call()
+        times[name].append(time.perf_counter() - t0)
+    return got
+
+
+def _per_pose(call: Callable[[], Any], n: int, times: list[tuple[float, float]]) -> Any:
+    """``call()``, with its wall and process CPU time (all threads) over ``n`` appended to ``times``."""
+    wall, cpu = time.perf_counter(), time.process_time()
+    out = call()
+    times.append(((time.perf_counter() - wall) / n, (time.process_time() - cpu) / n))
+    return out
+
+
 def _run_batches(m: Mechanism, row: Row, targets: np.ndarray, robot: object, theirs: list) -> None:
     """All targets at once, per pose: optik's ``solve_ik_all_batch`` (one C call), EAIK's
     ``calculate_IK`` looped in Python and its ``calculate_IK_batched`` on 1 thread, interleaved
-    over `BATCH_RUNS` runs; every row of optik's answer is checked (FK and limits) and compared
-    with the single calls'."""
+    over `BATCH_RUNS` runs, each timed by the wall clock and by the process CPU time (all threads:
+    EAIK's batched call runs in a worker thread); every row of optik's answer is checked (FK and
+    limits) and compared with the single calls'."""
     optik.solve_ik_all_batch(m, targets[:10])  # warm-up, as the peers'
+    n = len(targets)
     for _ in range(BATCH_RUNS):
-        t0 = time.perf_counter()
-        batch = optik.solve_ik_all_batch(m, targets)
-        row.batch_times.append((time.perf_counter() - t0) / len(targets))
+        batch = _per_pose(lambda: optik.solve_ik_all_batch(m, targets), n, row.batch_times)
         if robot is not None:
-            t0 = time.perf_counter()
-            for t in theirs:
-                robot.calculate_IK(t)
-            row.eaik_loop_times.append((time.perf_counter() - t0) / len(targets))
-            t0 = time.perf_counter()
-            robot.calculate_IK_batched(theirs, 1)
-            row.eaik_batched_times.append((time.perf_counter() - t0) / len(targets))
+            _per_pose(lambda: [robot.calculate_IK(t) for t in theirs], n, row.eaik_loop_times)
+            _per_pose(lambda: robot.calculate_IK_batched(theirs, 1), n, row.eaik_batched_times)
     for i, t in enumerate(targets):  # the last run's answer, every row
         rows = batch[i].q
         row.batch_failed_check += len(rows) - len(_valid(m, rows, t))
@@ -339,27 +359,29 @@ def report(rows: list[Row], notes: list[str], command: str) -> str:
         )
     lines += [
         "",
-        f"All poses in one call (per pose in us, median of {BATCH_RUNS} interleaved runs; optik's rows "
-        "each FK- and limit-checked and compared with its single calls):",
+        f"All poses in one call (per pose in us, median of {BATCH_RUNS} interleaved runs, wall clock "
+        "(process CPU time, all threads); optik's rows each FK- and limit-checked and compared with its "
+        "single calls):",
         "",
         "| arm | optik `solve_ik_all_batch` | EAIK `calculate_IK` looped "
         "| EAIK `calculate_IK_batched` (1 thread) "
-        "| ratio (optik / looped, / batched) | optik single call (median) | EAIK single call (median) "
+        "| ratio optik / looped, wall (CPU) | ratio optik / batched, wall (CPU) "
         "| failed FK/limit check | differs from single calls |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        b = 1e6 * float(np.median(r.batch_times))
-        single, theirs = _stats(r.optik_times)[1], (_stats(r.eaik_times)[1] if r.eaik_times else None)
+        b = _medians(r.batch_times)
         if r.eaik_loop_times:
-            loop, batched = (1e6 * float(np.median(x)) for x in (r.eaik_loop_times, r.eaik_batched_times))
-            peer = f"{loop:.2f} | {batched:.2f} | {b / loop:.2f} / {b / batched:.2f}"
+            loop, batched = _medians(r.eaik_loop_times), _medians(r.eaik_batched_times)
+            peer = (
+                f"{loop[0]:.2f} ({loop[1]:.2f}) | {batched[0]:.2f} ({batched[1]:.2f}) "
+                f"| {b[0] / loop[0]:.2f} ({b[1] / loop[1]:.2f}) "
+                f"| {b[0] / batched[0]:.2f} ({b[1] / batched[1]:.2f})"
+            )
         else:
-            peer = "EAIK not installed | - | -"
-        lines.append(
-            f"| {r.name} | {b:.2f} | {peer} | {single:.2f} "
-            f"| {'-' if theirs is None else f'{theirs:.2f}'} | {r.batch_failed_check} | {r.batch_differs} |"
-        )
+            peer = "EAIK not installed | - | - | -"
+        checks = f"{r.batch_failed_check} | {r.batch_differs}"
+        lines.append(f"| {r.name} | {b[0]:.2f} ({b[1]:.2f}) | {peer} | {checks} |")
     lines += ["", *(f"- {note}" for note in notes)]
     lines.append(
         f"- optik left out {sum(r.outside_limits for r in rows)} solutions outside the joint limits "

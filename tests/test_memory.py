@@ -95,3 +95,56 @@ def test_no_cache_keeps_a_mechanism_alive(name):
     del m
     gc.collect()
     assert ref() is None, f"{name}: a cache keeps the mechanism alive"
+
+
+def test_lru_keeps_the_most_recently_used_entries():
+    from optik.mechanism.memo import LRU
+
+    cache: LRU[str, int] = LRU(2)
+    assert cache.setdefault("a", 1) == 1 and cache.setdefault("b", 2) == 2
+    assert cache.get("a") == 1  # now the most recent: "b" goes first
+    assert cache.setdefault("a", 9) == 1  # an existing entry is kept
+    cache.setdefault("c", 3)
+    assert "b" not in cache and cache.values() == [1, 3] and len(cache) == 2
+    assert cache.get("b", -1) == -1
+    with pytest.raises(ValueError):
+        LRU(0)
+
+
+def test_nlp_solver_pools_are_bounded_per_mechanism(monkeypatch):
+    """One pool of built solvers per argument combination (here: per ``solver_options``), at
+    most POOLS_PER_MECHANISM of them, the least recently used dropped."""
+    from optik.solvers import nlp
+
+    monkeypatch.setattr(nlp, "POOLS_PER_MECHANISM", 2)
+    m = optik.catalog.planar_2r()
+    target = m.fk(np.array([0.3, 0.5]))
+    for mu in (1e-1, 1e-2, 1e-3):
+        res = optik.solve_ik(m, target, q0=[0.2, 0.4], method="nlp", solver_options={"ipopt.mu_init": mu})
+        assert res.success
+    kept = [key[6] for key in nlp._SOLVERS[m]._entries]  # the solver options' repr
+    # each solve uses two combinations (its own and a warm-start variant): the last solve's stay
+    assert len(kept) == 2 and all("('ipopt.mu_init', 0.001)" in k for k in kept)
+
+
+def test_a_worker_keeps_a_bounded_number_of_shipped_mechanisms(monkeypatch):
+    """`optik.batch.distributed.solve_shipped` keeps the first copy of each shipped mechanism,
+    at most WORKER_MECHANISMS of them (here 2): the least recently used is dropped."""
+    from optik.batch import chunk, distributed
+    from optik.mechanism.memo import LRU
+    from optik.solvers.base import Tolerances
+
+    worker = distributed._ON_WORKER
+    assert isinstance(worker, LRU) and worker.size == distributed.WORKER_MECHANISMS
+    monkeypatch.setattr(distributed, "_ON_WORKER", LRU(2))
+    spec = chunk.ChunkSpec("closed_form", "position2d", None, 1.0, Tolerances())
+    shipped = [(f"key{i}", optik.catalog.planar_2r()) for i in range(3)]
+    for key, m in shipped:
+        targets = m.fk(np.array([[0.3, 0.5]]))
+        out = distributed.solve_shipped(
+            (key, m), spec, targets, np.zeros((1, 2)), np.zeros(1, dtype=np.uint64)
+        )
+        assert out.success.all()
+    again = optik.catalog.planar_2r()  # another copy under a kept key: the kept copy serves
+    distributed.solve_shipped(("key2", again), spec, targets, np.zeros((1, 2)), np.zeros(1, dtype=np.uint64))
+    assert [m for m in distributed._ON_WORKER.values()] == [shipped[1][1], shipped[2][1]]

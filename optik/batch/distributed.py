@@ -23,14 +23,19 @@ from optik.batch.chunk import ChunkSpec, chunk_bounds, solve_chunk
 from optik.batch.result import BatchResult
 from optik.errors import InvalidArgumentError, require_extra
 from optik.mechanism import Mechanism
-from optik.mechanism.memo import PerMechanism
+from optik.mechanism.memo import LRU, PerMechanism
 
 _SHIPPED: PerMechanism[dict[str, Any]] = PerMechanism()
 """The future of each shipped mechanism per client id (ship a mechanism once per cluster)."""
 
-_ON_WORKER: dict[str, Mechanism] = {}
+WORKER_MECHANISMS = 16
+"""How many shipped mechanisms a worker process keeps (with their built kernels), the least
+recently used dropped past it: a worker serving many clients or mechanisms stays bounded."""
+
+_ON_WORKER: LRU[str, Mechanism] = LRU(WORKER_MECHANISMS)
 """In a worker process: the first copy of each shipped mechanism by its key, so that every
-later chunk (even one given another deserialized copy) reuses its built and compiled kernel."""
+later chunk (even one given another deserialized copy) reuses its built and compiled kernel
+(at most `WORKER_MECHANISMS` of them)."""
 
 
 def client_of(scheduler: Any) -> Any:

@@ -7,19 +7,24 @@ dictionary holds the value strongly, the value holds the key, so the key never d
 `PerMechanism` stores the entry in the mechanism's own ``_memo`` dictionary instead: the entry
 lives exactly as long as the mechanism, and the cycle mechanism -> entry -> mechanism is
 reclaimed with it by the garbage collector. Every cache of optik keyed on a mechanism is a
-`PerMechanism`.
+`PerMechanism`. A cache that can gain entries without end (one per option combination, one
+per shipped mechanism) is an `LRU` with a documented size.
 """
 
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
+from collections.abc import Hashable
 from typing import TYPE_CHECKING, Generic, TypeVar
 
 if TYPE_CHECKING:
     from optik.mechanism.mechanism import Mechanism
 
+K = TypeVar("K", bound=Hashable)
 V = TypeVar("V")
 
-__all__ = ["PerMechanism"]
+__all__ = ["LRU", "PerMechanism"]
 
 
 class PerMechanism(Generic[V]):
@@ -49,3 +54,46 @@ class PerMechanism(Generic[V]):
     def __contains__(self, m: object) -> bool:
         memo = getattr(m, "_memo", None)
         return memo is not None and self in memo
+
+
+class LRU(Generic[K, V]):
+    """A mapping of at most ``size`` entries: reading or adding an entry makes it the most
+    recently used, and adding one past ``size`` drops the least recently used. Thread-safe (one
+    lock per instance)."""
+
+    def __init__(self, size: int) -> None:
+        if size < 1:
+            raise ValueError(f"an LRU holds at least one entry, got size {size}")
+        self.size = size
+        self._entries: OrderedDict[K, V] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, key: K, default: V | None = None) -> V | None:
+        """The entry of ``key`` (now the most recent), or ``default``."""
+        with self._lock:
+            if key not in self._entries:
+                return default
+            self._entries.move_to_end(key)
+            return self._entries[key]
+
+    def setdefault(self, key: K, value: V) -> V:
+        """The entry of ``key`` (now the most recent), set to ``value`` first when there is none
+        (dropping the least recently used entry past ``size``)."""
+        with self._lock:
+            found = self._entries.setdefault(key, value)
+            self._entries.move_to_end(key)
+            while len(self._entries) > self.size:
+                self._entries.popitem(last=False)
+            return found
+
+    def values(self) -> list[V]:
+        """The entries, least recently used first (a copy)."""
+        with self._lock:
+            return list(self._entries.values())
+
+    def __contains__(self, key: object) -> bool:
+        with self._lock:
+            return key in self._entries
+
+    def __len__(self) -> int:
+        return len(self._entries)

@@ -71,7 +71,7 @@ import numpy as np
 
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
-from optik.mechanism.memo import PerMechanism
+from optik.mechanism.memo import LRU, PerMechanism
 from optik.problem import IKProblem, build_ik_problem
 from optik.results import IKResult
 from optik.solvers.base import (
@@ -281,9 +281,14 @@ class _Pool(list):
         return self is other
 
 
-_SOLVERS: PerMechanism[dict[tuple, _Pool]] = PerMechanism()
-"""The pools of a mechanism by argument combination of `_checkout`; they live as long as the
-mechanism."""
+POOLS_PER_MECHANISM = 16
+"""How many argument combinations of `_checkout` (task, frame, solver options, ...) keep their
+pool of built solvers per mechanism; past it the least recently used pool is dropped (its
+solvers are freed once no solve runs on them)."""
+
+_SOLVERS: PerMechanism[LRU[tuple, _Pool]] = PerMechanism()
+"""The pools of a mechanism by argument combination of `_checkout` (at most
+`POOLS_PER_MECHANISM`); they live as long as the mechanism."""
 _POOLS: weakref.WeakSet[_Pool] = weakref.WeakSet()
 """Every pool alive, emptied at interpreter exit (see `_free_solvers`)."""
 _SOLVERS_LOCK = threading.Lock()
@@ -343,10 +348,12 @@ def _checkout(
     options_key = repr(sorted(extra.items()))
     key = (task, frame, secondary, solver, max_iter, ipopt_tol, options_key, hessian, damping)
     with _SOLVERS_LOCK:
-        pools = _SOLVERS.setdefault(m, {})
+        pools = _SOLVERS.get(m)
+        if pools is None:
+            pools = _SOLVERS[m] = LRU(POOLS_PER_MECHANISM)
         idle = pools.get(key)
         if idle is None:
-            idle = pools[key] = _Pool()
+            idle = pools.setdefault(key, _Pool())
             _POOLS.add(idle)
         s = idle.pop() if idle else None
     if s is None:

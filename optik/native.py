@@ -42,6 +42,7 @@ while the cache holds more than `CACHE_MAX_BYTES` (``$OPTIK_CACHE_MAX_MB`` overr
 
 from __future__ import annotations
 
+import _thread
 import atexit
 import contextlib
 import contextvars
@@ -557,25 +558,33 @@ def _library(
     return lib
 
 
-_PREPARING: set[threading.Thread] = set()  # threads of `in_background` still running
+_PREPARING: set[threading.Event] = set()  # one per `in_background` work still running
 _PREPARING_LOCK = threading.Lock()
 
 
-def in_background(work: Callable[[], object], name: str) -> None:
-    """Run ``work`` in a daemon thread that `wait` waits for too: the preparation of a library
-    (its code generation) that a caller does not wait for (`optik.solvers.generic_chain`)."""
+def in_background(work: Callable[[], object]) -> None:
+    """Run ``work`` in a new thread that `wait` waits for too: the preparation of a library (its
+    code generation) that a caller does not wait for (`optik.solvers.generic_chain`).
+
+    The thread is started by ``_thread.start_new_thread``, which returns at once, where
+    ``threading.Thread.start`` waits until the new thread runs (on a loaded machine, until the
+    system schedules it: milliseconds the caller would add to its answer). Like a daemon thread,
+    it does not keep the interpreter alive; an exception of ``work`` is logged."""
+    done = threading.Event()
 
     def run() -> None:
         try:
             work()
+        except Exception:
+            _LOG.warning("optik: a background preparation failed", exc_info=True)
         finally:
             with _PREPARING_LOCK:
-                _PREPARING.discard(thread)
+                _PREPARING.discard(done)
+            done.set()
 
-    thread = threading.Thread(target=run, name=name, daemon=True)
     with _PREPARING_LOCK:
-        _PREPARING.add(thread)
-    thread.start()
+        _PREPARING.add(done)
+    _thread.start_new_thread(run, ())
 
 
 def wait(timeout: float | None = None) -> bool:
@@ -584,13 +593,13 @@ def wait(timeout: float | None = None) -> bool:
     deadline = None if timeout is None else time.monotonic() + timeout
     with _PREPARING_LOCK:
         preparing = list(_PREPARING)
-    for thread in preparing:
-        thread.join(None if deadline is None else max(0.0, deadline - time.monotonic()))
+    for done in preparing:
+        done.wait(None if deadline is None else max(0.0, deadline - time.monotonic()))
     with _BUILDS_LOCK:
         builds = list(_BUILDS.values())
     for lib in builds:
         lib.wait(None if deadline is None else max(0.0, deadline - time.monotonic()))
-    return not any(t.is_alive() for t in preparing) and all(lib.state != "building" for lib in builds)
+    return all(done.is_set() for done in preparing) and all(lib.state != "building" for lib in builds)
 
 
 def _check_buffers(lib: ctypes.CDLL, name: str, side: str, buffers: Sequence[np.ndarray]) -> None:

@@ -57,7 +57,16 @@ from optik import spatial
 from optik.errors import SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
-from optik.native import CCall, Library, c_source, driver_source, in_background, keyed_library
+from optik.native import (
+    CCall,
+    Library,
+    _version_memo,
+    c_source,
+    compiler,
+    driver_source,
+    in_background,
+    keyed_library,
+)
 from optik.problem import frame_errors, target_parameters, task_blocks
 from optik.results import IKResult
 from optik.solvers.base import IKRequest
@@ -305,6 +314,19 @@ def build(n: int, timeout: float | None = None) -> bool:
     return k.ready
 
 
+def machine_files(n: int) -> list[Path]:
+    """The files of `optik.native.cache_dir` that the generic kernel of ``n`` joints needs there,
+    once built (`build`): its library, its manifest and the compiler's version record (what a
+    cache holds for every robot of ``n`` joints, as opposed to a robot's own libraries)."""
+    k = chain_kernel(n)
+    cc = compiler()
+    if k.library is None or cc is None:
+        return []
+    memo = _version_memo(cc)
+    lib = k.library.path
+    return [f for f in (lib, lib.with_name(lib.name + ".json"), memo) if f is not None and f.exists()]
+
+
 class _Builder:
     """The per-robot kernel of one request key, built once in a daemon thread."""
 
@@ -319,7 +341,7 @@ class _Builder:
             if self._started:
                 return
             self._started = True
-        in_background(self._run, "optik-lm-kernel")
+        in_background(self._run)
 
     def _run(self) -> None:
         time.sleep(_HANDOVER)

@@ -380,6 +380,34 @@ def test_play_runs_through_the_tracked_path(open_viewer):
     assert v.panel.sample.value == len(result.q) - 1
 
 
+def test_planned_path_plays_back(open_viewer):
+    """A `JointPath` of `plan_path` loads on the slider and plays back to its last sample,
+    the gizmo on that sample's pose; anything else is refused naming the argument."""
+    m = catalog.puma560()
+    poses = np.repeat(m.fk(np.array([-0.44, 1.29, -1.77, 0.34, -0.13, 0.14]))[None], 20, axis=0)
+    poses[:, :3, 3] += np.linspace(0.0, 1.0, 20)[:, None] * [0.0, 0.05, 0.0]
+    path = optik.plan_path(m, poses, np.arange(20) * 0.001)
+    assert path.success, path.message
+    v = open_viewer(m)
+    v.show_path(path)
+    np.testing.assert_allclose(v.q, path.q[0])
+    assert v.panel.sample.max == 19 and not v.panel.play.disabled
+    assert "planned: 20 samples" in v.panel.path_text.content
+    v.play(wait=True)
+    np.testing.assert_allclose(v.q, path.q[-1])
+    assert v.panel.sample.value == 19
+    np.testing.assert_allclose(v.target, poses[-1], atol=1e-9)
+    for bad in (path.q, optik.plan_path(catalog.planar_3r(), [np.eye(4)])):
+        with pytest.raises(optik.InvalidArgumentError) as err:
+            v.show_path(bad)
+        assert err.value.argument == "path"
+
+
+def test_optik_view_path_needs_a_problem_with_a_path(capsys):
+    assert main(["view", "panda", "--path", "--no-browser"]) != 0
+    assert "[path]" in capsys.readouterr().err
+
+
 def test_optik_view_stops_on_sigterm():
     import os
     import select

@@ -354,3 +354,27 @@ def test_the_newcomer_sources_open_as_drawn_scenes(source, browser):
     with optik.view(m, port=free_port()) as v, browser, browser.open(v.url) as page:
         png = _capture(page)
     assert drawn(png) and complete(png)
+
+
+def test_a_planned_path_plays_back_in_the_page(browser):
+    """The PUMA's weld line of ``problems/puma560_weld.toml`` planned by ``plan_path`` and played
+    back (the play button's `Viewer.play`): the arm drawn in the page moves from the first sample
+    to the last, and the page shows the last configuration."""
+    from optik.problem_files import find_problem
+
+    problem = find_problem("puma560_weld", None)
+    m = problem.mechanism()
+    poses, times = problem.path_poses()
+    path = optik.plan_path(m, poses[::4], times[::4], **problem.path_options())
+    assert path.success, path.message
+    with optik.view(m, port=free_port()) as v, browser, browser.open(v.url) as page:
+        v.show_path(path)
+        first = page.screenshot(settled(), timeout=30)
+        v.play(wait=True)
+        np.testing.assert_allclose(v.q, path.q[-1])
+
+        def moved(png: bytes) -> bool:
+            return drawn(png) and _changed(first, png) > 1500
+
+        last = page.screenshot(moved, timeout=20)
+        assert _changed(first, last) > 1500

@@ -166,10 +166,15 @@ _TWO_PI = 2.0 * np.pi
 
 
 # ---------------------------------------------------------------------------- DH kinematics
-def _dh(theta: np.ndarray, d: float, a: float, alpha: float) -> np.ndarray:
-    """``Rz(theta) Tz(d) Tx(a) Rx(alpha)`` for an array of angles: shape ``theta.shape + (4, 4)``."""
+def _dh(theta: np.ndarray, d: Any, a: Any, alpha: Any) -> np.ndarray:
+    """``Rz(theta) Tz(d) Tx(a) Rx(alpha)`` for an array of angles: shape ``theta.shape + (4, 4)``;
+    ``d, a, alpha`` are numbers, or arrays along the last axis of ``theta`` (one joint each:
+    all the joints' transforms in one go)."""
     c, s = np.cos(theta), np.sin(theta)
-    ca, sa = math.cos(alpha), math.sin(alpha)
+    if np.ndim(alpha):  # math.cos per joint: the same numbers as for one joint
+        ca, sa = (np.array([f(v) for v in np.asarray(alpha).tolist()]) for f in (math.cos, math.sin))
+    else:
+        ca, sa = math.cos(alpha), math.sin(alpha)
     out = np.zeros((*np.shape(theta), 4, 4), dtype=np.result_type(theta, float))
     out[..., 0, 0], out[..., 0, 1], out[..., 0, 2], out[..., 0, 3] = c, -s * ca, s * sa, a * c
     out[..., 1, 0], out[..., 1, 1], out[..., 1, 2], out[..., 1, 3] = s, c * ca, -c * sa, a * s
@@ -573,8 +578,9 @@ def _chain(left: _Left, theta: np.ndarray) -> np.ndarray:
     """Prefix products ``A1 ... A_k`` (unit scale), ``k = 0..6``: shape ``(..., 7, 4, 4)``."""
     out = np.empty((*theta.shape[:-1], 7, 4, 4), dtype=theta.dtype)
     out[..., 0, :, :] = np.eye(4)
+    joints = _dh(theta, np.asarray(left.d), np.asarray(left.a), np.asarray(left.alpha))  # (..., 6, 4, 4)
     for i in range(6):
-        out[..., i + 1, :, :] = out[..., i, :, :] @ _dh(theta[..., i], left.d[i], left.a[i], left.alpha[i])
+        out[..., i + 1, :, :] = out[..., i, :, :] @ joints[..., i, :, :]
     return out
 
 

@@ -4,7 +4,8 @@
 mechanism, task and tolerances); a ``.urdf`` file needs ``--base`` and ``--tip``. The page binds
 to ``127.0.0.1`` (this machine); ``--host 0.0.0.0`` serves it to the network (or keep the default
 and forward the port: ``ssh -L 8080:localhost:8080 HOST``). Ctrl-C (SIGINT) or SIGTERM stops the
-server and exits with code 0.
+server and exits with code 0. ``--path`` plans the problem's ``[path]`` table as ``optik path
+PROBLEM`` does and loads the joint path for playback (the sample slider and the play button).
 """
 
 from __future__ import annotations
@@ -47,6 +48,11 @@ def add_parser(sub: Any) -> None:
         metavar="PATH",
         help="capability map to draw: a reach.npz or its folder, written by optik reach (default: none)",
     )
+    p.add_argument(
+        "--path",
+        action="store_true",
+        help="plan the problem's [path] (as optik path PROBLEM does) and load it for playback (default: off)",
+    )
     p.add_argument("--no-browser", action="store_true", help="do not open a browser window")
     p.set_defaults(func=run)
 
@@ -70,7 +76,24 @@ def _viewer(args: argparse.Namespace) -> Any:
     viewer = Viewer(m, host=args.host, port=args.port, task=task, tol=tol, method=args.method)
     if args.reach is not None:
         viewer.show_reach(args.reach)
+    if args.path:
+        viewer.show_path(_planned(problem, m, args.source))
     return viewer
+
+
+def _planned(problem: Any, m: Any, source: str) -> Any:
+    """The joint path of ``problem``'s ``[path]`` table (`optik.plan_path`), its message printed."""
+    from optik.errors import InvalidArgumentError
+    from optik.path import plan_path
+
+    if problem is None or not problem.path_table:
+        raise InvalidArgumentError("--path", f"{source!r} is not a problem with a [path] table")
+    poses, times = problem.path_poses()
+    path = plan_path(m, poses, times, **problem.path_options())
+    print(f"optik view: {problem.name} path: {path.message}", flush=True)
+    if not len(path.q):
+        raise InvalidArgumentError("--path", f"no path to play: {path.message}")
+    return path
 
 
 def _interrupt(signum: int, frame: FrameType | None) -> None:

@@ -14,10 +14,15 @@ import numpy as np
 
 from optik.diffik.track import TrackResult
 from optik.errors import OptikError
+from optik.path.result import JointPath
 from optik.results import IKResult
 from optik.view.latest import Latest
 
 __all__ = ["Panel"]
+
+FRAME = 0.02
+"""Shortest time (s) a sample stays on the page during playback (a dense path's samples are
+milliseconds apart: the page cannot draw faster)."""
 
 
 def _range(lo: float, hi: float, revolute: bool, size: float) -> tuple[float, float]:
@@ -64,7 +69,7 @@ class Panel:
                 self.next_mode = gui.add_button("next assembly mode")
                 self.next_mode.on_click(self._user(self._next_mode))
                 self.modes = gui.add_markdown("")
-        with gui.add_folder("Path: diffik.track"):
+        with gui.add_folder("Path: diffik.track, plan_path"):
             self.track_button = gui.add_button("track a circle")
             self.track_button.on_click(self._user(viewer.track))
             self.sample = gui.add_slider("sample", 0, 1, 1, 0, disabled=True)
@@ -113,23 +118,31 @@ class Panel:
             self.v.show_mode((shown + 1) % len(self.v.modes))
 
     def _play(self) -> None:
-        if self._player is not None and self._player.is_alive():
-            return
-        path = self.v.path
-        if path is None:
-            return
-        dt = float(path.t[1] - path.t[0]) if len(path.t) > 1 else 0.02
+        self.play_path(False)
 
-        def run() -> None:
-            for k in range(len(path.q)):
-                if self._stop.is_set():
-                    return
-                self.v.show_path_sample(k)
-                self.sample.value = k
-                time.sleep(dt)
+    def play_path(self, wait: bool) -> None:
+        """Play the viewer's path at its own times (each sample shown until the next one's time,
+        at least `FRAME` s), unless a playback runs; ``wait``: until it ends."""
+        if self._player is None or not self._player.is_alive():
+            path = self.v.path
+            if path is None:
+                return
+            t = np.asarray(path.t, dtype=float)
+            steps = np.maximum(np.diff(t), FRAME) if len(t) > 1 else np.zeros(0)
 
-        self._player = threading.Thread(target=run, name="optik-view-play", daemon=True)
-        self._player.start()
+            def run() -> None:
+                for k in range(len(path.q)):
+                    if self._stop.is_set():
+                        return
+                    self.v.show_path_sample(k)
+                    self.sample.value = k
+                    if k < len(steps):
+                        time.sleep(steps[k])
+
+            self._player = threading.Thread(target=run, name="optik-view-play", daemon=True)
+            self._player.start()
+        if wait:
+            self._player.join()
 
     def stop(self) -> None:
         """End a running playback."""
@@ -195,13 +208,21 @@ class Panel:
         self.reach_layer.value = z
         self.layer_text.content = f"layer z = {z:.3f} m: {count} voxels drawn"
 
-    def show_path(self, result: TrackResult) -> None:
-        """Enable playback of a tracked path and summarize it."""
+    def show_path(self, result: TrackResult | JointPath) -> None:
+        """Enable playback of a tracked or planned path and summarize it."""
         n = len(result.q) - 1
-        self.sample.max = n
+        self.sample.max = max(n, 1)
         self.sample.value = 0
-        self.sample.disabled = False
+        self.sample.disabled = n < 1
         self.play.disabled = False
+        if isinstance(result, JointPath):
+            failed = [k for k, ok in result.checks.items() if not ok]
+            checks = "all passed" if not failed else "failed " + ", ".join(failed)
+            self.path_text.content = (
+                f"planned: {n + 1} samples over {result.t[-1]:.2f} s, joint-space length {result.cost:.4g}, "
+                f"{result.flips} branch changes; checks: {checks}"
+            )
+            return
         self.path_text.content = (
             f"{n} steps of {1e3 * (result.t[1] - result.t[0]):.0f} ms: max position error "
             f"{np.max(result.position_error):.1e} m, within limits: {'yes' if result.within_limits else 'no'}"

@@ -12,7 +12,8 @@ tests drive the same code paths as a mouse:
 | joint sliders | `Viewer.set_q` (FK) |
 | actuator sliders | `Viewer.set_actuated` (closed chains: every assembly mode) |
 | "next assembly mode" | `Viewer.show_mode` |
-| "track a circle", time | `Viewer.track`, `Viewer.show_path_sample` |
+| "track a circle", sample slider | `Viewer.track`, `Viewer.show_path_sample` |
+| a planned path, "play" | `Viewer.show_path` (a `JointPath`), `Viewer.play` |
 | "capability map" box | `Viewer.show_reach`, `Viewer.set_reach_visible` |
 """
 
@@ -34,6 +35,7 @@ from optik.diffik import circle_path, track
 from optik.diffik.track import TrackResult
 from optik.errors import InvalidArgumentError, SolverUnavailableError, require_extra
 from optik.mechanism import Mechanism
+from optik.path.result import JointPath
 from optik.plot import showcase_q
 from optik.reach import ReachMap
 from optik.results import IKResult
@@ -147,8 +149,8 @@ class Viewer:
         """The branches shown by "all solutions" (empty when it is off)."""
         self.modes: list[np.ndarray] = []
         """The assembly modes of the last actuator values (closed chains)."""
-        self.path: TrackResult | None = None
-        """The last tracked path."""
+        self.path: TrackResult | JointPath | None = None
+        """The path shown for playback: the last tracked or planned one."""
         self.notes: list[str] = []
         """URDF visuals that are not drawn, with the reason (their bodies are capsule chains)."""
         self._all = False
@@ -408,28 +410,65 @@ class Viewer:
                 speed = 2 * np.pi * r / (99 * dt)  # the circle in 99 steps of dt
                 path = circle_path(center, r, speed, dt, rotation=pose[:3, :3])
             result = track(self.m, self._q, path, dt, method, space=self.task)
-            self.path = result
-            self._path_targets = np.asarray(path, dtype=float)
-            pts = self._path_targets[:, :3, 3]
-            segments = np.stack([pts[:-1], pts[1:]], axis=1)
-            self.server.scene.add_line_segments(
-                "/path", segments, (230, 60, 160), thickness=0.004 * self.size
-            )
-            self.panel.show_path(result)
+            targets = np.asarray(path, dtype=float)
+            self._load_path(result, np.concatenate([targets[:1], targets]))  # q[0] is the start
             return result
 
+    def show_path(self, path: JointPath) -> JointPath:
+        """Keep a planned joint path (`optik.plan_path`, ``optik view PROBLEM --path``) for
+        playback: its tool poses drawn as a line, the sample slider and the play button enabled
+        (`show_path_sample`, `play`), its first sample shown.
+
+        Raises:
+            InvalidArgumentError: ``path`` is not a `JointPath` of this mechanism with samples.
+        """
+        if (
+            not isinstance(path, JointPath)
+            or path.q.ndim != 2
+            or path.q.shape[1] != self.m.n_q
+            or not len(path.q)
+        ):
+            raise InvalidArgumentError(
+                "path", f"expected a JointPath of {self.m.n_q} coordinates with samples, got {path!r:.80}"
+            )
+        with self._lock:
+            self._load_path(path, np.asarray(path.poses, dtype=float))
+            self.show_path_sample(0)
+            return path
+
+    def _load_path(self, path: TrackResult | JointPath, targets: np.ndarray) -> None:
+        """``path`` for playback, ``targets`` its tool pose per configuration (``(N, 4, 4)``)."""
+        self.path = path
+        self._path_targets = targets
+        pts = targets[:, :3, 3]
+        segments = np.stack([pts[:-1], pts[1:]], axis=1)
+        self.server.scene.add_line_segments("/path", segments, (230, 60, 160), thickness=0.004 * self.size)
+        self.panel.show_path(path)
+
     def show_path_sample(self, k: int) -> np.ndarray:
-        """Show configuration ``k`` of the tracked path (0: the start) with its target; returns it."""
+        """Show configuration ``k`` of the path (for a tracked one 0 is the start) with its
+        target; returns it."""
         if self.path is None:
-            raise InvalidArgumentError("k", "no tracked path: call track first")
+            raise InvalidArgumentError("k", "no path: call track or show_path first")
         n = len(self.path.q)
         if not 0 <= int(k) < n:
             raise InvalidArgumentError("k", f"expected 0 <= k < {n}, got {k!r}")
         with self._lock, self.server.atomic():
             q = self.path.q[int(k)]
             self._show_q(q)
-            self._move_gizmo(self._path_targets[max(int(k) - 1, 0)])
+            self._move_gizmo(self._path_targets[int(k)])
             return q.copy()
+
+    def play(self, wait: bool = False) -> None:
+        """Play the path back at its own times (the play button): each sample in turn, the
+        slider following; ``wait``: return when it has ended.
+
+        Raises:
+            InvalidArgumentError: no path (call `track` or `show_path` first).
+        """
+        if self.path is None:
+            raise InvalidArgumentError("path", "no path to play: call track or show_path first")
+        self.panel.play_path(wait)
 
     # ------------------------------------------------------------------ capability map
     def show_reach(self, source: Any, visible: bool = True, z: float | None = None) -> int:

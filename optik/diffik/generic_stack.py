@@ -33,7 +33,7 @@ import numpy as np
 from optik.diffik._codegen import flatten, output_bounds, split_outputs
 from optik.diffik.base import Limit, Task
 from optik.diffik.limits import AccelerationLimit, ConfigurationLimit, VelocityLimit
-from optik.diffik.problem import StackFunction, stack_casadi, task_slices
+from optik.diffik.problem import StackFunction, register_first_stack, stack_casadi, task_slices
 from optik.diffik.tasks.frame_rows import FrameRowsTask
 from optik.mechanism import Mechanism
 from optik.mechanism.mechanism import geometric_jacobian
@@ -209,3 +209,6 @@ def machine_files(
     if lib is None or lib.wait(timeout) is None:
         return []
     return lib.files()
+
+
+register_first_stack(stack_for)

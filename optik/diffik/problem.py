@@ -27,7 +27,7 @@ from __future__ import annotations
 import itertools
 import math
 import threading
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -204,6 +204,18 @@ class StackFunction:
 
 
 _STACKS: PerMechanism[dict[tuple, StackFunction]] = PerMechanism()
+_FIRST_STACKS: list[Callable[[Mechanism, Sequence[Task], Sequence[Limit]], StackFunction | None]] = []
+
+
+def register_first_stack(
+    find: Callable[[Mechanism, Sequence[Task], Sequence[Limit]], StackFunction | None],
+) -> None:
+    """Let `stack_function` answer with ``find(m, tasks, limits)`` (when not None) while the stack
+    of ``m`` is not compiled yet, and build that one in the background meanwhile
+    (`optik.diffik.generic_stack` registers itself on import)."""
+    _FIRST_STACKS.append(find)
+
+
 _STARTED: PerMechanism[set[tuple]] = PerMechanism()  # stacks being built in the background
 
 
@@ -275,9 +287,7 @@ def stack_function(
         per_m = _STACKS[m] = {}
     stack = per_m.get(key)
     if stack is None or not stack.function.compiled:
-        from optik.diffik.generic_stack import stack_for  # it builds on this module
-
-        generic = stack_for(m, tasks, limits)
+        generic = next((s for f in _FIRST_STACKS if (s := f(m, tasks, limits)) is not None), None)
         if generic is not None:  # until the stack of m is compiled (built in the background)
             started = _STARTED.setdefault(m, set())
             if stack is None and key not in started:

@@ -13,7 +13,7 @@ from test_floating_base import FEET, URDF
 
 import optik
 from optik.errors import InvalidArgumentError, SolverUnavailableError
-from optik.solvers.balance import support_halfplanes
+from optik.solvers.balance import auto_support, support_halfplanes
 
 
 @pytest.fixture(scope="module")
@@ -205,3 +205,62 @@ def test_a_qp_step_holds_the_balance_rows(quad, solver):
     np.testing.assert_allclose(g, n @ m.com_jacobian(stand)[:2], atol=1e-12)
     with pytest.raises(InvalidArgumentError, match="support"):
         optik.diffik.step(m, stand, tasks, 1.0, "dls", support=polygon)
+
+
+def test_auto_support_of_point_feet(quad):
+    """``support="auto"`` with point feet is the hull of the points; flat contacts on a body
+    without collision geometry, no contacts, or another string are refused."""
+    m, stand = quad
+    feet = {f: optik.Position(m.fk(stand, f)[:3, 3]) for f in FEET[:3]}
+    polygon = auto_support(m, feet)
+    np.testing.assert_allclose(polygon, _hull(np.array([p.xyz[:2] for p in feet.values()])))
+    target = {FEET[3]: optik.Position(m.fk(stand, FEET[3])[:3, 3] + [-0.12, -0.06, 0.08])}
+    r = optik.solve_ik(
+        m, target, q0=stand, contacts=feet, support="auto", com_margin=0.01, time_limit=10.0, compile=False
+    )
+    assert r.success and _inside(m, r.q, polygon) >= 0.01 - 1e-9, r.message
+    with pytest.raises(InvalidArgumentError, match="collision geometry"):
+        auto_support(m, {f: m.fk(stand, f) for f in FEET})
+    with pytest.raises(InvalidArgumentError, match="support"):
+        optik.solve_ik(m, target, q0=stand, support="auto")
+    with pytest.raises(InvalidArgumentError, match="support"):
+        optik.solve_ik(m, target, q0=stand, contacts=feet, support="hull")
+    with pytest.raises(InvalidArgumentError, match="span no polygon"):
+        auto_support(m, dict(list(feet.items())[:2]))
+
+
+def test_auto_support_of_the_humanoid_soles():
+    """The G1's flat feet: the hull of their collision spheres' centres (the sole corners) at
+    the held poses, and a reach that keeps the centre of mass inside it."""
+    try:
+        m = optik.catalog.legged("g1")
+    except optik.OptikError as exc:
+        pytest.skip(f"the G1 comes from example-robot-data: {exc}")
+    from optik.collision.robot import robot_geometry
+
+    q = m.params["standing"]
+    feet = {f: m.fk(q, f) for f in m.params["feet"]}
+    polygon = auto_support(m, feet)
+    geo = robot_geometry(m)
+    centres = np.array(
+        [
+            (m.fk(q, geo.links[i]) @ p.offset)[:2, 3]
+            for p, i in zip(geo.parts, geo.part_link, strict=True)
+            if geo.links[i] in feet
+        ]
+    )
+    assert len(centres) == 8
+    np.testing.assert_allclose(polygon, _hull(centres), atol=1e-12)
+    hand = m.fk(q, "right_rubber_hand")
+    hand[:3, 3] += [0.1, -0.05, 0.15]
+    r = optik.solve_ik(
+        m,
+        {"right_rubber_hand": hand},
+        q0=q,
+        contacts=feet,
+        support="auto",
+        com_margin=0.01,
+        time_limit=10.0,
+        compile=False,
+    )
+    assert r.success and _inside(m, r.q, polygon) >= 0.01 - 1e-9, r.message

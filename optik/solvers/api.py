@@ -15,7 +15,7 @@ from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
 from optik.results import IKResult
-from optik.solvers.balance import merge_contacts, solve_balance
+from optik.solvers.balance import auto_support, merge_contacts, solve_balance
 from optik.solvers.base import (
     IKRequest,
     MethodInfo,
@@ -90,9 +90,11 @@ def solve_ik(
         seed: seed or Generator for restarts.
         contacts: ``{frame: 4x4 or Position}``: frames held in the world (flat contacts or point
             feet), extra targets that success needs too (`optik.solvers.balance`).
-        support: the world x-y support polygon, counter-clockwise ``(k, 2)``: the centre of
-            mass's ground projection must stay inside it by ``com_margin`` (method ``"nlp"``,
-            the default then; the mechanism needs masses).
+        support: the world x-y support polygon, counter-clockwise ``(k, 2)``, or ``"auto"``: the
+            hull of the contacts' collision geometry projected onto the ground
+            (`optik.solvers.balance.auto_support`); the centre of mass's ground projection must
+            stay inside it by ``com_margin`` (methods ``"lm"``, the default then, ``"nlp"`` and
+            ``"qp"``; the mechanism needs masses).
         com_margin: the balance margin (m, ``>= 0``; only with ``support``).
         world: obstacles ([`optik.World`][optik.World]) the answer must clear; with it or with
             ``self_collision=True`` the solve is collision-aware (``lm`` or ``nlp``, default ``lm``:
@@ -122,6 +124,10 @@ def solve_ik(
         res = None if call is None else call(start, target, q0, seed)
         if res is not None:
             return res
+    if isinstance(support, str):
+        if support != "auto":
+            raise InvalidArgumentError("support", f'expected a (k, 2) polygon or "auto", got {support!r}')
+        support = auto_support(m, contacts)
     if contacts is not None:
         target, frame = merge_contacts(m, target, frame, contacts), None
     if support is None and com_margin != 0.0:

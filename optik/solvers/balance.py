@@ -80,6 +80,9 @@ half the closure tolerance, and the exact check of the answer then passes with r
 
 _SOLVERS: PerMechanism[dict[Any, Any]] = PerMechanism()
 """Per mechanism: the nlp balance solvers (with their locks) and the lm balance kernels."""
+_PREPARED: PerMechanism[dict[tuple[Any, ...], tuple[LMKernel, np.ndarray]]] = PerMechanism()
+"""Per mechanism: the validated ``lm`` balance requests (`_prepared_lm`)."""
+_PREPARED_MAX = 256
 _SOLVERS_LOCK = threading.Lock()
 
 
@@ -111,8 +114,67 @@ def merge_contacts(m: Mechanism, target: Any, frame: str | None, contacts: Any) 
     return merged
 
 
+_HALFPLANES: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+_HALFPLANES_MAX = 64
+
+
+def auto_support(m: Mechanism, contacts: Mapping[str, Any]) -> np.ndarray:
+    """``support="auto"``: the counter-clockwise convex hull ``(k, 2)`` of the contacts' ground
+    projections.
+
+    A flat contact (a 4x4 held pose ``T_f`` of frame ``f`` on body ``B``, ``m.frames[f] = (B,
+    O_f)``) contributes the collision geometry of every link on ``B`` (`optik.collision.robot`,
+    a link ``L`` at ``T_f O_f^-1 O_L``), projected onto the ground (x-y): a box's, cylinder's or
+    mesh's vertices, a sphere's or capsule's centres (a round foot touches the ground below its
+    centre); a point contact (`Position`) its point.
+
+    Raises:
+        InvalidArgumentError: no ``contacts``, a flat contact whose body has no collision
+            geometry, or fewer than three points in general position.
+    """
+    from scipy.spatial import ConvexHull, QhullError
+
+    from optik.collision.robot import robot_geometry
+    from optik.collision.shapes import shape_vertices
+
+    if not isinstance(contacts, Mapping) or not contacts:
+        raise InvalidArgumentError("support", 'support="auto" needs contacts={frame: 4x4 or Position}')
+    points: list[np.ndarray] = []
+    geo = None
+    for name, value in contacts.items():
+        if isinstance(value, Position):
+            points.append(np.asarray(value.xyz, dtype=float)[None, :2])
+            continue
+        geo = robot_geometry(m) if geo is None else geo
+        m._frame(name)  # raises for an unknown frame
+        body, offset = m.frames[name]
+        body_pose = real_array(value, f"contacts[{name!r}]") @ np.linalg.inv(offset)
+        found = 0
+        for part, link in zip(geo.parts, geo.part_link, strict=True):
+            on, link_offset = m.frames[geo.links[link]]
+            if on != body:
+                continue
+            pose = body_pose @ link_offset @ part.offset
+            local, _ = shape_vertices(part.shape)  # a sphere's centre, a capsule's two: radius dropped
+            points.append((local @ pose[:3, :3].T + pose[:3, 3])[:, :2])
+            found += 1
+        if not found:
+            raise InvalidArgumentError(
+                "support", f'support="auto": the body {body!r} of contact {name!r} has no collision geometry'
+            )
+    pts = np.concatenate(points)
+    try:
+        hull = ConvexHull(pts)
+    except (QhullError, ValueError) as exc:
+        raise InvalidArgumentError(
+            "support", f'support="auto": the contacts\' ground points span no polygon ({len(pts)} points)'
+        ) from exc
+    return pts[hull.vertices]
+
+
 def support_halfplanes(support: Any) -> tuple[np.ndarray, np.ndarray]:
-    """``(N, b)``: the polygon's inside is ``N x <= b`` (unit outward edge normals, ``(k, 2)``, ``(k,)``).
+    """``(N, b)``: the polygon's inside is ``N x <= b`` (unit outward edge normals, ``(k, 2)``, ``(k,)``;
+    read-only, kept for the last polygons seen: a solve per target on one polygon checks it once).
 
     Raises:
         InvalidArgumentError: not a finite ``(k, 2)`` array with ``k >= 3``, or not a convex
@@ -123,12 +185,24 @@ def support_halfplanes(support: Any) -> tuple[np.ndarray, np.ndarray]:
         raise InvalidArgumentError(
             "support", f"expected a finite (k, 2) polygon with k >= 3, got shape {v.shape}"
         )
+    key = v.tobytes()
+    with _SOLVERS_LOCK:
+        hit = _HALFPLANES.get(key)
+    if hit is not None:
+        return hit
     d = np.roll(v, -1, axis=0) - v
     turns = d[:, 0] * np.roll(d, -1, axis=0)[:, 1] - d[:, 1] * np.roll(d, -1, axis=0)[:, 0]
     if np.any(np.linalg.norm(d, axis=1) < 1e-12) or np.any(turns <= 0):
         raise InvalidArgumentError("support", "expected a convex polygon, vertices counter-clockwise")
     n = np.column_stack([d[:, 1], -d[:, 0]]) / np.linalg.norm(d, axis=1)[:, None]
-    return n, np.einsum("ij,ij->i", n, v)
+    out = (n, np.einsum("ij,ij->i", n, v))
+    for a in out:
+        a.flags.writeable = False
+    with _SOLVERS_LOCK:
+        if len(_HALFPLANES) >= _HALFPLANES_MAX:
+            _HALFPLANES.clear()
+        _HALFPLANES[key] = out
+    return out
 
 
 def _balance_rows(m: Mechanism, q: ca.SX, k: int) -> tuple[ca.SX, ca.SX]:
@@ -300,25 +374,50 @@ def _solve_qp(
     return _judged(request, res.q, "qp", res.iterations, res.restarts, normals, b, margin, status)
 
 
+def _prepared_lm(request: IKRequest, k: int) -> tuple[LMKernel, np.ndarray]:
+    """The ``lm`` balance kernel and the driver's ``conf`` of a request, cached per mechanism,
+    task, frames, tolerances, option values (when hashable) and ``k`` (validation costs more than
+    a solve)."""
+    m = request.mechanism
+    try:
+        key: tuple[Any, ...] | None = (
+            request.task,
+            request.frame,
+            request.tol,
+            tuple(sorted(request.options.items())),
+            k,
+        )
+        with _SOLVERS_LOCK:
+            hit = _PREPARED.setdefault(m, {}).get(key)
+    except TypeError:  # an unhashable option value (an array q_ref): validate every time
+        key, hit = None, None
+    if hit is None:
+        settings, closure_weight, compile = lm_settings(request)
+        since = time.perf_counter()
+        hit = (_lm_kernel(request, k, closure_weight, compile), settings.conf(m))
+        request.exclude_setup(since)
+        if key is not None:
+            with _SOLVERS_LOCK:
+                prepared = _PREPARED.setdefault(m, {})
+                if len(prepared) >= _PREPARED_MAX:  # option values drawn anew per call
+                    prepared.clear()
+                prepared[key] = hit
+    return hit
+
+
 def _solve_lm(request: IKRequest, normals: np.ndarray, b: np.ndarray, margin: float) -> IKResult:
     """Method ``"lm"`` on `balance_problem` (options as ``"lm"``'s): the whole multi-start
     loop in the compiled kernel, the answer judged again with the exact balance check."""
-    m = request.mechanism
-    settings, closure_weight, compile = lm_settings(request)
-    since = time.perf_counter()
-    k = _lm_kernel(request, len(b), closure_weight, compile)
-    request.exclude_setup(since)
-    conf = settings.conf(m)
+    kern, base = _prepared_lm(request, len(b))
+    conf = base.copy()
     conf[3] = max(request.remaining(), 0.0)
     params = np.concatenate(
         [target_parameters(request.target), halfplane_parameters(normals, b, margin + LM_BUFFER)]
     )
-    q, _, iterations, restarts, code = k.run_one(
-        params, request.q0, request_seed(request.seed) & (2**64 - 1), conf
-    )
-    return _judged(
-        request, q, "lm", iterations, restarts, normals, b, margin, None if code == 0 else STATUS[code]
-    )
+    seed = request_seed(request.seed) & (2**64 - 1)
+    q, _, iterations, restarts, code = kern.run_one(params, request.q0, seed, conf)
+    status = None if code == 0 else STATUS[code]
+    return _judged(request, q, "lm", iterations, restarts, normals, b, margin, status)
 
 
 def _solve_nlp(request: IKRequest, normals: np.ndarray, b: np.ndarray, margin: float) -> IKResult:

@@ -21,7 +21,7 @@ to ``FILE``), so that the README's "Measured" section is generated, never hand-c
 is written atomically (a temporary file in the same folder, then ``os.replace``).
 
 Run: ``optik benchmark all --out docs/measured [--quick] [--only ik,batch] [--readme README.md]
-[--fksgp DIR]``. ``--only`` takes benchmark names or page names (``balance`` selects both of
+[--fksgp DIR] [--pyroki DIR]``. ``--only`` takes benchmark names or page names (``balance`` selects both of
 its pages, ``balance_go2`` one). How long a sitting takes is in docs/benchmarks.md.
 """
 
@@ -87,6 +87,14 @@ RUNS: tuple[Run, ...] = (
         "Single IK, Panda and iiwa14 (URDF), against TRAC-IK and the Robotics Toolbox's C++ ik_LM",
         ("--n", "3000", "--n-nlp", "300"),
         ("--n", "300", "--n-nlp", "30"),
+    ),
+    Run(
+        "ik",
+        "Iterated differential IK as position IK (dls, qp) beside lm and TRAC-IK, Panda",
+        ("--robots", "panda", "--methods", "lm,dls,qp,trac_ik", "--n", "300"),
+        ("--robots", "panda", "--methods", "lm,dls,qp,trac_ik", "--n", "30"),
+        page="ik_diffik",
+        in_readme=False,
     ),
     Run(
         "batch",
@@ -189,7 +197,7 @@ RUNS: tuple[Run, ...] = (
     ),
     Run(
         "balance",
-        "Whole-body IK with balance, Unitree G1 hand reach: optik nlp against Pink",
+        "Whole-body IK with balance, Unitree G1 hand reach: optik lm and nlp against Pink",
         ("--n", "50"),
         ("--n", "5"),
         page="balance_g1",
@@ -197,9 +205,9 @@ RUNS: tuple[Run, ...] = (
     ),
     Run(
         "balance",
-        "Whole-body IK with balance, Unitree Go2 base pose: optik nlp against Pink",
-        ("--robot", "go2", "--n", "30", "--pink-com-costs", "1e-4,0"),
-        ("--robot", "go2", "--n", "5", "--pink-com-costs", "1e-4,0"),
+        "Whole-body IK with balance, Unitree Go2 base pose: optik lm and nlp against Pink",
+        ("--robot", "go2", "--n", "50"),
+        ("--robot", "go2", "--n", "5"),
         page="balance_go2",
         in_readme=False,
     ),
@@ -207,7 +215,7 @@ RUNS: tuple[Run, ...] = (
         "collision",
         "Collision-free IK, Panda in clutter: optik against TRAC-IK + coal rejection",
         ("--n", "100", "--time-limit", "0.05"),
-        ("--n", "10", "--time-limit", "0.05"),
+        ("--n", "10", "--time-limit", "0.05", "--compile-wait", "30"),
         in_readme=False,
     ),
     Run(
@@ -452,6 +460,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--only", help="comma list of benchmark names (default: all of them)")
     ap.add_argument("--readme", type=Path, help="replace this file's measured section (between the markers)")
     ap.add_argument("--fksgp", help="folder of a fkSGP checkout, passed to parallel_fk")
+    ap.add_argument("--pyroki", help="folder of a PyRoki checkout, passed to batch")
     args = ap.parse_args(argv)
     names = sorted({r.name for r in RUNS} | {r.key for r in RUNS})
     only = names if not args.only else [s.strip() for s in args.only.split(",") if s.strip()]
@@ -467,7 +476,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     for run in RUNS:
         if run.name not in only and run.key not in only:
             continue
-        extra = ("--fksgp", args.fksgp) if run.name == "parallel_fk" and args.fksgp else ()
+        peers = {"parallel_fk": ("--fksgp", args.fksgp), "batch": ("--pyroki", args.pyroki)}
+        extra = peers[run.name] if run.name in peers and peers[run.name][1] else ()
         settings = [a.format(out=args.out) for a in (run.quick if args.quick else run.full)]
         outcome = run_one(run, [*settings, *extra])
         write_atomic(args.out / f"{run.key}.md", page(outcome, commit))

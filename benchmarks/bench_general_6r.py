@@ -36,7 +36,8 @@ for a pose with 16 real solutions and prints it: the reference instance of
 decimals and re-checked.
 
 Run: ``optik benchmark general_6r [--arms 200] [--poses 5] [--multistart-arms 20]
-[--seed 0] [--plot docs/img/general_6r_counts.png]`` (or ``python -m optik.benchmarks.bench_general_6r``).
+[--seed 0] [--plot docs/measured/general_6r_counts.png]`` (or
+``python -m optik.benchmarks.bench_general_6r``).
 """
 
 from __future__ import annotations

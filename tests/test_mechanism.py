@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import inspect
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -21,6 +22,7 @@ from optik.errors import (
     UnknownFrameError,
 )
 from optik.mechanism import Joint, Mechanism, dh_chain, planar_chain
+from optik.mechanism.topology import gruebler_kutzbach
 from optik.solvers import solve_ik
 
 
@@ -51,23 +53,67 @@ def test_catalog_discovery_sees_the_seed_mechanisms():
 
 
 # ---------------------------------------------------------------------------- mobility
-@pytest.mark.parametrize(
-    ("name", "mobility"),
-    [
-        ("planar_2r", 2),
-        ("planar_3r", 3),
-        ("rp_arm", 2),
-        ("pp_arm", 2),
-        ("seed_6r_arm", 6),
-        ("slider_crank", 1),
-        ("five_bar", 2),
-        ("doggy", 3),
-        ("planar_3rpr", 3),
-        ("stewart_gough", 6),
-    ],
-)
-def test_mobility(name, mobility):
-    assert built(name).mobility() == mobility
+KNOWN_MOBILITY = {
+    "planar_2r": 2,
+    "planar_3r": 3,
+    "rp_arm": 2,
+    "pp_arm": 2,
+    "seed_6r_arm": 6,
+    "puma560": 6,
+    "panda": 7,
+    "iiwa14": 7,
+    "dual_panda": 15,  # two arms of 7 on a torso joint
+    "slider_crank": 1,
+    "five_bar": 2,
+    "doggy": 3,
+    "planar_3rpr": 3,
+    "stewart_gough": 6,
+}
+"""The known mobility of every catalog mechanism (the textbook count of each linkage)."""
+
+
+def test_every_catalog_mechanism_has_a_known_mobility():
+    assert set(CATALOG) <= set(KNOWN_MOBILITY)
+
+
+@pytest.mark.parametrize("name", sorted(KNOWN_MOBILITY))
+def test_mobility(name):
+    assert built(name).mobility() == KNOWN_MOBILITY[name]
+
+
+TURN = spatial.transform(spatial.rot_y(np.pi / 2) @ spatial.rot_x(0.3), np.zeros(3))
+"""A turn that takes the x-y plane out of itself (revolute axes from z to x)."""
+
+
+def _stood_up(m: Mechanism) -> Mechanism:
+    """``m`` turned by `TURN`: the same linkage, no longer recognised as planar, so that its
+    closures are spatial (5 rows per revolute cut joint)."""
+    joints = [replace(j, origin=TURN @ j.origin) if j.parent == m.base else j for j in m.joints]
+    stood = m._rebuild(joints)
+    assert not stood.planar
+    return stood
+
+
+@pytest.mark.parametrize("name", ["slider_crank", "five_bar", "doggy", "planar_3rpr"])
+def test_mobility_of_planar_loops_built_in_3d(name):
+    """Gruebler-Kutzbach counts 6 constraints per loop in 3-D (five-bar: 6 (4 - 5) + 5 = -1);
+    the loops impose 3, which the closure Jacobian's rank sees."""
+    m = built(name)
+    stood = _stood_up(m)
+    q = m.mid_q()
+    np.testing.assert_allclose(stood.fk(q), TURN @ m.fk(q), atol=1e-12)  # the same linkage, turned
+    assert stood.n_closure > m.n_closure
+    assert gruebler_kutzbach(len(stood.topology.bodies) - 1, stood.joints, False) < KNOWN_MOBILITY[name]
+    assert stood.mobility() == KNOWN_MOBILITY[name]
+
+
+def test_mobility_falls_back_to_gruebler_when_nothing_assembles(caplog):
+    """A five-bar whose links cannot meet (base pivots 10 m apart, links of 1 m): no start
+    assembles, the topology's count is returned and the fallback is logged."""
+    m = catalog.five_bar(base=((0.0, 0.0), (10.0, 0.0)), lengths=(1.0, 1.0, 1.0, 1.0))
+    with caplog.at_level("WARNING", logger="optik.mechanism.mechanism"):
+        assert m.mobility() == 2
+    assert "Gruebler" in caplog.text
 
 
 def test_closed_chains_have_closures_and_serial_arms_none():

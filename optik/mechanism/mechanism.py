@@ -10,6 +10,7 @@ closure residual.
 
 from __future__ import annotations
 
+import logging
 import os
 import re
 from collections.abc import Mapping, Sequence
@@ -26,9 +27,12 @@ from optik.errors import InvalidArgumentError, ModelError, ReadOnlyError, Unknow
 from optik.mechanism.inertia import check_inertials, com_expr
 from optik.mechanism.joint import Joint
 from optik.mechanism.mjcf import parse_mjcf
+from optik.mechanism.mobility import generic_closure_rank
 from optik.mechanism.srdf import read_disabled_collisions
 from optik.mechanism.topology import analyse, gruebler_kutzbach
 from optik.mechanism.urdf import parse_urdf
+
+_LOG = logging.getLogger(__name__)
 
 TASK_ROWS: dict[str, tuple[int, ...]] = {
     "pose": (0, 1, 2, 3, 4, 5),
@@ -308,8 +312,27 @@ class Mechanism:
         return tuple(out)
 
     def mobility(self) -> int:
-        """Degrees of freedom by Gruebler-Kutzbach from the topology (not from the geometry)."""
-        return gruebler_kutzbach(len(self.topology.bodies) - 1, self.joints, self.planar)
+        """Degrees of freedom: ``n_q - rank(dc/dq)`` at generic assembled configurations.
+
+        An open chain has ``n_q``. For a closed chain the closure Jacobian's rank is taken at
+        configurations assembled from seeded random starts
+        ([`generic_closure_rank`][optik.mechanism.mobility.generic_closure_rank]), so planar loops
+        built in 3-D count the 3 constraints per loop they impose, not Gruebler-Kutzbach's 6.
+        When no start assembles, Gruebler-Kutzbach's count from the topology
+        (`optik.mechanism.topology.gruebler_kutzbach`) is returned, with a logged warning.
+        """
+        return self._mobility
+
+    @cached_property
+    def _mobility(self) -> int:
+        if not self.is_closed:
+            return self.n_q
+        rank = generic_closure_rank(lambda q: self.closure_function(q), self.random_q(8, seed=0))
+        if rank is not None:
+            return self.n_q - rank
+        count = gruebler_kutzbach(len(self.topology.bodies) - 1, self.joints, self.planar)
+        _LOG.warning("%s: no configuration assembled; mobility %d by Gruebler-Kutzbach", self.name, count)
+        return count
 
     def __repr__(self) -> str:
         kind = "planar" if self.planar else "spatial"

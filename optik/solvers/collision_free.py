@@ -7,7 +7,8 @@ required to stay above ``b = margin + buffer`` (``buffer`` option, default 2 mm,
 between the model and the exact check):
 
 * ``lm``: the rows ``max(0, b - d_k(q))`` join the loop-closure rows of a second compiled
-  Levenberg-Marquardt kernel (`optik.solvers.lm_kernel`, weight ``closure_weight``): a squared
+  Levenberg-Marquardt kernel (`optik.solvers.collision_kernel`, its world and self rows loops
+  in the generated C, run by `optik.solvers.lm_kernel`'s driver, weight ``closure_weight``): a squared
   hinge penalty that is zero wherever the model is clear, so a start stops only when the task
   is met *and* every row is zero. Each round runs the unconstrained kernel (with its restarts)
   until the pose is met; when the exact check finds that answer colliding, the constrained
@@ -47,10 +48,11 @@ from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.problem import IKProblem, build_ik_problem, target_parameters
 from optik.results import IKResult
 from optik.solvers.base import IKRequest, make_result, positive_int
+from optik.solvers.collision_kernel import constrained_functions
 from optik.solvers.lm import lm_settings, request_seed
 from optik.solvers.lm_kernel import LMKernel
 
-__all__ = ["METHODS", "collision_problem", "compiled_kernels", "solve_collision_free"]
+__all__ = ["METHODS", "collision_rows", "compiled_kernels", "solve_collision_free"]
 
 METHODS = ("lm", "nlp")
 """Methods that take collision constraints."""
@@ -59,23 +61,16 @@ _OWN_OPTIONS = {"buffer": 0.002}
 """Options of the collision-aware solve itself (the rest go to the method)."""
 
 
-def collision_problem(
+def collision_rows(
     request: IKRequest, capacity: int, self_collision: bool, bound: float
-) -> tuple[IKProblem, DistanceRows, ca.SX]:
-    """The request's `IKProblem` with the world's ``capacity`` slots (`optik.collision.slots`)
-    appended to its target parameters and the rows ``max(0, bound - d_k(q))`` (times the slot's
-    active flag for world rows) appended to its closures; with the distance rows and the slot
-    symbols."""
+) -> tuple[DistanceRows, ca.SX]:
+    """The distance rows of the request's mechanism against a world of ``capacity`` slots
+    (`optik.collision.slots`), and the slot symbols."""
     m = request.mechanism
     geo = robot_geometry(m)
-    problem = build_ik_problem(m, request.task, request.frame)
     slots = ca.SX.sym("world_slots", capacity * SLOT_SIZE)
     rows = distance_expressions(geo, [m.frame_expr(link) for link in geo.links], slots, self_collision, bound)
-    hinge = ca.vertcat(rows.active * ca.fmax(0, bound - rows.world), ca.fmax(0, bound - rows.self_rows))
-    extended = dataclasses.replace(
-        problem, target=ca.vertcat(problem.target, slots), closure=ca.vertcat(problem.closure, hinge)
-    )
-    return extended, rows, slots
+    return rows, slots
 
 
 _CACHE: dict[tuple[Any, ...], Any] = {}
@@ -159,9 +154,12 @@ def _solve_lm(
     )
 
     def build() -> tuple[LMKernel, LMKernel]:
-        problem, _, _ = collision_problem(request, capacity, self_collision, margin + buffer)
+        problem = build_ik_problem(m, request.task, request.frame)
+        functions = constrained_functions(
+            problem, robot_geometry(m), capacity, self_collision, margin + buffer, closure_weight
+        )
         plain = LMKernel(m, request.task, request.frame, closure_weight, compile)
-        return plain, LMKernel(m, request.task, request.frame, closure_weight, compile, problem=problem)
+        return plain, LMKernel(m, request.task, request.frame, closure_weight, compile, functions=functions)
 
     plain, constrained = _cached(key, build)
     request.exclude_setup(setup)
@@ -261,7 +259,7 @@ def _solve_nlp(
 
     def build() -> _IpoptPool:
         base = build_ik_problem(m, request.task, request.frame)
-        _, rows, symbols = collision_problem(request, capacity, self_collision, margin + buffer)
+        rows, symbols = collision_rows(request, capacity, self_collision, margin + buffer)
         return _IpoptPool(base, rows, symbols, margin + buffer, max_iter)
 
     pool = _cached(key, build)

@@ -76,10 +76,12 @@ CASADI_SYMBOL_EXPORT int optik_lm_chunk(casadi_int n_targets, const double *targ
     const double *answer = q;
     memcpy(best, q0 + N * t, sizeof(best));
     /* step: (q, mu, target, weights, q_ref, gain, lo, hi) -> (q+, mu+, cost+, accept, pos+, ori+, clo+) */
-    const double *s_arg[8] = {q, &mu, target, weights, q_ref, &gain, limit_lo, limit_hi};
-    double *s_res[7] = {q_new, &mu_new, &cost, &accept, &e3[0], &e3[1], &e3[2]};
-    const double *e_arg[2] = {q, target};
-    double *e_res[3] = {&pos, &ori, &clo};
+    /* OPTIK_SZ_ARG / OPTIK_SZ_RES: the functions' sz_arg / sz_res (a function that calls others
+       uses the entries past its own inputs and outputs as scratch) */
+    const double *s_arg[OPTIK_SZ_ARG] = {q, &mu, target, weights, q_ref, &gain, limit_lo, limit_hi};
+    double *s_res[OPTIK_SZ_RES] = {q_new, &mu_new, &cost, &accept, &e3[0], &e3[1], &e3[2]};
+    const double *e_arg[OPTIK_SZ_ARG] = {q, target};
+    double *e_res[OPTIK_SZ_RES] = {&pos, &ori, &clo};
     for (;;) {
       ++restarts;
       if (restarts == 0) {
@@ -116,7 +118,7 @@ CASADI_SYMBOL_EXPORT int optik_lm_chunk(casadi_int n_targets, const double *targ
   done:
     memcpy(q_out + N * t, answer, sizeof(q));
     if (status != -1) { /* the errors of the answer (the best start's may be older) */
-      const double *a_arg[2] = {q_out + N * t, target};
+      const double *a_arg[OPTIK_SZ_ARG] = {q_out + N * t, target};
       if (OPTIK_ERRORS(a_arg, e_res, iw, w, 0)) { rc = -1; status = -1; }
     }
     err_out[3 * t] = pos;

@@ -3,6 +3,9 @@ rows, the README section replaced between its markers, and one real quick benchm
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import pytest
 
 from optik.benchmarks import available, bench_all_solutions
@@ -49,6 +52,16 @@ def test_every_run_is_a_benchmark_and_the_quoted_ones_are_all_there():
     assert names <= set(available()) and len(set(keys)) == len(keys)
     assert set(QUOTED) <= names
     assert {"balance_g1", "balance_go2"} <= set(keys)  # one benchmark, two pages
+
+
+def test_every_option_a_run_passes_is_one_its_script_defines():
+    # read from the script's source (importing the scripts changes process-wide state)
+    folder = Path(bench_all_solutions.__file__).parent
+    for run in RUNS:
+        source = (folder / f"bench_{run.name}.py").read_text(encoding="utf-8")
+        defined = set(re.findall(r"add_argument\(\s*\"(--[a-z0-9-]+)\"", source))
+        passed = {a for a in (*run.full, *run.quick) if a.startswith("--")}
+        assert passed <= defined, (run.key, passed - defined)
 
 
 def _outcome(run: Run, output: str, code: int = 0) -> Outcome:

@@ -322,6 +322,25 @@ def test_axis_shortcut_equals_one_ik_per_sample(ur5, puma):
                 assert d.min(axis=1).max() < 1e-9 and d.min(axis=0).max() < 1e-9
 
 
+def test_uniform_layers_equal_the_general_gather(ur5):
+    """The broadcast built when every pose has as many solutions is the general gather's answer."""
+    m = ur5
+    sp = samples.sample_poses(line(m, n=5), "z", np.pi / 6, np.full(5, 0.001))
+    shortcut = samples.axis_joint(m, "z", None)
+    units = 7
+    solved, counts = optik.path.nodes.closed_form_solutions(m, sp.columns(units).reshape(-1, 4, 4), None)
+    unit = np.repeat(np.arange(5 * units) % units, counts)
+    block = counts.reshape(5, units).sum(axis=1)
+    assert np.all(block == block[0])
+    turn = sp.angle[0, ::units] - sp.angle[0, 0]
+    fast = samples._uniform(m, solved, unit, 5, int(block[0]), 12, units, shortcut, turn)
+    slow = samples._gathered(m, solved, unit, block, 12, units, shortcut, turn)
+    for a, b in zip(fast, slow, strict=True):
+        np.testing.assert_array_equal(a.offset, b.offset)
+        np.testing.assert_array_equal(a.data, b.data)
+    assert samples.sample_solutions(m, sp, None, shortcut)[0].data.shape == fast[0].data.shape
+
+
 def test_free_axis_optimum_over_the_sampled_graph(ur5_limited):
     m = ur5_limited
     rng = np.random.default_rng(11)

@@ -79,6 +79,11 @@ def transported(targets: np.ndarray, free_axis: str) -> np.ndarray:
     a = "xyz".index(free_axis)
     b, c = (a + 1) % 3, (a + 2) % 3
     rot = targets[:, :3, :3]
+    if np.all(rot[:, :, a] == rot[0, :, a]):  # one tool axis throughout: the first x is carried as is
+        x = rot[0, :, b]
+        out = np.arctan2(rot[:, :, c] @ x, rot[:, :, b] @ x)
+        out[0] = 0.0
+        return out
     axes, bs, cs = rot[:, :, a].tolist(), rot[:, :, b].tolist(), rot[:, :, c].tolist()
     out = [0.0] * len(targets)
     x0, x1, x2 = bs[0]
@@ -187,6 +192,24 @@ def sample_solutions(
     solved, counts = closed_form_solutions(m, samples.columns(units).reshape(-1, 4, 4), frame)
     unit = np.repeat(np.arange(n * units) % units, counts)  # the offset unit of each solved row
     block = counts.reshape(n, units).sum(axis=1)  # solved rows per path sample
+    turn = samples.angle[0, ::units] - samples.angle[0, 0]  # the same turns at every pose
+    if n and np.all(block == block[0]):  # as many rows per sample: blocks of one shape, no gather
+        return _uniform(m, solved, unit, n, int(block[0]), copies, units, shortcut, turn)
+    return _gathered(m, solved, unit, block, copies, units, shortcut, turn)
+
+
+def _gathered(
+    m: Mechanism,
+    solved: np.ndarray,
+    unit: np.ndarray,
+    block: np.ndarray,
+    copies: int,
+    units: int,
+    shortcut: tuple[int, float] | None,
+    turn: np.ndarray,
+) -> tuple[Layered, Layered]:
+    """`sample_solutions` for any solved rows per path sample ``block (N,)``: one gather."""
+    n = len(block)
     start = np.concatenate([[0], np.cumsum(block)[:-1]])
     size = copies * block  # rows per layer
     ramp = np.arange(size.sum()) - np.repeat(np.cumsum(size) - size, size)
@@ -198,12 +221,39 @@ def sample_solutions(
     pose = np.repeat(np.arange(n), size)
     if shortcut is not None:
         j, sign = shortcut
-        turn = samples.angle[0, ::units] - samples.angle[0, 0]  # the same turns at every pose
         turned = _into_limits(solved[:, j, None] + sign * turn[None, :], m.lower[j], m.upper[j])
         q[:, j] = turned[source, angle]
         fits = np.isfinite(q[:, j])
         if not fits.all():
             q, group, pose = q[fits], group[fits], pose[fits]
+    return Layered.by_owner(q, pose, n), Layered.by_owner(group, pose, n)
+
+
+def _uniform(
+    m: Mechanism,
+    solved: np.ndarray,
+    unit: np.ndarray,
+    n: int,
+    width: int,
+    copies: int,
+    units: int,
+    shortcut: tuple[int, float] | None,
+    turn: np.ndarray,
+) -> tuple[Layered, Layered]:
+    """`sample_solutions` when every path sample has ``width`` solved rows: each layer is its
+    block ``(width, dof)`` repeated ``copies`` times, built by broadcasting."""
+    q = np.broadcast_to(solved.reshape(n, 1, width, m.n_q), (n, copies, width, m.n_q)).copy()
+    group = np.arange(copies)[None, :, None] * units + unit.reshape(n, 1, width)
+    group = np.broadcast_to(group, (n, copies, width)).reshape(-1)
+    if shortcut is not None:
+        j, sign = shortcut
+        turned = _into_limits(solved[:, j, None] + sign * turn[None, :], m.lower[j], m.upper[j])
+        q[..., j] = turned.reshape(n, width, copies).transpose(0, 2, 1)
+    q = q.reshape(-1, m.n_q)
+    pose = np.repeat(np.arange(n), copies * width)
+    if shortcut is not None and not np.isfinite(q[:, shortcut[0]]).all():
+        fits = np.isfinite(q[:, shortcut[0]])
+        q, group, pose = q[fits], group[fits], pose[fits]
     return Layered.by_owner(q, pose, n), Layered.by_owner(group, pose, n)
 
 

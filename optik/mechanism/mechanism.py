@@ -76,6 +76,16 @@ def _perpendiculars(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return u1, np.cross(a, u1)
 
 
+def geometric_jacobian(t: ca.SX, q: ca.SX) -> ca.SX:
+    """Geometric Jacobian ``[dp/dq; w]`` (6 x n, base frame) of the pose expression ``t`` (4x4):
+    column ``k`` has the linear part ``dp/dq_k`` and the angular part ``vee(dR/dq_k R^T)``."""
+    r, p = t[:3, :3], t[:3, 3]
+    jl = ca.jacobian(p, q)
+    dr = ca.jacobian(ca.vec(r), q)
+    cols = [spatial.vee(ca.mtimes(ca.reshape(dr[:, k], 3, 3), r.T)) for k in range(int(q.shape[0]))]
+    return ca.vertcat(jl, ca.horzcat(*cols))
+
+
 class Mechanism:
     """A kinematic model: joints, limits, loop closures and named frames.
 
@@ -413,13 +423,7 @@ class Mechanism:
         Column ``k`` has the linear part ``dp/dq_k`` and the angular part
         ``vee(dR/dq_k R^T)``, valid for every joint type.
         """
-        t = self.frame_expr(frame)
-        q = self.q_sym
-        r, p = t[:3, :3], t[:3, 3]
-        jl = ca.jacobian(p, q)
-        dr = ca.jacobian(ca.vec(r), q)
-        cols = [spatial.vee(ca.mtimes(ca.reshape(dr[:, k], 3, 3), r.T)) for k in range(self.n_q)]
-        return ca.vertcat(jl, ca.horzcat(*cols))
+        return geometric_jacobian(self.frame_expr(frame), self.q_sym)
 
     def _frame(self, frame: str | None) -> tuple[str, np.ndarray]:
         name = self.ee if frame is None else frame

@@ -37,6 +37,7 @@ import numpy as np
 from optik.checks import as_float, as_vector
 from optik.diffik._codegen import CompiledFunction
 from optik.diffik.base import Limit, Task, intersect
+from optik.diffik.collision import DAMPER_GAIN, INFLUENCE, damper_rows
 from optik.diffik.limits import ClosureConstraint, ConfigurationLimit, VelocityLimit
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
@@ -62,7 +63,8 @@ class DiffIKProblem:
         slices: rows of each task in the stacked arrays.
         priorities: priority of each task.
         q: the configuration; dt: the time step.
-        G, h: inequality rows ``G dq <= h`` (static balance; ``0 x n`` without it).
+        G, h: inequality rows ``G dq <= h`` (static balance, then collision dampers; ``0 x n``
+            without them).
     """
 
     H: np.ndarray
@@ -316,6 +318,11 @@ def build_qp(
     closure_gain: float = 1.0,
     support: Any = None,
     com_margin: float = 0.0,
+    world: Any = None,
+    self_collision: bool | None = None,
+    margin: float = 0.0,
+    influence: float = INFLUENCE,
+    collision_gain: float = DAMPER_GAIN,
 ) -> DiffIKProblem:
     """The QP of one differential-IK step at ``q`` (see the module docstring for the formulas).
 
@@ -334,6 +341,14 @@ def build_qp(
         support: the world x-y support polygon, counter-clockwise ``(k, 2)``: the balance rows
             ``G dq <= h`` of the module docstring (the mechanism needs masses).
         com_margin: the balance margin (m, ``>= 0``; only with ``support``).
+        world: obstacles ([`optik.World`][optik.World]); with it or ``self_collision=True`` the
+            velocity dampers of `optik.diffik.collision` join ``G dq <= h``: every pair closer
+            than ``influence`` may lose at most ``collision_gain`` of its distance above
+            ``margin`` per step.
+        self_collision: dampers for the robot's own pairs too (None: True when ``world`` is given).
+        margin: the clearance the dampers keep (m).
+        influence: the distance (m) below which a pair gets a damper.
+        collision_gain: ``gamma`` in ``(0, 1]``.
 
     Returns:
         The [`DiffIKProblem`][optik.diffik.problem.DiffIKProblem].
@@ -356,6 +371,10 @@ def build_qp(
     h, c, lb, ub, a, b, jw, tw, e, cres, mu = stack(qq, parts, step, vp)
     rows = jw.shape[0]
     g_rows, h_rows = balance_rows(m, qq, support, com_margin)
+    own = (world is not None) if self_collision is None else bool(self_collision)
+    if world is not None or own:
+        g_c, h_c, _ = damper_rows(m, qq, world, own, margin, influence, collision_gain)
+        g_rows, h_rows = np.vstack([g_rows, g_c]), np.concatenate([h_rows, h_c])
     return DiffIKProblem(
         H=h.reshape(m.n_q, m.n_q),
         c=c,

@@ -391,7 +391,11 @@ class Mechanism:
         ``B = T_child child_offset``: the origins coincide, ``p_B - p_A = 0`` (x and y only for
         planar mechanisms); a spatial revolute joint adds ``(R_A u_k) . (R_B a) = 0`` for the two
         unit vectors ``u_k`` normal to its axis ``a``; a universal joint adds
-        ``(R_A a_1) . (R_B a_2) = 0``.
+        ``(R_A a_1) . (R_B a_2) = 0``; a fixed cut joint (a weld) adds the 9 rows
+        ``vec(R_B - R_A) / sqrt(2)``, of norm ``2 sin(theta / 2)`` for the relative rotation
+        ``theta``: zero only where the frames agree (3 of the rows are independent; the 3 rows of
+        ``vee(R_A^T R_B - R_B^T R_A)`` would also vanish at ``theta = pi``, with a rank-deficient
+        Jacobian there), as the orientation rows of the IK residual (`optik.problem`).
         """
         rows: list[Any] = []
         poses = self.body_transforms
@@ -409,6 +413,8 @@ class Mechanism:
                     rows.append(ca.dot(ca.mtimes(ra, u), ca.mtimes(rb, j.axis)))
             elif j.type == "universal":
                 rows.append(ca.dot(ca.mtimes(ra, j.axis), ca.mtimes(rb, j.axis2)))
+            elif j.type == "fixed":
+                rows.append(ca.vec(rb - ra) / np.sqrt(2.0))
         return ca.vertcat(*rows) if rows else ca.SX(0, 1)
 
     def jacobian_expr(self, frame: str | None = None) -> ca.SX:

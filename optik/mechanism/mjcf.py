@@ -47,10 +47,13 @@ without actuators every joint is actuated.
 
 Equality constraints (active at start): ``connect`` becomes a cut spherical joint between the
 two bodies (or sites) at the anchors, so its loop-closure residual is MuJoCo's constraint
-residual (``efc_pos``, opposite sign); ``joint`` with a linear polynomial, ``q1 - qpos0_1 = c0 +
+residual (``efc_pos``, opposite sign); ``weld`` a cut fixed joint (the frame ``relpose`` on
+body 1 held on the frame at ``anchor`` on body 2, or the two sites' frames): MuJoCo's position
+residual (opposite sign) and rotation rows of norm ``2 sin(theta / 2)`` where MuJoCo's have
+``sin(theta / 2)``; ``joint`` with a linear polynomial, ``q1 - qpos0_1 = c0 +
 c1 (q2 - qpos0_2)``, makes joint 1 follow joint 2 (a `Mimic`; joint 1 has no coordinate and its
 own range is not enforced, as for URDF mimic joints). Not modelled, and listed in
-``params["notes"]``: ``weld``, ``tendon`` and ``flex`` equalities, nonlinear joint
+``params["notes"]``: ``tendon`` and ``flex`` equalities, nonlinear joint
 polynomials, inactive equalities, and tendons.
 """
 
@@ -75,7 +78,7 @@ __all__ = ["from_qpos", "load_mjmodel", "parse_mjcf", "to_qpos"]
 _FREE, _BALL, _SLIDE, _HINGE = 0, 1, 2, 3
 _GEOM_PLANE, _GEOM_HFIELD, _GEOM_SPHERE, _GEOM_CAPSULE = 0, 1, 2, 3
 _GEOM_ELLIPSOID, _GEOM_CYLINDER, _GEOM_BOX, _GEOM_MESH = 4, 5, 6, 7
-_EQ_CONNECT, _EQ_JOINT, _OBJ_SITE = 0, 2, 6
+_EQ_CONNECT, _EQ_WELD, _EQ_JOINT, _OBJ_SITE = 0, 1, 2, 6
 
 
 def load_mjmodel(source: Any) -> tuple[Any, str]:
@@ -376,6 +379,19 @@ def _equalities(
                 notes.append(f"{what} joins two points of one rigid body and is not modelled")
                 continue
             cuts.append(Joint(f"equality:{name}", "spherical", pa, pb, oa, child_offset=ob, cut=True))
+        elif kind == _EQ_WELD:
+            # MuJoCo: p1 + R1 relpos = p2 + R2 anchor and R1 relquat = R2 (body semantic; sites: the
+            # two site frames coincide)
+            if int(model.eq_objtype[e]) == _OBJ_SITE:
+                (pa, oa), (pb, ob) = frames[site_frames[sites[a]]], frames[site_frames[sites[b]]]
+            else:
+                (pa, oa), (pb, ob) = place[a], place[b]
+                oa = oa @ _pose(data[3:6], data[6:10])
+                ob = ob @ spatial.transform(position=data[0:3])
+            if pa == pb:
+                notes.append(f"{what} welds a rigid body to itself and is not modelled")
+                continue
+            cuts.append(Joint(f"equality:{name}", "fixed", pa, pb, oa, child_offset=ob, cut=True))
         elif kind == _EQ_JOINT and b >= 0 and not np.any(data[2:5]):
             follower, source = joints[a], joints[b]
             if follower.type not in ("revolute", "prismatic") or source.type not in ("revolute", "prismatic"):
@@ -392,7 +408,7 @@ def _equalities(
                 f"{what}: joint {joint_names[a]!r} follows {joint_names[b]!r}; its own range is not enforced"
             )
         else:
-            notes.append(f"{what} is not modelled (only connect and linear joint equalities are)")
+            notes.append(f"{what} is not modelled (only connect, weld and linear joint equalities are)")
     return cuts
 
 

@@ -17,7 +17,9 @@ timed with ``time.perf_counter`` around the public call, failures included. The 
 with its own budget ``--nlp-time-limit`` on the first ``--n-nlp`` targets, with IPOPT (``nlp``)
 and with ``sqpmethod`` (``nlp-sqp``). The solvers run interleaved per target so that load changes
 on a shared machine hit all of them alike; the table reports success rate, mean / median / p95
-time and the ratio of each median time to the fastest peer's median.
+time and the ratio of each median time to the fastest peer's median. A note counts, for each solver,
+the failures that spent less than half their wall time on the CPU (``time.thread_time``): calls the
+scheduler suspended, which on a loaded machine end a time-limited solve at its deadline.
 
 Run: ``optik benchmark ik [--n 10000] [--robots panda,iiwa14] [--time-limit 0.005] [--tol 1e-5]
 [--methods lm,nlp,nlp-sqp,trac_ik,rtb_lm] [--n-nlp 1000] [--nlp-time-limit 0.3] [--starts mid,random]``.
@@ -125,14 +127,25 @@ def run(
     warm_up(lambda s=s: s(targets[0], q0s[0]) for s, _ in solvers.values())
     native.wait()  # the C libraries built in the background: time the compiled code
     tallies = {label: Tally(label) for label in solvers}
+    suspended = {label: [0, 0] for label in solvers}  # failures, those mostly off the CPU
     for i, target in enumerate(targets):
         for label, (solve, count) in solvers.items():
             if i >= count:
                 continue
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.thread_time()
             q, own = solve(target, q0s[i])
-            elapsed = time.perf_counter() - t0
-            tallies[label].add(elapsed, referee.judge(q, target, tolerances), own)
+            elapsed, cpu = time.perf_counter() - t0, time.thread_time() - c0
+            verdict = referee.judge(q, target, tolerances)
+            tallies[label].add(elapsed, verdict, own)
+            if not verdict.success:
+                suspended[label][0] += 1
+                suspended[label][1] += cpu < 0.5 * elapsed
+    for label, (failed, off_cpu) in suspended.items():
+        if failed:
+            notes.append(
+                f"{label}: {off_cpu} of its {failed} failures spent less than half of their wall time on "
+                f"the CPU (time.thread_time against time.perf_counter): the scheduler suspended the call"
+            )
     return tallies, notes
 
 
@@ -192,7 +205,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             tallies, notes = run(robot, args.n, args.time_limit, args.tol, methods, *nlp, args.seed, kind)
             label = robot if kind == "mid" else f"{robot} (random starts)"
             print("\n".join(table_rows(label, tallies)), flush=True)
-            all_notes += [f"{robot}: {note}" for note in notes]
+            all_notes += [f"{label}: {note}" for note in notes]
     for note in dict.fromkeys(all_notes):
         print(f"\n- {note}")
     return 0

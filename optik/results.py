@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any, overload
 
 import numpy as np
@@ -266,10 +267,16 @@ class IKSolutionsBatch(Sequence[IKSolutions]):
     solve_time: float
     general: dict[int, IKSolutions] = field(default_factory=dict)
 
-    @property
+    @cached_property
     def offsets(self) -> np.ndarray:
         """``(M + 1,)``: target ``i``'s solutions are rows ``offsets[i]:offsets[i + 1]`` of `q`."""
         return np.concatenate(([0], np.cumsum(self.counts)))
+
+    @cached_property
+    def outside_offsets(self) -> np.ndarray:
+        """``(M + 1,)``: target ``i``'s solutions outside the limits are rows
+        ``outside_offsets[i]:outside_offsets[i + 1]`` of `outside_limits`."""
+        return np.concatenate(([0], np.cumsum(self.outside_counts)))
 
     @property
     def target(self) -> np.ndarray:
@@ -291,7 +298,7 @@ class IKSolutionsBatch(Sequence[IKSolutions]):
         i = range(len(self))[index]  # negative indices; IndexError past the end
         if i in self.general:
             return self.general[i]
-        a, b = self.offsets[i : i + 2]
-        c = int(np.sum(self.outside_counts[:i]))
-        outside = self.outside_limits[c : c + int(self.outside_counts[i])]
+        a, b = self.offsets[i : i + 2].tolist()
+        c, d = self.outside_offsets[i : i + 2].tolist()
+        outside = self.outside_limits[c:d]
         return IKSolutions.from_arrays(self.q[a:b], self.errors[a:b], outside, "closed_form", self.solve_time)

@@ -60,9 +60,7 @@ from optik.mechanism.memo import PerMechanism
 from optik.native import (
     CCall,
     Library,
-    _version_memo,
     c_source,
-    compiler,
     driver_source,
     in_background,
     keyed_library,
@@ -315,16 +313,11 @@ def build(n: int, timeout: float | None = None) -> bool:
 
 
 def machine_files(n: int) -> list[Path]:
-    """The files of `optik.native.cache_dir` that the generic kernel of ``n`` joints needs there,
-    once built (`build`): its library, its manifest and the compiler's version record (what a
-    cache holds for every robot of ``n`` joints, as opposed to a robot's own libraries)."""
+    """The cache files of the generic kernel of ``n`` joints once built (`build`;
+    `optik.native.Library.files`): what a cache holds for every robot of ``n`` joints, as opposed
+    to a robot's own libraries."""
     k = chain_kernel(n)
-    cc = compiler()
-    if k.library is None or cc is None:
-        return []
-    memo = _version_memo(cc)
-    lib = k.library.path
-    return [f for f in (lib, lib.with_name(lib.name + ".json"), memo) if f is not None and f.exists()]
+    return [] if k.library is None else k.library.files()
 
 
 class _Builder:
@@ -344,7 +337,6 @@ class _Builder:
         in_background(self._run)
 
     def _run(self) -> None:
-        time.sleep(_HANDOVER)
         try:
             self._prepare(self._request)
         except Exception:  # the per-robot path will raise it again in the caller's thread
@@ -353,11 +345,6 @@ class _Builder:
         finally:
             self._request = None  # type: ignore[assignment]
 
-
-_HANDOVER = 0.002
-"""Seconds the builder thread sleeps first: the caller, whose answer is ready, gets the interpreter
-back (a new thread otherwise runs Python code for a switch interval, 5 ms, before the thread that
-started it may return)."""
 
 _CHAINS: PerMechanism[dict[Any, np.ndarray | None]] = PerMechanism()
 _BUILDERS: PerMechanism[dict[Any, _Builder]] = PerMechanism()

@@ -192,6 +192,12 @@ def test_panda_ik_answers_the_same_before_and_after_the_switch(
     for a, b in zip(interpreted, compiled, strict=True):
         assert a.success and b.success and a.iterations == b.iterations
         np.testing.assert_allclose(a.q, b.q, rtol=0, atol=1e-12)
+    # a locked joint's value and limits are kernel inputs: locking it at 3 values builds nothing
+    for v in (0.1, 0.2, 0.3):
+        q_v = np.r_[v, m.random_q(seed=11)[1:]]
+        locked = optik.solve_ik_all(m, m.fk(q_v), method="lm", fixed={m.coordinate_names[0]: v}, seed=0)
+        assert len(locked.q) >= 1 and all(s[0] == v for s in locked.q)
+    assert native.wait(timeout=120)
     # one LM kernel (the error check is compiled into it); beside it, the generic kernel of 7
     # joints when this process had not loaded one before (optik.solvers.generic_chain)
     assert len(list(tmp_path.glob("optik_lm_step_*.so"))) == 1

@@ -329,3 +329,34 @@ def test_commands_take_mjcf_files(tmp_path):
         load_source(str(path), "crank", None)
     with pytest.raises(InvalidArgumentError, match="no such file"):
         load_source(str(tmp_path / "missing.xml"), None, None)
+
+
+COUPLED_FINGERS = """<mujoco><compiler angle="radian"/>
+<worldbody><body name="palm"><joint name="wrist" axis="0 0 1"/><geom size="0.02"/>
+  <body name="thumb" pos="0.1 0 0"><joint name="thumb" axis="0 1 0" range="-1 1"/><geom size="0.02"/>
+    <site name="thumb_tip" pos="0.05 0 0"/></body>
+  <body name="finger" pos="0.1 0.05 0"><joint name="finger" axis="0 1 0" range="-1 1" ref="0.2"/>
+    <geom size="0.02"/><site name="finger_tip" pos="0.05 0 0"/></body></body></worldbody>
+<tendon><fixed name="grip"><joint joint="thumb" coef="-0.5"/><joint joint="finger" coef="0.7"/></fixed>
+  <fixed name="free"><joint joint="wrist" coef="1"/><joint joint="thumb" coef="1"/>
+    <joint joint="finger" coef="1"/></fixed></tendon>
+<equality><tendon name="coupling" tendon1="grip" polycoef="0.03 0 0 0 0"/>
+  <tendon name="three" tendon1="free" active="false"/></equality></mujoco>"""
+
+
+def test_fixed_tendon_equality_is_a_coupling():
+    """A tendon equality on a fixed tendon of two joints (MuJoCo holds its length at the qpos0
+    length plus polycoef[0]) makes the second joint follow the first: MuJoCo's residual of that
+    equality is 0 at every configuration, the site poses equal MuJoCo's."""
+    m, model = optik.Mechanism.from_mjcf(COUPLED_FINGERS), mujoco.MjModel.from_xml_string(COUPLED_FINGERS)
+    assert m.coordinate_names == ("wrist", "thumb")
+    assert any("'finger' follows 'thumb'" in n for n in m.params["notes"])
+    data = mujoco.MjData(model)
+    for q in m.random_q(6, seed=3):
+        data.qpos[:] = to_qpos(m, q)
+        mujoco.mj_forward(model, data)
+        rows = data.efc_pos[data.efc_type == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)]
+        assert rows.shape == (1,) and abs(rows[0]) < 1e-12
+        assert (
+            np.abs(m.fk(q, "finger_tip")[:3, 3] - data.site_xpos[model.site("finger_tip").id]).max() < 1e-12
+        )

@@ -37,6 +37,8 @@ class ChunkSpec:
         time_limit: seconds per target.
         tol: success tolerances.
         options: method options.
+        collisions: ``world``, ``self_collision`` and ``margin`` of a collision-aware batch
+            (empty: none); each target is then one collision-aware `optik.solve_ik`.
     """
 
     method: str
@@ -45,6 +47,7 @@ class ChunkSpec:
     time_limit: float
     tol: Tolerances
     options: dict[str, Any] = field(default_factory=dict)
+    collisions: dict[str, Any] = field(default_factory=dict)
 
 
 def prepare(m: Mechanism, spec: ChunkSpec, target: np.ndarray, q0: np.ndarray) -> None:
@@ -73,7 +76,7 @@ def solve_chunk(
     """Solve one chunk: ``targets`` ``(k, 4, 4)``, starts ``(k, n)``, seeds ``(k,)`` (uint64)."""
     if spec.method == "closed_form" and len(targets):
         return _solve_closed_form(m, spec, targets, q0, seeds)
-    if spec.method != "lm" or not len(targets):
+    if spec.method != "lm" or spec.collisions or not len(targets):
         return _solve_loop(m, spec, targets, q0, seeds)
     k, settings = _lm_kernel(m, spec, targets[0], q0[0])
     rows = target_rows(targets)
@@ -215,6 +218,7 @@ def _solve_loop(
             tol=spec.tol,
             seed=int(sd),
             **spec.options,
+            **spec.collisions,
         )
         for t, s, sd in zip(targets, q0, seeds, strict=True)
     ]

@@ -33,14 +33,13 @@ import platform
 import re
 import subprocess
 import sys
-import tempfile
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 
-from optik import benchmarks
+from optik import benchmarks, plot
 
 __all__ = ["RUNS", "Run", "headline", "main", "markdown_tables", "replace_between_markers"]
 
@@ -309,13 +308,9 @@ def replace_between_markers(text: str, section: str) -> str:
 
 
 def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` atomically (temporary file in the same folder, then ``os.replace``)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile(
-        "w", dir=path.parent, delete=False, suffix=".tmp", encoding="utf-8"
-    ) as f:
-        f.write(text)
-    os.replace(f.name, path)
+    """Write ``text`` to ``path`` atomically with the mode a plain write would give it
+    (`optik.plot.write_atomic`: temporary file in the same folder, then ``os.replace``)."""
+    plot.write_atomic(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
 
 
 @dataclass

@@ -16,6 +16,7 @@ from optik.batch.fk import fk_batch
 from optik.batch.result import PER_TARGET, BatchResult
 from optik.mechanism import Mechanism
 from optik.solvers import solve_ik
+from optik.solvers.balance import wait_kernels
 from optik.solvers.base import Tolerances, make_request
 from optik.solvers.closed import binding_of, compile_closed_form
 from optik.solvers.lm import lm_settings
@@ -51,10 +52,19 @@ def prepare(m: Mechanism, spec: ChunkSpec, target: np.ndarray, q0: np.ndarray) -
     """Build and compile, once and before the chunks run, the code every chunk of ``spec`` uses:
     the LM kernel (``"lm"``) or the compiled driver of a derived closed form (``"closed_form"``);
     ``target`` and ``q0`` are one row of the batch (for the request's settings)."""
-    if spec.method == "lm":
+    if _holds_contacts(spec):
+        opts = spec.options  # one solve of one target: validates the arguments, builds the code
+        solve_ik(m, target, q0, spec.method, task=spec.task, frame=spec.frame, time_limit=1e-9, **opts)
+        wait_kernels(m)  # the lm balance kernel: a batch is worth its C build
+    elif spec.method == "lm":
         _lm_kernel(m, spec, target, q0)
     elif spec.method == "closed_form":
         compile_closed_form(m)
+
+
+def _holds_contacts(spec: ChunkSpec) -> bool:
+    """Whether a batch holds contacts or balance (then every target is one `optik.solve_ik`)."""
+    return "contacts" in spec.options or "support" in spec.options
 
 
 def _lm_kernel(m: Mechanism, spec: ChunkSpec, target: np.ndarray, q0: np.ndarray) -> tuple[Any, Any]:
@@ -73,7 +83,7 @@ def solve_chunk(
     """Solve one chunk: ``targets`` ``(k, 4, 4)``, starts ``(k, n)``, seeds ``(k,)`` (uint64)."""
     if spec.method == "closed_form" and len(targets):
         return _solve_closed_form(m, spec, targets, q0, seeds)
-    if spec.method != "lm" or not len(targets):
+    if spec.method != "lm" or not len(targets) or _holds_contacts(spec):
         return _solve_loop(m, spec, targets, q0, seeds)
     k, settings = _lm_kernel(m, spec, targets[0], q0[0])
     rows = target_rows(targets)

@@ -50,6 +50,9 @@ def solve_ik_batch(
     chunk_size: int | None = None,
     retries: int = 2,
     progress: bool = False,
+    contacts: Any = None,
+    support: Any = None,
+    com_margin: float = 0.0,
     **options: Any,
 ) -> BatchResult:
     """Inverse kinematics of many targets: every core, or a Dask cluster.
@@ -77,6 +80,10 @@ def solve_ik_batch(
             locally).
         retries: Dask retries of a chunk whose worker was lost.
         progress: draw a progress bar on stderr.
+        contacts, support, com_margin: frames held in the world and static balance, as for
+            `optik.solve_ik` (the same for every target; methods ``"lm"``, ``"nlp"``, ``"qp"`` with
+            ``support``): each target is one `optik.solve_ik` call on the thread pool (the
+            compiled ``lm`` balance kernel releases the GIL), its balance checked as there.
         **options: method options (as for `optik.solve_ik`).
 
     Returns:
@@ -102,8 +109,15 @@ def solve_ik_batch(
         0,
         options,
     )
-    spec = ChunkSpec(method, request.task, frame, request.time_limit, request.tol, dict(options))
-    if method == "lm":
+    balance = {
+        k: v
+        for k, v in (("contacts", contacts), ("support", support), ("com_margin", com_margin))
+        if v is not None and not (k == "com_margin" and v == 0.0)
+    }
+    spec = ChunkSpec(method, request.task, frame, request.time_limit, request.tol, {**options, **balance})
+    if balance and n:  # validated (and its code built) by one solve of the first target
+        prepare(m, spec, transforms[0], starts[0])
+    elif method == "lm":
         lm_settings(request)  # unknown options and bad values raise here, not in a worker
     else:
         get_method(method)

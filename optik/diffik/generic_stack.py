@@ -164,6 +164,14 @@ _LIBRARIES_LOCK = threading.Lock()
 _STACKS: PerMechanism[dict[tuple, ChainStack | None]] = PerMechanism()
 
 
+def _structure_only(limit: Limit) -> Limit:
+    """A copy of ``limit`` for the code generation: its own parameter cache (which the call's
+    mechanism keeps alive and other threads read), empty."""
+    out = copy.copy(limit)
+    out._cached = None
+    return out
+
+
 def _library(n: int, key: tuple, limits: Sequence[Limit]) -> Library | None:
     """The generic library of ``n`` joints and a task structure (one per process)."""
     found = _LIBRARIES.get((n, key), False)
@@ -171,7 +179,7 @@ def _library(n: int, key: tuple, limits: Sequence[Limit]) -> Library | None:
         with _LIBRARIES_LOCK:
             found = _LIBRARIES.get((n, key), False)
             if found is False:
-                lims = [copy.copy(lim) for lim in limits]  # their parameters' caches are their own
+                lims = [_structure_only(lim) for lim in limits]
                 found = _LIBRARIES[(n, key)] = keyed_library(
                     f"optik_diffik_chain{n}", _digest(n, key), lambda: _source(n, key, lims)
                 )

@@ -3,9 +3,10 @@
 What a new user waits for in a fresh process: load the Panda URDF shipped with optik
 (``Mechanism.from_urdf``) and answer the first ``solve_ik`` (or the first ``diffik.step``), on a
 robot never compiled: ``$OPTIK_CACHE_DIR`` is a new folder that holds only what a machine builds
-once for every robot (the generic lm kernel of 7 joints, `optik.solvers.generic_chain`, and the
-compiler's version record), so optik answers the first solves through that kernel while the
-Panda's own C library builds in the background. The case "empty cache" has not even that (as
+once for every robot (the generic lm kernel of 7 joints, `optik.solvers.generic_chain`, the
+generic QP stack of a frame task on 7 joints, `optik.diffik.generic_stack`, and the compiler's
+version record), so optik answers the first solves and steps through those while the Panda's own
+C libraries build in the background. The case "empty cache" has not even that (as
 on the first use of optik on a machine): the first answers then come from CasADi's virtual
 machine. Next to it, in the same
 run, TRAC-IK's constructor plus its first ``ik`` call (``pytracik``, same URDF, same target) and,
@@ -255,12 +256,17 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     import optik
     from optik import diffik, native
+    from optik.diffik import generic_stack
+    from optik.diffik.problem import normalize_limits
     from optik.plot import save_figure
     from optik.solvers import generic_chain
 
     m = optik.Mechanism.from_urdf(_urdf(), BASE, TIP)
-    generic_chain.build(m.n_q, timeout=600)  # once per machine: copied into each child's new cache
+    # built once per machine, for every robot of 7 joints: copied into each child's new cache
+    generic_chain.build(m.n_q, timeout=600)
+    task = [diffik.FrameTask(target=m.fk(m.mid_q()))]
     machine = generic_chain.machine_files(m.n_q)
+    machine += generic_stack.machine_files(m, task, normalize_limits(m, None), timeout=600)
     targets = [m.fk(q) for q in m.random_q(args.reps, seed=args.seed)]
     step_ref = {}  # the compiled step here, for the equality check of the children's first step
     for t in targets:

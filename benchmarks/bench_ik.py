@@ -17,7 +17,10 @@ timed with ``time.perf_counter`` around the public call, failures included. The 
 with its own budget ``--nlp-time-limit`` on the first ``--n-nlp`` targets, with IPOPT (``nlp``)
 and with ``sqpmethod`` (``nlp-sqp``). The solvers run interleaved per target so that load changes
 on a shared machine hit all of them alike; the table reports success rate, mean / median / p95
-time and the ratio of each median time to the fastest peer's median.
+time and the ratio of each median time to the fastest peer's median. A note gives, for each solver that
+failed, the most CPU time (``time.thread_time``) any of its failed calls used: a time-limited solve
+that fails having used far less CPU than its limit was suspended by the scheduler past its deadline
+(a loaded machine), not stopped by its own search.
 
 Run: ``optik benchmark ik [--n 10000] [--robots panda,iiwa14] [--time-limit 0.005] [--tol 1e-5]
 [--methods lm,nlp,nlp-sqp,trac_ik,rtb_lm] [--n-nlp 1000] [--nlp-time-limit 0.3] [--starts mid,random]``.
@@ -125,14 +128,24 @@ def run(
     warm_up(lambda s=s: s(targets[0], q0s[0]) for s, _ in solvers.values())
     native.wait()  # the C libraries built in the background: time the compiled code
     tallies = {label: Tally(label) for label in solvers}
+    failed_cpu: dict[str, list[float]] = {label: [] for label in solvers}  # CPU time of each failure
     for i, target in enumerate(targets):
         for label, (solve, count) in solvers.items():
             if i >= count:
                 continue
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.thread_time()
             q, own = solve(target, q0s[i])
-            elapsed = time.perf_counter() - t0
-            tallies[label].add(elapsed, referee.judge(q, target, tolerances), own)
+            elapsed, cpu = time.perf_counter() - t0, time.thread_time() - c0
+            verdict = referee.judge(q, target, tolerances)
+            tallies[label].add(elapsed, verdict, own)
+            if not verdict.success:
+                failed_cpu[label].append(cpu)
+    for label, cpus in failed_cpu.items():
+        if cpus:
+            notes.append(
+                f"{label}: its {len(cpus)} failures used at most {max(cpus) * 1e3:.3f} ms of CPU time each "
+                f"(time.thread_time around the call; the time limit is {time_limit * 1e3:g} ms of wall time)"
+            )
     return tallies, notes
 
 
@@ -192,7 +205,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             tallies, notes = run(robot, args.n, args.time_limit, args.tol, methods, *nlp, args.seed, kind)
             label = robot if kind == "mid" else f"{robot} (random starts)"
             print("\n".join(table_rows(label, tallies)), flush=True)
-            all_notes += [f"{robot}: {note}" for note in notes]
+            all_notes += [f"{label}: {note}" for note in notes]
     for note in dict.fromkeys(all_notes):
         print(f"\n- {note}")
     return 0

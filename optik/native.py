@@ -111,9 +111,14 @@ def compiler() -> str | None:
     return None
 
 
+_CACHE_DIR: contextvars.ContextVar[Path | None] = contextvars.ContextVar("optik_cache_dir", default=None)
+"""The cache directory of an `in_background` thread: its caller's when it was started."""
+
+
 def cache_dir() -> Path:
-    """Directory of compiled libraries, ``$OPTIK_CACHE_DIR`` or ``~/.cache/optik`` (created on demand)."""
-    d = Path(os.environ.get("OPTIK_CACHE_DIR") or Path.home() / ".cache" / "optik")
+    """Directory of compiled libraries, ``$OPTIK_CACHE_DIR`` or ``~/.cache/optik`` (created on
+    demand); in an `in_background` thread, the one of the call that started it."""
+    d = _CACHE_DIR.get() or Path(os.environ.get("OPTIK_CACHE_DIR") or Path.home() / ".cache" / "optik")
     d.mkdir(parents=True, exist_ok=True)
     return d
 
@@ -345,6 +350,15 @@ class Library:
             self._done.wait(None if until is None else max(0.0, until - time.perf_counter()))
         return self._cdll if self._done.is_set() else None
 
+    def files(self) -> list[Path]:
+        """This library's files in the cache that exist: the library, its manifest and the record
+        of the compiler's version its key was made with (what another cache directory needs to
+        load it: `optik benchmark first_solve` copies them)."""
+        cc = compiler()
+        memo = None if cc is None else _version_memo(cc)
+        found = (self.path, _manifest_file(self.path), memo)
+        return [f for f in found if f is not None and f.exists()]
+
     def evaluated(self, seconds: float) -> None:
         """Account ``seconds`` spent evaluating in CasADi instead of this library (see `get`)."""
         self._evaluated += seconds
@@ -562,18 +576,30 @@ _PREPARING: set[threading.Event] = set()  # one per `in_background` work still r
 _PREPARING_LOCK = threading.Lock()
 
 
+HANDOVER = 0.002
+"""Seconds an `in_background` thread sleeps before its work: the caller, whose answer is ready,
+gets the interpreter back first (a thread running Python code otherwise takes it for a switch
+interval, 5 ms, from the thread that started it)."""
+
+
 def in_background(work: Callable[[], object]) -> None:
-    """Run ``work`` in a new thread that `wait` waits for too: the preparation of a library (its
-    code generation) that a caller does not wait for (`optik.solvers.generic_chain`).
+    """Run ``work`` in a new thread, after `HANDOVER` seconds, that `wait` waits for too: the
+    preparation of a library (its code generation) that a caller does not wait for
+    (`optik.solvers.generic_chain`, `optik.diffik.generic_stack`).
 
     The thread is started by ``_thread.start_new_thread``, which returns at once, where
     ``threading.Thread.start`` waits until the new thread runs (on a loaded machine, until the
     system schedules it: milliseconds the caller would add to its answer). Like a daemon thread,
-    it does not keep the interpreter alive; an exception of ``work`` is logged."""
+    it does not keep the interpreter alive; an exception of ``work`` is logged. Its libraries go
+    to the cache directory of the call that started it (`cache_dir`), whatever
+    ``$OPTIK_CACHE_DIR`` says meanwhile."""
     done = threading.Event()
+    directory = cache_dir()
 
     def run() -> None:
         try:
+            _CACHE_DIR.set(directory)
+            time.sleep(HANDOVER)
             work()
         except Exception:
             _LOG.warning("optik: a background preparation failed", exc_info=True)

@@ -20,7 +20,8 @@ name = "five_bar"            # default: the file name without .toml
 default = true               # part of the default set of `optik bench`
 
 [mechanism]
-constructor = "five_bar"     # a function of optik.catalog
+constructor = "five_bar"     # a function of optik.catalog; or instead of it:
+# mjcf = "models/ant.xml"    # a MuJoCo model (relative to this file), Mechanism.from_mjcf
 task = "position2d"          # default: the mechanism's own task
 urdf = "panda"               # shipped URDF (optik.catalog.URDF_CHAINS) for the peers
 [mechanism.params]           # keyword arguments of the constructor
@@ -251,7 +252,8 @@ SCHEMA: dict[str, dict[str, _Key]] = {
         "default": _Key(_boolean),
     },
     "mechanism": {
-        "constructor": _Key(_string, required=True),
+        "constructor": _Key(_string),
+        "mjcf": _Key(_string),
         "params": _Key(_table),
         "task": _Key(_one_of(tuple(TASK_ROWS))),
         "urdf": _Key(_string),
@@ -387,7 +389,8 @@ class Problem:
         path: the file.
         description: one line.
         default: part of the default set of ``optik bench``.
-        constructor: name of the [`optik.catalog`][optik.catalog] function.
+        constructor: name of the [`optik.catalog`][optik.catalog] function (``"mjcf"`` for an
+            MJCF model).
         params: its keyword arguments.
         task: task space override (None: the mechanism's task).
         urdf: shipped URDF robot name for the peers (None: no peers can run).
@@ -401,6 +404,7 @@ class Problem:
         peers: peer libraries to run.
         time_limit, quick_time_limit: seconds per IK call.
         path_table: the parsed ``[path]`` table ({} without one; `path_poses`).
+        mjcf: the MuJoCo model file of ``mechanism.mjcf`` (None: a catalog constructor).
     """
 
     name: str
@@ -425,12 +429,19 @@ class Problem:
     time_limit: float
     quick_time_limit: float
     path_table: dict[str, Any] = field(default_factory=dict)
+    mjcf: Path | None = None
 
     def _error(self, key: str, what: str) -> ProblemFileError:
         return ProblemFileError(f"{self.path}: {key}: {what}")
 
     @cached_property
     def _mechanism(self) -> Mechanism:
+        if self.mjcf is not None:
+            try:
+                m = Mechanism.from_mjcf(self.mjcf)
+            except OptikError as exc:  # MuJoCo's own refusal, a model without joints, no MuJoCo
+                raise self._error("mechanism.mjcf", str(exc)) from None
+            return self._limited(m)
         fn = getattr(catalog, self.constructor)
         try:
             m = fn(**self.params)
@@ -438,6 +449,10 @@ class Problem:
             raise self._error(f"mechanism.params.{exc.argument}", str(exc)) from None
         except OptikError as exc:  # e.g. a ModelError of parameters that do not make a mechanism
             raise self._error("mechanism.params", str(exc)) from None
+        return self._limited(m)
+
+    def _limited(self, m: Mechanism) -> Mechanism:
+        """``m`` with the file's limit overrides."""
         if self.lower is not None or self.upper is not None:
             for key, value in (("lower", self.lower), ("upper", self.upper)):
                 if value is not None and len(value) != m.n_q:
@@ -648,17 +663,28 @@ def constructors() -> list[str]:
 def _from_data(path: Path, data: dict[str, Any]) -> Problem:
     v = _validate(path, data)
     prob, mech, lim, tg, tol, sol, path_table = (v[k] for k in SCHEMA)
-    constructor = mech["constructor"]
+    if ("constructor" in mech) == ("mjcf" in mech):
+        raise ProblemFileError(
+            f"{path}: [mechanism]: give one of constructor (a catalog function) or mjcf (a file)"
+        )
+    mjcf = None
+    if "mjcf" in mech:
+        mjcf = (path.parent / mech["mjcf"]).resolve()
+        if not mjcf.is_file():
+            raise ProblemFileError(f"{path}: mechanism.mjcf: no such file {mjcf}")
+        if mech.get("params"):
+            raise ProblemFileError(f"{path}: mechanism.params: an MJCF model takes no parameters")
+    constructor = mech.get("constructor", "mjcf")
     names = constructors()
     fn = getattr(catalog, constructor) if constructor in names else None
-    if fn is None:
+    if fn is None and mjcf is None:
         raise ProblemFileError(
             f"{path}: mechanism.constructor: {constructor!r} is not available in this version of "
             f"optik.catalog; available: {names}"
         )
     params = dict(mech.get("params", {}))
-    signature = inspect.signature(fn)
-    for key in params:
+    signature = inspect.signature(fn) if fn is not None else None
+    for key in params if signature is not None else ():
         if key not in signature.parameters:
             raise ProblemFileError(
                 f"{path}: mechanism.params.{key}: not a parameter of optik.catalog.{constructor}; "
@@ -691,6 +717,7 @@ def _from_data(path: Path, data: dict[str, Any]) -> Problem:
         time_limit=sol.get("time_limit", DEFAULT_TIME_LIMIT),
         quick_time_limit=sol.get("quick_time_limit", DEFAULT_QUICK_TIME_LIMIT),
         path_table=path_table,
+        mjcf=mjcf,
     )
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any, overload
 
 import numpy as np
@@ -122,6 +123,9 @@ class IKSolutions(Sequence[IKResult]):
             (not in the list).
         failed_check: candidates dropped because they did not pass the FK check, even after
             polishing (not in the list).
+        in_collision: with ``world=`` or ``self_collision=True``, the solutions the exact check
+            finds closer than the margin (not in the list), each an ``IKResult`` with
+            ``success=False``, status ``"in_collision"``, its ``min_distance`` and ``collision_pair``.
         method: how the solutions were found (``"closed_form"`` or the numerical method).
         uncertified_reason: why the solutions are not certified to be every solution: the
             numerical multi-start (never certified), the 1-D search of
@@ -131,7 +135,7 @@ class IKSolutions(Sequence[IKResult]):
     """
 
     __slots__ = (
-        "_arrays", "_outside", "_results", "failed_check", "method", "uncertified_reason"
+        "_arrays", "_outside", "_results", "failed_check", "in_collision", "method", "uncertified_reason"
     )  # fmt: skip
 
     def __init__(
@@ -146,6 +150,7 @@ class IKSolutions(Sequence[IKResult]):
         self._arrays: tuple[np.ndarray, np.ndarray, float] | None = None
         self._outside: Any = outside_limits if outside_limits is not None else ()
         self.failed_check = failed_check
+        self.in_collision: list[IKResult] = []
         self.method = method
         self.uncertified_reason = uncertified_reason
 
@@ -161,6 +166,7 @@ class IKSolutions(Sequence[IKResult]):
         out._arrays = (q, errors, solve_time)
         out._outside = outside_limits
         out.failed_check = 0
+        out.in_collision = []
         out.method = method
         out.uncertified_reason = ""
         return out
@@ -232,6 +238,8 @@ class IKSolutions(Sequence[IKResult]):
             text += f"; {len(self.outside_limits)} outside the joint limits left out"
         if self.failed_check:
             text += f"; {self.failed_check} candidate(s) failing the FK check dropped"
+        if self.in_collision:
+            text += f"; {len(self.in_collision)} in collision left out"
         if not self.certified:
             text += f"; not certified complete ({self.uncertified_reason})"
         return text
@@ -266,10 +274,16 @@ class IKSolutionsBatch(Sequence[IKSolutions]):
     solve_time: float
     general: dict[int, IKSolutions] = field(default_factory=dict)
 
-    @property
+    @cached_property
     def offsets(self) -> np.ndarray:
         """``(M + 1,)``: target ``i``'s solutions are rows ``offsets[i]:offsets[i + 1]`` of `q`."""
         return np.concatenate(([0], np.cumsum(self.counts)))
+
+    @cached_property
+    def outside_offsets(self) -> np.ndarray:
+        """``(M + 1,)``: target ``i``'s solutions outside the limits are rows
+        ``outside_offsets[i]:outside_offsets[i + 1]`` of `outside_limits`."""
+        return np.concatenate(([0], np.cumsum(self.outside_counts)))
 
     @property
     def target(self) -> np.ndarray:
@@ -291,7 +305,7 @@ class IKSolutionsBatch(Sequence[IKSolutions]):
         i = range(len(self))[index]  # negative indices; IndexError past the end
         if i in self.general:
             return self.general[i]
-        a, b = self.offsets[i : i + 2]
-        c = int(np.sum(self.outside_counts[:i]))
-        outside = self.outside_limits[c : c + int(self.outside_counts[i])]
+        a, b = self.offsets[i : i + 2].tolist()
+        c, d = self.outside_offsets[i : i + 2].tolist()
+        outside = self.outside_limits[c:d]
         return IKSolutions.from_arrays(self.q[a:b], self.errors[a:b], outside, "closed_form", self.solve_time)

@@ -130,3 +130,41 @@ def test_a_moved_object_reuses_the_kernel(arm, method):
     _independent(arm, res, target, w)
     assert np.allclose(arm.fk(res.q, "fore")[:3, 3], arm.fk(qa, "fore")[:3, 3], atol=0.05)
     assert set(collision_free._CACHE) == built
+
+
+def test_solve_ik_all_keeps_the_collision_free_branches(arm):
+    """The two elbow branches of one tip point: with a ball on one elbow, that branch is reported
+    in ``in_collision`` (failed, with the blocking pair) and the other is returned, clear."""
+    qa, qb = _branches(arm)
+    w = _blocking_world(arm, qa)
+    target = optik.Position(arm.fk(qa)[:3, 3])
+    assert check(arm, qa, w, margin=MARGIN).in_collision and not check(arm, qb, w, margin=MARGIN).in_collision
+    every = optik.solve_ik_all(arm, target, time_limit=2.0, seed=0)
+    assert len(every) == 2 and not every.in_collision
+    free = optik.solve_ik_all(arm, target, time_limit=2.0, seed=0, world=w, margin=MARGIN)
+    assert len(free) == 1 and len(free.in_collision) == 1
+    _independent(arm, free[0], target.xyz, w)
+    blocked = free.in_collision[0]
+    assert not blocked.success and blocked.status == "in_collision" and "ball" in blocked.message
+    assert check(arm, blocked.q, w, margin=MARGIN).in_collision
+    assert "1 in collision left out" in free.message
+    with pytest.raises(InvalidArgumentError, match="world"):
+        optik.solve_ik_all(arm, target, world="table")
+
+
+def test_batch_with_a_world_solves_each_target_clear(arm):
+    """``solve_ik_batch(..., world=W)``: every success passes the exact check (recomputed here);
+    the blocked branch's start is led to the clear one."""
+    qa, _ = _branches(arm)
+    w = _blocking_world(arm, qa)
+    targets = np.array([arm.fk(qa)[:3, 3], arm.fk(np.array([-0.4, 0.8]))[:3, 3]])
+    starts = np.array([qa + 0.05, [-0.4, 0.7]])
+    plain = optik.solve_ik_batch(arm, targets, starts, time_limit=2.0, workers=2)
+    assert plain.success.all() and check(arm, plain.q[0], w, margin=MARGIN).in_collision
+    out = optik.solve_ik_batch(arm, targets, starts, world=w, margin=MARGIN, time_limit=2.0, workers=2)
+    assert out.success.all()
+    for q, target in zip(out.q, targets, strict=True):
+        assert np.linalg.norm(arm.fk(q)[:3, 3] - target) <= 1e-6
+        assert not check(arm, q, w, margin=MARGIN).in_collision
+    with pytest.raises(InvalidArgumentError, match="world"):
+        optik.solve_ik_batch(arm, targets, world="table")

@@ -145,3 +145,24 @@ def test_the_compiled_transform_check_is_as_transform(
         with pytest.raises(InvalidArgumentError) as info:
             optik.solve_ik(M, t, method="lm", time_limit=1e-4, max_restarts=0)
         assert info.value.argument == "target"
+
+
+def test_a_method_registered_again_is_not_served_by_an_old_prepared_call() -> None:
+    """Registering a method anew (here "lm" itself, with a solve that marks its results) makes
+    `solve_ik` take the new registration, not a call prepared for the old one."""
+    from optik.solvers.base import get_method, register_method
+
+    _warm(M, **OPTIONS)
+    old = get_method("lm")
+
+    def marked(request):  # type: ignore[no-untyped-def]
+        res = old.solve(request)
+        res.extra["marked"] = True
+        return res
+
+    try:
+        register_method("lm", marked, old.applies, old.description, old.multi_target)
+        assert optik.solve_ik(M, M.fk(M.mid_q()), method="lm", **OPTIONS).extra == {"marked": True}
+    finally:
+        register_method("lm", old.solve, old.applies, old.description, old.multi_target, old.prepare)
+    assert optik.solve_ik(M, M.fk(M.mid_q()), method="lm", **OPTIONS).extra == {}

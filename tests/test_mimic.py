@@ -8,6 +8,7 @@ import re
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
+from test_mechanism import finite_difference_jacobian
 
 import optik
 from optik import Joint, Mechanism, spatial
@@ -47,18 +48,6 @@ def _reference_fk(q: np.ndarray) -> np.ndarray:
     )
 
 
-def _fd_jacobian(m: Mechanism, q: np.ndarray, h: float = 1e-6) -> np.ndarray:
-    t = m.fk(q)
-    cols = []
-    for k in range(m.n_q):
-        dq = np.zeros(m.n_q)
-        dq[k] = h
-        tp, tm = m.fk(q + dq), m.fk(q - dq)
-        w = spatial.vee((tp[:3, :3] - tm[:3, :3]) / (2 * h) @ t[:3, :3].T)
-        cols.append(np.concatenate([(tp[:3, 3] - tm[:3, 3]) / (2 * h), w]))
-    return np.array(cols).T
-
-
 def test_mimic_joint_has_no_coordinate_and_follows_its_source():
     m = _spatial_mimic_arm()
     assert m.coordinate_names == ("a", "b", "d", "e") and m.n_q == 4
@@ -70,7 +59,7 @@ def test_mimic_joint_has_no_coordinate_and_follows_its_source():
 def test_jacobian_through_the_coupling_matches_finite_differences():
     m = _spatial_mimic_arm()
     for q in m.random_q(10, seed=5):
-        np.testing.assert_allclose(m.jacobian(q), _fd_jacobian(m, q), atol=1e-8)
+        np.testing.assert_allclose(m.jacobian(q), finite_difference_jacobian(m, q), atol=1e-8)
     # the column of the source joint carries both rotations: b and c = -0.7 b about parallel axes
     q = np.array([0.2, 0.4, 0.1, 0.3])
     assert abs(m.jacobian(q)[4, 1] - 0.3 * np.cos(0.2)) < 1e-12  # w_y = (1 - 0.7) * cos(a)

@@ -249,16 +249,14 @@ FOURBAR = """<mujoco model="fourbar"><compiler angle="radian"/>
 def test_equalities_as_closures_and_couplings():
     """``connect``: a cut spherical joint whose closure is MuJoCo's own constraint residual
     (``efc_pos`` of the equality rows, opposite sign); ``joint``: a coupling whose MuJoCo
-    residual vanishes; weld and inactive equalities: not modelled, said in the notes."""
+    residual vanishes; ``weld`` (the box welded to the world): a cut fixed joint, its position rows
+    MuJoCo's (opposite sign) and its rotation rows of norm ``2 sin(theta / 2)`` where MuJoCo's
+    have ``sin(theta / 2)``; inactive equalities: not modelled, said in the notes."""
     m = optik.Mechanism.from_mjcf(FOURBAR)
     model = mujoco.MjModel.from_xml_string(FOURBAR)
-    assert m.coordinate_names == ("a", "b", "c", "d", "f") and m.n_closure == 3 and m.is_closed
+    assert m.coordinate_names == ("a", "b", "c", "d", "f") and m.n_closure == 15 and m.is_closed
     notes = " ".join(m.params["notes"])
-    assert (
-        "joint 'e' follows 'd'" in notes
-        and "weld 'glue' is not modelled" in notes
-        and "'off' is inactive" in notes
-    )
+    assert "joint 'e' follows 'd'" in notes and "'off' is inactive" in notes and "weld" not in notes
     data = mujoco.MjData(model)
     for q in m.random_q(5, seed=4):
         qpos = to_qpos(m, q)
@@ -266,11 +264,57 @@ def test_equalities_as_closures_and_couplings():
         data.qpos[:] = qpos
         mujoco.mj_forward(model, data)
         rows = data.efc_pos[data.efc_type == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)]
-        np.testing.assert_allclose(m.closure(q), -rows[:3], atol=1e-12)  # connect
+        c = m.closure(q)
+        np.testing.assert_allclose(c[:3], -rows[:3], atol=1e-12)  # connect
         assert abs(rows[3]) < 1e-12  # the coupling holds
+        np.testing.assert_allclose(c[3:6], -rows[4:7], atol=1e-12)  # weld: position
+        # weld: rotation rows of norm 2 sin(theta / 2), MuJoCo's sin(theta / 2)
+        assert np.linalg.norm(c[6:15]) == pytest.approx(2 * np.linalg.norm(rows[7:10]), abs=1e-12)
         assert abs(m.fk(q, "follower")[1, 3] - data.xpos[model.body("follower").id][1]) < 1e-12
-    fk = optik.solve_fk(m, [0.3, 0.1, 0.2], q0=m.mid_q())  # the crank drives the closed four-bar
+    fk = optik.solve_fk(m, [0.3, 0.1, 0.0], q0=m.mid_q())  # the crank drives the closed four-bar
     assert fk.success and np.abs(m.closure(fk.q)).max() < 1e-9
+    assert not optik.solve_fk(m, [0.3, 0.1, 0.2], q0=m.mid_q(), time_limit=0.2).success  # welded box
+
+
+WELDED = """<mujoco><compiler angle="radian"/>
+<worldbody>
+ <body name="a" pos="0 0 0.1"><joint name="j1" axis="0 0 1"/><geom size="0.02"/>
+  <body name="b" pos="0.3 0 0"><joint name="j2" axis="0 1 0"/><geom size="0.02"/>
+   <body name="c" pos="0.3 0 0"><joint name="j3" type="ball"/><geom size="0.02"/>
+    <body name="d" pos="0.2 0 0"><joint name="j4" axis="1 0 0"/><geom size="0.02"/>
+     <site name="tip" pos="0.2 0 0" quat="0.9 0.1 0.3 0.2"/></body></body></body></body>
+ <site name="goal" pos="0.5 0.2 0.3" quat="0.7 0.2 -0.1 0.4"/>
+</worldbody>
+<equality>{weld}</equality></mujoco>"""
+
+
+@pytest.mark.parametrize(
+    ("weld", "mobility"),
+    [
+        ('<weld body1="d" anchor="0.1 0.02 0" relpose="0.45 0.1 0.2 0.8 0.3 0.1 -0.2"/>', 0),
+        # relpose from qpos0, the chain stretched along x: the ball's turn about x and j4 cancel
+        ('<weld body1="d"/>', 1),
+        ('<weld site1="tip" site2="goal"/>', 0),
+    ],
+)
+def test_weld_residuals_equal_mujoco(weld, mobility):
+    """A spatial chain (hinges and a ball) welded to the world, by bodies with an anchor and a
+    relative pose, by bodies at qpos0, and by sites: 3 position rows, MuJoCo's ``efc_pos``
+    (opposite sign), and 9 rotation rows of norm ``2 sin(theta / 2)`` where MuJoCo's have
+    ``sin(theta / 2)``, on random configurations; the mobility; the weld holds at qpos0."""
+    xml = WELDED.format(weld=weld)
+    m, model = optik.Mechanism.from_mjcf(xml), mujoco.MjModel.from_xml_string(xml)
+    assert m.n_q == 6 and m.n_closure == 12 and m.mobility() == mobility
+    data = mujoco.MjData(model)
+    for q in m.random_q(6, seed=2):
+        data.qpos[:] = to_qpos(m, q)
+        mujoco.mj_forward(model, data)
+        rows = data.efc_pos[data.efc_type == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)]
+        c = m.closure(q)
+        np.testing.assert_allclose(c[:3], -rows[:3], atol=1e-12)
+        assert np.linalg.norm(c[3:]) == pytest.approx(2 * np.linalg.norm(rows[3:]), abs=1e-12)
+    if "relpose" not in weld and "site" not in weld:
+        assert np.abs(m.closure(from_qpos(m, model.qpos0))).max() < 1e-12
 
 
 def test_commands_take_mjcf_files(tmp_path):
@@ -285,3 +329,34 @@ def test_commands_take_mjcf_files(tmp_path):
         load_source(str(path), "crank", None)
     with pytest.raises(InvalidArgumentError, match="no such file"):
         load_source(str(tmp_path / "missing.xml"), None, None)
+
+
+COUPLED_FINGERS = """<mujoco><compiler angle="radian"/>
+<worldbody><body name="palm"><joint name="wrist" axis="0 0 1"/><geom size="0.02"/>
+  <body name="thumb" pos="0.1 0 0"><joint name="thumb" axis="0 1 0" range="-1 1"/><geom size="0.02"/>
+    <site name="thumb_tip" pos="0.05 0 0"/></body>
+  <body name="finger" pos="0.1 0.05 0"><joint name="finger" axis="0 1 0" range="-1 1" ref="0.2"/>
+    <geom size="0.02"/><site name="finger_tip" pos="0.05 0 0"/></body></body></worldbody>
+<tendon><fixed name="grip"><joint joint="thumb" coef="-0.5"/><joint joint="finger" coef="0.7"/></fixed>
+  <fixed name="free"><joint joint="wrist" coef="1"/><joint joint="thumb" coef="1"/>
+    <joint joint="finger" coef="1"/></fixed></tendon>
+<equality><tendon name="coupling" tendon1="grip" polycoef="0.03 0 0 0 0"/>
+  <tendon name="three" tendon1="free" active="false"/></equality></mujoco>"""
+
+
+def test_fixed_tendon_equality_is_a_coupling():
+    """A tendon equality on a fixed tendon of two joints (MuJoCo holds its length at the qpos0
+    length plus polycoef[0]) makes the second joint follow the first: MuJoCo's residual of that
+    equality is 0 at every configuration, the site poses equal MuJoCo's."""
+    m, model = optik.Mechanism.from_mjcf(COUPLED_FINGERS), mujoco.MjModel.from_xml_string(COUPLED_FINGERS)
+    assert m.coordinate_names == ("wrist", "thumb")
+    assert any("'finger' follows 'thumb'" in n for n in m.params["notes"])
+    data = mujoco.MjData(model)
+    for q in m.random_q(6, seed=3):
+        data.qpos[:] = to_qpos(m, q)
+        mujoco.mj_forward(model, data)
+        rows = data.efc_pos[data.efc_type == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)]
+        assert rows.shape == (1,) and abs(rows[0]) < 1e-12
+        assert (
+            np.abs(m.fk(q, "finger_tip")[:3, 3] - data.site_xpos[model.site("finger_tip").id]).max() < 1e-12
+        )

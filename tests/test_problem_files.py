@@ -147,3 +147,50 @@ def test_joint_sampling_is_uniform_within_limits():
     # uniform on [-pi, pi]: mean near 0, std near pi / sqrt(3)
     assert np.all(np.abs(t.q.mean(axis=0)) < 0.3)
     np.testing.assert_allclose(t.q.std(axis=0), (m.upper - m.lower) / np.sqrt(12), rtol=0.1)
+
+
+ARM_XML = """<mujoco model="arm2">
+  <compiler angle="radian"/>
+  <worldbody>
+    <body name="upper"><joint name="shoulder" type="hinge" axis="0 0 1" range="-2 2" limited="true"/>
+      <geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.02"/>
+      <body name="fore" pos="0.5 0 0"><joint name="elbow" type="hinge" axis="0 0 1" range="-2.5 2.5"
+          limited="true"/>
+        <geom type="capsule" fromto="0 0 0 0.4 0 0" size="0.02"/>
+        <site name="tip" pos="0.4 0 0"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_an_mjcf_model_in_a_problem_file(tmp_path):
+    """``mechanism.mjcf`` (relative to the file) loads the model through Mechanism.from_mjcf;
+    its targets are FK of joint draws and solve to the tolerances; exactly one of constructor and
+    mjcf, an existing file and no params are required."""
+    pytest.importorskip("mujoco", reason="MJCF needs MuJoCo (extra 'mjcf')")
+    (tmp_path / "models").mkdir()
+    (tmp_path / "models" / "arm2.xml").write_text(ARM_XML)
+    text = '[problem]\ndescription = "arm"\n[mechanism]\nmjcf = "models/arm2.xml"\ntask = "position"\n'
+    p = problem_files.load_problem(write(tmp_path, text))
+    m = p.mechanism()
+    assert p.mjcf == tmp_path / "models" / "arm2.xml" and m.coordinate_names == ("shoulder", "elbow")
+    np.testing.assert_allclose(m.upper, [2.0, 2.5])
+    targets = p.sample_targets(5)
+    assert targets.task == "position"
+    for q, t in zip(targets.q, targets.poses, strict=True):
+        assert m.within_limits(q)
+        r = optik.solve_ik(
+            m, optik.Position(t[:3, 3]), frame=m.ee, method="lm", time_limit=1.0, compile=False
+        )
+        assert r.success, r.message
+    for mech, what in (
+        ('constructor = "planar_3r"\nmjcf = "models/arm2.xml"', "one of constructor"),
+        ("", "one of constructor"),
+        ('mjcf = "models/none.xml"', "no such file"),
+        ('mjcf = "models/arm2.xml"\n[mechanism.params]\nn = 1', "no parameters"),
+    ):
+        bad = f'[problem]\ndescription = "arm"\n[mechanism]\n{mech}\n'
+        with pytest.raises(ProblemFileError, match=what):
+            problem_files.load_problem(write(tmp_path, bad, "bad.toml"))

@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
+from test_mechanism import finite_difference_jacobian
 
 import optik
 from optik.catalog import URDF_CHAINS, iiwa14, panda, urdf_path
@@ -341,20 +342,6 @@ def test_bad_input_raises_optik_errors(name, ctor):
             m.fk(q, frame="no_such_link")
 
 
-def _fd_jacobian(m, q, h=1e-6):
-    """Central differences: ``dp/dq`` and ``vee(dR/dq R^T)``."""
-    t = m.fk(q)
-    cols = []
-    for k in range(m.n_q):
-        e = np.zeros(m.n_q)
-        e[k] = h
-        tp, tm = m.fk(q + e), m.fk(q - e)
-        dp = (tp[:3, 3] - tm[:3, 3]) / (2 * h)
-        w = optik.spatial.vee((tp[:3, :3] - tm[:3, :3]) / (2 * h) @ t[:3, :3].T)
-        cols.append(np.concatenate([dp, w]))
-    return np.array(cols).T
-
-
 @pytest.mark.parametrize("source", ["catalog", "urdf"])
 def test_panda_jacobian_vs_finite_differences(source):
     m = (
@@ -363,4 +350,4 @@ def test_panda_jacobian_vs_finite_differences(source):
         else optik.Mechanism.from_urdf(urdf_path("panda"), *URDF_CHAINS["panda"])
     )
     for q in m.random_q(10, seed=np.random.default_rng(11)):
-        np.testing.assert_allclose(m.jacobian(q), _fd_jacobian(m, q), atol=1e-8)
+        np.testing.assert_allclose(m.jacobian(q), finite_difference_jacobian(m, q), atol=1e-8)

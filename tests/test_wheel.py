@@ -6,15 +6,26 @@ The wheel is built from a copy of the source tree (``pip wheel --no-deps``) and 
 declared dependencies into an isolated venv (no system site-packages: what the wheel does not
 declare is not there); every command runs in an empty temporary folder without PYTHONPATH, with
 an empty compile cache, and must not warn that a package file cannot be read.
+
+Installing the dependencies from the registry takes most of a minute, so they are installed once
+per set of declared requirements into a cached venv (`DEPS_CACHE`, rebuilt after `DEPS_MAX_AGE`
+or when the wheel's ``Requires-Dist`` change): each run hard-links a copy of it, installs the new
+wheel there without dependencies and runs ``pip check`` (every declared requirement satisfied).
+The copy is as isolated as a fresh venv; ``OPTIK_WHEEL_DEPS_CACHE=0`` installs from the registry
+every time.
 """
 
 from __future__ import annotations
 
+import fcntl
+import hashlib
 import json
 import os
 import shutil
 import subprocess
 import sys
+import time
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -36,6 +47,54 @@ def _run(cmd: list[str], cwd: Path, env: dict[str, str]) -> subprocess.Completed
     return proc
 
 
+DEPS_CACHE = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "optik-tests" / "wheel-deps"
+"""Folder of the cached dependency venvs, one per requirement set."""
+DEPS_MAX_AGE = 7 * 86400.0
+"""Seconds after which a cached dependency venv is rebuilt from the registry (newer releases)."""
+
+
+def _requirements(wheel: Path) -> list[str]:
+    """The wheel's ``Requires-Dist`` lines without an ``extra`` marker (what a plain install
+    pulls), sorted."""
+    with zipfile.ZipFile(wheel) as z:
+        (meta,) = [n for n in z.namelist() if n.endswith(".dist-info/METADATA")]
+        lines = z.read(meta).decode("utf-8").splitlines()
+    reqs = [ln.split(":", 1)[1].strip() for ln in lines if ln.startswith("Requires-Dist:")]
+    return sorted(r for r in reqs if "extra ==" not in r)
+
+
+def _new_venv(path: Path, env: dict[str, str]) -> Path:
+    """A venv at ``path`` without system site-packages; its python."""
+    # the interpreter behind any venv pytest may run in, so that the new venv is isolated from both
+    base_python = getattr(sys, "_base_executable", sys.executable)
+    _run([base_python, "-m", "venv", str(path)], path.parent, env)
+    return path / "bin" / "python"
+
+
+def _pip_install(python: Path, args: list[str], env: dict[str, str]) -> None:
+    quiet = ["-q", "--disable-pip-version-check"]
+    _run([str(python), "-m", "pip", "install", *quiet, *args], python.parent, env)
+
+
+def _deps_venv(reqs: list[str], env: dict[str, str]) -> Path:
+    """The cached venv holding exactly ``reqs`` (built under a file lock, moved into place
+    when complete)."""
+    key = hashlib.sha256("\n".join([sys.version, sys.platform, *reqs]).encode()).hexdigest()[:16]
+    DEPS_CACHE.mkdir(parents=True, exist_ok=True)
+    done = DEPS_CACHE / key
+    with open(DEPS_CACHE / f"{key}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        stale = done.is_dir() and time.time() - (done / "pyvenv.cfg").stat().st_mtime > DEPS_MAX_AGE
+        if stale:
+            shutil.rmtree(done)
+        if not done.is_dir():
+            building = DEPS_CACHE / f"{key}.building"
+            shutil.rmtree(building, ignore_errors=True)
+            _pip_install(_new_venv(building, env), reqs, env)
+            building.rename(done)
+    return done
+
+
 @pytest.fixture(scope="module")
 def venv(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, str]]:
     """An isolated venv with the optik wheel and its declared dependencies, and an environment
@@ -55,11 +114,18 @@ def venv(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, str]
     _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", str(src), "-w", str(wheels)], base, env)
     (wheel,) = wheels.glob("optik-*.whl")
     venv_dir = base / "venv"
-    # the interpreter behind any venv pytest may run in, so that the new venv is isolated from both
-    base_python = getattr(sys, "_base_executable", sys.executable)
-    _run([base_python, "-m", "venv", str(venv_dir)], base, env)
+    if os.environ.get("OPTIK_WHEEL_DEPS_CACHE", "1") == "0":
+        _pip_install(_new_venv(venv_dir, env), [str(wheel)], env)
+        return venv_dir, env
+    deps = _deps_venv(_requirements(wheel), env)
+    try:  # hard links: instant, and what the copy adds or rewrites stays in the copy
+        _run(["cp", "-al", str(deps), str(venv_dir)], base, env)
+    except AssertionError:  # another file system
+        shutil.rmtree(venv_dir, ignore_errors=True)
+        shutil.copytree(deps, venv_dir, symlinks=True)
     python = venv_dir / "bin" / "python"
-    _run([str(python), "-m", "pip", "install", "-q", "--disable-pip-version-check", str(wheel)], base, env)
+    _pip_install(python, ["--no-deps", str(wheel)], env)
+    _run([str(python), "-m", "pip", "check"], base, env)
     return venv_dir, env
 
 

@@ -28,6 +28,8 @@ from optik.batch.fk import default_workers
 from optik.batch.inputs import as_starts, as_targets, target_seed_array
 from optik.batch.result import BatchResult
 from optik.checks import as_bool
+from optik.collision.world import World
+from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 from optik.progress import Progress
 from optik.solvers.base import Tolerances, get_method, make_request, positive_int
@@ -50,6 +52,12 @@ def solve_ik_batch(
     chunk_size: int | None = None,
     retries: int = 2,
     progress: bool = False,
+    world: Any = None,
+    self_collision: bool | None = None,
+    margin: float = 0.0,
+    contacts: Any = None,
+    support: Any = None,
+    com_margin: float = 0.0,
     **options: Any,
 ) -> BatchResult:
     """Inverse kinematics of many targets: every core, or a Dask cluster.
@@ -77,6 +85,16 @@ def solve_ik_batch(
             locally).
         retries: Dask retries of a chunk whose worker was lost.
         progress: draw a progress bar on stderr.
+        world: obstacles ([`optik.World`][optik.World]); with it or ``self_collision=True`` every
+            target is one collision-aware `optik.solve_ik` (``lm`` or ``nlp``, on the local
+            threads): success needs the exact check at ``margin``, a reached pose that collides
+            has status ``"in_collision"``.
+        self_collision: keep the robot clear of itself (None: True when ``world`` is given).
+        margin: the clearance (m).
+        contacts, support, com_margin: frames held in the world and static balance, as for
+            `optik.solve_ik` (the same for every target; methods ``"lm"``, ``"nlp"``, ``"qp"`` with
+            ``support``): each target is one `optik.solve_ik` call on the thread pool (the
+            compiled ``lm`` balance kernel releases the GIL), its balance checked as there.
         **options: method options (as for `optik.solve_ik`).
 
     Returns:
@@ -103,7 +121,25 @@ def solve_ik_batch(
         options,
     )
     spec = ChunkSpec(method, request.task, frame, request.time_limit, request.tol, dict(options))
-    if method == "lm":
+    own = (world is not None) if self_collision is None else as_bool(self_collision, "self_collision")
+    if world is not None or own:
+        if world is not None and not isinstance(world, World):
+            raise InvalidArgumentError(
+                "world", f"expected an optik.World or None, got {type(world).__name__}"
+            )
+        if scheduler is not None:
+            raise InvalidArgumentError(
+                "scheduler", "a collision-aware batch runs on local threads (the World is not sent to Dask)"
+            )
+        spec.collisions.update(world=world, self_collision=own, margin=margin)
+    spec.balance.update(
+        (k, v)
+        for k, v in (("contacts", contacts), ("support", support), ("com_margin", com_margin))
+        if v is not None and not (k == "com_margin" and v == 0.0)
+    )
+    if spec.balance and n:  # validated (and its code built) by one solve of the first target
+        prepare(m, spec, transforms[0], starts[0])
+    elif method == "lm":
         lm_settings(request)  # unknown options and bad values raise here, not in a worker
     else:
         get_method(method)

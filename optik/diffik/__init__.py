@@ -3,6 +3,7 @@ strict priority, path tracking, and iterated differential IK as the ``"dls"`` an
 methods of [`optik.solve_ik`][optik.solve_ik] (registered on import).
 """
 
+from optik.diffik import generic_stack as _generic_stack  # noqa: F401  # loaded with the package: the first step finds it
 from optik.diffik import ik as _ik
 from optik.diffik.base import Limit, Task
 from optik.diffik.limits import AccelerationLimit, ClosureConstraint, ConfigurationLimit, VelocityLimit

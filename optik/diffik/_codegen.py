@@ -26,6 +26,34 @@ import numpy as np
 from optik.native import Binding, library
 
 
+def flatten(f: ca.Function) -> ca.Function:
+    """``f`` with one input vector (every input, column-major, concatenated) and one output vector
+    (every output, densified and column-major, concatenated), under the same name."""
+    shapes = [f.size_in(i) for i in range(f.n_in())]
+    x = ca.SX.sym("x", sum(r * c for r, c in shapes))
+    args, start = [], 0
+    for r, c in shapes:
+        args.append(ca.reshape(x[start : start + r * c], r, c))
+        start += r * c
+    outs = f(*args)
+    outs = outs if isinstance(outs, (list, tuple)) else [outs]
+    return ca.Function(f.name(), [x], [ca.vertcat(*[ca.vec(ca.densify(o)) for o in outs])])
+
+
+def output_bounds(shapes: list[tuple[int, int]]) -> list[tuple[int, int, int, int]]:
+    """``(start, stop, rows, cols)`` of each output of shape ``(rows, cols)`` in the flattened output."""
+    bounds, start = [], 0
+    for r, c in shapes:
+        bounds.append((start, start + r * c, r, c))
+        start += r * c
+    return bounds
+
+
+def split_outputs(out: np.ndarray, bounds: list[tuple[int, int, int, int]]) -> tuple[np.ndarray, ...]:
+    """The outputs in the flattened ``out`` (vectors 1-D, matrices ``(rows, cols)``)."""
+    return tuple([out[a:b] if c == 1 else out[a:b].reshape(c, r).T for a, b, r, c in bounds])
+
+
 class CompiledFunction:
     """A CasADi function callable on numpy arrays with little overhead.
 
@@ -40,23 +68,10 @@ class CompiledFunction:
 
     def __init__(self, f: ca.Function) -> None:
         self.function = f
-        self._in_shapes = [f.size_in(i) for i in range(f.n_in())]
         self._out_shapes = [f.size_out(i) for i in range(f.n_out())]
-        x = ca.SX.sym("x", sum(r * c for r, c in self._in_shapes))
-        args, start = [], 0
-        for r, c in self._in_shapes:
-            args.append(ca.reshape(x[start : start + r * c], r, c))
-            start += r * c
-        outs = f(*args)
-        outs = outs if isinstance(outs, (list, tuple)) else [outs]
-        flat = ca.vertcat(*[ca.vec(ca.densify(o)) for o in outs])
-        self._flat = ca.Function(f.name(), [x], [flat])
-        self._bounds = []
-        start = 0
-        for r, c in self._out_shapes:
-            self._bounds.append((start, start + r * c, r, c))
-            start += r * c
-        self._sizes = (int(x.shape[0]), start)
+        self._flat = flatten(f)
+        self._bounds = output_bounds(self._out_shapes)
+        self._sizes = (int(self._flat.size1_in(0)), self._bounds[-1][1] if self._bounds else 0)
         self.library = library([self._flat])
         self._local = threading.local()
 
@@ -88,8 +103,7 @@ class CompiledFunction:
         buf, out, native, evaluate = self._thread_state()
         buf[:] = x
         native(evaluate)
-        out = out.copy()
-        return tuple([out[a:b] if c == 1 else out[a:b].reshape(c, r).T for a, b, r, c in self._bounds])
+        return split_outputs(out.copy(), self._bounds)
 
     def __call__(self, *inputs: np.ndarray) -> tuple[np.ndarray, ...]:
         """Evaluate on numpy inputs (vectors or matrices of the declared shapes)."""

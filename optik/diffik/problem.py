@@ -27,7 +27,7 @@ from __future__ import annotations
 import itertools
 import math
 import threading
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -37,10 +37,12 @@ import numpy as np
 from optik.checks import as_float, as_vector
 from optik.diffik._codegen import CompiledFunction
 from optik.diffik.base import Limit, Task, intersect
+from optik.diffik.collision import DAMPER_GAIN, INFLUENCE, damper_rows
 from optik.diffik.limits import ClosureConstraint, ConfigurationLimit, VelocityLimit
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
+from optik.native import in_background
 from optik.solvers.balance import support_halfplanes
 
 
@@ -61,7 +63,8 @@ class DiffIKProblem:
         slices: rows of each task in the stacked arrays.
         priorities: priority of each task.
         q: the configuration; dt: the time step.
-        G, h: inequality rows ``G dq <= h`` (static balance; ``0 x n`` without it).
+        G, h: inequality rows ``G dq <= h`` (static balance, then collision dampers; ``0 x n``
+            without them).
     """
 
     H: np.ndarray
@@ -109,6 +112,66 @@ class DiffIKProblem:
         return float(0.5 * dq @ self.H @ dq + self.c @ dq)
 
 
+def stack_casadi(
+    m: Mechanism,
+    tasks: Sequence[Task],
+    limits: Sequence[Limit],
+    closure: ClosureConstraint | None,
+    geometry: ca.SX | None = None,
+) -> ca.Function:
+    """The CasADi function ``(q, p, dt, v_prev) -> (H, c, lb, ub, A, b, W J, -alpha W e, e, c(q),
+    mu)`` of one task structure (`StackFunction`). ``geometry``: symbols the model's expressions
+    depend on besides ``q`` (the chain of `optik.diffik.generic_stack`), appended to ``p``."""
+    n = m.n_q
+    q = m.q_sym
+    dt = ca.SX.sym("dt")
+    v_prev = ca.SX.sym("v_prev", n)
+    pieces: list[ca.SX] = []
+    rows_j, rows_t, rows_e = [], [], []
+    mu = ca.SX(0)
+    for k, task in enumerate(tasks):
+        pt = ca.SX.sym(f"p{k}", task.n_parameters(m))
+        w = ca.SX.sym(f"w{k}", task.dim)
+        gain = ca.SX.sym(f"g{k}")
+        lm = ca.SX.sym(f"lm{k}")
+        pieces += [pt, w, gain, lm]
+        e, jac = task.expressions(m, q, pt)
+        target = -gain * w * e
+        rows_j.append(ca.diag(w) @ jac)
+        rows_t.append(target)
+        rows_e.append(e)
+        mu = mu + lm * ca.dot(target, target)
+    lb: Any = ca.SX.zeros(n) - 1e20
+    ub: Any = ca.SX.zeros(n) + 1e20
+    for i, limit in enumerate(limits):
+        pl = ca.SX.sym(f"l{i}", limit.parameters(m).shape[0])
+        pieces.append(pl)
+        lo, hi = limit.bounds(m, q, pl, dt, v_prev)
+        lb, ub = intersect(lb, ub, lo, hi)
+    damping = ca.SX.sym("damping")
+    pieces.append(damping)
+    if geometry is not None:
+        pieces.append(geometry)
+    mu = mu + damping
+    jw = ca.vertcat(*rows_j)
+    tw = ca.vertcat(*rows_t)
+    hess = ca.mtimes(jw.T, jw) + mu * ca.SX.eye(n)
+    lin = -ca.mtimes(jw.T, tw)
+    if closure is not None and m.is_closed:
+        cres, jc, bc = closure.expressions(m, q)
+    else:
+        cres, jc, bc = ca.SX(0, 1), ca.SX(0, n), ca.SX(0, 1)
+    p = ca.vertcat(*pieces)
+    outs = [hess, lin, lb, ub, jc, bc, jw, tw, ca.vertcat(*rows_e), cres, mu]
+    return ca.Function("diffik_stack", [q, p, dt, v_prev], outs)
+
+
+def task_slices(dims: Sequence[int]) -> tuple[list[slice], np.ndarray]:
+    """The rows of each task (of ``dims`` rows each) in the stacked arrays, and the first row of each."""
+    bounds = np.cumsum([0, *dims])
+    return [slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)], bounds[:-1]
+
+
 class StackFunction:
     """Compiled evaluation of every task, limit and closure term of one task structure.
 
@@ -119,52 +182,11 @@ class StackFunction:
     def __init__(
         self, m: Mechanism, tasks: Sequence[Task], limits: Sequence[Limit], closure: ClosureConstraint | None
     ) -> None:
-        n = m.n_q
-        q = m.q_sym
-        dt = ca.SX.sym("dt")
-        v_prev = ca.SX.sym("v_prev", n)
-        pieces: list[ca.SX] = []
-        rows_j, rows_t, rows_e = [], [], []
-        mu = ca.SX(0)
-        for k, task in enumerate(tasks):
-            pt = ca.SX.sym(f"p{k}", task.n_parameters(m))
-            w = ca.SX.sym(f"w{k}", task.dim)
-            gain = ca.SX.sym(f"g{k}")
-            lm = ca.SX.sym(f"lm{k}")
-            pieces += [pt, w, gain, lm]
-            e, jac = task.expressions(m, q, pt)
-            target = -gain * w * e
-            rows_j.append(ca.diag(w) @ jac)
-            rows_t.append(target)
-            rows_e.append(e)
-            mu = mu + lm * ca.dot(target, target)
-        lb: Any = ca.SX.zeros(n) - 1e20
-        ub: Any = ca.SX.zeros(n) + 1e20
-        for i, limit in enumerate(limits):
-            pl = ca.SX.sym(f"l{i}", limit.parameters(m).shape[0])
-            pieces.append(pl)
-            lo, hi = limit.bounds(m, q, pl, dt, v_prev)
-            lb, ub = intersect(lb, ub, lo, hi)
-        damping = ca.SX.sym("damping")
-        pieces.append(damping)
-        mu = mu + damping
-        jw = ca.vertcat(*rows_j)
-        tw = ca.vertcat(*rows_t)
-        hess = ca.mtimes(jw.T, jw) + mu * ca.SX.eye(n)
-        lin = -ca.mtimes(jw.T, tw)
-        if closure is not None and m.is_closed:
-            cres, jc, bc = closure.expressions(m, q)
-        else:
-            cres, jc, bc = ca.SX(0, 1), ca.SX(0, n), ca.SX(0, 1)
-        p = ca.vertcat(*pieces)
-        outs = [hess, lin, lb, ub, jc, bc, jw, tw, ca.vertcat(*rows_e), cres, mu]
-        f = ca.Function("diffik_stack", [q, p, dt, v_prev], outs)
+        f = stack_casadi(m, tasks, limits, closure)
         self.function = CompiledFunction(f)
-        self.n_closure = int(jc.shape[0])
+        self.n_closure = int(f.size1_out(4))
         self.dims = [t.dim for t in tasks]
-        bounds = np.cumsum([0, *self.dims])
-        self.slices = [slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
-        self.starts = bounds[:-1]
+        self.slices, self.starts = task_slices(self.dims)
         self._local = threading.local()
 
     @property
@@ -184,6 +206,19 @@ class StackFunction:
 
 
 _STACKS: PerMechanism[dict[tuple, StackFunction]] = PerMechanism()
+_FIRST_STACKS: list[Callable[[Mechanism, Sequence[Task], Sequence[Limit]], StackFunction | None]] = []
+
+
+def register_first_stack(
+    find: Callable[[Mechanism, Sequence[Task], Sequence[Limit]], StackFunction | None],
+) -> None:
+    """Let `stack_function` answer with ``find(m, tasks, limits)`` (when not None) while the stack
+    of ``m`` is not compiled yet, and build that one in the background meanwhile
+    (`optik.diffik.generic_stack` registers itself on import)."""
+    _FIRST_STACKS.append(find)
+
+
+_STARTED: PerMechanism[set[tuple]] = PerMechanism()  # stacks being built in the background
 
 
 def normalize_limits(m: Mechanism, limits: Sequence[Limit] | None) -> list[Limit]:
@@ -253,6 +288,19 @@ def stack_function(
     if per_m is None:
         per_m = _STACKS[m] = {}
     stack = per_m.get(key)
+    if stack is None or not stack.function.compiled:
+        generic = next((s for f in _FIRST_STACKS if (s := f(m, tasks, limits)) is not None), None)
+        if generic is not None:  # until the stack of m is compiled (built in the background)
+            started = _STARTED.setdefault(m, set())
+            if stack is None and key not in started:
+                started.add(key)
+                task_list, lims = list(tasks), list(limits)
+
+                def build() -> None:
+                    per_m[key] = StackFunction(m, task_list, lims, ClosureConstraint(closure_gain))
+
+                in_background(build)
+            return generic
     if stack is None:
         stack = per_m[key] = StackFunction(m, tasks, limits, ClosureConstraint(closure_gain))
     return stack
@@ -270,6 +318,11 @@ def build_qp(
     closure_gain: float = 1.0,
     support: Any = None,
     com_margin: float = 0.0,
+    world: Any = None,
+    self_collision: bool | None = None,
+    margin: float = 0.0,
+    influence: float = INFLUENCE,
+    collision_gain: float = DAMPER_GAIN,
 ) -> DiffIKProblem:
     """The QP of one differential-IK step at ``q`` (see the module docstring for the formulas).
 
@@ -288,6 +341,14 @@ def build_qp(
         support: the world x-y support polygon, counter-clockwise ``(k, 2)``: the balance rows
             ``G dq <= h`` of the module docstring (the mechanism needs masses).
         com_margin: the balance margin (m, ``>= 0``; only with ``support``).
+        world: obstacles ([`optik.World`][optik.World]); with it or ``self_collision=True`` the
+            velocity dampers of `optik.diffik.collision` join ``G dq <= h``: every pair closer
+            than ``influence`` may lose at most ``collision_gain`` of its distance above
+            ``margin`` per step.
+        self_collision: dampers for the robot's own pairs too (None: True when ``world`` is given).
+        margin: the clearance the dampers keep (m).
+        influence: the distance (m) below which a pair gets a damper.
+        collision_gain: ``gamma`` in ``(0, 1]``.
 
     Returns:
         The [`DiffIKProblem`][optik.diffik.problem.DiffIKProblem].
@@ -310,6 +371,10 @@ def build_qp(
     h, c, lb, ub, a, b, jw, tw, e, cres, mu = stack(qq, parts, step, vp)
     rows = jw.shape[0]
     g_rows, h_rows = balance_rows(m, qq, support, com_margin)
+    own = (world is not None) if self_collision is None else bool(self_collision)
+    if world is not None or own:
+        g_c, h_c, _ = damper_rows(m, qq, world, own, margin, influence, collision_gain)
+        g_rows, h_rows = np.vstack([g_rows, g_c]), np.concatenate([h_rows, h_c])
     return DiffIKProblem(
         H=h.reshape(m.n_q, m.n_q),
         c=c,

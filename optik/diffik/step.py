@@ -13,6 +13,7 @@ import numpy as np
 
 from optik.checks import as_name
 from optik.diffik.base import Limit, Task, positive
+from optik.diffik.collision import DAMPER_GAIN, INFLUENCE
 from optik.diffik.linalg import solve_pseudo_inverse
 from optik.diffik.problem import DiffIKProblem, build_qp
 from optik.diffik.qp import default_solver, solve_qp
@@ -186,6 +187,11 @@ def step(
     closure_gain: float = 1.0,
     support: Any = None,
     com_margin: float = 0.0,
+    world: Any = None,
+    self_collision: bool | None = None,
+    margin: float = 0.0,
+    influence: float = INFLUENCE,
+    collision_gain: float = DAMPER_GAIN,
     **options: Any,
 ) -> StepResult:
     """One differential-IK step: the joint velocity that best achieves the tasks within the limits.
@@ -224,6 +230,14 @@ def step(
             ([`build_qp`][optik.diffik.build_qp]); feet held in place are frame tasks (or
             `optik.solve_ik`'s ``contacts``).
         com_margin: the balance margin (m, ``>= 0``; only with ``support``).
+        world: obstacles ([`optik.World`][optik.World], ``method="qp"`` only): velocity dampers
+            (`optik.diffik.collision`) as inequality rows for every pair closer than
+            ``influence``, each losing at most ``collision_gain`` of its distance above
+            ``margin`` per step.
+        self_collision: dampers for the robot's own pairs too (None: True when ``world`` is given).
+        margin: the clearance (m) the dampers keep.
+        influence: the distance (m) below which a pair gets a damper.
+        collision_gain: ``gamma`` in ``(0, 1]``.
         **options: method options (``threshold``, ``adaptive``, ``joint_weights`` for the
             pseudo-inverse methods; backend settings for ``"qp"``).
 
@@ -242,6 +256,10 @@ def step(
         raise InvalidArgumentError(
             "support", f"balance rows are QP inequalities: method 'qp' takes support=, not {method!r}"
         )
+    if (world is not None or self_collision) and method != "qp":
+        raise InvalidArgumentError(
+            "world", f"collision dampers are QP inequalities: method 'qp' takes world=, not {method!r}"
+        )
     problem = build_qp(
         m,
         q,
@@ -253,6 +271,11 @@ def step(
         closure_gain=closure_gain,
         support=support,
         com_margin=com_margin,
+        world=world,
+        self_collision=self_collision,
+        margin=margin,
+        influence=influence,
+        collision_gain=collision_gain,
     )
     status, message, used = "ok", "", None
     if not all(np.isfinite(a).all() for a in (problem.H, problem.c, problem.jacobian, problem.target)):
@@ -269,7 +292,7 @@ def step(
             status = f"qp_{out.status}_fallback"
             message = f"QP {out.status} ({out.detail}); used the DLS step within the bounds"
             if problem.G.shape[0]:
-                message += " (which does not hold the balance rows)"
+                message += " (which does not hold the inequality rows: balance, collision dampers)"
     else:
         if damping is not None:
             options = {**options, "damping": damping}

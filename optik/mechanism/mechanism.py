@@ -76,6 +76,16 @@ def _perpendiculars(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return u1, np.cross(a, u1)
 
 
+def geometric_jacobian(t: ca.SX, q: ca.SX) -> ca.SX:
+    """Geometric Jacobian ``[dp/dq; w]`` (6 x n, base frame) of the pose expression ``t`` (4x4):
+    column ``k`` has the linear part ``dp/dq_k`` and the angular part ``vee(dR/dq_k R^T)``."""
+    r, p = t[:3, :3], t[:3, 3]
+    jl = ca.jacobian(p, q)
+    dr = ca.jacobian(ca.vec(r), q)
+    cols = [spatial.vee(ca.mtimes(ca.reshape(dr[:, k], 3, 3), r.T)) for k in range(int(q.shape[0]))]
+    return ca.vertcat(jl, ca.horzcat(*cols))
+
+
 class Mechanism:
     """A kinematic model: joints, limits, loop closures and named frames.
 
@@ -381,7 +391,11 @@ class Mechanism:
         ``B = T_child child_offset``: the origins coincide, ``p_B - p_A = 0`` (x and y only for
         planar mechanisms); a spatial revolute joint adds ``(R_A u_k) . (R_B a) = 0`` for the two
         unit vectors ``u_k`` normal to its axis ``a``; a universal joint adds
-        ``(R_A a_1) . (R_B a_2) = 0``.
+        ``(R_A a_1) . (R_B a_2) = 0``; a fixed cut joint (a weld) adds the 9 rows
+        ``vec(R_B - R_A) / sqrt(2)``, of norm ``2 sin(theta / 2)`` for the relative rotation
+        ``theta``: zero only where the frames agree (3 of the rows are independent; the 3 rows of
+        ``vee(R_A^T R_B - R_B^T R_A)`` would also vanish at ``theta = pi``, with a rank-deficient
+        Jacobian there), as the orientation rows of the IK residual (`optik.problem`).
         """
         rows: list[Any] = []
         poses = self.body_transforms
@@ -399,6 +413,8 @@ class Mechanism:
                     rows.append(ca.dot(ca.mtimes(ra, u), ca.mtimes(rb, j.axis)))
             elif j.type == "universal":
                 rows.append(ca.dot(ca.mtimes(ra, j.axis), ca.mtimes(rb, j.axis2)))
+            elif j.type == "fixed":
+                rows.append(ca.vec(rb - ra) / np.sqrt(2.0))
         return ca.vertcat(*rows) if rows else ca.SX(0, 1)
 
     def jacobian_expr(self, frame: str | None = None) -> ca.SX:
@@ -407,13 +423,7 @@ class Mechanism:
         Column ``k`` has the linear part ``dp/dq_k`` and the angular part
         ``vee(dR/dq_k R^T)``, valid for every joint type.
         """
-        t = self.frame_expr(frame)
-        q = self.q_sym
-        r, p = t[:3, :3], t[:3, 3]
-        jl = ca.jacobian(p, q)
-        dr = ca.jacobian(ca.vec(r), q)
-        cols = [spatial.vee(ca.mtimes(ca.reshape(dr[:, k], 3, 3), r.T)) for k in range(self.n_q)]
-        return ca.vertcat(jl, ca.horzcat(*cols))
+        return geometric_jacobian(self.frame_expr(frame), self.q_sym)
 
     def _frame(self, frame: str | None) -> tuple[str, np.ndarray]:
         name = self.ee if frame is None else frame

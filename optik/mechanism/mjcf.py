@@ -45,13 +45,17 @@ Actuation: when the model has actuators, the joints an actuator drives directly 
 transmission) are actuated and the others passive (inputs and unknowns of `optik.solve_fk`);
 without actuators every joint is actuated.
 
-Equality constraints (active at start): ``connect`` becomes a cut spherical joint between the
-two bodies (or sites) at the anchors, so its loop-closure residual is MuJoCo's constraint
-residual (``efc_pos``, opposite sign); ``joint`` with a linear polynomial, ``q1 - qpos0_1 = c0 +
-c1 (q2 - qpos0_2)``, makes joint 1 follow joint 2 (a `Mimic`; joint 1 has no coordinate and its
-own range is not enforced, as for URDF mimic joints). Not modelled, and listed in
-``params["notes"]``: ``weld``, ``tendon`` and ``flex`` equalities, nonlinear joint
-polynomials, inactive equalities, and tendons.
+Equality constraints (active at start): ``connect`` becomes a cut spherical joint between the two
+bodies (or sites) at the anchors, so its loop-closure residual is MuJoCo's constraint residual
+(``efc_pos``, opposite sign); ``weld`` a cut fixed joint (the frame ``relpose`` on body 1 held on
+the frame at ``anchor`` on body 2, or the two sites' frames): MuJoCo's position residual (opposite
+sign) and rotation rows of norm ``2 sin(theta / 2)`` where MuJoCo's have ``sin(theta / 2)``;
+``tendon`` on one fixed tendon of two joints (length held at its qpos0 value plus ``polycoef[0]``)
+makes the second joint follow the first (a `Mimic`); ``joint`` with a linear polynomial, ``q1 -
+qpos0_1 = c0 + c1 (q2 - qpos0_2)``, makes joint 1 follow joint 2 (a `Mimic`; joint 1 has no
+coordinate and its own range is not enforced, as for URDF mimic joints). Not modelled, and listed in
+``params["notes"]``: other ``tendon`` and all ``flex`` equalities, nonlinear joint polynomials,
+inactive equalities, and tendons.
 """
 
 from __future__ import annotations
@@ -75,7 +79,7 @@ __all__ = ["from_qpos", "load_mjmodel", "parse_mjcf", "to_qpos"]
 _FREE, _BALL, _SLIDE, _HINGE = 0, 1, 2, 3
 _GEOM_PLANE, _GEOM_HFIELD, _GEOM_SPHERE, _GEOM_CAPSULE = 0, 1, 2, 3
 _GEOM_ELLIPSOID, _GEOM_CYLINDER, _GEOM_BOX, _GEOM_MESH = 4, 5, 6, 7
-_EQ_CONNECT, _EQ_JOINT, _OBJ_SITE = 0, 2, 6
+_EQ_CONNECT, _EQ_WELD, _EQ_JOINT, _EQ_TENDON, _OBJ_SITE, _WRAP_JOINT = 0, 1, 2, 3, 6, 1
 
 
 def load_mjmodel(source: Any) -> tuple[Any, str]:
@@ -376,6 +380,19 @@ def _equalities(
                 notes.append(f"{what} joins two points of one rigid body and is not modelled")
                 continue
             cuts.append(Joint(f"equality:{name}", "spherical", pa, pb, oa, child_offset=ob, cut=True))
+        elif kind == _EQ_WELD:
+            # MuJoCo: p1 + R1 relpos = p2 + R2 anchor and R1 relquat = R2 (body semantic; sites: the
+            # two site frames coincide)
+            if int(model.eq_objtype[e]) == _OBJ_SITE:
+                (pa, oa), (pb, ob) = frames[site_frames[sites[a]]], frames[site_frames[sites[b]]]
+            else:
+                (pa, oa), (pb, ob) = place[a], place[b]
+                oa = oa @ _pose(data[3:6], data[6:10])
+                ob = ob @ spatial.transform(position=data[0:3])
+            if pa == pb:
+                notes.append(f"{what} welds a rigid body to itself and is not modelled")
+                continue
+            cuts.append(Joint(f"equality:{name}", "fixed", pa, pb, oa, child_offset=ob, cut=True))
         elif kind == _EQ_JOINT and b >= 0 and not np.any(data[2:5]):
             follower, source = joints[a], joints[b]
             if follower.type not in ("revolute", "prismatic") or source.type not in ("revolute", "prismatic"):
@@ -391,9 +408,46 @@ def _equalities(
             notes.append(
                 f"{what}: joint {joint_names[a]!r} follows {joint_names[b]!r}; its own range is not enforced"
             )
+        elif kind == _EQ_TENDON and b < 0:
+            coupled = _tendon_coupling(model, a, float(data[0]), joints, joint_names)
+            if isinstance(coupled, str):
+                notes.append(f"{what} {coupled}")
+                continue
+            follower, coupling = coupled
+            joints[follower] = replace(joints[follower], mimic=coupling, lower=None, upper=None)
+            notes.append(
+                f"{what}: joint {joint_names[follower]!r} follows {coupling.joint!r} (fixed tendon of "
+                "constant length); its own range is not enforced"
+            )
         else:
-            notes.append(f"{what} is not modelled (only connect and linear joint equalities are)")
+            notes.append(
+                f"{what} is not modelled (only connect, weld, linear joint and two-joint fixed-tendon "
+                "equalities are)"
+            )
     return cuts
+
+
+def _tendon_coupling(
+    model: Any, tendon: int, shift: float, joints: list[Joint], joint_names: list[str]
+) -> tuple[int, Mimic] | str:
+    """The coupling of a tendon equality on one fixed tendon of two joints: MuJoCo holds its
+    length ``L = c_a q_a + c_b q_b`` at ``L0 + shift`` (``L0``: the length at qpos0), so joint
+    ``b`` follows ``a``: ``q_b = -(c_a / c_b) q_a + (L0 + shift) / c_b``. Otherwise why not (a str)."""
+    first, count = int(model.tendon_adr[tendon]), int(model.tendon_num[tendon])
+    wraps = [
+        (int(model.wrap_type[w]), int(model.wrap_objid[w]), float(model.wrap_prm[w]))
+        for w in range(first, first + count)
+    ]
+    if count != 2 or any(kind != _WRAP_JOINT for kind, _, _ in wraps):
+        return f"couples {count} joints or is a spatial tendon, and is not modelled"
+    (_, ja, ca_), (_, jb, cb) = wraps
+    source, follower = joints[ja], joints[jb]
+    if follower.type not in ("revolute", "prismatic") or source.type not in ("revolute", "prismatic"):
+        return "couples a ball or free joint and is not modelled"
+    if follower.mimic is not None or source.mimic is not None or cb == 0.0:
+        return "couples a coupled joint and is not modelled"
+    length = float(model.tendon_length0[tendon]) + shift
+    return jb, Mimic(joint_names[ja], -ca_ / cb, length / cb)
 
 
 def _qpos_map(m: Any) -> tuple[tuple[int, int, int], ...]:

@@ -85,10 +85,11 @@ def analyse(joints: Sequence[Joint], base: str) -> Topology:
             in_tree.add(i)
     cuts = [i for i in range(len(joints)) if i not in in_tree]
     for i in cuts:
-        if joints[i].type in UNCUTTABLE:
+        # an explicit cut fixed joint is a weld (MJCF <equality weld>): its closure holds the pose
+        if joints[i].type in UNCUTTABLE and not (joints[i].type == "fixed" and joints[i].cut):
             raise ModelError(
                 f"joint {joints[i].name!r} ({joints[i].type}) would have to close a loop; "
-                "only revolute, universal and spherical joints can be cut"
+                "only revolute, universal and spherical joints (and fixed ones marked cut=True) can be cut"
             )
     root = _find(uf, base)
     loose = [b for b in bodies if _find(uf, b) != root]

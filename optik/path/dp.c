@@ -1,12 +1,13 @@
 /* The least-motion dynamic program of optik.path.graph, in C (same recursion, same answer).
  *
- * Layer k holds offset[k+1] - offset[k] nodes, rows of `nodes` (n doubles each). For each node
- * b of layer k+1, the predecessors a are visited in increasing order of their cost C_k(a); the
- * visit stops as soon as C_k(a) >= the best cost found for b (no later a can beat it), and the
- * squared edge length is summed joint by joint, stopping when it exceeds (best - C_k(a))^2.
- * This branch-and-bound is exact: it skips only edges that cannot improve on the best. Ties go
- * to the predecessor listed first (the sort is stable on equal costs, an equal total does not
- * replace the best).
+ * Layer k holds offset[k+1] - offset[k] nodes, rows of `nodes` (n doubles each). Each layer is
+ * sorted by one coordinate, the key (`first`: the one that tells the nodes apart most). For
+ * each node b of layer k+1, in key order, the predecessors a are visited outwards from b in the
+ * key; the visit stops as soon as the least predecessor cost plus the key distance alone
+ * reaches the best cost found for b (no later a can beat it), an a whose own cost plus that
+ * distance reaches it is skipped, and the squared edge length is summed joint by joint,
+ * stopping when it exceeds (best - C_k(a))^2. This branch and bound is exact: it skips only
+ * edges that cannot improve on the best. On equal totals the first edge found is kept.
  *
  * A joint with period[j] > 0 measures its difference modulo the period, in [-period/2,
  * period/2] (the relaxed graph of optik.path.plan, one node per solution and no turns).
@@ -83,17 +84,17 @@ static int banned(const int *list, int count, int a) {
 }
 
 /* Returns -1 with index[] and *total set, or the first layer no node of which is reachable.
- * key[] (one per node) receives the nodes' first coordinate; order[] and here[] (each of the
+ * key[] (one per node) receives the nodes' coordinate `first` (the one the scan orders by); order[] and here[] (each of the
  * largest layer's size) hold the sorted orders of the previous and the current layer. When
  * fstart is not NULL, the edges from fpred[fstart[b] .. fstart[b + 1]) to node b are removed
  * (edges in collision: optik.path.plan). */
-int optik_path_dp(int n_layers, const int *offset, const double *nodes, int n, const double *w,
+int optik_path_dp(int n_layers, const int *offset, const double *nodes, int n, int first, const double *w,
                   const double *period, const double *bounds, double *cost, int *back, int *order,
                   int *tmp, int *index, double *total, double *key, int *here, const int *fstart,
                   const int *fpred) {
-    for (int a = 0; a < offset[n_layers]; ++a) key[a] = nodes[(long)a * n];
+    for (int a = 0; a < offset[n_layers]; ++a) key[a] = nodes[(long)a * n + first];
     for (int a = offset[0]; a < offset[1]; ++a) cost[a] = 0.0;
-    const double w0 = fabs(w[0]), p0d = period[0];
+    const double w0 = fabs(w[first]), p0d = period[first];
     for (int i = 0; i < offset[1] - offset[0]; ++i) order[i] = offset[0] + i;
     sort_by(order, tmp, offset[1] - offset[0], key);
     for (int k = 1; k < n_layers; ++k) {
@@ -107,12 +108,12 @@ int optik_path_dp(int n_layers, const int *offset, const double *nodes, int n, c
         for (int ib = 0; ib < kb; ++ib) { /* the nodes in increasing key: lo only moves up */
             int b = here[ib];
             const double *qb = nodes + (long)b * n;
-            double b0 = qb[0], best = INFINITY;
+            double b0 = qb[first], best = INFINITY;
             int arg = -1;
             while (lo < kp && key[order[lo]] < b0) ++lo; /* first predecessor with key >= b0 */
             int r = lo, l = lo - 1;
             for (int seen = 0; seen < kp; ++seen) {
-                /* the nearer unvisited predecessor in the first coordinate, on either side */
+                /* the nearer unvisited predecessor in the key coordinate, on either side */
                 int ir = p0d > 0.0 && r >= kp ? r - kp : r, il = p0d > 0.0 && l < 0 ? l + kp : l; /* r < 2 kp, l >= -kp */
                 double dr = (p0d > 0.0 || r < kp) ? fabs(wrapped(key[order[ir]] - b0, p0d)) : INFINITY;
                 double dl = (p0d > 0.0 || l >= 0) ? fabs(wrapped(key[order[il]] - b0, p0d)) : INFINITY;
@@ -123,8 +124,8 @@ int optik_path_dp(int n_layers, const int *offset, const double *nodes, int n, c
                 } else {
                     take = order[il], d0 = dl, --l;
                 }
-                /* every unvisited predecessor is at least d0 away in the first coordinate */
-                if (!(cmin + w0 * d0 < best) || (bd && d0 > bd[0])) break;
+                /* every unvisited predecessor is at least d0 away in the key coordinate */
+                if (!(cmin + w0 * d0 < best) || (bd && d0 > bd[first])) break;
                 double ca = cost[take];
                 if (!(ca + w0 * d0 < best)) continue;
                 double room = best - ca, room2 = room * room, s = 0.0;

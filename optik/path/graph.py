@@ -27,6 +27,8 @@ the call releases the GIL) with an exact branch and bound: the predecessors of a
 visited outwards from it in the coordinate that tells the nodes apart most, stopping once that
 coordinate's distance alone, added to the least predecessor cost, reaches the best found, and
 an edge's squared length is summed joint by joint, stopping when it can no longer improve.
+Each layer is sorted once in that coordinate, warm-started from the previous layer's order
+(consecutive poses list their solutions alike), and its nodes are visited in that order.
 Without a C compiler the same recursion runs in numpy (`least_motion_numpy`), one vectorized
 step per layer. Equal totals (ties, e.g. two copies of one node) may resolve differently on the
 two paths; the cost is the same.
@@ -140,7 +142,7 @@ def compiled() -> ctypes.CDLL | None:
             if lib is not None:
                 fn = lib.optik_path_dp
                 ptr, i32 = ctypes.c_void_p, ctypes.c_int
-                fn.argtypes = [i32, ptr, ptr, i32, *[ptr] * 13]
+                fn.argtypes = [i32, ptr, ptr, i32, i32, *[ptr] * 13]
                 fn.restype = i32
             _LIB.append(lib)
         return _LIB[0]
@@ -150,21 +152,18 @@ def _ptr(a: np.ndarray | None) -> int | None:
     return None if a is None else a.ctypes.data
 
 
-def _joint_order(layers: Sequence[np.ndarray], weights: np.ndarray) -> np.ndarray:
-    """The joints in the order the C kernel reads them: first the (weighted) one with the most
-    distinct values among a layer's nodes (over up to 16 layers; ties by spread), so that the
-    window of predecessors it scans is the narrowest, then by decreasing weighted spread (an
-    edge's partial sum then exceeds its room sooner)."""
-    picked = [layers[k] for k in range(0, len(layers), max(1, len(layers) // 16))]
+def _key_joint(layers: Sequence[np.ndarray], weights: np.ndarray) -> int:
+    """The joint the C kernel orders the predecessors by: the (weighted) one with the most
+    distinct values among a layer's nodes (over up to 8 layers; ties by spread), so that the
+    window of predecessors it scans is the narrowest."""
+    picked = [layers[k] for k in range(0, len(layers), max(1, len(layers) // 8))]
     distinct = np.zeros(len(weights))
     spread = np.zeros(len(weights))
     for layer in picked:
         distinct += 1 + np.count_nonzero(np.diff(np.sort(layer, axis=0), axis=0) > 1e-9, axis=0)
         spread += np.abs(layer - layer.mean(axis=0)).sum(axis=0)
     score = np.where(weights > 0, distinct + spread * weights / (1.0 + (spread * weights).max()), -1.0)
-    first = int(np.argmax(score))
-    rest = [j for j in np.argsort(-spread * weights, kind="stable") if j != first]
-    return np.array([first, *rest])
+    return int(np.argmax(score))
 
 
 def least_motion(
@@ -195,11 +194,10 @@ def least_motion(
     graph = Layered.of(layers)
     sizes = graph.sizes
     offset = graph.offset.astype(np.int32)
-    perm = _joint_order(graph, np.asarray(weights, dtype=float))
-    nodes = np.ascontiguousarray(graph.data[:, perm], dtype=float)
-    w = np.ascontiguousarray(np.asarray(weights, dtype=float)[perm])
-    per = np.ascontiguousarray(per[perm])
-    bounds = None if step_bounds is None else np.ascontiguousarray(step_bounds[:, perm], dtype=float)
+    w = np.ascontiguousarray(weights, dtype=float)
+    first = _key_joint(graph, w)
+    nodes = np.ascontiguousarray(graph.data, dtype=float)
+    bounds = None if step_bounds is None else np.ascontiguousarray(step_bounds, dtype=float)
     total = len(nodes)
     cost, back = np.empty(total), np.empty(total, dtype=np.int32)
     order, tmp, here = (np.empty(int(sizes.max()), dtype=np.int32) for _ in range(3))
@@ -213,9 +211,9 @@ def least_motion(
         counts = np.bincount(target, minlength=total)
         fstart = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
     blocked = lib.optik_path_dp(
-        len(layers), _ptr(offset), _ptr(nodes), nodes.shape[1], _ptr(w), _ptr(per), _ptr(bounds), _ptr(cost),
-        _ptr(back), _ptr(order), _ptr(tmp), _ptr(index), _ptr(best), _ptr(key), _ptr(here), _ptr(fstart),
-        _ptr(fpred),
+        len(layers), _ptr(offset), _ptr(nodes), nodes.shape[1], first, _ptr(w), _ptr(per), _ptr(bounds),
+        _ptr(cost), _ptr(back), _ptr(order), _ptr(tmp), _ptr(index), _ptr(best), _ptr(key), _ptr(here),
+        _ptr(fstart), _ptr(fpred),
     )  # fmt: skip
     if blocked >= 0:
         return GraphPath(np.full(len(layers), -1), float("inf"), int(blocked))
@@ -276,13 +274,12 @@ def branch_changes(
     if len(index) < 2:
         return np.zeros(len(index), dtype=int)
     nodes, tags = Layered.of(layers), Layered.of(groups)
-    owner = nodes.owner()
     picked = nodes.offset[:-1] + index
     chosen = nodes.data[picked]
     # the nodes of layers 1.. in the chosen node's group (each layer's chosen node among them)
-    rest = np.arange(nodes.offset[1], nodes.offset[-1])
-    same = rest[tags.data[rest] == tags.data[picked][owner[rest]]]
-    layer = owner[same]
+    start = nodes.offset[1]
+    same = start + np.flatnonzero(tags.data[start:] == np.repeat(tags.data[picked[1:]], nodes.sizes[1:]))
+    layer = np.searchsorted(nodes.offset, same, side="right") - 1
     dist = np.linalg.norm(differences(chosen[layer - 1], nodes.data[same], periods) * weights, axis=1)
     nearest = np.minimum.reduceat(dist, np.searchsorted(layer, np.arange(1, len(index))))
     flips = dist[np.searchsorted(same, picked[1:])] > nearest

@@ -37,6 +37,7 @@ from optik.checks import as_bool, as_name, as_vector
 from optik.closed_form import registry, search_1d
 from optik.closed_form.derived import derive_locked, locked_axes
 from optik.closed_form.general_6r import General6R, solve_general_6r
+from optik.collision.check import check_many
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.results import IKResult, IKSolutions
@@ -72,6 +73,9 @@ def solve_ik_all(
     max_solutions: int = 64,
     closed_form: bool = True,
     fixed: Mapping[str, float] | None = None,
+    world: Any = None,
+    self_collision: bool | None = None,
+    margin: float = 0.0,
     **options: Any,
 ) -> IKSolutions:
     """Every distinct IK solution within the joint limits.
@@ -104,6 +108,12 @@ def solve_ik_all(
             the 1-D search (both with their certificate or its absence); else by the numerical
             search with those coordinates' limits pinned to the values. Sample the
             self-motion of a redundant arm by sweeping the value (`self_motion`).
+        world: obstacles ([`optik.World`][optik.World]); with it or ``self_collision=True`` each
+            solution is checked exactly (`optik.collision.check_many` at ``margin``): the
+            collision-free ones are returned, with their ``min_distance`` and ``collision_pair``,
+            the others are in ``in_collision``.
+        self_collision: check the robot against itself too (None: True when ``world`` is given).
+        margin: the clearance (m) a solution needs.
         **options: options of the numerical method (the closed form takes none).
 
     Returns:
@@ -115,6 +125,13 @@ def solve_ik_all(
         OptikError: malformed input (named argument), unknown or inapplicable method, an option
             the method does not know.
     """
+    own = (world is not None) if self_collision is None else as_bool(self_collision, "self_collision")
+    if world is not None or own:
+        found = solve_ik_all(
+            m, target, q0, method, task=task, frame=frame, time_limit=time_limit, tol=tol, seed=seed,
+            patience=patience, max_solutions=max_solutions, closed_form=closed_form, fixed=fixed, **options,
+        )  # fmt: skip
+        return _collision_free(m, found, world, own, margin)
     start = time.perf_counter()
     if (  # the plain call on an arm with a derived closed form: one compiled call (binding_of)
         (method is None or (type(method) is str and method == "closed_form"))
@@ -150,6 +167,31 @@ def solve_ik_all(
     closed_form = as_bool(closed_form, "closed_form")
     with native.deadline(request.start + request.time_limit):  # no wait for a C build past it
         return _dispatch(request, method, fixed, patience, max_solutions, closed_form)
+
+
+def _collision_free(
+    m: Mechanism, found: IKSolutions, world: Any, self_collision: bool, margin: Any
+) -> IKSolutions:
+    """``found`` split by the exact check at ``margin``: the clear solutions, the others in
+    ``in_collision`` (each marked failed, with the pair that blocks)."""
+    results = list(found)
+    q = np.array([r.q for r in results]).reshape(len(results), m.n_q)
+    batch = check_many(m, q, world, margin, self_collision)
+    clear, hit = [], []
+    for r, report in zip(results, batch.reports, strict=True):
+        r.min_distance, r.collision_pair = report.min_distance, report.pair
+        if report.in_collision:
+            pair = report.close_pairs[0]
+            r.success, r.status = False, "in_collision"
+            r.message = (
+                f"{pair.a!r} and {pair.b!r} are {pair.distance:.4g} m apart (margin {report.margin:g} m)"
+            )
+            hit.append(r)
+        else:
+            clear.append(r)
+    out = IKSolutions(clear, found.outside_limits, found.failed_check, found.method, found.uncertified_reason)
+    out.in_collision = hit
+    return out
 
 
 def _dispatch(

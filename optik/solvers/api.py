@@ -24,6 +24,7 @@ from optik.solvers.base import (
     get_method,
     make_request,
     methods,
+    registrations,
 )
 from optik.solvers.collision_free import solve_collision_free
 
@@ -180,10 +181,11 @@ def _call_key(
     method: Any, task: Any, frame: Any, time_limit: Any, tol: Any, options: dict[str, Any]
 ) -> tuple[Any, ...] | None:
     """The key of a call's prepared call: every argument but the target, ``q0`` and the seed,
-    with the type of each value (``True == 1`` but ``compile=1`` is refused where ``compile=True``
-    is not); None when a value is unhashable (no prepared call then)."""
+    with the type of each value (``True == 1``, yet an option may take one and refuse the
+    other) and the count of method registrations (`optik.solvers.base.registrations`); None
+    when a value is unhashable (no prepared call then)."""
     opts = tuple((k, type(v), v) for k, v in options.items()) if options else ()
-    key = (method, task, frame, type(time_limit), time_limit, type(tol), tol, opts)
+    key = (registrations(), method, task, frame, type(time_limit), time_limit, type(tol), tol, opts)
     try:
         hash(key)
     except TypeError:

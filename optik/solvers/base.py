@@ -450,6 +450,7 @@ class MethodInfo:
 
 
 _METHODS: dict[str, MethodInfo] = {}
+_REGISTRATIONS = 0  # calls of register_method (see registrations)
 
 
 def register_method(
@@ -466,7 +467,16 @@ def register_method(
     (`IKRequest.multi_target`; ``applies`` is then called with the tuple of task spaces).
     ``prepare`` makes the `PreparedCall` of a request, which `optik.solve_ik` keeps and uses for
     the later calls with the same options."""
+    global _REGISTRATIONS
     _METHODS[name] = MethodInfo(name, solve, applies, description, multi_target, prepare)
+    _REGISTRATIONS += 1
+
+
+def registrations() -> int:
+    """How many times `register_method` has been called: part of the key of
+    `optik.solve_ik`'s prepared calls, so that none made before a method is registered again is
+    used after."""
+    return _REGISTRATIONS
 
 
 def methods() -> dict[str, MethodInfo]:

@@ -242,8 +242,10 @@ def _violations(m: Mechanism, q: np.ndarray) -> list[str]:
 def _actuated_out(m: Mechanism, a: np.ndarray) -> str:
     """``"rho1 = 2.7 > 2.5, ..."`` for the actuated values outside their limits (``""`` if none)."""
     idx = m.actuated_indices
-    names = [m.coordinate_names[i] for i in idx]
     lo, hi = m.lower[idx], m.upper[idx]
+    if np.all((lo <= a) & (a <= hi)):
+        return ""  # the usual case, at the cost of one comparison
+    names = [m.coordinate_names[i] for i in idx]
     parts = [
         f"{n} = {v:.6g} {'<' if v < low else '>'} {low if v < low else up:.6g}"
         for n, v, low, up in zip(names, a.tolist(), lo, hi, strict=True)
@@ -261,13 +263,11 @@ def _result(
     singular_condition: float,
     note: str = "",
     measured: tuple[float, float, np.ndarray] | None = None,
-    actuated_out: str | None = None,
     **extra: Any,
 ) -> FKResult:
     """An [`FKResult`][optik.FKResult] for ``q``: residual, success, limits (which coordinates
     are out), condition number, message. ``measured``: ``(residual, condition, pose)`` at
-    ``q`` when already known (``q`` is then wrapped already: `Mechanism.wrap` leaves it);
-    ``actuated_out``: `_actuated_out` of ``q`` when known."""
+    ``q`` when already known (``q`` is then wrapped already: `Mechanism.wrap` leaves it)."""
     if measured is None:
         qq = m.wrap(q)
         residual, cond = _residual_and_condition(cm, qq)
@@ -283,8 +283,7 @@ def _result(
             f"the actuated values cannot assemble (or no assembly was found): least-squares closure "
             f"residual {residual:.3g} > tol {tol:.3g}"
         )
-    if actuated_out is None:
-        actuated_out = _actuated_out(m, qq[cm.act])
+    actuated_out = _actuated_out(m, qq[cm.act])
     if actuated_out:
         messages.append(f"the actuated values are outside their limits: {actuated_out}")
     if bad:
@@ -513,22 +512,8 @@ def solve_fk_all(
                     idle += 1
         label = "numeric"
     kept, dropped, unclosed = [], [], 0
-    notes: dict[tuple[float, ...], str] = {}  # _actuated_out by actuated values (the modes share them)
     for q, known in zip(found, measured, strict=True):
-        act = tuple(q[cm.act].tolist()) if known is not None else ()
-        if known is not None and act not in notes:
-            notes[act] = _actuated_out(m, q[cm.act])
-        res = _result(
-            m,
-            cm,
-            q,
-            tol_c,
-            start,
-            singular_condition,
-            measured=known,
-            actuated_out=notes.get(act),
-            method=label,
-        )
+        res = _result(m, cm, q, tol_c, start, singular_condition, measured=known, method=label)
         if res.residual > tol_c:
             unclosed += 1  # not a mode: a closed-form candidate that the polish could not close
             continue

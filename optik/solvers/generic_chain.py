@@ -60,9 +60,7 @@ from optik.mechanism.memo import PerMechanism
 from optik.native import (
     CCall,
     Library,
-    _version_memo,
     c_source,
-    compiler,
     driver_source,
     in_background,
     keyed_library,
@@ -234,7 +232,14 @@ class ChainKernel:
     def __init__(self, n: int) -> None:
         self.n = n
         self.n_target = 12 + n_chain_parameters(n)
-        self.library: Library | None = keyed_library(f"optik_chain{n}", _digest(n), lambda: _source(n))
+        try:
+            digest = _digest(n)
+        except OSError as exc:  # a partial install: no generic kernel, the per-robot path answers
+            _LOG.warning("optik: no generic lm kernel, its sources cannot be read: %s", exc)
+            digest = None
+        self.library: Library | None = (
+            None if digest is None else keyed_library(f"optik_chain{n}", digest, lambda: _source(n))
+        )
         self.calls = 0
         self._packed: Any = None
         self._local = threading.local()
@@ -315,16 +320,11 @@ def build(n: int, timeout: float | None = None) -> bool:
 
 
 def machine_files(n: int) -> list[Path]:
-    """The files of `optik.native.cache_dir` that the generic kernel of ``n`` joints needs there,
-    once built (`build`): its library, its manifest and the compiler's version record (what a
-    cache holds for every robot of ``n`` joints, as opposed to a robot's own libraries)."""
+    """The cache files of the generic kernel of ``n`` joints once built (`build`;
+    `optik.native.Library.files`): what a cache holds for every robot of ``n`` joints, as opposed
+    to a robot's own libraries."""
     k = chain_kernel(n)
-    cc = compiler()
-    if k.library is None or cc is None:
-        return []
-    memo = _version_memo(cc)
-    lib = k.library.path
-    return [f for f in (lib, lib.with_name(lib.name + ".json"), memo) if f is not None and f.exists()]
+    return [] if k.library is None else k.library.files()
 
 
 class _Builder:
@@ -344,7 +344,6 @@ class _Builder:
         in_background(self._run)
 
     def _run(self) -> None:
-        time.sleep(_HANDOVER)
         try:
             self._prepare(self._request)
         except Exception:  # the per-robot path will raise it again in the caller's thread
@@ -353,11 +352,6 @@ class _Builder:
         finally:
             self._request = None  # type: ignore[assignment]
 
-
-_HANDOVER = 0.002
-"""Seconds the builder thread sleeps first: the caller, whose answer is ready, gets the interpreter
-back (a new thread otherwise runs Python code for a switch interval, 5 ms, before the thread that
-started it may return)."""
 
 _CHAINS: PerMechanism[dict[Any, np.ndarray | None]] = PerMechanism()
 _BUILDERS: PerMechanism[dict[Any, _Builder]] = PerMechanism()

@@ -26,13 +26,18 @@ class PeerUnavailable(SolverUnavailableError):
 
 
 class Peer(ABC):
-    """One peer IK library bound to one URDF chain.
+    """One peer IK library bound to one URDF chain. The constructor imports the package
+    (`import_package`), lets the adapter read the chain (`load`) and checks its joint count.
 
     Args:
         mechanism: optik's model of the same chain (joint order and limits are checked
             against the URDF's).
         urdf: path of the URDF file.
         base_link, tip_link: the chain's ends in the URDF.
+
+    Raises:
+        PeerUnavailable: the package is missing, the chain cannot be read, or its joint count
+            differs from the mechanism's.
     """
 
     name: str = "peer"
@@ -44,6 +49,17 @@ class Peer(ABC):
         self.urdf = Path(urdf)
         self.base_link = base_link
         self.tip_link = tip_link
+        self.lib = self.import_package()
+        self.check_joints(self.load())
+
+    @abstractmethod
+    def load(self) -> int:
+        """Read the URDF chain into the peer's own model (``self.lib`` is the imported
+        package) and return its number of joints (checked against ``mechanism.n_q``).
+
+        Raises:
+            PeerUnavailable: the peer cannot read the chain or lacks a dependency.
+        """
 
     @classmethod
     def import_package(cls) -> ModuleType:

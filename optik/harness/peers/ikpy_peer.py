@@ -9,12 +9,10 @@ optimizer instead, and the harness counts the measured time.
 from __future__ import annotations
 
 import warnings
-from pathlib import Path
 
 import numpy as np
 
 from optik.harness.peers.base import Peer
-from optik.mechanism import Mechanism
 from optik.solvers import Tolerances
 
 MAX_ITER = 200
@@ -27,19 +25,17 @@ class IKPy(Peer):
     name = "ikpy"
     package = "ikpy.chain"
 
-    def __init__(self, mechanism: Mechanism, urdf: Path, base_link: str, tip_link: str) -> None:
-        super().__init__(mechanism, urdf, base_link, tip_link)
-        chain_mod = self.import_package()
+    def load(self) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            probe = chain_mod.Chain.from_urdf_file(str(self.urdf), base_elements=[base_link])
+            probe = self.lib.Chain.from_urdf_file(str(self.urdf), base_elements=[self.base_link])
             mask = [link.joint_type != "fixed" for link in probe.links]
-            self._chain = chain_mod.Chain.from_urdf_file(
-                str(self.urdf), base_elements=[base_link], active_links_mask=mask
+            self._chain = self.lib.Chain.from_urdf_file(
+                str(self.urdf), base_elements=[self.base_link], active_links_mask=mask
             )
         self._active = np.flatnonzero(mask)
         self._size = len(mask)
-        self.check_joints(len(self._active))
+        return len(self._active)
 
     def _full(self, q: np.ndarray) -> np.ndarray:
         full = np.zeros(self._size)

@@ -9,14 +9,12 @@ The QP backend is ``daqp`` when installed, else ``osqp``.
 from __future__ import annotations
 
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from optik.harness.peers.base import Peer, PeerUnavailable
 from optik.harness.peers.rules import HALF
-from optik.mechanism import Mechanism
 from optik.solvers import Tolerances
 
 DT = 1.0
@@ -29,9 +27,7 @@ class Pink(Peer):
     name = "pink"
     package = "pink"
 
-    def __init__(self, mechanism: Mechanism, urdf: Path, base_link: str, tip_link: str) -> None:
-        super().__init__(mechanism, urdf, base_link, tip_link)
-        self._pink = self.import_package()
+    def load(self) -> int:
         try:
             import pinocchio as pin
             import qpsolvers
@@ -39,16 +35,16 @@ class Pink(Peer):
             raise PeerUnavailable(f"pink: {exc}") from None
         self._pin = pin
         self._model = pin.buildModelFromUrdf(str(self.urdf))
-        self.check_joints(self._model.nq)
-        if not self._model.existFrame(tip_link):
-            raise PeerUnavailable(f"pink: the URDF has no frame {tip_link!r}")
+        if not self._model.existFrame(self.tip_link):
+            raise PeerUnavailable(f"pink: the URDF has no frame {self.tip_link!r}")
         self._data = self._model.createData()
-        self._task = self._pink.tasks.FrameTask(tip_link, position_cost=1.0, orientation_cost=1.0)
+        self._task = self.lib.tasks.FrameTask(self.tip_link, position_cost=1.0, orientation_cost=1.0)
         backends = qpsolvers.available_solvers
         self._qp = "daqp" if "daqp" in backends else "osqp"
+        return self._model.nq
 
     def fk(self, q: np.ndarray) -> np.ndarray:
-        conf = self._pink.Configuration(self._model, self._data, np.asarray(q, dtype=float).copy())
+        conf = self.lib.Configuration(self._model, self._data, np.asarray(q, dtype=float).copy())
         return np.asarray(conf.get_transform_frame_to_world(self.tip_link).homogeneous)
 
     def attempt(
@@ -57,7 +53,7 @@ class Pink(Peer):
         """``found``: the loop stopped at half the tolerances (by Pink's FK)."""
         start = time.perf_counter()
         pin = self._pin
-        conf: Any = self._pink.Configuration(self._model, self._data, np.asarray(q0, dtype=float).copy())
+        conf: Any = self.lib.Configuration(self._model, self._data, np.asarray(q0, dtype=float).copy())
         self._task.set_target(pin.SE3(target[:3, :3].copy(), target[:3, 3].copy()))
         found = False
         while time.perf_counter() - start < time_limit:
@@ -68,8 +64,8 @@ class Pink(Peer):
                 found = True
                 break
             try:
-                v = self._pink.solve_ik(conf, [self._task], DT, solver=self._qp, safety_break=False)
-            except self._pink.exceptions.NoSolutionFound:  # infeasible QP: stop where we are
+                v = self.lib.solve_ik(conf, [self._task], DT, solver=self._qp, safety_break=False)
+            except self.lib.exceptions.NoSolutionFound:  # infeasible QP: stop where we are
                 break
             conf.integrate_inplace(v, DT)
         return np.asarray(conf.q, dtype=float).copy(), found

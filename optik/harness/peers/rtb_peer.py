@@ -11,13 +11,11 @@ iteration and search caps bound it, and the benchmark counts the measured time.
 from __future__ import annotations
 
 import warnings
-from pathlib import Path
 
 import numpy as np
 
 from optik.harness.peers.base import Peer, PeerUnavailable
 from optik.harness.peers.rules import residual_bound
-from optik.mechanism import Mechanism
 from optik.solvers import Tolerances
 
 
@@ -28,19 +26,17 @@ class RoboticsToolbox(Peer):
     name = "rtb_lm"
     package = "roboticstoolbox"
 
-    def __init__(self, mechanism: Mechanism, urdf: Path, base_link: str, tip_link: str) -> None:
-        super().__init__(mechanism, urdf, base_link, tip_link)
-        rtb = self.import_package()
+    def load(self) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             try:
-                robot = rtb.Robot.URDF(str(self.urdf))
-                self._ets = robot.ets(start=base_link, end=tip_link)
+                robot = self.lib.Robot.URDF(str(self.urdf))
+                self._ets = robot.ets(start=self.base_link, end=self.tip_link)
             except Exception as exc:  # the toolbox's URDF reader raises many kinds
                 raise PeerUnavailable(
-                    f"rtb_lm: cannot read the chain {base_link} -> {tip_link}: {exc}"
+                    f"rtb_lm: cannot read the chain {self.base_link} -> {self.tip_link}: {exc}"
                 ) from None
-        self.check_joints(self._ets.n)
+        return self._ets.n
 
     def fk(self, q: np.ndarray) -> np.ndarray:
         return np.asarray(self._ets.eval(np.asarray(q, dtype=float)))

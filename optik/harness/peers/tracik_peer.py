@@ -11,7 +11,6 @@ read them), so that every solver searches the same box.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -19,7 +18,6 @@ from scipy.spatial.transform import Rotation
 
 from optik.harness.peers.base import Peer
 from optik.harness.peers.rules import twist_epsilon
-from optik.mechanism import Mechanism
 from optik.solvers import Tolerances
 
 
@@ -29,17 +27,15 @@ class TracIK(Peer):
     name = "trac_ik"
     package = "pytracik"
 
-    def __init__(self, mechanism: Mechanism, urdf: Path, base_link: str, tip_link: str) -> None:
-        super().__init__(mechanism, urdf, base_link, tip_link)
-        self._lib = self.import_package()
+    def load(self) -> int:
         self._xml = self.urdf.read_text(encoding="utf-8")
         self._solvers: dict[tuple[float, float], Any] = {}
-        self.check_joints(self._lib.get_num_joints(self._solver(0.01, 1e-6)))
+        return self.lib.get_num_joints(self._solver(0.01, 1e-6))
 
     def _solver(self, time_limit: float, eps: float) -> Any:
         key = (time_limit, eps)
         if key not in self._solvers:
-            lib, m = self._lib, self.mechanism
+            lib, m = self.lib, self.mechanism
             solver = lib.TRAC_IK(
                 self.base_link, self.tip_link, self._xml, time_limit, eps, lib.SolveType.Speed
             )
@@ -54,7 +50,7 @@ class TracIK(Peer):
         return self._solvers[key]
 
     def fk(self, q: np.ndarray) -> np.ndarray:
-        return np.asarray(self._lib.fk(self._solver(0.01, 1e-6), np.asarray(q, dtype=float)))
+        return np.asarray(self.lib.fk(self._solver(0.01, 1e-6), np.asarray(q, dtype=float)))
 
     def attempt(
         self, q0: np.ndarray, target: np.ndarray, time_limit: float, tol: Tolerances
@@ -63,5 +59,5 @@ class TracIK(Peer):
         qx, qy, qz, qw = Rotation.from_matrix(target[:3, :3]).as_quat()
         x, y, z = target[:3, 3]
         q0 = np.asarray(q0, dtype=float)
-        out = np.asarray(self._lib.ik(solver, q0, x, y, z, qx, qy, qz, qw))
+        out = np.asarray(self.lib.ik(solver, q0, x, y, z, qx, qy, qz, qw))
         return (out[1:], True) if out[0] > 0 else (q0, False)

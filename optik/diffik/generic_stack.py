@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import copy
 import hashlib
+import logging
 import threading
 from collections.abc import Sequence
 from pathlib import Path
@@ -41,6 +42,7 @@ from optik.mechanism.memo import PerMechanism
 from optik.native import CCall, Library, c_source, keyed_library
 from optik.solvers.generic_chain import chain_parameters, chain_pose, n_chain_parameters
 
+_LOG = logging.getLogger(__name__)
 _ROOT = Path(__file__).resolve().parents[1]
 _SOURCES = ("diffik/generic_stack.py", "diffik/problem.py", "diffik/base.py", "diffik/_codegen.py")
 _SOURCES += ("diffik/tasks/frame_rows.py", "diffik/limits/configuration.py", "diffik/limits/velocity.py")
@@ -180,8 +182,15 @@ def _library(n: int, key: tuple, limits: Sequence[Limit]) -> Library | None:
             found = _LIBRARIES.get((n, key), False)
             if found is False:
                 lims = [_structure_only(lim) for lim in limits]
-                found = _LIBRARIES[(n, key)] = keyed_library(
-                    f"optik_diffik_chain{n}", _digest(n, key), lambda: _source(n, key, lims)
+                try:
+                    digest = _digest(n, key)
+                except OSError as exc:  # a partial install: the robot's own stack answers
+                    _LOG.warning("optik: no generic QP stack, its sources cannot be read: %s", exc)
+                    digest = None
+                found = _LIBRARIES[(n, key)] = (
+                    None
+                    if digest is None
+                    else keyed_library(f"optik_diffik_chain{n}", digest, lambda: _source(n, key, lims))
                 )
     return found  # type: ignore[return-value]
 

@@ -20,7 +20,9 @@ Thread pools are pinned to 1 before numpy is imported (the machine has 2 cores).
    leg lengths -> FK contains the pose), real postures, complex solutions, time per call, the
    largest leg-length residual of any real posture, the median time ratio; a union check against
    extra independent 128-path runs; the planar catalog geometry (where the count check fails and
-   the total method completes the set).
+   the total method completes the set). With ``--fksgp DIR`` also Dietmaier's general 6-6 instance
+   with 40 real postures (made by the checkout's own ``genSGP(100, 1)``): optik and fkSGP
+   alternating, wall and CPU time.
 4. Numerical ``optik.solve_fk`` on every closed catalog chain: tracking from a closed ``q0``
    whose actuators are moved by a small step, and a cold start from mid-limit: success rate
    and time per call.
@@ -39,6 +41,7 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+import importlib  # noqa: E402
 import math  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Sequence  # noqa: E402
@@ -52,7 +55,7 @@ from optik import closed_form  # noqa: E402
 from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.closed_form import parallel  # noqa: E402
 from optik.harness.peers import PeerUnavailable  # noqa: E402
-from optik.harness.peers.fksgp_peer import Postures, load_fksgp  # noqa: E402
+from optik.harness.peers.fksgp_peer import _PACKAGE, Postures, load_fksgp  # noqa: E402
 from optik.harness.tally import timing_ms  # noqa: E402
 from optik.solvers.fk import same_mode  # noqa: E402
 
@@ -273,6 +276,59 @@ def bench_closed_form_fk(n: int, rng: np.random.Generator) -> None:
         print(f"| {name} | {np.mean(modes):.2f} | {_stats(times)} |")
 
 
+DIETMAIER_RUNS = 20
+"""Interleaved runs of each solver on Dietmaier's instance."""
+
+
+def _dietmaier(directory: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Dietmaier's general 6-6 platform with 40 real postures (Mech. Mach. Theory, 1998), as the fkSGP
+    checkout ``directory`` makes it (``genSGP(100, 1)``: base, platform, squared leg lengths), or
+    None when the checkout has no such generator."""
+    load_fksgp(directory)  # registers the checkout's python folder as the package _PACKAGE
+    try:
+        sgp = importlib.import_module(f"{_PACKAGE}.genSGP").genSGP(100, 1)
+    except Exception:  # another version of the checkout
+        return None
+    rho = np.sqrt(np.asarray(sgp["L"], dtype=float))
+    return np.asarray(sgp["X"], dtype=float), np.asarray(sgp["x"], dtype=float), rho
+
+
+def bench_dietmaier(fksgp: Postures, case: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+    """optik's default Stewart-Gough FK and fkSGP on Dietmaier's 40-real instance, alternating
+    which goes first, `DIETMAIER_RUNS` runs each (optik with a new seed each run: gamma and patch),
+    timed by the wall clock and by the process CPU time."""
+    b, p, rho = case
+    print(f"\n## Stewart-Gough: Dietmaier's 40-real instance, {DIETMAIER_RUNS} interleaved runs each\n")
+    parallel.stewart_poses(b, p, rho)  # untimed warm-up, for both
+    fksgp(b, p, rho)
+    rows: dict[str, list[tuple[float, float, list]]] = {"optik": [], "fksgp": []}
+    for i in range(DIETMAIER_RUNS):
+        for name in list(rows)[i % 2 :] + list(rows)[: i % 2]:
+            wall, cpu = time.perf_counter(), time.process_time()
+            poses = parallel.stewart_poses(b, p, rho, seed=i).poses if name == "optik" else fksgp(b, p, rho)
+            rows[name].append((time.perf_counter() - wall, time.process_time() - cpu, poses))
+    print("| solver | real postures (min / max) | median ms, wall | median ms, CPU | max leg residual |")
+    print("|---|---|---|---|---|")
+    med = {}
+    for name, runs in rows.items():
+        counts = [len(x[2]) for x in runs]
+        med[name] = (np.median([x[0] for x in runs]), np.median([x[1] for x in runs]))
+        residual = max(_leg_residual(b, p, rho, x[2]) for x in runs)
+        print(
+            f"| {name} | {min(counts)} / {max(counts)} | {1e3 * med[name][0]:.2f} | {1e3 * med[name][1]:.2f} "
+            f"| {residual:.1e} |"
+        )
+    same = sum(
+        len(a[2]) == len(f[2]) and all(_has(a[2], r2, t2, 1e-7) for r2, t2 in f[2])
+        for a, f in zip(rows["optik"], rows["fksgp"], strict=True)
+    )
+    print(
+        f"\nRatio optik / fkSGP of the medians: wall {med['optik'][0] / med['fksgp'][0]:.2f}, CPU "
+        f"{med['optik'][1] / med['fksgp'][1]:.2f}; runs where both found the same real postures (within "
+        f"1e-7): {same}/{DIETMAIER_RUNS}"
+    )
+
+
 def bench_solve_fk(n: int, rng: np.random.Generator) -> None:
     """Numerical solve_fk on every closed catalog chain: tracking and cold starts."""
     print(f"\n## Numerical solve_fk ({n} cases per mechanism)\n")
@@ -339,6 +395,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         except PeerUnavailable as exc:
             print(f"fkSGP skipped: {exc}")
     bench_stewart(args.n_sg, args.n_total, rng, args.heavy, min(args.n_catalog, args.n_sg), fksgp)
+    case = _dietmaier(args.fksgp) if fksgp is not None else None
+    if fksgp is not None and case is not None:
+        bench_dietmaier(fksgp, case)
+    elif fksgp is not None:
+        print("Dietmaier's instance skipped: the fkSGP checkout has no genSGP(100, ...)")
     bench_solve_fk(args.n_fk, rng)
     return 0
 

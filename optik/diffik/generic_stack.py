@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import copy
 import hashlib
+import logging
 import threading
 from collections.abc import Sequence
 from pathlib import Path
@@ -41,6 +42,7 @@ from optik.mechanism.memo import PerMechanism
 from optik.native import CCall, Library, c_source, keyed_library
 from optik.solvers.generic_chain import chain_parameters, chain_pose, n_chain_parameters
 
+_LOG = logging.getLogger(__name__)
 _ROOT = Path(__file__).resolve().parents[1]
 _SOURCES = ("diffik/generic_stack.py", "diffik/problem.py", "diffik/base.py", "diffik/_codegen.py")
 _SOURCES += ("diffik/tasks/frame_rows.py", "diffik/limits/configuration.py", "diffik/limits/velocity.py")
@@ -164,6 +166,14 @@ _LIBRARIES_LOCK = threading.Lock()
 _STACKS: PerMechanism[dict[tuple, ChainStack | None]] = PerMechanism()
 
 
+def _structure_only(limit: Limit) -> Limit:
+    """A copy of ``limit`` for the code generation: its own parameter cache (which the call's
+    mechanism keeps alive and other threads read), empty."""
+    out = copy.copy(limit)
+    out._cached = None
+    return out
+
+
 def _library(n: int, key: tuple, limits: Sequence[Limit]) -> Library | None:
     """The generic library of ``n`` joints and a task structure (one per process)."""
     found = _LIBRARIES.get((n, key), False)
@@ -171,9 +181,16 @@ def _library(n: int, key: tuple, limits: Sequence[Limit]) -> Library | None:
         with _LIBRARIES_LOCK:
             found = _LIBRARIES.get((n, key), False)
             if found is False:
-                lims = [copy.copy(lim) for lim in limits]  # their parameters' caches are their own
-                found = _LIBRARIES[(n, key)] = keyed_library(
-                    f"optik_diffik_chain{n}", _digest(n, key), lambda: _source(n, key, lims)
+                lims = [_structure_only(lim) for lim in limits]
+                try:
+                    digest = _digest(n, key)
+                except OSError as exc:  # a partial install: the robot's own stack answers
+                    _LOG.warning("optik: no generic QP stack, its sources cannot be read: %s", exc)
+                    digest = None
+                found = _LIBRARIES[(n, key)] = (
+                    None
+                    if digest is None
+                    else keyed_library(f"optik_diffik_chain{n}", digest, lambda: _source(n, key, lims))
                 )
     return found  # type: ignore[return-value]
 

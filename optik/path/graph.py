@@ -154,9 +154,9 @@ def _ptr(a: np.ndarray | None) -> int | None:
 
 def _key_joint(layers: Sequence[np.ndarray], weights: np.ndarray) -> int:
     """The joint the C kernel orders the predecessors by: the (weighted) one with the most
-    distinct values among a layer's nodes (over up to 16 layers; ties by spread), so that the
+    distinct values among a layer's nodes (over up to 8 layers; ties by spread), so that the
     window of predecessors it scans is the narrowest."""
-    picked = [layers[k] for k in range(0, len(layers), max(1, len(layers) // 16))]
+    picked = [layers[k] for k in range(0, len(layers), max(1, len(layers) // 8))]
     distinct = np.zeros(len(weights))
     spread = np.zeros(len(weights))
     for layer in picked:
@@ -274,13 +274,12 @@ def branch_changes(
     if len(index) < 2:
         return np.zeros(len(index), dtype=int)
     nodes, tags = Layered.of(layers), Layered.of(groups)
-    owner = nodes.owner()
     picked = nodes.offset[:-1] + index
     chosen = nodes.data[picked]
     # the nodes of layers 1.. in the chosen node's group (each layer's chosen node among them)
-    rest = np.arange(nodes.offset[1], nodes.offset[-1])
-    same = rest[tags.data[rest] == tags.data[picked][owner[rest]]]
-    layer = owner[same]
+    start = nodes.offset[1]
+    same = start + np.flatnonzero(tags.data[start:] == np.repeat(tags.data[picked[1:]], nodes.sizes[1:]))
+    layer = np.searchsorted(nodes.offset, same, side="right") - 1
     dist = np.linalg.norm(differences(chosen[layer - 1], nodes.data[same], periods) * weights, axis=1)
     nearest = np.minimum.reduceat(dist, np.searchsorted(layer, np.arange(1, len(index))))
     flips = dist[np.searchsorted(same, picked[1:])] > nearest

@@ -27,6 +27,7 @@ from functools import cached_property
 import numpy as np
 
 from optik.mechanism import Mechanism
+from optik.mechanism.memo import PerMechanism
 from optik.path.graph import Layered
 from optik.path.nodes import closed_form_solutions
 from optik.path.redundant import self_motion_solutions
@@ -118,10 +119,21 @@ def sample_poses(
     )
 
 
+_AXIS_JOINT: PerMechanism[dict[tuple[str, str | None, int], tuple[int, float] | None]] = PerMechanism()
+
+
 def axis_joint(m: Mechanism, free_axis: str, frame: str | None, seed: int = 0) -> tuple[int, float] | None:
     """``(j, sign)`` when turning joint ``j`` by ``sign * phi`` turns the tool by ``R(phi)``
     about its free axis at every configuration (checked by FK at three random configurations and
-    two angles), else None."""
+    two angles), else None; found once per mechanism, axis and frame (cached on ``m``)."""
+    per = _AXIS_JOINT.setdefault(m, {})
+    key = (free_axis, frame, seed)
+    if key not in per:
+        per[key] = _find_axis_joint(m, free_axis, frame, seed)
+    return per[key]
+
+
+def _find_axis_joint(m: Mechanism, free_axis: str, frame: str | None, seed: int) -> tuple[int, float] | None:
     revolute = np.flatnonzero(np.asarray(m.revolute_mask, dtype=bool))
     if not revolute.size:
         return None
@@ -148,7 +160,7 @@ def axis_joint(m: Mechanism, free_axis: str, frame: str | None, seed: int = 0) -
 def _into_limits(v: np.ndarray, lower: float, upper: float) -> np.ndarray:
     """Angles shifted by the first of ``0, 2 pi, -2 pi, 4 pi, -4 pi`` (after wrapping to
     ``[-pi, pi)``) that lands within ``[lower, upper]``; NaN where none does."""
-    out = np.remainder(v + np.pi, 2.0 * np.pi) - np.pi
+    out = v - (2.0 * np.pi) * np.floor((v + np.pi) * (0.5 / np.pi))  # in [-pi, pi) up to rounding
     bad = (out < lower) | (out > upper)  # the shift 0 fits everywhere else
     if bad.any():
         w = out[bad]

@@ -232,7 +232,14 @@ class ChainKernel:
     def __init__(self, n: int) -> None:
         self.n = n
         self.n_target = 12 + n_chain_parameters(n)
-        self.library: Library | None = keyed_library(f"optik_chain{n}", _digest(n), lambda: _source(n))
+        try:
+            digest = _digest(n)
+        except OSError as exc:  # a partial install: no generic kernel, the per-robot path answers
+            _LOG.warning("optik: no generic lm kernel, its sources cannot be read: %s", exc)
+            digest = None
+        self.library: Library | None = (
+            None if digest is None else keyed_library(f"optik_chain{n}", digest, lambda: _source(n))
+        )
         self.calls = 0
         self._packed: Any = None
         self._local = threading.local()

@@ -218,6 +218,13 @@ RUNS: tuple[Run, ...] = (
         in_readme=False,
     ),
     Run(
+        "collision_qp",
+        "QP differential IK past an obstacle, Panda: velocity dampers against the plain QP step",
+        ("--steps", "200", "--repeats", "3"),
+        ("--steps", "50", "--repeats", "1"),
+        in_readme=False,
+    ),
+    Run(
         "mjcf_fk",
         "MJCF models: optik's FK against MuJoCo's mj_kinematics",
         ("--n", "200"),

@@ -33,14 +33,13 @@ import platform
 import re
 import subprocess
 import sys
-import tempfile
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 
-from optik import benchmarks
+from optik import benchmarks, plot
 
 __all__ = ["RUNS", "Run", "headline", "main", "markdown_tables", "replace_between_markers"]
 
@@ -184,7 +183,7 @@ RUNS: tuple[Run, ...] = (
     Run(
         "search_1d",
         "6R arms special at one or both ends: the 1-D search against the general 6R solver and ik-geo",
-        ("--arms", "20", "--poses", "50", "--geometries", "all"),
+        ("--arms", "10", "--poses", "20", "--geometries", "all"),  # 200 targets per geometry (~0.1 s each)
         ("--arms", "2", "--poses", "5", "--geometries", "all"),
         in_readme=False,
     ),
@@ -216,6 +215,13 @@ RUNS: tuple[Run, ...] = (
         "Collision-free IK, Panda in clutter: optik against TRAC-IK + coal rejection",
         ("--n", "100", "--time-limit", "0.05"),
         ("--n", "10", "--time-limit", "0.05", "--compile-wait", "30"),
+        in_readme=False,
+    ),
+    Run(
+        "collision_qp",
+        "QP differential IK past an obstacle, Panda: velocity dampers against the plain QP step",
+        ("--steps", "200", "--repeats", "3"),
+        ("--steps", "50", "--repeats", "1"),
         in_readme=False,
     ),
     Run(
@@ -309,13 +315,9 @@ def replace_between_markers(text: str, section: str) -> str:
 
 
 def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` atomically (temporary file in the same folder, then ``os.replace``)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile(
-        "w", dir=path.parent, delete=False, suffix=".tmp", encoding="utf-8"
-    ) as f:
-        f.write(text)
-    os.replace(f.name, path)
+    """Write ``text`` to ``path`` atomically with the mode a plain write would give it
+    (`optik.plot.write_atomic`: temporary file in the same folder, then ``os.replace``)."""
+    plot.write_atomic(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
 
 
 @dataclass

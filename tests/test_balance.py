@@ -264,3 +264,58 @@ def test_auto_support_of_the_humanoid_soles():
         compile=False,
     )
     assert r.success and _inside(m, r.q, polygon) >= 0.01 - 1e-9, r.message
+
+
+def test_batch_with_contacts_and_balance(quad):
+    """solve_ik_batch with contacts, support and com_margin: every target meets its reach with
+    the three feet held and the centre of mass inside by the margin (checked from each row), the
+    same answers as solve_ik per target with the row's seed; bad contacts raise before any work."""
+    m, stand = quad
+    held = FEET[:3]
+    contacts = {f: optik.Position(m.fk(stand, f)[:3, 3]) for f in held}
+    polygon = _hull(np.array([m.fk(stand, f)[:2, 3] for f in held]))
+    base = m.fk(stand, FEET[3])[:3, 3]
+    reaches = np.array([base + d for d in ([-0.12, -0.06, 0.08], [-0.1, -0.04, 0.1], [-0.08, -0.08, 0.06])])
+    kw = {"contacts": contacts, "support": polygon, "com_margin": 0.01, "time_limit": 10.0, "compile": False}
+    r = optik.solve_ik_batch(m, reaches, q0=stand, frame=FEET[3], workers=2, **kw)
+    assert r.success.all(), r.status
+    for i, q in enumerate(r.q):
+        assert _inside(m, q, polygon) >= 0.01 - 1e-9 and m.within_limits(q)
+        assert np.abs(m.fk(q, FEET[3])[:3, 3] - reaches[i]).max() < 1e-6
+        for f, p in contacts.items():
+            assert np.abs(m.fk(q, f)[:3, 3] - p.xyz).max() < 1e-6
+        one = optik.solve_ik(m, optik.Position(reaches[i]), stand, frame=FEET[3], seed=int(r.seed[i]), **kw)
+        np.testing.assert_array_equal(one.q, q)
+    with pytest.raises(InvalidArgumentError, match="contacts"):
+        optik.solve_ik_batch(m, reaches, q0=stand, frame=FEET[3], contacts={FEET[3]: np.eye(4)})
+
+
+def test_balance_from_threads(quad):
+    """Four threads solving balanced reaches at once give bit-identical answers to one thread
+    (per-thread kernel buffers, the prepared-request and polygon caches under their lock)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    m, stand = quad
+    held = FEET[:3]
+    contacts = {f: optik.Position(m.fk(stand, f)[:3, 3]) for f in held}
+    polygon = _hull(np.array([m.fk(stand, f)[:2, 3] for f in held]))
+    base = m.fk(stand, FEET[3])[:3, 3]
+    goals = [optik.Position(base + np.array([-0.12 + 0.01 * i, -0.06, 0.08])) for i in range(8)]
+
+    def solve(goal):
+        return optik.solve_ik(
+            m,
+            {FEET[3]: goal},
+            q0=stand,
+            contacts=contacts,
+            support=polygon,
+            com_margin=0.01,
+            time_limit=10.0,
+            compile=False,
+        ).q
+
+    alone = [solve(g) for g in goals]
+    with ThreadPoolExecutor(4) as pool:
+        together = list(pool.map(solve, goals))
+    for a, b in zip(alone, together, strict=True):
+        np.testing.assert_array_equal(a, b)

@@ -16,6 +16,7 @@ from optik.batch.fk import fk_batch
 from optik.batch.result import PER_TARGET, BatchResult
 from optik.mechanism import Mechanism
 from optik.solvers import solve_ik
+from optik.solvers.balance import wait_kernels
 from optik.solvers.base import Tolerances, make_request
 from optik.solvers.closed import binding_of, compile_closed_form
 from optik.solvers.lm import lm_settings
@@ -39,6 +40,8 @@ class ChunkSpec:
         options: method options.
         collisions: ``world``, ``self_collision`` and ``margin`` of a collision-aware batch
             (empty: none); each target is then one collision-aware `optik.solve_ik`.
+        balance: ``contacts``, ``support`` and ``com_margin`` of a batch with contacts (empty:
+            none); each target is then one `optik.solve_ik` with them.
     """
 
     method: str
@@ -48,13 +51,18 @@ class ChunkSpec:
     tol: Tolerances
     options: dict[str, Any] = field(default_factory=dict)
     collisions: dict[str, Any] = field(default_factory=dict)
+    balance: dict[str, Any] = field(default_factory=dict)
 
 
 def prepare(m: Mechanism, spec: ChunkSpec, target: np.ndarray, q0: np.ndarray) -> None:
     """Build and compile, once and before the chunks run, the code every chunk of ``spec`` uses:
     the LM kernel (``"lm"``) or the compiled driver of a derived closed form (``"closed_form"``);
     ``target`` and ``q0`` are one row of the batch (for the request's settings)."""
-    if spec.method == "lm":
+    if spec.balance:
+        opts = {**spec.options, **spec.balance}  # one solve of one target: validates, builds the code
+        solve_ik(m, target, q0, spec.method, task=spec.task, frame=spec.frame, time_limit=1e-9, **opts)
+        wait_kernels(m)  # the lm balance kernel: a batch is worth its C build
+    elif spec.method == "lm":
         _lm_kernel(m, spec, target, q0)
     elif spec.method == "closed_form":
         compile_closed_form(m)
@@ -76,7 +84,7 @@ def solve_chunk(
     """Solve one chunk: ``targets`` ``(k, 4, 4)``, starts ``(k, n)``, seeds ``(k,)`` (uint64)."""
     if spec.method == "closed_form" and len(targets):
         return _solve_closed_form(m, spec, targets, q0, seeds)
-    if spec.method != "lm" or spec.collisions or not len(targets):
+    if spec.method != "lm" or spec.collisions or spec.balance or not len(targets):
         return _solve_loop(m, spec, targets, q0, seeds)
     k, settings = _lm_kernel(m, spec, targets[0], q0[0])
     rows = target_rows(targets)
@@ -219,6 +227,7 @@ def _solve_loop(
             seed=int(sd),
             **spec.options,
             **spec.collisions,
+            **spec.balance,
         )
         for t, s, sd in zip(targets, q0, seeds, strict=True)
     ]

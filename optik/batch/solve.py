@@ -55,6 +55,9 @@ def solve_ik_batch(
     world: Any = None,
     self_collision: bool | None = None,
     margin: float = 0.0,
+    contacts: Any = None,
+    support: Any = None,
+    com_margin: float = 0.0,
     **options: Any,
 ) -> BatchResult:
     """Inverse kinematics of many targets: every core, or a Dask cluster.
@@ -88,6 +91,10 @@ def solve_ik_batch(
             has status ``"in_collision"``.
         self_collision: keep the robot clear of itself (None: True when ``world`` is given).
         margin: the clearance (m).
+        contacts, support, com_margin: frames held in the world and static balance, as for
+            `optik.solve_ik` (the same for every target; methods ``"lm"``, ``"nlp"``, ``"qp"`` with
+            ``support``): each target is one `optik.solve_ik` call on the thread pool (the
+            compiled ``lm`` balance kernel releases the GIL), its balance checked as there.
         **options: method options (as for `optik.solve_ik`).
 
     Returns:
@@ -125,7 +132,14 @@ def solve_ik_batch(
                 "scheduler", "a collision-aware batch runs on local threads (the World is not sent to Dask)"
             )
         spec.collisions.update(world=world, self_collision=own, margin=margin)
-    if method == "lm":
+    spec.balance.update(
+        (k, v)
+        for k, v in (("contacts", contacts), ("support", support), ("com_margin", com_margin))
+        if v is not None and not (k == "com_margin" and v == 0.0)
+    )
+    if spec.balance and n:  # validated (and its code built) by one solve of the first target
+        prepare(m, spec, transforms[0], starts[0])
+    elif method == "lm":
         lm_settings(request)  # unknown options and bad values raise here, not in a worker
     else:
         get_method(method)

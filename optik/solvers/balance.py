@@ -297,6 +297,15 @@ def compiled_kernels(m: Mechanism) -> list[bool]:
     return [k.compiled for k in kernels]
 
 
+def wait_kernels(m: Mechanism) -> None:
+    """Wait for the C build of every ``lm`` balance kernel built for ``m`` so far."""
+    with _SOLVERS_LOCK:
+        kernels = [v for v in _SOLVERS.get(m, {}).values() if isinstance(v, LMKernel)]
+    for k in kernels:
+        if k.library is not None:
+            k.library.wait()
+
+
 def _inside(m: Mechanism, q: np.ndarray, normals: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:
     """The centre of mass and its smallest distance inside the polygon (negative outside)."""
     c = m.com(q)

@@ -87,7 +87,8 @@ def test_library_is_compiled_once_into_the_cache(monkeypatch: pytest.MonkeyPatch
         native.library([g], True)
     # a library built with other flags (before -fno-semantic-interposition joined them) is another
     # file: never loaded in place of this one
-    monkeypatch.setattr(native, "_FLAGS", tuple(x for x in native._FLAGS if x != "-fno-semantic-interposition"))
+    before = tuple(x for x in native._FLAGS if x != "-fno-semantic-interposition")
+    monkeypatch.setattr(native, "_FLAGS", before)
     native._BUILDS.pop(lib.path)
     with pytest.raises(AssertionError, match="recompiled"):
         native.library([f], True)

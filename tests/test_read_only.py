@@ -36,7 +36,7 @@ def test_actuation_and_its_indices_cannot_be_changed():
     for arr in (m.actuated_indices, m.passive_indices):
         with pytest.raises(ValueError, match="read-only"):
             arr[0] = 1
-    with pytest.raises(ReadOnlyError, match="^actuated: ") as info:
+    with pytest.raises(ReadOnlyError, match=r"^actuated: ") as info:
         m.actuated = (True,) * m.n_q
     assert info.value.argument == "actuated"
     np.testing.assert_array_equal(m.actuated_indices, np.flatnonzero(m.actuated))

@@ -8,8 +8,9 @@ com_margin=0.01)``:
   tolerances as the task targets, so every method that takes several targets (``lm``, ``nlp``,
   ``dls``, ``qp``) holds them, and success needs every contact met (`merge_contacts`).
 * ``support`` is the world x-y polygon of the feet in contact, counter-clockwise, a ``(k, 2)``
-  array, or ``"auto"`` (`auto_support`: the hull of the contacts' ground projections). Its edges ``v_i -> v_{i+1}`` give the half-planes ``n_i . x <= n_i . v_i`` with the
-  unit outward normals ``n_i = (dy, -dx) / |d|`` (`support_halfplanes`); static balance asks the
+  array, or ``"auto"`` (`auto_support`: the hull of the contacts' ground projections). Its
+  edges ``v_i -> v_{i+1}`` give the half-planes ``n_i . x <= n_i . v_i`` with the unit outward
+  normals ``n_i = (dy, -dx) / |d|`` (`support_halfplanes`); static balance asks the
   ground projection of the centre of mass, ``c_xy(q)`` of `optik.Mechanism.com`, to lie inside by
   ``com_margin`` (m):
 

@@ -61,7 +61,7 @@ def into_limits(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, angles: np.
         lower, upper: joint limits ``(n,)``.
         angles: ``(n,)`` True for the revolute coordinates.
     """
-    out = wrap_to_limits(q, lower, upper, angles)
+    out = wrap_to_limits(q.reshape(-1, q.shape[-1]), lower, upper, angles).reshape(q.shape)
     out[~np.all((out >= lower) & (out <= upper), axis=-1)] = np.nan
     return out
 

@@ -33,14 +33,13 @@ import platform
 import re
 import subprocess
 import sys
-import tempfile
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 
-from optik import benchmarks
+from optik import benchmarks, plot
 
 __all__ = ["RUNS", "Run", "headline", "main", "markdown_tables", "replace_between_markers"]
 
@@ -219,6 +218,13 @@ RUNS: tuple[Run, ...] = (
         in_readme=False,
     ),
     Run(
+        "collision_qp",
+        "QP differential IK past an obstacle, Panda: velocity dampers against the plain QP step",
+        ("--steps", "200", "--repeats", "3"),
+        ("--steps", "50", "--repeats", "1"),
+        in_readme=False,
+    ),
+    Run(
         "mjcf_fk",
         "MJCF models: optik's FK against MuJoCo's mj_kinematics",
         ("--n", "200"),
@@ -309,13 +315,9 @@ def replace_between_markers(text: str, section: str) -> str:
 
 
 def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` atomically (temporary file in the same folder, then ``os.replace``)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile(
-        "w", dir=path.parent, delete=False, suffix=".tmp", encoding="utf-8"
-    ) as f:
-        f.write(text)
-    os.replace(f.name, path)
+    """Write ``text`` to ``path`` atomically with the mode a plain write would give it
+    (`optik.plot.write_atomic`: temporary file in the same folder, then ``os.replace``)."""
+    plot.write_atomic(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
 
 
 @dataclass

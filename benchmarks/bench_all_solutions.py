@@ -54,7 +54,6 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import tempfile  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Callable, Sequence  # noqa: E402
 from dataclasses import dataclass, field  # noqa: E402
@@ -65,6 +64,7 @@ from typing import Any  # noqa: E402
 import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
+from optik import plot  # noqa: E402
 from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.catalog.industrial import PUMA560_DH  # noqa: E402
 from optik.closed_form.derived import chain_axes, derive, derive_axes  # noqa: E402
@@ -390,14 +390,6 @@ def report(rows: list[Row], notes: list[str], command: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _write(path: Path, text: str) -> None:
-    """Write ``text`` atomically (temporary file in the same folder, then ``os.replace``)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile("w", dir=path.parent, delete=False, suffix=".tmp") as f:
-        f.write(text)
-    os.replace(f.name, path)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     parser = benchmark_parser("all_solutions", __doc__)
     parser.add_argument("--n", type=int, default=1000, help="random poses per arm (default: %(default)s)")
@@ -419,7 +411,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     text = report(rows, notes, command.strip())
     print(text)
     if args.out is not None:
-        _write(args.out, text)
+        plot.write_atomic(args.out, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
     ok = all(
         r.found == r.eaik_valid
         and r.ikgeo_found == r.ikgeo_valid

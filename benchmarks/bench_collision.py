@@ -75,11 +75,18 @@ class Judge:
                 g.buildConvexHull(True, "Qt")
                 g = g.convex
             self.shapes.append(g)
-        self.obstacles = [
-            (coal.Box(*o.shape.size), coal.Transform3s(o.pose[:3, :3], o.pose[:3, 3]))
-            for o in world.snapshot()
-        ]
+        self.set_world(world)
         self.tcp = self.model.getFrameId("panda_hand_tcp")
+
+    def set_world(self, world: optik.World) -> None:
+        """Judge against ``world`` (its coal objects, placed here at each object's pose)."""
+        from optik.collision.shapes import coal_objects
+
+        self.obstacles = []
+        for o in world.snapshot():
+            for geom, offset in coal_objects(o.shape):
+                t = o.pose @ offset
+                self.obstacles.append((geom, self.coal.Transform3s(t[:3, :3], t[:3, 3])))
 
     def ok(
         self, q: np.ndarray | None, target: np.ndarray, m: optik.Mechanism, tol: float, margin: float
@@ -105,8 +112,8 @@ class Judge:
             if d < margin - 1e-9:
                 return False
         for k, shape in enumerate(self.shapes):
-            for box, tb in self.obstacles:
-                d = coal.distance(shape, tf[k], box, tb, coal.DistanceRequest(), coal.DistanceResult())
+            for obstacle, tb in self.obstacles:
+                d = coal.distance(shape, tf[k], obstacle, tb, coal.DistanceRequest(), coal.DistanceResult())
                 if d < margin - 1e-9:
                     return False
         return True

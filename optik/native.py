@@ -67,8 +67,13 @@ import numpy as np
 from optik.errors import InvalidArgumentError, ShapeError, SolverUnavailableError
 
 _INT = ctypes.c_longlong  # casadi_int of the generated code (see c_source)
-_FLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off")
-"""Compiler flags; no contraction into fused multiply-adds, so C and the virtual machine agree."""
+_FLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-semantic-interposition")
+"""Compiler flags (part of the cache key: a library built with other flags is never loaded).
+No contraction into fused multiply-adds, so C and the virtual machine agree; no semantic
+interposition: a call from optik's C into a generated function of the same library binds to it
+(the compiler may inline it) instead of going through the dynamic linker's symbol table, where
+another library's function of the same name could stand in for it. The libraries are loaded
+with ``RTLD_LOCAL`` (``ctypes``' default) and nothing relies on interposing their symbols."""
 _LOG = logging.getLogger(__name__)
 _BUILDS: dict[Path, Library] = {}  # every library this process loaded or built, by path
 _BUILDS_LOCK = threading.Lock()

@@ -40,6 +40,7 @@ import numpy as np
 
 from optik.batch import fk_batch, solve_ik_batch
 from optik.checks import as_bool
+from optik.collision.world import World
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 from optik.problem_files import add_source_arguments, load_source
@@ -201,6 +202,9 @@ def reach(
     scheduler: Any = None,
     workers: int | None = None,
     progress: bool = False,
+    world: Any = None,
+    self_collision: bool | None = None,
+    margin: float = 0.0,
 ) -> ReachMap:
     """Compute (or resume) a capability map of a frame (default: the end effector).
 
@@ -223,6 +227,11 @@ def reach(
         scheduler: a ``dask.distributed.Client`` or address: chunks solved on that cluster.
         workers: local threads (default: the cores available).
         progress: progress bar on stderr.
+        world: obstacles ([`optik.World`][optik.World]): with it or ``self_collision=True`` a
+            pose counts as reached only by a collision-free answer (`optik.solve_ik_batch` with
+            the same arguments: one collision-aware solve per target, local threads only).
+        self_collision: keep the robot clear of itself (None: True when ``world`` is given).
+        margin: the clearance (m).
 
     Returns:
         The `ReachMap` (``complete`` False when ``max_chunks`` stopped it early).
@@ -271,6 +280,12 @@ def reach(
         "origin": origin.tolist(),
         "shape": list(shape),
     }
+    collisions: dict[str, Any] = {}
+    if world is not None and not isinstance(world, World):
+        raise InvalidArgumentError("world", f"expected an optik.World or None, got {type(world).__name__}")
+    if world is not None or self_collision:
+        collisions = {"world": world, "self_collision": self_collision, "margin": margin}
+        settings["collisions"] = _world_fingerprint(world, self_collision, margin)
     folder = Path(out) if out is not None else None
     meta = _open_folder(folder, settings, __version__)
     centers = origin + (voxels + 0.5) * resolution
@@ -309,6 +324,7 @@ def reach(
                 seed=int(target_seeds(seed, k, 1)[0]),
                 scheduler=scheduler,
                 workers=workers,
+                **collisions,
             )
             success[sl], solved[sl] = res.success.reshape(len(pos), n_rot), True
             if folder is not None:
@@ -331,6 +347,17 @@ def reach(
     if folder is not None and complete:
         rmap.files = _write_outputs(folder, rmap)
     return rmap
+
+
+def _world_fingerprint(world: Any, self_collision: bool | None, margin: float) -> str:
+    """A digest of the collision settings of a map (a resumed map must have the same world)."""
+    objects = [] if world is None else world.snapshot()
+    text = repr((self_collision, float(margin))) + "".join(
+        f"{o.name}:{o.shape.kind}:{o.shape.size}:{o.shape.path}:{np.asarray(o.pose).round(12).tolist()}:"
+        f"{None if o.shape.points is None else o.shape.points.tolist()}"
+        for o in objects
+    )
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def _now() -> str:

@@ -19,6 +19,7 @@ Conventions:
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import casadi as ca
@@ -50,12 +51,14 @@ __all__ = [
     "translation_of",
     "vee",
     "wrap_angle",
+    "wrap_into",
     "wrap_rotation_vector",
     "wrap_to_limits",
     "zyz_to_rot",
 ]
 
 _SYMBOLIC = (ca.SX, ca.MX)
+_TWO_PI = 2.0 * math.pi
 
 
 def is_symbolic(*values: Any) -> bool:
@@ -132,8 +135,12 @@ def wrap_angle(a: Any) -> Any:
         a: angle(s) in radians (numpy or CasADi).
 
     Returns:
-        ``a - 2 pi k`` in ``(-pi, pi]``.
+        ``a - 2 pi k`` in ``(-pi, pi]`` (a float for a Python float, computed with plain float
+        arithmetic: the same numbers as the array path, without its cost on hot scalar loops).
     """
+    if type(a) is float:
+        w = (a + math.pi) % _TWO_PI - math.pi
+        return w + _TWO_PI if w <= -math.pi else w
     if is_symbolic(a):
         return ca.atan2(ca.sin(a), ca.cos(a))
     w = np.mod(np.asarray(a, dtype=float) + np.pi, 2.0 * np.pi) - np.pi
@@ -207,31 +214,39 @@ def wrap_to_limits(q: Any, lower: Any, upper: Any, angular: Any) -> np.ndarray:
         return out
     a = out[..., mask]
     lo, hi = np.asarray(lower, dtype=float)[mask], np.asarray(upper, dtype=float)[mask]
-    canonical = (a > -np.pi) & (a <= np.pi)
-    keep = (lo <= a) & (a <= hi)
-    if (canonical & keep).all():  # the common case: nothing to do
+    with np.errstate(invalid="ignore"):
+        done = (a > -np.pi) & (a <= np.pi) & (lo <= a) & (a <= hi)  # rule 1 with c = q_i: as it is
+    if done.all():  # the common case: nothing to do
         return out
-    c = np.where(canonical, a, wrap_angle(a))
-    ok = (lo <= c) & (c <= hi)
-    if (ok | keep).all():
-        out[..., mask] = np.where(ok, c, a)
-        return out
-    with np.errstate(invalid="ignore", over="ignore"):
-        # whole turns from c to the nearest point of the interval, and that count's neighbours
-        # (rounding): the candidate of least gap wins, of gap 0 the one of least |k|
-        base = np.floor((np.minimum(np.maximum(c, lo), hi) - c) / _TWO_PI)
-        k = base[..., None] + _STEPS
-        x = c[..., None] + _TWO_PI * k
-        gap = np.maximum(np.maximum(lo[:, None] - x, x - hi[:, None]), 0.0)
-        key = np.where(gap > 0.0, gap, -1.0 / (1.0 + np.abs(k)))  # inside: negative, least |k| least
-        pick = np.argmin(key, axis=-1)  # (NaN: any pick, all candidates are NaN)
-        best = c + _TWO_PI * (base + _STEPS[pick])  # the picked x, by the same arithmetic
-    out[..., mask] = np.where(ok, c, np.where(keep, a, best))
+    rows, cols = np.nonzero(np.atleast_2d(~done))
+    flat = np.atleast_2d(a)
+    los, his = lo.tolist(), hi.tolist()
+    for r, k in zip(rows.tolist(), cols.tolist(), strict=True):
+        flat[r, k] = wrap_into(float(flat[r, k]), los[k], his[k])
+    out[..., mask] = flat.reshape(a.shape)
     return out
 
 
-_TWO_PI = 2.0 * np.pi
-_STEPS = np.array([-1.0, 0.0, 1.0, 2.0])
+def wrap_into(a: float, lower: float, upper: float) -> float:
+    """One angle by the rules of `wrap_to_limits` (plain floats: the same arithmetic as
+    `wrap_angle` and as the compiled closed-form driver); NaN for a non-finite ``a``."""
+    if not math.isfinite(a):
+        return math.nan
+    c = a if -math.pi < a <= math.pi else wrap_angle(a)
+    if lower <= c <= upper:
+        return c
+    if lower <= a <= upper:
+        return a
+    # whole turns from c to the nearest point of the interval (c is outside it), and that
+    # count's neighbours (rounding): the candidate of least gap wins, of gap 0 the least |k|
+    base = math.floor(((lower if c < lower else upper) - c) / _TWO_PI)
+    best, best_key = c, math.inf
+    for k in (base - 1, base, base + 1, base + 2):
+        x = c + _TWO_PI * k
+        key = lower - x if x < lower else (x - upper if x > upper else -1.0 / (1.0 + abs(k)))
+        if key < best_key:
+            best, best_key = x, key
+    return best
 
 
 def rot_x(a: Any) -> Any:

@@ -288,3 +288,34 @@ def test_batch_with_contacts_and_balance(quad):
         np.testing.assert_array_equal(one.q, q)
     with pytest.raises(InvalidArgumentError, match="contacts"):
         optik.solve_ik_batch(m, reaches, q0=stand, frame=FEET[3], contacts={FEET[3]: np.eye(4)})
+
+
+def test_balance_from_threads(quad):
+    """Four threads solving balanced reaches at once give bit-identical answers to one thread
+    (per-thread kernel buffers, the prepared-request and polygon caches under their lock)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    m, stand = quad
+    held = FEET[:3]
+    contacts = {f: optik.Position(m.fk(stand, f)[:3, 3]) for f in held}
+    polygon = _hull(np.array([m.fk(stand, f)[:2, 3] for f in held]))
+    base = m.fk(stand, FEET[3])[:3, 3]
+    goals = [optik.Position(base + np.array([-0.12 + 0.01 * i, -0.06, 0.08])) for i in range(8)]
+
+    def solve(goal):
+        return optik.solve_ik(
+            m,
+            {FEET[3]: goal},
+            q0=stand,
+            contacts=contacts,
+            support=polygon,
+            com_margin=0.01,
+            time_limit=10.0,
+            compile=False,
+        ).q
+
+    alone = [solve(g) for g in goals]
+    with ThreadPoolExecutor(4) as pool:
+        together = list(pool.map(solve, goals))
+    for a, b in zip(alone, together, strict=True):
+        np.testing.assert_array_equal(a, b)

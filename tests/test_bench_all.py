@@ -22,6 +22,7 @@ from optik.benchmarks.bench_all import (
     read_pages,
     replace_between_markers,
     summary,
+    write_atomic,
 )
 
 OUTPUT = """intro line
@@ -106,6 +107,16 @@ def test_the_section_between_the_markers_is_replaced_and_the_rest_kept():
     assert replace_between_markers(out, "again") == f"head\n{START}\nagain\n{END}\ntail\n"
     with pytest.raises(ValueError, match="markers"):
         replace_between_markers("no markers here", "x")
+
+
+def test_pages_get_the_mode_of_a_plain_write(tmp_path):
+    plain = tmp_path / "plain.md"
+    plain.write_text("x", encoding="utf-8")
+    page = tmp_path / "sub" / "page.md"
+    write_atomic(page, "fresh")
+    assert page.read_text(encoding="utf-8") == "fresh"
+    assert page.stat().st_mode & 0o777 == plain.stat().st_mode & 0o777  # not mkstemp's 0600
+    assert [p.name for p in page.parent.iterdir()] == ["page.md"]
 
 
 def test_a_quick_sitting_writes_the_page_the_index_and_the_readme(tmp_path, monkeypatch):

@@ -357,3 +357,34 @@ def test_segment_distance_is_the_minimum_over_both_segments(xs):
     grid = np.linalg.norm(a[:, None] - b[None], axis=2).min()
     assert d <= grid + 1e-9
     assert d >= grid - 2e-3 * (np.linalg.norm(q1 - p1) + np.linalg.norm(q2 - p2)) - 1e-9
+
+
+def test_allowed_collision_matrix_is_cached_on_disk(toy_arm_urdf, tmp_path, monkeypatch, caplog):
+    """Without an SRDF the sampled pairs are written once (atomically) and read by a fresh model;
+    a damaged file is logged and replaced by a new sampling."""
+    import json
+    import logging
+
+    import optik.collision.robot as robot
+
+    monkeypatch.setenv("OPTIK_CACHE_DIR", str(tmp_path))
+    first = robot_geometry(optik.Mechanism.from_urdf(toy_arm_urdf, "base", "tip"))
+    (path,) = (tmp_path / "acm").glob("*.json")
+    assert json.loads(path.read_text())["format"] == robot.ACM_FORMAT
+    sample = robot._always_colliding
+
+    def refuse(*args):
+        raise AssertionError("sampled again")
+
+    monkeypatch.setattr(robot, "_always_colliding", refuse)
+    again = robot_geometry(optik.Mechanism.from_urdf(toy_arm_urdf, "base", "tip"))
+    assert again is not first and again.disabled == first.disabled
+    monkeypatch.setattr(robot, "_always_colliding", sample)
+    for damage in ("{not json", '{"format": 1, "always": [["base", "no_such_link"]]}', ""):
+        path.write_text(damage)
+        caplog.clear()
+        with caplog.at_level(logging.WARNING, logger="optik.collision.robot"):
+            fresh = robot_geometry(optik.Mechanism.from_urdf(toy_arm_urdf, "base", "tip"))
+        assert "damaged" in caplog.text
+        assert fresh.disabled == first.disabled
+        assert json.loads(path.read_text())["format"] == robot.ACM_FORMAT

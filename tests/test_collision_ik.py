@@ -168,3 +168,21 @@ def test_batch_with_a_world_solves_each_target_clear(arm):
         assert not check(arm, q, w, margin=MARGIN).in_collision
     with pytest.raises(InvalidArgumentError, match="world"):
         optik.solve_ik_batch(arm, targets, world="table")
+
+
+def test_reach_with_a_world_counts_only_clear_answers(toy_arm_urdf):
+    """A capability map with a wall over part of the workspace: no voxel is reached with more
+    orientations than without it, and the voxels inside the wall are not reached at all."""
+    arm = optik.Mechanism.from_urdf(toy_arm_urdf, "base", "tip")
+    arm.task = "position2d"  # a planar 2R tip: x-y positions only (voxel centres are off its plane)
+    w = World()
+    w.add_box("wall", (0.3, 2.0, 1.0), spatial.translation(0.75, 0.0, 0.1))
+    kw = dict(resolution=0.25, orientations=1, samples=2000, time_limit=0.05, workers=1)
+    free = optik.reach(arm, **kw)
+    walled = optik.reach(arm, world=w, margin=MARGIN, **kw)
+    assert np.array_equal(free.voxels, walled.voxels)
+    assert np.all(walled.success <= free.success)
+    inside = np.abs(walled.centers[:, 0] - 0.75) < 0.15  # the tip would be inside the wall
+    assert inside.any() and not walled.success[inside].any() and free.success[inside].any()
+    with pytest.raises(InvalidArgumentError, match="world"):
+        optik.reach(arm, world="wall", **kw)

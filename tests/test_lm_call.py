@@ -71,6 +71,33 @@ def test_prepared_calls_answer_as_the_general_path(monkeypatch: pytest.MonkeyPat
     assert general[-1].q[0] == pytest.approx(3.5 - 2 * math.pi)
 
 
+def test_list_starts_and_generator_seeds_take_the_prepared_call(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A ``q0`` given as a list or tuple and a seed given as a numpy Generator are solved by the
+    prepared call too (no request built), with the general path's answer: the start converted
+    as `optik.Mechanism.check_q` converts it and one draw from the Generator, which is left in
+    the general path's state."""
+    _warm(M, **OPTIONS)
+    targets, starts = M.fk(M.random_q(6, seed=5)), M.random_q(6, seed=6)
+    general, after = [], []
+    for i, (t, q0) in enumerate(zip(targets, starts, strict=True)):
+        rng = np.random.default_rng(i)
+        general.append(
+            solve_lm(make_request(M, t, q0, None, None, OPTIONS["time_limit"], OPTIONS["tol"], rng, {}))
+        )
+        after.append(rng.integers(2**63))
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the general path was taken")
+
+    monkeypatch.setattr(api, "make_request", refuse)
+    for i, (t, q0) in enumerate(zip(targets, starts, strict=True)):
+        rng = np.random.default_rng(i)
+        start = q0.tolist() if i % 2 else tuple(q0.tolist())
+        _same(optik.solve_ik(M, t, start, method="lm", seed=rng, **OPTIONS), general[i])
+        assert rng.integers(2**63) == after[i]
+    assert sum(r.restarts for r in general) > 0  # the drawn seeds were used
+
+
 def _bad_rotation() -> np.ndarray:
     t = M.fk(M.mid_q())
     t[:3, 0] *= 1.001
@@ -106,6 +133,10 @@ def _with(t: np.ndarray, i: tuple[int, int], v: float) -> np.ndarray:
         (np.eye(3), None, None, ShapeError, "target"),
         (M.fk(M.mid_q()), np.r_[M.mid_q()[:-1], math.nan], None, NonFiniteError, "q0"),
         (M.fk(M.mid_q()), np.r_[M.mid_q(), 0.0], None, ShapeError, "q0"),
+        (M.fk(M.mid_q()), [*M.mid_q()[:-1].tolist(), math.nan], None, NonFiniteError, "q0"),
+        (M.fk(M.mid_q()), M.mid_q()[:-1].tolist(), None, ShapeError, "q0"),
+        (M.fk(M.mid_q()), ["a"] * M.n_q, None, InvalidArgumentError, "q0"),
+        (_bad_rotation(), M.mid_q().tolist(), np.random.default_rng(0), InvalidArgumentError, "target"),
         (M.fk(M.mid_q()), None, -1, InvalidArgumentError, "seed"),
         (M.fk(M.mid_q()), None, 1.5, InvalidArgumentError, "seed"),
     ],

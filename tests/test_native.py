@@ -85,6 +85,13 @@ def test_library_is_compiled_once_into_the_cache(monkeypatch: pytest.MonkeyPatch
     g = ca.Function("optik_test_cache", [X], [ca.sin(X)])  # same name, other source: other library
     with pytest.raises(AssertionError, match="recompiled"):
         native.library([g], True)
+    # a library built with other flags (before -fno-semantic-interposition joined them) is another
+    # file: never loaded in place of this one
+    before = tuple(x for x in native._FLAGS if x != "-fno-semantic-interposition")
+    monkeypatch.setattr(native, "_FLAGS", before)
+    native._BUILDS.pop(lib.path)
+    with pytest.raises(AssertionError, match="recompiled"):
+        native.library([f], True)
 
 
 def test_first_calls_evaluate_while_the_library_builds_then_switch(

@@ -26,6 +26,22 @@ def test_limits_cannot_be_changed_in_place_or_replaced():
     np.testing.assert_array_equal(m.upper, before[1])
 
 
+def test_actuation_and_its_indices_cannot_be_changed():
+    """The actuated and passive indices are computed once per mechanism (each FK call reads
+    them): the actuation they come from is read-only, and so are the shared index arrays."""
+    m = optik.catalog.planar_3rpr()
+    assert m.actuated_indices is m.actuated_indices
+    np.testing.assert_array_equal(m.actuated_indices, np.flatnonzero(m.actuated))
+    np.testing.assert_array_equal(np.sort(np.r_[m.actuated_indices, m.passive_indices]), np.arange(m.n_q))
+    for arr in (m.actuated_indices, m.passive_indices):
+        with pytest.raises(ValueError, match="read-only"):
+            arr[0] = 1
+    with pytest.raises(ReadOnlyError, match=r"^actuated: ") as info:
+        m.actuated = (True,) * m.n_q
+    assert info.value.argument == "actuated"
+    np.testing.assert_array_equal(m.actuated_indices, np.flatnonzero(m.actuated))
+
+
 def test_joint_and_frame_arrays_are_read_only_copies():
     origin = np.eye(4)
     j = optik.Joint("q1", "revolute", "base", "l1", origin=origin, axis=[0.0, 0.0, 1.0])

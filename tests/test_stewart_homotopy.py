@@ -58,6 +58,14 @@ def test_start_instance_regenerates_from_its_seed(tmp_path):
     assert np.array_equal(back.solutions, again.solutions)
 
 
+def test_the_start_file_is_written_with_a_plain_writes_mode(tmp_path):
+    plain = tmp_path / "plain.json"
+    plain.write_text("{}", encoding="utf-8")
+    stewart_parameter.write(stewart_parameter.load(), tmp_path / "start.json")
+    assert (tmp_path / "start.json").stat().st_mode & 0o777 == plain.stat().st_mode & 0o777  # not 0600
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plain.json", "start.json"]
+
+
 def test_general_6_6_in_40_paths_matches_the_total_method():
     rng = np.random.default_rng(11)
     for _ in range(4):

@@ -71,7 +71,7 @@ static int optik_valid_transform(const double *t, double diag, double off) {
              0.0;
 }
 
-/* optik.spatial.wrap_to_limits, rule 3, for a wrapped angle c outside [lo, hi], by the same
+/* optik.spatial.wrap_into (the rules of wrap_to_limits), rule 3, for a wrapped angle c outside [lo, hi], by the same
    arithmetic: of c + 2 pi k for k = base - 1 .. base + 2 (base: whole turns from c to the nearest
    point of the interval), the one of least gap to the interval; of gap 0, the one of least |k| */
 static double optik_nearest_turn(double c, double lo, double hi) {

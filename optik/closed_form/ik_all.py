@@ -111,11 +111,11 @@ class AllSolutionsKernel:
             f"static const int optik_stand_in[{self.size}] = {{{', '.join(map(str, stand_ins))}}};\n"
             f"static const double optik_conf[7] = {{{', '.join(float(v).hex() for v in conf)}}};\n"
         )
-        # errno is never read: sqrt becomes one instruction, sin and cos of one angle one sincos;
-        # the generated functions are called only from the driver: inlined into it (about 0.6 us
-        # of 3.4 per target), not interposable exported symbols
+        # errno is never read: sqrt becomes one instruction, sin and cos of one angle one sincos
+        # (every library is built without semantic interposition: the generated functions are
+        # inlined into the driver, about 0.6 us of 3.4 per target)
         driver = native.driver_source(DRIVER, compile)
-        flags = ("-fno-math-errno", "-fno-semantic-interposition", *python_flags())
+        flags = ("-fno-math-errno", *python_flags())
         source = None if driver is None else defines + driver
         self.library = None if source is None else native.library([branches, check], compile, source, flags)
         self._in = np.zeros(_IN)

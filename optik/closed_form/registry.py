@@ -18,6 +18,7 @@ target.
 from __future__ import annotations
 
 import inspect
+import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -27,6 +28,7 @@ from optik.checks import as_bool, as_vector
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
+from optik.spatial import wrap_into
 from optik.targets import target_transform
 
 IKSolver = Callable[[Mechanism, np.ndarray], Sequence[Sequence[float]]]
@@ -129,8 +131,6 @@ MAX_ACTUATED = 1e50
 polynomials raise them to powers up to 6, which overflows beyond (the 3-RPR and Stewart-Gough
 solvers raised OverflowError, IndexError or LinAlgError there)."""
 
-_TWO_PI = 2.0 * np.pi
-
 
 def _coordinates(m: Mechanism) -> _Coordinates:
     """``(m.revolute_mask as a tuple, m.spherical_slices, angle indices)``, cached per mechanism:
@@ -150,23 +150,30 @@ def angle_mask(m: Mechanism) -> tuple[bool, ...]:
     return _coordinates(m)[0]
 
 
-def wrap_angle_one(a: float) -> float:
-    """[`optik.spatial.wrap_angle`][optik.spatial.wrap_angle] of one float (to ``(-pi, pi]``, same
-    arithmetic)."""
-    w = (a + np.pi) % _TWO_PI - np.pi
-    return w + _TWO_PI if w <= -np.pi else w
-
-
 def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]]:
     """[`Mechanism.wrap`][optik.Mechanism.wrap] of every row (branches of one target), as lists
     of floats (``[]`` for no rows).
+
+    Plain floats through [`spatial.wrap_into`][optik.spatial.wrap_into] (the rule of ``m.wrap``,
+    one angle at a time): on a few short rows numpy calls would cost several times the closed
+    form itself. Mechanisms with spherical joints go through ``m.wrap``.
 
     Raises:
         OptikError: a row of the wrong length or not finite (from ``m.wrap``).
     """
     if not len(rows):
         return []
-    return m.wrap(np.array(rows, dtype=float)).tolist()
+    mask, spherical, angles = _coordinates(m)
+    out = [row.tolist() if isinstance(row, np.ndarray) else [float(v) for v in row] for row in rows]
+    if spherical or not all(len(row) == len(mask) and math.isfinite(sum(row)) for row in out):
+        return m.wrap(np.array(out, dtype=float)).tolist()  # rotation vectors; m.wrap raises on bad rows
+    lo, hi, pi = m.lower.tolist(), m.upper.tolist(), math.pi
+    for row in out:
+        for k in angles:
+            v = row[k]
+            if not (-pi < v <= pi and lo[k] <= v <= hi[k]):
+                row[k] = wrap_into(v, lo[k], hi[k])
+    return out
 
 
 LIMIT_TOL = 1e-9

@@ -18,13 +18,25 @@ at once (`RobotGeometry.link_poses`).
 
 Unlike the setup assistant, pairs that *never* collided in the samples are still checked: a
 rare collision missed costs more than a check. The result is cached with the model (a weak
-reference: it goes when the mechanism goes).
+reference: it goes when the mechanism goes), and the sampled pairs on disk too
+(`optik.native.cache_dir` ``/acm/<key>.json``, the key a digest of the pickled mechanism, its
+mesh files' sizes and times and the sampling settings; written through a temporary file and
+``os.replace``). A cache file that cannot be read, is not valid or names other links is logged
+on the ``optik.collision.robot`` logger and replaced by a new sampling.
 """
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
+import json
+import logging
+import os
+import pickle
+import tempfile
 import threading
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import casadi as ca
@@ -36,6 +48,7 @@ from optik.collision.shapes import Shape
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
+from optik.native import cache_dir
 
 __all__ = ["RobotGeometry", "robot_geometry"]
 
@@ -150,6 +163,80 @@ def _always_colliding(geo: RobotGeometry, samples: int, seed: int) -> dict[tuple
     return out
 
 
+_LOG = logging.getLogger(__name__)
+ACM_FORMAT = 1
+"""Version of the on-disk allowed-collision files."""
+
+
+def _acm_path(geo: RobotGeometry, samples: int, seed: int) -> Path | None:
+    """The cache file of the sampled pairs of ``geo`` (None: the mechanism cannot be pickled)."""
+    try:
+        h = hashlib.sha256(pickle.dumps(geo.mechanism))
+    except (pickle.PicklingError, TypeError, AttributeError):
+        return None
+    for part in geo.parts:
+        if part.shape.path is not None:
+            with contextlib.suppress(OSError):
+                st = os.stat(part.shape.path)
+                h.update(f"{part.shape.path}:{st.st_size}:{st.st_mtime_ns}".encode())
+    h.update(f"{ACM_FORMAT}:{samples}:{seed}".encode())
+    return cache_dir() / "acm" / f"{h.hexdigest()[:24]}.json"
+
+
+def _read_acm(path: Path, links: tuple[str, ...]) -> dict[tuple[str, str], str] | None:
+    """The pairs of a cache file, or None (missing; damaged: logged)."""
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        _LOG.warning("allowed-collision cache %s unreadable (%s): sampling again", path, exc)
+        return None
+    try:
+        data = json.loads(text)
+        pairs = [tuple(p) for p in data["always"]]
+        ok = data["format"] == ACM_FORMAT and all(
+            len(p) == 2 and p[0] in links and p[1] in links and p[0] <= p[1] for p in pairs
+        )
+    except (ValueError, KeyError, TypeError):
+        ok = False
+    if not ok:
+        _LOG.warning("allowed-collision cache %s is damaged: sampling again", path)
+        return None
+    return {(str(a), str(b)): "always" for a, b in pairs}
+
+
+def _write_acm(path: Path, pairs: dict[tuple[str, str], str]) -> None:
+    """Write the pairs atomically (a failure is logged: the cache is an optimization)."""
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".acm-")
+        with os.fdopen(fd, "w") as f:
+            json.dump({"format": ACM_FORMAT, "always": sorted(pairs)}, f)
+        os.replace(tmp, path)
+        tmp = None
+    except OSError as exc:
+        _LOG.warning("allowed-collision cache %s not written (%s)", path, exc)
+    finally:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+
+
+def _sampled_pairs(geo: RobotGeometry, samples: int, seed: int) -> dict[tuple[str, str], str]:
+    """`_always_colliding`, through the on-disk cache."""
+    path = _acm_path(geo, samples, seed)
+    if path is not None:
+        hit = _read_acm(path, geo.links)
+        if hit is not None:
+            return hit
+    pairs = _always_colliding(geo, samples, seed)
+    if path is not None:
+        _write_acm(path, pairs)
+    return pairs
+
+
 _CACHE: PerMechanism[RobotGeometry] = PerMechanism()  # the geometry holds its mechanism: not a weak dict
 _LOCK = threading.Lock()
 
@@ -187,7 +274,7 @@ def robot_geometry(m: Mechanism) -> RobotGeometry:
         poses,
     )
     if srdf is None:
-        always = _always_colliding(geo, ACM_SAMPLES, seed=0)
+        always = _sampled_pairs(geo, ACM_SAMPLES, seed=0)
         if always:
             disabled.update(always)
             geo = RobotGeometry(

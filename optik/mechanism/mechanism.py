@@ -45,6 +45,12 @@ TASK_ROWS: dict[str, tuple[int, ...]] = {
 _EYE = read_only(np.eye(4))
 
 
+def _frozen(indices: np.ndarray) -> np.ndarray:
+    """``indices`` made read-only: cached on the mechanism and shared by its callers."""
+    indices.flags.writeable = False
+    return indices
+
+
 def _function_name(prefix: str, frame: str) -> str:
     """A valid CasADi function name for a frame (letters, digits, single underscores): link names
     such as ``flying_arm_5__gripper`` or ``link-1`` are not."""
@@ -167,7 +173,7 @@ class Mechanism:
         self.coordinate_names: tuple[str, ...] = tuple(names)
         self._lower = read_only(lower)
         self._upper = read_only(upper)
-        self.actuated: tuple[bool, ...] = tuple(actuated)
+        self._actuated: tuple[bool, ...] = tuple(actuated)
         self._mimic_sources = self._mimic_coordinates()
         self.params: dict[str, Any] = {}
         """Catalog parameters (link lengths, base points, ...) the mechanism was built from."""
@@ -287,14 +293,23 @@ class Mechanism:
         return bool(self.topology.cuts)
 
     @property
-    def actuated_indices(self) -> np.ndarray:
-        """Indices of the actuated coordinates."""
-        return np.flatnonzero(self.actuated)
+    def actuated(self) -> tuple[bool, ...]:
+        """Per coordinate, True when its joint is actuated (read-only: the joints decide it)."""
+        return self._actuated
 
-    @property
+    @actuated.setter
+    def actuated(self, value: Any) -> None:
+        raise ReadOnlyError("actuated", "the actuation is read-only; build a Mechanism with other joints")
+
+    @cached_property
+    def actuated_indices(self) -> np.ndarray:
+        """Indices of the actuated coordinates (read-only; computed once: every FK call reads them)."""
+        return _frozen(np.flatnonzero(self._actuated))
+
+    @cached_property
     def passive_indices(self) -> np.ndarray:
-        """Indices of the passive coordinates."""
-        return np.flatnonzero(~np.asarray(self.actuated, dtype=bool))
+        """Indices of the passive coordinates (read-only; computed once)."""
+        return _frozen(np.flatnonzero(~np.asarray(self._actuated, dtype=bool)))
 
     @cached_property
     def revolute_mask(self) -> np.ndarray:

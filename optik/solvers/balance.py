@@ -8,8 +8,9 @@ com_margin=0.01)``:
   tolerances as the task targets, so every method that takes several targets (``lm``, ``nlp``,
   ``dls``, ``qp``) holds them, and success needs every contact met (`merge_contacts`).
 * ``support`` is the world x-y polygon of the feet in contact, counter-clockwise, a ``(k, 2)``
-  array. Its edges ``v_i -> v_{i+1}`` give the half-planes ``n_i . x <= n_i . v_i`` with the
-  unit outward normals ``n_i = (dy, -dx) / |d|`` (`support_halfplanes`); static balance asks the
+  array, or ``"auto"`` (`auto_support`: the hull of the contacts' ground projections). Its
+  edges ``v_i -> v_{i+1}`` give the half-planes ``n_i . x <= n_i . v_i`` with the unit outward
+  normals ``n_i = (dy, -dx) / |d|`` (`support_halfplanes`); static balance asks the
   ground projection of the centre of mass, ``c_xy(q)`` of `optik.Mechanism.com`, to lie inside by
   ``com_margin`` (m):
 
@@ -289,19 +290,21 @@ def _lm_kernel(request: IKRequest, k: int, closure_weight: float, compile: bool 
         return _SOLVERS[m].setdefault(key, made)
 
 
+def _kernels(m: Mechanism) -> list[LMKernel]:
+    """The ``lm`` balance kernels built for ``m`` so far."""
+    with _SOLVERS_LOCK:
+        return [v for v in _SOLVERS.get(m, {}).values() if isinstance(v, LMKernel)]
+
+
 def compiled_kernels(m: Mechanism) -> list[bool]:
     """Whether each ``lm`` balance kernel built for ``m`` so far calls compiled C (False: still
     answering through CasADi's evaluator while the C compiler runs)."""
-    with _SOLVERS_LOCK:
-        kernels = [v for v in _SOLVERS.get(m, {}).values() if isinstance(v, LMKernel)]
-    return [k.compiled for k in kernels]
+    return [k.compiled for k in _kernels(m)]
 
 
 def wait_kernels(m: Mechanism) -> None:
     """Wait for the C build of every ``lm`` balance kernel built for ``m`` so far."""
-    with _SOLVERS_LOCK:
-        kernels = [v for v in _SOLVERS.get(m, {}).values() if isinstance(v, LMKernel)]
-    for k in kernels:
+    for k in _kernels(m):
         if k.library is not None:
             k.library.wait()
 

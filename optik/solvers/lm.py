@@ -54,7 +54,7 @@ from typing import Any
 import numpy as np
 
 from optik.checks import as_vector
-from optik.errors import InvalidArgumentError, SolverUnavailableError
+from optik.errors import InvalidArgumentError, OptikError, SolverUnavailableError
 from optik.mechanism.memo import PerMechanism
 from optik.native import compiler
 from optik.problem import target_parameters
@@ -223,11 +223,13 @@ class LMCall:
     canonical (within the limits, every coordinate in ``(-pi, pi)``). A canonical answer that
     meets the tolerances is the result as it is (what `optik.solvers.base.make_result` makes of
     it); any other answer goes through `lm_result`. It returns None, before solving, for input
-    it does not take (a ``q0`` other than a float64 vector or None, a seed other than an int
-    ``>= 0`` or None, a target the C check refuses: the general path then raises the named
-    error) and while the kernel is not built or its library is being built (the kernel is built
-    by the general path, by `solve_lm` or in the background by `optik.solvers.generic_chain`, and
-    found here). Thread-safe: buffers per thread.
+    it does not take (a ``q0`` that `optik.Mechanism.check_q` refuses, a seed other than an int
+    ``>= 0``, a Generator or None, a target the C check refuses: the general path then raises
+    the named error, a Generator seed having given its one draw) and while the kernel is not
+    built or its library is being built (the kernel is built by the general path, by `solve_lm`
+    or in the background by `optik.solvers.generic_chain`, and found here). A ``q0`` other than
+    a float64 vector is converted by `optik.Mechanism.check_q` as the general path converts it.
+    Thread-safe: buffers per thread.
     """
 
     def __init__(self, request: IKRequest) -> None:
@@ -267,11 +269,14 @@ class LMCall:
         if q0 is None:
             q0 = self._mid
         elif type(q0) is not np.ndarray or q0.dtype != _F64 or q0.shape != self._shape:
-            return None
+            try:
+                q0 = self.request.mechanism.check_q(q0, "q0")  # the general path's conversion
+            except OptikError:
+                return None  # the general path names it (after checking the target)
         if seed is None:
             s = 0
-        elif type(seed) is int and seed >= 0:
-            s = seed & _MASK
+        elif (type(seed) is int and seed >= 0) or isinstance(seed, np.random.Generator):
+            s = request_seed(seed) & _MASK  # one draw from a Generator, as `solve_lm` makes
         else:
             return None
         one = getattr(self._local, "one", None) or self._buffers(*prepared)

@@ -58,6 +58,7 @@ __all__ = [
 ]
 
 _SYMBOLIC = (ca.SX, ca.MX)
+_TWO_PI = 2.0 * math.pi
 
 
 def is_symbolic(*values: Any) -> bool:
@@ -134,8 +135,12 @@ def wrap_angle(a: Any) -> Any:
         a: angle(s) in radians (numpy or CasADi).
 
     Returns:
-        ``a - 2 pi k`` in ``(-pi, pi]``.
+        ``a - 2 pi k`` in ``(-pi, pi]`` (a float for a Python float, computed with plain float
+        arithmetic: the same numbers as the array path, without its cost on hot scalar loops).
     """
+    if type(a) is float:
+        w = (a + math.pi) % _TWO_PI - math.pi
+        return w + _TWO_PI if w <= -math.pi else w
     if is_symbolic(a):
         return ca.atan2(ca.sin(a), ca.cos(a))
     w = np.mod(np.asarray(a, dtype=float) + np.pi, 2.0 * np.pi) - np.pi
@@ -227,9 +232,7 @@ def wrap_into(a: float, lower: float, upper: float) -> float:
     `wrap_angle` and as the compiled closed-form driver); NaN for a non-finite ``a``."""
     if not math.isfinite(a):
         return math.nan
-    c = a if -math.pi < a <= math.pi else (a + math.pi) % _TWO_PI - math.pi
-    if c <= -math.pi:
-        c += _TWO_PI
+    c = a if -math.pi < a <= math.pi else wrap_angle(a)
     if lower <= c <= upper:
         return c
     if lower <= a <= upper:
@@ -244,9 +247,6 @@ def wrap_into(a: float, lower: float, upper: float) -> float:
         if key < best_key:
             best, best_key = x, key
     return best
-
-
-_TWO_PI = 2.0 * np.pi
 
 
 def rot_x(a: Any) -> Any:

@@ -76,6 +76,18 @@ def test_wrap_angle(a):
     assert np.cos(w) == pytest.approx(np.cos(a), abs=1e-9) and np.sin(w) == pytest.approx(np.sin(a), abs=1e-9)
 
 
+@settings(max_examples=300, deadline=None)
+@given(
+    a=st.floats(-1e12, 1e12)
+    | st.sampled_from([np.pi, -np.pi, 3 * np.pi, -3 * np.pi, np.nextafter(-np.pi, 0.0)])
+)
+def test_wrap_angle_float_path_matches_the_array_path(a):
+    """A Python float takes plain float arithmetic; the numbers are those of the numpy path."""
+    w = spatial.wrap_angle(a)
+    assert type(w) is float
+    assert w == float(spatial.wrap_angle(np.array([a]))[0]) == spatial.wrap_angle(np.float64(a))
+
+
 def test_wrap_angle_boundaries_and_arrays():
     assert spatial.wrap_angle(np.pi) == np.pi
     assert spatial.wrap_angle(-np.pi) == np.pi

@@ -131,8 +131,6 @@ MAX_ACTUATED = 1e50
 polynomials raise them to powers up to 6, which overflows beyond (the 3-RPR and Stewart-Gough
 solvers raised OverflowError, IndexError or LinAlgError there)."""
 
-_TWO_PI = 2.0 * np.pi
-
 
 def _coordinates(m: Mechanism) -> _Coordinates:
     """``(m.revolute_mask as a tuple, m.spherical_slices, angle indices)``, cached per mechanism:
@@ -150,13 +148,6 @@ def _coordinates(m: Mechanism) -> _Coordinates:
 def angle_mask(m: Mechanism) -> tuple[bool, ...]:
     """``m.revolute_mask`` as a tuple (cached): the coordinates compared modulo 2 pi."""
     return _coordinates(m)[0]
-
-
-def wrap_angle_one(a: float) -> float:
-    """[`optik.spatial.wrap_angle`][optik.spatial.wrap_angle] of one float (to ``(-pi, pi]``, same
-    arithmetic)."""
-    w = (a + np.pi) % _TWO_PI - np.pi
-    return w + _TWO_PI if w <= -np.pi else w
 
 
 def wrap_rows(m: Mechanism, rows: Sequence[Sequence[float]]) -> list[list[float]]:

@@ -52,9 +52,10 @@ from typing import Any
 import numpy as np
 
 from optik.catalog.serial import _positive
-from optik.closed_form.registry import angle_mask, register, wrap_angle_one
+from optik.closed_form.registry import angle_mask, register
 from optik.errors import InvalidArgumentError, NonFiniteError, ShapeError
 from optik.mechanism import Mechanism
+from optik.spatial import wrap_angle
 
 __all__ = [
     "COS_TOL",
@@ -562,7 +563,7 @@ def _far(a: list[float], b: list[float], mask: tuple[bool, ...]) -> bool:
             if d >= _SAME_BRANCH:
                 return True
         elif d >= 0.999 * _SAME_BRANCH and (
-            1.001 * _SAME_BRANCH < d <= 3.0 or abs(wrap_angle_one(x - y)) >= _SAME_BRANCH
+            1.001 * _SAME_BRANCH < d <= 3.0 or abs(wrap_angle(x - y)) >= _SAME_BRANCH
         ):
             return True
     return False

@@ -14,6 +14,7 @@ both cases) and evaluates the answer with the mechanism's compiled FK / closure 
 
 from __future__ import annotations
 
+import math
 import threading
 import weakref
 from collections.abc import Callable
@@ -39,6 +40,7 @@ from optik.solvers.base import (
     register_method,
     task_errors,
 )
+from optik.spatial import wrap_angle
 
 
 def closed_form_applies(m: Mechanism, task: str) -> bool:
@@ -55,14 +57,12 @@ def nearest(m: Mechanism, qs: list[np.ndarray], q0: np.ndarray) -> np.ndarray:
 def row_distance(mask: tuple[bool, ...], row: list[float], start: list[float]) -> float:
     """[`joint_distance`][optik.solvers.base.joint_distance] of two rows of floats (``mask``:
     the angle coordinates, [`registry.angle_mask`][optik.closed_form.registry.angle_mask])."""
-    pi, two_pi = np.pi, 2.0 * np.pi
+    pi = math.pi
     worst = 0.0
     for a, b, ang in zip(row, start, mask, strict=True):
         d = a - b
-        if ang:  # registry.wrap_angle_one, inlined
-            d = (d + pi) % two_pi - pi
-            if d <= -pi:
-                d += two_pi
+        if ang and not -pi < d <= pi:  # within (-pi, pi] wrapping changes d by rounding only
+            d = wrap_angle(d)
         if d < 0.0:
             d = -d
         if d > worst:

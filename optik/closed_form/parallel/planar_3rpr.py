@@ -12,8 +12,9 @@ from optik.closed_form.parallel.common import (
     direction,
     rot2,
 )
-from optik.closed_form.registry import register, wrap_angle_one
+from optik.closed_form.registry import register
 from optik.mechanism import Mechanism
+from optik.spatial import wrap_angle
 
 CONTINUUM_SAMPLES = 12
 """Representatives returned where the assembly modes form a continuum (architecture singularity)."""
@@ -257,9 +258,9 @@ def planar_3rpr_poses(b: np.ndarray, p: np.ndarray, rho: np.ndarray, tol: float 
             tx, ty, ph, err = _polish_one(bl, pl, rl, ux - (c * p0x - s * p0y), uy - (s * p0x + c * p0y), phi)
             if err > accept:
                 continue
-            ph = wrap_angle_one(ph)
+            ph = wrap_angle(ph)
             if all(
-                math.hypot(tx - x, ty - y) > 1e-7 * size or abs(wrap_angle_one(ph - a)) > 1e-7
+                math.hypot(tx - x, ty - y) > 1e-7 * size or abs(wrap_angle(ph - a)) > 1e-7
                 for x, y, a in poses
             ):
                 poses.append((tx, ty, ph))

@@ -183,7 +183,7 @@ RUNS: tuple[Run, ...] = (
     Run(
         "search_1d",
         "6R arms special at one or both ends: the 1-D search against the general 6R solver and ik-geo",
-        ("--arms", "10", "--poses", "20", "--geometries", "all"),  # 200 targets per geometry (~0.1 s each)
+        ("--arms", "5", "--poses", "20", "--geometries", "all"),  # 100 targets per geometry
         ("--arms", "2", "--poses", "5", "--geometries", "all"),
         in_readme=False,
     ),
@@ -215,6 +215,14 @@ RUNS: tuple[Run, ...] = (
         "Collision-free IK, Panda in clutter: optik against TRAC-IK + coal rejection",
         ("--n", "100", "--time-limit", "0.05"),
         ("--n", "10", "--time-limit", "0.05", "--compile-wait", "30"),
+        in_readme=False,
+    ),
+    Run(
+        "collision",
+        "Self-collision-free IK, Panda near its own body: optik against TRAC-IK + coal rejection",
+        ("--scene", "self", "--n", "100", "--time-limit", "0.05"),
+        ("--scene", "self", "--n", "10", "--time-limit", "0.05", "--compile-wait", "30"),
+        page="collision_self",
         in_readme=False,
     ),
     Run(

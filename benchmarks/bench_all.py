@@ -218,6 +218,14 @@ RUNS: tuple[Run, ...] = (
         in_readme=False,
     ),
     Run(
+        "collision",
+        "Self-collision-free IK, Panda near its own body: optik against TRAC-IK + coal rejection",
+        ("--scene", "self", "--n", "100", "--time-limit", "0.05"),
+        ("--scene", "self", "--n", "10", "--time-limit", "0.05", "--compile-wait", "30"),
+        page="collision_self",
+        in_readme=False,
+    ),
+    Run(
         "collision_qp",
         "QP differential IK past an obstacle, Panda: velocity dampers against the plain QP step",
         ("--steps", "200", "--repeats", "3"),

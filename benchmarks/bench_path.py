@@ -55,8 +55,9 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
+from optik import plot  # noqa: E402
 from optik.benchmarks import benchmark_parser  # noqa: E402
-from optik.benchmarks.bench_all_solutions import _eaik_robot, _ur, _valid, _write, eaik_dh  # noqa: E402
+from optik.benchmarks.bench_all_solutions import _eaik_robot, _ur, _valid, eaik_dh  # noqa: E402
 from optik.mechanism import Mechanism  # noqa: E402
 from optik.path import graph, samples  # noqa: E402
 from optik.path.nodes import turn_copies, wrapping  # noqa: E402
@@ -308,7 +309,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     text = report(rows, notes, ("optik benchmark path " + " ".join(argv or [])).strip())
     print(text)
     if args.out is not None:
-        _write(args.out, text)
+        plot.write_atomic(args.out, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
     best = [r for r in rows if r.method == "optik plan_path"]
     return 0 if all(abs(r.gap) <= 1e-9 or np.isnan(r.gap) for r in best) else 1
 

@@ -1,6 +1,7 @@
-"""Test-suite settings: reproducible property tests and a headless matplotlib."""
+"""Test-suite settings: reproducible property tests, a headless matplotlib, a CPU stopwatch."""
 
 import os
+import time
 
 import matplotlib
 import pytest
@@ -13,6 +14,34 @@ matplotlib.use("Agg")
 settings.register_profile("ci", derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 settings.register_profile("explore", deadline=None)
 settings.load_profile(os.environ.get("OPTIK_HYPOTHESIS", "ci"))
+
+
+class CPUClock:
+    """The CPU seconds this process (all its threads) spends inside a ``with`` block.
+
+    The upper bound a unit test may put on a call that honours a time limit: a busy machine
+    delays the call on the wall clock (the scheduler runs other processes, the call's clock
+    keeps running) but does not make it do more work, so ``seconds`` exceeds ``limit x threads
+    + overhead`` only when the call itself works past its limit. A call that waits (sleeps,
+    blocks) past its limit is not seen here: that is a wall-clock matter for the benchmarks
+    (``optik benchmark time_limits``). Lower bounds (``solve_time >= limit``) stay on the wall
+    clock, which a busy machine only lengthens.
+    """
+
+    seconds: float = 0.0
+
+    def __enter__(self) -> "CPUClock":
+        self._start = time.process_time()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.seconds = time.process_time() - self._start
+
+
+@pytest.fixture
+def cpu_clock() -> type[CPUClock]:
+    """`CPUClock`, to time a call as ``with cpu_clock() as cpu: ...; cpu.seconds``."""
+    return CPUClock
 
 
 # A two-link arm: base cylinder, upper arm a box, forearm a capsule-like cylinder, a ball hand

@@ -53,14 +53,21 @@ def test_answers_do_not_depend_on_chunks_or_threads() -> None:
     assert part.base_seed is None and a.base_seed == 9
 
 
-def test_unreachable_targets_fail_within_their_time_limit() -> None:
+def test_unreachable_targets_fail_within_their_time_limit(cpu_clock) -> None:
+    """Each target has its own clock: the reachable one, solved after two that spent their
+    whole limit, still has a full limit (ample on a busy machine: it needs a small fraction of
+    it). The two that stop on the clock do no work past it: their CPU seconds, not their
+    wall-clock `solve_time`, which a busy machine lengthens, are bounded above."""
     far = np.tile(np.eye(4), (3, 1, 1))
     far[:, :3, 3] = [[2.0, 0, 0.3], [0, 2.5, 0.3], [0.1, 0.0, 0.5]]
     far[2] = PANDA.fk(PANDA.random_q(seed=1))  # reachable, in the middle
-    res = solve_ik_batch(PANDA, far, time_limit=0.02, workers=2, chunk_size=1)
+    T = 0.25
+    with cpu_clock() as cpu:
+        res = solve_ik_batch(PANDA, far, time_limit=T, workers=2, chunk_size=1)
     assert res.success.tolist() == [False, False, True]
     assert res.status.tolist()[:2] == ["time_limit", "time_limit"]
-    assert (res.solve_time[:2] >= 0.02).all() and (res.solve_time[:2] < 0.15).all()
+    assert (res.solve_time[:2] >= T).all()
+    assert cpu.seconds < 2 * (T + 0.13), f"{cpu.seconds:.3f} CPU s for two targets of {T} s"
     assert (res.position_error[:2] > 0.5).all()
     capped = solve_ik_batch(PANDA, far[:1], max_restarts=2)
     assert capped.status.tolist() == ["max_restarts"] and capped.restarts.tolist() == [2]

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
@@ -52,19 +50,18 @@ def test_compiled_driver_and_python_loop_agree() -> None:
         assert pos == pytest.approx(a.errors[i, 0], abs=1e-12)
 
 
-def test_time_limit_and_restart_cap_are_honoured_per_target() -> None:
+def test_time_limit_and_restart_cap_are_honoured_per_target(cpu_clock) -> None:
     m = optik.catalog.panda()
     far = np.eye(4)
     far[:3, 3] = [3.0, 0.0, 0.5]  # out of reach
     k = LMKernel(m, "pose", None, 100.0, "auto")
     targets = np.stack([target_parameters(far)] * 2)
     q0 = np.stack([m.mid_q()] * 2)
-    t0 = time.perf_counter()
-    out = k.run(targets, q0, target_seeds(0, 0, 2), _settings(m, time_limit=0.02).conf(m))
-    wall = time.perf_counter() - t0
+    with cpu_clock() as cpu:  # the work done, which a busy machine does not lengthen (conftest)
+        out = k.run(targets, q0, target_seeds(0, 0, 2), _settings(m, time_limit=0.02).conf(m))
     assert [STATUS[s] for s in out.status] == ["time_limit", "time_limit"]
-    assert (out.solve_time >= 0.02).all() and (out.solve_time < 0.15).all()  # slack: a shared machine
-    assert wall < 0.4
+    assert (out.solve_time >= 0.02).all()
+    assert cpu.seconds < 2 * (0.02 + 0.13), f"{cpu.seconds:.3f} CPU s for two targets of 0.02 s"
     out = k.run(targets, q0, target_seeds(0, 0, 2), _settings(m, max_restarts=3).conf(m))
     assert [STATUS[s] for s in out.status] == ["max_restarts"] * 2
     assert (out.restarts == 3).all()

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 import optik
 from optik.path import graph, samples
-from optik.path.nodes import turn_copies
+from optik.path.nodes import into_limits, turn_copies
 
 
 def _robot(name):
@@ -116,6 +116,35 @@ def test_dynamic_program_is_the_brute_force_optimum(n_layers, width, seed, bound
         d = graph.differences(q[:-1], q[1:], periods)
         assert float(np.linalg.norm(d * w, axis=1).sum()) == pytest.approx(got.cost, abs=1e-9)
         assert not any((k, got.index[k - 1], got.index[k]) in gone for k in range(1, n_layers))
+
+
+def _fits(q, lo, hi, angle, margin):
+    """Whether some whole-turn shift of ``q`` (any when ``angle``) lies in ``[lo + margin, hi - margin]``."""
+    if not angle:
+        return lo + margin <= q <= hi - margin
+    x = q + 2.0 * np.pi * np.ceil((lo + margin - q) / (2.0 * np.pi))
+    return x <= hi - margin
+
+
+@settings(max_examples=60)
+@given(
+    q=st.lists(st.floats(-12.0, 12.0), min_size=4, max_size=4),
+    lo=st.lists(st.floats(-7.0, 1.0), min_size=4, max_size=4),
+    width=st.lists(st.floats(0.3, 9.0), min_size=4, max_size=4),
+)
+def test_into_limits_shifts_angles_by_whole_turns_or_drops_the_row(q, lo, width):
+    q, lo = np.array(q), np.array(lo)
+    hi, angles = lo + np.array(width), np.array([True, True, True, False])
+    out = into_limits(np.stack([q, q]), lo, hi, angles)  # rows stay independent
+    assert out.shape == (2, 4) and np.array_equal(out[0], out[1], equal_nan=True)
+    row = out[0]
+    if np.isfinite(row).all():
+        assert np.all((row >= lo) & (row <= hi)) and row[3] == q[3]
+        turns = (row[:3] - q[:3]) / (2.0 * np.pi)
+        assert np.allclose(turns, np.round(turns), atol=1e-9)
+    else:
+        assert np.isnan(row).all()
+        assert not all(_fits(*a, margin=1e-9) for a in zip(q, lo, hi, angles, strict=True))
 
 
 def test_far_apart_poses_brute_force_over_every_solution(ur5_limited):

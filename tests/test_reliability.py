@@ -4,7 +4,6 @@ or a contradictory result, now an `OptikError` naming the argument or a correct 
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -29,16 +28,16 @@ def _raises(argument: str, call, *args, **kwargs) -> optik.InvalidArgumentError:
 
 
 # ------------------------------------------------------------------------------------ hang, memory
-def test_wrap_of_a_huge_rotation_vector_is_constant_time():
+def test_wrap_of_a_huge_rotation_vector_is_constant_time(cpu_clock):
     """A spherical rotation vector was reduced by 2 pi per loop turn (|s1| = 1e8: > 20 s)."""
     sg = catalog.stewart_gough()
     s1 = sg.coordinate_names.index("s1[0]")
     q = sg.mid_q()
     for value in (1e8, 1e300, -7.5):
         q[s1] = value
-        t0 = time.perf_counter()
-        w = sg.wrap(q)
-        assert time.perf_counter() - t0 < 0.05
+        with cpu_clock() as cpu:  # the work done, which a busy machine does not lengthen (conftest)
+            w = sg.wrap(q)
+        assert cpu.seconds < 0.05
         r = w[s1 : s1 + 3]
         assert np.linalg.norm(r) <= np.pi + 1e-12 and np.isfinite(r).all()
     q[s1] = 7.5  # same rotation: angle 7.5 - 2 pi about +x
@@ -48,10 +47,10 @@ def test_wrap_of_a_huge_rotation_vector_is_constant_time():
     )
 
 
-def test_solve_fk_with_a_huge_leg_returns_within_its_time_limit():
-    t0 = time.perf_counter()
-    res = optik.solve_fk(catalog.stewart_gough(), [1e9, 1, 1, 1, 1, 1], time_limit=0.2)
-    assert time.perf_counter() - t0 < 3 * 0.2 + 0.5
+def test_solve_fk_with_a_huge_leg_returns_within_its_time_limit(cpu_clock):
+    with cpu_clock() as cpu:  # the work done, which a busy machine does not lengthen (conftest)
+        res = optik.solve_fk(catalog.stewart_gough(), [1e9, 1, 1, 1, 1, 1], time_limit=0.2)
+    assert cpu.seconds < 3 * 0.2 + 0.5
     assert not res.success
 
 

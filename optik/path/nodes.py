@@ -20,6 +20,7 @@ from optik.errors import SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.solvers import solve_ik_all, solve_ik_all_batch
 from optik.solvers.closed import many_binding_of
+from optik.spatial import wrap_to_limits
 
 SHIFTS = 2.0 * np.pi * np.array([0.0, 1.0, -1.0, 2.0, -2.0])
 """Multiples of ``2 pi`` tried on each angle."""
@@ -49,6 +50,20 @@ def turn_copies(
         rows[:, j] = vals[r, s]
         source = source[r]
     return rows, source
+
+
+def into_limits(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """The rows of ``q (..., n)`` with their angles shifted by whole turns into the limits
+    (`optik.spatial.wrap_to_limits`), NaN rows where some coordinate does not fit.
+
+    Args:
+        q: configurations, any leading shape.
+        lower, upper: joint limits ``(n,)``.
+        angles: ``(n,)`` True for the revolute coordinates.
+    """
+    out = wrap_to_limits(q.reshape(-1, q.shape[-1]), lower, upper, angles).reshape(q.shape)
+    out[~np.all((out >= lower) & (out <= upper), axis=-1)] = np.nan
+    return out
 
 
 def wrapping(m: Mechanism) -> np.ndarray:

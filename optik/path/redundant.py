@@ -25,6 +25,7 @@ from optik.closed_form.derived import DerivedIK, derive_locked
 from optik.errors import SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
+from optik.path.nodes import into_limits
 
 _LOCKED: PerMechanism[dict[tuple[int, float], DerivedIK | None]] = PerMechanism()
 _LOCKED_MAX = 256
@@ -41,23 +42,6 @@ def _locked(m: Mechanism, index: int, value: float) -> DerivedIK | None:
     if len(per) >= _LOCKED_MAX:
         per.clear()
     return per.setdefault(key, derive_locked(m, {index: value}))
-
-
-def _into_limits(q: np.ndarray, m: Mechanism) -> np.ndarray:
-    """Rows with each angle wrapped and shifted by whole turns into its limits (NaN rows where
-    some coordinate cannot be)."""
-    out = q.copy()
-    angles = np.flatnonzero(np.asarray(m.revolute_mask, dtype=bool))
-    w = np.remainder(q[:, angles] + np.pi, 2.0 * np.pi) - np.pi
-    lo, hi = m.lower[angles], m.upper[angles]
-    best = np.full_like(w, np.nan)
-    for shift in 2.0 * np.pi * np.array([0.0, 1.0, -1.0, 2.0, -2.0]):
-        fits = np.isnan(best) & (w + shift >= lo) & (w + shift <= hi)
-        best[fits] = (w + shift)[fits]
-    out[:, angles] = best
-    inside = np.all((out >= m.lower) & (out <= m.upper), axis=1)
-    out[~inside] = np.nan
-    return out
 
 
 def self_motion_solutions(
@@ -83,7 +67,7 @@ def self_motion_solutions(
         full = np.zeros((*q6.shape[:2], m.n_q))
         full[..., free] = q6
         full[..., index] = v
-        flat = _into_limits(full.reshape(-1, m.n_q), m).reshape(full.shape)
+        flat = into_limits(full, m.lower, m.upper, np.asarray(m.revolute_mask, dtype=bool))
         ok = ok & np.isfinite(flat).all(axis=-1)
         for p in range(len(poses)):
             rows[p].append(flat[p][ok[p]])

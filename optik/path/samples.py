@@ -29,7 +29,7 @@ import numpy as np
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
 from optik.path.graph import Layered
-from optik.path.nodes import closed_form_solutions
+from optik.path.nodes import closed_form_solutions, into_limits
 from optik.path.redundant import self_motion_solutions
 from optik.spatial import rot_x, rot_y, rot_z
 
@@ -157,19 +157,11 @@ def _find_axis_joint(m: Mechanism, free_axis: str, frame: str | None, seed: int)
     return None
 
 
-def _into_limits(v: np.ndarray, lower: float, upper: float) -> np.ndarray:
-    """Angles shifted by the first of ``0, 2 pi, -2 pi, 4 pi, -4 pi`` (after wrapping to
-    ``[-pi, pi)``) that lands within ``[lower, upper]``; NaN where none does."""
-    out = v - (2.0 * np.pi) * np.floor((v + np.pi) * (0.5 / np.pi))  # in [-pi, pi) up to rounding
-    bad = (out < lower) | (out > upper)  # the shift 0 fits everywhere else
-    if bad.any():
-        w = out[bad]
-        fixed = np.full_like(w, np.nan)
-        for shift in 2.0 * np.pi * np.array([1.0, -1.0, 2.0, -2.0]):
-            fits = np.isnan(fixed) & (w + shift >= lower) & (w + shift <= upper)
-            fixed[fits] = w[fits] + shift
-        out[bad] = fixed
-    return out
+def _turned(m: Mechanism, q: np.ndarray, turn: np.ndarray, j: int) -> np.ndarray:
+    """Angle ``j`` of the rows ``q (R,)`` turned by each of ``turn (T,)``, shifted by whole turns
+    into its limits ``(R, T)`` (NaN where it does not fit)."""
+    v = (q[:, None] + turn[None, :])[..., None]
+    return into_limits(v, m.lower[j : j + 1], m.upper[j : j + 1], np.ones(1, dtype=bool))[..., 0]
 
 
 def sample_solutions(
@@ -233,7 +225,7 @@ def _gathered(
     pose = np.repeat(np.arange(n), size)
     if shortcut is not None:
         j, sign = shortcut
-        turned = _into_limits(solved[:, j, None] + sign * turn[None, :], m.lower[j], m.upper[j])
+        turned = _turned(m, solved[:, j], sign * turn, j)
         q[:, j] = turned[source, angle]
         fits = np.isfinite(q[:, j])
         if not fits.all():
@@ -259,7 +251,7 @@ def _uniform(
     group = np.broadcast_to(group, (n, copies, width)).reshape(-1)
     if shortcut is not None:
         j, sign = shortcut
-        turned = _into_limits(solved[:, j, None] + sign * turn[None, :], m.lower[j], m.upper[j])
+        turned = _turned(m, solved[:, j], sign * turn, j)
         q[..., j] = turned.reshape(n, width, copies).transpose(0, 2, 1)
     q = q.reshape(-1, m.n_q)
     pose = np.repeat(np.arange(n), copies * width)

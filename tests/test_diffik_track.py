@@ -8,6 +8,7 @@ import pytest
 
 import optik
 from optik import diffik, spatial
+from optik.diffik import scenarios
 
 TOOL_DOWN = np.diag([1.0, -1.0, -1.0])
 
@@ -60,16 +61,11 @@ def test_welding_seam_constant_orientation_and_speed_on_the_panda() -> None:
 
 
 def test_dls_passes_the_2r_elbow_singularity_without_velocity_blow_up() -> None:
-    m = optik.catalog.planar_2r()
-    reach = sum(m.params["lengths"])
-    start, end = spatial.translation(1.0, 0.0, 0.0), spatial.translation(reach + 0.05, 0.0, 0.0)
-    speed = (reach + 0.05 - 1.0) / 0.99  # 99 steps of 0.01 s each way
-    path = np.concatenate(
-        [diffik.line_path(start, end, speed, 0.01), diffik.line_path(end, start, speed, 0.01)]
-    )
-    q0 = _start(m, optik.Position(1.0, 0.0), np.array([0.5, -1.5]))
-    dls = diffik.track(m, q0, path, 0.01, "dls")
-    pinv = diffik.track(m, q0, path, 0.01, "pinv")
+    sc = scenarios.elbow_singularity()
+    m, path = sc.m, sc.path
+    q0 = _start(m, optik.Position(1.0, 0.0), sc.q0)
+    dls = diffik.track(m, q0, path, sc.dt, "dls")
+    pinv = diffik.track(m, q0, path, sc.dt, "pinv")
     assert dls.manipulability.min() < 1e-3  # the arm stretched out to the singularity
     assert pinv.max_speed > 2.5 * dls.max_speed
     assert dls.position_error[-1] < 1e-4  # and came back onto the path
@@ -87,14 +83,9 @@ def test_five_bar_driven_along_a_circle_keeps_the_loop_closed() -> None:
 
 
 def test_self_motion_of_a_7dof_arm_keeps_the_end_effector_fixed() -> None:
-    m = optik.catalog.panda()
-    q0 = np.array([0.0, -0.3, 0.0, -2.0, 0.0, 1.8, 0.8])
-    path = np.repeat(m.fk(q0)[None], 150, axis=0)
-    # secondary task: turn joint 3 by 1 rad (only that row has a cost), 5 % of the way per step
-    elbow = diffik.PostureTask(
-        q0 + np.array([0, 0, 1.0, 0, 0, 0, 0]), cost=[0, 0, 1, 0, 0, 0, 0], gain=0.05, priority=1
-    )
-    res = diffik.track(m, q0, path, 0.01, "priority", tasks=[elbow])
+    sc = scenarios.self_motion()  # flange fixed, joint 3 turned by 1 rad at priority 1
+    q0 = sc.q0
+    res = diffik.track(sc.m, q0, sc.path, sc.dt, "priority", tasks=sc.tasks)
     assert res.position_error.max() < 2e-4 and res.orientation_error.max() < 2e-4  # second order in the step
     assert res.position_error[-1] < 1e-8 and res.q[-1][2] - q0[2] > 0.9
     assert res.within_limits

@@ -22,7 +22,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import optik
-from optik import diffik, spatial
+from optik import diffik
+from optik.diffik import scenarios
 from optik.plot import save_figure
 
 OUT = Path(__file__).resolve().parents[1] / "img"
@@ -60,17 +61,12 @@ def welding() -> Path:
 
 def singularity() -> Path:
     """2R arm through its elbow singularity: pinv vs DLS joint speeds."""
-    m = optik.catalog.planar_2r()
-    reach = sum(m.params["lengths"])
-    start, end = spatial.translation(1.0, 0.0, 0.0), spatial.translation(reach + 0.05, 0.0, 0.0)
-    speed = (reach + 0.05 - 1.0) / 0.99  # 99 steps of 0.01 s each way
-    path = np.concatenate(
-        [diffik.line_path(start, end, speed, 0.01), diffik.line_path(end, start, speed, 0.01)]
-    )
-    q0 = optik.solve_ik(m, optik.Position(1.0, 0.0), q0=[0.5, -1.5], method="qp").q
+    sc = scenarios.elbow_singularity()
+    m, path = sc.m, sc.path
+    q0 = optik.solve_ik(m, optik.Position(1.0, 0.0), q0=sc.q0, method="qp").q
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.6))
     for method, style in (("pinv", "-"), ("dls", "-"), ("qp", "--")):
-        res = diffik.track(m, q0, path, 0.01, method)
+        res = diffik.track(m, q0, path, sc.dt, method)
         speed = np.max(np.abs(res.v), axis=1)
         axes[0].plot(res.t[1:], speed, style, label=method)
         axes[1].semilogy(res.t[1:], np.maximum(res.position_error, 1e-12), style, label=method)
@@ -88,13 +84,9 @@ def singularity() -> Path:
 
 def self_motion() -> Path:
     """Panda self-motion: flange fixed, joint 3 turned by a secondary task."""
-    m = optik.catalog.panda()
-    q0 = np.array([0.0, -0.3, 0.0, -2.0, 0.0, 1.8, 0.8])
-    path = np.repeat(m.fk(q0)[None], 150, axis=0)
-    elbow = diffik.PostureTask(
-        q0 + np.array([0, 0, 1.0, 0, 0, 0, 0]), cost=[0, 0, 1, 0, 0, 0, 0], gain=0.05, priority=1
-    )
-    res = diffik.track(m, q0, path, 0.01, "priority", tasks=[elbow])
+    sc = scenarios.self_motion()
+    m, q0 = sc.m, sc.q0
+    res = diffik.track(m, q0, sc.path, sc.dt, "priority", tasks=sc.tasks)
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
     for k in range(m.n_q):
         axes[0].plot(res.t, res.q[:, k] - q0[k], label=m.coordinate_names[k])

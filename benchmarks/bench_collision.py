@@ -19,8 +19,13 @@ target by target; each solver has one untimed warm-up call (optik builds its con
 then; the C compiler may still be running during the run: the kernel then answers through
 CasADi's evaluator, and the table says whether it was compiled).
 
+``--scene self``: no world, and the targets are kept only when the configuration is also closer
+than ``--near`` (5 cm) to the robot's own body (self-collision pairs of its SRDF): the hand near
+its links.
+
 Run: ``optik benchmark collision [--n 50] [--time-limit 0.05] [--margin 0.01] [--tol 1e-6] [--seed 0]
-[--compile-wait 600]`` (the wait for the C build of the constrained kernel is not timed).
+[--compile-wait 600] [--scene clutter|self] [--near 0.05]`` (the wait for the C build of the
+constrained kernel is not timed).
 """
 
 from __future__ import annotations
@@ -156,6 +161,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--tol", type=float, default=1e-6, help="position (m) and orientation (rad) tolerance")
     ap.add_argument("--seed", type=int, default=0, help="seed of the random draws")
     ap.add_argument("--compile-wait", type=float, default=600.0, help="seconds to wait for optik's C build")
+    ap.add_argument(
+        "--scene",
+        choices=("clutter", "self"),
+        default="clutter",
+        help="clutter: table, shelf and boxes; self: no world, targets near the robot's own body",
+    )
+    ap.add_argument(
+        "--near",
+        type=float,
+        default=0.05,
+        help="--scene self: the self-distance below which a target counts as near (m)",
+    )
     args = ap.parse_args(argv)
     if args.n < 1 or not args.time_limit > 0 or not args.tol > 0 or args.margin < 0:
         ap.error("--n must be >= 1, --time-limit and --tol > 0, --margin >= 0")
@@ -165,7 +182,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         d = robots_dir() / "panda_description"
         urdf, srdf = d / "urdf" / "panda.urdf", d / "srdf" / "panda.srdf"
         m = optik.Mechanism.from_urdf(urdf, "panda_link0", "panda_hand_tcp", srdf=srdf)
-        w = scene()
+        w = scene() if args.scene == "clutter" else optik.World()
         judge = Judge(str(urdf), str(srdf), str(d.parents[2]), w)
     except (ImportError, optik.OptikError) as exc:
         print(f"needs coal, pinocchio and example-robot-data (extras 'collision', 'peers', 'robots'): {exc}")
@@ -174,7 +191,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     targets = []
     while len(targets) < args.n:
         q = m.random_q(seed=rng)
-        if not optik.collision.check(m, q, w, margin=args.margin).in_collision:
+        report = optik.collision.check(m, q, w, margin=args.margin)
+        if not report.in_collision and (args.scene == "clutter" or report.min_distance < args.near):
             targets.append(m.fk(q))
     solvers: dict[str, Solver] = {"optik lm + collisions": optik_solver(m, w, args.margin, args.tol)}
     try:
@@ -198,8 +216,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             times.append(elapsed)
             results[name] = (times, ok + judge.ok(q, target, m, args.tol, args.margin))
     print(
-        f"Panda ({m.n_q} joints) in a cluttered scene ({len(w)} boxes), {args.n} targets by FK of "
-        f"configurations clear by {args.margin:g} m, time limit {args.time_limit * 1e3:g} ms, "
+        f"Panda ({m.n_q} joints) "
+        + (f"in a cluttered scene ({len(w)} boxes)" if args.scene == "clutter" else "alone (self-collisions)")
+        + f", {args.n} targets by FK of configurations clear by {args.margin:g} m"
+        + ("" if args.scene == "clutter" else f" and closer than {args.near:g} m to the robot's own body")
+        + f", time limit {args.time_limit * 1e3:g} ms, "
         f"tol {args.tol:g}, judged by Pinocchio + coal; constrained kernel compiled: {compiled_kernels()}"
     )
     print(success_table(results, args.n, "optik lm + collisions"))

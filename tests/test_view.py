@@ -380,6 +380,23 @@ def test_play_runs_through_the_tracked_path(open_viewer):
     assert v.panel.sample.value == len(result.q) - 1
 
 
+def test_play_after_a_stop_plays_again(open_viewer):
+    """`stop` ends the playback at once (mid-wait); the next play still runs to the end."""
+    m = catalog.planar_3r(lengths=(1.0, 0.8, 0.5))
+    v = open_viewer(m)
+    v.set_q([0.3, 0.8, -0.6])
+    result = v.track(dt=0.001)
+    v.path.t[:] = np.arange(len(v.path.t)) * 30.0  # 30 s per sample: only a stop ends it
+    v.play()
+    v.panel.stop()
+    assert not v.panel._player.is_alive()  # its 30 s wait ended (stop waits 5 s at most)
+    assert v.panel.sample.value < len(result.q) - 1
+    v.path.t[:] = np.arange(len(v.path.t)) * 1e-4
+    v.play(wait=True)
+    np.testing.assert_allclose(v.q, result.q[-1])
+    assert v.panel.sample.value == len(result.q) - 1
+
+
 def test_planned_path_plays_back(open_viewer):
     """A `JointPath` of `plan_path` loads on the slider and plays back to its last sample,
     the gizmo on that sample's pose; anything else is refused naming the argument."""

@@ -6,7 +6,6 @@ action are shown in the status line instead of stopping the server."""
 from __future__ import annotations
 
 import threading
-import time
 from collections.abc import Callable
 from typing import Any
 
@@ -38,8 +37,9 @@ class Panel:
         self.v = viewer
         m = viewer.m
         gui = viewer.server.gui
-        self._stop = threading.Event()
+        self._stop = threading.Event()  # of the latest playback (each has its own)
         self._player: threading.Thread | None = None
+        self._playing = threading.Lock()  # one playback starts at a time
         with gui.add_folder("Target: IK"):
             self.method = gui.add_dropdown("method", viewer.methods, initial_value=viewer.method)
             self.method.on_update(self._user(lambda: setattr(viewer, "method", self.method.value)))
@@ -122,33 +122,39 @@ class Panel:
 
     def play_path(self, wait: bool) -> None:
         """Play the viewer's path at its own times (each sample shown until the next one's time,
-        at least `FRAME` s), unless a playback runs; ``wait``: until it ends."""
-        if self._player is None or not self._player.is_alive():
-            path = self.v.path
-            if path is None:
-                return
-            t = np.asarray(path.t, dtype=float)
-            steps = np.maximum(np.diff(t), FRAME) if len(t) > 1 else np.zeros(0)
+        at least `FRAME` s), unless a playback runs; ``wait``: until it ends. A playback that
+        `stop` ended does not keep the next one from playing."""
+        with self._playing:
+            if self._player is None or not self._player.is_alive():
+                path = self.v.path
+                if path is None:
+                    return
+                t = np.asarray(path.t, dtype=float)
+                steps = np.maximum(np.diff(t), FRAME) if len(t) > 1 else np.zeros(0)
+                stop = self._stop = threading.Event()
 
-            def run() -> None:
-                for k in range(len(path.q)):
-                    if self._stop.is_set():
-                        return
-                    self.v.show_path_sample(k)
-                    self.sample.value = k
-                    if k < len(steps):
-                        time.sleep(steps[k])
+                def run() -> None:
+                    for k in range(len(path.q)):
+                        if stop.is_set():
+                            return
+                        self.v.show_path_sample(k)
+                        self.sample.value = k
+                        if k < len(steps):
+                            stop.wait(steps[k])
 
-            self._player = threading.Thread(target=run, name="optik-view-play", daemon=True)
-            self._player.start()
+                self._player = threading.Thread(target=run, name="optik-view-play", daemon=True)
+                self._player.start()
+            player = self._player
         if wait:
-            self._player.join()
+            player.join()
 
     def stop(self) -> None:
-        """End a running playback."""
-        self._stop.set()
-        if self._player is not None:
-            self._player.join(timeout=5)
+        """End a running playback (at once: its wait for the next sample's time ends too)."""
+        with self._playing:
+            self._stop.set()
+            player = self._player
+        if player is not None:
+            player.join(timeout=5)
 
     # ------------------------------------------------------------------ answers
     def sync(self, q: np.ndarray) -> None:

@@ -207,12 +207,22 @@ def task_errors(task: str, pose: np.ndarray, target: np.ndarray) -> tuple[float,
 
 
 _TWO_PI = 2.0 * math.pi
+_HALF_TURN = math.pi - 1e-9
 
 
 def _wrap_angle(a: float) -> float:
     """[`optik.spatial.wrap_angle`][optik.spatial.wrap_angle] of one float: into ``(-pi, pi]``."""
     w = (a + math.pi) % _TWO_PI - math.pi
     return w + _TWO_PI if w <= -math.pi else w
+
+
+def rotation_vectors_canonical(m: Mechanism, q: list[float]) -> bool:
+    """Whether every rotation vector of ``q`` (a plain float list of ``n_q`` entries: the
+    spherical joints' coordinates and the free joints' last three) has norm ``< pi - 1e-9``, so
+    that [`Mechanism.wrap`][optik.Mechanism.wrap] leaves it as it is."""
+    # a margin below pi: a vector this near the half-turn goes through `Mechanism.wrap`, whose
+    # norm (nested hypot) may round differently
+    return all(math.hypot(*q[sl]) < _HALF_TURN for sl in m.spherical_slices)
 
 
 def evaluate(m: Mechanism, q: np.ndarray, target: np.ndarray, task: str, frame: str | None) -> Errors:
@@ -253,15 +263,18 @@ def make_result(
         qq, err, frame_errors = _multi_target_errors(request, q)
         return _result(request, qq, err, method, iterations, restarts, status, message, frame_errors)
     lower, upper = m.lower, m.upper
-    # already wrapped and within limits: m.wrap would return q itself
+    # already wrapped and within limits: m.wrap would return q itself (every coordinate in
+    # (-pi, pi) and every rotation vector of norm <= pi)
     if q.shape == lower.shape:
         # plain-float comparisons (NaN compares False, as in numpy): cheaper than four ufuncs
         ql = q.tolist()
         inside = all(map(operator.le, lower.tolist(), ql)) and all(map(operator.le, ql, upper.tolist()))
         wrapped = inside and (not ql or (-math.pi < min(ql) and max(ql) < math.pi))
+        if wrapped and m.spherical_slices:
+            wrapped = rotation_vectors_canonical(m, ql)
     else:
         inside = bool((q >= lower).all() and (q <= upper).all())
-        wrapped = inside and bool((np.abs(q) < np.pi).all())
+        wrapped = inside and bool((np.abs(q) < np.pi).all()) and not m.spherical_slices
     if wrapped:
         qq = q.copy()
     else:

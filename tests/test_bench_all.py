@@ -21,6 +21,7 @@ from optik.benchmarks.bench_all import (
     page,
     read_pages,
     replace_between_markers,
+    spaced_tables,
     summary,
     write_atomic,
 )
@@ -98,6 +99,12 @@ def test_tables_and_headline_rows_are_read_from_the_output():
     ]
     assert headline(Run("t", "T", (), (), table=1), OUTPUT) == ["| c |", "|:-:|", "| y |"]
     assert "no table 5" in headline(Run("t", "T", (), (), table=5), OUTPUT)[0]
+
+
+def test_a_table_right_under_its_caption_gets_a_blank_line_and_a_message_inside_one_does_not():
+    text = "caption\n| a |\n|---|\n| 1 |\na message\n| 2 |\n\n| b |\n|--:|\n"
+    assert spaced_tables(text) == "caption\n\n| a |\n|---|\n| 1 |\na message\n| 2 |\n\n| b |\n|--:|"
+    assert markdown_tables(spaced_tables(text)) == markdown_tables(text)
 
 
 def test_the_section_between_the_markers_is_replaced_and_the_rest_kept():

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import optik
-from optik import spatial
+from optik import native, spatial
 
 
 def _leg(name: str, x: float, y: float) -> str:
@@ -102,3 +102,27 @@ def test_batch_of_base_poses(quad):
         assert np.abs(t[:3, 3] - pose[:3, 3]).max() < 1e-6
         assert spatial.angle_between(t[:3, :3], pose[:3, :3]) < 1e-6
         assert m.within_limits(q) and np.linalg.norm(q[3:6]) <= np.pi + 1e-12
+
+
+@pytest.mark.parametrize("method", ["lm", "nlp", "qp", "dls"])
+def test_single_and_several_targets_give_one_canonical_base(quad, method):
+    """A start already at the answer, its base rotation vector of norm > pi with every
+    component < pi: the single-target result (lm's through its prepared call) and the
+    several-target one are the same canonical ``q``, norm <= pi, same poses."""
+    m = quad
+    optik.solve_ik(m, m.fk(m.mid_q(), "torso"), frame="torso", method=method)  # lm: its prepared call
+    native.wait()  # ... once its library is loaded
+    for k, w in enumerate(([2.5, 2.5, 0.5], [-0.4, 3.0, -1.2])):
+        q = m.mid_q()
+        q[:3] = [0.1, -0.2, 0.3 + k]
+        q[3:6] = w
+        assert np.linalg.norm(w) > np.pi and np.abs(w).max() < np.pi
+        t = m.fk(q, "torso")
+        single = optik.solve_ik(m, t, frame="torso", q0=q, method=method)
+        several = optik.solve_ik(m, _targets(m, q), q0=q, method=method)
+        assert single.success and several.success, (method, k, single.message, several.message)
+        np.testing.assert_allclose(single.q, several.q, atol=1e-9)
+        for r in (single, several):
+            assert np.linalg.norm(r.q[3:6]) <= np.pi
+            _check(m, _targets(m, q), r.q)
+            np.testing.assert_allclose(m.fk(r.q, "torso"), t, atol=1e-9)

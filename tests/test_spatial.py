@@ -172,6 +172,19 @@ def test_rpy_is_z_y_x_and_seed_formulas():
     assert len(spatial.rot_to_rpy_all(r)) == 2
 
 
+@settings(max_examples=150, deadline=None)
+@given(rpy=st.tuples(st.floats(-10, 10), st.floats(-10, 10), st.floats(-10, 10)))
+def test_rpy_float_path_matches_the_matrix_products(rpy):
+    """Three floats take the written-out product (URDF origins); arrays the three matrix
+    products: the same rotation to rounding, for Python and numpy scalars alike."""
+    products = spatial.rot_z(rpy[2]) @ spatial.rot_y(rpy[1]) @ spatial.rot_x(rpy[0])
+    batched = spatial.rpy_to_rot(*(np.array([a]) for a in rpy))[0]
+    for r in (spatial.rpy_to_rot(*rpy), spatial.rpy_to_rot(*np.array(rpy))):
+        assert isinstance(r, np.ndarray) and r.shape == (3, 3) and is_rotation(r)
+        np.testing.assert_allclose(r, products, rtol=0, atol=4e-16)
+        np.testing.assert_allclose(r, batched, rtol=0, atol=4e-16)
+
+
 @pytest.mark.parametrize("pitch", [np.pi / 2, -np.pi / 2])
 def test_rpy_gimbal_lock(pitch):
     r = spatial.rpy_to_rot(0.3, pitch, 1.1)

@@ -36,6 +36,7 @@ Limits may be infinite: ``Joint("j", "revolute", ..., lower=-inf, upper=inf)`` i
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -54,9 +55,10 @@ _DEFAULT_LIMIT = {"revolute": np.pi, "prismatic": 1.0, "universal": np.pi, "sphe
 
 def _unit(v: Any, name: str) -> np.ndarray:
     a = real_array(v, name).reshape(-1)
-    if a.shape != (3,) or not np.all(np.isfinite(a)) or np.linalg.norm(a) < 1e-12:
+    norm = math.sqrt(float(a @ a)) if a.shape == (3,) else 0.0  # inf or nan when an entry is
+    if not math.isfinite(norm) or norm < 1e-12:
         raise InvalidArgumentError(name, f"expected a finite non-zero 3-vector, got {v!r}")
-    return a / np.linalg.norm(a)
+    return a / norm
 
 
 @dataclass(frozen=True)

@@ -48,6 +48,7 @@ Each loaded link's ``<inertial>`` gives its mass (``<mass value>``) and centre o
 
 from __future__ import annotations
 
+import math
 import os
 import warnings
 from dataclasses import dataclass
@@ -89,16 +90,15 @@ def _floats(src: UrdfXml, where: str, text: str | None, n: int, default: tuple[f
     """``n`` finite floats from a whitespace-separated attribute (``default`` when absent)."""
     if text is None:
         return np.array(default, dtype=float)
-    parts = text.split()
     try:
-        values = np.array([float(p) for p in parts], dtype=float)
+        values = [float(p) for p in text.split()]
     except ValueError as exc:
         raise ModelError(f"{src.label}: {where}: expected {n} numbers, got {text!r}") from exc
-    if values.shape != (n,):
+    if len(values) != n:
         raise ModelError(f"{src.label}: {where}: expected {n} numbers, got {text!r}")
-    if not np.all(np.isfinite(values)):
+    if not all(map(math.isfinite, values)):  # on the floats: a few numbers, no array reductions
         raise ModelError(f"{src.label}: {where}: values must be finite, got {text!r}")
-    return values
+    return np.array(values)
 
 
 def _origin(src: UrdfXml, element: etree._Element, where: str) -> np.ndarray:

@@ -15,7 +15,7 @@ import time
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 import casadi as ca
 import numpy as np
@@ -24,7 +24,7 @@ from optik import spatial
 from optik.checks import as_float, as_name, as_rng, as_vector
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
-from optik.mechanism.memo import PerMechanism
+from optik.mechanism.memo import LRU, PerMechanism
 from optik.problem import Frames, Tasks, frame_tasks
 from optik.results import IKResult
 from optik.targets import Pose2D, Position, target_transform
@@ -207,12 +207,22 @@ def task_errors(task: str, pose: np.ndarray, target: np.ndarray) -> tuple[float,
 
 
 _TWO_PI = 2.0 * math.pi
+_HALF_TURN = math.pi - 1e-9
 
 
 def _wrap_angle(a: float) -> float:
     """[`optik.spatial.wrap_angle`][optik.spatial.wrap_angle] of one float: into ``(-pi, pi]``."""
     w = (a + math.pi) % _TWO_PI - math.pi
     return w + _TWO_PI if w <= -math.pi else w
+
+
+def rotation_vectors_canonical(m: Mechanism, q: list[float]) -> bool:
+    """Whether every rotation vector of ``q`` (a plain float list of ``n_q`` entries: the
+    spherical joints' coordinates and the free joints' last three) has norm ``< pi - 1e-9``, so
+    that [`Mechanism.wrap`][optik.Mechanism.wrap] leaves it as it is."""
+    # a margin below pi: a vector this near the half-turn goes through `Mechanism.wrap`, whose
+    # norm (nested hypot) may round differently
+    return all(math.hypot(*q[sl]) < _HALF_TURN for sl in m.spherical_slices)
 
 
 def evaluate(m: Mechanism, q: np.ndarray, target: np.ndarray, task: str, frame: str | None) -> Errors:
@@ -253,15 +263,18 @@ def make_result(
         qq, err, frame_errors = _multi_target_errors(request, q)
         return _result(request, qq, err, method, iterations, restarts, status, message, frame_errors)
     lower, upper = m.lower, m.upper
-    # already wrapped and within limits: m.wrap would return q itself
+    # already wrapped and within limits: m.wrap would return q itself (every coordinate in
+    # (-pi, pi) and every rotation vector of norm <= pi)
     if q.shape == lower.shape:
         # plain-float comparisons (NaN compares False, as in numpy): cheaper than four ufuncs
         ql = q.tolist()
         inside = all(map(operator.le, lower.tolist(), ql)) and all(map(operator.le, ql, upper.tolist()))
         wrapped = inside and (not ql or (-math.pi < min(ql) and max(ql) < math.pi))
+        if wrapped and m.spherical_slices:
+            wrapped = rotation_vectors_canonical(m, ql)
     else:
         inside = bool((q >= lower).all() and (q <= upper).all())
-        wrapped = inside and bool((np.abs(q) < np.pi).all())
+        wrapped = inside and bool((np.abs(q) < np.pi).all()) and not m.spherical_slices
     if wrapped:
         qq = q.copy()
     else:
@@ -369,6 +382,47 @@ def _multi_target_errors(request: IKRequest, q: np.ndarray) -> tuple[np.ndarray,
 BRANCH_TOL = 1e-4
 """Two solutions are the same branch when their joint vectors differ by less than this
 (the same-branch rule; angles compared modulo 2 pi)."""
+
+
+V = TypeVar("V")
+
+
+class PreparedCache(Generic[V]):
+    """What a method prepares from a request's settings (a compiled kernel and its driver's
+    ``conf``: validation and setup cost more than a solve), per mechanism and per key
+    ``(task, frame, tol, sorted options, *extra)``.
+
+    Thread-safe; at most ``size`` keys per mechanism, the least recently used dropped (option
+    values drawn anew per call cannot grow it without end). A request with an unhashable option
+    value (an array ``q_ref``) has no key and is prepared every time.
+    """
+
+    def __init__(self, size: int = 256) -> None:
+        self.size = size
+        self._per: PerMechanism[LRU[tuple[Any, ...], V]] = PerMechanism()
+
+    @staticmethod
+    def key(request: IKRequest, *extra: Any) -> tuple[Any, ...] | None:
+        """The cache key of ``request`` (with ``extra`` appended), None when it is unhashable."""
+        key = (request.task, request.frame, request.tol, tuple(sorted(request.options.items())), *extra)
+        try:
+            hash(key)
+        except TypeError:
+            return None
+        return key
+
+    def _entries(self, m: Mechanism) -> LRU[tuple[Any, ...], V]:
+        entries = self._per.get(m)
+        return self._per.setdefault(m, LRU(self.size)) if entries is None else entries
+
+    def get(self, m: Mechanism, key: tuple[Any, ...] | None) -> V | None:
+        """The entry of ``key`` for ``m`` (None when absent or ``key`` is None)."""
+        return None if key is None else self._entries(m).get(key)
+
+    def put(self, m: Mechanism, key: tuple[Any, ...] | None, value: V) -> V:
+        """Store ``value`` under ``key`` for ``m`` (not when ``key`` is None); the entry kept
+        (another thread's when it stored first)."""
+        return value if key is None else self._entries(m).setdefault(key, value)
 
 
 def joint_distance(m: Mechanism, qa: np.ndarray, qb: np.ndarray) -> float:

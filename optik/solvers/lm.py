@@ -55,12 +55,19 @@ import numpy as np
 
 from optik.checks import as_vector
 from optik.errors import InvalidArgumentError, OptikError, SolverUnavailableError
-from optik.mechanism.memo import PerMechanism
 from optik.native import compiler
 from optik.problem import target_parameters
 from optik.results import IKResult
 from optik.solvers import generic_chain
-from optik.solvers.base import IKRequest, make_result, method_options, positive_int, register_method
+from optik.solvers.base import (
+    IKRequest,
+    PreparedCache,
+    make_result,
+    method_options,
+    positive_int,
+    register_method,
+    rotation_vectors_canonical,
+)
 from optik.solvers.lm_kernel import STATUS, LMKernel, OneTarget, Settings, kernel
 from optik.solvers.options import check_floats, check_max_restarts
 
@@ -126,26 +133,16 @@ def request_seed(seed: int | np.random.Generator | None) -> int:
     return int(seed)
 
 
-_PREPARED: PerMechanism[dict[tuple[Any, ...], tuple[LMKernel, np.ndarray]]] = PerMechanism()
-_PREPARED_MAX = 256
-"""Prepared requests kept per mechanism (all are dropped past it: option values drawn anew per call)."""
+_PREPARED: PreparedCache[tuple[LMKernel, np.ndarray]] = PreparedCache()
+"""Per mechanism: the validated requests (`_prepare`)."""
 
 
 def _prepare(request: IKRequest, build: bool = True) -> tuple[LMKernel, np.ndarray] | None:
     """The kernel and the driver's ``conf`` of a request, cached per mechanism, task, frame,
     tolerances and option values when those are hashable (validation costs more than a solve);
     None when not cached and ``build`` is False."""
-    try:
-        key: tuple[Any, ...] | None = (
-            request.task,
-            request.frame,
-            request.tol,
-            tuple(sorted(request.options.items())),
-        )
-        prepared = _PREPARED.setdefault(request.mechanism, {})
-        hit = prepared.get(key)  # type: ignore[arg-type]
-    except TypeError:  # an unhashable option value (an array q_ref): validate every time
-        key, hit = None, None
+    key = _PREPARED.key(request)
+    hit = _PREPARED.get(request.mechanism, key)
     if hit is None and not build:
         return None
     if hit is None:
@@ -153,11 +150,7 @@ def _prepare(request: IKRequest, build: bool = True) -> tuple[LMKernel, np.ndarr
         setup = time.perf_counter()
         k = kernel(request.mechanism, request.task, request.frame, closure_weight, compile)
         request.exclude_setup(setup)
-        hit = (k, settings.conf(request.mechanism))
-        if key is not None:
-            if len(prepared) >= _PREPARED_MAX:
-                prepared.clear()
-            prepared[key] = hit
+        hit = _PREPARED.put(request.mechanism, key, (k, settings.conf(request.mechanism)))
     return hit
 
 
@@ -220,7 +213,9 @@ class LMCall:
     task and frame, all validated once) solve through one C call, ``optik_lm_call`` of
     ``lm_chunk.c``, which checks the target transform as `optik.checks.as_transform` does and
     ``q0`` for finiteness, runs the solve as `solve_lm` does and says whether the answer is
-    canonical (within the limits, every coordinate in ``(-pi, pi)``). A canonical answer that
+    canonical (within the limits, every coordinate in ``(-pi, pi)``; the rotation vectors of a
+    free base or spherical joint are checked here, by `optik.solvers.base.rotation_vectors_canonical`,
+    as `optik.solvers.base.make_result` checks them). A canonical answer that
     meets the tolerances is the result as it is (what `optik.solvers.base.make_result` makes of
     it); any other answer goes through `lm_result`. It returns None, before solving, for input
     it does not take (a ``q0`` that `optik.Mechanism.check_q` refuses, a seed other than an int
@@ -238,6 +233,7 @@ class LMCall:
         m = request.mechanism
         self._mid = m.mid_q()
         self._shape = (m.n_q,)
+        self._rotation_vectors = bool(m.spherical_slices)
         tol = request.tol
         self._tol = (tol.position, tol.orientation, tol.closure)
         self._local = threading.local()
@@ -292,6 +288,8 @@ class LMCall:
         iterations, restarts, code, canonical = one.counts.tolist()
         pos, ori, clo = one.errors.tolist()
         q = one.q.copy()
+        if canonical and self._rotation_vectors:
+            canonical = rotation_vectors_canonical(self.request.mechanism, q.tolist())
         tp, to, tc = self._tol
         if canonical and pos <= tp and ori <= to and clo <= tc:
             # the fields in order: q, success, the three errors, limits_ok, iterations, solve_time,

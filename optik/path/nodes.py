@@ -61,9 +61,21 @@ def into_limits(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, angles: np.
         lower, upper: joint limits ``(n,)``.
         angles: ``(n,)`` True for the revolute coordinates.
     """
-    out = wrap_to_limits(q.reshape(-1, q.shape[-1]), lower, upper, angles).reshape(q.shape)
+    rows = q.reshape(-1, q.shape[-1])
+    with np.errstate(invalid="ignore"):  # inf limits
+        # the least shift 2 pi k above lower - SLACK; past upper + SLACK no whole turn fits
+        up = rows + np.where(angles, _TURN * np.ceil((lower - FIT_SLACK - rows) / _TURN), 0.0)
+    may = np.all(np.isfinite(rows) & (up <= upper + FIT_SLACK), axis=-1)  # a cheap, loose first test
+    out = np.full(rows.shape, np.nan)
+    out[may] = wrap_to_limits(rows[may], lower, upper, angles)
     out[~np.all((out >= lower) & (out <= upper), axis=-1)] = np.nan
-    return out
+    return out.reshape(q.shape)
+
+
+_TURN = 2.0 * np.pi
+FIT_SLACK = 1e-9
+"""Margin of the first test of `into_limits`: a row it rejects misses the limits by more than a
+rounding, so only the rows that may fit go through `optik.spatial.wrap_to_limits`."""
 
 
 def wrapping(m: Mechanism) -> np.ndarray:

@@ -111,6 +111,30 @@ def test_lru_keeps_the_most_recently_used_entries():
         LRU(0)
 
 
+def test_prepared_requests_are_bounded_per_mechanism_and_unhashable_ones_not_kept():
+    """The lm and balance caches of validated requests (solvers.base.PreparedCache)."""
+    from types import SimpleNamespace
+
+    from optik.solvers.base import PreparedCache
+
+    cache: PreparedCache[str] = PreparedCache(size=2)
+    a, b = optik.catalog.planar_2r(), optik.catalog.planar_3r()
+
+    def request(**options):
+        return SimpleNamespace(task="position", frame=None, tol=1e-6, options=options)
+
+    keys = [cache.key(request(posture_gain=g, block=2)) for g in (0.1, 0.2, 0.3)]
+    assert keys[0] == cache.key(request(block=2, posture_gain=0.1))  # options sorted
+    assert cache.key(request(posture_gain=0.1), 7) != keys[0]  # the extra part counts
+    for i, key in enumerate(keys):
+        assert cache.put(a, key, f"a{i}") == f"a{i}"
+    assert cache.get(a, keys[0]) is None and cache.get(a, keys[2]) == "a2"  # the oldest dropped
+    assert cache.put(a, keys[2], "other") == "a2"  # the stored entry wins
+    assert cache.get(b, keys[2]) is None  # per mechanism
+    unhashable = cache.key(request(q_ref=np.zeros(2)))
+    assert unhashable is None and cache.put(a, unhashable, "x") == "x" and cache.get(a, unhashable) is None
+
+
 def test_nlp_solver_pools_are_bounded_per_mechanism(monkeypatch):
     """One pool of built solvers per argument combination (here: per ``solver_options``), at
     most POOLS_PER_MECHANISM of them, the least recently used dropped."""

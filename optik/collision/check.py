@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from optik.checks import as_batch, as_bool, as_float
-from optik.collision.distance import signed_distance
+from optik.collision.distance import coal_transform, placed_distance
 from optik.collision.parts import Part
 from optik.collision.robot import RobotGeometry, robot_geometry
 from optik.collision.world import World
@@ -148,13 +148,21 @@ def _report(
     best: CollisionPair | None = None
     close: list[CollisionPair] = []
     checked = 0
+    tfs: dict[int, Any] = {}  # coal transforms by part index (obstacles after the robot's), made once
+
+    def tf(index: int, pose: np.ndarray) -> Any:
+        got = tfs.get(index)
+        if got is None:
+            got = tfs[index] = coal_transform(pose)
+        return got
+
     for k in np.argsort(lb, kind="stable"):
         if lb[k] > max(margin, 0.0, best.distance if best is not None else np.inf):
             break
         a, b = int(i[k]), int(j[k])
         world = b >= n
         part_b, pose_b = (obstacles[b - n], obstacles[b - n].offset) if world else (geo.parts[b], poses[b])
-        d, pa, pb = signed_distance(geo.parts[a], poses[a], part_b, pose_b)
+        d, pa, pb = placed_distance(geo.parts[a], tf(a, poses[a]), part_b, tf(b, pose_b))
         checked += 1
         pair = CollisionPair(geo.parts[a].name, part_b.name, d, pa, pb, world)
         if best is None or d < best.distance:

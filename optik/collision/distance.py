@@ -16,7 +16,7 @@ import numpy as np
 from optik.collision.parts import Part
 from optik.collision.shapes import coal_module
 
-__all__ = ["Witness", "pair_distances", "signed_distance"]
+__all__ = ["Witness", "coal_transform", "pair_distances", "placed_distance", "signed_distance"]
 
 Witness = tuple[float, np.ndarray, np.ndarray]
 """``(distance, point on a, point on b)`` in the base frame."""
@@ -26,13 +26,24 @@ def _transform(coal: Any, t: np.ndarray) -> Any:
     return coal.Transform3s(np.ascontiguousarray(t[:3, :3]), np.ascontiguousarray(t[:3, 3]))
 
 
+def coal_transform(pose: np.ndarray) -> Any:
+    """coal's ``Transform3s`` of a 4x4 pose."""
+    return _transform(coal_module(), pose)
+
+
 def signed_distance(a: Part, pose_a: np.ndarray, b: Part, pose_b: np.ndarray) -> Witness:
     """The signed distance of two parts at base-frame poses, with the witness points."""
+    return placed_distance(a, coal_transform(pose_a), b, coal_transform(pose_b))
+
+
+def placed_distance(a: Part, tf_a: Any, b: Part, tf_b: Any) -> Witness:
+    """`signed_distance` with the poses as coal transforms (`coal_transform`: a caller that
+    queries one part against many makes its transform once)."""
     coal = coal_module()
     req = coal.DistanceRequest()
     req.enable_signed_distance = True
     res = coal.DistanceResult()
-    d = coal.distance(a.geometry, _transform(coal, pose_a), b.geometry, _transform(coal, pose_b), req, res)
+    d = coal.distance(a.geometry, tf_a, b.geometry, tf_b, req, res)
     return float(d), np.array(res.getNearestPoint1()), np.array(res.getNearestPoint2())
 
 

@@ -54,7 +54,15 @@ from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
 from optik.problem import IKProblem, build_ik_problem, target_parameters
 from optik.results import IKResult
-from optik.solvers.base import IKRequest, get_method, make_result, method_options, restart_stop, start_points
+from optik.solvers.base import (
+    IKRequest,
+    PreparedCache,
+    get_method,
+    make_result,
+    method_options,
+    restart_stop,
+    start_points,
+)
 from optik.solvers.lm import lm_settings, request_seed
 from optik.solvers.lm_kernel import STATUS, LMKernel
 from optik.targets import Position
@@ -81,9 +89,8 @@ half the closure tolerance, and the exact check of the answer then passes with r
 
 _SOLVERS: PerMechanism[dict[Any, Any]] = PerMechanism()
 """Per mechanism: the nlp balance solvers (with their locks) and the lm balance kernels."""
-_PREPARED: PerMechanism[dict[tuple[Any, ...], tuple[LMKernel, np.ndarray]]] = PerMechanism()
+_PREPARED: PreparedCache[tuple[LMKernel, np.ndarray]] = PreparedCache()
 """Per mechanism: the validated ``lm`` balance requests (`_prepared_lm`)."""
-_PREPARED_MAX = 256
 _SOLVERS_LOCK = threading.Lock()
 
 
@@ -391,29 +398,14 @@ def _prepared_lm(request: IKRequest, k: int) -> tuple[LMKernel, np.ndarray]:
     task, frames, tolerances, option values (when hashable) and ``k`` (validation costs more than
     a solve)."""
     m = request.mechanism
-    try:
-        key: tuple[Any, ...] | None = (
-            request.task,
-            request.frame,
-            request.tol,
-            tuple(sorted(request.options.items())),
-            k,
-        )
-        with _SOLVERS_LOCK:
-            hit = _PREPARED.setdefault(m, {}).get(key)
-    except TypeError:  # an unhashable option value (an array q_ref): validate every time
-        key, hit = None, None
+    key = _PREPARED.key(request, k)
+    hit = _PREPARED.get(m, key)
     if hit is None:
         settings, closure_weight, compile = lm_settings(request)
         since = time.perf_counter()
         hit = (_lm_kernel(request, k, closure_weight, compile), settings.conf(m))
         request.exclude_setup(since)
-        if key is not None:
-            with _SOLVERS_LOCK:
-                prepared = _PREPARED.setdefault(m, {})
-                if len(prepared) >= _PREPARED_MAX:  # option values drawn anew per call
-                    prepared.clear()
-                prepared[key] = hit
+        hit = _PREPARED.put(m, key, hit)
     return hit
 
 

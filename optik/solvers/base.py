@@ -15,7 +15,7 @@ import time
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 import casadi as ca
 import numpy as np
@@ -24,7 +24,7 @@ from optik import spatial
 from optik.checks import as_float, as_name, as_rng, as_vector
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
-from optik.mechanism.memo import PerMechanism
+from optik.mechanism.memo import LRU, PerMechanism
 from optik.problem import Frames, Tasks, frame_tasks
 from optik.results import IKResult
 from optik.targets import Pose2D, Position, target_transform
@@ -382,6 +382,47 @@ def _multi_target_errors(request: IKRequest, q: np.ndarray) -> tuple[np.ndarray,
 BRANCH_TOL = 1e-4
 """Two solutions are the same branch when their joint vectors differ by less than this
 (the same-branch rule; angles compared modulo 2 pi)."""
+
+
+V = TypeVar("V")
+
+
+class PreparedCache(Generic[V]):
+    """What a method prepares from a request's settings (a compiled kernel and its driver's
+    ``conf``: validation and setup cost more than a solve), per mechanism and per key
+    ``(task, frame, tol, sorted options, *extra)``.
+
+    Thread-safe; at most ``size`` keys per mechanism, the least recently used dropped (option
+    values drawn anew per call cannot grow it without end). A request with an unhashable option
+    value (an array ``q_ref``) has no key and is prepared every time.
+    """
+
+    def __init__(self, size: int = 256) -> None:
+        self.size = size
+        self._per: PerMechanism[LRU[tuple[Any, ...], V]] = PerMechanism()
+
+    @staticmethod
+    def key(request: IKRequest, *extra: Any) -> tuple[Any, ...] | None:
+        """The cache key of ``request`` (with ``extra`` appended), None when it is unhashable."""
+        key = (request.task, request.frame, request.tol, tuple(sorted(request.options.items())), *extra)
+        try:
+            hash(key)
+        except TypeError:
+            return None
+        return key
+
+    def _entries(self, m: Mechanism) -> LRU[tuple[Any, ...], V]:
+        entries = self._per.get(m)
+        return self._per.setdefault(m, LRU(self.size)) if entries is None else entries
+
+    def get(self, m: Mechanism, key: tuple[Any, ...] | None) -> V | None:
+        """The entry of ``key`` for ``m`` (None when absent or ``key`` is None)."""
+        return None if key is None else self._entries(m).get(key)
+
+    def put(self, m: Mechanism, key: tuple[Any, ...] | None, value: V) -> V:
+        """Store ``value`` under ``key`` for ``m`` (not when ``key`` is None); the entry kept
+        (another thread's when it stored first)."""
+        return value if key is None else self._entries(m).setdefault(key, value)
 
 
 def joint_distance(m: Mechanism, qa: np.ndarray, qb: np.ndarray) -> float:

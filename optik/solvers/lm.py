@@ -55,13 +55,13 @@ import numpy as np
 
 from optik.checks import as_vector
 from optik.errors import InvalidArgumentError, OptikError, SolverUnavailableError
-from optik.mechanism.memo import PerMechanism
 from optik.native import compiler
 from optik.problem import target_parameters
 from optik.results import IKResult
 from optik.solvers import generic_chain
 from optik.solvers.base import (
     IKRequest,
+    PreparedCache,
     make_result,
     method_options,
     positive_int,
@@ -133,26 +133,16 @@ def request_seed(seed: int | np.random.Generator | None) -> int:
     return int(seed)
 
 
-_PREPARED: PerMechanism[dict[tuple[Any, ...], tuple[LMKernel, np.ndarray]]] = PerMechanism()
-_PREPARED_MAX = 256
-"""Prepared requests kept per mechanism (all are dropped past it: option values drawn anew per call)."""
+_PREPARED: PreparedCache[tuple[LMKernel, np.ndarray]] = PreparedCache()
+"""Per mechanism: the validated requests (`_prepare`)."""
 
 
 def _prepare(request: IKRequest, build: bool = True) -> tuple[LMKernel, np.ndarray] | None:
     """The kernel and the driver's ``conf`` of a request, cached per mechanism, task, frame,
     tolerances and option values when those are hashable (validation costs more than a solve);
     None when not cached and ``build`` is False."""
-    try:
-        key: tuple[Any, ...] | None = (
-            request.task,
-            request.frame,
-            request.tol,
-            tuple(sorted(request.options.items())),
-        )
-        prepared = _PREPARED.setdefault(request.mechanism, {})
-        hit = prepared.get(key)  # type: ignore[arg-type]
-    except TypeError:  # an unhashable option value (an array q_ref): validate every time
-        key, hit = None, None
+    key = _PREPARED.key(request)
+    hit = _PREPARED.get(request.mechanism, key)
     if hit is None and not build:
         return None
     if hit is None:
@@ -160,11 +150,7 @@ def _prepare(request: IKRequest, build: bool = True) -> tuple[LMKernel, np.ndarr
         setup = time.perf_counter()
         k = kernel(request.mechanism, request.task, request.frame, closure_weight, compile)
         request.exclude_setup(setup)
-        hit = (k, settings.conf(request.mechanism))
-        if key is not None:
-            if len(prepared) >= _PREPARED_MAX:
-                prepared.clear()
-            prepared[key] = hit
+        hit = _PREPARED.put(request.mechanism, key, (k, settings.conf(request.mechanism)))
     return hit
 
 

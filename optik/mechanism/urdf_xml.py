@@ -35,6 +35,7 @@ input is neither a file nor URDF text) whose message names the file (or ``<strin
 
 from __future__ import annotations
 
+import codecs
 import os
 import re
 import warnings
@@ -95,7 +96,10 @@ def _text(source: str | os.PathLike[str]) -> tuple[str, str, Path | None]:
         size = path.stat().st_size
         if size > MAX_URDF_BYTES:
             raise ModelError(f"{path}: URDF file of {size} bytes > {MAX_URDF_BYTES} bytes")
-        return path.read_bytes().decode("utf-8-sig"), str(path), path.resolve().parent
+        # a leading byte-order mark dropped, as the codec "utf-8-sig" does (whose module import
+        # costs a first from_urdf 0.2 ms)
+        text = path.read_bytes().removeprefix(codecs.BOM_UTF8).decode("utf-8")
+        return text, str(path), path.resolve().parent
     except (OSError, UnicodeDecodeError) as exc:
         raise InvalidArgumentError("source", f"cannot read URDF file {str(path)!r}: {exc}") from exc
 

@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import optik
-from optik.path import graph, samples
+from optik.path import graph, redundant, samples
 from optik.path.nodes import into_limits, turn_copies
 
 
@@ -446,6 +446,23 @@ def test_redundant_arm_over_self_motion_samples(panda_line):
     assert smooth.cost < path.cost
     assert smooth.cost == pytest.approx(length(smooth.q), abs=1e-9)
     independent_checks(m, smooth, poses)
+
+
+def test_self_motion_solutions_by_pose_and_value(panda_line):
+    """Every row solves its pose with q7 at its value, within the limits; rows are ordered by pose,
+    then value, and the sampled layers hold each path sample's rows with their groups."""
+    m, poses = panda_line
+    values = np.array([-2.0, 0.5, 1.5])
+    q, pose, tag = redundant.self_motion_solutions(m, poses[:5], 6, values)
+    assert len(q) > 5 and np.all(np.diff(pose) >= 0) and set(pose) == set(range(5))
+    assert np.all(np.diff(tag)[np.diff(pose) == 0] >= 0)
+    assert np.array_equal(q[:, 6], values[tag]) and np.all((q >= m.lower) & (q <= m.upper))
+    f = optik.fk_batch(m, q)
+    assert np.abs(f - poses[pose]).max() < 1e-9
+    sampled = samples.sample_poses(poses[:5], None, 1.0, None)
+    layers, groups = samples.sample_solutions(m, sampled, None, None, (6, values))
+    assert np.array_equal(layers.data, q) and np.array_equal(groups.data, tag)
+    assert np.array_equal(layers.sizes, np.bincount(pose, minlength=5))
 
 
 def test_refinement_nlp_is_cached_with_the_poses_as_parameters(panda_line):

@@ -46,16 +46,17 @@ def _locked(m: Mechanism, index: int, value: float) -> DerivedIK | None:
 
 def self_motion_solutions(
     m: Mechanism, poses: np.ndarray, index: int, values: np.ndarray
-) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """Per pose of ``poses (P, 4, 4)``, every solution with coordinate ``index`` at one of the
-    ``values`` ``(K, n)`` and the index of that value ``(K,)``.
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every solution of ``poses (P, 4, 4)`` with coordinate ``index`` at one of the ``values``:
+    the solutions ``(K, n)``, the pose of each ``(K,)`` (ascending) and the index of its value
+    ``(K,)`` (per pose in the order of the values). One vectorized closed-form call per value.
 
     Raises:
         SolverUnavailableError: locking that coordinate leaves no derived closed form.
     """
     free = [k for k in range(m.n_q) if k != index]
-    rows: list[list[np.ndarray]] = [[] for _ in poses]
-    tags: list[list[np.ndarray]] = [[] for _ in poses]
+    angles = np.asarray(m.revolute_mask, dtype=bool)
+    rows, pose, tag = [np.zeros((0, m.n_q))], [np.zeros(0, dtype=np.int64)], [np.zeros(0, dtype=np.int64)]
     for i, v in enumerate(values):
         solver = _locked(m, index, float(v))
         if solver is None:
@@ -64,15 +65,17 @@ def self_motion_solutions(
                 "(lock another joint)"
             )
         q6, ok = solver.solve(poses)
-        full = np.zeros((*q6.shape[:2], m.n_q))
-        full[..., free] = q6
-        full[..., index] = v
-        flat = into_limits(full, m.lower, m.upper, np.asarray(m.revolute_mask, dtype=bool))
-        ok = ok & np.isfinite(flat).all(axis=-1)
-        for p in range(len(poses)):
-            rows[p].append(flat[p][ok[p]])
-            tags[p].append(np.full(int(ok[p].sum()), i))
-    return [np.concatenate(r) for r in rows], [np.concatenate(t) for t in tags]
+        p, b = np.nonzero(ok)
+        full = np.empty((len(p), m.n_q))
+        full[:, free] = q6[p, b]
+        full[:, index] = v
+        full = into_limits(full, m.lower, m.upper, angles)
+        fits = np.isfinite(full).all(axis=1)
+        rows.append(full[fits])
+        pose.append(p[fits])
+        tag.append(np.full(int(fits.sum()), i))
+    order = np.argsort(np.concatenate(pose), kind="stable")  # by pose, each in the order of the values
+    return np.concatenate(rows)[order], np.concatenate(pose)[order], np.concatenate(tag)[order]
 
 
 class _Refiner:

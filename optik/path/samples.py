@@ -184,13 +184,9 @@ def sample_solutions(
     n, s = samples.angle.shape
     if self_motion is not None:
         j, values = self_motion
-        rows, tags = self_motion_solutions(m, samples.poses.reshape(-1, 4, 4), j, values)
-        layers, groups = [], []
-        for k in range(n):
-            part = range(k * s, (k + 1) * s)
-            layers.append(np.concatenate([rows[i] for i in part]))
-            groups.append(np.concatenate([(i - k * s) * len(values) + tags[i] for i in part]))
-        return Layered.of(layers), Layered.of(groups)
+        q, pose, tag = self_motion_solutions(m, samples.poses.reshape(-1, 4, 4), j, values)
+        layer, unit = np.divmod(pose, s)
+        return Layered.by_owner(q, layer, n), Layered.by_owner(unit * len(values) + tag, layer, n)
     units = s if shortcut is None else len(np.unique(samples.offset, axis=0))
     copies = s // units
     solved, counts = closed_form_solutions(m, samples.columns(units).reshape(-1, 4, 4), frame)

@@ -461,10 +461,9 @@ def library(
         InvalidArgumentError: bad ``compile`` value.
         SolverUnavailableError: ``compile=True`` without a working compiler.
     """
-    _check_compile(compile)
-    cc = compiler()
-    if compile is False or cc is None:
-        return _no_library(compile)
+    cc = _compiler_for(compile)
+    if cc is None:
+        return None
     source = c_source(functions, extra_source)
     return _library(source, functions[0].name(), cc, compile, compile == "auto", flags)
 
@@ -485,10 +484,9 @@ def source_library(
         InvalidArgumentError: bad ``compile`` value.
         SolverUnavailableError: ``compile=True`` without a working compiler.
     """
-    _check_compile(compile)
-    cc = compiler()
-    if compile is False or cc is None:
-        return _no_library(compile)
+    cc = _compiler_for(compile)
+    if cc is None:
+        return None
     lib = _library(source, stem, cc, compile, False, flags)
     return None if lib is None else lib.wait()
 
@@ -532,15 +530,22 @@ def driver_source(path: Path, compile: bool | str = "auto") -> str | None:
         return None
 
 
-def _check_compile(compile: bool | str) -> None:
+def _compiler_for(compile: bool | str) -> str | None:
+    """The `compiler` to build with under a validated ``compile`` option, None for no compiled
+    code (``compile=False``, or no compiler with ``"auto"``).
+
+    Raises:
+        InvalidArgumentError: ``compile`` is not True, False or ``"auto"``.
+        SolverUnavailableError: ``compile=True`` without a compiler.
+    """
     if compile not in (True, False, "auto"):
         raise InvalidArgumentError("compile", f"expected True, False or 'auto', got {compile!r}")
-
-
-def _no_library(compile: bool | str) -> None:
-    """None (no compiled code); raises for ``compile=True``."""
-    if compile is True:
+    if compile is False:
+        return None
+    cc = compiler()
+    if cc is None and compile is True:
         raise SolverUnavailableError("no C compiler found (set $CC or install gcc; unset $OPTIK_NO_CODEGEN)")
+    return cc
 
 
 def _library(

@@ -415,3 +415,16 @@ def test_fk_of_an_empty_batch_and_unhashable_frame_names():
     for call in (m.fk, m.jacobian):
         with pytest.raises(UnknownFrameError, match=r"^frame:"):
             call(np.zeros(2), frame=["ee"])
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    v=st.tuples(*(st.sampled_from([0.0, 1.0, 1e-8, 1e-5, 2e-5, -1e-8, 1.0 + 1e-5, 1.0 - 2e-5]),) * 3)
+    | st.tuples(*(st.floats(-2, 2),) * 3)
+)
+def test_planar_axis_check_is_numpys_allclose(v):
+    """The planarity test's ``[0, 0, 1]`` comparison on floats answers as ``np.allclose`` does,
+    at the tolerance's edges too."""
+    from optik.mechanism.mechanism import _is_unit_z
+
+    assert _is_unit_z(np.array(v)) == np.allclose(v, [0, 0, 1])

@@ -8,7 +8,9 @@ drawn uniformly within the limits (seeded) and kept when optik's exact check fin
 ``--margin`` (so every target is reachable collision-free). optik: ``optik.solve_ik(m, T,
 world=W, margin=margin, time_limit=...)``. TRAC-IK (pytracik, solve type Speed): solve from the
 mid-limit seed, check the answer with `optik.collision.check` (coal) at the margin, and while it
-collides solve again from a uniformly random seed until the time limit (what MoveIt does).
+collides solve again from a uniformly random seed until the time limit (what MoveIt does); each
+retry takes the longest timeout of `timeout_ladder` that fits in the time left, its solver built
+once before the timed calls (a TRAC-IK solver's timeout is fixed at construction).
 
 The judge is Pinocchio's own model of the whole URDF (finger joints at 0) and its collision
 geometry (``buildGeomFromUrdf``, meshes as their convex hulls, as coal queries them), its
@@ -132,18 +134,35 @@ def optik_solver(m: optik.Mechanism, w: optik.World, margin: float, tol: float) 
     return solve
 
 
-def tracik_solver(m: optik.Mechanism, urdf, w: optik.World, margin: float, tol: float) -> Solver:
+def timeout_ladder(time_limit: float, shortest: float = 1e-4) -> np.ndarray:
+    """Timeouts ``time_limit / 2**k`` down to ``shortest``, longest first.
+
+    A TRAC-IK solver's timeout is fixed when it is constructed (which parses the URDF), so a retry
+    with the time left takes the longest of these timeouts that fits: every solver is constructed
+    once, untimed, instead of once per retry inside the timed call.
+    """
+    k = max(int(np.floor(np.log2(time_limit / shortest))), 0)
+    return time_limit / 2.0 ** np.arange(k + 1)
+
+
+def tracik_solver(
+    m: optik.Mechanism, urdf, w: optik.World, margin: float, tol: float, time_limit: float
+) -> Solver:
     from optik.harness.peers.tracik_peer import TracIK
 
     peer = TracIK(m, urdf, "panda_link0", "panda_hand_tcp")
     tolerances = optik.Tolerances(position=tol, orientation=tol)
+    ladder = timeout_ladder(time_limit)
+    for timeout in ladder:  # constructed here, outside the timed calls
+        peer.attempt(m.mid_q(), m.fk(m.mid_q()), float(timeout), tolerances)
 
     def solve(target: np.ndarray, time_limit: float, seed: int) -> np.ndarray | None:
         start = time.perf_counter()
         rng = np.random.default_rng(seed)
         q0 = m.mid_q()
         while (left := time_limit - (time.perf_counter() - start)) > 1e-4:
-            q, found = peer.attempt(q0, target, left, tolerances)
+            fits = ladder[ladder <= left]
+            q, found = peer.attempt(q0, target, float(fits[0]) if fits.size else left, tolerances)
             if found and not optik.collision.check(m, q, w, margin=margin).in_collision:
                 return q
             q0 = m.random_q(seed=rng)
@@ -196,7 +215,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             targets.append(m.fk(q))
     solvers: dict[str, Solver] = {"optik lm + collisions": optik_solver(m, w, args.margin, args.tol)}
     try:
-        solvers["TRAC-IK + coal rejection"] = tracik_solver(m, urdf, w, args.margin, args.tol)
+        solvers["TRAC-IK + coal rejection"] = tracik_solver(
+            m, urdf, w, args.margin, args.tol, args.time_limit
+        )
     except (ImportError, optik.OptikError) as exc:
         print(f"pytracik is not available ({exc}): TRAC-IK skipped")
     for solve in solvers.values():  # untimed warm-up (optik builds its constrained code here)

@@ -348,11 +348,13 @@ def inv_transform(t: Any) -> Any:
 def rpy_to_rot(roll: Any, pitch: Any, yaw: Any) -> Any:
     """``Rot(z, yaw) Rot(y, pitch) Rot(x, roll)`` (seed 001: ``phi_x, phi_y, phi_z``).
 
-    With ``c_a, s_a`` the cosine and sine of each angle, the product written out is::
+    With ``c_a, s_a`` the cosine and sine of each angle, the product written out is
 
-        [[c_y c_p, c_y s_p s_r - s_y c_r, c_y s_p c_r + s_y s_r],
-         [s_y c_p, s_y s_p s_r + c_y c_r, s_y s_p c_r - c_y s_r],
-         [-s_p,    c_p s_r,               c_p c_r]]
+    ```text
+    [[c_y c_p, c_y s_p s_r - s_y c_r, c_y s_p c_r + s_y s_r],
+     [s_y c_p, s_y s_p s_r + c_y c_r, s_y s_p c_r - c_y s_r],
+     [-s_p,    c_p s_r,               c_p c_r]]
+    ```
 
     which three floats (Python or numpy scalars: a URDF origin) get directly, in plain float
     arithmetic (the array path's numbers to rounding, without its three matrix products).

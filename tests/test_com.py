@@ -116,10 +116,16 @@ def test_mjcf_com_equals_mujoco():
         m = optik.Mechanism.from_mjcf(model)
         assert m.mass == pytest.approx(model.body_subtreemass[0], rel=1e-14)
         data = mujoco.MjData(model)
-        # columns of hinge and slide coordinates: MuJoCo's velocity is their rate
-        cols = [
-            (i, int(model.jnt_dofadr[j])) for j, (kind, i, _) in enumerate(m.params["qpos_map"]) if kind >= 2
-        ]
+        # columns of hinge and slide coordinates: MuJoCo's velocity is their rate, plus the rate of
+        # every joint coupled to them (qpos_mimics: qpos[a] = multiplier q_i + offset); joints are
+        # matched by qpos address (a coupled joint has no optik coordinate of its own)
+        dof_of_qpos = {
+            int(model.jnt_qposadr[j]): int(model.jnt_dofadr[j])
+            for j in range(model.njnt)
+            if int(model.jnt_type[j]) in (int(mujoco.mjtJoint.mjJNT_SLIDE), int(mujoco.mjtJoint.mjJNT_HINGE))
+        }
+        cols = [(i, dof_of_qpos[a]) for kind, i, a in m.params["qpos_map"] if kind >= 2]
+        coupled = [(i, dof_of_qpos[a], k) for a, i, k, _ in m.params.get("qpos_mimics", ())]
         for q in m.random_q(4, seed=1):
             data.qpos[:] = to_qpos(m, q)
             mujoco.mj_kinematics(model, data)
@@ -129,7 +135,8 @@ def test_mjcf_com_equals_mujoco():
             mujoco.mj_jacSubtreeCom(model, data, jac, 0)
             ours = m.com_jacobian(q)
             for i, dof in cols:
-                np.testing.assert_allclose(ours[:, i], jac[:, dof], atol=1e-12)
+                want = jac[:, dof] + sum(k * jac[:, d] for j, d, k in coupled if j == i)
+                np.testing.assert_allclose(ours[:, i], want, atol=1e-12)
         eps = 1e-6  # every column (free and ball joints too) against central differences
         fd = np.array([(m.com(q + eps * e) - m.com(q - eps * e)) / (2 * eps) for e in np.eye(m.n_q)]).T
         np.testing.assert_allclose(m.com_jacobian(q), fd, atol=1e-8)

@@ -218,7 +218,16 @@ def wrap_to_limits(q: Any, lower: Any, upper: Any, angular: Any) -> np.ndarray:
         done = (a > -np.pi) & (a <= np.pi) & (lo <= a) & (a <= hi)  # rule 1 with c = q_i: as it is
     if done.all():  # the common case: nothing to do
         return out
-    rows, cols = np.nonzero(np.atleast_2d(~done))
+    with np.errstate(invalid="ignore"):  # rules 1 and 2 vectorized (wrap_angle: the same numbers)
+        c = np.where((a > -np.pi) & (a <= np.pi), a, wrap_angle(a))
+        rule1 = ~done & (lo <= c) & (c <= hi)
+        rule2 = ~done & ~rule1 & (lo <= a) & (a <= hi)
+    a = np.where(rule1, c, a)
+    out[..., mask] = a
+    rest = ~(done | rule1 | rule2)
+    if not rest.any():
+        return out
+    rows, cols = np.nonzero(np.atleast_2d(rest))
     flat = np.atleast_2d(a)
     los, his = lo.tolist(), hi.tolist()
     for r, k in zip(rows.tolist(), cols.tolist(), strict=True):

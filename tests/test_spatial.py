@@ -189,6 +189,20 @@ def test_wrap_to_limits_is_the_per_entry_rule_over_any_leading_shape(shape, data
     np.testing.assert_array_equal(got, want)
 
 
+def test_wrap_to_limits_is_wrap_into_entry_by_entry():
+    """The vectorized rules 1 and 2 give exactly the numbers of the one-angle rule `wrap_into`:
+    entries in and out of (-pi, pi], on +-pi, NaN and inf, limits beyond pi, one-sided and wide."""
+    rng = np.random.default_rng(1)
+    q = rng.uniform(-30.0, 30.0, (4000, 5))
+    q[::7, 1], q[::5, 2], q[::3, 3], q[::11, 4] = np.nan, np.pi, -np.pi, np.inf
+    q[::13, 0] = rng.uniform(-np.pi, np.pi, q[::13, 0].shape)
+    lo = np.array([-2 * np.pi, -0.0175, -3.9, -1.0, -np.pi])
+    hi = np.array([2 * np.pi, 3.7525, 0.8, np.inf, np.pi])
+    got = spatial.wrap_to_limits(q, lo, hi, [True] * 5)
+    want = [[spatial.wrap_into(float(v), lo[k], hi[k]) for k, v in enumerate(row)] for row in q]
+    np.testing.assert_array_equal(got, want)
+
+
 # ---------------------------------------------------------------------------- RPY and ZYZ
 @settings(max_examples=150, deadline=None)
 @given(r=rotations())

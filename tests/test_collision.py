@@ -395,7 +395,8 @@ def test_negative_mesh_scale_mirrors_the_hull(tmp_path):
     from optik.collision.shapes import Shape, shape_vertices
 
     path = tmp_path / "wedge.obj"  # an asymmetric tetrahedron
-    path.write_text("v 0 0 0\nv 0.3 0.05 0\nv 0.02 0.2 0.01\nv 0.05 0.07 0.4\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n")
+    vertices = "v 0 0 0\nv 0.3 0.05 0\nv 0.02 0.2 0.01\nv 0.05 0.07 0.4\n"
+    path.write_text(vertices + "f 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n")
     plain, _ = shape_vertices(Shape("mesh", (1.0, 1.0, 1.0), path=path))
     mirrored, _ = shape_vertices(Shape("mesh", (1.0, -1.0, 1.0), path=path))
     flip = plain * np.array([1.0, -1.0, 1.0])

@@ -8,7 +8,7 @@ A `Shape` is a geometry in its own frame:
 | ``"sphere"`` | ``(r,)`` | centred at the origin |
 | ``"cylinder"`` | ``(r, length)`` | axis along z, centred at the origin |
 | ``"capsule"`` | ``(r, length)`` | the points within ``r`` of the z segment of that length |
-| ``"mesh"`` | ``(sx, sy, sz)`` scale | the **convex hull** of the mesh file's vertices (scaled; a negative factor mirrors, as URDFs' ``scale="1 -1 1"`` do) |
+| ``"mesh"`` | ``(sx, sy, sz)`` scale (< 0: mirror) | the **convex hull** of the file's vertices (scaled) |
 | ``"points"`` | ``(r,)`` | a sphere of radius ``r`` around each of the ``points`` (``(N, 3)``) |
 
 Meshes are taken as their convex hulls: robots' collision meshes are convex already (URDF

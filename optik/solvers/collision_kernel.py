@@ -16,7 +16,8 @@ is built in three pieces:
   trial (`_trial_function`), accepted as in `optik.solvers.lm_kernel.lm_iteration_function`
   (same inputs and outputs).
 
-Target parameters: the 12 of each frame target (`optik.problem.target_parameters`), then the ``capacity * SLOT_SIZE`` slot values.
+Target parameters: the 12 of each frame target (`optik.problem.target_parameters`), then the
+``capacity * SLOT_SIZE`` slot values.
 """
 
 from __future__ import annotations

@@ -77,7 +77,7 @@ def ball_pass(steps: int = 200, length: float = 0.5, radius: float = 0.05, offse
     tool point ``length`` m along y at a fixed orientation in ``steps`` samples of 0.01 s, the line
     centred on the tool point at `BALL_Q`; a ball of radius ``radius`` sits at the middle, its
     surface ``offset`` m beside the line (along x), so that the hand meets it unless it avoids it.
-    ``q0`` is the IK solution (from `BALL_Q`) of the first sample.
+    ``q0`` is the IK solution (from `BALL_Q`, within 10 s) of the first sample.
 
     Raises:
         MissingExtraError: example-robot-data is not installed.
@@ -89,7 +89,7 @@ def ball_pass(steps: int = 200, length: float = 0.5, radius: float = 0.05, offse
     )
     start = m.fk(BALL_Q)
     start[1, 3] -= length / 2
-    res = solve_ik(m, start, q0=BALL_Q)
+    res = solve_ik(m, start, q0=BALL_Q, time_limit=10.0)  # the first call may build code: no tight clock
     if not res.success:
         raise ModelError(f"the start of the ball path is not reachable: {res.message}")
     path = np.repeat(start[None], steps, axis=0)

@@ -159,9 +159,26 @@ def _find_axis_joint(m: Mechanism, free_axis: str, frame: str | None, seed: int)
 
 def _turned(m: Mechanism, q: np.ndarray, turn: np.ndarray, j: int) -> np.ndarray:
     """Angle ``j`` of the rows ``q (R,)`` turned by each of ``turn (T,)``, shifted by whole turns
-    into its limits ``(R, T)`` (NaN where it does not fit)."""
-    v = (q[:, None] + turn[None, :])[..., None]
-    return into_limits(v, m.lower[j : j + 1], m.upper[j : j + 1], np.ones(1, dtype=bool))[..., 0]
+    into its limits ``(R, T)`` (NaN where it does not fit).
+
+    ``q`` lies within the limits and ``|turn| < 2 pi``, so one step of ``2 pi`` brings most sums
+    ``v = q + turn`` into ``(-pi, pi]``: that value is kept where it lies within the limits (rule
+    1 of `optik.spatial.wrap_to_limits`, ``wrap_angle(v)`` to a rounding), and only the others go
+    through `optik.path.nodes.into_limits` (a few passes over ``R T`` values instead of its
+    dozens, on every free-axis sample of every pose)."""
+    lo, hi = m.lower[j], m.upper[j]
+    v = q[:, None] + turn[None, :]
+    v -= _TURN * (v > np.pi)
+    v += _TURN * (v <= -np.pi)
+    ok = (v > -np.pi) & (v <= np.pi) & (v >= lo) & (v <= hi)
+    if not ok.all():
+        bad = ~ok
+        raw = (q[:, None] + turn[None, :])[bad][:, None]
+        v[bad] = into_limits(raw, m.lower[j : j + 1], m.upper[j : j + 1], np.ones(1, dtype=bool))[:, 0]
+    return v
+
+
+_TURN = 2.0 * np.pi
 
 
 def sample_solutions(

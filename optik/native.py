@@ -75,6 +75,7 @@ interposition: a call from optik's C into a generated function of the same libra
 another library's function of the same name could stand in for it. The libraries are loaded
 with ``RTLD_LOCAL`` (``ctypes``' default) and nothing relies on interposing their symbols."""
 _LOG = logging.getLogger(__name__)
+_PACKAGE = Path(__file__).resolve().parent  # the optik package: the root of `source_digest`'s sources
 _BUILDS: dict[Path, Library] = {}  # every library this process loaded or built, by path
 _BUILDS_LOCK = threading.Lock()
 _RUNNING: dict[subprocess.Popen, Path] = {}  # compiler processes at work -> their temporary folder
@@ -489,6 +490,23 @@ def source_library(
         return None
     lib = _library(source, stem, cc, compile, False, flags)
     return None if lib is None else lib.wait()
+
+
+def source_digest(sources: Sequence[str], *parts: object) -> str:
+    """The key of generated code for `keyed_library`: the SHA-256 of CasADi's version and
+    ``parts`` (as text, NUL-separated), then the bytes of each file of ``sources``.
+
+    Args:
+        sources: the files the code is generated from, relative to the ``optik`` package.
+        parts: what else selects the code (a joint count, a task structure).
+
+    Raises:
+        OSError: a source cannot be read (a partial install).
+    """
+    h = hashlib.sha256("\0".join([ca.__version__, *map(str, parts)]).encode())
+    for rel in sources:
+        h.update((_PACKAGE / rel).read_bytes())
+    return h.hexdigest()
 
 
 def keyed_library(stem: str, key: str, make_source: Callable[[], str]) -> Library | None:

@@ -3,6 +3,7 @@ evaluator while a library builds in the background, and for good without a compi
 
 from __future__ import annotations
 
+import hashlib
 import logging
 from pathlib import Path
 
@@ -252,3 +253,18 @@ def test_compiler_version_is_kept_per_executable(monkeypatch: pytest.MonkeyPatch
     native.compiler_version.cache_clear()
     assert native.compiler_version(str(cc)) == "fakecc 2.0 (upgraded)"
     native.compiler_version.cache_clear()
+
+
+def test_source_digest_keys_generated_code_by_its_sources_and_parts() -> None:
+    """One digest for the generic kernels' caches: SHA-256 of CasADi's version, the parts and
+    the source files' bytes (the same keys the chain kernel and QP stack used before, so their
+    cached libraries stay valid); another part or source is another key; a missing source raises."""
+    package = Path(optik.__file__).resolve().parent
+    want = hashlib.sha256(f"{ca.__version__}\0{7}\0{('a', 1)!r}".encode())
+    for rel in ("spatial.py", "native.py"):
+        want.update((package / rel).read_bytes())
+    assert native.source_digest(("spatial.py", "native.py"), 7, ("a", 1)) == want.hexdigest()
+    assert native.source_digest(("spatial.py",), 7) != native.source_digest(("spatial.py",), 8)
+    assert native.source_digest(("spatial.py",), 7) != native.source_digest(("native.py",), 7)
+    with pytest.raises(OSError):
+        native.source_digest(("no_such_file.py",), 7)

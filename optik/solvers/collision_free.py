@@ -302,8 +302,6 @@ def solve_collision_free(
         raise SolverUnavailableError(
             f"method {method!r} takes no collision constraints; use one of {METHODS}"
         )
-    if request.multi_target:
-        raise SolverUnavailableError("collision-aware IK solves one frame target at a time")
     if world is not None and not isinstance(world, World):
         raise InvalidArgumentError("world", f"expected an optik.World or None, got {type(world).__name__}")
     mg = as_float(margin, "margin", 0.0)

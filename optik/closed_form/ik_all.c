@@ -11,6 +11,7 @@
  * and documents the algorithm. Reentrant: all memory is on the stack.
  */
 #include <math.h>
+#include <stdint.h>
 #include <string.h>
 
 /* in: [t (16, row-major), q0 (6), lower (6), upper (6), conf (OPTIK_NCONF)] */
@@ -143,8 +144,11 @@ CASADI_SYMBOL_EXPORT int optik_ik_all(const double *in, double *out) {
   casadi_int iw[OPTIK_IW + 1];
   double w[OPTIK_W + 1], raw[6 * B], kept[6 * B], err[2 * B], e[2];
   const double *arg[2] = {t, 0};
-  int n = 0, passed[B], n_cs = 0, from[B], evaluated[OPTIK_G] = {0};
-  double cs[12 * B]; /* cosines, then sines, of the checked candidates' angles */
+  int n = 0, passed[B], evaluated[OPTIK_G] = {0}, n_seen[6] = {0};
+  /* per joint, the distinct angles of the checked candidates (their bits) and their cosines
+   * and sines */
+  uint64_t seen[6][B];
+  double seen_cos[6][B], seen_sin[6][B], c[12];
   for (int b = 0; b < B; ++b) {
     passed[b] = 0;
     if (optik_stand_in[b] >= 0 && passed[optik_stand_in[b]]) continue;
@@ -159,20 +163,21 @@ CASADI_SYMBOL_EXPORT int optik_ik_all(const double *in, double *out) {
     for (int k = 0; k < 6; ++k) finite &= isfinite(q[k]);
     if (!finite) continue;
     /* candidates share angles (an elbow flip keeps the shoulder angle): the cosine and sine of
-     * an angle equal to one already evaluated are copied, the others evaluated */
-    double *c = cs + 12 * n_cs;
+     * an angle equal to one already evaluated (the same bits) are copied, the others evaluated */
     for (int k = 0; k < 6; ++k) {
+      uint64_t bits;
+      memcpy(&bits, q + k, sizeof bits);
       int j = 0;
-      while (j < n_cs && memcmp(raw + 6 * optik_row[from[j]] + k, q + k, sizeof(double)) != 0) ++j; /* same bits */
-      if (j < n_cs) {
-        c[k] = cs[12 * j + k];
-        c[6 + k] = cs[12 * j + 6 + k];
-      } else {
-        c[k] = cos(q[k]);
-        c[6 + k] = sin(q[k]);
+      while (j < n_seen[k] && seen[k][j] != bits) ++j;
+      if (j == n_seen[k]) {
+        seen[k][j] = bits;
+        seen_cos[k][j] = cos(q[k]);
+        seen_sin[k][j] = sin(q[k]);
+        ++n_seen[k];
       }
+      c[k] = seen_cos[k][j];
+      c[6 + k] = seen_sin[k][j];
     }
-    from[n_cs++] = b;
     const double *carg[2] = {c, t};
     double *cres[1] = {e};
     if (OPTIK_CHECK(carg, cres, iw, w, 0)) return -1;

@@ -58,6 +58,7 @@ import subprocess
 import tempfile
 import threading
 import time
+import uuid
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -76,6 +77,7 @@ interposition: a call from optik's C into a generated function of the same libra
 another library's function of the same name could stand in for it. The libraries are loaded
 with ``RTLD_LOCAL`` (``ctypes``' default) and nothing relies on interposing their symbols."""
 _LOG = logging.getLogger(__name__)
+_PACKAGE = Path(__file__).resolve().parent  # the optik package: the root of `source_digest`'s sources
 _BUILDS: dict[Path, Library] = {}  # every library this process loaded or built, by path
 _BUILDS_LOCK = threading.Lock()
 _RUNNING: dict[subprocess.Popen, Path] = {}  # compiler processes at work -> their temporary folder
@@ -108,13 +110,32 @@ def deadline(at: float | None) -> Iterator[None]:
 
 def compiler() -> str | None:
     """The C compiler: ``$CC`` or ``gcc``/``cc`` on the PATH; None when there is none or
-    ``$OPTIK_NO_CODEGEN`` is set (then everything runs in CasADi's evaluator)."""
+    ``$OPTIK_NO_CODEGEN`` is set (then everything runs in CasADi's evaluator).
+
+    The PATH search runs once per value of ``$CC`` and ``$PATH``; later calls only check that the
+    executable it found is still an executable file, and search again when it is not (removed,
+    replaced), so a stale answer is never returned. Without a compiler every call searches (one
+    installed meanwhile is found). Thread-safe.
+    """
     if os.environ.get("OPTIK_NO_CODEGEN"):
         return None
-    for cand in (os.environ.get("CC"), "gcc", "cc"):
-        if cand and shutil.which(cand):
-            return cand
+    key = (os.environ.get("CC"), os.environ.get("PATH"))
+    found = _COMPILERS.get(key)
+    if found is not None and os.path.isfile(found[1]) and os.access(found[1], os.X_OK):
+        return found[0]
+    with _COMPILERS_LOCK:
+        _COMPILERS.pop(key, None)
+        for cand in (key[0], "gcc", "cc"):
+            path = shutil.which(cand) if cand else None
+            if path:
+                _COMPILERS[key] = (cand, path)
+                return cand
     return None
+
+
+_COMPILERS: dict[tuple[str | None, str | None], tuple[str, str]] = {}
+"""`compiler`'s answers by ``($CC, $PATH)``: the name returned and the executable it found."""
+_COMPILERS_LOCK = threading.Lock()
 
 
 _CACHE_DIR: contextvars.ContextVar[Path | None] = contextvars.ContextVar("optik_cache_dir", default=None)
@@ -147,7 +168,11 @@ def compiler_version(cc: str) -> str:
     first solve or first `optik.diffik.step` of a fresh process would wait for: the answer is
     kept in the cache directory, in ``compilers/<hash>.txt`` keyed by the compiler executable's
     resolved path, size and modification time (an upgraded compiler is a new key), written
-    atomically; a missing or unreadable record runs the compiler again."""
+    atomically; a missing or unreadable record runs the compiler again. The record has the mode
+    of the libraries' manifests beside it, ``0666`` less the umask: in a cache that several
+    users share through ``$OPTIK_CACHE_DIR`` (a group umask such as ``002``), each reads the
+    others' records instead of running the compiler, and only the owner (and group, if the
+    umask allows) can change one; a compiler's version string is no secret."""
     memo = _version_memo(cc)
     if memo is not None:
         with contextlib.suppress(OSError):
@@ -160,8 +185,9 @@ def compiler_version(cc: str) -> str:
     if memo is not None and out.returncode == 0:
         with contextlib.suppress(OSError):
             memo.parent.mkdir(exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=memo.parent, prefix=".version-")
-            with os.fdopen(fd, "w") as f:
+            tmp = memo.parent / f".version-{uuid.uuid4().hex}"
+            # os.open applies the umask to 0666 (mkstemp would make it 0600, private to one user)
+            with os.fdopen(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666), "w") as f:
                 f.write(version)
             os.replace(tmp, memo)
     return version
@@ -490,6 +516,23 @@ def source_library(
         return None
     lib = _library(source, stem, cc, compile, False, flags)
     return None if lib is None else lib.wait()
+
+
+def source_digest(sources: Sequence[str], *parts: object) -> str:
+    """The key of generated code for `keyed_library`: the SHA-256 of CasADi's version and
+    ``parts`` (as text, NUL-separated), then the bytes of each file of ``sources``.
+
+    Args:
+        sources: the files the code is generated from, relative to the ``optik`` package.
+        parts: what else selects the code (a joint count, a task structure).
+
+    Raises:
+        OSError: a source cannot be read (a partial install).
+    """
+    h = hashlib.sha256("\0".join([ca.__version__, *map(str, parts)]).encode())
+    for rel in sources:
+        h.update((_PACKAGE / rel).read_bytes())
+    return h.hexdigest()
 
 
 def keyed_library(stem: str, key: str, make_source: Callable[[], str]) -> Library | None:

@@ -490,3 +490,19 @@ def test_a_world_state_is_one_version():
     assert report_at(geo, q, before, 0.0, True).in_collision
     assert not report_at(geo, q, after, 0.0, True).in_collision
     assert not check(m, q, w).in_collision
+
+
+def test_negative_mesh_scale_mirrors_the_hull(tmp_path):
+    """A URDF ``scale="1 -1 1"`` (TALOS's mirrored meshes) is the hull with y negated; 0 is refused."""
+    from optik.collision.shapes import Shape, shape_vertices
+
+    path = tmp_path / "wedge.obj"  # an asymmetric tetrahedron
+    vertices = "v 0 0 0\nv 0.3 0.05 0\nv 0.02 0.2 0.01\nv 0.05 0.07 0.4\n"
+    path.write_text(vertices + "f 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n")
+    plain, _ = shape_vertices(Shape("mesh", (1.0, 1.0, 1.0), path=path))
+    mirrored, _ = shape_vertices(Shape("mesh", (1.0, -1.0, 1.0), path=path))
+    flip = plain * np.array([1.0, -1.0, 1.0])
+    assert len(mirrored) == len(plain) == 4
+    assert {tuple(np.round(v, 12)) for v in mirrored} == {tuple(np.round(v, 12)) for v in flip}
+    with pytest.raises(InvalidArgumentError, match="nonzero"):
+        Shape("mesh", (1.0, 0.0, 1.0), path=path)

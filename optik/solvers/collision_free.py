@@ -301,8 +301,6 @@ def solve_collision_free(
         raise SolverUnavailableError(
             f"method {method!r} takes no collision constraints; use one of {METHODS}"
         )
-    if request.multi_target:
-        raise SolverUnavailableError("collision-aware IK solves one frame target at a time")
     state = state_of(world)  # the one version of the world this solve reads
     mg = as_float(margin, "margin", 0.0)
     request, buffer = _split_options(request)

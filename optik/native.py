@@ -808,6 +808,56 @@ class Binding:
         self._call()
 
 
+class CFunction:
+    """One function of a hand-written C file (reentrant, called through ``ctypes``), compiled
+    once per machine in the background the first time it is asked for (`keyed_library`, keyed by
+    the file's text, so an edited file is a new library).
+
+    `get` never waits: None until the library is loaded, and for good without a C compiler, when
+    the file cannot be read or when the build failed (each logged); the caller then takes its
+    Python path. Thread-safe.
+
+    Args:
+        path: the C file.
+        stem: file name stem of the library in `cache_dir`.
+        symbol: the function's name.
+        argtypes, restype: its ``ctypes`` signature.
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        stem: str,
+        symbol: str,
+        argtypes: Sequence[type],
+        restype: type | None = ctypes.c_int,
+    ) -> None:
+        self.path, self.stem, self.symbol = path, stem, symbol
+        self.argtypes, self.restype = list(argtypes), restype
+        self.library: Library | None = None
+        self._fn: ctypes._CFuncPtr | None = None
+        self._started = False
+        self._lock = threading.Lock()
+
+    def get(self) -> ctypes._CFuncPtr | None:
+        """The function once its library is loaded, else None (see the class)."""
+        if self._fn is not None:
+            return self._fn
+        if not self._started:
+            with self._lock:
+                if not self._started:
+                    text = driver_source(self.path)
+                    self.library = None if text is None else keyed_library(self.stem, text, lambda: text)
+                    self._started = True
+        lib = self.library
+        if lib is None or lib.state != "ready":
+            return None
+        fn = getattr(lib.get(), self.symbol)
+        fn.argtypes, fn.restype = self.argtypes, self.restype
+        self._fn = fn
+        return fn
+
+
 def native_functions(functions: list[ca.Function], compile: bool | str = "auto") -> list[NativeFunction]:
     """`NativeFunction` wrappers of several functions compiled into one library.
 

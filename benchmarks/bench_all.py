@@ -227,7 +227,7 @@ RUNS: tuple[Run, ...] = (
     ),
     Run(
         "collision_qp",
-        "QP differential IK past an obstacle, Panda: velocity dampers against the plain QP step",
+        "QP differential IK past an obstacle, Panda: optik's dampers and Pink's collision barrier, same path",
         ("--steps", "200", "--repeats", "3"),
         ("--steps", "50", "--repeats", "1"),
         in_readme=False,

@@ -363,7 +363,7 @@ def test_turned_angles_are_into_limits_to_a_rounding(arm, request):
         q = np.concatenate([rng.uniform(lo, hi, 400), [lo, hi, 0.0, np.pi, -np.pi]])
         q = q[(q >= m.lower[j]) & (q <= m.upper[j])]
         for turn in (np.arange(36) * np.pi / 18, -np.arange(12) * np.pi / 6):
-            got = samples._turned(m, q, turn, j)
+            got = samples._turned(m, q[:, None], turn[None], j)
             want = into_limits((q[:, None] + turn)[..., None], m.lower[j : j + 1], m.upper[j : j + 1],
                                np.ones(1, dtype=bool))[..., 0]  # fmt: skip
             both = np.isfinite(got) & np.isfinite(want)

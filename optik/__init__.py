@@ -26,7 +26,7 @@ from optik.path import JointPath, plan_path
 from optik.problem import IKProblem, build_ik_problem
 from optik.reach import ReachMap, reach
 from optik.results import FKModes, FKResult, IKResult, IKSolutions, IKSolutionsBatch
-from optik.solvers import Tolerances, self_motion, solve_ik, solve_ik_all, solve_ik_all_batch
+from optik.solvers import AllSolutions, Tolerances, self_motion, solve_ik, solve_ik_all, solve_ik_all_batch
 from optik.solvers.fk import solve_fk, solve_fk_all
 from optik.targets import Pose2D, Position
 from optik.view import view
@@ -34,6 +34,7 @@ from optik.view import view
 __version__ = "0.1.0"
 
 __all__ = [
+    "AllSolutions",
     "BatchResult",
     "FKModes",
     "FKResult",

@@ -9,8 +9,10 @@ import pytest
 
 import optik
 from optik import spatial
-from optik.collision import World, check
+from optik.collision import World, check, check_many, robot_geometry
+from optik.collision.distance import signed_distance
 from optik.diffik.collision import damper_rows
+from optik.diffik.scenarios import ball_pass
 from optik.errors import InvalidArgumentError
 
 pytest.importorskip("coal", reason="collision checks need coal (extra 'collision')")
@@ -73,3 +75,75 @@ def test_bad_damper_arguments(arm):
         optik.diffik.step(arm, np.zeros(2), [task], 0.01, world=w, collision_gain=1.5)
     with pytest.raises(InvalidArgumentError, match="world"):
         optik.diffik.step(arm, np.zeros(2), [task], 0.01, method="dls", world=w)
+
+
+@pytest.fixture(scope="module")
+def ball():
+    try:
+        return ball_pass(steps=80, length=0.3)
+    except optik.MissingExtraError:
+        pytest.skip("example-robot-data (extra 'robots') is not installed")
+
+
+def _exact_pairs(m, q, world, influence):
+    """``(d, part a, part b or obstacle, world)`` of every pair within ``influence``, closest first,
+    from coal on the geometry's own part poses (not the dampers' compiled kernel)."""
+    geo = robot_geometry(m)
+    poses = geo.part_poses(q)
+    moving = [m.frames[geo.links[k]][0] != m.base for k in geo.part_link]
+    out = [
+        (signed_distance(geo.parts[i], poses[i], geo.parts[j], poses[j])[0], i, j, False)
+        for i, j in geo.self_pairs
+    ]
+    for i in np.flatnonzero(moving):
+        for j, o in enumerate(world.parts()):
+            out.append((signed_distance(geo.parts[i], poses[i], o, o.offset)[0], i, j, True))
+    return sorted(p for p in out if p[0] < influence)
+
+
+def _pair_distance(m, q, pair, world):
+    geo = robot_geometry(m)
+    poses = geo.part_poses(q)
+    _, i, j, in_world = pair
+    other, pose = (world.parts()[j], world.parts()[j].offset) if in_world else (geo.parts[j], poses[j])
+    return signed_distance(geo.parts[i], poses[i], other, pose)[0]
+
+
+def test_panda_damper_rows_are_the_distance_gradients(ball):
+    """On the Panda beside the ball, with a wide influence (self pairs and the ball): one row per pair
+    within it, ordered by distance, each ``-G`` row the central difference of that pair's exact
+    distance (coal on the geometry's part poses), ``h = gamma (d - margin)``."""
+    m, w = ball.m, ball.world
+    out = optik.diffik.track(m, ball.q0, ball.path, ball.dt, world=w, margin=MARGIN)
+    influence, eps = 0.15, 1e-5
+    kinds = set()
+    for q in (out.q[len(out.q) // 2], out.q[-1], *m.random_q(4, seed=3)):
+        g, h, d_min = damper_rows(m, q, w, True, MARGIN, influence=influence, gain=0.3)
+        pairs = _exact_pairs(m, q, w, influence)
+        assert g.shape == (len(pairs), m.n_q)
+        assert d_min == pytest.approx(pairs[0][0], abs=1e-9)
+        for row, rhs, pair in zip(g, h, pairs, strict=True):
+            kinds.add(pair[3])
+            assert rhs == pytest.approx(0.3 * (pair[0] - MARGIN), abs=1e-9)
+            for j in range(m.n_q):
+                dq = np.zeros(m.n_q)
+                dq[j] = eps
+                slope = (_pair_distance(m, q + dq, pair, w) - _pair_distance(m, q - dq, pair, w)) / (2 * eps)
+                assert -row[j] == pytest.approx(slope, abs=2e-4)
+    assert kinds == {False, True}  # both self and world rows were checked
+
+
+@pytest.mark.parametrize("dampers", [False, True])
+def test_panda_ball_pass_keeps_the_margin(ball, dampers):
+    """The benchmark's path (shortened): with dampers every configuration is clear of the ball and of
+    the robot itself by the margin (exact check, no tolerance) and within the limits; without them
+    the hand goes through the ball."""
+    m, w = ball.m, ball.world
+    kw = {"world": w, "margin": MARGIN} if dampers else {}
+    out = optik.diffik.track(m, ball.q0, ball.path, ball.dt, **kw)
+    dist = check_many(m, out.q, w).min_distance
+    if dampers:
+        assert dist.min() >= MARGIN
+        assert out.within_limits and all(s == "ok" for s in out.status)
+    else:
+        assert dist.min() < 0

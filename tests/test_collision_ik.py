@@ -186,3 +186,33 @@ def test_reach_with_a_world_counts_only_clear_answers(toy_arm_urdf):
     assert inside.any() and not walled.success[inside].any() and free.success[inside].any()
     with pytest.raises(InvalidArgumentError, match="world"):
         optik.reach(arm, world="wall", **kw)
+
+
+@pytest.mark.parametrize("method", ["lm", "nlp"])
+def test_dual_panda_both_hands_clear_of_each_other(method):
+    """Several frame targets at once with self-collisions: both hands of the dual Panda placed,
+    each success recomputed from q (both FKs, the limits, the exact check at the margin)."""
+    m = optik.catalog.dual_panda()
+    if not len(optik.collision.robot_geometry(m).links) > 4:
+        pytest.skip("the Panda meshes of example-robot-data are not installed (extra 'robots')")
+    rng = np.random.default_rng(3)
+    solved = tried = 0
+    while tried < 3:
+        q = m.random_q(seed=rng)
+        report = check(m, q, margin=MARGIN)
+        if report.in_collision or report.min_distance > 0.05:  # clear, and near its own body
+            continue
+        tried += 1
+        targets = {f: m.fk(q, f) for f in ("left_tool", "right_tool")}
+        res = optik.solve_ik(m, targets, self_collision=True, margin=MARGIN, method=method, time_limit=5.0)
+        if not res.success:
+            continue
+        solved += 1
+        for frame, target in targets.items():
+            pose = m.fk(res.q, frame)
+            assert np.linalg.norm(pose[:3, 3] - target[:3, 3]) <= 1e-6
+            assert spatial.angle_between(pose[:3, :3], target[:3, :3]) <= 1e-6
+        assert np.all(res.q >= m.lower) and np.all(res.q <= m.upper)
+        exact = check(m, res.q, margin=MARGIN)
+        assert not exact.in_collision and exact.min_distance >= MARGIN
+    assert solved >= 2

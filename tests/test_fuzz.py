@@ -5,15 +5,13 @@ is ``python tests/fuzz/long_run.py --calls 100000`` (docs/reliability.md)."""
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, Phase, given, settings
 
 import optik
 from fuzz import harness as fuzzing
-from fuzz.harness import ENTRIES, Call, Tally, classify
+from fuzz.harness import ENTRIES, Call, Tally, classify, spin
 
 EXAMPLES = {
     "cli (subprocess)": 3,
@@ -78,4 +76,4 @@ def test_classifier_finds_each_kind_of_failure() -> None:
     assert classify(Call("x", raise_optik_error)).kind == "optik_error"
     assert classify(Call("x", fake_success, check)).kind == "false_success"
     assert classify(Call("x", lambda: optik.solve_ik(m, target), check)).kind == "ok"
-    assert classify(Call("x", lambda: time.sleep(0.6), limit=0.01)).kind == "overtime"
+    assert classify(Call("x", lambda: spin(0.6), limit=0.01)).kind == "overtime"

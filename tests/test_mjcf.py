@@ -186,7 +186,7 @@ def test_unnamed_objects_and_notes():
     assert set(m.topology.bodies) == {"world", "body1", "body2"} and "site0" in m.frames
     np.testing.assert_allclose(m.upper[:3], np.radians(30))  # degrees by default, as in MuJoCo
     notes = " ".join(m.params["notes"])
-    assert "ball joint 'joint0'" in notes and "1 tendon(s)" in notes
+    assert "ball joint 'joint0'" in notes and "1 of 1 tendon(s) are not modelled ('tendon0')" in notes
     model = mujoco.MjModel.from_xml_string(xml)
     d = _mj_poses(model, to_qpos(m, [0.1, -0.2, 0.3, 0.7]))
     np.testing.assert_allclose(m.fk([0.1, -0.2, 0.3, 0.7], "site0")[:3, 3], d.site_xpos[0], atol=1e-12)
@@ -331,17 +331,22 @@ def test_commands_take_mjcf_files(tmp_path):
         load_source(str(tmp_path / "missing.xml"), None, None)
 
 
-COUPLED_FINGERS = """<mujoco><compiler angle="radian"/>
+FREE_TENDON = """<fixed name="free"><joint joint="wrist" coef="1"/><joint joint="thumb" coef="1"/>
+    <joint joint="finger" coef="1"/></fixed>"""
+COUPLED_FINGERS = (
+    """<mujoco><compiler angle="radian"/>
 <worldbody><body name="palm"><joint name="wrist" axis="0 0 1"/><geom size="0.02"/>
   <body name="thumb" pos="0.1 0 0"><joint name="thumb" axis="0 1 0" range="-1 1"/><geom size="0.02"/>
     <site name="thumb_tip" pos="0.05 0 0"/></body>
   <body name="finger" pos="0.1 0.05 0"><joint name="finger" axis="0 1 0" range="-1 1" ref="0.2"/>
     <geom size="0.02"/><site name="finger_tip" pos="0.05 0 0"/></body></body></worldbody>
 <tendon><fixed name="grip"><joint joint="thumb" coef="-0.5"/><joint joint="finger" coef="0.7"/></fixed>
-  <fixed name="free"><joint joint="wrist" coef="1"/><joint joint="thumb" coef="1"/>
-    <joint joint="finger" coef="1"/></fixed></tendon>
+  """
+    + FREE_TENDON
+    + """</tendon>
 <equality><tendon name="coupling" tendon1="grip" polycoef="0.03 0 0 0 0"/>
   <tendon name="three" tendon1="free" active="false"/></equality></mujoco>"""
+)
 
 
 def test_fixed_tendon_equality_is_a_coupling():
@@ -360,3 +365,23 @@ def test_fixed_tendon_equality_is_a_coupling():
         assert (
             np.abs(m.fk(q, "finger_tip")[:3, 3] - data.site_xpos[model.site("finger_tip").id]).max() < 1e-12
         )
+
+
+def test_tendon_notes_name_only_the_tendons_not_made_couplings():
+    """The note on tendons counts and names those that are not couplings, and says what of them
+    is lost (a length range, an actuator); a model whose tendons are all couplings has none."""
+    notes = optik.Mechanism.from_mjcf(COUPLED_FINGERS).params["notes"]
+    tendon_notes = [n for n in notes if "tendon(s)" in n]
+    assert tendon_notes == [
+        "1 of 2 tendon(s) are not modelled ('free'): no coupling, constraint or limit comes from their "
+        "lengths"
+    ]
+    limited = COUPLED_FINGERS.replace('<fixed name="free">', '<fixed name="free" range="-1 1">').replace(
+        "</equality>", '</equality><actuator><motor tendon="free"/></actuator>'
+    )
+    (note,) = [n for n in optik.Mechanism.from_mjcf(limited).params["notes"] if "tendon(s)" in n]
+    assert "the length range of 'free' is not enforced" in note and "actuators on 'free' drive" in note
+    only_grip = COUPLED_FINGERS.replace(FREE_TENDON, "").replace(
+        '<tendon name="three" tendon1="free" active="false"/>', ""
+    )
+    assert not any("tendon(s)" in n for n in optik.Mechanism.from_mjcf(only_grip).params["notes"])

@@ -351,6 +351,32 @@ def test_axis_shortcut_equals_one_ik_per_sample(ur5, puma):
                 assert d.min(axis=1).max() < 1e-9 and d.min(axis=0).max() < 1e-9
 
 
+@pytest.mark.parametrize("arm", ["ur5", "ur5_limited", "puma560", "panda"])
+def test_turned_angles_are_into_limits_to_a_rounding(arm, request):
+    """The axis-joint copies (one 2 pi step, the rest through into_limits) are into_limits' values
+    to a rounding, within the limits, the same angle modulo 2 pi; a value into_limits drops is
+    kept only when it lies on a limit (into_limits' wrap can round it just past it)."""
+    m = request.getfixturevalue(arm) if arm.startswith("ur5") else getattr(optik.catalog, arm)()
+    rng = np.random.default_rng(3)
+    for j in range(m.n_q):
+        lo, hi = max(m.lower[j], -10.0), min(m.upper[j], 10.0)
+        q = np.concatenate([rng.uniform(lo, hi, 400), [lo, hi, 0.0, np.pi, -np.pi]])
+        q = q[(q >= m.lower[j]) & (q <= m.upper[j])]
+        for turn in (np.arange(36) * np.pi / 18, -np.arange(12) * np.pi / 6):
+            got = samples._turned(m, q[:, None], turn[None], j)
+            want = into_limits((q[:, None] + turn)[..., None], m.lower[j : j + 1], m.upper[j : j + 1],
+                               np.ones(1, dtype=bool))[..., 0]  # fmt: skip
+            both = np.isfinite(got) & np.isfinite(want)
+            assert np.abs(got - want)[both].max(initial=0.0) <= 1e-15
+            assert not np.any(np.isfinite(want) & ~np.isfinite(got))
+            extra = got[np.isfinite(got) & ~np.isfinite(want)]
+            assert np.all((extra == m.lower[j]) | (extra == m.upper[j]))
+            fin = got[np.isfinite(got)]
+            assert np.all((fin >= m.lower[j]) & (fin <= m.upper[j]))
+            step = (got - q[:, None] - turn) / (2 * np.pi)
+            assert np.abs(step - np.round(step))[np.isfinite(got)].max(initial=0.0) <= 1e-14
+
+
 def test_uniform_layers_equal_the_general_gather(ur5):
     """The broadcast built when every pose has as many solutions is the general gather's answer."""
     m = ur5

@@ -147,6 +147,62 @@ def test_wrap_to_limits_keeps_a_rounding_past_a_limit_beyond_pi_on_its_side():
     )
 
 
+entries = st.one_of(
+    st.floats(-60, 60),
+    st.sampled_from([np.pi, -np.pi, 0.0, -0.0, 3.7525 + 6e-8, -3.9, np.nan, np.inf, -np.inf]),
+)
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(
+    shape=st.lists(st.integers(1, 5), min_size=0, max_size=3),
+    data=st.data(),
+    limits=st.lists(
+        st.tuples(
+            st.one_of(st.floats(-20, 20), st.sampled_from([-np.pi, -3.9, -0.0175])),
+            st.one_of(st.floats(0, 15), st.sampled_from([0.0, np.inf, 3.7700])),
+            st.booleans(),
+            st.booleans(),
+        ),
+        min_size=1,
+        max_size=4,
+    ),
+)
+def test_wrap_to_limits_is_the_per_entry_rule_over_any_leading_shape(shape, data, limits):
+    """Any ``(..., n)`` array (3+ dimensions too) gives, entry by entry, exactly what
+    `spatial.wrap_into` gives for that angle (NaN for a non-finite one); other coordinates are
+    untouched."""
+    hi = np.array([a + w for a, w, _, _ in limits])
+    lo = np.array([-np.inf if unbounded else a for a, _, unbounded, _ in limits])
+    angular = np.array([m for *_, m in limits])
+    n = len(limits)
+    q = np.array(
+        data.draw(st.lists(entries, min_size=n * int(np.prod(shape)), max_size=n * int(np.prod(shape))))
+    )
+    q = q.reshape((*shape, n))
+    got = spatial.wrap_to_limits(q, lo, hi, angular)
+    assert got.shape == q.shape
+    want = q.copy()
+    for idx in np.ndindex(q.shape):
+        if angular[idx[-1]]:
+            want[idx] = spatial.wrap_into(float(q[idx]), float(lo[idx[-1]]), float(hi[idx[-1]]))
+    np.testing.assert_array_equal(got, want)
+
+
+def test_wrap_to_limits_is_wrap_into_entry_by_entry():
+    """The vectorized rules 1 and 2 give exactly the numbers of the one-angle rule `wrap_into`:
+    entries in and out of (-pi, pi], on +-pi, NaN and inf, limits beyond pi, one-sided and wide."""
+    rng = np.random.default_rng(1)
+    q = rng.uniform(-30.0, 30.0, (4000, 5))
+    q[::7, 1], q[::5, 2], q[::3, 3], q[::11, 4] = np.nan, np.pi, -np.pi, np.inf
+    q[::13, 0] = rng.uniform(-np.pi, np.pi, q[::13, 0].shape)
+    lo = np.array([-2 * np.pi, -0.0175, -3.9, -1.0, -np.pi])
+    hi = np.array([2 * np.pi, 3.7525, 0.8, np.inf, np.pi])
+    got = spatial.wrap_to_limits(q, lo, hi, [True] * 5)
+    want = [[spatial.wrap_into(float(v), lo[k], hi[k]) for k, v in enumerate(row)] for row in q]
+    np.testing.assert_array_equal(got, want)
+
+
 # ---------------------------------------------------------------------------- RPY and ZYZ
 @settings(max_examples=150, deadline=None)
 @given(r=rotations())

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 import optik
-from fuzz.harness import OVERTIME_SLACK, Call, classify
+from fuzz.harness import OVERTIME_SLACK, Call, classify, spin
 from optik import native
 from optik.solvers import lm_kernel
 
@@ -49,9 +49,19 @@ def test_no_call_waits_for_a_compile_past_its_time_limit(monkeypatch, tmp_path, 
 
 def test_the_fuzzer_holds_calls_to_their_limit_plus_the_slack():
     assert OVERTIME_SLACK == 0.25
-    slow = Call("x", lambda: time.sleep(0.05 + OVERTIME_SLACK + 0.1), limit=0.05)
+    slow = Call("x", lambda: spin(0.05 + OVERTIME_SLACK + 0.1), limit=0.05)
     assert classify(slow).kind == "overtime"  # 0.4 s for a 0.05 s limit: within the old 3 x + 0.5 s
-    assert classify(Call("x", lambda: time.sleep(0.06), limit=0.05)).kind == "ok"
+    assert classify(Call("x", lambda: spin(0.06), limit=0.05)).kind == "ok"
+
+
+def test_the_fuzzer_times_work_not_a_busy_machine_and_still_catches_a_hang():
+    """A call kept off the processor past its limit (here: asleep, as a loaded machine keeps it
+    waiting) has not worked past it: ``ok``. One still running at the wall-clock ceiling is a
+    hang, interrupted by the watchdog: ``overtime``, though it used no CPU time."""
+    delayed = classify(Call("x", lambda: time.sleep(0.05 + OVERTIME_SLACK + 0.3), limit=0.05))
+    assert delayed.kind == "ok" and delayed.seconds > 0.05 + OVERTIME_SLACK
+    hang = classify(Call("x", lambda: time.sleep(60.0), limit=0.05), wall_ceiling=2.0)
+    assert hang.kind == "overtime" and "watchdog" in hang.detail
 
 
 def test_the_deadline_is_scoped_and_an_infinite_one_is_no_limit():

@@ -151,7 +151,13 @@ def dual_panda() -> Mechanism:
     The frames ``left_tool`` and ``right_tool`` sit 0.1034 m beyond each flange, turned
     ``-pi/4`` about z (the Panda hand's TCP); every link is a frame and ``ee`` is ``left_tool``.
     Made for several targets at once: ``optik.solve_ik(m, {"left_tool": T1, "right_tool": T2})``.
+
+    Its collision geometry is the Panda's of example-robot-data (extra ``robots``): each link's
+    mesh, the hand and its closed fingers as fixed links below each flange, and the shipped
+    ``dual_panda.srdf`` (that Panda's skipped link pairs, per arm), so collision-aware IK of both
+    hands works: ``optik.solve_ik(m, {...}, self_collision=True, margin=0.01)``.
     """
-    m = Mechanism.from_urdf(urdf_path("dual_panda"))
+    path = urdf_path("dual_panda")
+    m = Mechanism.from_urdf(path, srdf=path.with_suffix(".srdf"))
     m.kind = "dual_panda"
     return m

@@ -404,12 +404,19 @@ class _Compiled:
 def _driver_kernel(solver: DerivedIK) -> AllSolutionsKernel:
     """The driver of `optik.closed_form.ik_all` for ``solver``: its candidates (the symbolic
     kernel, with the cosines and sines it makes remembered, `optik.closed_form.vec3.remembering`)
-    and the FK check of one candidate (on the cosines and sines of its angles), with the check
-    and polish tolerances of `finish`."""
+    in groups (`candidate_groups`: one function for the regular candidates, one for each run of
+    stand-ins, which the driver evaluates only when they are needed) and the FK check of one
+    candidate (on the cosines and sines of its angles), with the check and polish tolerances of
+    `finish`."""
     t = ca.SX.sym("t", 16)
     rt = tuple(tuple(t[4 * i + j] for j in range(3)) for i in range(3))
     pt = (t[3], t[7], t[11])
     raw = solver.branches(rt, pt, v3.remembering(v3.CASADI))
+    stand_ins = solver.stand_ins(len(raw))
+    groups = [
+        (ca.Function(f"optik_ik_branches_{g}", [t], [ca.vertcat(*[a for k in ks for a in raw[k]])]), ks)
+        for g, ks in enumerate(candidate_groups(stand_ins))
+    ]
     # the check takes the cosines and sines of the candidate (the driver evaluates them from q)
     q, cs = ca.SX.sym("q", 6), ca.SX.sym("cs", 12)
     ops = v3.remembering(v3.CASADI)
@@ -417,13 +424,27 @@ def _driver_kernel(solver: DerivedIK) -> AllSolutionsKernel:
     err = solver.errors_c(angles, rt, pt, ops)
     size, span = solver.axes.size, solver.polish_range
     return AllSolutionsKernel(
-        ca.Function("optik_ik_branches", [t], [ca.vertcat(*[a for b in raw for a in b])]),
+        groups,
         ca.Function("optik_ik_check", [cs, t], [ca.vertcat(*err)]),
-        solver.stand_ins(len(raw)),
+        stand_ins,
         (CHECK_TOL * size, CHECK_TOL),
         (span * size, span),
         SAME_TOL,
     )
+
+
+def candidate_groups(stand_ins: tuple[int, ...]) -> list[tuple[int, ...]]:
+    """The candidates split for lazy evaluation: the regular ones (``stand_ins[k] < 0``) first,
+    then each maximal run of consecutive stand-ins (those of one ``(q1, q5)`` pair of
+    `optik.closed_form.three_parallel`, which share their intermediate values)."""
+    groups = [tuple(k for k, s in enumerate(stand_ins) if s < 0)]
+    for k, s in enumerate(stand_ins):
+        if s >= 0:
+            if k > 0 and stand_ins[k - 1] >= 0:
+                groups[-1] += (k,)
+            else:
+                groups.append((k,))
+    return groups
 
 
 def _wrap_sx(a: ca.SX) -> ca.SX:

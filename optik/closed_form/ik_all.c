@@ -1,13 +1,17 @@
 /* optik: every solution of one IK target of a derived closed form, in one call.
  *
- * Compiled together with two CasADi-generated functions: OPTIK_BRANCHES (the 16 entries of a
- * row-major 4x4 target -> the OPTIK_B candidate branches, 6 angles each) and OPTIK_CHECK (the
- * cosines and then the sines of one candidate's 6 angles, and the target -> its position and
- * orientation errors on the product-of-exponentials model). optik/closed_form/ik_all.py defines OPTIK_B, OPTIK_BRANCHES,
- * OPTIK_CHECK, the work sizes OPTIK_IW, OPTIK_W and the table optik_stand_in before this file and
- * documents the algorithm. Reentrant: all memory is on the stack.
+ * Compiled together with CasADi-generated functions: the OPTIK_G functions of optik_group_fn
+ * (the 16 entries of a row-major 4x4 target -> a group of the OPTIK_B candidate branches, 6
+ * angles each: group 0 the regular candidates, the others runs of stand-ins for a singularity)
+ * and OPTIK_CHECK (the cosines and then the sines of one candidate's 6 angles, and the target
+ * -> its position and orientation errors on the product-of-exponentials model).
+ * optik/closed_form/ik_all.py defines OPTIK_B, OPTIK_G, OPTIK_CHECK, the work sizes OPTIK_IW,
+ * OPTIK_W and the tables optik_group_fn, optik_group_at (a group's first row in raw),
+ * optik_group, optik_row (each candidate's group and row) and optik_stand_in before this file,
+ * and documents the algorithm. Reentrant: all memory is on the stack.
  */
 #include <math.h>
+#include <stdint.h>
 #include <string.h>
 
 /* in: [t (16, row-major), q0 (6), lower (6), upper (6), conf (OPTIK_NCONF)] */
@@ -140,32 +144,40 @@ CASADI_SYMBOL_EXPORT int optik_ik_all(const double *in, double *out) {
   casadi_int iw[OPTIK_IW + 1];
   double w[OPTIK_W + 1], raw[6 * B], kept[6 * B], err[2 * B], e[2];
   const double *arg[2] = {t, 0};
-  double *res[1] = {raw};
-  if (OPTIK_BRANCHES(arg, res, iw, w, 0)) return -1;
-  int n = 0, passed[B], n_cs = 0, from[B];
-  double cs[12 * B]; /* cosines, then sines, of the checked candidates' angles */
+  int n = 0, passed[B], evaluated[OPTIK_G] = {0}, n_seen[6] = {0};
+  /* per joint, the distinct angles of the checked candidates (their bits) and their cosines
+   * and sines */
+  uint64_t seen[6][B];
+  double seen_cos[6][B], seen_sin[6][B], c[12];
   for (int b = 0; b < B; ++b) {
-    const double *q = raw + 6 * b;
     passed[b] = 0;
     if (optik_stand_in[b] >= 0 && passed[optik_stand_in[b]]) continue;
+    const int g = optik_group[b];
+    if (!evaluated[g]) { /* the group's candidates, when the first of them is needed */
+      double *res[1] = {raw + 6 * optik_group_at[g]};
+      if (optik_group_fn[g](arg, res, iw, w, 0)) return -1;
+      evaluated[g] = 1;
+    }
+    const double *q = raw + 6 * optik_row[b];
     int finite = 1;
     for (int k = 0; k < 6; ++k) finite &= isfinite(q[k]);
     if (!finite) continue;
     /* candidates share angles (an elbow flip keeps the shoulder angle): the cosine and sine of
-     * an angle equal to one already evaluated are copied, the others evaluated */
-    double *c = cs + 12 * n_cs;
+     * an angle equal to one already evaluated (the same bits) are copied, the others evaluated */
     for (int k = 0; k < 6; ++k) {
+      uint64_t bits;
+      memcpy(&bits, q + k, sizeof bits);
       int j = 0;
-      while (j < n_cs && memcmp(raw + 6 * from[j] + k, q + k, sizeof(double)) != 0) ++j; /* same bits */
-      if (j < n_cs) {
-        c[k] = cs[12 * j + k];
-        c[6 + k] = cs[12 * j + 6 + k];
-      } else {
-        c[k] = cos(q[k]);
-        c[6 + k] = sin(q[k]);
+      while (j < n_seen[k] && seen[k][j] != bits) ++j;
+      if (j == n_seen[k]) {
+        seen[k][j] = bits;
+        seen_cos[k][j] = cos(q[k]);
+        seen_sin[k][j] = sin(q[k]);
+        ++n_seen[k];
       }
+      c[k] = seen_cos[k][j];
+      c[6 + k] = seen_sin[k][j];
     }
-    from[n_cs++] = b;
     const double *carg[2] = {c, t};
     double *cres[1] = {e};
     if (OPTIK_CHECK(carg, cres, iw, w, 0)) return -1;
@@ -233,13 +245,14 @@ CASADI_SYMBOL_EXPORT int optik_ik_all(const double *in, double *out) {
 }
 
 #ifdef OPTIK_PYTHON
-/* The Python binding: optik_ik_all_function() (called once, through ctypes.PyDLL) returns two
+/* The Python binding: optik_ik_all_function() (called once, through ctypes.PyDLL) returns three
  * builtin functions, ik_all(t, q0, lower, upper, sort) -> (q within, errors, q outside), False
  * or None, taking float64 arrays (any strides): t (4, 4), q0 (6,) or None, lower and upper
  * (6,); with sort true the solutions are ordered by their distance to q0, or to the middle of
  * the limits when q0 is None (sort 2 of conf). False: status 1 or 2 (the caller's general path
  * decides). None: an argument of another type, shape or layout (which the ctypes path, with its
- * conversions, takes). And ik_all_many, the same over many targets (below). */
+ * conversions, takes). And ik_all_many, the same over many targets, and ik_all_q, the
+ * solutions within the limits alone (below). */
 #include <Python.h>
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
@@ -271,29 +284,41 @@ static PyObject *optik_py_rows(const double *data, npy_intp rows, npy_intp cols)
   return a;
 }
 
+/* the driver on the arguments (t, q0, lower, upper) and sort: 0 answered (out filled), 1 an
+ * argument of another type, shape or layout, 2 status 1 or 2 of the driver, -1 an error raised */
+static int optik_py_solve(PyObject *const *args, int sort, double *out) {
+  double in[OPTIK_CONF + 8];
+  int q0_given = args[1] != Py_None;
+  if (!optik_py_copy(args[0], 2, in + OPTIK_T) || !optik_py_copy(args[2], 1, in + OPTIK_LO) ||
+      !optik_py_copy(args[3], 1, in + OPTIK_HI) || (q0_given && !optik_py_copy(args[1], 1, in + OPTIK_Q0)))
+    return 1;
+  if (!q0_given) memset(in + OPTIK_Q0, 0, sizeof(double) * 6);
+  memcpy(in + OPTIK_CONF, optik_conf, sizeof(double) * 7);
+  in[OPTIK_CONF + 7] = sort ? (q0_given ? 1.0 : 2.0) : 0.0;
+  if (optik_ik_all(in, out) != 0) {
+    PyErr_SetString(PyExc_RuntimeError, "optik_ik_all: evaluation of the generated code failed");
+    return -1;
+  }
+  return out[0] != 0.0 ? 2 : 0;
+}
+
 static PyObject *optik_py_ik_all(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
   (void)self;
   if (nargs != 5) {
     PyErr_SetString(PyExc_TypeError, "ik_all(t, q0, lower, upper, sort)");
     return NULL;
   }
-  double in[OPTIK_CONF + 8], out[3 + 14 * OPTIK_B];
-  int q0_given = args[1] != Py_None;
+  double out[3 + 14 * OPTIK_B];
   int sort = PyObject_IsTrue(args[4]);
-  if (!optik_py_copy(args[0], 2, in + OPTIK_T) || !optik_py_copy(args[2], 1, in + OPTIK_LO) ||
-      !optik_py_copy(args[3], 1, in + OPTIK_HI) || (q0_given && !optik_py_copy(args[1], 1, in + OPTIK_Q0)) ||
-      sort < 0) {
+  if (sort < 0) {
     PyErr_Clear();
     Py_RETURN_NONE;
   }
-  if (!q0_given) memset(in + OPTIK_Q0, 0, sizeof(double) * 6);
-  memcpy(in + OPTIK_CONF, optik_conf, sizeof(double) * 7);
-  in[OPTIK_CONF + 7] = sort ? (q0_given ? 1.0 : 2.0) : 0.0;
-  if (optik_ik_all(in, out) != 0) {
-    PyErr_SetString(PyExc_RuntimeError, "optik_ik_all: evaluation of the generated code failed");
-    return NULL;
+  switch (optik_py_solve(args, sort, out)) {
+    case -1: return NULL;
+    case 1: Py_RETURN_NONE;
+    case 2: Py_RETURN_FALSE; /* status 1 or 2: the caller's general path decides */
   }
-  if (out[0] != 0.0) Py_RETURN_FALSE; /* status 1 or 2: the caller's general path decides */
   const npy_intp n_in = (npy_intp)out[1], n_out = (npy_intp)out[2];
   PyObject *q_in = optik_py_rows(out + 3, n_in, 6);
   PyObject *q_out = optik_py_rows(out + 3 + 6 * n_in, n_out, 6);
@@ -308,6 +333,33 @@ static PyObject *optik_py_ik_all(PyObject *self, PyObject *const *args, Py_ssize
   Py_DECREF(q_in);
   Py_DECREF(q_out);
   Py_DECREF(err);
+  return res;
+}
+
+/* ik_all_q(t, q0, lower, upper, outside): the solutions within the limits only, sorted as
+ * ik_all's, one (K, 6) array; with outside true the tuple (q within, q outside); False and None
+ * as ik_all's (no Python object besides the answer's arrays) */
+static PyObject *optik_py_ik_all_q(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+  (void)self;
+  if (nargs != 5) {
+    PyErr_SetString(PyExc_TypeError, "ik_all_q(t, q0, lower, upper, outside)");
+    return NULL;
+  }
+  double out[3 + 14 * OPTIK_B];
+  const int outside = PyObject_IsTrue(args[4]);
+  if (outside < 0) return NULL;
+  switch (optik_py_solve(args, 1, out)) {
+    case -1: return NULL;
+    case 1: Py_RETURN_NONE;
+    case 2: Py_RETURN_FALSE;
+  }
+  const npy_intp n_in = (npy_intp)out[1], n_out = (npy_intp)out[2];
+  PyObject *q_in = optik_py_rows(out + 3, n_in, 6);
+  if (!q_in || !outside) return q_in;
+  PyObject *q_out = optik_py_rows(out + 3 + 6 * n_in, n_out, 6);
+  PyObject *res = q_out ? PyTuple_Pack(2, q_in, q_out) : NULL;
+  Py_DECREF(q_in);
+  Py_XDECREF(q_out);
   return res;
 }
 
@@ -429,15 +481,19 @@ static PyObject *optik_py_ik_all_many(PyObject *self, PyObject *const *args, Py_
 
 static PyMethodDef optik_py_def = {"ik_all", (PyCFunction)(void (*)(void))optik_py_ik_all, METH_FASTCALL,
                                    "Every solution of one target (optik.closed_form.ik_all)."};
+static PyMethodDef optik_py_q_def = {"ik_all_q", (PyCFunction)(void (*)(void))optik_py_ik_all_q, METH_FASTCALL,
+                                     "The solutions within the limits of one target (optik.closed_form.ik_all)."};
 static PyMethodDef optik_py_many_def = {"ik_all_many", (PyCFunction)(void (*)(void))optik_py_ik_all_many,
                                         METH_FASTCALL, "Every solution of many targets (optik.closed_form.ik_all)."};
 
 CASADI_SYMBOL_EXPORT PyObject *optik_ik_all_function(void) {
   if (PyArray_API == NULL && _import_array() < 0) return NULL;
   PyObject *one = PyCFunction_New(&optik_py_def, NULL), *many = PyCFunction_New(&optik_py_many_def, NULL);
-  PyObject *both = one && many ? PyTuple_Pack(2, one, many) : NULL;
+  PyObject *rows = PyCFunction_New(&optik_py_q_def, NULL);
+  PyObject *all = one && many && rows ? PyTuple_Pack(3, one, many, rows) : NULL;
   Py_XDECREF(one);
   Py_XDECREF(many);
-  return both;
+  Py_XDECREF(rows);
+  return all;
 }
 #endif

@@ -1,20 +1,24 @@
 """Every solution of one IK target of a derived closed form in one compiled call.
 
-CasADi generates two functions of a derived closed form (`optik.closed_form.derived`): its ``B``
-candidate branches for a target (16 entries of the 4x4 transform, row-major, -> ``6 B``
-angles) and the FK check of one candidate (``q``, target -> position error ``|p(q) - p*|`` and
-orientation error, the geodesic angle of ``R(q) R*^T``, on the product-of-exponentials model).
-optik's driver ``ik_all.c``, compiled with them, does for one target:
+CasADi generates the functions of a derived closed form (`optik.closed_form.derived`): its ``B``
+candidate branches for a target (16 entries of the 4x4 transform, row-major, -> 6 angles per
+candidate), split into groups, one function each (the regular candidates, and each run of
+stand-ins for a singularity), and the FK check of one candidate (``q``, target -> position
+error ``|p(q) - p*|`` and orientation error, the geodesic angle of ``R(q) R*^T``, on the
+product-of-exponentials model). optik's driver ``ik_all.c``, compiled with them, does for one
+target:
 
 1. validate the target as ``optik.checks.as_transform`` does, and ``q0``
    (finite); when either fails it answers *status 1* and the caller's validating path raises
    the named error;
-2. compute the candidates; skip the non-finite ones (a subproblem without a real solution) and
-   the stand-ins for a singularity whose regular candidate passed
-   ([`DerivedIK.stand_ins`][optik.closed_form.derived.DerivedIK.stand_ins]); FK-check the
-   others: kept when both errors are within the check tolerances; a candidate
-   failing the check but within the polish range answers *status 2* (the caller's numpy path
-   polishes it, `DerivedIK.finish`);
+2. go through the candidates in their order, a group's function evaluated when the first
+   candidate of it is needed: skip the stand-ins for a singularity whose regular candidate
+   passed ([`DerivedIK.stand_ins`][optik.closed_form.derived.DerivedIK.stand_ins]; a group of
+   stand-ins whose regular candidates all passed is never evaluated: the usual target away
+   from the singularity pays for the regular candidates only) and the non-finite candidates (a
+   subproblem without a real solution); FK-check the others: kept when both errors are within
+   the check tolerances; a candidate failing the check but within the polish range answers
+   *status 2* (the caller's numpy path polishes it, `DerivedIK.finish`);
 3. wrap the kept ones to ``(-pi, pi]``; two closer than ``same`` (max-norm, angles modulo
    ``2 pi``) answer *status 2* (the numpy path merges them by their accuracy);
 4. shift each angle outside the limits by the whole turns that land within them, or nearest
@@ -27,8 +31,9 @@ The FK check takes the cosines and sines of a candidate's angles, which the driv
 from those angles once per distinct value (candidates share angles). One call costs about 1 us of
 ``ctypes`` and buffer copies besides the arithmetic, well under 1 us through the Python binding
 (`AllSolutionsKernel.fast`); `AllSolutionsKernel.many` runs the driver over many targets in one
-call. The driver is reentrant (stack memory only); the Python buffers of one kernel are guarded by
-a lock.
+call, and `AllSolutionsKernel.rows` hands back the solutions within the limits alone (one array, for
+`optik.AllSolutions`). The driver is reentrant (stack memory only); the Python buffers of one kernel are
+guarded by a lock.
 """
 
 from __future__ import annotations
@@ -38,7 +43,7 @@ import logging
 import sys
 import sysconfig
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -73,7 +78,11 @@ class AllSolutionsKernel:
     """The compiled driver of one derived closed form (thread-safe).
 
     Args:
-        branches: ``t (16) -> candidates (6 B)``, the candidates as one column.
+        branches: the candidate functions, each with the indices (among the ``B`` candidates)
+            of what it computes: ``t (16) -> candidates (6 per index)``, one column; every
+            index once. The first one's candidates are evaluated for every target, each other
+            one only when one of its candidates is needed (a stand-in whose regular candidate
+            failed the check).
         check: ``(cs (12), t (16)) -> (position error, orientation error)``, one output of 2:
             the FK check of one candidate given the cosines and then the sines of its angles.
         stand_ins: per candidate, the earlier candidate it stands in for (-1: none): it is not
@@ -93,7 +102,7 @@ class AllSolutionsKernel:
 
     def __init__(
         self,
-        branches: ca.Function,
+        branches: Sequence[tuple[ca.Function, Sequence[int]]],
         check: ca.Function,
         stand_ins: tuple[int, ...],
         check_tol: tuple[float, float],
@@ -101,13 +110,29 @@ class AllSolutionsKernel:
         same: float,
         compile: bool | str = "auto",
     ) -> None:
-        self.size = branches.size1_out(0) // 6
+        order = [k for _, indices in branches for k in indices]
+        self.size = len(order)
+        functions = [f for f, _ in branches]
+        group = [0] * self.size  # the function computing candidate b, and its row in raw
+        for g, (_, indices) in enumerate(branches):
+            for k in indices:
+                group[k] = g
+        row = [order.index(k) for k in range(self.size)]
+        starts = np.cumsum([0] + [len(indices) for _, indices in branches[:-1]]).tolist()
         conf = (*check_tol, *polish_tol, same, ORTHO_DIAG, ORTHO_OFF)
-        work = [max(f.sz_iw() for f in (branches, check)), max(f.sz_w() for f in (branches, check))]
+        every = (*functions, check)
+        work = [max(f.sz_iw() for f in every), max(f.sz_w() for f in every)]
+        signature = "const casadi_real**, casadi_real**, casadi_int*, casadi_real*, int"
         defines = (
-            f"\n#define OPTIK_B {self.size}\n#define OPTIK_IW {work[0]}\n#define OPTIK_W {work[1]}\n"
-            f"#define OPTIK_BRANCHES {branches.name()}\n#define OPTIK_CHECK {check.name()}\n"
+            f"\n#define OPTIK_B {self.size}\n#define OPTIK_G {len(functions)}\n"
+            f"#define OPTIK_IW {work[0]}\n#define OPTIK_W {work[1]}\n"
+            f"#define OPTIK_CHECK {check.name()}\n"
             f"#define OPTIK_LIMIT_TOL {float(registry.LIMIT_TOL).hex()}\n"
+            f"static int (*const optik_group_fn[{len(functions)}])({signature}) = "
+            f"{{{', '.join(f.name() for f in functions)}}};\n"
+            f"static const int optik_group_at[{len(functions)}] = {{{', '.join(map(str, starts))}}};\n"
+            f"static const int optik_group[{self.size}] = {{{', '.join(map(str, group))}}};\n"
+            f"static const int optik_row[{self.size}] = {{{', '.join(map(str, row))}}};\n"
             f"static const int optik_stand_in[{self.size}] = {{{', '.join(map(str, stand_ins))}}};\n"
             f"static const double optik_conf[7] = {{{', '.join(float(v).hex() for v in conf)}}};\n"
         )
@@ -117,7 +142,7 @@ class AllSolutionsKernel:
         driver = native.driver_source(DRIVER, compile)
         flags = ("-fno-math-errno", *python_flags())
         source = None if driver is None else defines + driver
-        self.library = None if source is None else native.library([branches, check], compile, source, flags)
+        self.library = None if source is None else native.library([*functions, check], compile, source, flags)
         self._in = np.zeros(_IN)
         self._in[34:41] = conf
         self._out = np.zeros(3 + 14 * self.size)
@@ -134,6 +159,11 @@ class AllSolutionsKernel:
         (L, 6), counts outside (M,), status (M,))``, the targets one after the other (those of
         status 1 or 2 have no rows: the caller decides them), with the interpreter lock released
         during the loop; None for arrays of another type or layout."""
+        self.rows: Callable[..., np.ndarray | tuple[np.ndarray, np.ndarray] | bool | None] | None = None
+        """The Python binding of the solutions within the limits alone, ``rows(t, q0, lower,
+        upper, outside)`` once loaded, when the library has one: ``q within (K, 6)`` sorted as
+        by `fast` (``outside`` true: the pair ``(q within, q outside (L, 6))``); False and None
+        as `fast`'s. One array per call, no other Python object."""
         self._args = (ctypes.c_void_p(self._in.ctypes.data), ctypes.c_void_p(self._out.ctypes.data))
         self.lock = threading.Lock()
 
@@ -151,7 +181,7 @@ class AllSolutionsKernel:
                     make.argtypes = []
                     make.restype = ctypes.py_object
                     try:
-                        self.fast, self.many = make()
+                        self.fast, self.many, self.rows = make()
                     except Exception as exc:  # e.g. numpy's C API refused: the ctypes path stays
                         _LOG.warning("optik: no Python binding for %s: %s", self.library.path.name, exc)
                 self._fn = fn

@@ -8,7 +8,7 @@ A `Shape` is a geometry in its own frame:
 | ``"sphere"`` | ``(r,)`` | centred at the origin |
 | ``"cylinder"`` | ``(r, length)`` | axis along z, centred at the origin |
 | ``"capsule"`` | ``(r, length)`` | the points within ``r`` of the z segment of that length |
-| ``"mesh"`` | ``(sx, sy, sz)`` scale | the **convex hull** of the mesh file's vertices (scaled) |
+| ``"mesh"`` | ``(sx, sy, sz)`` scale (< 0: mirror) | the **convex hull** of the file's vertices (scaled) |
 | ``"points"`` | ``(r,)`` | a sphere of radius ``r`` around each of the ``points`` (``(N, 3)``) |
 
 Meshes are taken as their convex hulls: robots' collision meshes are convex already (URDF
@@ -60,11 +60,12 @@ class Shape:
         if size.shape != (_SIZES[self.kind],) or not np.all(np.isfinite(size)):
             n = _SIZES[self.kind]
             raise InvalidArgumentError("size", f"a {self.kind} needs {n} finite numbers, got {self.size}")
-        low = size <= 0
+        low = size == 0 if self.kind == "mesh" else size <= 0  # a negative mesh scale mirrors it
         if self.kind == "capsule":  # a capsule of length 0 is a sphere
             low[1] = size[1] < 0
         if np.any(low):
-            raise InvalidArgumentError("size", f"{self.kind} dimensions must be positive, got {self.size}")
+            rule = "nonzero" if self.kind == "mesh" else "positive"
+            raise InvalidArgumentError("size", f"{self.kind} dimensions must be {rule}, got {self.size}")
         object.__setattr__(self, "size", tuple(float(v) for v in size))
         if self.kind == "mesh" and (self.path is None or not Path(self.path).is_file()):
             raise InvalidArgumentError("path", f"no mesh file {self.path!s}")

@@ -55,7 +55,8 @@ makes the second joint follow the first (a `Mimic`); ``joint`` with a linear pol
 qpos0_1 = c0 + c1 (q2 - qpos0_2)``, makes joint 1 follow joint 2 (a `Mimic`; joint 1 has no
 coordinate and its own range is not enforced, as for URDF mimic joints). Not modelled, and listed in
 ``params["notes"]``: other ``tendon`` and all ``flex`` equalities, nonlinear joint polynomials,
-inactive equalities, and tendons.
+inactive equalities, and the tendons not made couplings (their length ranges, and actuators on
+them).
 """
 
 from __future__ import annotations
@@ -79,7 +80,7 @@ __all__ = ["from_qpos", "load_mjmodel", "parse_mjcf", "to_qpos"]
 _FREE, _BALL, _SLIDE, _HINGE = 0, 1, 2, 3
 _GEOM_PLANE, _GEOM_HFIELD, _GEOM_SPHERE, _GEOM_CAPSULE = 0, 1, 2, 3
 _GEOM_ELLIPSOID, _GEOM_CYLINDER, _GEOM_BOX, _GEOM_MESH = 4, 5, 6, 7
-_EQ_CONNECT, _EQ_WELD, _EQ_JOINT, _EQ_TENDON, _OBJ_SITE, _WRAP_JOINT = 0, 1, 2, 3, 6, 1
+_EQ_CONNECT, _EQ_WELD, _EQ_JOINT, _EQ_TENDON, _OBJ_SITE, _WRAP_JOINT, _TRN_TENDON = 0, 1, 2, 3, 6, 1, 3
 
 
 def load_mjmodel(source: Any) -> tuple[Any, str]:
@@ -307,7 +308,7 @@ def parse_mjcf(source: Any) -> ParsedModel:
     if model.nu:  # with actuators, the joints they drive are the actuated ones
         driven = {int(model.actuator_trnid[u, 0]) for u in range(model.nu) if model.actuator_trntype[u] == 0}
         joints[:] = [jt if j in driven else replace(jt, actuated=False) for j, jt in enumerate(joints)]
-    cuts = _equalities(model, joints, joints_named, place, site_frames, frames, notes)
+    cuts, coupled = _equalities(model, joints, joints_named, place, site_frames, frames, notes)
     coords, qpos_map, first = 0, [], {}
     for j, joint in enumerate(joints):
         first[joint.name] = coords
@@ -320,8 +321,7 @@ def parse_mjcf(source: Any) -> ParsedModel:
         if jt.mimic is not None
     )
     joints.extend(cuts)
-    if model.ntendon:
-        notes.append(f"{model.ntendon} tendon(s) are not modelled")
+    notes.extend(_tendon_notes(model, coupled))
     params: dict[str, object] = {
         "mjcf": label,
         "nq": int(model.nq),
@@ -350,14 +350,16 @@ def _equalities(
     site_frames: dict[str, str],
     frames: dict[str, tuple[str, np.ndarray]],
     notes: list[str],
-) -> list[Joint]:
+) -> tuple[list[Joint], set[int]]:
     """The active ``<equality>`` constraints: ``connect`` as cut spherical joints (loop
-    closures), ``joint`` with a linear polynomial as mimic couplings (``joints`` is updated in
-    place); the cut joints are returned. What is not modelled goes to ``notes``."""
+    closures), ``joint`` with a linear polynomial and ``tendon`` on a two-joint fixed tendon as
+    mimic couplings (``joints`` is updated in place); the cut joints and the ids of the tendons
+    made couplings are returned. What is not modelled goes to ``notes``."""
     eq_names = _names(model, "equality", model.neq, model.name_eqadr)
     sites = _names(model, "site", model.nsite, model.name_siteadr)
     kinds = {0: "connect", 1: "weld", 2: "joint", 3: "tendon", 4: "flex"}
     cuts: list[Joint] = []
+    coupled_tendons: set[int] = set()
     for e in range(model.neq):
         kind, name = int(model.eq_type[e]), eq_names[e]
         what = f"equality {kinds.get(kind, kind)} {name!r}"
@@ -415,6 +417,7 @@ def _equalities(
                 continue
             follower, coupling = coupled
             joints[follower] = replace(joints[follower], mimic=coupling, lower=None, upper=None)
+            coupled_tendons.add(a)
             notes.append(
                 f"{what}: joint {joint_names[follower]!r} follows {coupling.joint!r} (fixed tendon of "
                 "constant length); its own range is not enforced"
@@ -424,7 +427,30 @@ def _equalities(
                 f"{what} is not modelled (only connect, weld, linear joint and two-joint fixed-tendon "
                 "equalities are)"
             )
-    return cuts
+    return cuts, coupled_tendons
+
+
+def _tendon_notes(model: Any, coupled: set[int]) -> list[str]:
+    """What is not modelled of the tendons not made couplings (``coupled``): their lengths
+    constrain no configuration here, so a length range (``limited``) is not enforced and an
+    actuator on one drives no coordinate. Empty when every tendon is a coupling."""
+    rest = [t for t in range(model.ntendon) if t not in coupled]
+    if not rest:
+        return []
+    names = _names(model, "tendon", model.ntendon, model.name_tendonadr)
+    listed = ", ".join(repr(names[t]) for t in rest)
+    note = (
+        f"{len(rest)} of {model.ntendon} tendon(s) are not modelled ({listed}): no coupling, constraint or "
+        "limit comes from their lengths"
+    )
+    if limited := [repr(names[t]) for t in rest if model.tendon_limited[t]]:
+        note += f"; the length range of {', '.join(limited)} is not enforced"
+    on = {
+        int(model.actuator_trnid[u, 0]) for u in range(model.nu) if model.actuator_trntype[u] == _TRN_TENDON
+    }
+    if driven := [repr(names[t]) for t in rest if t in on]:
+        note += f"; the actuators on {', '.join(driven)} drive no coordinate"
+    return [note]
 
 
 def _tendon_coupling(

@@ -10,14 +10,17 @@ that link's frame (``<origin>``), and its geometry: a ``mesh`` (``filename`` as 
 means placing its geometry at ``m.fk(q, frame=visual.link) @ visual.origin``.
 
 Mesh files are located, when possible, by `resolve_mesh`: a relative name against the URDF's
-folder, ``package://PKG/rest`` against ``$ROS_PACKAGE_PATH`` entries and the folders above the
-URDF file (a folder named ``PKG``, or holding a ``PKG`` folder), ``file://`` as a path. The
+folder, ``package://PKG/rest`` against ``$ROS_PACKAGE_PATH`` entries, the folders above the
+URDF file and the ``share`` folder of ROS packages installed by pip (`cmeel_share`, e.g.
+example-robot-data's) (a folder named ``PKG``, or holding a ``PKG`` folder), ``file://`` as a
+path. The
 answer is ``Visual.path`` (None when the file was not found; the name is kept either way).
 """
 
 from __future__ import annotations
 
 import os
+import sys
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -57,6 +60,14 @@ class Visual:
     size: tuple[float, ...] = ()
 
 
+def cmeel_share() -> Path | None:
+    """The first ``cmeel.prefix/share`` folder of a ``sys.path`` entry (``site-packages``):
+    where pip installs ROS packages built with cmeel (example-robot-data, the Pinocchio stack),
+    or None when there is none."""
+    shares = (Path(entry) / "cmeel.prefix" / "share" for entry in sys.path if entry)
+    return next((s for s in shares if s.is_dir()), None)
+
+
 def resolve_mesh(filename: str, folder: Path | None) -> Path | None:
     """The mesh file a URDF ``filename`` refers to, or None when it cannot be found.
 
@@ -72,6 +83,8 @@ def resolve_mesh(filename: str, folder: Path | None) -> Path | None:
         roots = [Path(p) for p in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if p]
         if folder is not None:
             roots += [folder, *folder.parents]
+        share = cmeel_share()
+        roots += [share] if share is not None else []
         candidates = [root / rest for root in roots if root.name == package]
         candidates += [root / package / rest for root in roots]
     else:

@@ -158,10 +158,27 @@ def _find_axis_joint(m: Mechanism, free_axis: str, frame: str | None, seed: int)
 
 
 def _turned(m: Mechanism, q: np.ndarray, turn: np.ndarray, j: int) -> np.ndarray:
-    """Angle ``j`` of the rows ``q (R,)`` turned by each of ``turn (T,)``, shifted by whole turns
-    into its limits ``(R, T)`` (NaN where it does not fit)."""
-    v = (q[:, None] + turn[None, :])[..., None]
-    return into_limits(v, m.lower[j : j + 1], m.upper[j : j + 1], np.ones(1, dtype=bool))[..., 0]
+    """Angle ``j`` of ``q`` turned by ``turn`` (arrays of broadcastable shapes), shifted by whole
+    turns into its limits (NaN where it does not fit).
+
+    ``q`` lies within the limits and ``|turn| < 2 pi``, so one step of ``2 pi`` brings most sums
+    ``v = q + turn`` into ``(-pi, pi]``: that value is kept where it lies within the limits (rule
+    1 of `optik.spatial.wrap_to_limits`, ``wrap_angle(v)`` to a rounding), and only the others go
+    through `optik.path.nodes.into_limits` (a few passes over the values instead of its dozens,
+    on every free-axis sample of every pose)."""
+    lo, hi = m.lower[j], m.upper[j]
+    v = q + turn
+    v -= _TURN * (v > np.pi)
+    v += _TURN * (v <= -np.pi)
+    ok = (v > -np.pi) & (v <= np.pi) & (v >= lo) & (v <= hi)
+    if not ok.all():
+        bad = ~ok
+        raw = np.broadcast_to(q + turn, v.shape)[bad][:, None]
+        v[bad] = into_limits(raw, m.lower[j : j + 1], m.upper[j : j + 1], np.ones(1, dtype=bool))[:, 0]
+    return v
+
+
+_TURN = 2.0 * np.pi
 
 
 def sample_solutions(
@@ -221,7 +238,7 @@ def _gathered(
     pose = np.repeat(np.arange(n), size)
     if shortcut is not None:
         j, sign = shortcut
-        turned = _turned(m, solved[:, j], sign * turn, j)
+        turned = _turned(m, solved[:, j, None], sign * turn, j)
         q[:, j] = turned[source, angle]
         fits = np.isfinite(q[:, j])
         if not fits.all():
@@ -242,19 +259,23 @@ def _uniform(
 ) -> tuple[Layered, Layered]:
     """`sample_solutions` when every path sample has ``width`` solved rows: each layer is its
     block ``(width, dof)`` repeated ``copies`` times, built by broadcasting."""
-    q = np.broadcast_to(solved.reshape(n, 1, width, m.n_q), (n, copies, width, m.n_q)).copy()
+    q = np.empty((n, copies, width, m.n_q))
+    q[...] = solved.reshape(n, 1, width, m.n_q)
     group = np.arange(copies)[None, :, None] * units + unit.reshape(n, 1, width)
     group = np.broadcast_to(group, (n, copies, width)).reshape(-1)
+    full = True
     if shortcut is not None:
         j, sign = shortcut
-        turned = _turned(m, solved[:, j], sign * turn, j)
-        q[..., j] = turned.reshape(n, width, copies).transpose(0, 2, 1)
+        turned = _turned(m, solved[:, j].reshape(n, 1, width), (sign * turn)[None, :, None], j)
+        q[..., j] = turned
+        full = bool(np.isfinite(turned).all())
     q = q.reshape(-1, m.n_q)
-    pose = np.repeat(np.arange(n), copies * width)
-    if shortcut is not None and not np.isfinite(q[:, shortcut[0]]).all():
-        fits = np.isfinite(q[:, shortcut[0]])
-        q, group, pose = q[fits], group[fits], pose[fits]
-    return Layered.by_owner(q, pose, n), Layered.by_owner(group, pose, n)
+    if full:  # every layer full: no count
+        offset = np.arange(n + 1) * (copies * width)
+        return Layered(q, offset), Layered(group, offset)
+    fits = np.isfinite(q[:, shortcut[0]])
+    pose = np.repeat(np.arange(n), copies * width)[fits]
+    return Layered.by_owner(q[fits], pose, n), Layered.by_owner(group[fits], pose, n)
 
 
 def chosen_angle(

@@ -6,10 +6,12 @@ from optik.solvers import lm as _lm  # noqa: F401  (registers "lm")
 from optik.solvers import nlp as _nlp  # noqa: F401  (registers "nlp")
 from optik.solvers.all import self_motion, solve_ik_all
 from optik.solvers.all_batch import solve_ik_all_batch
+from optik.solvers.all_solutions import AllSolutions
 from optik.solvers.api import pick_method, solve_ik
 from optik.solvers.base import IKRequest, Tolerances, methods, register_method
 
 __all__ = [
+    "AllSolutions",
     "IKRequest",
     "Tolerances",
     "methods",

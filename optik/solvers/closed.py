@@ -136,9 +136,11 @@ def _compiled_errors(request: IKRequest) -> Callable[[np.ndarray], tuple[float, 
     return errors
 
 
-BINDINGS: dict[int, tuple[weakref.ref, int, Callable[..., Any], Callable[..., Any] | None]] = {}
+BINDINGS: dict[
+    int, tuple[weakref.ref, int, Callable[..., Any], Callable[..., Any] | None, Callable[..., Any] | None]
+] = {}
 """``id(m) -> (weak reference to m, registry generation, the driver's Python binding, its
-binding over many targets)``."""
+binding over many targets, its binding of the solutions within the limits alone)``."""
 
 
 _TOL = Tolerances.from_arg(None)
@@ -157,10 +159,21 @@ def many_binding_of(m: Mechanism) -> Callable[..., Any] | None:
     """The binding over many targets of ``m``'s compiled driver
     (``AllSolutionsKernel.many`` of `optik.closed_form.ik_all`), when
     `binding_of` has one; else None."""
+    return _other_binding(m, 3)
+
+
+def rows_binding_of(m: Mechanism) -> Callable[..., Any] | None:
+    """The binding of the solutions within the limits alone of ``m``'s compiled driver
+    (``AllSolutionsKernel.rows`` of `optik.closed_form.ik_all`), when `binding_of` has one;
+    else None."""
+    return _other_binding(m, 4)
+
+
+def _other_binding(m: Mechanism, slot: int) -> Callable[..., Any] | None:
     if binding_of(m) is None:
         return None
     entry = BINDINGS.get(id(m))
-    return entry[3] if entry is not None else None
+    return entry[slot] if entry is not None else None
 
 
 def compile_closed_form(m: Mechanism) -> None:
@@ -189,7 +202,7 @@ def compiled_binding(m: Mechanism) -> Callable[..., Any] | None:
         return None
     key = id(m)
     alive = weakref.ref(m, lambda _, key=key: BINDINGS.pop(key, None))
-    BINDINGS[key] = (alive, registry.generation(), driver.fast, driver.many)
+    BINDINGS[key] = (alive, registry.generation(), driver.fast, driver.many, driver.rows)
     return driver.fast
 
 

@@ -16,7 +16,8 @@ is built in three pieces:
   trial (`_trial_function`), accepted as in `optik.solvers.lm_kernel.lm_iteration_function`
   (same inputs and outputs).
 
-Target parameters: the 12 of the pose target, then the ``capacity * SLOT_SIZE`` slot values.
+Target parameters: the 12 of each frame target (`optik.problem.target_parameters`), then the
+``capacity * SLOT_SIZE`` slot values.
 """
 
 from __future__ import annotations
@@ -164,10 +165,11 @@ def constrained_functions(
     task_jac = ca.Function("task_jacobian", ins, [ca.jacobian(e_task, problem.q)])
 
     q, mu, gain = ca.MX.sym("q", n), ca.MX.sym("mu"), ca.MX.sym("gain")
-    target = ca.MX.sym("target", 12 + capacity * SLOT_SIZE)
+    n_pose = problem.target.numel()  # 12 per frame target
+    target = ca.MX.sym("target", n_pose + capacity * SLOT_SIZE)
     weights, q_ref = ca.MX.sym("weights", 2), ca.MX.sym("q_ref", n)
     lo, hi = ca.MX.sym("lower", n), ca.MX.sym("upper", n)
-    pose, slots = target[:12], ca.reshape(target[12:], SLOT_SIZE, capacity)
+    pose, slots = target[:n_pose], ca.reshape(target[n_pose:], SLOT_SIZE, capacity)
 
     i_links, j_links = [int(k) for k in pair_links[:, 0]], [int(k) for k in pair_links[:, 1]]
     s_links = [int(k) for k in sphere_links]

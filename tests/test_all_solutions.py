@@ -1,0 +1,149 @@
+"""``optik.AllSolutions``: every solution of one target as one array, the same rows as
+``solve_ik_all(m, T, q0).q``, each re-checked by FK and the limits, the same from many threads,
+and the named errors of bad input."""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import optik
+from optik.closed_form.derived import candidate_groups
+
+
+def _shifted_seed_arm() -> optik.Mechanism:
+    """The seed arm with limits that need the 2 pi shift and drop solutions."""
+    m = optik.catalog.seed_6r_arm()
+    lo, hi = np.zeros(6), np.full(6, 2 * np.pi)
+    lo[1], hi[1] = -3 * np.pi, -np.pi
+    return m.with_limits(lo, hi)
+
+
+ARMS = {"puma560": optik.catalog.puma560(), "seed_6r_arm": optik.catalog.seed_6r_arm(),
+        "seed_6r_arm_shifted": _shifted_seed_arm()}  # fmt: skip
+SOLVERS: dict[str, optik.AllSolutions] = {}
+
+
+def _solver(name: str) -> optik.AllSolutions:
+    if name not in SOLVERS:
+        SOLVERS[name] = optik.AllSolutions(ARMS[name])
+    return SOLVERS[name]
+
+
+def _targets(m: optik.Mechanism, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Random joint vectors (the first 8 at the wrist singularity q5 = 0: stand-ins and close
+    candidates) and their targets, plus one unreachable target."""
+    qs = np.random.default_rng(seed).uniform(-np.pi, np.pi, (40, 6))
+    qs[:8, 4] = 0.0
+    targets = m.fk(qs)
+    far = targets[0].copy()
+    far[:3, 3] *= 10.0
+    return qs, np.concatenate([targets, far[None]])
+
+
+@pytest.mark.parametrize("name", list(ARMS))
+def test_rows_are_those_of_solve_ik_all(name: str) -> None:
+    """Bit for bit the rows of solve_ik_all(m, T, q0).q and its outside_limits, nearest q0
+    first; every row passes an independent FK and limit check."""
+    m, ik = ARMS[name], _solver(name)
+    if not ik.compiled:
+        pytest.skip("no C compiler: every call is solve_ik_all")
+    _, targets = _targets(m, 1)
+    starts = np.random.default_rng(2).uniform(-np.pi, np.pi, (len(targets), 6))
+    for t, q0 in zip(targets, starts, strict=True):
+        for start in (None, q0):
+            want = optik.solve_ik_all(m, t, start)
+            q, outside = ik(t, start, outside=True)
+            assert q.shape == (len(want), 6) and q.dtype == np.float64
+            np.testing.assert_array_equal(q, want.q.reshape(-1, 6))
+            np.testing.assert_array_equal(outside, np.array(want.outside_limits).reshape(-1, 6))
+            np.testing.assert_array_equal(ik(t, start), q)
+            for row in q:
+                assert m.within_limits(row)
+                np.testing.assert_allclose(m.fk(row), t, atol=1e-9)
+    assert ik(targets[-1]).shape == (0, 6)  # unreachable: no solution, an empty (0, 6) array
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(
+    st.lists(st.floats(-np.pi, np.pi), min_size=5, max_size=5),
+    st.floats(0.05, np.pi - 0.05),
+    st.sampled_from([-1.0, 1.0]),
+)
+def test_every_branch_round_trips(q: list[float], q5: float, sign: float) -> None:
+    """The joint vector a target was made from is one of the solutions (after the 2 pi shift
+    into the limits), and every solution reproduces the target (away from the wrist
+    singularity q5 = 0 or pi, where the solutions form a family and one stands for it)."""
+    m, ik = ARMS["seed_6r_arm"], _solver("seed_6r_arm")
+    q = [*q[:4], sign * q5, q[4]]
+    t = m.fk(np.array(q))
+    sols = ik(t)
+    assert len(sols)
+    for row in sols:
+        np.testing.assert_allclose(m.fk(row), t, atol=1e-9)
+    gap = np.abs((sols - m.wrap(np.array(q)) + np.pi) % (2 * np.pi) - np.pi).max(axis=1)
+    assert gap.min() < 1e-6
+
+
+def test_threads_give_the_same_answers() -> None:
+    """One object called from two threads at once: every answer as from one thread."""
+    m, ik = ARMS["seed_6r_arm"], _solver("seed_6r_arm")
+    _, targets = _targets(m, 3)
+    many = np.concatenate([targets] * 5)
+    want = [ik(t) for t in many]
+    with ThreadPoolExecutor(2) as pool:
+        got = list(pool.map(ik, many))
+    for a, b in zip(got, want, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_any_layout_and_a_mechanism_without_a_compiled_closed_form() -> None:
+    """Targets of another layout or type take the general path (same rows); a mechanism whose
+    closed form is not a derived one answers by solve_ik_all alone, as an (K, n) array."""
+    m, ik = ARMS["puma560"], _solver("puma560")
+    t = m.fk(m.random_q(seed=4))
+    want = ik(t)
+    for other in (np.asfortranarray(t), t.tolist(), t[::-1, ::-1][::-1, ::-1], np.ascontiguousarray(t.T).T):
+        np.testing.assert_array_equal(ik(other), want)
+    arm = optik.catalog.planar_3r(lengths=(1.0, 0.8, 0.5))
+    planar = optik.AllSolutions(arm)
+    assert not planar.compiled
+    target = optik.Pose2D(1.2, 0.4, 0.3)
+    q, outside = planar(target, outside=True)
+    sols = optik.solve_ik_all(arm, target)
+    np.testing.assert_array_equal(q, sols.q.reshape(-1, 3))
+    assert q.shape[1] == 3 and outside.shape == (len(sols.outside_limits), 3)
+
+
+def test_bad_input_raises_the_named_error() -> None:
+    m, ik = ARMS["puma560"], _solver("puma560")
+    t = m.fk(m.mid_q())
+    bad = t.copy()
+    bad[0, 0] = np.nan
+    with pytest.raises(optik.NonFiniteError, match=r"^target"):
+        ik(bad)
+    skew = t.copy()
+    skew[:3, :3] *= 1.1
+    with pytest.raises(optik.InvalidArgumentError, match=r"^target"):
+        ik(skew)
+    with pytest.raises(optik.ShapeError, match=r"^target"):
+        ik(np.eye(3))
+    with pytest.raises(optik.NonFiniteError, match=r"^q0"):
+        ik(t, np.full(6, np.inf))
+    with pytest.raises(optik.ShapeError, match=r"^q0"):
+        ik(t, np.zeros(5))
+    with pytest.raises(optik.InvalidArgumentError, match=r"^m"):
+        optik.AllSolutions("puma560")  # type: ignore[arg-type]
+
+
+def test_candidate_groups_split_the_stand_ins_in_runs() -> None:
+    """The regular candidates first, then each run of consecutive stand-ins (one per (q1, q5)
+    pair of the three-parallel family); no stand-in: one group."""
+    three_parallel = optik.closed_form.derived.three_parallel.stand_ins(16)
+    assert candidate_groups(three_parallel) == [
+        (0, 1, 4, 5, 8, 9, 12, 13), (2, 3), (6, 7), (10, 11), (14, 15)]  # fmt: skip
+    assert candidate_groups((-1,) * 8) == [tuple(range(8))]

@@ -18,8 +18,8 @@ import pytest
 import optik
 from optik import native
 from optik.diffik._codegen import CompiledFunction
+from optik.native import NativeFunction, native_functions
 from optik.solvers import lm_kernel
-from optik.solvers.native import NativeFunction, native_functions
 
 X = ca.SX.sym("x", 3)
 PANDA = Path(optik.__file__).parent / "data" / "urdf" / "panda.urdf"

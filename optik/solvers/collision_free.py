@@ -17,8 +17,9 @@ between the model and the exact check):
 * ``nlp``: IPOPT with the inequality constraints ``d_k(q) >= b`` (and the loop closures),
   objective as `optik.IKProblem`'s, multi-start until the time limit.
 
-The world is read once per call (a snapshot) and handed to the generated code as parameter
-values (`optik.collision.slots`): the code is cached per mechanism, task, frame, bound and slot
+The world is read once per call (`optik.World.state`: one version, so a `World.move` during the
+solve changes neither the slots nor the exact check of this call) and handed to the generated code
+as parameter values (`optik.collision.slots`): the code is cached per mechanism, task, frame, bound and slot
 capacity, so a moved, added or removed object builds nothing new.
 
 **Success** is decided by the exact check (`optik.collision.check` at ``margin``) of the final
@@ -39,11 +40,11 @@ import casadi as ca
 import numpy as np
 
 from optik.checks import as_float
-from optik.collision.check import CollisionReport, check, world_parts
+from optik.collision.check import CollisionReport, report_at
 from optik.collision.robot import robot_geometry
-from optik.collision.slots import SLOT_SIZE, capacity_for, slot_values
+from optik.collision.slots import SLOT_SIZE
 from optik.collision.spheres import DistanceRows, distance_expressions
-from optik.collision.world import World
+from optik.collision.world import WorldState, state_of
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.problem import IKProblem, build_ik_problem, target_parameters
 from optik.results import IKResult
@@ -98,13 +99,6 @@ def compiled_kernels() -> dict[str, bool]:
     return {name: kernels[1].compiled for name, kernels in hits}
 
 
-def _world_slots(world: World | None) -> tuple[int, np.ndarray]:
-    """The slot capacity for the world as it is now and its slot values (`optik.collision.slots`)."""
-    parts = world_parts(world)
-    capacity = capacity_for(len(parts))
-    return capacity, slot_values(parts, capacity)
-
-
 def _finish(
     request: IKRequest,
     q: np.ndarray,
@@ -134,13 +128,23 @@ def _split_options(request: IKRequest) -> tuple[IKRequest, float]:
     return dataclasses.replace(request, options=opts), buffer
 
 
+def _reports(request: IKRequest, world: WorldState, self_collision: bool, margin: float) -> Any:
+    """``q -> CollisionReport``: the exact check against the one world version of the solve."""
+    geo = robot_geometry(request.mechanism)
+
+    def report_of(q: np.ndarray) -> CollisionReport:
+        return report_at(geo, q, world, margin, self_collision)
+
+    return report_of
+
+
 def _solve_lm(
-    request: IKRequest, world: World | None, self_collision: bool, margin: float, buffer: float
+    request: IKRequest, world: WorldState, self_collision: bool, margin: float, buffer: float
 ) -> IKResult:
     m = request.mechanism
     settings, closure_weight, compile = lm_settings(request)
     setup = time.perf_counter()
-    capacity, slots = _world_slots(world)
+    capacity, slots = world.capacity, world.slots
     key = (
         "lm",
         m,
@@ -166,10 +170,7 @@ def _solve_lm(
     conf = settings.conf(m)
     pose = target_parameters(request.target)[None]
     params = np.concatenate([pose, slots[None]], axis=1)
-
-    def report_of(q: np.ndarray) -> CollisionReport:
-        return check(m, q, world, margin, self_collision)
-
+    report_of = _reports(request, world, self_collision, margin)
     seed = request_seed(request.seed) & (2**63 - 1)
     iterations, restarts, q0 = 0, -1, request.q0
     res: IKResult | None = None
@@ -234,7 +235,7 @@ class _IpoptPool:
 
 
 def _solve_nlp(
-    request: IKRequest, world: World | None, self_collision: bool, margin: float, buffer: float
+    request: IKRequest, world: WorldState, self_collision: bool, margin: float, buffer: float
 ) -> IKResult:
     m = request.mechanism
     opts = dict(request.options)
@@ -245,7 +246,7 @@ def _solve_nlp(
             next(iter(opts)), "unknown option of the collision-aware nlp (max_iter, posture, buffer)"
         )
     setup = time.perf_counter()
-    capacity, slots = _world_slots(world)
+    capacity, slots = world.capacity, world.slots
     key = (
         "nlp",
         m,
@@ -267,9 +268,7 @@ def _solve_nlp(
     request.exclude_setup(setup)
     params = ca.DM(np.concatenate([pool.problem.parameter_values(request.target, posture=posture), slots]))
     bounds = {"lbx": ca.DM(m.lower), "ubx": ca.DM(m.upper), "lbg": pool.lbg, "ubg": pool.ubg}
-
-    def report_of(q: np.ndarray) -> CollisionReport:
-        return check(m, q, world, margin, self_collision)
+    report_of = _reports(request, world, self_collision, margin)
 
     rng = request.rng
     q0, iterations, restarts = request.q0, 0, -1
@@ -302,9 +301,8 @@ def solve_collision_free(
         raise SolverUnavailableError(
             f"method {method!r} takes no collision constraints; use one of {METHODS}"
         )
-    if world is not None and not isinstance(world, World):
-        raise InvalidArgumentError("world", f"expected an optik.World or None, got {type(world).__name__}")
+    state = state_of(world)  # the one version of the world this solve reads
     mg = as_float(margin, "margin", 0.0)
     request, buffer = _split_options(request)
     solve = _solve_lm if method == "lm" else _solve_nlp
-    return solve(request, world, bool(self_collision), mg, buffer)
+    return solve(request, state, bool(self_collision), mg, buffer)

@@ -34,10 +34,9 @@ from optik.checks import ORTHO_DIAG, ORTHO_OFF
 from optik.errors import InvalidArgumentError, ShapeError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
-from optik.native import driver_source, library
+from optik.native import NativeFunction, driver_source, library
 from optik.problem import IKProblem, build_ik_problem
 from optik.solvers.evaluation import error_function
-from optik.solvers.native import NativeFunction
 
 DRIVER = Path(__file__).with_name("lm_chunk.c")
 """optik's C driver of the chunk loop."""

@@ -218,11 +218,11 @@ RUNS: tuple[Run, ...] = (
         in_readme=False,
     ),
     Run(
-        "collision",
-        "Self-collision-free IK, Panda near its own body: optik against TRAC-IK + coal rejection",
-        ("--scene", "self", "--n", "100", "--time-limit", "0.05"),
-        ("--scene", "self", "--n", "10", "--time-limit", "0.05", "--compile-wait", "30"),
-        page="collision_self",
+        "collision_self",
+        "Self-collision-free IK near the robot's own body, dual Panda and TALOS: optik against "
+        "TRAC-IK + coal rejection",
+        ("--n", "100", "--time-limit", "0.05"),
+        ("--n", "10", "--time-limit", "0.05", "--compile-wait", "30"),
         in_readme=False,
     ),
     Run(

@@ -478,8 +478,26 @@ class Mechanism:
         Raises:
             ModelError: the mechanism has no mass.
         """
-        c = com_expr(self.inertials, self.frames, self.body_transforms, self.name)
-        return ca.Function("com", [self.q_sym], [c, ca.jacobian(c, self.q_sym)])
+        return ca.Function("com", [self.q_sym], [self._com_expr, self._com_jacobian_expr])
+
+    @cached_property
+    def _com_expr(self) -> ca.SX:
+        """``com(q)`` (3 x 1, symbolic); raises `ModelError` without mass."""
+        return com_expr(self.inertials, self.frames, self.body_transforms, self.name)
+
+    @cached_property
+    def _com_jacobian_expr(self) -> ca.SX:
+        return ca.jacobian(self._com_expr, self.q_sym)
+
+    @cached_property
+    def _com_only_function(self) -> ca.Function:
+        """``q -> com(q)``: what `com` evaluates (no Jacobian computed and dropped)."""
+        return ca.Function("com_only", [self.q_sym], [self._com_expr])
+
+    @cached_property
+    def _com_jacobian_function(self) -> ca.Function:
+        """``q -> J_com(q)``: what `com_jacobian` evaluates."""
+        return ca.Function("com_jacobian", [self.q_sym], [self._com_jacobian_expr])
 
     @cached_property
     def closure_function(self) -> ca.Function:
@@ -527,10 +545,10 @@ class Mechanism:
             ModelError: the mechanism has no mass (no `inertials`).
         """
         qb, single = as_batch(q, "q", self.n_q)
-        f = self.com_function
+        f = self._com_only_function
         if not len(qb):
             return np.zeros((0, 3))
-        out = np.asarray(f(qb.T)[0]).T if len(qb) > 1 else np.asarray(f(qb[0])[0]).reshape(1, 3)
+        out = np.asarray(f(qb.T)).T if len(qb) > 1 else np.asarray(f(qb[0])).reshape(1, 3)
         return out[0] if single else out
 
     def com_jacobian(self, q: Any) -> np.ndarray:
@@ -539,7 +557,7 @@ class Mechanism:
         Raises:
             ModelError: the mechanism has no mass (no `inertials`).
         """
-        return np.asarray(self.com_function(self.check_q(q))[1])
+        return np.asarray(self._com_jacobian_function(self.check_q(q)))
 
     def closure(self, q: Any) -> np.ndarray:
         """Loop-closure residual vector (empty for open chains)."""

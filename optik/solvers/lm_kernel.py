@@ -120,19 +120,19 @@ def lm_iteration_function(
         dq = working_step(ca.logic_or(violated, g + ca.mtimes(u.T, dq1) > 0))
     q_trial = ca.fmin(ca.fmax(q + dq, lo), hi)
     e_trial, pos, ori, clo = at(q_trial, problem.target, problem.weights)
-    outs = iteration_outputs(q, q_trial, mu, e, e_trial, (pos, ori, clo))
+    outs = accept_or_keep(q, q_trial, mu, e, e_trial, [pos, ori, clo])
     ins = [q, mu, problem.target, problem.weights, problem.q_ref, gain, lo, hi]
     # common subexpressions merged (the same operations, so the same values): 5 % fewer instructions
     return ca.Function(_STEP, ins, ca.cse([ca.densify(v) for v in outs]))
 
 
-def iteration_outputs(
-    q: Any, q_trial: Any, mu: Any, e: Any, e_trial: Any, errors: tuple[Any, Any, Any]
-) -> list[Any]:
-    """The outputs of one LM iteration (`lm_iteration_function`; ``SX`` or ``MX``): the trial
-    ``q_trial`` accepted when its cost ``|e_trial|^2 / 2`` is below that of ``q``, the damping
-    divided by 3 on acceptance and multiplied by 4 otherwise (within `MU_MIN`, `MU_MAX`), the
-    cost kept, the acceptance, and the trial's ``errors`` (position, orientation, closure)."""
+def accept_or_keep(
+    q: ca.SX, q_trial: ca.SX, mu: ca.SX, e: ca.SX, e_trial: ca.SX, errors: list[ca.SX]
+) -> list[ca.SX]:
+    """The outputs of one LM iteration, ``[q', mu', cost', accepted, *errors]``: the trial point
+    is taken when it lowers the cost ``|e|^2 / 2`` (``cost_trial < cost``; then ``mu' =
+    max(mu / 3, MU_MIN)``), else ``q`` is kept (``mu' = min(4 mu, MU_MAX)``); ``cost'`` is the
+    cost at ``q'``; ``errors`` are the trial point's (the driver's stop test reads them)."""
     cost, cost_trial = 0.5 * ca.sumsqr(e), 0.5 * ca.sumsqr(e_trial)
     accept = cost_trial < cost
     return [

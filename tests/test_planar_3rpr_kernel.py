@@ -199,3 +199,29 @@ def test_distinct_modes_follow_the_branch_rule(seed: int, k: int) -> None:
         if not any(same_mode(m, q, qs[j]) for j in greedy):
             greedy.append(i)
     assert _distinct(m, qs) == greedy
+
+
+def test_solve_fk_all_is_the_same_with_and_without_the_kernels(monkeypatch) -> None:
+    """`solve_fk_all` on 150 random 3-RPRs (limits that drop some modes): the compiled kernels and
+    the Python paths (the float FK with ``numpy.roots``, numpy's SVD) give the same modes in the
+    same order, the same dropped ones, flags, condition numbers and messages."""
+    cases = []
+    for seed in range(150):
+        b, p, rho, _ = _geometry(seed)
+        if seed % 3 == 0:
+            rho = np.abs(np.random.default_rng(seed + 1).normal(size=3)) * 2
+        cases.append((optik.catalog.planar_3rpr(base=b, platform=p, leg_limits=(0.1, 3.0)), rho))
+    compiled = [
+        optik.solve_fk_all(m, rho, within_limits=seed % 2 == 0) for seed, (m, rho) in enumerate(cases)
+    ]
+    monkeypatch.setattr(rpr._KERNEL, "get", lambda: None)
+    monkeypatch.setattr(conditions._KERNEL, "get", lambda: None)
+    for seed, ((m, rho), mine) in enumerate(zip(cases, compiled, strict=True)):
+        general = optik.solve_fk_all(m, rho, within_limits=seed % 2 == 0)
+        assert mine.message == general.message
+        for a, b in zip([*mine, *mine.dropped], [*general, *general.dropped], strict=True):
+            assert np.allclose(a.q, b.q, atol=1e-9) and np.allclose(a.pose, b.pose, atol=1e-9)
+            assert (a.success, a.limits_ok, a.limits_violated) == (b.success, b.limits_ok, b.limits_violated)
+            assert a.residual <= 1e-9 and b.residual <= 1e-9
+            assert a.condition_number == pytest.approx(b.condition_number, rel=1e-6)
+            assert a.extra["singular"] == b.extra["singular"]

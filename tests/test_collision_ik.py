@@ -64,7 +64,10 @@ def test_avoids_an_obstacle_on_the_nearest_branch(arm, method):
         seed=2,
     )
     assert res.success, res.message
-    _independent(arm, res, target, w)
+    assert np.linalg.norm(arm.fk(res.q)[:3, 3] - target) <= 1e-6 and arm.within_limits(res.q)
+    exact = check(arm, res.q, w, margin=MARGIN, self_collision=False)  # the world only, as asked
+    assert not exact.in_collision and exact.min_distance >= MARGIN
+    assert res.min_distance == pytest.approx(exact.min_distance, abs=1e-12)
     assert res.collision_pair is not None
 
 
@@ -127,7 +130,10 @@ def test_a_moved_object_reuses_the_kernel(arm, method):
     w.add_box("far", (0.1, 0.1, 0.1), spatial.translation(5.0, 5.0, 5.0))
     res = optik.solve_ik(arm, optik.Position(target), q0=qb + 0.05, **kw)
     assert res.success, res.message
-    _independent(arm, res, target, w)
+    assert np.linalg.norm(arm.fk(res.q)[:3, 3] - target) <= 1e-6 and arm.within_limits(res.q)
+    exact = check(arm, res.q, w, margin=MARGIN, self_collision=False)  # the world only, as asked
+    assert not exact.in_collision and exact.min_distance >= MARGIN
+    assert res.min_distance == pytest.approx(exact.min_distance, abs=1e-12)
     assert np.allclose(arm.fk(res.q, "fore")[:3, 3], arm.fk(qa, "fore")[:3, 3], atol=0.05)
     assert set(collision_free._CACHE) == built
 
@@ -216,3 +222,27 @@ def test_dual_panda_both_hands_clear_of_each_other(method):
         exact = check(m, res.q, margin=MARGIN)
         assert not exact.in_collision and exact.min_distance >= MARGIN
     assert solved >= 2
+
+
+@pytest.mark.parametrize("method", ["lm", "nlp"])
+def test_world_only_without_self_collision_rows(arm, method):
+    """``self_collision=False`` with a world: no self rows at all (the kernel had mapped a
+    function over zero pairs, which CasADi refuses); the answer still avoids the world."""
+    qa, _ = _branches(arm)
+    w = _blocking_world(arm, qa)
+    target = arm.fk(qa)[:3, 3]
+    res = optik.solve_ik(
+        arm,
+        optik.Position(target),
+        q0=qa + 0.05,
+        method=method,
+        world=w,
+        self_collision=False,
+        margin=MARGIN,
+        time_limit=2.0,
+    )
+    assert res.success, res.message
+    assert np.linalg.norm(arm.fk(res.q)[:3, 3] - target) <= 1e-6 and arm.within_limits(res.q)
+    exact = check(arm, res.q, w, margin=MARGIN, self_collision=False)  # the world only, as asked
+    assert not exact.in_collision and exact.min_distance >= MARGIN
+    assert res.min_distance == pytest.approx(exact.min_distance, abs=1e-12)

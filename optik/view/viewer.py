@@ -469,9 +469,7 @@ class Viewer:
         if self.world is None or self.collisions is None:
             raise InvalidArgumentError("name", "the viewer has no world: pass world= to move its objects")
         if name not in self.world:
-            raise InvalidArgumentError(
-                "name", f"no world object {name!r}; objects: {list(self.world.names)}"
-            )
+            raise InvalidArgumentError("name", f"no world object {name!r}; objects: {list(self.world.names)}")
         t = target_transform(pose, "pose")
         with self._lock:
             self.world.move(name, t)

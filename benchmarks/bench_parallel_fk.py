@@ -9,7 +9,8 @@ Thread pools are pinned to 1 before numpy is imported (the machine has 2 cores).
    drawn pose is among the modes), mean number of modes, mean / median / p95 time, ratio.
    Random geometries are used as well as the catalog default (which only ever has 2 or 4
    real modes), so that 6-mode cases occur; each new mechanism is solved once untimed first
-   (building its CasADi functions is set-up, not solving).
+   (building its CasADi functions is set-up, not solving), and the C kernels of the closed form
+   (built once per machine in the background) are waited for before the timed calls.
 2. Closed-form FK per call (``closed_form.fk``, all modes): five-bar, slider-crank, 3-RPR.
 3. Stewart-Gough, all real postures: the 40-path parameter homotopy (``method="auto"``, the
    default) beside the 128-path total-degree method and, with ``--fksgp DIR`` (the folder of a
@@ -51,7 +52,7 @@ from types import SimpleNamespace  # noqa: E402
 import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
-from optik import closed_form  # noqa: E402
+from optik import closed_form, native  # noqa: E402
 from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.closed_form import parallel  # noqa: E402
 from optik.harness.peers import PeerUnavailable  # noqa: E402
@@ -84,6 +85,7 @@ def bench_3rpr(n: int, rng: np.random.Generator) -> None:
         if qs:
             optik.solve_fk_all(m, qs[0][m.actuated_indices])  # untimed: builds the CasADi functions
             cases.append((m, qs[0]))
+    native.wait()  # set-up, untimed: the C kernels (3-RPR FK, condition numbers) built and loaded
     base_mean = None
     for label, kwargs in (("closed form (degree 6)", {}), ("numeric multi-start", {"method": "numeric"})):
         times, hits, counts = [], 0, []

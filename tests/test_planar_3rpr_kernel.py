@@ -15,7 +15,8 @@ from optik import native
 from optik.closed_form.parallel import planar_3rpr as rpr
 from optik.closed_form.parallel.common import rot2
 from optik.solvers import conditions
-from optik.solvers.fk import SINGULAR_CONDITION, _compiled
+from optik.solvers.base import BRANCH_TOL
+from optik.solvers.fk import SINGULAR_CONDITION, _compiled, _distinct, same_mode
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -172,3 +173,29 @@ def test_unreadable_or_uncompilable_kernel_is_none(tmp_path, monkeypatch, caplog
     assert "cannot be read" in caplog.text
     monkeypatch.setenv("OPTIK_NO_CODEGEN", "1")
     assert native.CFunction(rpr.SOURCE, "optik_planar_3rpr_nocc", "optik_rpr_fk", []).get() is None
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 8))
+def test_distinct_modes_follow_the_branch_rule(seed: int, k: int) -> None:
+    """`_distinct` keeps the rows a greedy pass with `same_mode` keeps: rows copied with whole
+    turns added to angles, offsets just under and over the branch tolerance, other rows."""
+    rng = np.random.default_rng(seed)
+    m = optik.catalog.planar_3rpr()
+    rows = [m.random_q(seed=rng)]
+    for _ in range(k - 1):
+        base = rows[rng.integers(len(rows))].copy()
+        kind = rng.integers(3)
+        if kind == 0:
+            base[m.revolute_mask] += 2 * np.pi * rng.integers(-2, 3, size=int(m.revolute_mask.sum()))
+        elif kind == 1:
+            base[rng.integers(m.n_q)] += rng.choice([0.99, 1.01]) * BRANCH_TOL
+        else:
+            base = m.random_q(seed=rng)
+        rows.append(base)
+    qs = np.array(rows)
+    greedy: list[int] = []
+    for i, q in enumerate(qs):
+        if not any(same_mode(m, q, qs[j]) for j in greedy):
+            greedy.append(i)
+    assert _distinct(m, qs) == greedy

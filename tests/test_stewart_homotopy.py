@@ -82,6 +82,47 @@ def test_general_6_6_in_40_paths_matches_the_total_method():
         assert stewart_poses(b, p, rho, seed=rng).method == "parameter"  # auto needs no fall back
 
 
+# Dietmaier's general 6-6 platform with 40 real postures (P. Dietmaier, "The Stewart-Gough
+# platform of general geometry can have 40 real postures", Advances in Robot Kinematics, 1998):
+# base points, platform points (platform frame) and leg lengths as published
+_DIETMAIER_BASE = np.array(
+    [
+        [0.0, 0.0, 0.0],
+        [1.107915, 0.0, 0.0],
+        [0.549094, 0.756063, 0.0],
+        [0.735077, -0.223935, 0.525991],
+        [0.514188, -0.526063, -0.368418],
+        [0.590473, 0.094733, -0.205018],
+    ]
+)
+_DIETMAIER_PLATFORM = np.array(
+    [
+        [0.0, 0.0, 0.0],
+        [0.542805, 0.0, 0.0],
+        [0.956919, -0.528915, 0.0],
+        [0.665885, -0.353482, 1.402538],
+        [0.478359, 1.158742, 0.107672],
+        [-0.137087, -0.235121, 0.353913],
+    ]
+)
+_DIETMAIER_LEGS = np.array([1.0, 0.645275, 1.086284, 1.503439, 1.281933, 0.771071])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_dietmaiers_platform_has_all_40_real_postures(seed):
+    b, p, rho = _DIETMAIER_BASE, _DIETMAIER_PLATFORM, _DIETMAIER_LEGS
+    fk = stewart_poses(b, p, rho, seed=seed)
+    assert fk.complete and fk.method == "parameter" and fk.complex_solutions == 40
+    assert len(fk.poses) == 40
+    assert _max_leg_error(b, p, rho, fk.poses) <= 1e-12  # the legs recomputed from each posture
+    for r, _ in fk.poses:
+        assert np.allclose(r.T @ r, np.eye(3), atol=1e-12) and np.linalg.det(r) > 0
+    # 40 different postures: every pair differs in rotation or translation
+    flat = np.array([np.r_[r.ravel(), t] for r, t in fk.poses])
+    gaps = np.linalg.norm(flat[:, None] - flat[None], axis=-1) + np.eye(40)
+    assert np.min(gaps) > 1e-6
+
+
 def _catalog_special(kind):
     m = optik.catalog.stewart_gough()
     b, p = m.params["base"].copy(), m.params["platform"].copy()

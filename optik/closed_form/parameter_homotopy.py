@@ -15,12 +15,19 @@ instance). Homogeneous coordinates are fixed on a random affine patch ``a^T z = 
 
 *Tracking* (generated C, compiled once per machine by `optik.native.source_library`; one path
 at a time, no Python in the loop): fourth-order Runge-Kutta predictor on
-``dz/dt = -J^{-1} dH/dt`` with ``J = [2 M(s) z; a^T]``, Newton corrector (at most 3 steps,
-accepted when the last update is below ``tol (1 + |z|)`` and the corrected point stays within
-``JUMP_GUARD (1 + |z|)`` of the prediction), step halved on rejection and doubled after three
-acceptances. Paths run from ``t = 1`` to ``ENDGAME_RADIUS`` and then to ``0``; a path that
-stalls near ``t = 0`` (its step falls below ``stall t``: a singular end point, or a path to
-a positive-dimensional set) goes to the endgame.
+``dz/dt = -J^{-1} dH/dt`` with ``J = [2 M(s) z; a^T]``, Newton corrector of at most 3 updates
+``d_1, d_2, ...``, accepted when the last update is below ``tol (1 + |z|)`` (or, but in the end
+steps below, after the first when the quadratic-convergence estimate of the next one,
+``kappa d_1^2``, is; ``kappa`` is the largest ``d_2 / d_1^2`` the path has shown, at least 1)
+and the corrected point stays within ``JUMP_GUARD (1 + |z|)`` of the prediction. The step aims
+the predictor error (the corrector's displacement) at ``PREDICTOR_TARGET`` (RK4: error
+``O(h^5)``, growth at most 2x per step) and is halved on rejection. Each path runs from
+``t = 1`` to ``0`` in one go, with a step that ends exactly at ``t = ENDGAME_RADIUS``, where the
+point is kept for the endgame; that step and the last one (to ``t = 0``) are corrected to
+`ENDGAME_TOL`, so a singular end point (where Newton converges only linearly) stalls the path.
+A path that stalls near ``t = 0`` (its step falls below ``stall t``: a singular end point, or a
+path to a positive-dimensional set) goes to the endgame. A path that jumps to another one is not
+detected here; the callers' count check (distinct nonsingular end points) does that.
 
 *Cauchy endgame* (paths that stall near ``t = 0`` or arrive at a singular end point, where
 Newton converges only linearly). Near ``t = 0`` a path is a convergent Puiseux series in
@@ -59,15 +66,19 @@ GAMMA_ANGLE = np.pi / 4
 ``theta`` but a measure-zero set makes the arc generic, and a small one keeps it short
 (``|s| <= 1 / cos(theta / 2)``; ``theta`` near ``pi`` sends ``s`` far away)."""
 
-PREDICTOR_TARGET = 1e-4
+PREDICTOR_TARGET = 1e-3
 """Predictor error (corrector displacement relative to ``1 + |z|``) the step size aims at."""
 
 SINGULAR_CONDITION = 1e8
 """End points whose Jacobian condition number (`condition_numbers`) exceeds this are singular:
 they go to the endgame even when the corrector converged at ``t = 0``."""
 
-JUMP_GUARD = 1e-3
+JUMP_GUARD = 1e-2
 """Largest accepted corrector displacement relative to ``1 + |z|`` (guards against path jumping)."""
+
+ENDGAME_TOL = 1e-8
+"""Corrector tolerance of the points at ``t = ENDGAME_RADIUS`` and ``t = 0`` and of the endgame
+loops (which close when they return to the first within ``1e-8 (1 + |z|)``)."""
 
 _C_SOURCE = r"""
 #include <complex.h>
@@ -86,7 +97,10 @@ typedef struct {
     const cplx *patch;
 } sys_t;
 
-typedef struct { double max_step, min_step, tol, guard, stall, deadline, h0, target; long max_steps; } opts_t;
+typedef struct {
+    double max_step, min_step, tol, guard, stall, deadline, h0, target, mark, end_tol;
+    long max_steps;
+} opts_t;
 
 static double now(void) {
     struct timespec ts;
@@ -188,20 +202,29 @@ static int tangent(const sys_t *q, const cplx *z, double tau, cplx *out) {
 }
 
 /* status: 0 reached tau = 1, 1 step too small (stalled), 2 step or time budget exhausted */
-static int track_one(const sys_t *q, const opts_t *o, cplx *z, double *tau_out, long *steps_out) {
+static int track_one(const sys_t *q, const opts_t *o, cplx *z, cplx *zmark, double *tau_out,
+                     long *steps_out) {
     const int n = q->n;
     cplx k1[NMAX], k2[NMAX], k3[NMAX], k4[NMAX], zt[NMAX], zp[NMAX], zc[NMAX];
     cplx jac[NMAX * NMAX], val[NMAX], ht[NMAX];
     const double seglen = cabs(q->tb - q->ta);
     double tau = 0.0, h = o->h0;
     int status = 0, have_k1 = 0;
+    double kappa = 1.0;
     long steps = 0;
     while (tau < 1.0) {
         if (steps >= o->max_steps || ((steps & 7) == 0 && now() > o->deadline)) { status = 2; break; }
         steps++;
-        const double st = fmin(h, 1.0 - tau);
+        /* a step never crosses the mark: it ends there and the point is kept in zmark; the
+           steps that end at the mark or at tb are corrected to end_tol (a singular end point,
+           where Newton converges only linearly, then stalls the path) */
+        const int to_mark = tau < o->mark && tau + h >= o->mark;
+        const double st = to_mark ? o->mark - tau : fmin(h, 1.0 - tau);
+        const int end = to_mark || tau + st >= 1.0;
+        const double tol = end ? o->end_tol : o->tol;
         /* k1 is kept across a rejection (same point) and after an acceptance comes from the last
-           corrector iteration (at the point before its final update, at rounding distance) */
+           corrector iteration (at the point before its final update, within the corrector's
+           displacement: the predictor's first stage) */
         const int bad_k1 = have_k1 ? 0 : tangent(q, z, tau, k1);
         int bad = bad_k1;
         have_k1 = 0;
@@ -216,13 +239,21 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, double *tau_out, 
         if (ok) {
             for (int i = 0; i < n; i++)
                 zc[i] = zp[i] = z[i] + st / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+            double first = 0.0;
             for (int it = 0; it < 3 && ok; it++) {
                 evaluate(q, zc, tau + st, jac, val, ht);
                 for (int i = 0; i < n; i++) ht[i] = -ht[i];
                 if (solve2(n, jac, val, ht)) { ok = 0; break; }
                 for (int i = 0; i < n; i++) zc[i] -= val[i];
                 last = norm(n, val);
-                if (last <= o->tol * (1.0 + norm(n, zc))) break;
+                const double lim = tol * (1.0 + norm(n, zc));
+                if (last <= lim) break;
+                /* Newton converges quadratically (near a nonsingular point): the update after a
+                   first one of size d is about kappa d^2, kappa the largest ratio d2 / d1^2 this
+                   path has shown; the end steps measure it */
+                if (it == 0 && !end && kappa * last * last <= lim) { last = kappa * last * last; break; }
+                if (it == 0) first = last;
+                else if (it == 1 && first > 0.0) kappa = fmax(kappa, last / (first * first));
             }
         }
         double moved = INFINITY;
@@ -230,10 +261,12 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, double *tau_out, 
             const double scale = 1.0 + norm(n, zc);
             for (int i = 0; i < n; i++) zt[i] = zc[i] - zp[i];
             moved = norm(n, zt) / scale;
-            ok = last <= o->tol * scale && moved <= o->guard;
+            ok = last <= tol * scale && moved <= o->guard;
         }
         if (ok) {
-            tau += st;
+            tau = to_mark ? o->mark : tau + st;
+            if (to_mark)
+                for (int i = 0; i < n; i++) zmark[i] = zc[i];
             for (int i = 0; i < n; i++) {
                 z[i] = zc[i];
                 k1[i] = ht[i];
@@ -256,21 +289,23 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, double *tau_out, 
 }
 
 /* Track every path (rows of z, updated in place) along t: ta -> tb. opts: max_step, min_step,
-   tol, guard, stall, seconds, h0, max_steps, predictor target. Returns the number of paths not at tb. */
+   tol, guard, stall, seconds, h0, max_steps, predictor target, mark (tau, a step ends there and
+   zmark keeps the point), end_tol (tol of the steps ending at the mark or at tb). Returns the
+   number of paths not at tb. */
 int optik_track_paths(int paths, int k, int n, const long *ptr0, const int *col0, const cplx *val0,
                       const long *ptr1, const int *col1, const cplx *val1,
                       const long *ptr2, const int *col2, const cplx *val2,
                       double g_re, double g_im, const cplx *patch, double ta_re, double ta_im,
                       double tb_re, double tb_im, const double *opts, cplx *z, int *status,
-                      double *tau, long *steps) {
+                      double *tau, long *steps, cplx *zmark) {
     if (n > NMAX || k != n - 1) return -1;
     sys_t q = {k, n, {{ptr0, col0, val0}, {ptr1, col1, val1}, {ptr2, col2, val2}},
                g_re + I * g_im, ta_re + I * ta_im, tb_re + I * tb_im, patch};
     opts_t o = {opts[0], opts[1], opts[2], opts[3], opts[4],
-                now() + opts[5], opts[6], opts[8], (long)opts[7]};
+                now() + opts[5], opts[6], opts[8], opts[9], opts[10], (long)opts[7]};
     int left = 0;
     for (int p = 0; p < paths; p++) {
-        status[p] = track_one(&q, &o, z + (long)p * n, tau + p, steps + p);
+        status[p] = track_one(&q, &o, z + (long)p * n, zmark + (long)p * n, tau + p, steps + p);
         left += status[p] != 0;
     }
     return left;
@@ -291,7 +326,7 @@ def compiled() -> ctypes.CDLL | None:
         if lib is not None:
             fn = lib.optik_track_paths
             ptr, dbl, i32 = ctypes.c_void_p, ctypes.c_double, ctypes.c_int
-            fn.argtypes = [i32, i32, i32, *([ptr] * 9), dbl, dbl, ptr, dbl, dbl, dbl, dbl, *([ptr] * 5)]
+            fn.argtypes = [i32, i32, i32, *([ptr] * 9), dbl, dbl, ptr, dbl, dbl, dbl, dbl, *([ptr] * 6)]
             fn.restype = i32
         _LIB.append(lib)
     return _LIB[0]
@@ -351,25 +386,41 @@ class _Tracker:
         self.steps = 0
 
     def segment(
-        self, z: np.ndarray, ta: complex, tb: complex, deadline: float, tol: float, max_step: float
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Track the rows of ``z`` from ``t = ta`` to ``tb``; (end points, status per path)."""
+        self,
+        z: np.ndarray,
+        ta: complex,
+        tb: complex,
+        deadline: float,
+        tol: float,
+        max_step: float,
+        mark: float = 2.0,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Track the rows of ``z`` from ``t = ta`` to ``tb``.
+
+        Returns ``(end points, status per path, points at the mark, tau reached)``: a step ends
+        exactly at ``t(mark) = ta + mark (tb - ta)`` (``mark`` in ``(0, 1)``; none by default)
+        and the point there is kept (rows of paths with ``tau < mark`` are undefined). The steps
+        ending at the mark and at ``tb`` are corrected to `ENDGAME_TOL`.
+        """
         z = np.ascontiguousarray(z, dtype=complex).copy()
+        z_mark = np.empty_like(z)
         p = len(z)
         status = np.zeros(p, dtype=np.int32)
         tau = np.zeros(p)
         steps = np.zeros(p, dtype=np.int64)
         seconds = max(deadline - time.monotonic(), 0.0)
+        h0 = min(0.05, max_step)
         opts = np.array(
-            [max_step, 1e-14, tol, JUMP_GUARD, 1e-3, seconds, min(0.05, max_step), 1e6, PREDICTOR_TARGET]
+            [max_step, 1e-14, tol, JUMP_GUARD, 1e-3, seconds, h0, 1e6, PREDICTOR_TARGET, mark, ENDGAME_TOL]
         )
         compiled().optik_track_paths(
             p, self.k, self.n, *(a.ctypes.data for c in self.c for a in c), self.gamma.real, self.gamma.imag,
             self.patch.ctypes.data, complex(ta).real, complex(ta).imag, complex(tb).real, complex(tb).imag,
             opts.ctypes.data, z.ctypes.data, status.ctypes.data, tau.ctypes.data, steps.ctypes.data,
+            z_mark.ctypes.data,
         )  # fmt: skip
         self.steps += int(steps.sum())
-        return z, status
+        return z, status, z_mark, tau
 
 
 def track(
@@ -378,7 +429,7 @@ def track(
     rng: np.random.Generator,
     *,
     time_limit: float = 1.0,
-    tol: float = 1e-8,
+    tol: float = 1e-6,
     max_step: float = 0.25,
     abandon: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> ParameterTracking:
@@ -389,7 +440,9 @@ def track(
         starts: ``(paths, k + 1)`` complex start solutions (any scaling: projective points).
         rng: generator of ``gamma`` and the patch.
         time_limit: wall-time budget (s); paths unfinished then are ``"failed"``.
-        tol: relative size of the last Newton update for a corrector to be accepted.
+        tol: relative size of the last Newton update (measured or, after one update, estimated)
+            for a corrector to be accepted while tracking; the points at ``t = ENDGAME_RADIUS``
+            and ``t = 0`` and the endgame use `ENDGAME_TOL`.
         max_step: largest step in ``t``.
         abandon: optional test ``z -> bool mask`` on the points where paths stalled near
             ``t = 0``; flagged paths skip the endgame (e.g. paths that clearly entered a known
@@ -419,8 +472,9 @@ def track(
     z0 = np.asarray(starts, dtype=complex)
     z0 = z0 / (z0 @ patch)[:, None]
     r = ENDGAME_RADIUS
-    z_r, st_r = tracker.segment(z0, 1.0, r, deadline, tol, max_step)
-    z_end, st_end = tracker.segment(z_r, r, 0.0, deadline, tol, max_step)
+    # one run from t = 1 to 0 with a step ending at t = r (the endgame's start: mark 1 - r)
+    z_end, st_end, z_r, tau = tracker.segment(z0, 1.0, 0.0, deadline, tol, max_step, mark=1.0 - r)
+    st_r = np.where(tau >= 1.0 - r, 0, st_end)  # nonzero: the path failed before t = r
     status = np.where(st_end == 0, "regular", "failed").astype(object)
     status[st_r != 0] = "failed"
     winding = np.where(status == "regular", 1, 0)
@@ -436,7 +490,7 @@ def track(
         z_out[gone] = z_end[gone]
         todo = np.setdiff1d(todo, gone)
     if len(todo):
-        points, loops = _cauchy(tracker, z_r[todo], r, deadline, tol)
+        points, loops = _cauchy(tracker, z_r[todo], r, deadline, ENDGAME_TOL)
         ok = loops > 0
         z_out[todo[ok]] = points[ok]
         status[todo[ok]] = "endgame"
@@ -466,7 +520,7 @@ def _cauchy(tracker: _Tracker, z_r: np.ndarray, r: float, deadline: float, tol: 
             # patch may have its pole (a^T z = 0) within the circle, this one stays far from it
             za = z[active]
             sums[active] += za / np.sum(np.conj(z_r[active]) * za, axis=1, keepdims=True)
-            z[active], st = tracker.segment(z[active], ts[j], ts[j + 1], deadline, tol, 1.0)
+            z[active], st, _, _ = tracker.segment(z[active], ts[j], ts[j + 1], deadline, tol, 1.0)
             active = active[st == 0]
             if len(active) == 0:
                 return points, loops

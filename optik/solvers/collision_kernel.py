@@ -29,7 +29,7 @@ from optik.collision.robot import RobotGeometry
 from optik.collision.slots import SLOT_SIZE, slot_distance
 from optik.collision.spheres import segment_distance, separable_pairs, sphere_model
 from optik.problem import IKProblem
-from optik.solvers.lm_kernel import MU_MAX, MU_MIN
+from optik.solvers.lm_kernel import accept_or_keep
 
 __all__ = ["constrained_functions"]
 
@@ -213,17 +213,7 @@ def constrained_functions(
     jtj, g = ca.mtimes(jac.T, jac), ca.mtimes(jac.T, e)
     q_trial = _trial_function(n)(q, jtj, g, mu, gain, q_ref, lo, hi)
     e_trial, pos, ori, clo = rows_at(q_trial, weights)
-    cost, cost_trial = 0.5 * ca.sumsqr(e), 0.5 * ca.sumsqr(e_trial)
-    accept = cost_trial < cost
-    outs = [
-        ca.if_else(accept, q_trial, q),
-        ca.if_else(accept, ca.fmax(mu / 3, MU_MIN), ca.fmin(mu * 4, MU_MAX)),
-        ca.if_else(accept, cost_trial, cost),
-        accept,
-        pos,
-        ori,
-        clo,
-    ]
+    outs = accept_or_keep(q, q_trial, mu, e, e_trial, [pos, ori, clo])
     step = ca.Function("optik_lm_step", [q, mu, target, weights, q_ref, gain, lo, hi], outs)
     _, pos0, ori0, clo0 = rows_at(q, ca.DM.ones(2))  # the errors do not depend on the weights
     errors = ca.Function("optik_ik_errors", [q, target], [pos0, ori0, clo0])

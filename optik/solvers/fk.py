@@ -35,6 +35,7 @@ assembly, where two modes merge.
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from dataclasses import dataclass, field
@@ -133,6 +134,7 @@ class _ModeCheck:
 
 
 _CACHE: PerMechanism[_Compiled] = PerMechanism()
+_TWO_PI = 2 * math.pi
 
 
 def _compiled(m: Mechanism) -> _Compiled:
@@ -227,18 +229,24 @@ def _conditions(jacs: np.ndarray) -> list[float]:
 
 def _distinct(m: Mechanism, qs: np.ndarray) -> list[int]:
     """Indices of the rows of ``qs`` that are new modes, in order: each is kept unless it is the
-    same mode (`same_mode`) as a row kept before it. One pairwise distance matrix."""
-    if len(qs) < 2:
-        return list(range(len(qs)))
-    d = qs[:, None, :] - qs[None, :, :]
-    # |spatial.wrap_angle(d)| on the angles: the same numbers (its end fix only flips a sign)
-    dist = np.abs(np.where(m.revolute_mask, np.remainder(d + np.pi, 2 * np.pi) - np.pi, d))
-    close = (np.max(dist, axis=2) < BRANCH_TOL).tolist()
+    same mode (`same_mode`) as a row kept before it. On floats: two modes usually differ in
+    their first coordinate already, where the comparison of a pair stops."""
+    rows, angular = qs.tolist(), m.revolute_mask.tolist()
     kept: list[int] = []
-    for i, row in enumerate(close):
-        if not any(row[j] for j in kept):
+    for i, row in enumerate(rows):
+        if not any(_same_row(row, rows[j], angular) for j in kept):
             kept.append(i)
     return kept
+
+
+def _same_row(a: list[float], b: list[float], angular: list[bool]) -> bool:
+    """`same_mode` on float rows: every ``|a_i - b_i| < BRANCH_TOL``, angles by the float rule of
+    `spatial.wrap_angle` (its end fix only flips a sign)."""
+    for x, y, wrap in zip(a, b, angular, strict=True):
+        d = (x - y + math.pi) % _TWO_PI - math.pi if wrap else x - y
+        if not abs(d) < BRANCH_TOL:
+            return False
+    return True
 
 
 def _closure_tol(tol: float | Tolerances | None) -> float:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +47,18 @@ _MAX_MODES = 12  # MAX_MODES of the C kernel
 _KERNEL = native.CFunction(SOURCE, "optik_planar_3rpr", "optik_rpr_fk", [ctypes.c_void_p, ctypes.c_void_p])
 
 
+class _Buffers(threading.local):
+    """One thread's input and output buffers of the kernel, with their addresses."""
+
+    def __init__(self) -> None:
+        self.data = np.empty(16)
+        self.out = np.empty(1 + 7 * _MAX_MODES)
+        self.args = (self.data.ctypes.data, self.out.ctypes.data)
+
+
+_BUFFERS = _Buffers()
+
+
 def compiled_rows(b: np.ndarray, p: np.ndarray, rho: np.ndarray, tol: float = POSE_TOL) -> np.ndarray | None:
     """Every assembly mode as rows ``(theta1, rho1, pin1, theta2, rho2, theta3, rho3)`` (`_pose_row`
     of each pose of `planar_3rpr_poses`, ``pin1`` not wrapped), from the C kernel; None when it is
@@ -53,15 +66,16 @@ def compiled_rows(b: np.ndarray, p: np.ndarray, rho: np.ndarray, tol: float = PO
     fn = _KERNEL.get()
     if fn is None:
         return None
-    data = np.empty(16)
+    buffers = _BUFFERS
+    data = buffers.data
     data[:6] = b.reshape(-1)
     data[6:12] = p.reshape(-1)
     data[12:15] = rho
     data[15] = tol
-    out = np.empty(1 + 7 * _MAX_MODES)
-    if fn(data.ctypes.data, out.ctypes.data) != 0:
+    if fn(*buffers.args) != 0:
         return None
-    return out[1 : 1 + 7 * int(out[0])].reshape(-1, 7)
+    out = buffers.out
+    return out[1 : 1 + 7 * int(out[0])].reshape(-1, 7).copy()
 
 
 def planar_3rpr_ik(m: Mechanism, target: np.ndarray) -> list[np.ndarray]:

@@ -73,11 +73,20 @@ def distinct(z: np.ndarray) -> np.ndarray:
         return np.zeros(0, dtype=int)
     u = z / np.linalg.norm(z, axis=1, keepdims=True)
     close = np.abs(np.conj(u) @ u.T) > 1 - SAME_POINT
-    keep: list[int] = []
-    for i in range(len(z)):
-        if not any(close[i, j] for j in keep):
-            keep.append(i)
-    return np.array(keep, dtype=int)
+    return first_of_groups(close)
+
+
+def first_of_groups(same: np.ndarray) -> np.ndarray:
+    """Indices kept by the greedy rule "keep row ``i`` unless it is the same as a row kept before"
+    for the symmetric boolean matrix ``same`` (one Python step per row only when some pair is
+    the same)."""
+    earlier = np.triu(same, 1)
+    if not earlier.any():
+        return np.arange(len(same))
+    keep = np.zeros(len(same), dtype=bool)
+    for i in range(len(same)):
+        keep[i] = not np.any(same[i, :i] & keep[:i])
+    return np.flatnonzero(keep)
 
 
 def relative_residual(mats: np.ndarray, z: np.ndarray) -> np.ndarray:

@@ -20,7 +20,9 @@ from obstacles). A pair already closer than the margin gets a row that pushes it
 
 *Broad phase.* Only pairs that may be within ``d_i`` get an exact query: those whose screening
 bound (`optik.collision.screen`: one compiled call for the part poses and a lower bound of every
-pair's distance, from the spheres and capsules that contain the parts) is below ``d_i``. Parts on
+pair's distance, from the spheres and capsules that contain the parts) is below ``d_i``. The
+screen is built for the smallest power of two of slots that holds the world's parts (the world's
+own slot values, cut there), not the world's capacity: each slot costs a bound per sphere. Parts on
 the base body get no world rows (their distance does not depend on ``q``: a row
 ``0 <= gamma (d - d_s)`` could only make the QP infeasible; the exact check still judges them).
 
@@ -45,6 +47,7 @@ from optik.collision.distance import coal_distance, signed_request
 from optik.collision.robot import RobotGeometry, robot_geometry
 from optik.collision.screen import screen
 from optik.collision.shapes import coal_module
+from optik.collision.slots import SLOT_SIZE
 from optik.collision.world import state_of
 from optik.diffik._codegen import CompiledFunction
 from optik.errors import InvalidArgumentError
@@ -142,7 +145,9 @@ def damper_rows(
     state = state_of(world)
     geo = robot_geometry(m)
     kernel = damper_kernel(geo)
-    poses, to_world, own = screen(geo, state.capacity).bounds(q, state.slots, len(state.parts))
+    n_obj = len(state.parts)
+    capacity = 1 << max(n_obj - 1, 0).bit_length()  # the slots in use: every empty one costs a step time
+    poses, to_world, own = screen(geo, capacity).bounds(q, state.slots[: capacity * SLOT_SIZE], n_obj)
     near_a, near_b = np.nonzero(to_world + kernel.blocked < d_i)
     pairs = list(zip(near_a.tolist(), near_b.tolist(), strict=True))
     n_world = len(pairs)
@@ -192,25 +197,19 @@ def damper_rows(
     n = delta * (np.where(d >= 0, 1.0, -1.0) / length)[:, None]
     jac, origins = kernel.function.call_flat(q)
     jt = jac.T.reshape(-1, m.n_q, 6)  # jt[body, j]: column j of the body's Jacobian (a view; -1: zeros)
-    at = origins.T
-    rows = _point_rows(jt, at, ends[:, 0], n, witness[:, 0])
-    own_rows = ends[:, 1] >= 0
-    if own_rows.any():
-        rows[own_rows] -= _point_rows(jt, at, ends[own_rows, 1], n[own_rows], witness[own_rows, 1])
+    # both ends at once: n^T J_a(p_a) + (-n)^T J_b(p_b), J_b = 0 for an obstacle (body -1)
+    bodies, points = ends.reshape(-1), witness.reshape(-1, 3)
+    normals = (n[:, None, :] * _BOTH_ENDS).reshape(-1, 3)
+    r = points - origins.T[bodies]
+    w = np.concatenate([normals, np.einsum("ijk,pj,pk->pi", _LEVI_CIVITA, r, normals)], axis=1)
+    rows = np.matmul(jt[bodies], w[:, :, None]).reshape(-1, 2, m.n_q).sum(axis=1)
     return -rows, gamma * (d - d_s), float(d_min)
 
 
-def _point_rows(
-    jt: np.ndarray, at: np.ndarray, bodies: np.ndarray, n: np.ndarray, p: np.ndarray
-) -> np.ndarray:
-    """``(k, n_q)``: ``n_i^T J(p_i)`` for the points ``p_i`` fixed to ``bodies[i]`` (Jacobians ``jt``,
-    reference points ``at``): ``[n, r x n] . [J_v; J_w] = n^T (J_v - [r]_x J_w)``, ``r = p - o``."""
-    r = p - at[bodies]
-    w = np.empty((len(n), 6, 1))
-    w[:, :3, 0] = n
-    w[:, 3:, 0] = r[:, _NEXT] * n[:, _LAST] - r[:, _LAST] * n[:, _NEXT]
-    return np.matmul(jt[bodies], w)[:, :, 0]
+_BOTH_ENDS = np.array([[1.0], [-1.0]])
+"""The normal's sign at each end of a pair (towards ``a`` from ``b``)."""
 
-
-_NEXT, _LAST = [1, 2, 0], [2, 0, 1]
-"""``(a x b)_i = a_{i+1} b_{i+2} - a_{i+2} b_{i+1}`` (indices mod 3)."""
+_LEVI_CIVITA = np.zeros((3, 3, 3))
+_LEVI_CIVITA[[0, 1, 2], [1, 2, 0], [2, 0, 1]] = 1.0
+_LEVI_CIVITA[[0, 1, 2], [2, 0, 1], [1, 2, 0]] = -1.0
+"""``(r x n)_i = eps_ijk r_j n_k``: the rows ``[n, r x n] . [J_v; J_w] = n^T (J_v - [r]_x J_w)``."""

@@ -4,6 +4,7 @@ condition numbers against numpy: same modes, same counts, every mode checked ind
 from __future__ import annotations
 
 import logging
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
@@ -199,3 +200,49 @@ def test_distinct_modes_follow_the_branch_rule(seed: int, k: int) -> None:
         if not any(same_mode(m, q, qs[j]) for j in greedy):
             greedy.append(i)
     assert _distinct(m, qs) == greedy
+
+
+def test_solve_fk_all_is_the_same_with_and_without_the_kernels(monkeypatch) -> None:
+    """`solve_fk_all` on 150 random 3-RPRs (limits that drop some modes): the compiled kernels and
+    the Python paths (the float FK with ``numpy.roots``, numpy's SVD) give the same modes in the
+    same order, the same dropped ones, flags, condition numbers and messages."""
+    cases = []
+    for seed in range(150):
+        b, p, rho, _ = _geometry(seed)
+        if seed % 3 == 0:
+            rho = np.abs(np.random.default_rng(seed + 1).normal(size=3)) * 2
+        cases.append((optik.catalog.planar_3rpr(base=b, platform=p, leg_limits=(0.1, 3.0)), rho))
+    compiled = [
+        optik.solve_fk_all(m, rho, within_limits=seed % 2 == 0) for seed, (m, rho) in enumerate(cases)
+    ]
+    monkeypatch.setattr(rpr._KERNEL, "get", lambda: None)
+    monkeypatch.setattr(conditions._KERNEL, "get", lambda: None)
+    for seed, ((m, rho), mine) in enumerate(zip(cases, compiled, strict=True)):
+        general = optik.solve_fk_all(m, rho, within_limits=seed % 2 == 0)
+        assert mine.message == general.message
+        for a, b in zip([*mine, *mine.dropped], [*general, *general.dropped], strict=True):
+            assert np.allclose(a.q, b.q, atol=1e-9) and np.allclose(a.pose, b.pose, atol=1e-9)
+            assert (a.success, a.limits_ok, a.limits_violated) == (b.success, b.limits_ok, b.limits_violated)
+            assert a.residual <= 1e-9 and b.residual <= 1e-9
+            assert a.condition_number == pytest.approx(b.condition_number, rel=1e-6)
+            assert a.extra["singular"] == b.extra["singular"]
+
+
+def test_kernels_are_thread_safe() -> None:
+    """Four threads solving different 3-RPRs at once get what one thread gets."""
+    cases = [_geometry(seed) for seed in range(40)]
+    mechs = [optik.catalog.planar_3rpr(base=b, platform=p, leg_limits=(0.0, 100.0)) for b, p, _, _ in cases]
+    expected = [[r.q for r in optik.solve_fk_all(m, c[2])] for m, c in zip(mechs, cases, strict=True)]
+
+    def work(offset: int) -> bool:
+        ok = True
+        for _ in range(5):
+            for i in range(offset, len(cases), 4):
+                got = [r.q for r in optik.solve_fk_all(mechs[i], cases[i][2])]
+                ok &= len(got) == len(expected[i]) and all(
+                    np.array_equal(a, b) for a, b in zip(got, expected[i], strict=True)
+                )
+        return ok
+
+    with ThreadPoolExecutor(4) as pool:
+        assert all(pool.map(work, range(4)))

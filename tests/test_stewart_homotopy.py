@@ -196,3 +196,35 @@ def test_tracker_rejects_malformed_systems():
         parameter_homotopy.track((c, c, np.zeros((1, 3, 3))), np.ones((2, 2)), np.random.default_rng(0))
     with pytest.raises(optik.OptikError, match="starts"):
         parameter_homotopy.track((c, c, c), np.ones((2, 3)), np.random.default_rng(0))
+
+
+def _leg_line(rng):
+    b, p = _general(rng)
+    rho = _legs(b, p, *_pose(rng))
+    size = max(np.max(np.linalg.norm(b, axis=1)), np.max(rho))
+    b, p, rho = b / size, p / size, rho / size
+    c = study.leg_constants(b, p, rho)
+    start = stewart_parameter.load()
+    mats = stewart_parameter.coefficients(b, p, c, start)
+    legs = parameter_homotopy.LegLine(b, start.base - b, p, start.platform - p, c, start.constants - c)
+    return mats, legs, start
+
+
+def test_leg_line_evaluation_tracks_the_same_paths_as_the_matrices():
+    mats, legs, start = _leg_line(np.random.default_rng(21))
+    by_matrix = parameter_homotopy.track(mats, start.solutions, np.random.default_rng(4))
+    by_legs = parameter_homotopy.track(mats, start.solutions, np.random.default_rng(4), legs=legs)
+    assert list(by_legs.status) == list(by_matrix.status)
+    assert np.allclose(by_legs.z, by_matrix.z, rtol=0, atol=1e-9)
+    # and every end point solves the target (s = 0) quadrics
+    assert np.max(stewart_parameter.relative_residual(mats[0], by_legs.z)) <= 1e-8
+
+
+def test_leg_line_of_the_wrong_shape_is_rejected():
+    mats, legs, start = _leg_line(np.random.default_rng(22))
+    short = parameter_homotopy.LegLine(legs.base[:5], *list(vars(legs).values())[1:])
+    with pytest.raises(optik.OptikError, match="legs"):
+        parameter_homotopy.track(mats, start.solutions, np.random.default_rng(0), legs=short)
+    small = tuple(c[:2, :3, :3] for c in mats)
+    with pytest.raises(optik.OptikError, match="legs"):
+        parameter_homotopy.track(small, np.ones((1, 3)), np.random.default_rng(0), legs=legs)

@@ -21,7 +21,8 @@ steps below, after the first when the quadratic-convergence estimate of the next
 ``kappa d_1^2``, is; ``kappa`` is the largest ``d_2 / d_1^2`` the path has shown, at least 1)
 and the corrected point stays within ``JUMP_GUARD (1 + |z|)`` of the prediction. The step aims
 the predictor error (the corrector's displacement) at ``PREDICTOR_TARGET`` (RK4: error
-``O(h^5)``, growth at most 2x per step) and is halved on rejection. Each path runs from
+``O(h^5)``; growth at most 2x per step, none right after a rejection) and shrinks by the same
+rule on rejection (0.1x to 0.5x). Each path runs from
 ``t = 1`` to ``0`` in one go, with a step that ends exactly at ``t = ENDGAME_RADIUS``, where the
 point is kept for the endgame; that step and the last one (to ``t = 0``) are corrected to
 `ENDGAME_TOL`, so a singular end point (where Newton converges only linearly) stalls the path.
@@ -95,6 +96,7 @@ typedef struct {
     csr_t c[3]; /* C0, C1, C2: (k, n, n), symmetric, compressed sparse rows */
     cplx gamma, ta, tb;       /* arc parameter and segment t(tau) = ta + tau (tb - ta) */
     const cplx *patch;
+    const cplx *legs; /* NULL, or the Stewart-Gough leg line (b, db, p, dp, c, dc), see evaluate_legs */
 } sys_t;
 
 typedef struct {
@@ -114,6 +116,75 @@ static double norm(int n, const cplx *z) {
     return sqrt(s);
 }
 
+/* x o v for a quaternion x and a pure quaternion v = (0, v): (-x_v . v, x0 v + x_v cross v) */
+static inline __attribute__((always_inline)) void times_pure(const cplx *x, const cplx *v, cplx *out) {
+    out[0] = -(x[1] * v[0] + x[2] * v[1] + x[3] * v[2]);
+    out[1] = x[0] * v[0] + x[2] * v[2] - x[3] * v[1];
+    out[2] = x[0] * v[1] + x[3] * v[0] - x[1] * v[2];
+    out[3] = x[0] * v[2] + x[1] * v[1] - x[2] * v[0];
+}
+
+/* v o x for a pure quaternion v and a quaternion x: (-v . x_v, x0 v + v cross x_v) */
+static inline __attribute__((always_inline)) void pure_times(const cplx *v, const cplx *x, cplx *out) {
+    out[0] = -(v[0] * x[1] + v[1] * x[2] + v[2] * x[3]);
+    out[1] = x[0] * v[0] + v[1] * x[3] - v[2] * x[2];
+    out[2] = x[0] * v[1] + v[2] * x[1] - v[0] * x[3];
+    out[3] = x[0] * v[2] + v[0] * x[2] - v[1] * x[1];
+}
+
+static inline cplx dot4(const cplx *a, const cplx *b) {
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3];
+}
+
+/* The same J, value and dH/dtau as evaluate, for the Study quadric and the six leg quadrics of a
+   Stewart-Gough platform whose base points, platform points and leg constants move on a line:
+   b_i(s) = b_i + s db_i, p_i(s) = p_i + s dp_i, c_i(s) = c_i + s dc_i (legs = [b, db, p, dp
+   (6 x 3 each), c, dc (6 each)]). With z = (e, g), u = e o p, w = b o e (b, p pure quaternions):
+   F_0 = e . g and F_i = c e.e - 2 w.u + 4 (u - w).g + 4 g.g, so
+   dF_i/de = 2 c e + 2 b o (u + 2 g) + 2 (w - 2 g) o p (L(b)^T = -L(b), R(p)^T = -R(p) for pure
+   quaternions), dF_i/dg = 4 (u - w) + 8 g and
+   dF_i/ds = dc e.e - 2 ((db o e).u + w.(e o dp)) + 4 (e o dp - db o e).g. */
+static void evaluate_legs(const sys_t *q, const cplx *z, cplx s, cplx ds, cplx *jac, cplx *val, cplx *ht) {
+    const cplx *e = z, *g = z + 4, *lb = q->legs, *ldb = lb + 18, *lp = lb + 36, *ldp = lb + 54;
+    const cplx *lc = lb + 72, *ldc = lb + 78;
+    const cplx ee = dot4(e, e), gg = dot4(g, g);
+    for (int c = 0; c < 4; c++) {
+        jac[c] = g[c];
+        jac[4 + c] = e[c];
+    }
+    val[0] = dot4(e, g);
+    ht[0] = 0.0;
+    for (int i = 0; i < 6; i++) {
+        cplx b[3], p[3], u[4], w[4], x[4], y[4], du[4], dw[4];
+        for (int a = 0; a < 3; a++) {
+            b[a] = lb[3 * i + a] + s * ldb[3 * i + a];
+            p[a] = lp[3 * i + a] + s * ldp[3 * i + a];
+        }
+        const cplx c = lc[i] + s * ldc[i];
+        times_pure(e, p, u);
+        pure_times(b, e, w);
+        cplx uw_g = 0.0;
+        for (int a = 0; a < 4; a++) {
+            x[a] = u[a] + 2.0 * g[a];
+            y[a] = w[a] - 2.0 * g[a];
+            uw_g += (u[a] - w[a]) * g[a];
+        }
+        val[i + 1] = c * ee - 2.0 * dot4(w, u) + 4.0 * uw_g + 4.0 * gg;
+        cplx *row = jac + 8 * (i + 1);
+        pure_times(b, x, row);
+        times_pure(y, p, row + 4); /* scratch: the e part is 2 c e + 2 row[0..3] + 2 row[4..7] */
+        for (int a = 0; a < 4; a++) {
+            row[a] = 2.0 * (c * e[a] + row[a] + row[4 + a]);
+            row[4 + a] = 4.0 * (u[a] - w[a]) + 8.0 * g[a];
+        }
+        times_pure(e, ldp + 3 * i, du);
+        pure_times(ldb + 3 * i, e, dw);
+        cplx d = ldc[i] * ee - 2.0 * (dot4(dw, u) + dot4(w, du));
+        for (int a = 0; a < 4; a++) d += 4.0 * (du[a] - dw[a]) * g[a];
+        ht[i + 1] = d * ds;
+    }
+}
+
 /* J = [2 M(s) z; a^T] (row-major), value [z^T M(s) z; a^T z - 1], dH/dtau */
 static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx *val, cplx *ht) {
     const int n = q->n, k = q->k;
@@ -121,6 +192,9 @@ static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx 
     const cplx den = 1.0 + (q->gamma - 1.0) * t;
     const cplx s = q->gamma * t / den, s2 = s * s;
     const cplx ds = q->gamma / (den * den) * (q->tb - q->ta);
+    if (q->legs) {
+        evaluate_legs(q, z, s, ds, jac, val, ht);
+    } else {
     for (int j = 0; j < k; j++) {
         cplx v = 0.0, w = 0.0;
         for (int r = 0; r < n; r++) {
@@ -141,6 +215,7 @@ static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx 
         val[j] = v;
         ht[j] = w * ds;
     }
+    }
     cplx pz = 0.0;
     for (int c = 0; c < n; c++) {
         jac[k * n + c] = q->patch[c];
@@ -151,7 +226,7 @@ static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx 
 }
 
 /* a x = b and a y = c in place (b, c become x, y; c may be NULL), partial pivoting; 0 on success */
-static int solve2(int n, cplx *a, cplx *b, cplx *c) {
+static inline __attribute__((always_inline)) int solve_n(int n, cplx *a, cplx *b, cplx *c) {
     for (int col = 0; col < n; col++) {
         int piv = col;
         double best = fabs(creal(a[col * n + col])) + fabs(cimag(a[col * n + col]));
@@ -194,6 +269,11 @@ static int solve2(int n, cplx *a, cplx *b, cplx *c) {
     return 0;
 }
 
+/* solve_n with the dimension a constant where it is the Stewart-Gough one (8): unrolled loops */
+static int solve8(cplx *a, cplx *b, cplx *c) { return solve_n(8, a, b, c); }
+
+static int solve2(int n, cplx *a, cplx *b, cplx *c) { return n == 8 ? solve8(a, b, c) : solve_n(n, a, b, c); }
+
 static int tangent(const sys_t *q, const cplx *z, double tau, cplx *out) {
     cplx jac[NMAX * NMAX], val[NMAX];
     evaluate(q, z, tau, jac, val, out);
@@ -209,7 +289,7 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, cplx *zmark, doub
     cplx jac[NMAX * NMAX], val[NMAX], ht[NMAX];
     const double seglen = cabs(q->tb - q->ta);
     double tau = 0.0, h = o->h0;
-    int status = 0, have_k1 = 0;
+    int status = 0, have_k1 = 0, retried = 0;
     double kappa = 1.0;
     long steps = 0;
     while (tau < 1.0) {
@@ -274,10 +354,15 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, cplx *zmark, doub
             have_k1 = 1;
             /* the predictor error of RK4 is O(h^5): aim the next one at o->target */
             const double grow = moved > 0.0 ? 0.9 * pow(o->target / moved, 0.2) : 2.0;
-            if (st >= h) h = fmin(h * fmin(fmax(grow, 0.5), 2.0), o->max_step);
+            /* no growth right after a rejection: the step that failed would be tried again */
+            if (st >= h) h = fmin(h * fmin(fmax(grow, 0.5), retried ? 1.0 : 2.0), o->max_step);
+            retried = 0;
         } else {
             have_k1 = !bad_k1;
-            h *= 0.5;
+            /* shrink by the predictor error where it is known (at most halve: st < h at the end
+               of the run or before the mark) */
+            h = st * (isfinite(moved) ? fmin(fmax(0.9 * pow(o->target / moved, 0.2), 0.1), 0.5) : 0.5);
+            retried = 1;
             const double t_abs = cabs(q->ta + tau * (q->tb - q->ta));
             const double floor = t_abs < 1e-2 ? fmax(o->min_step, o->stall * t_abs / seglen) : o->min_step;
             if (h < floor) { status = 1; break; }
@@ -297,10 +382,10 @@ int optik_track_paths(int paths, int k, int n, const long *ptr0, const int *col0
                       const long *ptr2, const int *col2, const cplx *val2,
                       double g_re, double g_im, const cplx *patch, double ta_re, double ta_im,
                       double tb_re, double tb_im, const double *opts, cplx *z, int *status,
-                      double *tau, long *steps, cplx *zmark) {
-    if (n > NMAX || k != n - 1) return -1;
+                      double *tau, long *steps, cplx *zmark, const cplx *legs) {
+    if (n > NMAX || k != n - 1 || (legs && n != 8)) return -1;
     sys_t q = {k, n, {{ptr0, col0, val0}, {ptr1, col1, val1}, {ptr2, col2, val2}},
-               g_re + I * g_im, ta_re + I * ta_im, tb_re + I * tb_im, patch};
+               g_re + I * g_im, ta_re + I * ta_im, tb_re + I * tb_im, patch, legs};
     opts_t o = {opts[0], opts[1], opts[2], opts[3], opts[4],
                 now() + opts[5], opts[6], opts[8], opts[9], opts[10], (long)opts[7]};
     int left = 0;
@@ -326,7 +411,7 @@ def compiled() -> ctypes.CDLL | None:
         if lib is not None:
             fn = lib.optik_track_paths
             ptr, dbl, i32 = ctypes.c_void_p, ctypes.c_double, ctypes.c_int
-            fn.argtypes = [i32, i32, i32, *([ptr] * 9), dbl, dbl, ptr, dbl, dbl, dbl, dbl, *([ptr] * 6)]
+            fn.argtypes = [i32, i32, i32, *([ptr] * 9), dbl, dbl, ptr, dbl, dbl, dbl, dbl, *([ptr] * 7)]
             fn.restype = i32
         _LIB.append(lib)
     return _LIB[0]
@@ -373,14 +458,43 @@ def _csr(c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return ptr, np.ascontiguousarray(cols), np.ascontiguousarray(rows[keep])
 
 
+@dataclass(frozen=True)
+class LegLine:
+    """A Stewart-Gough family on a line of (complex) geometries, for the compiled tracker's
+    structured evaluation of its 7 quadrics (`optik.closed_form.parallel.study.study_matrices`:
+    the Study quadric and the six legs): base points ``base + s d_base``, platform points
+    ``platform + s d_platform`` (``(6, 3)`` each) and leg constants ``constants + s d_constants``
+    (``(6,)`` each). Quaternion products of the points with ``e`` and ``g`` take about 60 % of the
+    operations of the three sparse matrices ``C0, C1, C2`` of the same family."""
+
+    base: np.ndarray
+    d_base: np.ndarray
+    platform: np.ndarray
+    d_platform: np.ndarray
+    constants: np.ndarray
+    d_constants: np.ndarray
+
+    def packed(self) -> np.ndarray:
+        """``[b, db, p, dp, c, dc]`` flattened, complex (the C layout)."""
+        parts = (self.base, self.d_base, self.platform, self.d_platform, self.constants, self.d_constants)
+        return np.ascontiguousarray(np.concatenate([np.ravel(a) for a in parts]), dtype=complex)
+
+
 class _Tracker:
     """One call of the compiled tracker on a fixed system, gamma and patch."""
 
     def __init__(
-        self, coefficients: tuple[np.ndarray, np.ndarray, np.ndarray], gamma: complex, patch: np.ndarray
+        self,
+        coefficients: tuple[np.ndarray, np.ndarray, np.ndarray],
+        gamma: complex,
+        patch: np.ndarray,
+        legs: LegLine | None = None,
     ):
         self.k, self.n = coefficients[0].shape[0], coefficients[0].shape[1]
-        self.c = [_csr(c) for c in coefficients]
+        self.legs = None if legs is None else legs.packed()
+        rows = self.k * self.n + 1
+        no_matrix = (np.zeros(rows, dtype=np.int64), np.zeros(1, dtype=np.int32), np.zeros(1, dtype=complex))
+        self.c = [_csr(c) if legs is None else no_matrix for c in coefficients]
         self.gamma = complex(gamma)
         self.patch = np.ascontiguousarray(patch, dtype=complex)
         self.steps = 0
@@ -417,7 +531,7 @@ class _Tracker:
             p, self.k, self.n, *(a.ctypes.data for c in self.c for a in c), self.gamma.real, self.gamma.imag,
             self.patch.ctypes.data, complex(ta).real, complex(ta).imag, complex(tb).real, complex(tb).imag,
             opts.ctypes.data, z.ctypes.data, status.ctypes.data, tau.ctypes.data, steps.ctypes.data,
-            z_mark.ctypes.data,
+            z_mark.ctypes.data, None if self.legs is None else self.legs.ctypes.data,
         )  # fmt: skip
         self.steps += int(steps.sum())
         return z, status, z_mark, tau
@@ -432,6 +546,7 @@ def track(
     tol: float = 1e-6,
     max_step: float = 0.25,
     abandon: Callable[[np.ndarray], np.ndarray] | None = None,
+    legs: LegLine | None = None,
 ) -> ParameterTracking:
     """Track the start solutions ``starts`` (rows, solutions of ``M(1) = C0 + C1 + C2``) to ``s = 0``.
 
@@ -447,10 +562,14 @@ def track(
         abandon: optional test ``z -> bool mask`` on the points where paths stalled near
             ``t = 0``; flagged paths skip the endgame (e.g. paths that clearly entered a known
             positive-dimensional set of no interest).
+        legs: the same family as a Stewart-Gough `LegLine` (``k = 7``): the tracker evaluates
+            it from the points instead of the matrices (fewer operations, the same values);
+            ``coefficients`` still give the condition numbers of the end points.
 
     Raises:
         InvalidArgumentError: coefficients not three ``(k, k + 1, k + 1)`` arrays with
-            ``k + 1 <= 16``, or starts not ``(paths, k + 1)``.
+            ``k + 1 <= 16``, starts not ``(paths, k + 1)``, or ``legs`` given with ``k != 7``
+            or points and constants not of shapes ``(6, 3)`` and ``(6,)``.
         SolverUnavailableError: no working C compiler (check `available` first).
     """
     start = time.perf_counter()
@@ -463,12 +582,19 @@ def track(
         )
     if np.ndim(starts) != 2 or np.shape(starts)[1] != k + 1:
         raise InvalidArgumentError("starts", f"need shape (paths, {k + 1}), got {np.shape(starts)}")
+    if legs is not None:
+        shapes = [np.shape(a) for a in (legs.base, legs.d_base, legs.platform, legs.d_platform)]
+        shapes += [np.shape(legs.constants), np.shape(legs.d_constants)]
+        if k != 7 or shapes != [(6, 3)] * 4 + [(6,)] * 2:
+            raise InvalidArgumentError(
+                "legs", f"need k = 7, points (6, 3) and constants (6,); got k = {k}, shapes {shapes}"
+            )
     if compiled() is None:
         raise SolverUnavailableError("the compiled path tracker needs a working C compiler")
     n = coefficients[0].shape[1]
     gamma = np.exp(1j * GAMMA_ANGLE * rng.uniform(-1, 1))
     patch = rng.normal(size=n) + 1j * rng.normal(size=n)
-    tracker = _Tracker(coefficients, gamma, patch)
+    tracker = _Tracker(coefficients, gamma, patch, legs)
     z0 = np.asarray(starts, dtype=complex)
     z0 = z0 / (z0 @ patch)[:, None]
     r = ENDGAME_RADIUS

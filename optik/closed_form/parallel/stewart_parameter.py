@@ -221,7 +221,10 @@ def solve(
     """
     start = load()
     mats = coefficients(b, p, c, start)
-    res = parameter_homotopy.track(mats, start.solutions, rng, time_limit=time_limit, abandon=_degenerate)
+    legs = parameter_homotopy.LegLine(b, start.base - b, p, start.platform - p, c, start.constants - c)
+    res = parameter_homotopy.track(
+        mats, start.solutions, rng, time_limit=time_limit, abandon=_degenerate, legs=legs
+    )
     ended = np.flatnonzero((res.status == "regular") | (res.status == "endgame"))
     z = homotopy.refine(mats[0], res.z[ended])
     solves = relative_residual(mats[0], z) < 1e-8

@@ -18,9 +18,12 @@ between the model and the exact check):
   objective as `optik.IKProblem`'s, multi-start until the time limit.
 
 The world is read once per call (`optik.World.state`: one version, so a `World.move` during the
-solve changes neither the slots nor the exact check of this call) and handed to the generated code
-as parameter values (`optik.collision.slots`): the code is cached per mechanism, task, frame, bound and slot
-capacity, so a moved, added or removed object builds nothing new.
+solve changes neither the slots nor the exact check of this call) and handed to the generated
+code as parameter values (`optik.collision.slots`), and so is the bound ``b`` with the flags of the
+self pairs the capsules can keep that far apart (`optik.collision.spheres.separable_pairs`; the
+others are left to the exact check): the code is cached per mechanism, task, frame and slot
+capacity, so a moved, added or removed object or a new margin builds nothing new. The first
+build of a key is made once, under a lock (a second thread waits for it).
 
 **Success** is decided by the exact check (`optik.collision.check` at ``margin``) of the final
 answer, after the tolerances: a start whose answer the check finds closer than the margin is
@@ -49,8 +52,8 @@ from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.problem import IKProblem, build_ik_problem, target_parameters
 from optik.results import IKResult
 from optik.solvers.base import IKRequest, make_result, positive_int
-from optik.solvers.collision_kernel import constrained_functions
-from optik.solvers.lm import lm_settings, request_seed
+from optik.solvers.collision_kernel import bound_parameters, constrained_functions
+from optik.solvers.lm import lm_result, lm_settings, request_seed
 from optik.solvers.lm_kernel import LMKernel
 
 __all__ = ["METHODS", "collision_rows", "compiled_kernels", "solve_collision_free"]
@@ -62,32 +65,41 @@ _OWN_OPTIONS = {"buffer": 0.002}
 """Options of the collision-aware solve itself (the rest go to the method)."""
 
 
-def collision_rows(
-    request: IKRequest, capacity: int, self_collision: bool, bound: float
-) -> tuple[DistanceRows, ca.SX]:
+def collision_rows(request: IKRequest, capacity: int, self_collision: bool) -> tuple[DistanceRows, ca.SX]:
     """The distance rows of the request's mechanism against a world of ``capacity`` slots
-    (`optik.collision.slots`), and the slot symbols."""
+    (`optik.collision.slots`; every self-collision pair when ``self_collision``), and the slot
+    symbols."""
     m = request.mechanism
     geo = robot_geometry(m)
     slots = ca.SX.sym("world_slots", capacity * SLOT_SIZE)
-    rows = distance_expressions(geo, [m.frame_expr(link) for link in geo.links], slots, self_collision, bound)
+    rows = distance_expressions(geo, [m.frame_expr(link) for link in geo.links], slots, self_collision)
     return rows, slots
 
 
 _CACHE: dict[tuple[Any, ...], Any] = {}
 _CACHE_MAX = 32
 _LOCK = threading.Lock()
+_BUILDING: dict[tuple[Any, ...], threading.Lock] = {}
 
 
 def _cached(key: tuple[Any, ...], build: Any) -> Any:
+    """The cached value of ``key``, built by ``build()`` once: a second thread asking for a key
+    being built waits for that build instead of starting its own."""
     with _LOCK:
         hit = _CACHE.get(key)
-    if hit is None:
-        hit = build()
+        if hit is not None:
+            return hit
+        building = _BUILDING.setdefault(key, threading.Lock())
+    with building:
         with _LOCK:
-            if len(_CACHE) >= _CACHE_MAX:
-                _CACHE.clear()
-            hit = _CACHE.setdefault(key, hit)
+            hit = _CACHE.get(key)
+        if hit is None:
+            hit = build()
+            with _LOCK:
+                if len(_CACHE) >= _CACHE_MAX:
+                    _CACHE.clear()
+                _CACHE[key] = hit
+                _BUILDING.pop(key, None)
     return hit
 
 
@@ -99,16 +111,9 @@ def compiled_kernels() -> dict[str, bool]:
     return {name: kernels[1].compiled for name, kernels in hits}
 
 
-def _finish(
-    request: IKRequest,
-    q: np.ndarray,
-    method: str,
-    iterations: int,
-    restarts: int,
-    status: str | None,
-    report_of: Any,
-) -> IKResult:
-    res = make_result(request, q, method, iterations, restarts, status)
+def _finish(res: IKResult, report_of: Any) -> IKResult:
+    """``res`` judged by the exact check as well (see the module docstring), with the distance
+    and the closest pair of its ``q``."""
     report = report_of(res.q)
     res.min_distance = report.min_distance
     res.collision_pair = report.pair
@@ -144,52 +149,44 @@ def _solve_lm(
     m = request.mechanism
     settings, closure_weight, compile = lm_settings(request)
     setup = time.perf_counter()
-    capacity, slots = world.capacity, world.slots
-    key = (
-        "lm",
-        m,
-        request.task,
-        request.frame,
-        closure_weight,
-        compile,
-        capacity,
-        self_collision,
-        margin + buffer,
-    )
+    key = ("lm", m, request.task, request.frame, closure_weight, compile, world.capacity, self_collision)
 
     def build() -> tuple[LMKernel, LMKernel]:
         problem = build_ik_problem(m, request.task, request.frame)
-        functions = constrained_functions(
-            problem, robot_geometry(m), capacity, self_collision, margin + buffer, closure_weight
-        )
+        geo = robot_geometry(m)
+        functions = constrained_functions(problem, geo, world.capacity, self_collision, closure_weight)
         plain = LMKernel(m, request.task, request.frame, closure_weight, compile)
         return plain, LMKernel(m, request.task, request.frame, closure_weight, compile, functions=functions)
 
     plain, constrained = _cached(key, build)
+    bounds = bound_parameters(robot_geometry(m), self_collision, margin + buffer)
     request.exclude_setup(setup)
     conf = settings.conf(m)
-    pose = target_parameters(request.target)[None]
-    params = np.concatenate([pose, slots[None]], axis=1)
+    pose = target_parameters(request.target)
+    params = np.concatenate([pose, world.slots, bounds])
     report_of = _reports(request, world, self_collision, margin)
     seed = request_seed(request.seed) & (2**63 - 1)
     iterations, restarts, q0 = 0, -1, request.q0
     res: IKResult | None = None
     while res is None or (not res.success and request.remaining() > 0):
+        if res is not None:  # a new round from a new random configuration
+            seed = (seed * 6364136223846793005 + 1442695040888963407) & (2**63 - 1)
+            q0 = m.random_q(seed=seed)
         # the unconstrained kernel (its own restarts) until the pose is met ...
         conf[3] = max(request.remaining(), 0.0)
-        out = plain.run(pose, q0[None], np.array([seed], dtype=np.uint64), conf)
-        iterations += int(out.iterations[0])
-        restarts += int(out.restarts[0]) + 1
-        res = _finish(request, out.q[0], "lm", iterations, restarts, None, report_of)
+        q, err, it, starts, code = plain.run_one(pose, q0, seed, conf)
+        iterations += it
+        restarts += starts + 1
+        res = _finish(lm_result(request, plain, q, err, iterations, restarts, code, pose), report_of)
         if res.status == "in_collision" and request.remaining() > 0:
-            # ... then, from that colliding answer, the constrained kernel (one start)
+            # ... then, from that colliding answer, the constrained kernel (one start), its answer
+            # judged by the pose errors alone (its own closure error holds the model's hinges)
             once = conf.copy()
             once[2], once[3] = 0, request.remaining()
-            out = constrained.run(params, res.q[None], np.array([seed], dtype=np.uint64), once)
-            iterations += int(out.iterations[0])
-            res = _finish(request, out.q[0], "lm", iterations, restarts, None, report_of)
-        seed = (seed * 6364136223846793005 + 1442695040888963407) & (2**63 - 1)
-        q0 = m.random_q(seed=seed)
+            q, _, it, _, code = constrained.run_one(params, res.q, seed, once)
+            iterations += it
+            err = plain.final_errors(q, pose)
+            res = _finish(lm_result(request, plain, q, err, iterations, restarts, code, pose), report_of)
     if not res.success and res.status == "not_converged":
         res.status = "time_limit"
     return res
@@ -199,12 +196,12 @@ class _IpoptPool:
     """IPOPT instances of one constrained problem, one per concurrent solve (nlpsol instances
     are not safe to share between threads)."""
 
-    def __init__(
-        self, problem: IKProblem, rows: DistanceRows, slots: ca.SX, bound: float, max_iter: int
-    ) -> None:
+    def __init__(self, problem: IKProblem, rows: DistanceRows, slots: ca.SX, max_iter: int) -> None:
+        bound, flags = ca.SX.sym("bound"), ca.SX.sym("self_active", rows.self_rows.shape[0])
         world = rows.active * (rows.world - bound)  # an empty slot's rows are 0 >= 0
-        g = ca.vertcat(problem.mechanism.closure_expr, world, rows.self_rows - bound)
-        p = ca.vertcat(problem.parameters, slots)
+        own = flags * (rows.self_rows - bound)  # so are those of pairs left to the exact check
+        g = ca.vertcat(problem.mechanism.closure_expr, world, own)
+        p = ca.vertcat(problem.parameters, slots, bound, flags)
         self.nlp = {"x": problem.q, "p": p, "f": problem.objective, "g": g}
         n_c = problem.mechanism.n_closure
         self.lbg = ca.DM(np.zeros(g.shape[0]))
@@ -246,28 +243,20 @@ def _solve_nlp(
             next(iter(opts)), "unknown option of the collision-aware nlp (max_iter, posture, buffer)"
         )
     setup = time.perf_counter()
-    capacity, slots = world.capacity, world.slots
-    key = (
-        "nlp",
-        m,
-        request.task,
-        request.frame,
-        capacity,
-        self_collision,
-        margin + buffer,
-        max_iter,
-    )
+    key = ("nlp", m, request.task, request.frame, world.capacity, self_collision, max_iter)
 
     def build() -> _IpoptPool:
         base = build_ik_problem(m, request.task, request.frame)
-        rows, symbols = collision_rows(request, capacity, self_collision, margin + buffer)
-        return _IpoptPool(base, rows, symbols, margin + buffer, max_iter)
+        rows, symbols = collision_rows(request, world.capacity, self_collision)
+        return _IpoptPool(base, rows, symbols, max_iter)
 
     pool = _cached(key, build)
     solver = pool.take()
+    bounds = bound_parameters(robot_geometry(m), self_collision, margin + buffer)
     request.exclude_setup(setup)
-    params = ca.DM(np.concatenate([pool.problem.parameter_values(request.target, posture=posture), slots]))
-    bounds = {"lbx": ca.DM(m.lower), "ubx": ca.DM(m.upper), "lbg": pool.lbg, "ubg": pool.ubg}
+    task = pool.problem.parameter_values(request.target, posture=posture)
+    params = ca.DM(np.concatenate([task, world.slots, bounds]))
+    limits = {"lbx": ca.DM(m.lower), "ubx": ca.DM(m.upper), "lbg": pool.lbg, "ubg": pool.ubg}
     report_of = _reports(request, world, self_collision, margin)
 
     rng = request.rng
@@ -275,12 +264,11 @@ def _solve_nlp(
     try:
         while True:
             restarts += 1
-            sol = solver.call({"x0": ca.DM(q0), "p": params, **bounds})
+            sol = solver.call({"x0": ca.DM(q0), "p": params, **limits})
             iterations += int(solver.stats().get("iter_count", 0))
             status = None if request.remaining() > 0 else "time_limit"
-            res = _finish(
-                request, np.asarray(sol["x"]).ravel(), "nlp", iterations, restarts, status, report_of
-            )
+            q = np.asarray(sol["x"]).ravel()
+            res = _finish(make_result(request, q, "nlp", iterations, restarts, status), report_of)
             if res.success or request.remaining() <= 0:
                 return res
             q0 = m.random_q(seed=rng)

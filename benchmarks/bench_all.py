@@ -104,7 +104,7 @@ RUNS: tuple[Run, ...] = (
     Run(
         "all_solutions",
         "All IK solutions of 6-axis arms, against EAIK and ik-geo",
-        ("--n", "300"),
+        ("--n", "2000"),
         ("--n", "30"),
     ),
     Run(

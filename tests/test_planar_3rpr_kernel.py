@@ -4,6 +4,7 @@ condition numbers against numpy: same modes, same counts, every mode checked ind
 from __future__ import annotations
 
 import logging
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
@@ -225,3 +226,37 @@ def test_solve_fk_all_is_the_same_with_and_without_the_kernels(monkeypatch) -> N
             assert a.residual <= 1e-9 and b.residual <= 1e-9
             assert a.condition_number == pytest.approx(b.condition_number, rel=1e-6)
             assert a.extra["singular"] == b.extra["singular"]
+
+
+def test_kernels_are_thread_safe() -> None:
+    """Four threads solving different 3-RPRs at once get what one thread gets."""
+    cases = [_geometry(seed) for seed in range(40)]
+    mechs = [optik.catalog.planar_3rpr(base=b, platform=p, leg_limits=(0.0, 100.0)) for b, p, _, _ in cases]
+    expected = [[r.q for r in optik.solve_fk_all(m, c[2])] for m, c in zip(mechs, cases, strict=True)]
+
+    def work(offset: int) -> bool:
+        ok = True
+        for _ in range(5):
+            for i in range(offset, len(cases), 4):
+                got = [r.q for r in optik.solve_fk_all(mechs[i], cases[i][2])]
+                ok &= len(got) == len(expected[i]) and all(
+                    np.array_equal(a, b) for a, b in zip(got, expected[i], strict=True)
+                )
+        return ok
+
+    with ThreadPoolExecutor(4) as pool:
+        assert all(pool.map(work, range(4)))
+
+
+@pytest.mark.parametrize("name", ["planar_3rpr", "doggy", "five_bar", "slider_crank", "stewart_gough"])
+def test_mode_check_of_several_rows_equals_the_model(name: str) -> None:
+    """The mapped mode check of ``K`` rows: each row's closure and passive Jacobian (in the
+    orientation ``(m, p)``) equal the closure function's, and its pose equals ``m.fk``."""
+    m = getattr(optik.catalog, name)()
+    cm = _compiled(m)
+    for k in (1, 3):
+        qs = np.array([m.random_q(seed=i) for i in range(k)])
+        c, jac, pose = cm.modes(qs)  # type: ignore[misc]
+        c_ref, jac_ref = cm.evaluate(qs)
+        assert np.array_equal(c, c_ref) and np.array_equal(jac, jac_ref)
+        assert all(np.array_equal(pose[i], m.fk(qs[i])) for i in range(k))

@@ -108,12 +108,15 @@ static int optik_valid_transform(const double *t, double diag, double off) {
 
 /* optik.spatial.wrap_into (the rules of wrap_to_limits), rule 3, for a wrapped angle c outside [lo, hi], by the same
    arithmetic: of c + 2 pi k for k = base - 1 .. base + 2 (base: whole turns from c to the nearest
-   point of the interval), the one of least gap to the interval; of gap 0, the one of least |k| */
+   point of the interval), the one of least gap to the interval; of gap 0, the one of least |k|
+   (no NaN here: the max and min are comparisons, not calls of fmax and fmin) */
 static double optik_nearest_turn(double c, double lo, double hi) {
-  double base = floor((fmin(fmax(c, lo), hi) - c) / OPTIK_TWO_PI), best = c, best_key = INFINITY;
+  const double nearest = c < lo ? lo : (c > hi ? hi : c);
+  double base = floor((nearest - c) / OPTIK_TWO_PI), best = c, best_key = INFINITY;
   for (int step = -1; step <= 2; ++step) {
     double k = base + (double)step, x = c + OPTIK_TWO_PI * k;
-    double gap = fmax(fmax(lo - x, x - hi), 0.0);
+    double below = lo - x, above = x - hi, gap = below > above ? below : above;
+    gap = gap > 0.0 ? gap : 0.0;
     double key = gap > 0.0 ? gap : -1.0 / (1.0 + fabs(k));
     if (key < best_key) {
       best_key = key;

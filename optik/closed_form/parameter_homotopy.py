@@ -21,7 +21,8 @@ steps below, after the first when the quadratic-convergence estimate of the next
 ``kappa d_1^2``, is; ``kappa`` is the largest ``d_2 / d_1^2`` the path has shown, at least 1)
 and the corrected point stays within ``JUMP_GUARD (1 + |z|)`` of the prediction. The step aims
 the predictor error (the corrector's displacement) at ``PREDICTOR_TARGET`` (RK4: error
-``O(h^5)``, growth at most 2x per step) and is halved on rejection. Each path runs from
+``O(h^5)``; growth at most 2x per step, none right after a rejection) and shrinks by the same
+rule on rejection (0.1x to 0.5x). Each path runs from
 ``t = 1`` to ``0`` in one go, with a step that ends exactly at ``t = ENDGAME_RADIUS``, where the
 point is kept for the endgame; that step and the last one (to ``t = 0``) are corrected to
 `ENDGAME_TOL`, so a singular end point (where Newton converges only linearly) stalls the path.
@@ -116,7 +117,7 @@ static double norm(int n, const cplx *z) {
 }
 
 /* x o v for a quaternion x and a pure quaternion v = (0, v): (-x_v . v, x0 v + x_v cross v) */
-static void times_pure(const cplx *x, const cplx *v, cplx *out) {
+static inline __attribute__((always_inline)) void times_pure(const cplx *x, const cplx *v, cplx *out) {
     out[0] = -(x[1] * v[0] + x[2] * v[1] + x[3] * v[2]);
     out[1] = x[0] * v[0] + x[2] * v[2] - x[3] * v[1];
     out[2] = x[0] * v[1] + x[3] * v[0] - x[1] * v[2];
@@ -124,14 +125,14 @@ static void times_pure(const cplx *x, const cplx *v, cplx *out) {
 }
 
 /* v o x for a pure quaternion v and a quaternion x: (-v . x_v, x0 v + v cross x_v) */
-static void pure_times(const cplx *v, const cplx *x, cplx *out) {
+static inline __attribute__((always_inline)) void pure_times(const cplx *v, const cplx *x, cplx *out) {
     out[0] = -(v[0] * x[1] + v[1] * x[2] + v[2] * x[3]);
     out[1] = x[0] * v[0] + v[1] * x[3] - v[2] * x[2];
     out[2] = x[0] * v[1] + v[2] * x[1] - v[0] * x[3];
     out[3] = x[0] * v[2] + v[0] * x[2] - v[1] * x[1];
 }
 
-static cplx dot4(const cplx *a, const cplx *b) {
+static inline cplx dot4(const cplx *a, const cplx *b) {
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3];
 }
 
@@ -225,7 +226,7 @@ static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx 
 }
 
 /* a x = b and a y = c in place (b, c become x, y; c may be NULL), partial pivoting; 0 on success */
-static int solve2(int n, cplx *a, cplx *b, cplx *c) {
+static inline __attribute__((always_inline)) int solve_n(int n, cplx *a, cplx *b, cplx *c) {
     for (int col = 0; col < n; col++) {
         int piv = col;
         double best = fabs(creal(a[col * n + col])) + fabs(cimag(a[col * n + col]));
@@ -268,6 +269,11 @@ static int solve2(int n, cplx *a, cplx *b, cplx *c) {
     return 0;
 }
 
+/* solve_n with the dimension a constant where it is the Stewart-Gough one (8): unrolled loops */
+static int solve8(cplx *a, cplx *b, cplx *c) { return solve_n(8, a, b, c); }
+
+static int solve2(int n, cplx *a, cplx *b, cplx *c) { return n == 8 ? solve8(a, b, c) : solve_n(n, a, b, c); }
+
 static int tangent(const sys_t *q, const cplx *z, double tau, cplx *out) {
     cplx jac[NMAX * NMAX], val[NMAX];
     evaluate(q, z, tau, jac, val, out);
@@ -283,7 +289,7 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, cplx *zmark, doub
     cplx jac[NMAX * NMAX], val[NMAX], ht[NMAX];
     const double seglen = cabs(q->tb - q->ta);
     double tau = 0.0, h = o->h0;
-    int status = 0, have_k1 = 0;
+    int status = 0, have_k1 = 0, retried = 0;
     double kappa = 1.0;
     long steps = 0;
     while (tau < 1.0) {
@@ -348,10 +354,15 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, cplx *zmark, doub
             have_k1 = 1;
             /* the predictor error of RK4 is O(h^5): aim the next one at o->target */
             const double grow = moved > 0.0 ? 0.9 * pow(o->target / moved, 0.2) : 2.0;
-            if (st >= h) h = fmin(h * fmin(fmax(grow, 0.5), 2.0), o->max_step);
+            /* no growth right after a rejection: the step that failed would be tried again */
+            if (st >= h) h = fmin(h * fmin(fmax(grow, 0.5), retried ? 1.0 : 2.0), o->max_step);
+            retried = 0;
         } else {
             have_k1 = !bad_k1;
-            h = 0.5 * st; /* st < h at the end of the run or before the mark */
+            /* shrink by the predictor error where it is known (at most halve: st < h at the end
+               of the run or before the mark) */
+            h = st * (isfinite(moved) ? fmin(fmax(0.9 * pow(o->target / moved, 0.2), 0.1), 0.5) : 0.5);
+            retried = 1;
             const double t_abs = cabs(q->ta + tau * (q->tb - q->ta));
             const double floor = t_abs < 1e-2 ? fmax(o->min_step, o->stall * t_abs / seglen) : o->min_step;
             if (h < floor) { status = 1; break; }

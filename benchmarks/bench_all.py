@@ -104,7 +104,7 @@ RUNS: tuple[Run, ...] = (
     Run(
         "all_solutions",
         "All IK solutions of 6-axis arms, against EAIK and ik-geo",
-        ("--n", "300"),
+        ("--n", "2000"),
         ("--n", "30"),
     ),
     Run(
@@ -213,21 +213,21 @@ RUNS: tuple[Run, ...] = (
     Run(
         "collision",
         "Collision-free IK, Panda in clutter: optik against TRAC-IK + coal rejection",
+        ("--n", "1000", "--time-limit", "0.01"),
+        ("--n", "10", "--time-limit", "0.01", "--compile-wait", "30"),
+        in_readme=False,
+    ),
+    Run(
+        "collision_self",
+        "Self-collision-free IK near the robot's own body, dual Panda and TALOS: optik against "
+        "TRAC-IK + coal rejection",
         ("--n", "100", "--time-limit", "0.05"),
         ("--n", "10", "--time-limit", "0.05", "--compile-wait", "30"),
         in_readme=False,
     ),
     Run(
-        "collision",
-        "Self-collision-free IK, Panda near its own body: optik against TRAC-IK + coal rejection",
-        ("--scene", "self", "--n", "100", "--time-limit", "0.05"),
-        ("--scene", "self", "--n", "10", "--time-limit", "0.05", "--compile-wait", "30"),
-        page="collision_self",
-        in_readme=False,
-    ),
-    Run(
         "collision_qp",
-        "QP differential IK past an obstacle, Panda: velocity dampers against the plain QP step",
+        "QP differential IK past an obstacle, Panda: optik's dampers and Pink's collision barrier, same path",
         ("--steps", "200", "--repeats", "3"),
         ("--steps", "50", "--repeats", "1"),
         in_readme=False,

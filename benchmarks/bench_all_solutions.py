@@ -10,6 +10,10 @@ pinned to 1 before numpy is imported), interleaved:
   ``optik.closed_form.ik_all``), the counterpart of EAIK's ``calculate_IK(T).Q``; the
   ``IKResult`` of each solution is made when first read, and that cost is timed apart
   (``list(solutions)``, column "IKResult objects");
+* ``optik AllSolutions``: ``ik(T)`` of ``ik = optik.AllSolutions(m)`` (built once per arm,
+  untimed), the same solutions as one ``(K, 6)`` array without the options and result object of
+  ``solve_ik_all`` (compared with its ``.q``, column "AllSolutions differs"); timed on every other
+  pose (below);
 * ``EAIK`` (the ``eaik`` package, where installed): its compiled ``Robot.calculate_IK(T X)``
   (without EAIK's Python wrapper), built once per arm by EAIK's own URDF parser (UR arms) or
   DH constructor (PUMA 560), and from optik's joint axes at ``q = 0`` for the seed arm; ``X`` maps
@@ -35,7 +39,10 @@ it (max-norm, angles modulo 2 pi). Every optik solution must pass the same FK an
 solutions that no valid EAIK solution matches. The checks run on every pose of the timed run.
 
 The solvers take turns: pose ``k`` starts with the ``k``-th of them (cyclically), since the first
-call after the previous pose's checks runs with colder caches. Before timing, each arm's
+call after the previous pose's checks runs with colder caches. One optik call is timed per pose,
+``solve_ik_all`` for even ``k`` and ``AllSolutions`` for odd ``k`` (the other one is made after the
+timed calls, for the checks): a second call into the same kernel would run with the caches
+the first one warmed, which no peer call gets. Before timing, each arm's
 single-target kernel is built and compiled to C and each peer solves
 one pose (untimed warm-up for every solver). Times: mean / median / p95 per pose of every solver,
 the ratio of medians (optik / peer). Then all ``--n`` targets at once, per pose, in
@@ -197,6 +204,8 @@ class Row:
     n: int
     eaik_model: str = "-"
     optik_times: list[float] = field(default_factory=list)
+    array_times: list[float] = field(default_factory=list)
+    array_differs: int = 0
     results_times: list[float] = field(default_factory=list)
     eaik_times: list[float] = field(default_factory=list)
     eaik_valid: int = 0
@@ -241,6 +250,8 @@ def run_arm(m: Mechanism, n: int, seed: int) -> Row:
         [(np.ascontiguousarray((t[:3, :3] @ geo[1].T).T), t[:3, 3].copy()) for t in targets] if geo else []
     )
     optik.solve_ik_all(m, targets[0])  # builds the cached kernel and FK evaluator (untimed)
+    ik = optik.AllSolutions(m)  # built once (untimed)
+    ik(targets[0])
     if derive(m) is not None:
         derive(m).compile()  # as after its first calls (it compiles itself when hot)
     if robot is not None:
@@ -248,14 +259,19 @@ def run_arm(m: Mechanism, n: int, seed: int) -> Row:
     if geo:
         geo[0].get_ik(*geo_targets[0])
     for k, (t, t_eaik) in enumerate(zip(targets, theirs_targets, strict=True)):
-        calls = [("optik", lambda t=t: optik.solve_ik_all(m, t))]
+        # one optik call per pose (the second would find the caches the first warmed)
+        calls = [
+            ("optik", lambda t=t: optik.solve_ik_all(m, t)) if k % 2 == 0 else ("array", lambda t=t: ik(t))
+        ]
         if robot is not None:
             calls.append(("eaik", lambda t=t_eaik: robot.calculate_IK(t)))
         if geo:
             calls.append(("ikgeo", lambda k=k: geo[0].get_ik(*geo_targets[k])))
         got = _timed_in_turn(calls, k, row)
-        sols = got["optik"]
+        sols = got["optik"] if "optik" in got else optik.solve_ik_all(m, t)  # the other one untimed
+        array = got["array"] if "array" in got else ik(t)
         assert sols.q.shape[0] == len(sols)  # the solutions as one array, like EAIK.Q
+        row.array_differs += not np.array_equal(array, sols.q.reshape(-1, m.n_q))
         t0 = time.perf_counter()
         list(sols)
         row.results_times.append(time.perf_counter() - t0)
@@ -285,7 +301,9 @@ def _timed_in_turn(calls: list[tuple[str, Callable[[], object]]], k: int, row: R
     after the previous pose's checks runs with colder caches: the turns share that out); the
     answers by name."""
     got: dict[str, object] = {}
-    times = {"optik": row.optik_times, "eaik": row.eaik_times, "ikgeo": row.ikgeo_times}
+    times = {
+        "optik": row.optik_times, "array": row.array_times, "eaik": row.eaik_times, "ikgeo": row.ikgeo_times
+    }  # fmt: skip
     for name, call in calls[k % len(calls) :] + calls[: k % len(calls)]:
         t0 = time.perf_counter()
         got[name] = call()
@@ -327,20 +345,24 @@ def report(rows: list[Row], notes: list[str], command: str) -> str:
         "| arm | family | EAIK built by | poses | EAIK solutions in limits | found by optik "
         "| optik solutions | duplicates "
         "| failed FK/limit check | extra | optik mean / median / p95 | EAIK mean / median / p95 "
-        "| ratio of means / medians (optik / EAIK) | ik-geo solutions in limits | found by optik "
+        "| ratio of means / medians (optik / EAIK) | optik `AllSolutions` mean / median / p95 "
+        "| ratio of means / medians (AllSolutions / EAIK) | AllSolutions differs "
+        "| ik-geo solutions in limits | found by optik "
         "| ik-geo mean / median / p95 | ratio of means / medians (optik / ik-geo) "
         "| IKResult objects (mean) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         om, omed, op95 = _stats(r.optik_times)
+        am, amed, ap95 = _stats(r.array_times)
         if r.eaik_times:
             em, emed, ep95 = _stats(r.eaik_times)
             peer = f"{em:.1f} / {emed:.1f} / {ep95:.1f}"
-            ratio = f"{om / em:.1f} / {omed / emed:.1f}"
+            ratio = f"{om / em:.2f} / {omed / emed:.2f}"
+            array_ratio = f"{am / em:.2f} / {amed / emed:.2f}"
             found = f"{r.found} ({100.0 * r.found / max(r.eaik_valid, 1):.1f} %)"
         else:
-            peer, ratio, found = "EAIK not installed", "-", "-"
+            peer, ratio, array_ratio, found = "EAIK not installed", "-", "-", "-"
         if r.ikgeo_times:
             gm, gmed, gp95 = _stats(r.ikgeo_times)
             geo = (
@@ -354,7 +376,8 @@ def report(rows: list[Row], notes: list[str], command: str) -> str:
             f"| {r.eaik_valid if r.eaik_times else '-'} | {found} "
             f"| {r.optik_solutions} | {r.duplicates} | {r.optik_failed_check} "
             f"| {r.extra if r.eaik_times else '-'} "
-            f"| {om:.1f} / {omed:.1f} / {op95:.1f} | {peer} | {ratio} | {geo} "
+            f"| {om:.1f} / {omed:.1f} / {op95:.1f} | {peer} | {ratio} "
+            f"| {am:.1f} / {amed:.1f} / {ap95:.1f} | {array_ratio} | {r.array_differs} | {geo} "
             f"| {_stats(r.results_times)[0]:.1f} |"
         )
     lines += [
@@ -416,6 +439,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         r.found == r.eaik_valid
         and r.ikgeo_found == r.ikgeo_valid
         and r.duplicates == 0
+        and r.array_differs == 0
         and r.optik_failed_check == 0
         and r.batch_failed_check == 0
         and r.batch_differs == 0

@@ -6,10 +6,13 @@ Thread pools are pinned to 1 before numpy is imported (the machine has 2 cores).
 
 1. 3-RPR, all real assembly modes: the degree-6 polynomial (``optik.solve_fk_all``, closed form)
    against the numerical multi-start (``method="numeric"``) on the same leg lengths: recall (the
-   drawn pose is among the modes), mean number of modes, mean / median / p95 time, ratio.
+   drawn pose is among the modes), mean number of modes, mean / median / p95 time, ratio, and the
+   mean and median CPU time of the calling thread (on a loaded machine the wall-clock mean
+   carries the milliseconds other processes took the core for; the CPU time does not).
    Random geometries are used as well as the catalog default (which only ever has 2 or 4
    real modes), so that 6-mode cases occur; each new mechanism is solved once untimed first
-   (building its CasADi functions is set-up, not solving).
+   (building its CasADi functions is set-up, not solving), and the C kernels of the closed form
+   (built once per machine in the background) are waited for before the timed calls.
 2. Closed-form FK per call (``closed_form.fk``, all modes): five-bar, slider-crank, 3-RPR.
 3. Stewart-Gough, all real postures: the 40-path parameter homotopy (``method="auto"``, the
    default) beside the 128-path total-degree method and, with ``--fksgp DIR`` (the folder of a
@@ -51,7 +54,7 @@ from types import SimpleNamespace  # noqa: E402
 import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
-from optik import closed_form  # noqa: E402
+from optik import closed_form, native  # noqa: E402
 from optik.benchmarks import benchmark_parser  # noqa: E402
 from optik.closed_form import parallel  # noqa: E402
 from optik.harness.peers import PeerUnavailable  # noqa: E402
@@ -68,8 +71,11 @@ def _stats(times: Sequence[float]) -> str:
 def bench_3rpr(n: int, rng: np.random.Generator) -> None:
     """Closed form vs numeric multi-start, all modes, same leg lengths."""
     print(f"\n## 3-RPR: all real assembly modes ({n} random geometries + {n} catalog poses)\n")
-    print(f"| {'solver':<22} | recall | modes | {'mean ms':>9} | {'median':>9} | {'p95':>9} | ratio |")
-    print("|---|---|---|---|---|---|---|")
+    print(
+        f"| {'solver':<22} | recall | modes | {'mean ms':>9} | {'median':>9} | {'p95':>9} | ratio "
+        "| CPU mean ms | CPU median |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|")
     cases = []
     catalog_3rpr = optik.catalog.planar_3rpr()
     while len(cases) < 2 * n:
@@ -84,12 +90,14 @@ def bench_3rpr(n: int, rng: np.random.Generator) -> None:
         if qs:
             optik.solve_fk_all(m, qs[0][m.actuated_indices])  # untimed: builds the CasADi functions
             cases.append((m, qs[0]))
+    native.wait()  # set-up, untimed: the C kernels (3-RPR FK, condition numbers) built and loaded
     base_mean = None
     for label, kwargs in (("closed form (degree 6)", {}), ("numeric multi-start", {"method": "numeric"})):
-        times, hits, counts = [], 0, []
+        times, cpu, hits, counts = [], [], 0, []
         for m, q in cases:
-            start = time.perf_counter()
+            start, start_cpu = time.perf_counter(), time.thread_time()
             res = optik.solve_fk_all(m, q[m.actuated_indices], seed=0, **kwargs)
+            cpu.append(time.thread_time() - start_cpu)
             times.append(time.perf_counter() - start)
             counts.append(len(res))
             hits += any(same_mode(m, r.q, q, 1e-6) for r in res)
@@ -97,7 +105,7 @@ def bench_3rpr(n: int, rng: np.random.Generator) -> None:
         base_mean = base_mean or mean
         print(
             f"| {label:<22} | {100 * hits / len(cases):5.1f}% | {np.mean(counts):5.2f} | {_stats(times)} "
-            f"| {mean / base_mean:5.1f} |"
+            f"| {mean / base_mean:5.1f} | {1e3 * np.mean(cpu):9.3f} | {1e3 * np.median(cpu):9.3f} |"
         )
     hist = np.bincount([len(closed_form.fk(m, q[m.actuated_indices])) for m, q in cases], minlength=7)
     print(f"\nreal modes (closed form) 0..6: {hist.tolist()}")

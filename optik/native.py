@@ -8,7 +8,7 @@ cached on disk (keyed by a hash of the source, the compiler and its flags, so ea
 compiles a given model once); `optik.native.CCall` then calls one generated entry
 point through ``ctypes`` on preallocated numpy buffers, about 1 us of overhead per call
 (`optik.native.Binding`: the same once the library is ready). The IK solvers
-(`optik.solvers.native`, `optik.solvers.lm_kernel`), differential IK (`optik.diffik._codegen`)
+(`NativeFunction`, `optik.solvers.lm_kernel`), differential IK (`optik.diffik._codegen`)
 and `optik.batch` use it.
 
 *No wait for the compiler.* Compiling a 7-joint arm's solver takes about half a second. With
@@ -58,8 +58,10 @@ import subprocess
 import tempfile
 import threading
 import time
+import uuid
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -75,6 +77,7 @@ interposition: a call from optik's C into a generated function of the same libra
 another library's function of the same name could stand in for it. The libraries are loaded
 with ``RTLD_LOCAL`` (``ctypes``' default) and nothing relies on interposing their symbols."""
 _LOG = logging.getLogger(__name__)
+_PACKAGE = Path(__file__).resolve().parent  # the optik package: the root of `source_digest`'s sources
 _BUILDS: dict[Path, Library] = {}  # every library this process loaded or built, by path
 _BUILDS_LOCK = threading.Lock()
 _RUNNING: dict[subprocess.Popen, Path] = {}  # compiler processes at work -> their temporary folder
@@ -107,13 +110,32 @@ def deadline(at: float | None) -> Iterator[None]:
 
 def compiler() -> str | None:
     """The C compiler: ``$CC`` or ``gcc``/``cc`` on the PATH; None when there is none or
-    ``$OPTIK_NO_CODEGEN`` is set (then everything runs in CasADi's evaluator)."""
+    ``$OPTIK_NO_CODEGEN`` is set (then everything runs in CasADi's evaluator).
+
+    The PATH search runs once per value of ``$CC`` and ``$PATH``; later calls only check that the
+    executable it found is still an executable file, and search again when it is not (removed,
+    replaced), so a stale answer is never returned. Without a compiler every call searches (one
+    installed meanwhile is found). Thread-safe.
+    """
     if os.environ.get("OPTIK_NO_CODEGEN"):
         return None
-    for cand in (os.environ.get("CC"), "gcc", "cc"):
-        if cand and shutil.which(cand):
-            return cand
+    key = (os.environ.get("CC"), os.environ.get("PATH"))
+    found = _COMPILERS.get(key)
+    if found is not None and os.path.isfile(found[1]) and os.access(found[1], os.X_OK):
+        return found[0]
+    with _COMPILERS_LOCK:
+        _COMPILERS.pop(key, None)
+        for cand in (key[0], "gcc", "cc"):
+            path = shutil.which(cand) if cand else None
+            if path:
+                _COMPILERS[key] = (cand, path)
+                return cand
     return None
+
+
+_COMPILERS: dict[tuple[str | None, str | None], tuple[str, str]] = {}
+"""`compiler`'s answers by ``($CC, $PATH)``: the name returned and the executable it found."""
+_COMPILERS_LOCK = threading.Lock()
 
 
 _CACHE_DIR: contextvars.ContextVar[Path | None] = contextvars.ContextVar("optik_cache_dir", default=None)
@@ -146,7 +168,11 @@ def compiler_version(cc: str) -> str:
     first solve or first `optik.diffik.step` of a fresh process would wait for: the answer is
     kept in the cache directory, in ``compilers/<hash>.txt`` keyed by the compiler executable's
     resolved path, size and modification time (an upgraded compiler is a new key), written
-    atomically; a missing or unreadable record runs the compiler again."""
+    atomically; a missing or unreadable record runs the compiler again. The record has the mode
+    of the libraries' manifests beside it, ``0666`` less the umask: in a cache that several
+    users share through ``$OPTIK_CACHE_DIR`` (a group umask such as ``002``), each reads the
+    others' records instead of running the compiler, and only the owner (and group, if the
+    umask allows) can change one; a compiler's version string is no secret."""
     memo = _version_memo(cc)
     if memo is not None:
         with contextlib.suppress(OSError):
@@ -159,8 +185,9 @@ def compiler_version(cc: str) -> str:
     if memo is not None and out.returncode == 0:
         with contextlib.suppress(OSError):
             memo.parent.mkdir(exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=memo.parent, prefix=".version-")
-            with os.fdopen(fd, "w") as f:
+            tmp = memo.parent / f".version-{uuid.uuid4().hex}"
+            # os.open applies the umask to 0666 (mkstemp would make it 0600, private to one user)
+            with os.fdopen(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666), "w") as f:
                 f.write(version)
             os.replace(tmp, memo)
     return version
@@ -491,6 +518,23 @@ def source_library(
     return None if lib is None else lib.wait()
 
 
+def source_digest(sources: Sequence[str], *parts: object) -> str:
+    """The key of generated code for `keyed_library`: the SHA-256 of CasADi's version and
+    ``parts`` (as text, NUL-separated), then the bytes of each file of ``sources``.
+
+    Args:
+        sources: the files the code is generated from, relative to the ``optik`` package.
+        parts: what else selects the code (a joint count, a task structure).
+
+    Raises:
+        OSError: a source cannot be read (a partial install).
+    """
+    h = hashlib.sha256("\0".join([ca.__version__, *map(str, parts)]).encode())
+    for rel in sources:
+        h.update((_PACKAGE / rel).read_bytes())
+    return h.hexdigest()
+
+
 def keyed_library(stem: str, key: str, make_source: Callable[[], str]) -> Library | None:
     """The library cached under ``key`` (a digest of everything its source is made from), its
     source made only when it is not cached: for code whose generation costs more than a first
@@ -762,3 +806,127 @@ class Binding:
                 lib.evaluated(time.perf_counter() - start)
             return
         self._call()
+
+
+class CFunction:
+    """One function of a hand-written C file (reentrant, called through ``ctypes``), compiled
+    once per machine in the background the first time it is asked for (`keyed_library`, keyed by
+    the file's text, so an edited file is a new library).
+
+    `get` never waits: None until the library is loaded, and for good without a C compiler, when
+    the file cannot be read or when the build failed (each logged); the caller then takes its
+    Python path. Thread-safe.
+
+    Args:
+        path: the C file.
+        stem: file name stem of the library in `cache_dir`.
+        symbol: the function's name.
+        argtypes, restype: its ``ctypes`` signature.
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        stem: str,
+        symbol: str,
+        argtypes: Sequence[type],
+        restype: type | None = ctypes.c_int,
+    ) -> None:
+        self.path, self.stem, self.symbol = path, stem, symbol
+        self.argtypes, self.restype = list(argtypes), restype
+        self.library: Library | None = None
+        self._fn: ctypes._CFuncPtr | None = None
+        self._started = False
+        self._lock = threading.Lock()
+
+    def get(self) -> ctypes._CFuncPtr | None:
+        """The function once its library is loaded, else None (see the class)."""
+        if self._fn is not None:
+            return self._fn
+        if not self._started:
+            with self._lock:
+                if not self._started:
+                    text = driver_source(self.path)
+                    self.library = None if text is None else keyed_library(self.stem, text, lambda: text)
+                    self._started = True
+        lib = self.library
+        if lib is None or lib.state != "ready":
+            return None
+        fn = getattr(lib.get(), self.symbol)
+        fn.argtypes, fn.restype = self.argtypes, self.restype
+        self._fn = fn
+        return fn
+
+
+def native_functions(functions: list[ca.Function], compile: bool | str = "auto") -> list[NativeFunction]:
+    """`NativeFunction` wrappers of several functions compiled into one library.
+
+    Args:
+        functions: functions with dense column inputs and outputs.
+        compile: ``True`` compile now (raise when impossible), ``False`` use CasADi's evaluator,
+            ``"auto"`` use the cached library, or CasADi's evaluator while it is built in the
+            background (and for good when there is no working C compiler).
+
+    Raises:
+        InvalidArgumentError: bad ``compile`` value or non-dense inputs/outputs.
+        SolverUnavailableError: ``compile=True`` without a working compiler.
+    """
+    for f in functions:
+        _check_dense(f)  # before compiling
+    lib = library(functions, compile)
+    return [NativeFunction(f, lib) for f in functions]
+
+
+def _check_dense(f: ca.Function) -> None:
+    for i in range(f.n_in()):
+        if f.size2_in(i) != 1 or not f.sparsity_in(i).is_dense():
+            raise InvalidArgumentError("f", f"input {i} of {f.name()} must be a dense column")
+    for i in range(f.n_out()):
+        if f.size2_out(i) != 1 or not f.sparsity_out(i).is_dense():
+            raise InvalidArgumentError("f", f"output {i} of {f.name()} must be a dense column")
+
+
+class NativeFunction:
+    """A CasADi function with dense vector inputs/outputs, callable on preallocated buffers.
+
+    Write the inputs into `inputs` (numpy arrays), call, read `outputs` (views of
+    preallocated buffers: copy them to keep them across calls). Not thread-safe.
+
+    Args:
+        f: the function; every input and output must be a dense column or scalar.
+        library: library holding ``f`` (`optik.native.library`; None: CasADi's evaluator).
+            Until it is ready the calls go to CasADi's evaluator, then to the C code.
+    """
+
+    def __init__(self, f: ca.Function, library: Library | None = None) -> None:
+        _check_dense(f)
+        self.function = f
+        self.inputs = [np.zeros(f.size1_in(i)) for i in range(f.n_in())]
+        self.outputs = [np.zeros(f.size1_out(i)) for i in range(f.n_out())]
+        self.library = library
+        self._native = Binding(library, f.name(), self.inputs, self.outputs)
+        self._buffer: Any = None  # CasADi's evaluator on the same buffers, made at its first use
+
+    @property
+    def compiled(self) -> bool:
+        """True when calls go to generated, compiled C code (False while it is being built)."""
+        return self._native.compiled
+
+    def __call__(self) -> list[np.ndarray]:
+        """Evaluate on the current contents of `inputs`; returns `outputs`."""
+        self._native(self._evaluate)
+        return self.outputs
+
+    def _evaluate(self) -> None:
+        """CasADi's evaluator, into `outputs`: ``Function.buffer`` bound to `inputs` and
+        `outputs` (about a microsecond of overhead per call instead of the hundred or so of a
+        call through ``DM`` conversions, which would dominate the first solves while the library
+        builds)."""
+        if self._buffer is None:
+            buffer, call = self.function.buffer()
+            for i, a in enumerate(self.inputs):
+                buffer.set_arg(i, memoryview(a))
+            for i, a in enumerate(self.outputs):
+                buffer.set_res(i, memoryview(a))
+            self._buffer = (buffer, call)
+        self._buffer[1]()

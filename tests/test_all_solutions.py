@@ -147,3 +147,32 @@ def test_candidate_groups_split_the_stand_ins_in_runs() -> None:
     assert candidate_groups(three_parallel) == [
         (0, 1, 4, 5, 8, 9, 12, 13), (2, 3), (6, 7), (10, 11), (14, 15)]  # fmt: skip
     assert candidate_groups((-1,) * 8) == [tuple(range(8))]
+
+
+@pytest.mark.parametrize("name", ["puma560", "seed_6r_arm"])
+def test_driver_errors_are_those_of_an_independent_fk(name: str) -> None:
+    """The FK check of the compiled driver (its own cosines and sines of the candidates'
+    angles, `optik_sincos` of ik_all.c) reports the errors that the mechanism's FK gives for
+    the returned q, to rounding: a cosine off by more than a few ulp would show here."""
+    from optik.solvers.closed import binding_of
+
+    m = ARMS[name]
+    _solver(name)
+    fast = binding_of(m)
+    if fast is None:
+        pytest.skip("no C compiler: no driver")
+    qs = np.random.default_rng(6).uniform(-4 * np.pi, 4 * np.pi, (300, 6))  # raw angles of several turns
+    checked = 0
+    for t in m.fk(qs):
+        got = fast(t, None, m.lower, m.upper, True)
+        if not got:
+            continue
+        for q, (pos, ori) in zip(got[0], got[1], strict=True):
+            f = m.fk(q)
+            rel = f[:3, :3] @ t[:3, :3].T
+            skew = np.array([rel[2, 1] - rel[1, 2], rel[0, 2] - rel[2, 0], rel[1, 0] - rel[0, 1]])
+            angle = np.arctan2(0.5 * np.linalg.norm(skew), 0.5 * (np.trace(rel) - 1.0))
+            assert abs(pos - np.linalg.norm(f[:3, 3] - t[:3, 3])) <= 1e-14
+            assert abs(ori - angle) <= 1e-14
+            checked += 1
+    assert checked >= 300  # at least the one each target was made from

@@ -390,6 +390,108 @@ def test_allowed_collision_matrix_is_cached_on_disk(toy_arm_urdf, tmp_path, monk
         assert json.loads(path.read_text())["format"] == robot.ACM_FORMAT
 
 
+def _cluttered_world(tmp_path):
+    import trimesh
+
+    mesh = trimesh.creation.icosphere(subdivisions=1, radius=0.08)
+    mesh.apply_transform(np.diag([1.0, 0.5, 0.8, 1.0]))
+    mesh.export(tmp_path / "blob.stl")
+    w = World()
+    w.add_box("table", (1.4, 1.6, 0.04), spatial.translation(0.3, 0.0, -0.06))
+    w.add_box("shelf", (0.3, 0.84, 0.02), spatial.transform(spatial.rot_z(0.3), [0.55, 0.0, 0.45]))
+    w.add_sphere("ball", 0.08, spatial.translation(0.3, 0.35, 0.5))
+    w.add_cylinder("post", 0.04, 0.6, spatial.translation(-0.3, -0.4, 0.3))
+    w.add_capsule("rod", 0.03, 0.4, spatial.transform(spatial.rot_x(1.2), [0.2, -0.3, 0.7]))
+    w.add_mesh("blob", tmp_path / "blob.stl", spatial.transform(spatial.rot_y(0.7), [-0.2, 0.3, 0.8]))
+    w.add_points("cloud", [[0.4, -0.2, 0.3], [0.45, -0.2, 0.3]], 0.03)
+    return w
+
+
+def test_panda_screened_search_equals_every_pair(tmp_path):
+    """The Panda among every kind of obstacle, self pairs included: the screened search gives the
+    minimum distance, the closest pair and the close pairs of the brute force over every pair, at
+    clear and at colliding configurations, and computes far fewer exact distances at clear ones."""
+    from optik.collision.distance import signed_distance
+
+    m, _ = _panda()
+    w = _cluttered_world(tmp_path)
+    geo = robot_geometry(m)
+    obstacles = w.parts()
+    clear_checked = []
+    for q in m.random_q(40, seed=21):
+        poses = geo.part_poses(q)
+        pairs = [
+            (
+                geo.parts[i].name,
+                geo.parts[j].name,
+                signed_distance(geo.parts[i], poses[i], geo.parts[j], poses[j])[0],
+            )
+            for i, j in geo.self_pairs
+        ]
+        pairs += [
+            (p.name, o.name, signed_distance(p, poses[i], o, o.offset)[0])
+            for i, p in enumerate(geo.parts)
+            for o in obstacles
+        ]
+        r = check(m, q, w, margin=0.02)
+        best = min(pairs, key=lambda p: p[2])
+        assert r.min_distance == pytest.approx(best[2], abs=1e-9)
+        assert (r.pair == best[:2]) or r.min_distance == pytest.approx(
+            sorted(p[2] for p in pairs)[1], abs=1e-9
+        )
+        close = sorted((a, b) for a, b, d in pairs if d < 0.02)
+        assert sorted((p.a, p.b) for p in r.close_pairs) == close
+        assert r.in_collision == bool(close)
+        if not close:
+            clear_checked.append(r.checked / r.candidates)
+    assert clear_checked and max(clear_checked) < 0.25
+
+
+def test_screen_bounds_never_exceed_exact_distances(tmp_path):
+    """The screening bounds (`optik.collision.screen`) of every pair are at most the exact
+    distance wherever that is >= 0, and the part poses are those of `RobotGeometry.part_poses`."""
+    from optik.collision.distance import signed_distance
+    from optik.collision.screen import screen
+
+    m, _ = _panda()
+    w = _cluttered_world(tmp_path)
+    geo = robot_geometry(m)
+    state = w.state()
+    for q in m.random_q(15, seed=22):
+        poses, to_world, own = screen(geo, state.capacity).bounds(q, state.slots, len(state.parts))
+        exact = geo.part_poses(q)
+        assert np.allclose(poses[:, :9].reshape(-1, 3, 3), exact[:, :3, :3], atol=1e-12)
+        assert np.allclose(poses[:, 9:], exact[:, :3, 3], atol=1e-12)
+        for (i, j), bound in zip(geo.self_pairs, own, strict=True):
+            d = signed_distance(geo.parts[i], exact[i], geo.parts[j], exact[j])[0]
+            assert d < 0 or bound <= d + 1e-9
+        for i, p in enumerate(geo.parts):
+            for o, bound in zip(state.parts, to_world[i], strict=True):
+                d = signed_distance(p, exact[i], o, o.offset)[0]
+                assert d < 0 or bound <= d + 1e-9
+
+
+def test_a_world_state_is_one_version():
+    """`World.state` is immutable: a check against a state taken before a move answers for the
+    world as it was, a new state for the world as it is; unchanged worlds share one state."""
+    from optik.collision.check import report_at
+
+    m, _ = _panda()
+    q = m.mid_q()
+    hand = m.fk(q, "panda_hand")[:3, 3]
+    w = World()
+    w.add_sphere("ball", 0.05, spatial.translation(*hand))
+    before = w.state()
+    assert w.state() is before and before.parts == w.parts()
+    w.move("ball", spatial.translation(*(hand + np.array([0.0, 0.0, 2.0]))))
+    after = w.state()
+    assert after.version > before.version and after.parts != before.parts
+    geo = robot_geometry(m)
+    assert report_at(geo, q, before, 0.0, True).in_collision
+    assert not report_at(geo, q, after, 0.0, True).in_collision
+    assert not check(m, q, w).in_collision
+
+
 def test_negative_mesh_scale_mirrors_the_hull(tmp_path):
     """A URDF ``scale="1 -1 1"`` (TALOS's mirrored meshes) is the hull with y negated; 0 is refused."""
     from optik.collision.shapes import Shape, shape_vertices

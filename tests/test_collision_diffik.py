@@ -87,7 +87,8 @@ def ball():
 
 def _exact_pairs(m, q, world, influence):
     """``(d, part a, part b or obstacle, world)`` of every pair within ``influence``, closest first,
-    from coal on the geometry's own part poses (not the dampers' compiled kernel)."""
+    from coal on the geometry's own part poses (not the dampers' compiled kernel; ``world`` None:
+    the robot's own pairs only)."""
     geo = robot_geometry(m)
     poses = geo.part_poses(q)
     moving = [m.frames[geo.links[k]][0] != m.base for k in geo.part_link]
@@ -96,7 +97,7 @@ def _exact_pairs(m, q, world, influence):
         for i, j in geo.self_pairs
     ]
     for i in np.flatnonzero(moving):
-        for j, o in enumerate(world.parts()):
+        for j, o in enumerate(world.parts() if world is not None else ()):
             out.append((signed_distance(geo.parts[i], poses[i], o, o.offset)[0], i, j, True))
     return sorted(p for p in out if p[0] < influence)
 
@@ -133,6 +134,17 @@ def test_panda_damper_rows_are_the_distance_gradients(ball):
     assert kinds == {False, True}  # both self and world rows were checked
 
 
+def test_panda_self_collision_dampers_without_a_world(ball):
+    """``world=None, self_collision=True``: the robot's own pairs within the influence, nothing else."""
+    m = ball.m
+    for q in m.random_q(6, seed=5):
+        g, h, _ = damper_rows(m, q, None, True, MARGIN, influence=0.15)
+        pairs = _exact_pairs(m, q, None, 0.15)
+        assert g.shape == (len(pairs), m.n_q)
+        assert h == pytest.approx([0.5 * (p[0] - MARGIN) for p in pairs], abs=1e-9)
+        assert damper_rows(m, q, None, False, MARGIN, influence=0.15)[0].shape == (0, m.n_q)
+
+
 @pytest.mark.parametrize("dampers", [False, True])
 def test_panda_ball_pass_keeps_the_margin(ball, dampers):
     """The benchmark's path (shortened): with dampers every configuration is clear of the ball and of
@@ -147,3 +159,17 @@ def test_panda_ball_pass_keeps_the_margin(ball, dampers):
         assert out.within_limits and all(s == "ok" for s in out.status)
     else:
         assert dist.min() < 0
+
+
+def test_panda_damper_rows_from_two_threads(ball):
+    """Two threads computing rows at once get exactly the serial answers (per-thread buffers of the
+    compiled screen and Jacobian calls, one coal result per query)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    m, w = ball.m, ball.world
+    qs = m.random_q(40, seed=7)
+    serial = [damper_rows(m, q, w, True, MARGIN, influence=0.15) for q in qs]
+    with ThreadPoolExecutor(2) as pool:
+        threaded = list(pool.map(lambda q: damper_rows(m, q, w, True, MARGIN, influence=0.15), qs))
+    for (g1, h1, d1), (g2, h2, d2) in zip(serial, threaded, strict=True):
+        assert np.array_equal(g1, g2) and np.array_equal(h1, h2) and d1 == d2

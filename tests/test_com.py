@@ -213,3 +213,19 @@ def test_legged_robots_equal_pinocchio(rel):
         for name in bodies:
             want = pd.oMf[pm.getFrameId(name, pin.FrameType.BODY)].homogeneous
             np.testing.assert_allclose(m.fk(q, name), want, atol=1e-12, err_msg=name)
+
+
+def test_com_and_its_jacobian_each_evaluate_only_what_they_return():
+    """``com`` evaluates a function of the CoM alone and ``com_jacobian`` one of the Jacobian
+    alone (neither computes the other's output to drop it): fewer instructions than the pair,
+    the same numbers as `com_function`."""
+    m = _two_link()
+    q = np.array([0.3, -0.7])
+    pair = m.com_function
+    com_only, jac_only = m._com_only_function, m._com_jacobian_function
+    assert com_only.n_out() == 1 and jac_only.n_out() == 1
+    assert com_only.n_instructions() < pair.n_instructions()
+    assert jac_only.n_instructions() < pair.n_instructions()
+    c, j = pair(q)
+    np.testing.assert_array_equal(m.com(q), np.asarray(c).reshape(3))
+    np.testing.assert_array_equal(m.com_jacobian(q), np.asarray(j))

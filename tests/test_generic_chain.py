@@ -174,7 +174,7 @@ def test_threads_get_the_answers_of_one_thread() -> None:
 
 
 def test_unreadable_sources_mean_no_generic_kernel_logged(monkeypatch, tmp_path, caplog) -> None:
-    monkeypatch.setattr(generic_chain, "_ROOT", tmp_path / "missing")  # a partial install
+    monkeypatch.setattr(generic_chain, "_SOURCES", ("solvers/missing.py",))  # a partial install
     with caplog.at_level("WARNING", logger="optik.solvers.generic_chain"):
         k = generic_chain.ChainKernel(3)
     assert k.library is None and not k.ready

@@ -224,14 +224,20 @@ def test_closed_form_is_not_used_for_another_frame() -> None:
 
 def _compiled_arms() -> list[optik.Mechanism]:
     """Arms whose closed form is derived, with limits that need the 2 pi shift (seed arm in
-    [0, 2 pi] and [-3 pi, -pi]) or drop solutions (PUMA 560)."""
+    [0, 2 pi] and [-3 pi, -pi]; one-sided limits: [-inf, -2], [1, inf], ...) or drop solutions
+    (PUMA 560)."""
     seed = optik.catalog.seed_6r_arm()
     lo, hi = np.zeros(6), np.full(6, 2 * np.pi)
     lo[1], hi[1] = -3 * np.pi, -np.pi
-    return [optik.catalog.puma560(), seed, seed.with_limits(lo, hi)]
+    one_lo = np.array([-np.inf, 1.0, -np.inf, 0.5, -np.inf, -4.0])
+    one_hi = np.array([-2.0, np.inf, 1.5, np.inf, 0.0, np.inf])
+    return [optik.catalog.puma560(), seed, seed.with_limits(lo, hi), seed.with_limits(one_lo, one_hi)]
 
 
-@pytest.mark.parametrize("m", _compiled_arms(), ids=["puma560", "seed_6r_arm", "seed_6r_arm_shifted"])
+ARM_IDS = ["puma560", "seed_6r_arm", "seed_6r_arm_shifted", "seed_6r_arm_one_sided"]
+
+
+@pytest.mark.parametrize("m", _compiled_arms(), ids=ARM_IDS)
 def test_compiled_path_equals_the_general_path(m: optik.Mechanism, monkeypatch: pytest.MonkeyPatch) -> None:
     """The compiled driver (optik.closed_form.ik_all) gives exactly what the general closed-form
     path gives: the same solutions in the same order, the same errors, the same solutions
@@ -387,7 +393,7 @@ def test_without_a_compiler_the_evaluator_gives_the_same_solutions(monkeypatch: 
             np.testing.assert_allclose(a.q, b.q, atol=1e-12)
 
 
-@pytest.mark.parametrize("m", _compiled_arms(), ids=["puma560", "seed_6r_arm", "seed_6r_arm_shifted"])
+@pytest.mark.parametrize("m", _compiled_arms(), ids=ARM_IDS)
 def test_solve_ik_closed_form_through_the_driver_equals_the_general_path(
     m: optik.Mechanism, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -4,14 +4,16 @@ limits and geoms, checked against MuJoCo's own ``mj_kinematics``; frame names th
 
 from __future__ import annotations
 
+import pickle
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import optik
-from optik.errors import InvalidArgumentError, ModelError
-from optik.mechanism import Joint, Mechanism
+from optik.errors import InvalidArgumentError, ModelError, NonFiniteError
+from optik.mechanism import Joint, LinearClosure, Mechanism
 
 mujoco = pytest.importorskip("mujoco", reason="MJCF import needs MuJoCo (extra 'mjcf')")
 from optik.mechanism.mjcf import from_qpos, to_qpos  # noqa: E402  (after the importorskip)
@@ -385,3 +387,80 @@ def test_tendon_notes_name_only_the_tendons_not_made_couplings():
         '<tendon name="three" tendon1="free" active="false"/>', ""
     )
     assert not any("tendon(s)" in n for n in optik.Mechanism.from_mjcf(only_grip).params["notes"])
+
+
+TENDON_ROW = """<mujoco><compiler angle="radian"/>
+<worldbody><body name="a"><joint name="j1" axis="0 0 1" range="-2 2"/><geom size="0.02"/>
+  <body name="b" pos="0.3 0 0"><joint name="j2" axis="0 0 1" range="-2 2" ref="0.1"/><geom size="0.02"/>
+    <body name="c" pos="0.3 0 0"><joint name="j3" axis="0 0 1" range="-2 2"/><geom size="0.02"/>
+      <body name="d" pos="0.2 0 0"><joint name="j4" type="slide" axis="1 0 0" range="-0.1 0.1"/>
+        <geom size="0.02"/><site name="tip" pos="0.05 0 0"/></body></body></body></body></worldbody>
+<tendon><fixed name="sum"><joint joint="j1" coef="1"/><joint joint="j2" coef="-0.5"/>
+  <joint joint="j4" coef="2"/><joint joint="j3" coef="0.7"/></fixed></tendon>
+<equality><joint joint1="j3" joint2="j1" polycoef="0.1 0.5 0 0 0"/>
+  <tendon name="hold" tendon1="sum" polycoef="0.02 0 0 0 0"/></equality>
+<actuator><motor joint="j1"/><motor joint="j2"/></actuator></mujoco>"""
+
+
+def test_three_joint_fixed_tendon_equality_is_mujocos_residual_as_a_closure_row():
+    """A tendon equality on a fixed tendon of four joints (one of them a mimic joint) is one
+    closure row: at random configurations ``m.closure`` is MuJoCo's ``efc_pos`` of that equality
+    (same sign, to rounding); it costs one degree of freedom, and an FK solve assembles a
+    configuration where MuJoCo's residuals vanish and the site is where MuJoCo puts it."""
+    m, model = optik.Mechanism.from_mjcf(TENDON_ROW), mujoco.MjModel.from_xml_string(TENDON_ROW)
+    assert m.coordinate_names == ("j1", "j2", "j4") and m.n_closure == 1 and m.mobility() == 2
+    assert any("'hold': a loop-closure row" in n for n in m.params["notes"])
+    assert not any("tendon(s) are not modelled" in n for n in m.params["notes"])
+    data = mujoco.MjData(model)
+    equality = int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+    for q in np.random.default_rng(4).uniform(m.lower, m.upper, (8, 3)):
+        data.qpos[:] = to_qpos(m, q)
+        mujoco.mj_forward(model, data)
+        rows = data.efc_pos[data.efc_type == equality]  # the joint coupling's row is 0: j3 follows j1
+        assert rows.shape == (2,) and abs(rows[0]) < 1e-12
+        assert abs(m.closure(q)[0] - rows[1]) < 1e-12 and abs(rows[1]) > 1e-6
+    fk = optik.solve_fk(m, [0.05, 0.2])
+    assert fk.success, fk.message
+    data.qpos[:] = to_qpos(m, fk.q)
+    mujoco.mj_forward(model, data)
+    assert np.abs(data.efc_pos[data.efc_type == equality]).max() < 1e-9
+    np.testing.assert_allclose(m.fk(fk.q, "tip")[:3, 3], data.site_xpos[model.site("tip").id], atol=1e-12)
+    q = np.array([0.3, -0.2, 0.05])
+    for copy in (pickle.loads(pickle.dumps(m)), m.with_limits(lower=m.lower - 0.1)):
+        assert copy.linear_closures == m.linear_closures and copy.closure(q) == pytest.approx(m.closure(q))
+
+
+def test_linear_closures_are_checked():
+    """A linear closure on a joint that is not a one-value joint here, or malformed terms, raise
+    naming the argument."""
+    joints = [Joint("a", "revolute", "base", "l1"), Joint("b", "spherical", "l1", "l2")]
+    with pytest.raises(ModelError, match="'b'"):
+        optik.Mechanism(joints, linear_closures=[LinearClosure("row", (("b", 1.0),), 0.0)])
+    with pytest.raises(ModelError, match="'c'"):
+        optik.Mechanism(joints, linear_closures=[LinearClosure("row", (("c", 1.0),), 0.0)])
+    with pytest.raises(InvalidArgumentError, match="linear_closures"):
+        optik.Mechanism(joints, linear_closures=["row"])
+    with pytest.raises(InvalidArgumentError, match=r"linear_closure\.coefficients"):
+        LinearClosure("row", (), 0.0)
+    with pytest.raises(InvalidArgumentError, match=r"linear_closure\.coefficients"):
+        LinearClosure("row", (("a", 1.0, 2.0),), 0.0)
+    with pytest.raises(NonFiniteError, match=r"linear_closure\.value"):
+        LinearClosure("row", (("a", 1.0),), float("nan"))
+    m = optik.Mechanism(joints, linear_closures=[LinearClosure("row", (("a", 2.0),), 1.0)])
+    assert m.is_closed and m.closure(np.array([0.2, 0.0, 0.0, 0.0])) == pytest.approx([-0.6])
+
+
+def test_two_joint_tendon_equality_on_a_coupled_joint_is_a_closure_row():
+    """A two-joint fixed tendon on a joint that already follows another (j3, by the joint
+    equality) cannot be a second coupling: it is a closure row, equal to MuJoCo's residual."""
+    tendon = """<joint joint="j1" coef="1"/><joint joint="j2" coef="-0.5"/>
+  <joint joint="j4" coef="2"/><joint joint="j3" coef="0.7"/>"""
+    xml = TENDON_ROW.replace(tendon, '<joint joint="j4" coef="2"/><joint joint="j3" coef="0.7"/>')
+    m, model = optik.Mechanism.from_mjcf(xml), mujoco.MjModel.from_xml_string(xml)
+    assert m.n_closure == 1 and m.linear_closures[0].coefficients == (("j4", 2.0), ("j3", 0.7))
+    data = mujoco.MjData(model)
+    for q in np.random.default_rng(5).uniform(m.lower, m.upper, (4, 3)):
+        data.qpos[:] = to_qpos(m, q)
+        mujoco.mj_forward(model, data)
+        rows = data.efc_pos[data.efc_type == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)]
+        assert abs(m.closure(q)[0] - rows[1]) < 1e-12

@@ -3,7 +3,12 @@ evaluator while a library builds in the background, and for good without a compi
 
 from __future__ import annotations
 
+import hashlib
 import logging
+import os
+import shutil
+import stat
+import threading
 from pathlib import Path
 
 import casadi as ca
@@ -13,8 +18,8 @@ import pytest
 import optik
 from optik import native
 from optik.diffik._codegen import CompiledFunction
+from optik.native import NativeFunction, native_functions
 from optik.solvers import lm_kernel
-from optik.solvers.native import NativeFunction, native_functions
 
 X = ca.SX.sym("x", 3)
 PANDA = Path(optik.__file__).parent / "data" / "urdf" / "panda.urdf"
@@ -252,3 +257,69 @@ def test_compiler_version_is_kept_per_executable(monkeypatch: pytest.MonkeyPatch
     native.compiler_version.cache_clear()
     assert native.compiler_version(str(cc)) == "fakecc 2.0 (upgraded)"
     native.compiler_version.cache_clear()
+
+
+def test_source_digest_keys_generated_code_by_its_sources_and_parts() -> None:
+    """One digest for the generic kernels' caches: SHA-256 of CasADi's version, the parts and
+    the source files' bytes (the same keys the chain kernel and QP stack used before, so their
+    cached libraries stay valid); another part or source is another key; a missing source raises."""
+    package = Path(optik.__file__).resolve().parent
+    want = hashlib.sha256(f"{ca.__version__}\0{7}\0{('a', 1)!r}".encode())
+    for rel in ("spatial.py", "native.py"):
+        want.update((package / rel).read_bytes())
+    assert native.source_digest(("spatial.py", "native.py"), 7, ("a", 1)) == want.hexdigest()
+    assert native.source_digest(("spatial.py",), 7) != native.source_digest(("spatial.py",), 8)
+    assert native.source_digest(("spatial.py",), 7) != native.source_digest(("native.py",), 7)
+    with pytest.raises(OSError):
+        native.source_digest(("no_such_file.py",), 7)
+
+
+def test_the_compiler_version_record_has_the_cache_files_mode(
+    monkeypatch: pytest.MonkeyPatch, tmp_path
+) -> None:
+    """The record is ``0666`` less the umask, like the manifests beside it (readable by the other
+    users of a shared cache), not mkstemp's private ``0600``."""
+    monkeypatch.setenv("OPTIK_CACHE_DIR", str(tmp_path / "cache"))
+    cc = tmp_path / "fakecc"
+    cc.write_text("#!/bin/sh\necho 'fakecc 1.0'\n")
+    cc.chmod(0o755)
+    umask = os.umask(0o022)
+    try:
+        native.compiler_version.cache_clear()
+        assert native.compiler_version(str(cc)) == "fakecc 1.0"
+    finally:
+        os.umask(umask)
+        native.compiler_version.cache_clear()
+    (memo,) = (tmp_path / "cache" / "compilers").iterdir()
+    assert stat.S_IMODE(memo.stat().st_mode) == 0o644
+
+
+def test_compiler_searches_the_path_once_and_again_when_its_answer_is_gone(
+    monkeypatch: pytest.MonkeyPatch, tmp_path
+) -> None:
+    """``compiler()`` memoizes its PATH search per ``$CC``/``$PATH`` (no search on later calls, the
+    same answer from many threads) and searches again when the executable it found is gone."""
+    monkeypatch.delenv("OPTIK_NO_CODEGEN", raising=False)
+    cc = tmp_path / "mycc"
+    cc.write_text("#!/bin/sh\n")
+    cc.chmod(0o755)
+    monkeypatch.setenv("CC", str(cc))
+    searched: list[str] = []
+    real_which = shutil.which
+    monkeypatch.setattr(
+        native.shutil, "which", lambda name, *a, **k: searched.append(name) or real_which(name, *a, **k)
+    )
+    assert native.compiler() == str(cc) and searched == [str(cc)]
+    answers: list[str | None] = []
+    threads = [
+        threading.Thread(target=lambda: answers.extend(native.compiler() for _ in range(50)))
+        for _ in range(4)
+    ]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert answers == [str(cc)] * 200 and searched == [str(cc)]  # no search after the first
+    cc.unlink()  # the memo's executable is gone: searched again, another answer
+    assert native.compiler() == next((c for c in ("gcc", "cc") if real_which(c)), None)
+    assert searched[:2] == [str(cc), str(cc)]

@@ -82,6 +82,47 @@ def test_general_6_6_in_40_paths_matches_the_total_method():
         assert stewart_poses(b, p, rho, seed=rng).method == "parameter"  # auto needs no fall back
 
 
+# Dietmaier's general 6-6 platform with 40 real postures (P. Dietmaier, "The Stewart-Gough
+# platform of general geometry can have 40 real postures", Advances in Robot Kinematics, 1998):
+# base points, platform points (platform frame) and leg lengths as published
+_DIETMAIER_BASE = np.array(
+    [
+        [0.0, 0.0, 0.0],
+        [1.107915, 0.0, 0.0],
+        [0.549094, 0.756063, 0.0],
+        [0.735077, -0.223935, 0.525991],
+        [0.514188, -0.526063, -0.368418],
+        [0.590473, 0.094733, -0.205018],
+    ]
+)
+_DIETMAIER_PLATFORM = np.array(
+    [
+        [0.0, 0.0, 0.0],
+        [0.542805, 0.0, 0.0],
+        [0.956919, -0.528915, 0.0],
+        [0.665885, -0.353482, 1.402538],
+        [0.478359, 1.158742, 0.107672],
+        [-0.137087, -0.235121, 0.353913],
+    ]
+)
+_DIETMAIER_LEGS = np.array([1.0, 0.645275, 1.086284, 1.503439, 1.281933, 0.771071])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_dietmaiers_platform_has_all_40_real_postures(seed):
+    b, p, rho = _DIETMAIER_BASE, _DIETMAIER_PLATFORM, _DIETMAIER_LEGS
+    fk = stewart_poses(b, p, rho, seed=seed)
+    assert fk.complete and fk.method == "parameter" and fk.complex_solutions == 40
+    assert len(fk.poses) == 40
+    assert _max_leg_error(b, p, rho, fk.poses) <= 1e-12  # the legs recomputed from each posture
+    for r, _ in fk.poses:
+        assert np.allclose(r.T @ r, np.eye(3), atol=1e-12) and np.linalg.det(r) > 0
+    # 40 different postures: every pair differs in rotation or translation
+    flat = np.array([np.r_[r.ravel(), t] for r, t in fk.poses])
+    gaps = np.linalg.norm(flat[:, None] - flat[None], axis=-1) + np.eye(40)
+    assert np.min(gaps) > 1e-6
+
+
 def _catalog_special(kind):
     m = optik.catalog.stewart_gough()
     b, p = m.params["base"].copy(), m.params["platform"].copy()
@@ -155,3 +196,35 @@ def test_tracker_rejects_malformed_systems():
         parameter_homotopy.track((c, c, np.zeros((1, 3, 3))), np.ones((2, 2)), np.random.default_rng(0))
     with pytest.raises(optik.OptikError, match="starts"):
         parameter_homotopy.track((c, c, c), np.ones((2, 3)), np.random.default_rng(0))
+
+
+def _leg_line(rng):
+    b, p = _general(rng)
+    rho = _legs(b, p, *_pose(rng))
+    size = max(np.max(np.linalg.norm(b, axis=1)), np.max(rho))
+    b, p, rho = b / size, p / size, rho / size
+    c = study.leg_constants(b, p, rho)
+    start = stewart_parameter.load()
+    mats = stewart_parameter.coefficients(b, p, c, start)
+    legs = parameter_homotopy.LegLine(b, start.base - b, p, start.platform - p, c, start.constants - c)
+    return mats, legs, start
+
+
+def test_leg_line_evaluation_tracks_the_same_paths_as_the_matrices():
+    mats, legs, start = _leg_line(np.random.default_rng(21))
+    by_matrix = parameter_homotopy.track(mats, start.solutions, np.random.default_rng(4))
+    by_legs = parameter_homotopy.track(mats, start.solutions, np.random.default_rng(4), legs=legs)
+    assert list(by_legs.status) == list(by_matrix.status)
+    assert np.allclose(by_legs.z, by_matrix.z, rtol=0, atol=1e-9)
+    # and every end point solves the target (s = 0) quadrics
+    assert np.max(stewart_parameter.relative_residual(mats[0], by_legs.z)) <= 1e-8
+
+
+def test_leg_line_of_the_wrong_shape_is_rejected():
+    mats, legs, start = _leg_line(np.random.default_rng(22))
+    short = parameter_homotopy.LegLine(legs.base[:5], *list(vars(legs).values())[1:])
+    with pytest.raises(optik.OptikError, match="legs"):
+        parameter_homotopy.track(mats, start.solutions, np.random.default_rng(0), legs=short)
+    small = tuple(c[:2, :3, :3] for c in mats)
+    with pytest.raises(optik.OptikError, match="legs"):
+        parameter_homotopy.track(small, np.ones((1, 3)), np.random.default_rng(0), legs=legs)

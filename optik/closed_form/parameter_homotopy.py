@@ -15,12 +15,20 @@ instance). Homogeneous coordinates are fixed on a random affine patch ``a^T z = 
 
 *Tracking* (generated C, compiled once per machine by `optik.native.source_library`; one path
 at a time, no Python in the loop): fourth-order Runge-Kutta predictor on
-``dz/dt = -J^{-1} dH/dt`` with ``J = [2 M(s) z; a^T]``, Newton corrector (at most 3 steps,
-accepted when the last update is below ``tol (1 + |z|)`` and the corrected point stays within
-``JUMP_GUARD (1 + |z|)`` of the prediction), step halved on rejection and doubled after three
-acceptances. Paths run from ``t = 1`` to ``ENDGAME_RADIUS`` and then to ``0``; a path that
-stalls near ``t = 0`` (its step falls below ``stall t``: a singular end point, or a path to
-a positive-dimensional set) goes to the endgame.
+``dz/dt = -J^{-1} dH/dt`` with ``J = [2 M(s) z; a^T]``, Newton corrector of at most 3 updates
+``d_1, d_2, ...``, accepted when the last update is below ``tol (1 + |z|)`` (or, but in the end
+steps below, after the first when the quadratic-convergence estimate of the next one,
+``kappa d_1^2``, is; ``kappa`` is the largest ``d_2 / d_1^2`` the path has shown, at least 1)
+and the corrected point stays within ``JUMP_GUARD (1 + |z|)`` of the prediction. The step aims
+the predictor error (the corrector's displacement) at ``PREDICTOR_TARGET`` (RK4: error
+``O(h^5)``; growth at most 2x per step, none right after a rejection) and shrinks by the same
+rule on rejection (0.1x to 0.5x). Each path runs from
+``t = 1`` to ``0`` in one go, with a step that ends exactly at ``t = ENDGAME_RADIUS``, where the
+point is kept for the endgame; that step and the last one (to ``t = 0``) are corrected to
+`ENDGAME_TOL`, so a singular end point (where Newton converges only linearly) stalls the path.
+A path that stalls near ``t = 0`` (its step falls below ``stall t``: a singular end point, or a
+path to a positive-dimensional set) goes to the endgame. A path that jumps to another one is not
+detected here; the callers' count check (distinct nonsingular end points) does that.
 
 *Cauchy endgame* (paths that stall near ``t = 0`` or arrive at a singular end point, where
 Newton converges only linearly). Near ``t = 0`` a path is a convergent Puiseux series in
@@ -59,15 +67,19 @@ GAMMA_ANGLE = np.pi / 4
 ``theta`` but a measure-zero set makes the arc generic, and a small one keeps it short
 (``|s| <= 1 / cos(theta / 2)``; ``theta`` near ``pi`` sends ``s`` far away)."""
 
-PREDICTOR_TARGET = 1e-4
+PREDICTOR_TARGET = 1e-3
 """Predictor error (corrector displacement relative to ``1 + |z|``) the step size aims at."""
 
 SINGULAR_CONDITION = 1e8
 """End points whose Jacobian condition number (`condition_numbers`) exceeds this are singular:
 they go to the endgame even when the corrector converged at ``t = 0``."""
 
-JUMP_GUARD = 1e-3
+JUMP_GUARD = 1e-2
 """Largest accepted corrector displacement relative to ``1 + |z|`` (guards against path jumping)."""
+
+ENDGAME_TOL = 1e-8
+"""Corrector tolerance of the points at ``t = ENDGAME_RADIUS`` and ``t = 0`` and of the endgame
+loops (which close when they return to the first within ``1e-8 (1 + |z|)``)."""
 
 _C_SOURCE = r"""
 #include <complex.h>
@@ -84,9 +96,13 @@ typedef struct {
     csr_t c[3]; /* C0, C1, C2: (k, n, n), symmetric, compressed sparse rows */
     cplx gamma, ta, tb;       /* arc parameter and segment t(tau) = ta + tau (tb - ta) */
     const cplx *patch;
+    const cplx *legs; /* NULL, or the Stewart-Gough leg line (b, db, p, dp, c, dc), see evaluate_legs */
 } sys_t;
 
-typedef struct { double max_step, min_step, tol, guard, stall, deadline, h0, target; long max_steps; } opts_t;
+typedef struct {
+    double max_step, min_step, tol, guard, stall, deadline, h0, target, mark, end_tol;
+    long max_steps;
+} opts_t;
 
 static double now(void) {
     struct timespec ts;
@@ -100,6 +116,75 @@ static double norm(int n, const cplx *z) {
     return sqrt(s);
 }
 
+/* x o v for a quaternion x and a pure quaternion v = (0, v): (-x_v . v, x0 v + x_v cross v) */
+static inline __attribute__((always_inline)) void times_pure(const cplx *x, const cplx *v, cplx *out) {
+    out[0] = -(x[1] * v[0] + x[2] * v[1] + x[3] * v[2]);
+    out[1] = x[0] * v[0] + x[2] * v[2] - x[3] * v[1];
+    out[2] = x[0] * v[1] + x[3] * v[0] - x[1] * v[2];
+    out[3] = x[0] * v[2] + x[1] * v[1] - x[2] * v[0];
+}
+
+/* v o x for a pure quaternion v and a quaternion x: (-v . x_v, x0 v + v cross x_v) */
+static inline __attribute__((always_inline)) void pure_times(const cplx *v, const cplx *x, cplx *out) {
+    out[0] = -(v[0] * x[1] + v[1] * x[2] + v[2] * x[3]);
+    out[1] = x[0] * v[0] + v[1] * x[3] - v[2] * x[2];
+    out[2] = x[0] * v[1] + v[2] * x[1] - v[0] * x[3];
+    out[3] = x[0] * v[2] + v[0] * x[2] - v[1] * x[1];
+}
+
+static inline cplx dot4(const cplx *a, const cplx *b) {
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3];
+}
+
+/* The same J, value and dH/dtau as evaluate, for the Study quadric and the six leg quadrics of a
+   Stewart-Gough platform whose base points, platform points and leg constants move on a line:
+   b_i(s) = b_i + s db_i, p_i(s) = p_i + s dp_i, c_i(s) = c_i + s dc_i (legs = [b, db, p, dp
+   (6 x 3 each), c, dc (6 each)]). With z = (e, g), u = e o p, w = b o e (b, p pure quaternions):
+   F_0 = e . g and F_i = c e.e - 2 w.u + 4 (u - w).g + 4 g.g, so
+   dF_i/de = 2 c e + 2 b o (u + 2 g) + 2 (w - 2 g) o p (L(b)^T = -L(b), R(p)^T = -R(p) for pure
+   quaternions), dF_i/dg = 4 (u - w) + 8 g and
+   dF_i/ds = dc e.e - 2 ((db o e).u + w.(e o dp)) + 4 (e o dp - db o e).g. */
+static void evaluate_legs(const sys_t *q, const cplx *z, cplx s, cplx ds, cplx *jac, cplx *val, cplx *ht) {
+    const cplx *e = z, *g = z + 4, *lb = q->legs, *ldb = lb + 18, *lp = lb + 36, *ldp = lb + 54;
+    const cplx *lc = lb + 72, *ldc = lb + 78;
+    const cplx ee = dot4(e, e), gg = dot4(g, g);
+    for (int c = 0; c < 4; c++) {
+        jac[c] = g[c];
+        jac[4 + c] = e[c];
+    }
+    val[0] = dot4(e, g);
+    ht[0] = 0.0;
+    for (int i = 0; i < 6; i++) {
+        cplx b[3], p[3], u[4], w[4], x[4], y[4], du[4], dw[4];
+        for (int a = 0; a < 3; a++) {
+            b[a] = lb[3 * i + a] + s * ldb[3 * i + a];
+            p[a] = lp[3 * i + a] + s * ldp[3 * i + a];
+        }
+        const cplx c = lc[i] + s * ldc[i];
+        times_pure(e, p, u);
+        pure_times(b, e, w);
+        cplx uw_g = 0.0;
+        for (int a = 0; a < 4; a++) {
+            x[a] = u[a] + 2.0 * g[a];
+            y[a] = w[a] - 2.0 * g[a];
+            uw_g += (u[a] - w[a]) * g[a];
+        }
+        val[i + 1] = c * ee - 2.0 * dot4(w, u) + 4.0 * uw_g + 4.0 * gg;
+        cplx *row = jac + 8 * (i + 1);
+        pure_times(b, x, row);
+        times_pure(y, p, row + 4); /* scratch: the e part is 2 c e + 2 row[0..3] + 2 row[4..7] */
+        for (int a = 0; a < 4; a++) {
+            row[a] = 2.0 * (c * e[a] + row[a] + row[4 + a]);
+            row[4 + a] = 4.0 * (u[a] - w[a]) + 8.0 * g[a];
+        }
+        times_pure(e, ldp + 3 * i, du);
+        pure_times(ldb + 3 * i, e, dw);
+        cplx d = ldc[i] * ee - 2.0 * (dot4(dw, u) + dot4(w, du));
+        for (int a = 0; a < 4; a++) d += 4.0 * (du[a] - dw[a]) * g[a];
+        ht[i + 1] = d * ds;
+    }
+}
+
 /* J = [2 M(s) z; a^T] (row-major), value [z^T M(s) z; a^T z - 1], dH/dtau */
 static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx *val, cplx *ht) {
     const int n = q->n, k = q->k;
@@ -107,6 +192,9 @@ static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx 
     const cplx den = 1.0 + (q->gamma - 1.0) * t;
     const cplx s = q->gamma * t / den, s2 = s * s;
     const cplx ds = q->gamma / (den * den) * (q->tb - q->ta);
+    if (q->legs) {
+        evaluate_legs(q, z, s, ds, jac, val, ht);
+    } else {
     for (int j = 0; j < k; j++) {
         cplx v = 0.0, w = 0.0;
         for (int r = 0; r < n; r++) {
@@ -127,6 +215,7 @@ static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx 
         val[j] = v;
         ht[j] = w * ds;
     }
+    }
     cplx pz = 0.0;
     for (int c = 0; c < n; c++) {
         jac[k * n + c] = q->patch[c];
@@ -137,7 +226,7 @@ static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx 
 }
 
 /* a x = b and a y = c in place (b, c become x, y; c may be NULL), partial pivoting; 0 on success */
-static int solve2(int n, cplx *a, cplx *b, cplx *c) {
+static inline __attribute__((always_inline)) int solve_n(int n, cplx *a, cplx *b, cplx *c) {
     for (int col = 0; col < n; col++) {
         int piv = col;
         double best = fabs(creal(a[col * n + col])) + fabs(cimag(a[col * n + col]));
@@ -180,6 +269,11 @@ static int solve2(int n, cplx *a, cplx *b, cplx *c) {
     return 0;
 }
 
+/* solve_n with the dimension a constant where it is the Stewart-Gough one (8): unrolled loops */
+static int solve8(cplx *a, cplx *b, cplx *c) { return solve_n(8, a, b, c); }
+
+static int solve2(int n, cplx *a, cplx *b, cplx *c) { return n == 8 ? solve8(a, b, c) : solve_n(n, a, b, c); }
+
 static int tangent(const sys_t *q, const cplx *z, double tau, cplx *out) {
     cplx jac[NMAX * NMAX], val[NMAX];
     evaluate(q, z, tau, jac, val, out);
@@ -188,20 +282,29 @@ static int tangent(const sys_t *q, const cplx *z, double tau, cplx *out) {
 }
 
 /* status: 0 reached tau = 1, 1 step too small (stalled), 2 step or time budget exhausted */
-static int track_one(const sys_t *q, const opts_t *o, cplx *z, double *tau_out, long *steps_out) {
+static int track_one(const sys_t *q, const opts_t *o, cplx *z, cplx *zmark, double *tau_out,
+                     long *steps_out) {
     const int n = q->n;
     cplx k1[NMAX], k2[NMAX], k3[NMAX], k4[NMAX], zt[NMAX], zp[NMAX], zc[NMAX];
     cplx jac[NMAX * NMAX], val[NMAX], ht[NMAX];
     const double seglen = cabs(q->tb - q->ta);
     double tau = 0.0, h = o->h0;
-    int status = 0, have_k1 = 0;
+    int status = 0, have_k1 = 0, retried = 0;
+    double kappa = 1.0;
     long steps = 0;
     while (tau < 1.0) {
         if (steps >= o->max_steps || ((steps & 7) == 0 && now() > o->deadline)) { status = 2; break; }
         steps++;
-        const double st = fmin(h, 1.0 - tau);
+        /* a step never crosses the mark: it ends there and the point is kept in zmark; the
+           steps that end at the mark or at tb are corrected to end_tol (a singular end point,
+           where Newton converges only linearly, then stalls the path) */
+        const int to_mark = tau < o->mark && tau + h >= o->mark;
+        const double st = to_mark ? o->mark - tau : fmin(h, 1.0 - tau);
+        const int end = to_mark || tau + st >= 1.0;
+        const double tol = end ? o->end_tol : o->tol;
         /* k1 is kept across a rejection (same point) and after an acceptance comes from the last
-           corrector iteration (at the point before its final update, at rounding distance) */
+           corrector iteration (at the point before its final update, within the corrector's
+           displacement: the predictor's first stage) */
         const int bad_k1 = have_k1 ? 0 : tangent(q, z, tau, k1);
         int bad = bad_k1;
         have_k1 = 0;
@@ -216,13 +319,21 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, double *tau_out, 
         if (ok) {
             for (int i = 0; i < n; i++)
                 zc[i] = zp[i] = z[i] + st / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+            double first = 0.0;
             for (int it = 0; it < 3 && ok; it++) {
                 evaluate(q, zc, tau + st, jac, val, ht);
                 for (int i = 0; i < n; i++) ht[i] = -ht[i];
                 if (solve2(n, jac, val, ht)) { ok = 0; break; }
                 for (int i = 0; i < n; i++) zc[i] -= val[i];
                 last = norm(n, val);
-                if (last <= o->tol * (1.0 + norm(n, zc))) break;
+                const double lim = tol * (1.0 + norm(n, zc));
+                if (last <= lim) break;
+                /* Newton converges quadratically (near a nonsingular point): the update after a
+                   first one of size d is about kappa d^2, kappa the largest ratio d2 / d1^2 this
+                   path has shown; the end steps measure it */
+                if (it == 0 && !end && kappa * last * last <= lim) { last = kappa * last * last; break; }
+                if (it == 0) first = last;
+                else if (it == 1 && first > 0.0) kappa = fmax(kappa, last / (first * first));
             }
         }
         double moved = INFINITY;
@@ -230,10 +341,12 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, double *tau_out, 
             const double scale = 1.0 + norm(n, zc);
             for (int i = 0; i < n; i++) zt[i] = zc[i] - zp[i];
             moved = norm(n, zt) / scale;
-            ok = last <= o->tol * scale && moved <= o->guard;
+            ok = last <= tol * scale && moved <= o->guard;
         }
         if (ok) {
-            tau += st;
+            tau = to_mark ? o->mark : tau + st;
+            if (to_mark)
+                for (int i = 0; i < n; i++) zmark[i] = zc[i];
             for (int i = 0; i < n; i++) {
                 z[i] = zc[i];
                 k1[i] = ht[i];
@@ -241,10 +354,15 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, double *tau_out, 
             have_k1 = 1;
             /* the predictor error of RK4 is O(h^5): aim the next one at o->target */
             const double grow = moved > 0.0 ? 0.9 * pow(o->target / moved, 0.2) : 2.0;
-            if (st >= h) h = fmin(h * fmin(fmax(grow, 0.5), 2.0), o->max_step);
+            /* no growth right after a rejection: the step that failed would be tried again */
+            if (st >= h) h = fmin(h * fmin(fmax(grow, 0.5), retried ? 1.0 : 2.0), o->max_step);
+            retried = 0;
         } else {
             have_k1 = !bad_k1;
-            h *= 0.5;
+            /* shrink by the predictor error where it is known (at most halve: st < h at the end
+               of the run or before the mark) */
+            h = st * (isfinite(moved) ? fmin(fmax(0.9 * pow(o->target / moved, 0.2), 0.1), 0.5) : 0.5);
+            retried = 1;
             const double t_abs = cabs(q->ta + tau * (q->tb - q->ta));
             const double floor = t_abs < 1e-2 ? fmax(o->min_step, o->stall * t_abs / seglen) : o->min_step;
             if (h < floor) { status = 1; break; }
@@ -256,21 +374,23 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, double *tau_out, 
 }
 
 /* Track every path (rows of z, updated in place) along t: ta -> tb. opts: max_step, min_step,
-   tol, guard, stall, seconds, h0, max_steps, predictor target. Returns the number of paths not at tb. */
+   tol, guard, stall, seconds, h0, max_steps, predictor target, mark (tau, a step ends there and
+   zmark keeps the point), end_tol (tol of the steps ending at the mark or at tb). Returns the
+   number of paths not at tb. */
 int optik_track_paths(int paths, int k, int n, const long *ptr0, const int *col0, const cplx *val0,
                       const long *ptr1, const int *col1, const cplx *val1,
                       const long *ptr2, const int *col2, const cplx *val2,
                       double g_re, double g_im, const cplx *patch, double ta_re, double ta_im,
                       double tb_re, double tb_im, const double *opts, cplx *z, int *status,
-                      double *tau, long *steps) {
-    if (n > NMAX || k != n - 1) return -1;
+                      double *tau, long *steps, cplx *zmark, const cplx *legs) {
+    if (n > NMAX || k != n - 1 || (legs && n != 8)) return -1;
     sys_t q = {k, n, {{ptr0, col0, val0}, {ptr1, col1, val1}, {ptr2, col2, val2}},
-               g_re + I * g_im, ta_re + I * ta_im, tb_re + I * tb_im, patch};
+               g_re + I * g_im, ta_re + I * ta_im, tb_re + I * tb_im, patch, legs};
     opts_t o = {opts[0], opts[1], opts[2], opts[3], opts[4],
-                now() + opts[5], opts[6], opts[8], (long)opts[7]};
+                now() + opts[5], opts[6], opts[8], opts[9], opts[10], (long)opts[7]};
     int left = 0;
     for (int p = 0; p < paths; p++) {
-        status[p] = track_one(&q, &o, z + (long)p * n, tau + p, steps + p);
+        status[p] = track_one(&q, &o, z + (long)p * n, zmark + (long)p * n, tau + p, steps + p);
         left += status[p] != 0;
     }
     return left;
@@ -291,7 +411,7 @@ def compiled() -> ctypes.CDLL | None:
         if lib is not None:
             fn = lib.optik_track_paths
             ptr, dbl, i32 = ctypes.c_void_p, ctypes.c_double, ctypes.c_int
-            fn.argtypes = [i32, i32, i32, *([ptr] * 9), dbl, dbl, ptr, dbl, dbl, dbl, dbl, *([ptr] * 5)]
+            fn.argtypes = [i32, i32, i32, *([ptr] * 9), dbl, dbl, ptr, dbl, dbl, dbl, dbl, *([ptr] * 7)]
             fn.restype = i32
         _LIB.append(lib)
     return _LIB[0]
@@ -338,38 +458,83 @@ def _csr(c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return ptr, np.ascontiguousarray(cols), np.ascontiguousarray(rows[keep])
 
 
+@dataclass(frozen=True)
+class LegLine:
+    """A Stewart-Gough family on a line of (complex) geometries, for the compiled tracker's
+    structured evaluation of its 7 quadrics (`optik.closed_form.parallel.study.study_matrices`:
+    the Study quadric and the six legs): base points ``base + s d_base``, platform points
+    ``platform + s d_platform`` (``(6, 3)`` each) and leg constants ``constants + s d_constants``
+    (``(6,)`` each). Quaternion products of the points with ``e`` and ``g`` take about 60 % of the
+    operations of the three sparse matrices ``C0, C1, C2`` of the same family."""
+
+    base: np.ndarray
+    d_base: np.ndarray
+    platform: np.ndarray
+    d_platform: np.ndarray
+    constants: np.ndarray
+    d_constants: np.ndarray
+
+    def packed(self) -> np.ndarray:
+        """``[b, db, p, dp, c, dc]`` flattened, complex (the C layout)."""
+        parts = (self.base, self.d_base, self.platform, self.d_platform, self.constants, self.d_constants)
+        return np.ascontiguousarray(np.concatenate([np.ravel(a) for a in parts]), dtype=complex)
+
+
 class _Tracker:
     """One call of the compiled tracker on a fixed system, gamma and patch."""
 
     def __init__(
-        self, coefficients: tuple[np.ndarray, np.ndarray, np.ndarray], gamma: complex, patch: np.ndarray
+        self,
+        coefficients: tuple[np.ndarray, np.ndarray, np.ndarray],
+        gamma: complex,
+        patch: np.ndarray,
+        legs: LegLine | None = None,
     ):
         self.k, self.n = coefficients[0].shape[0], coefficients[0].shape[1]
-        self.c = [_csr(c) for c in coefficients]
+        self.legs = None if legs is None else legs.packed()
+        rows = self.k * self.n + 1
+        no_matrix = (np.zeros(rows, dtype=np.int64), np.zeros(1, dtype=np.int32), np.zeros(1, dtype=complex))
+        self.c = [_csr(c) if legs is None else no_matrix for c in coefficients]
         self.gamma = complex(gamma)
         self.patch = np.ascontiguousarray(patch, dtype=complex)
         self.steps = 0
 
     def segment(
-        self, z: np.ndarray, ta: complex, tb: complex, deadline: float, tol: float, max_step: float
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Track the rows of ``z`` from ``t = ta`` to ``tb``; (end points, status per path)."""
+        self,
+        z: np.ndarray,
+        ta: complex,
+        tb: complex,
+        deadline: float,
+        tol: float,
+        max_step: float,
+        mark: float = 2.0,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Track the rows of ``z`` from ``t = ta`` to ``tb``.
+
+        Returns ``(end points, status per path, points at the mark, tau reached)``: a step ends
+        exactly at ``t(mark) = ta + mark (tb - ta)`` (``mark`` in ``(0, 1)``; none by default)
+        and the point there is kept (rows of paths with ``tau < mark`` are undefined). The steps
+        ending at the mark and at ``tb`` are corrected to `ENDGAME_TOL`.
+        """
         z = np.ascontiguousarray(z, dtype=complex).copy()
+        z_mark = np.empty_like(z)
         p = len(z)
         status = np.zeros(p, dtype=np.int32)
         tau = np.zeros(p)
         steps = np.zeros(p, dtype=np.int64)
         seconds = max(deadline - time.monotonic(), 0.0)
+        h0 = min(0.05, max_step)
         opts = np.array(
-            [max_step, 1e-14, tol, JUMP_GUARD, 1e-3, seconds, min(0.05, max_step), 1e6, PREDICTOR_TARGET]
+            [max_step, 1e-14, tol, JUMP_GUARD, 1e-3, seconds, h0, 1e6, PREDICTOR_TARGET, mark, ENDGAME_TOL]
         )
         compiled().optik_track_paths(
             p, self.k, self.n, *(a.ctypes.data for c in self.c for a in c), self.gamma.real, self.gamma.imag,
             self.patch.ctypes.data, complex(ta).real, complex(ta).imag, complex(tb).real, complex(tb).imag,
             opts.ctypes.data, z.ctypes.data, status.ctypes.data, tau.ctypes.data, steps.ctypes.data,
+            z_mark.ctypes.data, None if self.legs is None else self.legs.ctypes.data,
         )  # fmt: skip
         self.steps += int(steps.sum())
-        return z, status
+        return z, status, z_mark, tau
 
 
 def track(
@@ -378,9 +543,10 @@ def track(
     rng: np.random.Generator,
     *,
     time_limit: float = 1.0,
-    tol: float = 1e-8,
+    tol: float = 1e-6,
     max_step: float = 0.25,
     abandon: Callable[[np.ndarray], np.ndarray] | None = None,
+    legs: LegLine | None = None,
 ) -> ParameterTracking:
     """Track the start solutions ``starts`` (rows, solutions of ``M(1) = C0 + C1 + C2``) to ``s = 0``.
 
@@ -389,15 +555,21 @@ def track(
         starts: ``(paths, k + 1)`` complex start solutions (any scaling: projective points).
         rng: generator of ``gamma`` and the patch.
         time_limit: wall-time budget (s); paths unfinished then are ``"failed"``.
-        tol: relative size of the last Newton update for a corrector to be accepted.
+        tol: relative size of the last Newton update (measured or, after one update, estimated)
+            for a corrector to be accepted while tracking; the points at ``t = ENDGAME_RADIUS``
+            and ``t = 0`` and the endgame use `ENDGAME_TOL`.
         max_step: largest step in ``t``.
         abandon: optional test ``z -> bool mask`` on the points where paths stalled near
             ``t = 0``; flagged paths skip the endgame (e.g. paths that clearly entered a known
             positive-dimensional set of no interest).
+        legs: the same family as a Stewart-Gough `LegLine` (``k = 7``): the tracker evaluates
+            it from the points instead of the matrices (fewer operations, the same values);
+            ``coefficients`` still give the condition numbers of the end points.
 
     Raises:
         InvalidArgumentError: coefficients not three ``(k, k + 1, k + 1)`` arrays with
-            ``k + 1 <= 16``, or starts not ``(paths, k + 1)``.
+            ``k + 1 <= 16``, starts not ``(paths, k + 1)``, or ``legs`` given with ``k != 7``
+            or points and constants not of shapes ``(6, 3)`` and ``(6,)``.
         SolverUnavailableError: no working C compiler (check `available` first).
     """
     start = time.perf_counter()
@@ -410,17 +582,25 @@ def track(
         )
     if np.ndim(starts) != 2 or np.shape(starts)[1] != k + 1:
         raise InvalidArgumentError("starts", f"need shape (paths, {k + 1}), got {np.shape(starts)}")
+    if legs is not None:
+        shapes = [np.shape(a) for a in (legs.base, legs.d_base, legs.platform, legs.d_platform)]
+        shapes += [np.shape(legs.constants), np.shape(legs.d_constants)]
+        if k != 7 or shapes != [(6, 3)] * 4 + [(6,)] * 2:
+            raise InvalidArgumentError(
+                "legs", f"need k = 7, points (6, 3) and constants (6,); got k = {k}, shapes {shapes}"
+            )
     if compiled() is None:
         raise SolverUnavailableError("the compiled path tracker needs a working C compiler")
     n = coefficients[0].shape[1]
     gamma = np.exp(1j * GAMMA_ANGLE * rng.uniform(-1, 1))
     patch = rng.normal(size=n) + 1j * rng.normal(size=n)
-    tracker = _Tracker(coefficients, gamma, patch)
+    tracker = _Tracker(coefficients, gamma, patch, legs)
     z0 = np.asarray(starts, dtype=complex)
     z0 = z0 / (z0 @ patch)[:, None]
     r = ENDGAME_RADIUS
-    z_r, st_r = tracker.segment(z0, 1.0, r, deadline, tol, max_step)
-    z_end, st_end = tracker.segment(z_r, r, 0.0, deadline, tol, max_step)
+    # one run from t = 1 to 0 with a step ending at t = r (the endgame's start: mark 1 - r)
+    z_end, st_end, z_r, tau = tracker.segment(z0, 1.0, 0.0, deadline, tol, max_step, mark=1.0 - r)
+    st_r = np.where(tau >= 1.0 - r, 0, st_end)  # nonzero: the path failed before t = r
     status = np.where(st_end == 0, "regular", "failed").astype(object)
     status[st_r != 0] = "failed"
     winding = np.where(status == "regular", 1, 0)
@@ -436,7 +616,7 @@ def track(
         z_out[gone] = z_end[gone]
         todo = np.setdiff1d(todo, gone)
     if len(todo):
-        points, loops = _cauchy(tracker, z_r[todo], r, deadline, tol)
+        points, loops = _cauchy(tracker, z_r[todo], r, deadline, ENDGAME_TOL)
         ok = loops > 0
         z_out[todo[ok]] = points[ok]
         status[todo[ok]] = "endgame"
@@ -466,7 +646,7 @@ def _cauchy(tracker: _Tracker, z_r: np.ndarray, r: float, deadline: float, tol: 
             # patch may have its pole (a^T z = 0) within the circle, this one stays far from it
             za = z[active]
             sums[active] += za / np.sum(np.conj(z_r[active]) * za, axis=1, keepdims=True)
-            z[active], st = tracker.segment(z[active], ts[j], ts[j + 1], deadline, tol, 1.0)
+            z[active], st, _, _ = tracker.segment(z[active], ts[j], ts[j + 1], deadline, tol, 1.0)
             active = active[st == 0]
             if len(active) == 0:
                 return points, loops

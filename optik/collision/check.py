@@ -3,10 +3,12 @@
 The pairs checked are the robot's self-collision pairs (`optik.collision.robot`, when
 ``self_collision``) and every robot part against every world object. Each pair's signed
 distance (negative: penetration depth) comes from coal (`optik.collision.distance`). To stay
-exact and fast, pairs are taken in increasing order of the lower bound
-``|c_a - c_b| - r_a - r_b`` of their bounding spheres, and the search stops once that bound
-exceeds the smallest distance found, the margin and 0: no pair left out can be the closest,
-closer than the margin, or touching.
+exact and fast, every pair first gets a lower bound of its distance from models that contain the
+parts (`optik.collision.screen`: the robot's spheres and capsules, each obstacle's rounded box;
+one compiled call for all pairs), the pairs are taken in increasing order of it, and the search
+stops once the bound exceeds the smallest distance found, the margin and 0: no pair left out can
+be the closest, closer than the margin, or touching. The witness points are read from coal only
+for the pairs reported.
 
 ``in_collision`` is True when some pair is closer than ``margin`` or touches (distance
 ``<= 0``): at ``margin=0`` it means contact or penetration; with a margin, a clearance below
@@ -16,21 +18,29 @@ it. `CollisionReport.min_distance` is the smallest signed distance over the pair
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from optik.checks import as_batch, as_bool, as_float
-from optik.collision.distance import coal_transform, placed_distance
+from optik.collision.distance import coal_distance, signed_request
 from optik.collision.parts import Part
 from optik.collision.robot import RobotGeometry, robot_geometry
-from optik.collision.world import World
-from optik.errors import InvalidArgumentError
+from optik.collision.screen import screen
+from optik.collision.shapes import coal_module
+from optik.collision.world import World, WorldState, state_of
 from optik.mechanism import Mechanism
 
-__all__ = ["CollisionBatch", "CollisionPair", "CollisionReport", "check", "check_many", "world_parts"]
+__all__ = [
+    "CollisionBatch",
+    "CollisionPair",
+    "CollisionReport",
+    "check",
+    "check_many",
+    "report_at",
+    "world_parts",
+]
 
 
 @dataclass(frozen=True)
@@ -102,83 +112,76 @@ class CollisionBatch:
     reports: tuple[CollisionReport, ...]
 
 
+_SLACK = 1e-9
+"""Rounding room (m) of the screening bounds: a pair is skipped only when its bound is above the
+search's limit by more (a touching pair, distance 0, is never skipped on a bound of 1e-17)."""
+
+
 def world_parts(world: World | None) -> tuple[Part, ...]:
     """The coal parts of a world as it is now (built once per world version)."""
-    if world is None:
-        return ()
-    if not isinstance(world, World):
-        raise InvalidArgumentError("world", f"expected an optik.World or None, got {type(world).__name__}")
-    return world.parts()
+    return state_of(world).parts
 
 
-def _bounds(
-    geo: RobotGeometry, links: np.ndarray, obstacles: Sequence[Part], self_collision: bool
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Candidate pairs ``(i, j)`` (``j >= P`` indexes ``obstacles[j - P]``) with their bounds,
-    from the link poses ``links``."""
-    t = links[geo.part_link]
-    centres = np.einsum("pij,pj->pi", t[:, :3, :3], np.stack([p.centre for p in geo.parts])) + t[:, :3, 3]
-    radii = np.array([p.radius for p in geo.parts])
-    n = len(geo.parts)
-    blocks_i, blocks_j = [], []
-    if self_collision and len(geo.self_pairs):
-        blocks_i.append(geo.self_pairs[:, 0])
-        blocks_j.append(geo.self_pairs[:, 1])
-    if obstacles:
-        ii, jj = np.meshgrid(np.arange(n), np.arange(len(obstacles)), indexing="ij")
-        blocks_i.append(ii.ravel())
-        blocks_j.append(jj.ravel() + n)
-    if not blocks_i:
-        empty = np.zeros(0, dtype=int)
-        return empty, empty, np.zeros(0)
-    i, j = np.concatenate(blocks_i), np.concatenate(blocks_j)
-    all_c = np.concatenate([centres, np.array([o.centre for o in obstacles]).reshape(-1, 3)])
-    all_r = np.concatenate([radii, np.array([o.radius for o in obstacles])])
-    lb = np.linalg.norm(all_c[i] - all_c[j], axis=1) - all_r[i] - all_r[j]
-    return i, j, lb
-
-
-def _report(
-    geo: RobotGeometry, q: np.ndarray, obstacles: Sequence[Part], margin: float, self_collision: bool
+def report_at(
+    geo: RobotGeometry, q: np.ndarray, world: WorldState, margin: float, self_collision: bool
 ) -> CollisionReport:
-    links = geo.link_poses(q)
-    poses = geo.part_poses(q, links)
-    i, j, lb = _bounds(geo, links, obstacles, self_collision)
-    n = len(geo.parts)
-    best: CollisionPair | None = None
-    close: list[CollisionPair] = []
-    checked = 0
-    tfs: dict[int, Any] = {}  # coal transforms by part index (obstacles after the robot's), made once
+    """The `CollisionReport` of ``geo`` at checked coordinates ``q`` against one version of a
+    world (`World.state`): the search of the module docstring."""
+    n_obj = len(world.parts)
+    poses, to_world, own = screen(geo, world.capacity).bounds(q, world.slots, n_obj)
+    n_self = len(geo.self_pairs) if self_collision else 0
+    lb = np.concatenate([own[:n_self], to_world.ravel()])
+    coal = coal_module()
+    request = signed_request()
+    tfs: dict[int, Any] = {}  # coal transforms of the robot's parts, made when first needed
 
-    def tf(index: int, pose: np.ndarray) -> Any:
-        got = tfs.get(index)
+    def tf(k: int) -> Any:
+        got = tfs.get(k)
         if got is None:
-            got = tfs[index] = coal_transform(pose)
+            got = tfs[k] = coal.Transform3s(poses[k, :9].reshape(3, 3), poses[k, 9:])
         return got
 
-    for k in np.argsort(lb, kind="stable"):
-        if lb[k] > max(margin, 0.0, best.distance if best is not None else np.inf):
+    floor = max(margin, 0.0)  # pairs below it are reported, and the nearest always is
+    best: tuple[float, int, int, bool, Any] | None = None
+    close: list[tuple[float, int, int, bool, Any]] = []
+    checked = 0
+    bounds = lb.tolist()
+    for k in np.argsort(lb, kind="stable").tolist():
+        if best is not None and bounds[k] > max(floor, best[0]) + _SLACK:
             break
-        a, b = int(i[k]), int(j[k])
-        world = b >= n
-        part_b, pose_b = (obstacles[b - n], obstacles[b - n].offset) if world else (geo.parts[b], poses[b])
-        d, pa, pb = placed_distance(geo.parts[a], tf(a, poses[a]), part_b, tf(b, pose_b))
+        if k < n_self:
+            a, b = (int(v) for v in geo.self_pairs[k])
+            found = coal_distance(geo.parts[a].geometry, tf(a), geo.parts[b].geometry, tf(b), request)
+            entry = (found[0], a, b, False, found[1])
+        else:
+            a, b = divmod(k - n_self, n_obj)
+            found = coal_distance(
+                geo.parts[a].geometry, tf(a), world.parts[b].geometry, world.transforms[b], request
+            )
+            entry = (found[0], a, b, True, found[1])
+        if best is None or entry[0] < best[0]:
+            best = entry
+        if entry[0] < margin or entry[0] <= 0:
+            close.append(entry)
         checked += 1
-        pair = CollisionPair(geo.parts[a].name, part_b.name, d, pa, pb, world)
-        if best is None or d < best.distance:
-            best = pair
-        if d < margin or d <= 0:
-            close.append(pair)
-    close.sort(key=lambda p: p.distance)
+    close.sort(key=lambda e: e[0])
+
+    def pair(e: tuple[float, int, int, bool, Any]) -> CollisionPair:
+        d, a, b, on_world, res = e
+        other = world.parts[b].name if on_world else geo.parts[b].name
+        witness = np.array(res.getNearestPoint1()), np.array(res.getNearestPoint2())
+        return CollisionPair(geo.parts[a].name, other, d, *witness, on_world)
+
+    nearest = None if best is None else pair(best)
     return CollisionReport(
         in_collision=bool(close),
-        min_distance=np.inf if best is None else best.distance,
-        pair=None if best is None else (best.a, best.b),
-        witness=None if best is None else (best.point_a, best.point_b),
-        close_pairs=tuple(close),
+        min_distance=np.inf if nearest is None else nearest.distance,
+        pair=None if nearest is None else (nearest.a, nearest.b),
+        witness=None if nearest is None else (nearest.point_a, nearest.point_b),
+        close_pairs=tuple(pair(e) for e in close),
         margin=margin,
         checked=checked,
-        candidates=len(lb),
+        candidates=len(bounds),
     )
 
 
@@ -201,7 +204,7 @@ def check(
     geo = robot_geometry(m)
     qv = m.check_q(q)
     collide = as_bool(self_collision, "self_collision")
-    return _report(geo, qv, world_parts(world), as_float(margin, "margin", 0.0), collide)
+    return report_at(geo, qv, state_of(world), as_float(margin, "margin", 0.0), collide)
 
 
 def check_many(
@@ -210,10 +213,10 @@ def check_many(
     """`check` at every row of ``Q`` (``(N, n_q)``), against one snapshot of ``world``."""
     geo = robot_geometry(m)
     qb, _ = as_batch(Q, "Q", m.n_q)
-    obstacles = world_parts(world)
+    state = state_of(world)
     mg = as_float(margin, "margin", 0.0)
     collide = as_bool(self_collision, "self_collision")
-    reports = tuple(_report(geo, q, obstacles, mg, collide) for q in qb)
+    reports = tuple(report_at(geo, q, state, mg, collide) for q in qb)
     return CollisionBatch(
         np.array([r.in_collision for r in reports], dtype=bool),
         np.array([r.min_distance for r in reports], dtype=float),

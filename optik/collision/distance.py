@@ -16,7 +16,15 @@ import numpy as np
 from optik.collision.parts import Part
 from optik.collision.shapes import coal_module
 
-__all__ = ["Witness", "coal_transform", "pair_distances", "placed_distance", "signed_distance"]
+__all__ = [
+    "Witness",
+    "coal_distance",
+    "coal_transform",
+    "pair_distances",
+    "placed_distance",
+    "signed_distance",
+    "signed_request",
+]
 
 Witness = tuple[float, np.ndarray, np.ndarray]
 """``(distance, point on a, point on b)`` in the base frame."""
@@ -36,15 +44,27 @@ def signed_distance(a: Part, pose_a: np.ndarray, b: Part, pose_b: np.ndarray) ->
     return placed_distance(a, coal_transform(pose_a), b, coal_transform(pose_b))
 
 
+def signed_request() -> Any:
+    """A coal ``DistanceRequest`` for signed distances (coal only reads it: one serves a whole
+    query of many pairs)."""
+    req = coal_module().DistanceRequest()
+    req.enable_signed_distance = True
+    return req
+
+
+def coal_distance(a: Any, tf_a: Any, b: Any, tf_b: Any, request: Any) -> tuple[float, Any]:
+    """The signed distance of coal geometries ``a`` and ``b`` at coal transforms, and coal's
+    ``DistanceResult`` (its nearest points are the witnesses: read them only when needed)."""
+    coal = coal_module()
+    res = coal.DistanceResult()
+    return float(coal.distance(a, tf_a, b, tf_b, request, res)), res
+
+
 def placed_distance(a: Part, tf_a: Any, b: Part, tf_b: Any) -> Witness:
     """`signed_distance` with the poses as coal transforms (`coal_transform`: a caller that
     queries one part against many makes its transform once)."""
-    coal = coal_module()
-    req = coal.DistanceRequest()
-    req.enable_signed_distance = True
-    res = coal.DistanceResult()
-    d = coal.distance(a.geometry, tf_a, b.geometry, tf_b, req, res)
-    return float(d), np.array(res.getNearestPoint1()), np.array(res.getNearestPoint2())
+    d, res = coal_distance(a.geometry, tf_a, b.geometry, tf_b, signed_request())
+    return d, np.array(res.getNearestPoint1()), np.array(res.getNearestPoint2())
 
 
 def pair_distances(

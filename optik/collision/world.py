@@ -12,15 +12,19 @@ Poses are 4x4 homogeneous transforms of the shape's frame (see `optik.collision.
 base frame of the mechanism it is checked against (default: the identity). A world is safe to
 share between threads: every change takes a lock and makes a new immutable `snapshot`, which
 is what the checks and the solvers read (a check runs against the world as it was when it
-started). `World.from_table` builds one from the ``[world]`` table of a problem file.
+started). `World.state` is that version with what the checks and solvers derive from it (coal
+parts, their transforms, the slot values of `optik.collision.slots`), made once per change, so a
+solve that reads it once sees one version throughout. `World.from_table` builds one from the
+``[world]`` table of a problem file.
 """
 
 from __future__ import annotations
 
+import functools
 import os
 import threading
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -28,11 +32,13 @@ import numpy as np
 
 from optik import spatial
 from optik.checks import as_float, as_name, as_transform, as_vector, real_array
+from optik.collision.distance import coal_transform
 from optik.collision.parts import Part, parts_of
 from optik.collision.shapes import Shape
+from optik.collision.slots import capacity_for, slot_values
 from optik.errors import InvalidArgumentError, UnknownFrameError
 
-__all__ = ["Obstacle", "World"]
+__all__ = ["Obstacle", "World", "WorldState", "state_of"]
 
 
 @dataclass(frozen=True)
@@ -50,6 +56,51 @@ class Obstacle:
     pose: np.ndarray
 
 
+@dataclass(frozen=True, eq=False)
+class WorldState:
+    """One version of a world and what the checks and solvers derive from it.
+
+    Attributes:
+        version: the `World.version` it was made at.
+        parts: the coal parts of the objects (a point cloud gives one per point).
+        transforms: coal's transform of each part's pose.
+        capacity: its slot capacity (`optik.collision.slots.capacity_for` of the number of parts).
+        slots: the parts' slot values (`optik.collision.slots.slot_values`, read-only).
+    """
+
+    version: int
+    parts: tuple[Part, ...]
+    transforms: tuple[Any, ...] = field(repr=False)
+    capacity: int
+    slots: np.ndarray = field(repr=False)
+
+    @classmethod
+    def of(cls, version: int, parts: tuple[Part, ...]) -> WorldState:
+        """The state of ``parts`` (their transforms and slot values computed here)."""
+        capacity = capacity_for(len(parts))
+        slots = slot_values(parts, capacity)
+        slots.flags.writeable = False
+        return cls(version, parts, tuple(coal_transform(p.offset) for p in parts), capacity, slots)
+
+
+@functools.cache
+def _empty() -> WorldState:
+    return WorldState.of(0, ())
+
+
+def state_of(world: World | None) -> WorldState:
+    """``world.state()``, or the state of an empty world for None.
+
+    Raises:
+        InvalidArgumentError: ``world`` is neither a `World` nor None.
+    """
+    if world is None:
+        return _empty()
+    if not isinstance(world, World):
+        raise InvalidArgumentError("world", f"expected an optik.World or None, got {type(world).__name__}")
+    return world.state()
+
+
 class World:
     """Named obstacles (boxes, spheres, cylinders, capsules, convex meshes, point clouds).
 
@@ -62,7 +113,7 @@ class World:
         self._objects: dict[str, Obstacle] = {}
         self._snapshot: tuple[Obstacle, ...] = ()
         self._version = 0
-        self._parts: tuple[int, tuple[Part, ...]] = (0, ())
+        self._state: WorldState | None = None
 
     # ------------------------------------------------------------------ building
     def _add(self, name: Any, shape: Shape, pose: Any) -> None:
@@ -163,15 +214,20 @@ class World:
 
     def parts(self) -> tuple[Part, ...]:
         """The coal parts of the objects as they are now (built once per change)."""
+        return self.state().parts
+
+    def state(self) -> WorldState:
+        """The world as it is now with its derived data (`WorldState`, built once per change)."""
         with self._lock:
-            version, snapshot = self._version, self._snapshot
-            if self._parts[0] == version:
-                return self._parts[1]
+            version, snapshot, state = self._version, self._snapshot, self._state
+        if state is not None and state.version == version:
+            return state
         parts = tuple(p for o in snapshot for p in parts_of(o.name, o.shape, np.asarray(o.pose)))
+        state = WorldState.of(version, parts)
         with self._lock:
             if self._version == version:
-                self._parts = (version, parts)
-        return parts
+                self._state = state
+        return state
 
     @property
     def version(self) -> int:

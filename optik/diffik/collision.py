@@ -18,17 +18,18 @@ discrete form of a control barrier function, lets the distance shrink by at most
 one row ``G dq <= h`` per pair (pairs further than ``d_i`` give none: the QP is unchanged away
 from obstacles). A pair already closer than the margin gets a row that pushes it out.
 
-*Broad phase.* Only pairs that may be within ``d_i`` get an exact query: each part is covered by
-the spheres of `optik.collision.spheres.sphere_model` (they contain it), a world object by its
-bounding sphere, and the pair's lower bound ``min |c_s - c_t| - R_s - R_t`` over its spheres must
-be below ``d_i``. Parts on the base body get no world rows (their distance does not depend on
-``q``: a row ``0 <= gamma (d - d_s)`` could only make the QP infeasible; the exact check still
-judges them).
+*Broad phase.* Only pairs that may be within ``d_i`` get an exact query: those whose screening
+bound (`optik.collision.screen`: one compiled call for the part poses and a lower bound of every
+pair's distance, from the spheres and capsules that contain the parts) is below ``d_i``. The
+screen is built for the smallest power of two of slots that holds the world's parts (the world's
+own slot values, cut there), not the world's capacity: each slot costs a bound per sphere. Parts on
+the base body get no world rows (their distance does not depend on ``q``: a row
+``0 <= gamma (d - d_s)`` could only make the QP infeasible; the exact check still judges them).
 
-*One evaluation.* A compiled function (`optik.diffik._codegen.CompiledFunction`, generated C)
-gives, at ``q``, every part's pose, every sphere's centre, the sphere bound of every
-self-collision pair and every link's origin and Jacobian in one call; the rows of all pairs are
-then two ``einsum`` products.
+*Jacobians.* A second compiled function (`optik.diffik._codegen.CompiledFunction`, generated C)
+gives the origin and geometric Jacobian of one link of each moving body in one call (the point
+Jacobian above holds for any reference point of the body); the rows of all pairs are then two
+``einsum`` products.
 """
 
 from __future__ import annotations
@@ -42,12 +43,12 @@ import casadi as ca
 import numpy as np
 
 from optik.checks import as_float
-from optik.collision.check import world_parts
-from optik.collision.distance import coal_transform, placed_distance
-from optik.collision.parts import Part
+from optik.collision.distance import coal_distance, signed_request
 from optik.collision.robot import RobotGeometry, robot_geometry
+from optik.collision.screen import screen
 from optik.collision.shapes import coal_module
-from optik.collision.spheres import sphere_model
+from optik.collision.slots import SLOT_SIZE
+from optik.collision.world import state_of
 from optik.diffik._codegen import CompiledFunction
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
@@ -63,66 +64,42 @@ DAMPER_GAIN = 0.5
 
 @dataclass(frozen=True, eq=False)
 class DamperKernel:
-    """What the dampers of one robot geometry evaluate at every step, built once.
+    """The Jacobians the dampers of one robot geometry evaluate at every step, built once.
 
     Attributes:
-        geo: the robot geometry.
-        function: ``q -> (part poses, sphere centres, self gaps, link Jacobians, link origins)``:
-            ``(12, P)`` (row-major rotation, then translation, per part), ``(3, S)``, the bound
-            ``min |c_s - c_t| - R_s - R_t`` over the spheres of each self-collision pair
-            (``len(geo.self_pairs)``), ``(6, L n)`` and ``(3, L)``.
-        sphere_radii: ``(S,)`` radii of the covering spheres, grouped by part.
-        part_first_sphere: ``(P,)`` index of each part's first sphere.
-        moving: ``(P,)`` the part is not on the base body.
+        function: ``q -> (J, o)``: ``(6, (B + 1) n)`` the geometric Jacobians of one link of each
+            of the ``B`` moving bodies that carry parts, side by side, and ``(3, B + 1)`` those
+            links' origins; the last block is the base body's (zeros).
+        part_body: ``(P,)`` the body of each part (``B`` for the base body, whose Jacobian is 0).
+        blocked: ``(P, 1)`` ``inf`` for the parts on the base body (no world rows), else 0.
     """
 
-    geo: RobotGeometry
     function: CompiledFunction
-    sphere_radii: np.ndarray
-    part_first_sphere: np.ndarray
-    moving: np.ndarray
+    part_body: np.ndarray
+    blocked: np.ndarray
 
 
 def _kernel(geo: RobotGeometry) -> DamperKernel:
     m = geo.mechanism
-    model = sphere_model(geo)
-    link_poses = [m.frame_expr(link) for link in geo.links]
-    of_part = [link_poses[int(k)] for k in geo.part_link]
-    part_poses = []
-    for t_link, part in zip(of_part, geo.parts, strict=True):
-        t = ca.mtimes(t_link, ca.DM(part.offset))
-        part_poses.append(ca.vertcat(ca.vec(t[:3, :3].T), t[:3, 3]))
-    centres = [
-        ca.mtimes(of_part[k][:3, :3], ca.DM(c)) + of_part[k][:3, 3]
-        for k, c in zip(model.part, model.centres, strict=True)
-    ]
-    first = np.searchsorted(model.part, np.arange(len(geo.parts)))
-    counts = np.bincount(model.part, minlength=len(geo.parts))
-    gaps = []
-    for i, j in geo.self_pairs:
-        gap = ca.SX(np.inf)
-        for s in range(first[i], first[i] + counts[i]):
-            for t in range(first[j], first[j] + counts[j]):
-                gap = ca.fmin(gap, ca.norm_2(centres[s] - centres[t]) - model.radii[s] - model.radii[t])
-        gaps.append(gap)
-    f = ca.Function(
-        "collision_dampers",
+    bodies: dict[str, str] = {}  # body -> its first link with parts
+    for k in geo.part_link:
+        link = geo.links[int(k)]
+        body = m.frames[link][0]
+        if body != m.base:
+            bodies.setdefault(body, link)
+    index = {body: i for i, body in enumerate(bodies)}
+    links = list(bodies.values())
+    f = ca.Function(  # the base body's Jacobian (0) and origin (0) last, so that any part indexes it
+        "collision_damper_jacobians",
         [m.q_sym],
         [
-            ca.horzcat(*part_poses),
-            ca.horzcat(*centres),
-            ca.vertcat(*gaps) if gaps else ca.SX(0, 1),
-            ca.horzcat(*(m.jacobian_expr(link) for link in geo.links)),
-            ca.horzcat(*(t[:3, 3] for t in link_poses)),
+            ca.horzcat(*(m.jacobian_expr(link) for link in links), ca.SX.zeros(6, m.n_q)),
+            ca.horzcat(*(m.frame_expr(link)[:3, 3] for link in links), ca.SX.zeros(3, 1)),
         ],
     )
-    return DamperKernel(
-        geo,
-        CompiledFunction(f),
-        model.radii,
-        first,
-        np.array([m.frames[geo.links[int(k)]][0] != m.base for k in geo.part_link], dtype=bool),
-    )
+    part_body = np.array([index.get(m.frames[geo.links[int(k)]][0], len(links)) for k in geo.part_link])
+    blocked = np.where(part_body < len(links), 0.0, np.inf)[:, None]
+    return DamperKernel(CompiledFunction(f), part_body, blocked)
 
 
 _KERNELS: weakref.WeakKeyDictionary[RobotGeometry, DamperKernel] = weakref.WeakKeyDictionary()
@@ -141,39 +118,6 @@ def damper_kernel(geo: RobotGeometry) -> DamperKernel:
     return hit
 
 
-def _candidates(
-    kernel: DamperKernel,
-    centres: np.ndarray,
-    gaps: np.ndarray,
-    obstacles: tuple[Part, ...],
-    self_collision: bool,
-    d_i: float,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(a, b, world)``: the pairs whose sphere bound is below ``d_i`` (against an obstacle:
-    ``|c_s - c_o| - R_s - r_o < d_i`` for some sphere, compared squared); ``b`` indexes the
-    obstacles when ``world``, else the parts."""
-    a, b, world = [], [], []
-    if obstacles:
-        reach = kernel.sphere_radii[:, None] + np.array([o.radius for o in obstacles])[None] + d_i
-        delta = centres[:, None, :] - np.array([o.centre for o in obstacles])[None]
-        near = np.einsum("sok,sok->so", delta, delta) < reach * reach
-        hit = np.add.reduceat(near, kernel.part_first_sphere, axis=0) > 0
-        hit &= kernel.moving[:, None]
-        part, obstacle = np.nonzero(hit)
-        a.append(part)
-        b.append(obstacle)
-        world.append(np.ones(len(part), dtype=bool))
-    if self_collision and len(gaps):
-        close = np.flatnonzero(gaps < d_i)
-        a.append(kernel.geo.self_pairs[close, 0])
-        b.append(kernel.geo.self_pairs[close, 1])
-        world.append(np.zeros(len(close), dtype=bool))
-    if not a:
-        empty = np.zeros(0, dtype=int)
-        return empty, empty, np.zeros(0, dtype=bool)
-    return np.concatenate(a), np.concatenate(b), np.concatenate(world)
-
-
 def damper_rows(
     m: Mechanism,
     q: np.ndarray,
@@ -183,9 +127,9 @@ def damper_rows(
     influence: Any = INFLUENCE,
     gain: Any = DAMPER_GAIN,
 ) -> tuple[np.ndarray, np.ndarray, float]:
-    """``(G, h, d_min)``: the damper rows ``G dq <= h`` at ``q`` (module docstring) and the
-    smallest exact distance of the pairs queried (``inf``: no pair within the influence distance
-    of its sphere bound). The rows are ordered by increasing distance.
+    """``(G, h, d_min)``: the damper rows ``G dq <= h`` at ``q`` (module docstring), ordered by
+    increasing distance, and the smallest exact distance of the pairs queried (``inf``: no pair's
+    screening bound is below the influence distance).
 
     Raises:
         InvalidArgumentError: a negative ``margin``, an ``influence`` not above it, a ``gain``
@@ -198,57 +142,74 @@ def damper_rows(
     gamma = as_float(gain, "collision_gain")
     if not 0.0 < gamma <= 1.0:
         raise InvalidArgumentError("collision_gain", f"must be in (0, 1], got {gamma:g}")
-    obstacles = world_parts(world)
+    state = state_of(world)
     geo = robot_geometry(m)
     kernel = damper_kernel(geo)
-    poses, centres, gaps, jac, origins = kernel.function(q)
-    poses, centres = poses.T, centres.T  # (P, 12), (S, 3): contiguous rows
-    cand_a, cand_b, cand_world = _candidates(kernel, centres, gaps, obstacles, self_collision, d_i)
-    k = len(cand_a)
-    if not k:
+    n_obj = len(state.parts)
+    capacity = 1 << max(n_obj - 1, 0).bit_length()  # the slots in use: every empty one costs a step time
+    poses, to_world, own = screen(geo, capacity).bounds(q, state.slots[: capacity * SLOT_SIZE], n_obj)
+    near_a, near_b = np.nonzero(to_world + kernel.blocked < d_i)
+    pairs = list(zip(near_a.tolist(), near_b.tolist(), strict=True))
+    n_world = len(pairs)
+    if self_collision:
+        pairs += geo.self_pairs[own < d_i].tolist()
+    if not pairs:
         return np.zeros((0, m.n_q)), np.zeros(0), np.inf
     coal = coal_module()
-    tfs: dict[int, Any] = {}  # coal transforms by part index (obstacle b as -1 - b), made once per step
+    request = signed_request()
+    tfs: dict[int, Any] = {}  # coal transforms of the robot's parts, made when first needed
 
-    def tf(i: int) -> Any:
-        got = tfs.get(i)
-        if got is None:
-            if i >= 0:  # the rows of `poses`: row-major rotation, then translation
-                got = coal.Transform3s(poses[i, :9].reshape(3, 3), poses[i, 9:])
-            else:
-                got = coal_transform(obstacles[-1 - i].offset)
-            tfs[i] = got
+    def tf(k: int) -> Any:
+        got = tfs.get(k)
+        if got is None:  # the rows of `poses`: row-major rotation, then translation
+            got = tfs[k] = coal.Transform3s(poses[k, :9].reshape(3, 3), poses[k, 9:])
         return got
 
-    d, pa, pb = np.empty(k), np.empty((k, 3)), np.empty((k, 3))
     parts = geo.parts
-    pairs = zip(cand_a.tolist(), cand_b.tolist(), cand_world.tolist(), strict=True)
-    for r, (a, b, in_world) in enumerate(pairs):
-        other, tf_b = (obstacles[b], tf(-1 - b)) if in_world else (parts[b], tf(b))
-        d[r], pa[r], pb[r] = placed_distance(parts[a], tf(a), other, tf_b)
-    d_min = float(d.min())
-    delta = pa - pb
+    found = []  # (d, row of `pairs`, coal's result) of the pairs within the influence distance
+    d_min = np.inf
+    for r, (a, b) in enumerate(pairs):
+        if r < n_world:
+            d, res = coal_distance(
+                parts[a].geometry, tf(a), state.parts[b].geometry, state.transforms[b], request
+            )
+        else:
+            d, res = coal_distance(parts[a].geometry, tf(a), parts[b].geometry, tf(b), request)
+        d_min = min(d_min, d)
+        if d < d_i:
+            found.append((d, r, res))
+    found.sort(key=lambda f: f[0])
+    k = len(found)
+    d, witness = np.empty(k), np.empty((k, 2, 3))
+    ends = np.empty((k, 2), dtype=int)  # the bodies of each pair (the base body's for an obstacle)
+    body = kernel.part_body.tolist()
+    for i, (dist, r, res) in enumerate(found):
+        d[i] = dist
+        witness[i, 0], witness[i, 1] = res.getNearestPoint1(), res.getNearestPoint2()
+        a, b = pairs[r]
+        ends[i] = body[a], (body[b] if r >= n_world else -1)
+    delta = witness[:, 0] - witness[:, 1]
     length = np.sqrt(np.einsum("pk,pk->p", delta, delta))
     # touching at one point (|p_a - p_b| ~ 0) has no direction: no row (the check still decides success)
-    keep = np.flatnonzero((d < d_i) & (length >= 1e-12))
-    keep = keep[np.argsort(d[keep], kind="stable")]
-    d, pa, pb, delta, length = d[keep], pa[keep], pb[keep], delta[keep], length[keep]
+    ok = length >= 1e-12
+    if not ok.all():
+        d, witness, ends, delta, length = d[ok], witness[ok], ends[ok], delta[ok], length[ok]
     n = delta * (np.where(d >= 0, 1.0, -1.0) / length)[:, None]
-    jt = jac.T.reshape(len(geo.links), m.n_q, 6)  # jt[l, j] = column j of link l's Jacobian
-    link_a = geo.part_link[cand_a[keep]]
-    rows = np.einsum("pjs,ps->pj", jt[link_a], _wrench(n, pa - origins.T[link_a]))
-    own = ~cand_world[keep]
-    if own.any():
-        link_b = geo.part_link[cand_b[keep][own]]
-        rows[own] -= np.einsum("pjs,ps->pj", jt[link_b], _wrench(n[own], pb[own] - origins.T[link_b]))
-    return -rows, gamma * (d - d_s), d_min
+    jac, origins = kernel.function.call_flat(q)
+    jt = jac.T.reshape(-1, m.n_q, 6)  # jt[body, j]: column j of the body's Jacobian (a view; -1: zeros)
+    # both ends at once: n^T J_a(p_a) + (-n)^T J_b(p_b), J_b = 0 for an obstacle (body -1)
+    bodies, points = ends.reshape(-1), witness.reshape(-1, 3)
+    normals = (n[:, None, :] * _BOTH_ENDS).reshape(-1, 3)
+    r = points - origins.T[bodies]
+    w = np.concatenate([normals, np.einsum("ijk,pj,pk->pi", _LEVI_CIVITA, r, normals)], axis=1)
+    rows = np.matmul(jt[bodies], w[:, :, None]).reshape(-1, 2, m.n_q).sum(axis=1)
+    return -rows, gamma * (d - d_s), float(d_min)
 
 
-def _wrench(n: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """``(k, 6)`` rows ``[n, r x n]``: ``[n, r x n] . [J_v; J_w]`` is ``n^T (J_v - [r]_x J_w)``."""
-    out = np.empty((len(n), 6))
-    out[:, :3] = n
-    out[:, 3] = r[:, 1] * n[:, 2] - r[:, 2] * n[:, 1]
-    out[:, 4] = r[:, 2] * n[:, 0] - r[:, 0] * n[:, 2]
-    out[:, 5] = r[:, 0] * n[:, 1] - r[:, 1] * n[:, 0]
-    return out
+_BOTH_ENDS = np.array([[1.0], [-1.0]])
+"""The normal's sign at each end of a pair (towards ``a`` from ``b``)."""
+
+_LEVI_CIVITA = np.zeros((3, 3, 3))
+_LEVI_CIVITA[[0, 1, 2], [1, 2, 0], [2, 0, 1]] = 1.0
+_LEVI_CIVITA[[0, 1, 2], [2, 0, 1], [1, 2, 0]] = -1.0
+"""``(r x n)_i = eps_ijk r_j n_k``: the rows ``[n, r x n] . [J_v; J_w] = n^T (J_v - [r]_x J_w)``."""

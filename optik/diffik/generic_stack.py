@@ -21,7 +21,6 @@ and the per-robot path answers meanwhile, as without a compiler.
 from __future__ import annotations
 
 import copy
-import hashlib
 import logging
 import threading
 from collections.abc import Sequence
@@ -39,11 +38,10 @@ from optik.diffik.tasks.frame_rows import FrameRowsTask
 from optik.mechanism import Mechanism
 from optik.mechanism.mechanism import geometric_jacobian
 from optik.mechanism.memo import PerMechanism
-from optik.native import CCall, Library, c_source, keyed_library
+from optik.native import CCall, Library, c_source, keyed_library, source_digest
 from optik.solvers.generic_chain import chain_parameters, chain_pose, n_chain_parameters
 
 _LOG = logging.getLogger(__name__)
-_ROOT = Path(__file__).resolve().parents[1]
 _SOURCES = ("diffik/generic_stack.py", "diffik/problem.py", "diffik/base.py", "diffik/_codegen.py")
 _SOURCES += ("diffik/tasks/frame_rows.py", "diffik/limits/configuration.py", "diffik/limits/velocity.py")
 _SOURCES += ("diffik/limits/acceleration.py", "solvers/generic_chain.py", "spatial.py", "native.py")
@@ -111,13 +109,6 @@ def _source(n: int, key: tuple, limits: Sequence[Limit]) -> str:
     return c_source([flatten(f)])
 
 
-def _digest(n: int, key: tuple) -> str:
-    h = hashlib.sha256(f"{ca.__version__}\0{n}\0{key!r}".encode())
-    for rel in _SOURCES:
-        h.update((_ROOT / rel).read_bytes())
-    return h.hexdigest()
-
-
 class ChainStack(StackFunction):
     """The generic stack of one chain mechanism and task structure (the interface of
     `optik.diffik.problem.StackFunction`; thread-safe: buffers per thread)."""
@@ -183,7 +174,7 @@ def _library(n: int, key: tuple, limits: Sequence[Limit]) -> Library | None:
             if found is False:
                 lims = [_structure_only(lim) for lim in limits]
                 try:
-                    digest = _digest(n, key)
+                    digest = source_digest(_SOURCES, n, key)
                 except OSError as exc:  # a partial install: the robot's own stack answers
                     _LOG.warning("optik: no generic QP stack, its sources cannot be read: %s", exc)
                     digest = None

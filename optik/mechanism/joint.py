@@ -85,6 +85,41 @@ class Mimic:
         return self.multiplier * q_source + self.offset
 
 
+@dataclass(frozen=True)
+class LinearClosure:
+    """A linear equation of joint values that a mechanism must satisfy besides its cut joints:
+    ``sum_k c_k q_k = value`` over revolute or prismatic joints (tree or mimic joints), e.g. a
+    MuJoCo fixed tendon of three or more joints held at constant length. It is one row
+    ``sum_k c_k q_k - value`` of `Mechanism.closure`.
+
+    Args:
+        name: a label (for messages).
+        coefficients: ``((joint name, c_k), ...)``, at least one.
+        value: the right-hand side (rad or m, as the joints).
+    """
+
+    name: str
+    coefficients: tuple[tuple[str, float], ...]
+    value: float
+
+    def __post_init__(self) -> None:
+        as_name(self.name, "linear_closure.name")
+        try:
+            pairs = [(j, c) for j, c in self.coefficients]
+        except (TypeError, ValueError) as exc:
+            raise InvalidArgumentError(
+                _TERMS, f"expected (joint name, coefficient) pairs, got {self.coefficients!r}"
+            ) from exc
+        terms = tuple((as_name(j, _TERMS), as_float(c, _TERMS)) for j, c in pairs)
+        if not terms:
+            raise InvalidArgumentError(_TERMS, f"closure {self.name!r} has no term")
+        object.__setattr__(self, "coefficients", terms)
+        object.__setattr__(self, "value", as_float(self.value, "linear_closure.value"))
+
+
+_TERMS = "linear_closure.coefficients"
+
+
 def _limits(value: Any, name: str, joint: str, default: float, n: int) -> tuple[float, ...]:
     """One limit per coordinate (``default`` when None); NaN and non-numbers raise here."""
     if value is None:

@@ -25,7 +25,7 @@ from optik import spatial
 from optik.checks import as_batch, as_bool, as_limits, as_name, as_rng, as_vector, read_only, real_array
 from optik.errors import InvalidArgumentError, ModelError, ReadOnlyError, UnknownFrameError
 from optik.mechanism.inertia import check_inertials, com_expr
-from optik.mechanism.joint import Joint
+from optik.mechanism.joint import Joint, LinearClosure
 from optik.mechanism.mjcf import parse_mjcf
 from optik.mechanism.mobility import generic_closure_rank
 from optik.mechanism.srdf import read_disabled_collisions
@@ -112,10 +112,13 @@ class Mechanism:
         inertials: link masses ``{frame: (mass, com)}``: the mass (kg) and the centre of mass
             (3-vector) in that frame (a body or a named frame), for `com` and `com_jacobian`
             (see [`optik.mechanism.inertia`][optik.mechanism.inertia]).
+        linear_closures: linear equations of joint values (`LinearClosure`), each one more row
+            of `closure` after the cut joints' rows.
 
     Raises:
         ModelError: inconsistent topology (see
-            [`optik.mechanism.topology.analyse`][optik.mechanism.topology.analyse]).
+            [`optik.mechanism.topology.analyse`][optik.mechanism.topology.analyse]), or a linear
+            closure names a joint that is not a revolute or prismatic tree or mimic joint.
         UnknownFrameError: ``ee`` or a frame's body does not exist.
         InvalidArgumentError: a frame has a body's name, an offset is not 4x4, or an inertial
             is malformed (a negative or non-finite mass, a centre that is not a 3-vector).
@@ -130,6 +133,7 @@ class Mechanism:
         name: str = "mechanism",
         task: str | None = None,
         inertials: Mapping[str, tuple[Any, Any]] | None = None,
+        linear_closures: Sequence[LinearClosure] = (),
     ) -> None:
         if not joints:
             raise ModelError("a mechanism needs at least one joint")
@@ -179,6 +183,8 @@ class Mechanism:
         self._upper = read_only(upper)
         self._actuated: tuple[bool, ...] = tuple(actuated)
         self._mimic_sources = self._mimic_coordinates()
+        self.linear_closures: tuple[LinearClosure, ...] = self._check_linear_closures(linear_closures)
+        """Linear equations of joint values closing loops besides the cut joints (`closure` rows)."""
         self.params: dict[str, Any] = {}
         """Catalog parameters (link lengths, base points, ...) the mechanism was built from."""
         self._geometry_of: Mechanism | None = None  # set by with_limits
@@ -210,6 +216,28 @@ class Mechanism:
                 raise ModelError(f"mimic joint {j.name!r} would have to close a loop")
             out[i] = self._slices[src].start
         return out
+
+    def _check_linear_closures(self, closures: Sequence[LinearClosure]) -> tuple[LinearClosure, ...]:
+        index = {j.name: i for i, j in enumerate(self.joints)}
+        out = tuple(closures)
+        for c in out:
+            if not isinstance(c, LinearClosure):
+                raise InvalidArgumentError("linear_closures", f"expected LinearClosure objects, got {c!r}")
+            for name, _ in c.coefficients:
+                i = index.get(name)
+                one_value = i is not None and self.joints[i].type in ("revolute", "prismatic")
+                if not one_value or i in self.topology.cuts:
+                    raise ModelError(
+                        f"linear closure {c.name!r} names {name!r}, which is not a revolute or prismatic "
+                        "tree or mimic joint here"
+                    )
+        return out
+
+    def _joint_value(self, i: int, q: Any) -> Any:
+        """The value of the one-coordinate joint ``i`` (its coordinate, or its mimic coupling's
+        value) in the coordinates ``q``."""
+        source = self._mimic_sources.get(i)
+        return q[self._slices[i].start] if source is None else self.joints[i].mimic.value(q[source])
 
     @classmethod
     def from_urdf(
@@ -256,7 +284,16 @@ class Mechanism:
         site frames, visuals, notes). See that module for what is supported and what is raised.
         """
         model = parse_mjcf(source)
-        m = cls(model.joints, model.base, model.frames, model.ee, model.name, "pose", model.inertials)
+        m = cls(
+            model.joints,
+            model.base,
+            model.frames,
+            model.ee,
+            model.name,
+            "pose",
+            model.inertials,
+            model.linear_closures,
+        )
         m.params = dict(model.params)
         return m
 
@@ -294,7 +331,7 @@ class Mechanism:
     @property
     def is_closed(self) -> bool:
         """True when the mechanism has at least one loop."""
-        return bool(self.topology.cuts)
+        return bool(self.topology.cuts or self.linear_closures)
 
     @property
     def actuated(self) -> tuple[bool, ...]:
@@ -414,7 +451,8 @@ class Mechanism:
         ``vec(R_B - R_A) / sqrt(2)``, of norm ``2 sin(theta / 2)`` for the relative rotation
         ``theta``: zero only where the frames agree (3 of the rows are independent; the 3 rows of
         ``vee(R_A^T R_B - R_B^T R_A)`` would also vanish at ``theta = pi``, with a rank-deficient
-        Jacobian there), as the orientation rows of the IK residual (`optik.problem`).
+        Jacobian there), as the orientation rows of the IK residual (`optik.problem`). Each
+        `LinearClosure` adds the row ``sum_k c_k q_k - value`` after them.
         """
         rows: list[Any] = []
         poses = self.body_transforms
@@ -434,6 +472,10 @@ class Mechanism:
                 rows.append(ca.dot(ca.mtimes(ra, j.axis), ca.mtimes(rb, j.axis2)))
             elif j.type == "fixed":
                 rows.append(ca.vec(rb - ra) / np.sqrt(2.0))
+        index = {j.name: i for i, j in enumerate(self.joints)}
+        for c in self.linear_closures:
+            terms = [k * self._joint_value(index[name], self.q_sym) for name, k in c.coefficients]
+            rows.append(ca.sum1(ca.vertcat(*terms)) - c.value)
         return ca.vertcat(*rows) if rows else ca.SX(0, 1)
 
     def jacobian_expr(self, frame: str | None = None) -> ca.SX:
@@ -478,8 +520,26 @@ class Mechanism:
         Raises:
             ModelError: the mechanism has no mass.
         """
-        c = com_expr(self.inertials, self.frames, self.body_transforms, self.name)
-        return ca.Function("com", [self.q_sym], [c, ca.jacobian(c, self.q_sym)])
+        return ca.Function("com", [self.q_sym], [self._com_expr, self._com_jacobian_expr])
+
+    @cached_property
+    def _com_expr(self) -> ca.SX:
+        """``com(q)`` (3 x 1, symbolic); raises `ModelError` without mass."""
+        return com_expr(self.inertials, self.frames, self.body_transforms, self.name)
+
+    @cached_property
+    def _com_jacobian_expr(self) -> ca.SX:
+        return ca.jacobian(self._com_expr, self.q_sym)
+
+    @cached_property
+    def _com_only_function(self) -> ca.Function:
+        """``q -> com(q)``: what `com` evaluates (no Jacobian computed and dropped)."""
+        return ca.Function("com_only", [self.q_sym], [self._com_expr])
+
+    @cached_property
+    def _com_jacobian_function(self) -> ca.Function:
+        """``q -> J_com(q)``: what `com_jacobian` evaluates."""
+        return ca.Function("com_jacobian", [self.q_sym], [self._com_jacobian_expr])
 
     @cached_property
     def closure_function(self) -> ca.Function:
@@ -527,10 +587,10 @@ class Mechanism:
             ModelError: the mechanism has no mass (no `inertials`).
         """
         qb, single = as_batch(q, "q", self.n_q)
-        f = self.com_function
+        f = self._com_only_function
         if not len(qb):
             return np.zeros((0, 3))
-        out = np.asarray(f(qb.T)[0]).T if len(qb) > 1 else np.asarray(f(qb[0])[0]).reshape(1, 3)
+        out = np.asarray(f(qb.T)).T if len(qb) > 1 else np.asarray(f(qb[0])).reshape(1, 3)
         return out[0] if single else out
 
     def com_jacobian(self, q: Any) -> np.ndarray:
@@ -539,7 +599,7 @@ class Mechanism:
         Raises:
             ModelError: the mechanism has no mass (no `inertials`).
         """
-        return np.asarray(self.com_function(self.check_q(q))[1])
+        return np.asarray(self._com_jacobian_function(self.check_q(q)))
 
     def closure(self, q: Any) -> np.ndarray:
         """Loop-closure residual vector (empty for open chains)."""
@@ -703,7 +763,16 @@ class Mechanism:
     def _rebuild(self, joints: Sequence[Joint]) -> Mechanism:
         extra = {k: v for k, v in self.frames.items() if k not in self.topology.bodies}
         return _restore(
-            joints, self.base, extra, self.ee, self.name, self.task, self.kind, self.params, self.inertials
+            joints,
+            self.base,
+            extra,
+            self.ee,
+            self.name,
+            self.task,
+            self.kind,
+            self.params,
+            self.inertials,
+            self.linear_closures,
         )
 
     def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
@@ -712,7 +781,8 @@ class Mechanism:
         not pickle; e.g. Dask ships a mechanism to its workers this way)."""
         extra = {k: v for k, v in self.frames.items() if k not in self.topology.bodies}
         names = (self.ee, self.name, self.task, self.kind)
-        definition = (self.joints, self.base, extra, *names, self.params, self.inertials)
+        closures = self.linear_closures
+        definition = (self.joints, self.base, extra, *names, self.params, self.inertials, closures)
         return _restore, definition
 
 
@@ -726,9 +796,10 @@ def _restore(
     kind: str | None,
     params: dict[str, Any],
     inertials: Mapping[str, tuple[float, Any]] | None = None,
+    linear_closures: Sequence[LinearClosure] = (),
 ) -> Mechanism:
     """A mechanism from its definition, with its catalog kind and parameters."""
-    m = Mechanism(joints, base, frames, ee, name, task, inertials)
+    m = Mechanism(joints, base, frames, ee, name, task, inertials, linear_closures)
     m.kind = kind
     m.params = dict(params)
     return m

@@ -50,13 +50,15 @@ bodies (or sites) at the anchors, so its loop-closure residual is MuJoCo's const
 (``efc_pos``, opposite sign); ``weld`` a cut fixed joint (the frame ``relpose`` on body 1 held on
 the frame at ``anchor`` on body 2, or the two sites' frames): MuJoCo's position residual (opposite
 sign) and rotation rows of norm ``2 sin(theta / 2)`` where MuJoCo's have ``sin(theta / 2)``;
-``tendon`` on one fixed tendon of two joints (length held at its qpos0 value plus ``polycoef[0]``)
-makes the second joint follow the first (a `Mimic`); ``joint`` with a linear polynomial, ``q1 -
-qpos0_1 = c0 + c1 (q2 - qpos0_2)``, makes joint 1 follow joint 2 (a `Mimic`; joint 1 has no
-coordinate and its own range is not enforced, as for URDF mimic joints). Not modelled, and listed in
-``params["notes"]``: other ``tendon`` and all ``flex`` equalities, nonlinear joint polynomials,
-inactive equalities, and the tendons not made couplings (their length ranges, and actuators on
-them).
+``tendon`` on one fixed tendon (length ``sum_k c_k q_k`` held at its qpos0 value plus
+``polycoef[0]``) of two joints makes the second joint follow the first (a `Mimic`), of three or
+more joints (or of a coupled one) is one loop-closure row ``sum_k c_k q_k - L`` (a
+`LinearClosure`: MuJoCo's residual ``efc_pos`` of the equality, same sign); ``joint`` with a
+linear polynomial, ``q1 - qpos0_1 = c0 + c1 (q2 - qpos0_2)``, makes joint 1 follow joint 2 (a
+`Mimic`; joint 1 has no coordinate and its own range is not enforced, as for URDF mimic joints).
+Not modelled, and listed in ``params["notes"]``: ``tendon`` equalities on spatial tendons or on
+two tendons, all ``flex`` equalities, nonlinear joint polynomials, inactive equalities, and the
+tendons not made couplings or rows (their length ranges, and actuators on them).
 """
 
 from __future__ import annotations
@@ -71,7 +73,7 @@ import numpy as np
 from optik import spatial
 from optik.checks import as_vector
 from optik.errors import InvalidArgumentError, MissingExtraError, ModelError
-from optik.mechanism.joint import Joint, Mimic
+from optik.mechanism.joint import Joint, LinearClosure, Mimic
 from optik.mechanism.parsed import ParsedModel
 from optik.mechanism.urdf_visuals import Visual
 
@@ -308,7 +310,7 @@ def parse_mjcf(source: Any) -> ParsedModel:
     if model.nu:  # with actuators, the joints they drive are the actuated ones
         driven = {int(model.actuator_trnid[u, 0]) for u in range(model.nu) if model.actuator_trntype[u] == 0}
         joints[:] = [jt if j in driven else replace(jt, actuated=False) for j, jt in enumerate(joints)]
-    cuts, coupled = _equalities(model, joints, joints_named, place, site_frames, frames, notes)
+    cuts, rows, coupled = _equalities(model, joints, joints_named, place, site_frames, frames, notes)
     coords, qpos_map, first = 0, [], {}
     for j, joint in enumerate(joints):
         first[joint.name] = coords
@@ -339,7 +341,7 @@ def parse_mjcf(source: Any) -> ParsedModel:
         for b in range(1, model.nbody)
         if model.body_mass[b] > 0
     }
-    return ParsedModel(name, "world", tuple(joints), frames, ee, params, inertials)
+    return ParsedModel(name, "world", tuple(joints), frames, ee, params, inertials, tuple(rows))
 
 
 def _equalities(
@@ -350,15 +352,17 @@ def _equalities(
     site_frames: dict[str, str],
     frames: dict[str, tuple[str, np.ndarray]],
     notes: list[str],
-) -> tuple[list[Joint], set[int]]:
-    """The active ``<equality>`` constraints: ``connect`` as cut spherical joints (loop
+) -> tuple[list[Joint], list[LinearClosure], set[int]]:
+    """The active ``<equality>`` constraints: ``connect`` and ``weld`` as cut joints (loop
     closures), ``joint`` with a linear polynomial and ``tendon`` on a two-joint fixed tendon as
-    mimic couplings (``joints`` is updated in place); the cut joints and the ids of the tendons
-    made couplings are returned. What is not modelled goes to ``notes``."""
+    mimic couplings (``joints`` is updated in place), ``tendon`` on a fixed tendon of three or
+    more joints as a `LinearClosure` row; the cut joints, the rows and the ids of the tendons
+    made couplings or rows are returned. What is not modelled goes to ``notes``."""
     eq_names = _names(model, "equality", model.neq, model.name_eqadr)
     sites = _names(model, "site", model.nsite, model.name_siteadr)
     kinds = {0: "connect", 1: "weld", 2: "joint", 3: "tendon", 4: "flex"}
     cuts: list[Joint] = []
+    rows: list[LinearClosure] = []
     coupled_tendons: set[int] = set()
     for e in range(model.neq):
         kind, name = int(model.eq_type[e]), eq_names[e]
@@ -411,29 +415,35 @@ def _equalities(
                 f"{what}: joint {joint_names[a]!r} follows {joint_names[b]!r}; its own range is not enforced"
             )
         elif kind == _EQ_TENDON and b < 0:
-            coupled = _tendon_coupling(model, a, float(data[0]), joints, joint_names)
+            coupled = _tendon_coupling(model, a, float(data[0]), joints, joint_names, f"equality:{name}")
             if isinstance(coupled, str):
                 notes.append(f"{what} {coupled}")
                 continue
+            coupled_tendons.add(a)
+            if isinstance(coupled, LinearClosure):
+                rows.append(coupled)
+                notes.append(
+                    f"{what}: a loop-closure row, its fixed tendon of {len(coupled.coefficients)} joints "
+                    "held at constant length"
+                )
+                continue
             follower, coupling = coupled
             joints[follower] = replace(joints[follower], mimic=coupling, lower=None, upper=None)
-            coupled_tendons.add(a)
             notes.append(
                 f"{what}: joint {joint_names[follower]!r} follows {coupling.joint!r} (fixed tendon of "
                 "constant length); its own range is not enforced"
             )
         else:
             notes.append(
-                f"{what} is not modelled (only connect, weld, linear joint and two-joint fixed-tendon "
-                "equalities are)"
+                f"{what} is not modelled (only connect, weld, linear joint and fixed-tendon equalities are)"
             )
-    return cuts, coupled_tendons
+    return cuts, rows, coupled_tendons
 
 
 def _tendon_notes(model: Any, coupled: set[int]) -> list[str]:
-    """What is not modelled of the tendons not made couplings (``coupled``): their lengths
-    constrain no configuration here, so a length range (``limited``) is not enforced and an
-    actuator on one drives no coordinate. Empty when every tendon is a coupling."""
+    """What is not modelled of the tendons not made couplings or closure rows (``coupled``):
+    their lengths constrain no configuration here, so a length range (``limited``) is not
+    enforced and an actuator on one drives no coordinate. Empty when every tendon is one."""
     rest = [t for t in range(model.ntendon) if t not in coupled]
     if not rest:
         return []
@@ -454,26 +464,29 @@ def _tendon_notes(model: Any, coupled: set[int]) -> list[str]:
 
 
 def _tendon_coupling(
-    model: Any, tendon: int, shift: float, joints: list[Joint], joint_names: list[str]
-) -> tuple[int, Mimic] | str:
-    """The coupling of a tendon equality on one fixed tendon of two joints: MuJoCo holds its
-    length ``L = c_a q_a + c_b q_b`` at ``L0 + shift`` (``L0``: the length at qpos0), so joint
-    ``b`` follows ``a``: ``q_b = -(c_a / c_b) q_a + (L0 + shift) / c_b``. Otherwise why not (a str)."""
+    model: Any, tendon: int, shift: float, joints: list[Joint], joint_names: list[str], label: str
+) -> tuple[int, Mimic] | LinearClosure | str:
+    """What a tendon equality on one fixed tendon makes: MuJoCo holds its length
+    ``L = sum_k c_k q_k`` at ``L0 + shift`` (``L0``: the length at qpos0). Of two free joints,
+    joint ``b`` follows ``a``: ``q_b = -(c_a / c_b) q_a + (L0 + shift) / c_b`` (a coupling);
+    otherwise (three or more joints, or a coupled one) the row ``sum_k c_k q_k - (L0 + shift)``
+    named ``label``, MuJoCo's residual of the equality. Why not, for a spatial tendon or a ball
+    or free joint (a str)."""
     first, count = int(model.tendon_adr[tendon]), int(model.tendon_num[tendon])
     wraps = [
         (int(model.wrap_type[w]), int(model.wrap_objid[w]), float(model.wrap_prm[w]))
         for w in range(first, first + count)
     ]
-    if count != 2 or any(kind != _WRAP_JOINT for kind, _, _ in wraps):
-        return f"couples {count} joints or is a spatial tendon, and is not modelled"
-    (_, ja, ca_), (_, jb, cb) = wraps
-    source, follower = joints[ja], joints[jb]
-    if follower.type not in ("revolute", "prismatic") or source.type not in ("revolute", "prismatic"):
+    if any(kind != _WRAP_JOINT for kind, _, _ in wraps):
+        return "is on a spatial tendon, and is not modelled"
+    if any(joints[j].type not in ("revolute", "prismatic") for _, j, _ in wraps):
         return "couples a ball or free joint and is not modelled"
-    if follower.mimic is not None or source.mimic is not None or cb == 0.0:
-        return "couples a coupled joint and is not modelled"
     length = float(model.tendon_length0[tendon]) + shift
-    return jb, Mimic(joint_names[ja], -ca_ / cb, length / cb)
+    if count == 2:
+        (_, ja, ca_), (_, jb, cb) = wraps
+        if joints[ja].mimic is None and joints[jb].mimic is None and cb != 0.0:
+            return jb, Mimic(joint_names[ja], -ca_ / cb, length / cb)
+    return LinearClosure(label, tuple((joint_names[j], c) for _, j, c in wraps), length)
 
 
 def _qpos_map(m: Any) -> tuple[tuple[int, int, int], ...]:

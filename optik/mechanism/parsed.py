@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from optik.mechanism.joint import Joint
+from optik.mechanism.joint import Joint, LinearClosure
 
 __all__ = ["ParsedModel"]
 
@@ -33,6 +33,8 @@ class ParsedModel:
             `optik.mechanism.mjcf.parse_mjcf`.
         inertials: ``{body: (mass, centre of mass in the body frame)}`` of the bodies with a
             mass.
+        linear_closures: linear equations of joint values (MJCF: fixed-tendon equalities of
+            three or more joints).
     """
 
     name: str
@@ -42,3 +44,4 @@ class ParsedModel:
     ee: str
     params: dict[str, object] = field(default_factory=dict)
     inertials: dict[str, tuple[float, np.ndarray]] = field(default_factory=dict)
+    linear_closures: tuple[LinearClosure, ...] = ()

@@ -17,7 +17,9 @@ is built in three pieces:
   (same inputs and outputs).
 
 Target parameters: the 12 of each frame target (`optik.problem.target_parameters`), then the
-``capacity * SLOT_SIZE`` slot values.
+``capacity * SLOT_SIZE`` slot values, the bound ``b`` (margin + buffer) and one active flag per
+self-collision pair (`bound_parameters`): the margin is a number the compiled code reads, so a
+new margin builds no new code.
 """
 
 from __future__ import annotations
@@ -29,9 +31,9 @@ from optik.collision.robot import RobotGeometry
 from optik.collision.slots import SLOT_SIZE, slot_distance
 from optik.collision.spheres import segment_distance, separable_pairs, sphere_model
 from optik.problem import IKProblem
-from optik.solvers.lm_kernel import MU_MAX, MU_MIN
+from optik.solvers.lm_kernel import accept_or_keep
 
-__all__ = ["constrained_functions"]
+__all__ = ["bound_parameters", "constrained_functions"]
 
 _EPS = 1e-9
 
@@ -69,20 +71,21 @@ def _sphere(n: int) -> tuple[ca.Function, ca.Function]:
     )
 
 
-def _self_row(n: int, bound: float) -> tuple[ca.Function, ca.Function]:
+def _self_row(n: int) -> tuple[ca.Function, ca.Function]:
     """One self-collision pair of capsules on links ``i`` and ``j``: ``(l_i, dl_i, l_j, dl_j,
-    ends, rho) -> (h, dh/dq)`` and ``(l_i, l_j, ends, rho) -> h`` with ``h = max(0, b - d)``, ``d``
-    the capsules' distance, ``ends`` the four segment ends in their link frames, ``rho`` the sum
-    of the radii."""
+    ends, rho, b, a) -> (h, dh/dq)`` and ``(l_i, l_j, ends, rho, b, a) -> h`` with
+    ``h = a max(0, b - d)``, ``d`` the capsules' distance, ``ends`` the four segment ends in their
+    link frames, ``rho`` the sum of the radii, ``a`` the pair's active flag."""
     li, lj = ca.SX.sym("li", 12), ca.SX.sym("lj", 12)
     dli, dlj = ca.SX.sym("dli", 12, n), ca.SX.sym("dlj", 12, n)
     ends, rho = ca.SX.sym("ends", 12), ca.SX.sym("rho")
+    bound, active = ca.SX.sym("bound"), ca.SX.sym("active")
     pts = [_point(l, ends[3 * k : 3 * k + 3]) for l, k in ((li, 0), (li, 1), (lj, 2), (lj, 3))]
-    h = ca.fmax(0, bound - (segment_distance(*pts) - rho))
+    h = active * ca.fmax(0, bound - (segment_distance(*pts) - rho))
     grad = ca.mtimes(ca.jacobian(h, li), dli) + ca.mtimes(ca.jacobian(h, lj), dlj)
     return (
-        ca.Function("self_row", [li, dli, lj, dlj, ends, rho], [h, grad.T]),
-        ca.Function("self_row_value", [li, lj, ends, rho], [h]),
+        ca.Function("self_row", [li, dli, lj, dlj, ends, rho, bound, active], [h, grad.T]),
+        ca.Function("self_row_value", [li, lj, ends, rho, bound, active], [h]),
     )
 
 
@@ -108,16 +111,25 @@ def _columns(n: int, links: np.ndarray) -> list[int]:
     return [int(k) * n + j for k in links for j in range(n)]
 
 
-def _world_row(n: int, bound: float):
-    """One sphere against one slot: ``(c, J_c, slot, R) -> (h, dh/dq)`` and ``(c, slot, R) -> h``."""
+def _world_row(n: int) -> tuple[ca.Function, ca.Function]:
+    """One sphere against one slot: ``(c, J_c, slot, R, b) -> (h, dh/dq)`` and
+    ``(c, slot, R, b) -> h``."""
     c, jc = ca.SX.sym("c", 3), ca.SX.sym("jc", 3, n)
-    slot, radius = ca.SX.sym("slot", SLOT_SIZE), ca.SX.sym("radius")
+    slot, radius, bound = ca.SX.sym("slot", SLOT_SIZE), ca.SX.sym("radius"), ca.SX.sym("bound")
     h = slot[SLOT_SIZE - 1] * ca.fmax(0, bound - (slot_distance(slot, c, _EPS) - radius))
     grad = ca.mtimes(ca.jacobian(h, c), jc).T
     return (
-        ca.Function("world_row", [c, jc, slot, radius], [h, grad]),
-        ca.Function("world_row_value", [c, slot, radius], [h]),
+        ca.Function("world_row", [c, jc, slot, radius, bound], [h, grad]),
+        ca.Function("world_row_value", [c, slot, radius, bound], [h]),
     )
+
+
+def bound_parameters(geo: RobotGeometry, self_collision: bool, bound: float) -> np.ndarray:
+    """The parameters after the slots (see the module docstring): ``bound`` and the active flag
+    of each self-collision pair, 1 for the pairs whose capsules can keep ``bound`` apart
+    (`optik.collision.spheres.separable_pairs`), the others left to the exact check."""
+    flags = separable_pairs(geo, bound).astype(float) if self_collision else np.zeros(0)
+    return np.concatenate([[bound], flags])
 
 
 def constrained_functions(
@@ -125,18 +137,16 @@ def constrained_functions(
     geo: RobotGeometry,
     capacity: int,
     self_collision: bool,
-    bound: float,
     closure_weight: float,
 ) -> tuple[ca.Function, ca.Function]:
     """The step (``optik_lm_step``) and error (``optik_ik_errors``) functions of the constrained
-    kernel for a world of ``capacity`` slots, requiring distance bounds ``>= bound``.
+    kernel for a world of ``capacity`` slots, the required distance bound a parameter.
 
     Args:
         problem: the pose problem (`optik.problem.build_ik_problem`).
         geo: the robot geometry.
         capacity: world slots.
-        self_collision: add the capsule rows of the self-collision pairs.
-        bound: the required distance (margin + buffer).
+        self_collision: add the capsule rows of the self-collision pairs (each with its flag).
         closure_weight: the weight ``w_c`` of closure and collision rows.
     """
     m = geo.mechanism
@@ -145,18 +155,19 @@ def constrained_functions(
     spheres = _moving_spheres(geo)
     n_s = len(spheres)
     sphere_links = geo.part_link[model.part[spheres]]
-    pairs = np.zeros((0, 2), dtype=int)
-    if self_collision:
-        pairs = geo.self_pairs[separable_pairs(geo, bound)]
+    pairs = geo.self_pairs if self_collision else np.zeros((0, 2), dtype=int)
     pair_links = geo.part_link[pairs].reshape(-1, 2)
     ends = ca.DM(np.array([model.segments[pair].reshape(-1) for pair in pairs]).reshape(-1, 12).T)
     rhos = ca.DM(model.capsule_radii[pairs].sum(axis=1).reshape(1, -1))
     links, links_values = _links(problem, geo)
-    sphere, sphere_value = (f.map(n_s) for f in _sphere(n))
-    self_row, self_row_value = (f.map(len(pairs)) for f in _self_row(n, bound))
-    row, row_value = _world_row(n, bound)
-    world = row.map(capacity).map(n_s)  # index s * capacity + k: sphere s, slot k
-    world_value = row_value.map(capacity).map(n_s)
+    # mapped over spheres and pairs; none of them without any (a map of 0 is refused by CasADi)
+    if n_s:
+        sphere, sphere_value = (f.map(n_s) for f in _sphere(n))
+        row, row_value = _world_row(n)
+        world = row.map(capacity).map(n_s)  # index s * capacity + k: sphere s, slot k
+        world_value = row_value.map(capacity).map(n_s)
+    if len(pairs):
+        self_row, self_row_value = (f.map(len(pairs)) for f in _self_row(n))
     radii = ca.DM(model.radii[spheres]).T
     local = ca.DM(model.centres[spheres].T)
     ins = [problem.q, problem.target, problem.weights]
@@ -166,10 +177,12 @@ def constrained_functions(
 
     q, mu, gain = ca.MX.sym("q", n), ca.MX.sym("mu"), ca.MX.sym("gain")
     n_pose = problem.target.numel()  # 12 per frame target
-    target = ca.MX.sym("target", n_pose + capacity * SLOT_SIZE)
+    n_world = capacity * SLOT_SIZE
+    target = ca.MX.sym("target", n_pose + n_world + 1 + len(pairs))
     weights, q_ref = ca.MX.sym("weights", 2), ca.MX.sym("q_ref", n)
     lo, hi = ca.MX.sym("lower", n), ca.MX.sym("upper", n)
-    pose, slots = target[:n_pose], ca.reshape(target[n_pose:], SLOT_SIZE, capacity)
+    pose, slots = target[:n_pose], ca.reshape(target[n_pose : n_pose + n_world], SLOT_SIZE, capacity)
+    bound, active = target[n_pose + n_world], target[n_pose + n_world + 1 :].T
 
     i_links, j_links = [int(k) for k in pair_links[:, 0]], [int(k) for k in pair_links[:, 1]]
     s_links = [int(k) for k in sphere_links]
@@ -180,9 +193,9 @@ def constrained_functions(
         lx = links_values(x)
         h = [ca.MX(0, 1)]
         if len(pairs):
-            h.append(self_row_value(lx[:, i_links], lx[:, j_links], ends, rhos).T)
+            h.append(self_row_value(lx[:, i_links], lx[:, j_links], ends, rhos, bound, active).T)
         if n_s:
-            h.append(world_value(sphere_value(lx[:, s_links], local), slots, radii).T)
+            h.append(world_value(sphere_value(lx[:, s_links], local), slots, radii, bound).T)
         hinge = ca.vertcat(*h)
         if hinge.shape[0]:
             clo = ca.fmax(clo, ca.mmax(hinge))
@@ -198,29 +211,21 @@ def constrained_functions(
             dl[:, _columns(n, j_links)],
             ends,
             rhos,
+            bound,
+            active,
         )
         e_rows.append(closure_weight * h.T)
         j_rows.append(closure_weight * grad.T)
     if n_s:
         c, jc = sphere(lq[:, s_links], dl[:, _columns(n, s_links)], local)
-        h, grad = world(c, jc, slots, radii)
+        h, grad = world(c, jc, slots, radii, bound)
         e_rows.append(closure_weight * h.T)
         j_rows.append(closure_weight * grad.T)
     e, jac = ca.vertcat(*e_rows), ca.vertcat(*j_rows)
     jtj, g = ca.mtimes(jac.T, jac), ca.mtimes(jac.T, e)
     q_trial = _trial_function(n)(q, jtj, g, mu, gain, q_ref, lo, hi)
     e_trial, pos, ori, clo = rows_at(q_trial, weights)
-    cost, cost_trial = 0.5 * ca.sumsqr(e), 0.5 * ca.sumsqr(e_trial)
-    accept = cost_trial < cost
-    outs = [
-        ca.if_else(accept, q_trial, q),
-        ca.if_else(accept, ca.fmax(mu / 3, MU_MIN), ca.fmin(mu * 4, MU_MAX)),
-        ca.if_else(accept, cost_trial, cost),
-        accept,
-        pos,
-        ori,
-        clo,
-    ]
+    outs = accept_or_keep(q, q_trial, mu, e, e_trial, [pos, ori, clo])
     step = ca.Function("optik_lm_step", [q, mu, target, weights, q_ref, gain, lo, hi], outs)
     _, pos0, ori0, clo0 = rows_at(q, ca.DM.ones(2))  # the errors do not depend on the weights
     errors = ca.Function("optik_ik_errors", [q, target], [pos0, ori0, clo0])

@@ -17,8 +17,8 @@ import numpy as np
 
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
+from optik.native import NativeFunction, native_functions
 from optik.problem import IKProblem, build_ik_problem, target_parameters
-from optik.solvers.native import NativeFunction, native_functions
 
 ErrorFn = Callable[[np.ndarray], tuple[float, float, float]]
 """``q -> (position error, orientation error, closure error)``."""

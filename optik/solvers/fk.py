@@ -35,6 +35,7 @@ assembly, where two modes merge.
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from dataclasses import dataclass, field
@@ -50,6 +51,7 @@ from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
 from optik.results import FKModes, FKResult
 from optik.solvers.base import BRANCH_TOL, Tolerances, joint_distance, positive_int
+from optik.solvers.conditions import condition_numbers
 
 DEFAULT_TIME_LIMIT = 1.0
 """Default wall-time budget of [`solve_fk`][optik.solve_fk] and of the multi-start in
@@ -89,32 +91,51 @@ class _Compiled:
 
 class _ModeCheck:
     """The check of closed-form assembly modes: ``q -> (closure, passive Jacobian, end-effector
-    pose)`` in one evaluation of CasADi's virtual machine on preallocated buffers
-    (``Function.buffer``: no conversion to ``DM`` and back), guarded by a lock."""
+    pose)`` at ``K`` rows in one evaluation of CasADi's virtual machine (the function mapped over
+    ``K`` columns) on preallocated buffers (``Function.buffer``: no conversion to ``DM`` and
+    back), one set per ``K``, guarded by a lock."""
 
     def __init__(self, m: Mechanism, closure: ca.Function) -> None:
         q = m.q_sym
         c, jac = closure(q)
-        f = ca.Function("fk_mode", [q], [ca.densify(c), ca.densify(jac), ca.densify(m.frame_expr(m.ee))])
-        self.q = np.zeros(m.n_q)
-        self.c = np.zeros(c.shape[0])
-        self.jac = np.zeros(jac.shape[::-1])  # column-major out: the transpose, row-major
-        self.pose = np.zeros((4, 4))
-        self.buffer, self.call = f.buffer()
-        self.buffer.set_arg(0, memoryview(self.q))
-        for k, out in enumerate((self.c, self.jac, self.pose)):
-            self.buffer.set_res(k, memoryview(out.reshape(-1)))
+        # transposed: CasADi writes column-major, so the buffers hold J and T row-major
+        self.function = ca.Function(
+            "fk_mode", [q], [ca.densify(c), ca.densify(jac.T), ca.densify(m.frame_expr(m.ee).T)]
+        )
+        self.n_q, self.shape = m.n_q, jac.shape
+        self._buffers: dict[int, tuple[Any, ...]] = {}
         self.lock = threading.Lock()
 
-    def __call__(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(c, dc/dx, T)`` at ``q``, copies."""
+    def _buffer(self, k: int) -> tuple[Any, ...]:
+        """``(call, q (k, n), c (k, m), jac (k, m, p), pose (k, 4, 4))`` of the map over ``k``
+        rows (the outputs of one row after the other)."""
+        if k not in self._buffers:
+            f = self.function if k == 1 else self.function.map(k)
+            rows, cols = self.shape
+            arrays = (
+                np.zeros((k, self.n_q)),
+                np.zeros((k, rows)),
+                np.zeros((k, rows, cols)),
+                np.zeros((k, 4, 4)),
+            )
+            buffer, call = f.buffer()
+            buffer.set_arg(0, memoryview(arrays[0].reshape(-1)))
+            for i, out in enumerate(arrays[1:]):
+                buffer.set_res(i, memoryview(out.reshape(-1)))
+            self._buffers[k] = (buffer, call, *arrays)
+        return self._buffers[k][1:]
+
+    def __call__(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(c (K, m), dc/dx (K, m, p), T (K, 4, 4))`` at the rows of ``qs (K, n)``, copies."""
         with self.lock:
-            self.q[:] = q
-            self.call()
-            return self.c.copy(), self.jac.T.copy(), self.pose.T.copy()
+            call, q, c, jac, pose = self._buffer(len(qs))
+            q[:] = qs
+            call()
+            return c.copy(), jac.copy(), pose.copy()
 
 
 _CACHE: PerMechanism[_Compiled] = PerMechanism()
+_TWO_PI = 2 * math.pi
 
 
 def _compiled(m: Mechanism) -> _Compiled:
@@ -194,22 +215,39 @@ def _residual_and_condition(cm: _Compiled, q: np.ndarray) -> tuple[float, float]
 
 def _measures(c: np.ndarray, jac: np.ndarray) -> tuple[float, float]:
     """Max-norm of the closure ``c`` and condition number of its passive Jacobian ``jac``."""
-    residual = float(np.max(np.abs(c), initial=0.0))
-    if jac.size == 0:
-        return residual, 1.0
-    s = np.linalg.svd(jac, compute_uv=False)
-    return residual, float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+    return float(np.max(np.abs(c), initial=0.0)), _conditions(jac[None])[0]
 
 
-def _conditions(jacs: list[np.ndarray]) -> list[float]:
-    """`_measures`' condition numbers of several passive Jacobians of one shape (one stacked
-    singular value decomposition)."""
-    if not jacs:
+def _conditions(jacs: np.ndarray) -> list[float]:
+    """`_measures`' condition numbers of a stack of passive Jacobians ``(K, m, p)``
+    (`condition_numbers`: one call for the stack)."""
+    if not len(jacs):
         return []
     if jacs[0].size == 0:
         return [1.0] * len(jacs)
-    s = np.linalg.svd(np.stack(jacs), compute_uv=False)
-    return [float(hi / lo) if lo > 0 else float("inf") for hi, lo in s[:, [0, -1]].tolist()]
+    return condition_numbers(jacs)
+
+
+def _distinct(m: Mechanism, qs: np.ndarray) -> list[int]:
+    """Indices of the rows of ``qs`` that are new modes, in order: each is kept unless it is the
+    same mode (`same_mode`) as a row kept before it. On floats: two modes usually differ in
+    their first coordinate already, where the comparison of a pair stops."""
+    rows, angular = qs.tolist(), m.revolute_mask.tolist()
+    kept: list[int] = []
+    for i, row in enumerate(rows):
+        if not any(_same_row(row, rows[j], angular) for j in kept):
+            kept.append(i)
+    return kept
+
+
+def _same_row(a: list[float], b: list[float], angular: list[bool]) -> bool:
+    """`same_mode` on float rows: every ``|a_i - b_i| < BRANCH_TOL``, angles by the float rule of
+    `spatial.wrap_angle` (its end fix only flips a sign)."""
+    for x, y, wrap in zip(a, b, angular, strict=True):
+        d = (x - y + math.pi) % _TWO_PI - math.pi if wrap else x - y
+        if not abs(d) < BRANCH_TOL:
+            return False
+    return True
 
 
 def _closure_tol(tol: float | Tolerances | None) -> float:
@@ -232,11 +270,10 @@ def _positive(value: float, name: str) -> float:
 
 def _violations(m: Mechanism, q: np.ndarray) -> list[str]:
     """Names of the coordinates of ``q`` outside their limits."""
-    return [
-        n
-        for n, v, lo, hi in zip(m.coordinate_names, q.tolist(), m.lower, m.upper, strict=True)
-        if not lo <= v <= hi
-    ]
+    inside = (m.lower <= q) & (q <= m.upper)
+    if inside.all():
+        return []  # the usual case, at the cost of three array operations
+    return [m.coordinate_names[i] for i in np.flatnonzero(~inside).tolist()]
 
 
 def _actuated_out(m: Mechanism, a: np.ndarray) -> str:
@@ -283,7 +320,7 @@ def _result(
             f"the actuated values cannot assemble (or no assembly was found): least-squares closure "
             f"residual {residual:.3g} > tol {tol:.3g}"
         )
-    actuated_out = _actuated_out(m, qq[cm.act])
+    actuated_out = _actuated_out(m, qq[cm.act]) if bad else ""  # within every limit: none out
     if actuated_out:
         messages.append(f"the actuated values are outside their limits: {actuated_out}")
     if bad:
@@ -479,24 +516,15 @@ def solve_fk_all(
     within_limits = as_bool(within_limits, "within_limits")
     cm = _compiled(m)
     use_closed = method == "closed_form" or (method is None and closed_form.has_fk(m))
-    found: list[np.ndarray] = []
-    measured: list[tuple[float, float, np.ndarray] | None] = []
     if use_closed:
         remaining = None if time_limit is None else max(limit - (time.perf_counter() - start), 1e-3)
         rows = closed_form.fk(m, a, respect_limits=False, time_limit=remaining)  # wrapped (m.wrap)
-        checks = [cm.modes(q) for q in rows]  # type: ignore[misc]
-        conditions = _conditions([jac for _, jac, _ in checks])
-        for q_exact, (c, _, pose), cond in zip(rows, checks, conditions, strict=True):
-            residual = float(np.max(np.abs(c), initial=0.0))
-            q, known = q_exact, (residual, cond, pose)  # the usual case: exact to rounding
-            if residual > tol_c * 1e-3:  # the closed form lost digits, e.g. near a singularity: polish
-                q, known = _levenberg_marquardt(cm, q_exact, tol_c, max_iter, start + limit).q[0], None
-            if not any(same_mode(m, q, f) for f in found):
-                found.append(q)
-                measured.append(known)
+        found, measured = _closed_modes(m, cm, rows, tol_c, max_iter, start + limit)
         label = "closed_form"
     else:
         rng = as_rng(seed)
+        found: list[np.ndarray] = []
+        measured: list[tuple[float, float, np.ndarray] | None] = []
         idle = 0
         while idle < patience and time.perf_counter() - start < limit:
             trials = m.random_q(BATCH, seed=rng)
@@ -519,6 +547,28 @@ def solve_fk_all(
             continue
         (kept if res.limits_ok or not within_limits else dropped).append(res)
     return FKModes(kept, dropped, _modes_message(m, a, kept, dropped, unclosed))
+
+
+def _closed_modes(
+    m: Mechanism, cm: _Compiled, rows: list[np.ndarray], tol: float, max_iter: int, deadline: float
+) -> tuple[list[np.ndarray], list[tuple[float, float, np.ndarray] | None]]:
+    """The distinct modes among closed-form ``rows`` (wrapped) and, for each, its ``(residual,
+    condition number, pose)`` from one check evaluation of all rows, or None for a row that was
+    polished by Levenberg-Marquardt (its residual exceeded ``tol / 1000``: the closed form lost
+    digits, e.g. near a singularity; `_result` measures it again)."""
+    if not rows:
+        return [], []
+    qs = np.array(rows)
+    c, jac, poses = cm.modes(qs)  # type: ignore[misc]
+    residuals = np.max(np.abs(c), axis=1, initial=0.0).tolist()
+    measured: list[tuple[float, float, np.ndarray] | None] = [
+        (res, cond, pose) for res, cond, pose in zip(residuals, _conditions(jac), poses, strict=True)
+    ]
+    for i, res in enumerate(residuals):
+        if res > tol * 1e-3:
+            qs[i], measured[i] = _levenberg_marquardt(cm, qs[i], tol, max_iter, deadline).q[0], None
+    kept = _distinct(m, qs)
+    return [qs[i] for i in kept], [measured[i] for i in kept]
 
 
 def _modes_message(

@@ -41,7 +41,6 @@ C compiler there is no library and the per-robot path (CasADi's evaluator) answe
 from __future__ import annotations
 
 import ctypes
-import hashlib
 import logging
 import threading
 import time
@@ -64,6 +63,7 @@ from optik.native import (
     driver_source,
     in_background,
     keyed_library,
+    source_digest,
 )
 from optik.problem import frame_errors, target_parameters, task_blocks
 from optik.results import IKResult
@@ -87,7 +87,6 @@ _SOURCES = (
     "spatial.py",
 )
 _SOURCES += ("native.py",)
-_ROOT = Path(__file__).resolve().parents[1]
 
 
 def n_chain_parameters(n: int) -> int:
@@ -200,15 +199,6 @@ def chain_parameters(m: Mechanism, frame: str | None) -> np.ndarray | None:
     return np.concatenate([*(target_parameters(t) for t in transforms), *screws])
 
 
-def _digest(n: int) -> str:
-    """The cache key of the kernel of ``n`` joints: the texts its code is generated from, CasADi's
-    version and ``n``."""
-    h = hashlib.sha256(f"{ca.__version__}\0{n}".encode())
-    for rel in _SOURCES:
-        h.update((_ROOT / rel).read_bytes())
-    return h.hexdigest()
-
-
 def _source(n: int) -> str:
     """The C source of the kernel of ``n`` joints (CasADi's code of the LM iteration and the error
     check of `ChainProblem`, with the driver ``lm_chunk.c``)."""
@@ -233,7 +223,7 @@ class ChainKernel:
         self.n = n
         self.n_target = 12 + n_chain_parameters(n)
         try:
-            digest = _digest(n)
+            digest = source_digest(_SOURCES, n)
         except OSError as exc:  # a partial install: no generic kernel, the per-robot path answers
             _LOG.warning("optik: no generic lm kernel, its sources cannot be read: %s", exc)
             digest = None

@@ -42,7 +42,7 @@ Options (``solve_ik(..., method="lm", **options)``):
 * ``weights`` ((1, 1)): task weights ``(w_p, w_o)``.
 * ``closure_weight`` (100.0): weight ``w_c`` of the loop-closure rows.
 * ``max_restarts`` (None): cap on restarts (None: until success or the time limit).
-* ``compile`` ("auto"): compile to C when a compiler exists (see `optik.solvers.native.NativeFunction`).
+* ``compile`` ("auto"): compile to C when a compiler exists (see `optik.native.NativeFunction`).
 """
 
 from __future__ import annotations

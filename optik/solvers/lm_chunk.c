@@ -150,8 +150,11 @@ CASADI_SYMBOL_EXPORT int optik_lm_packed(void *const *args) {
  * checked first, as optik.checks.as_transform checks it (the same expressions in the same order,
  * the tolerances OPTIK_ORTHO_DIAG / OPTIK_ORTHO_OFF defined from it), then q0 for finiteness;
  * they become the 12 target parameters [vec(R) column-major; p] and the solve runs as
- * optik_lm_chunk's for one target. canonical = 1 when the answer lies within
- * [limit_lo, limit_hi] and every coordinate in (-pi, pi): the answer make_result keeps as it is.
+ * optik_lm_chunk's for one target. canonical = 1 when every coordinate of the answer, one by
+ * one, lies within [limit_lo, limit_hi] and in (-pi, pi); without spherical or free joints that
+ * is the answer make_result keeps as it is, with them it is not enough: the norms of their
+ * rotation vectors are checked in Python (optik.solvers.base.rotation_vectors_canonical, in
+ * LMCall) before the answer is kept.
  * Returns 0, 2 (the transform fails the check: Python raises the named error), 3 (q0 is not
  * finite) or -1 (evaluation error). */
 CASADI_SYMBOL_EXPORT int optik_lm_call(void *const *args) {

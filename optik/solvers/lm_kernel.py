@@ -34,10 +34,9 @@ from optik.checks import ORTHO_DIAG, ORTHO_OFF
 from optik.errors import InvalidArgumentError, ShapeError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
-from optik.native import driver_source, library
+from optik.native import NativeFunction, driver_source, library
 from optik.problem import IKProblem, build_ik_problem
 from optik.solvers.evaluation import error_function
-from optik.solvers.native import NativeFunction
 
 DRIVER = Path(__file__).with_name("lm_chunk.c")
 """optik's C driver of the chunk loop."""
@@ -121,20 +120,28 @@ def lm_iteration_function(
         dq = working_step(ca.logic_or(violated, g + ca.mtimes(u.T, dq1) > 0))
     q_trial = ca.fmin(ca.fmax(q + dq, lo), hi)
     e_trial, pos, ori, clo = at(q_trial, problem.target, problem.weights)
+    outs = accept_or_keep(q, q_trial, mu, e, e_trial, [pos, ori, clo])
+    ins = [q, mu, problem.target, problem.weights, problem.q_ref, gain, lo, hi]
+    # common subexpressions merged (the same operations, so the same values): 5 % fewer instructions
+    return ca.Function(_STEP, ins, ca.cse([ca.densify(v) for v in outs]))
+
+
+def accept_or_keep(
+    q: ca.SX, q_trial: ca.SX, mu: ca.SX, e: ca.SX, e_trial: ca.SX, errors: list[ca.SX]
+) -> list[ca.SX]:
+    """The outputs of one LM iteration, ``[q', mu', cost', accepted, *errors]``: the trial point
+    is taken when it lowers the cost ``|e|^2 / 2`` (``cost_trial < cost``; then ``mu' =
+    max(mu / 3, MU_MIN)``), else ``q`` is kept (``mu' = min(4 mu, MU_MAX)``); ``cost'`` is the
+    cost at ``q'``; ``errors`` are the trial point's (the driver's stop test reads them)."""
     cost, cost_trial = 0.5 * ca.sumsqr(e), 0.5 * ca.sumsqr(e_trial)
     accept = cost_trial < cost
-    outs = [
+    return [
         ca.if_else(accept, q_trial, q),
         ca.if_else(accept, ca.fmax(mu / 3, MU_MIN), ca.fmin(mu * 4, MU_MAX)),
         ca.if_else(accept, cost_trial, cost),
         accept,
-        pos,
-        ori,
-        clo,
+        *errors,
     ]
-    ins = [q, mu, problem.target, problem.weights, problem.q_ref, gain, lo, hi]
-    # common subexpressions merged (the same operations, so the same values): 5 % fewer instructions
-    return ca.Function(_STEP, ins, ca.cse([ca.densify(v) for v in outs]))
 
 
 def driver_defines(n_q: int, n_target: int, sz_arg: int = 8, sz_res: int = 7) -> str:

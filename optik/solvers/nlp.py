@@ -46,7 +46,7 @@ Options (``solve_ik(..., method="nlp", **options)``):
 * ``damping`` (1e-6): Levenberg term added to the Gauss-Newton Hessian (steps only, not the
   solution): without it ``sqpmethod`` stalls near singular configurations.
 * ``max_restarts`` (None): cap on restarts (None: until success or the time limit).
-* ``compile`` ("auto"): compile the error check to C (see [`optik.solvers.native`][optik.solvers.native]).
+* ``compile`` ("auto"): compile the error check to C (see `optik.native.NativeFunction`).
 """
 
 from __future__ import annotations

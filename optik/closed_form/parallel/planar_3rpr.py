@@ -1,11 +1,24 @@
-"""Planar 3-RPR closed forms: IK (1 branch) and FK, every real root of a degree-6 polynomial."""
+"""Planar 3-RPR closed forms: IK (1 branch) and FK, every real root of a degree-6 polynomial.
+
+The FK runs in C (``planar_3rpr.c``, compiled once per machine in the background by
+`optik.native.CFunction`): the same coefficients, Cramer start, Newton polish, acceptance and
+de-duplication as `planar_3rpr_poses`, with the real roots isolated on the unit circle by
+certified bounds on ``F`` and ``F'`` instead of ``numpy.roots``. The C code hands the call back
+to `planar_3rpr_poses` wherever the bounds cannot decide (two roots or a complex pair within
+about 1e-3 rad of each other on the circle) and at the architecture singularities; without a C
+compiler, or while the library builds, `planar_3rpr_poses` answers every call.
+"""
 
 from __future__ import annotations
 
+import ctypes
 import math
+import threading
+from pathlib import Path
 
 import numpy as np
 
+from optik import native
 from optik.closed_form.parallel.common import (
     QUADRATIC_STOP,
     coordinate_row,
@@ -18,6 +31,51 @@ from optik.spatial import wrap_angle
 
 CONTINUUM_SAMPLES = 12
 """Representatives returned where the assembly modes form a continuum (architecture singularity)."""
+
+POSE_TOL = 1e-9
+"""Relative leg-length tolerance under which a polished candidate is an assembly mode."""
+
+SOURCE = Path(__file__).with_name("planar_3rpr.c")
+"""The C kernel of the FK (`optik_rpr_fk`)."""
+
+COORDINATES = ("theta1", "rho1", "pin1", "theta2", "rho2", "theta3", "rho3")
+"""The order of the coordinates in the C kernel's rows (the catalog's)."""
+
+_MAX_MODES = 12  # MAX_MODES of the C kernel
+
+
+_KERNEL = native.CFunction(SOURCE, "optik_planar_3rpr", "optik_rpr_fk", [ctypes.c_void_p, ctypes.c_void_p])
+
+
+class _Buffers(threading.local):
+    """One thread's input and output buffers of the kernel, with their addresses."""
+
+    def __init__(self) -> None:
+        self.data = np.empty(16)
+        self.out = np.empty(1 + 7 * _MAX_MODES)
+        self.args = (self.data.ctypes.data, self.out.ctypes.data)
+
+
+_BUFFERS = _Buffers()
+
+
+def compiled_rows(b: np.ndarray, p: np.ndarray, rho: np.ndarray, tol: float = POSE_TOL) -> np.ndarray | None:
+    """Every assembly mode as rows ``(theta1, rho1, pin1, theta2, rho2, theta3, rho3)`` (`_pose_row`
+    of each pose of `planar_3rpr_poses`, ``pin1`` not wrapped), from the C kernel; None when it is
+    not loaded or hands the call back (an undecided root interval, an architecture singularity)."""
+    fn = _KERNEL.get()
+    if fn is None:
+        return None
+    buffers = _BUFFERS
+    data = buffers.data
+    data[:6] = b.reshape(-1)
+    data[6:12] = p.reshape(-1)
+    data[12:15] = rho
+    data[15] = tol
+    if fn(*buffers.args) != 0:
+        return None
+    out = buffers.out
+    return out[1 : 1 + 7 * int(out[0])].reshape(-1, 7).copy()
 
 
 def planar_3rpr_ik(m: Mechanism, target: np.ndarray) -> list[np.ndarray]:
@@ -217,15 +275,18 @@ def _polish_one(
     return tx, ty, phi, err
 
 
-def planar_3rpr_poses(b: np.ndarray, p: np.ndarray, rho: np.ndarray, tol: float = 1e-9) -> list[np.ndarray]:
+def planar_3rpr_poses(
+    b: np.ndarray, p: np.ndarray, rho: np.ndarray, tol: float = POSE_TOL
+) -> list[np.ndarray]:
     """All real assembly modes ``(x, y, phi)`` of a 3-RPR for leg lengths ``rho`` (at most 6).
 
     Roots of `rpr_polynomial` in ``z = e^{i phi}`` near the unit circle give candidate
     headings (a double root may split off the circle by ``O(sqrt(eps))``, hence the loose
     filter; the centroids of root clusters are tried as well, see `_cluster_means`); each
-    candidate is polished by Newton on the leg equations, kept when every leg
-    length is met to ``tol`` and de-duplicated. Leading/trailing coefficients that vanish only
-    remove roots at ``z = 0`` or infinity, which are never real headings.
+    candidate is polished by Newton on the leg equations, kept when every leg length is met to
+    ``tol`` and de-duplicated; the modes come in increasing heading. Leading/trailing
+    coefficients that vanish only remove roots at ``z = 0`` or infinity, which are never real
+    headings.
 
     Architecture singularities, where the modes form a continuum, give
     `CONTINUUM_SAMPLES` representatives of it: ``F`` vanishing identically (every heading
@@ -264,14 +325,20 @@ def planar_3rpr_poses(b: np.ndarray, p: np.ndarray, rho: np.ndarray, tol: float 
                 for x, y, a in poses
             ):
                 poses.append((tx, ty, ph))
-    return [np.array(x) for x in poses]
+    return [np.array(x) for x in sorted(poses, key=lambda x: x[2])]
 
 
 def planar_3rpr_fk(m: Mechanism, actuated: np.ndarray) -> list[list[float]]:
-    """3-RPR FK: every real assembly mode (see `planar_3rpr_poses`) as a full ``q`` (floats)."""
+    """3-RPR FK: every real assembly mode (see `planar_3rpr_poses`) as a full ``q`` (floats), from
+    the C kernel (`compiled_rows`) when it answers."""
     rho = np.asarray(actuated, dtype=float)
-    poses = planar_3rpr_poses(m.params["base"], m.params["platform"], rho)
-    return [_pose_row(m, *x.tolist()) for x in poses]
+    b, p = m.params["base"], m.params["platform"]
+    rows = compiled_rows(b, p, rho)
+    if rows is not None:
+        if m.coordinate_names == COORDINATES:
+            return rows.tolist()
+        return [coordinate_row(m, dict(zip(COORDINATES, row, strict=True))) for row in rows.tolist()]
+    return [_pose_row(m, *x.tolist()) for x in planar_3rpr_poses(b, p, rho)]
 
 
 register("planar_3rpr", ik=_planar_3rpr_rows, fk=planar_3rpr_fk)

@@ -331,19 +331,17 @@ def _real_poses(
     e_conj = e * np.array([1.0, -1.0, -1.0, -1.0])
     left = np.moveaxis(quat_left(g.T), -1, 0)  # (K, 4, 4)
     t0 = 2 * np.einsum("kij,kj->ki", left, e_conj)[:, 1:] / np.sum(e * e, axis=1)[:, None]
-    r0 = np.stack([quat_to_rot(q) for q in e])
+    r0 = quat_to_rot(e)
     rs, ts, err = polish_stewart_many(b, p, rho, r0, t0 * size)  # every real candidate at once
     ok = np.flatnonzero(err <= tol * max(size, 1.0))
     rs, ts = rs[ok], ts[ok]
-    # pairwise: translation gap and rotation angle of R_i^T R_j (spatial.angle_between)
-    gap = np.linalg.norm(ts[:, None] - ts[None], axis=-1)
-    angle = spatial.rotation_angle(np.swapaxes(rs, -1, -2)[:, None] @ rs[None])
-    same = (gap <= 1e-7 * size) & (angle <= 1e-7)
-    kept: list[int] = []
-    for i in range(len(rs)):  # first come: a posture the same as a kept one is left out
-        if not any(same[i, k] for k in kept):
-            kept.append(i)
-    return [(rs[i], ts[i]) for i in kept]
+    # pairwise: translation gap, and the rotation angle of R_i^T R_j (spatial.angle_between) of the
+    # pairs whose translations are that close
+    same = np.linalg.norm(ts[:, None] - ts[None], axis=-1) <= 1e-7 * size
+    i, j = np.nonzero(same)
+    same[i, j] = spatial.rotation_angle(np.swapaxes(rs[i], -1, -2) @ rs[j]) <= 1e-7
+    # first come: a posture the same as a kept one is left out
+    return [(rs[i], ts[i]) for i in stewart_parameter.first_of_groups(same)]
 
 
 def stewart_gough_fk(m: Mechanism, actuated: np.ndarray, time_limit: float = 5.0) -> list[np.ndarray]:

@@ -73,11 +73,20 @@ def distinct(z: np.ndarray) -> np.ndarray:
         return np.zeros(0, dtype=int)
     u = z / np.linalg.norm(z, axis=1, keepdims=True)
     close = np.abs(np.conj(u) @ u.T) > 1 - SAME_POINT
-    keep: list[int] = []
-    for i in range(len(z)):
-        if not any(close[i, j] for j in keep):
-            keep.append(i)
-    return np.array(keep, dtype=int)
+    return first_of_groups(close)
+
+
+def first_of_groups(same: np.ndarray) -> np.ndarray:
+    """Indices kept by the greedy rule "keep row ``i`` unless it is the same as a row kept before"
+    for the symmetric boolean matrix ``same`` (one Python step per row only when some pair is
+    the same)."""
+    earlier = np.triu(same, 1)
+    if not earlier.any():
+        return np.arange(len(same))
+    keep = np.zeros(len(same), dtype=bool)
+    for i in range(len(same)):
+        keep[i] = not np.any(same[i, :i] & keep[:i])
+    return np.flatnonzero(keep)
 
 
 def relative_residual(mats: np.ndarray, z: np.ndarray) -> np.ndarray:
@@ -205,16 +214,19 @@ def solve(
 ) -> ParameterSolve:
     """All solutions of the (scaled) instance ``(b, p, c)`` by the 40-path parameter homotopy.
 
-    End points are refined by Newton on the target (`optik.closed_form.homotopy.refine`) and
-    kept when they solve it (relative residual below 1e-8); the count check asks for
-    `GENERAL_SOLUTIONS` distinct nonsingular ones (condition number below
-    `SINGULAR_CONDITION`).
+    End points are refined by two Newton steps on the target (`optik.closed_form.homotopy.refine`;
+    the tracker ends them within 1e-8) and kept when they solve it (relative residual below
+    1e-8); the count check asks for `GENERAL_SOLUTIONS` distinct nonsingular ones (condition
+    number below `SINGULAR_CONDITION`).
     """
     start = load()
     mats = coefficients(b, p, c, start)
-    res = parameter_homotopy.track(mats, start.solutions, rng, time_limit=time_limit, abandon=_degenerate)
+    legs = parameter_homotopy.LegLine(b, start.base - b, p, start.platform - p, c, start.constants - c)
+    res = parameter_homotopy.track(
+        mats, start.solutions, rng, time_limit=time_limit, abandon=_degenerate, legs=legs
+    )
     ended = np.flatnonzero((res.status == "regular") | (res.status == "endgame"))
-    z = homotopy.refine(mats[0], res.z[ended])
+    z = homotopy.refine(mats[0], res.z[ended], iters=2)  # the tracker ends them to 1e-8 already
     solves = relative_residual(mats[0], z) < 1e-8
     z, cond = z[solves], res.condition[ended][solves]
     order = np.argsort(cond)  # nonsingular representatives first

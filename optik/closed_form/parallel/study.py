@@ -24,15 +24,16 @@ def quat_right(b: np.ndarray) -> np.ndarray:
 
 
 def quat_to_rot(e: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a (not necessarily unit) quaternion ``e = (e0, e1, e2, e3)``."""
-    w, x, y, z = np.asarray(e, dtype=float) / np.linalg.norm(e)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    """Rotation matrix of a (not necessarily unit) quaternion ``e = (e0, e1, e2, e3)``; for
+    ``e`` of shape ``(..., 4)`` the matrices ``(..., 3, 3)``."""
+    e = np.asarray(e, dtype=float)
+    w, x, y, z = np.moveaxis(e / np.linalg.norm(e, axis=-1, keepdims=True), -1, 0)
+    rows = [
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ]
+    return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
 
 
 _UNIT = np.eye(4)[1:]

@@ -7,10 +7,24 @@ of `optik.harness.peers.rules`. The timeout is fixed at construction, so one sol
 time limit. ``pytracik`` reads the limits of a joint that has a ``<safety_controller>`` as
 ``[0, 0]``; such limits are replaced by the URDF's (``set_joint_limits``, as optik and Pinocchio
 read them), so that every solver searches the same box.
+
+KDL's URDF parser prints "The root link ... has an inertia specified in the URDF, but KDL does
+not support a root link with an inertia" with C ``printf`` for every solver constructed from a
+URDF whose root link has an ``<inertial>`` (the Panda's, TALOS's): `kdl_quiet` catches the
+process's standard output at the file-descriptor level around the constructor, drops that
+message and writes back whatever else was printed meanwhile.
 """
 
 from __future__ import annotations
 
+import ctypes
+import os
+import re
+import sys
+import tempfile
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -19,6 +33,40 @@ from scipy.spatial.transform import Rotation
 from optik.harness.peers.base import Peer
 from optik.harness.peers.rules import twist_epsilon
 from optik.solvers import Tolerances
+
+KDL_ROOT_INERTIA = re.compile(
+    r"The root link \S+ has an inertia specified in the URDF, but KDL does not support"
+)
+"""KDL's message about a root link with an inertia (its ``%s`` is printed unformatted)."""
+
+_FD_LOCK = threading.Lock()
+
+
+@contextmanager
+def kdl_quiet() -> Iterator[None]:
+    """Standard output (file descriptor 1) into a temporary file while the block runs, then
+    restored; the captured text goes back to ``sys.stdout`` without KDL's root-inertia lines
+    (`KDL_ROOT_INERTIA`). C's buffers are flushed on both sides (``fflush(NULL)``), so nothing
+    printed before or inside the block is lost or reordered."""
+    libc = ctypes.CDLL(None)
+    with _FD_LOCK, tempfile.TemporaryFile() as tmp:
+        sys.stdout.flush()
+        libc.fflush(None)
+        saved = os.dup(1)
+        os.dup2(tmp.fileno(), 1)
+        try:
+            yield
+        finally:
+            sys.stdout.flush()
+            libc.fflush(None)
+            os.dup2(saved, 1)
+            os.close(saved)
+        tmp.seek(0)
+        text = tmp.read().decode("utf-8", errors="replace")
+    kept = [line for line in text.splitlines(keepends=True) if not KDL_ROOT_INERTIA.search(line)]
+    if kept:
+        sys.stdout.write("".join(kept))
+        sys.stdout.flush()
 
 
 class TracIK(Peer):
@@ -36,9 +84,10 @@ class TracIK(Peer):
         key = (time_limit, eps)
         if key not in self._solvers:
             lib, m = self.lib, self.mechanism
-            solver = lib.TRAC_IK(
-                self.base_link, self.tip_link, self._xml, time_limit, eps, lib.SolveType.Speed
-            )
+            with kdl_quiet():
+                solver = lib.TRAC_IK(
+                    self.base_link, self.tip_link, self._xml, time_limit, eps, lib.SolveType.Speed
+                )
             if lib.get_num_joints(solver) == m.n_q:
                 lo = np.asarray(lib.get_joint_lower_bounds(solver), dtype=float)
                 hi = np.asarray(lib.get_joint_upper_bounds(solver), dtype=float)

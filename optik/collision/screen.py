@@ -1,0 +1,131 @@
+"""Screening bounds of the exact check: a lower bound of every pair's signed distance at ``q``, in one call.
+
+The exact check (`optik.collision.check`) asks coal only for the pairs that can be the closest,
+closer than the margin, or touching; a pair whose lower bound is above all three is skipped. The
+bounds come from models that contain the parts (`optik.collision.spheres`, `optik.collision.slots`):
+
+* robot part ``a`` to world object ``o``: ``min_s (sdf_o(c_s) - R_s)`` over the spheres
+  ``(c_s, R_s)`` that cover ``a``, with ``sdf_o`` the signed distance function of the rounded box
+  that contains ``o``;
+* robot part ``a`` to robot part ``b`` (the self-collision pairs): the larger of the distance of
+  their capsules, ``|x_a - x_b| - rho_a - rho_b`` at the closest points of the segments, and of
+  their bounding spheres, ``|c_a - c_b| - r_a - r_b`` (`optik.collision.parts.Part`).
+
+Each is at most the exact distance wherever that is ``>= 0`` (a model containing both parts is
+apart by at most as much as they are), which is all the search needs: it skips a pair only when
+the bound is above ``max(margin, 0, smallest distance found)``.
+
+`screen_function` is one CasADi function per robot geometry and slot capacity,
+``(q, slots) -> (part poses, sphere-slot bounds, self-pair bounds)``, the sphere-slot rows mapped
+over slots and spheres (a loop in the generated C); `screen` compiles it with `optik.native` in the
+background (CasADi's evaluator answers meanwhile, with the same numbers) and keeps one evaluator
+per thread.
+"""
+
+from __future__ import annotations
+
+import threading
+import weakref
+
+import casadi as ca
+import numpy as np
+
+from optik.collision.robot import RobotGeometry
+from optik.collision.slots import SLOT_SIZE, slot_distance
+from optik.collision.spheres import segment_distance, sphere_model
+from optik.native import NativeFunction, library
+
+__all__ = ["Screen", "screen", "screen_function"]
+
+
+def screen_function(geo: RobotGeometry, capacity: int) -> ca.Function:
+    """``(q, slots) -> (poses, world, self)`` for a world of ``capacity`` slots
+    (`optik.collision.slots`).
+
+    ``poses``: ``12 P`` numbers, each part's base-frame rotation (row-major) and origin;
+    ``world``: ``capacity * S`` bounds, sphere ``s`` of the sphere model against slot ``k`` at
+    ``k * S + s`` (an empty slot's entries are meaningless: the caller drops them);
+    ``self``: one bound per row of ``geo.self_pairs``.
+    """
+    m = geo.mechanism
+    model = sphere_model(geo)
+    links = [m.frame_expr(link) for link in geo.links]
+
+    def placed(k: int, x: np.ndarray) -> ca.SX:
+        t = links[int(geo.part_link[k])]
+        return ca.mtimes(t[:3, :3], ca.DM(x)) + t[:3, 3]
+
+    poses = []
+    for k, part in enumerate(geo.parts):
+        t = ca.mtimes(links[int(geo.part_link[k])], ca.DM(part.offset))
+        poses.append(ca.vertcat(ca.vec(t[:3, :3].T), t[:3, 3]))
+    centres = ca.horzcat(*(placed(int(k), c) for k, c in zip(model.part, model.centres, strict=True)))
+    rows = []
+    for i, j in geo.self_pairs:
+        ends = [placed(int(k), x) for k in (i, j) for x in model.segments[k]]
+        capsules = segment_distance(*ends) - model.capsule_radii[i] - model.capsule_radii[j]
+        spheres = ca.norm_2(placed(int(i), geo.parts[i].centre) - placed(int(j), geo.parts[j].centre))
+        rows.append(ca.fmax(capsules, spheres - geo.parts[i].radius - geo.parts[j].radius))
+    q = m.q_sym
+    own = ca.vertcat(*rows) if rows else ca.SX(0, 1)
+    robot = ca.Function("robot", [q], [ca.vertcat(*poses), centres, own])
+    c, radius, slot = ca.SX.sym("c", 3), ca.SX.sym("radius"), ca.SX.sym("slot", SLOT_SIZE)
+    row = ca.Function("sphere_slot", [c, radius, slot], [slot_distance(slot, c, 0.0) - radius])
+    n_s = len(model.radii)
+    qm, slots = ca.MX.sym("q", m.n_q), ca.MX.sym("slots", capacity * SLOT_SIZE)
+    pose_out, centre_out, self_out = robot(qm)
+    # one map over every (slot k, sphere s) at column k S + s: spheres repeated, slots each S times
+    spheres = ca.repmat(centre_out, 1, capacity), ca.repmat(ca.DM(model.radii).T, 1, capacity)
+    per_slot = ca.kron(ca.reshape(slots, SLOT_SIZE, capacity), ca.DM.ones(1, n_s))
+    bounds = row.map(capacity * n_s)(*spheres, per_slot)
+    return ca.Function("optik_collision_screen", [qm, slots], [pose_out, ca.vec(bounds), self_out])
+
+
+class Screen:
+    """`screen_function` of one geometry and capacity, compiled, with one evaluator per thread.
+
+    Args:
+        geo: the robot geometry.
+        capacity: the world's slot capacity.
+    """
+
+    def __init__(self, geo: RobotGeometry, capacity: int) -> None:
+        self.function = screen_function(geo, capacity)
+        self.library = library([self.function], "auto")
+        self.capacity = capacity
+        self.n_parts = len(geo.parts)
+        part = sphere_model(geo).part
+        self._starts = np.searchsorted(part, np.arange(self.n_parts))  # spheres are in part order
+        self._spheres = len(part)
+        self._local = threading.local()
+
+    def bounds(
+        self, q: np.ndarray, slots: np.ndarray, n_objects: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(poses (P, 12), world (P, n_objects), self (k,))`` at ``q`` for the slot values ``slots``
+        of ``n_objects`` obstacles: the part poses, and the bounds of every part against every
+        object and of every self-collision pair (see the module docstring)."""
+        fn = getattr(self._local, "fn", None)
+        if fn is None:
+            fn = self._local.fn = NativeFunction(self.function, self.library)
+        fn.inputs[0][:] = q
+        fn.inputs[1][:] = slots
+        poses, world, own = fn()
+        spheres = world.reshape(self.capacity, self._spheres)[:n_objects].T
+        parts = np.minimum.reduceat(spheres, self._starts, axis=0) if n_objects else spheres[: self.n_parts]
+        return poses.reshape(self.n_parts, 12).copy(), parts, own.copy()
+
+
+_CACHE: weakref.WeakKeyDictionary[RobotGeometry, dict[int, Screen]] = weakref.WeakKeyDictionary()
+_LOCK = threading.Lock()
+
+
+def screen(geo: RobotGeometry, capacity: int) -> Screen:
+    """The `Screen` of ``geo`` for ``capacity`` slots (built once, under a lock, and cached with
+    the geometry)."""
+    with _LOCK:
+        per = _CACHE.setdefault(geo, {})
+        hit = per.get(capacity)
+        if hit is None:
+            hit = per[capacity] = Screen(geo, capacity)
+        return hit

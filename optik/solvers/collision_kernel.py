@@ -160,11 +160,14 @@ def constrained_functions(
     ends = ca.DM(np.array([model.segments[pair].reshape(-1) for pair in pairs]).reshape(-1, 12).T)
     rhos = ca.DM(model.capsule_radii[pairs].sum(axis=1).reshape(1, -1))
     links, links_values = _links(problem, geo)
-    sphere, sphere_value = (f.map(n_s) for f in _sphere(n))
-    self_row, self_row_value = (f.map(len(pairs)) for f in _self_row(n))
-    row, row_value = _world_row(n)
-    world = row.map(capacity).map(n_s)  # index s * capacity + k: sphere s, slot k
-    world_value = row_value.map(capacity).map(n_s)
+    # mapped over spheres and pairs; none of them without any (a map of 0 is refused by CasADi)
+    if n_s:
+        sphere, sphere_value = (f.map(n_s) for f in _sphere(n))
+        row, row_value = _world_row(n)
+        world = row.map(capacity).map(n_s)  # index s * capacity + k: sphere s, slot k
+        world_value = row_value.map(capacity).map(n_s)
+    if len(pairs):
+        self_row, self_row_value = (f.map(len(pairs)) for f in _self_row(n))
     radii = ca.DM(model.radii[spheres]).T
     local = ca.DM(model.centres[spheres].T)
     ins = [problem.q, problem.target, problem.weights]

@@ -54,6 +54,13 @@ class Panel:
             self.notes = gui.add_markdown(
                 f"**{len(viewer.notes)} URDF visuals not drawn** (capsules instead): {shown}"
             )
+        self.collisions = self.collision_text = None
+        if viewer.collisions is not None:
+            with gui.add_folder("Collisions: exact check"):
+                hint = "every collision part of the robot (the colliding links are red either way)"
+                self.collisions = gui.add_checkbox("collision geometry", False, hint=hint)
+                self.collisions.on_update(self._user(lambda: viewer.show_collisions(self.collisions.value)))
+                self.collision_text = gui.add_markdown("")
         self.index = m.actuated_indices if m.is_closed else np.arange(m.n_q)
         title = "Actuators: every assembly mode" if m.is_closed else "Joints: FK"
         with gui.add_folder(title):
@@ -167,6 +174,24 @@ class Panel:
         self.all.value = on
         if not on:
             self.branches.content = ""
+
+    def set_collisions_shown(self, on: bool) -> None:
+        """Tick or untick the "collision geometry" box (a call from Python)."""
+        if self.collisions is not None:
+            self.collisions.value = on
+
+    def show_collisions(self, report: Any) -> None:
+        """The exact check of the shown configuration: clear, or the pairs closer than the margin."""
+        if self.collision_text is None:
+            return
+        if not report.in_collision:
+            self.collision_text.content = (
+                f"clear by {report.margin:g} m (closest {report.min_distance:.4g} m)"
+            )
+            return
+        pairs = ", ".join(f"{p.a} / {p.b} {p.distance:.3g} m" for p in report.close_pairs[:3])
+        more = f" and {len(report.close_pairs) - 3} more" if len(report.close_pairs) > 3 else ""
+        self.collision_text.content = f"**closer than {report.margin:g} m** (red): {pairs}{more}"
 
     def show_result(self, res: IKResult) -> None:
         """The status line of an IK answer: method, success, errors, solve time."""

@@ -15,6 +15,13 @@ tests drive the same code paths as a mouse:
 | "track a circle", sample slider | `Viewer.track`, `Viewer.show_path_sample` |
 | a planned path, "play" | `Viewer.show_path` (a `JointPath`), `Viewer.play` |
 | "capability map" box | `Viewer.show_reach`, `Viewer.set_reach_visible` |
+| "collision geometry" box | `Viewer.show_collisions` |
+| drag a world object's gizmo | `Viewer.move_object` (the object moves, IK solves again) |
+
+With ``world=`` or ``self_collision=True`` the gizmo's IK is collision-aware (``lm`` or ``nlp``,
+`optik.solvers.collision_free`) and the page draws the collision layer
+(`optik.view.collisions`): the robot's collision geometry (toggled), the world's objects each
+under a gizmo of its own, and the links and objects closer than ``margin`` in red.
 """
 
 from __future__ import annotations
@@ -30,7 +37,8 @@ import numpy as np
 from matplotlib import colormaps
 
 from optik import spatial
-from optik.checks import as_vector
+from optik.checks import as_float, as_vector
+from optik.collision import World
 from optik.diffik import circle_path, track
 from optik.diffik.track import TrackResult
 from optik.errors import InvalidArgumentError, SolverUnavailableError, require_extra
@@ -41,8 +49,10 @@ from optik.reach import ReachMap
 from optik.results import IKResult
 from optik.solvers import methods, pick_method, solve_ik, solve_ik_all
 from optik.solvers.base import Tolerances, joint_distance, positive_int
+from optik.solvers.collision_free import METHODS as COLLISION_METHODS
 from optik.solvers.fk import solve_fk, solve_fk_all
 from optik.targets import target_transform
+from optik.view.collisions import CollisionLayer
 from optik.view.latest import Latest
 from optik.view.scene import RobotDrawing, Style, extent, poses
 from optik.view.shapes import rotation, wxyz
@@ -112,9 +122,16 @@ class Viewer:
         tol: success tolerances of the solves.
         all_time_limit: seconds for ``solve_ik_all`` / ``solve_fk_all``.
         max_ghosts: at most this many IK branches are drawn (a redundant arm has a continuum).
+        world: obstacles (`optik.World`): drawn, each draggable, and avoided by the gizmo's IK.
+        self_collision: the gizmo's IK keeps the robot clear of itself too.
+        margin: clearance (m) of the collision-aware IK and of the red colouring.
+
+    The collision layer (`optik.view.collisions`) is drawn whenever ``m`` has collision
+    geometry; the IK is collision-aware with a ``world`` or ``self_collision=True``.
 
     Raises:
-        InvalidArgumentError: bad ``q``, ``method``, ``time_limit``.
+        InvalidArgumentError: bad ``q``, ``method``, ``time_limit``, ``world``, ``margin``; a
+            ``world`` or ``self_collision`` for a mechanism without collision geometry.
         SolverUnavailableError: ``method`` does not apply to ``m``.
     """
 
@@ -131,6 +148,9 @@ class Viewer:
         tol: float | Tolerances | None = None,
         all_time_limit: float = 1.0,
         max_ghosts: int = 16,
+        world: World | None = None,
+        self_collision: bool = False,
+        margin: float = 0.0,
     ) -> None:
         viser = _viser()
         self.m = m
@@ -139,9 +159,21 @@ class Viewer:
         self.time_limit = _positive(time_limit, "time_limit")
         self.all_time_limit = _positive(all_time_limit, "all_time_limit")
         self.max_ghosts = positive_int(max_ghosts, "max_ghosts")
+        if world is not None and not isinstance(world, World):
+            raise InvalidArgumentError(
+                "world", f"expected an optik.World or None, got {type(world).__name__}"
+            )
+        self.world = world
+        self.self_collision = bool(self_collision)
+        self.margin = as_float(margin, "margin", 0.0)
+        self.aware = world is not None or self.self_collision
+        """Whether the gizmo's IK is collision-aware."""
         self.methods = applicable_methods(m, self.task)
+        if self.aware:
+            self.methods = [k for k in self.methods if k in COLLISION_METHODS]
         self._method = ""
-        self.method = pick_method(m, self.task) if method is None else method
+        picked = pick_method(m, self.task)
+        self.method = (picked if picked in self.methods else "lm") if method is None else method
         self._lock = threading.RLock()
         self.result: IKResult | None = None
         """The last IK answer (None before the first target)."""
@@ -209,6 +241,19 @@ class Viewer:
         )
         visuals, self.notes = body_visuals(self.m)
         self.robot = RobotDrawing(scene, self.m, self._q, "/robot", Style(radius=RADIUS * size), visuals)
+        self.collisions: CollisionLayer | None = None
+        """The collision layer (None for a mechanism without collision geometry)."""
+        if self.aware or self.m.params.get("collisions"):
+            self._object_moves = Latest(lambda move: self.move_object(*move))
+            self.collisions = CollisionLayer(
+                scene,
+                self.m,
+                self._q,
+                self.world,
+                self.margin,
+                lambda name, pose: self._object_moves((name, pose)),
+                0.15 * size,
+            )
         planar = self.task in PLANAR_TASKS
         self.gizmo = scene.add_transform_controls(
             "/target",
@@ -287,8 +332,16 @@ class Viewer:
 
     def _solve_target(self, t: np.ndarray) -> IKResult:
         with self._lock:
+            aware = {"world": self.world, "self_collision": self.self_collision, "margin": self.margin}
             res = solve_ik(
-                self.m, t, self._q, self._method, task=self.task, time_limit=self.time_limit, tol=self.tol
+                self.m,
+                t,
+                self._q,
+                self._method,
+                task=self.task,
+                time_limit=self.time_limit,
+                tol=self.tol,
+                **(aware if self.aware else {}),
             )
             self.result = res
             q = np.asarray(res.q, dtype=float) if np.all(np.isfinite(res.q)) else self._q
@@ -332,6 +385,8 @@ class Viewer:
         self._q = q
         self.robot.update(q)
         self.panel.sync(q)
+        if self.collisions is not None:
+            self.panel.show_collisions(self.collisions.update(q))
 
     def set_q(self, q: Any) -> np.ndarray:
         """Show configuration ``q`` (what the joint sliders do) and put the target on its end
@@ -389,6 +444,37 @@ class Viewer:
         for ghost in self._ghosts[len(qs) :]:
             if ghost.visible:
                 ghost.set_visible(False)
+
+    # ------------------------------------------------------------------ collisions
+    def show_collisions(self, on: bool = True) -> None:
+        """Show the robot's whole collision geometry (what the "collision geometry" box does);
+        off, only the colliding links' parts are drawn (red).
+
+        Raises:
+            InvalidArgumentError: the mechanism has no collision geometry.
+        """
+        if self.collisions is None:
+            raise InvalidArgumentError("on", f"{self.m.name!r} has no collision geometry to show")
+        with self._lock:
+            self.collisions.set_shown(on)
+            self.panel.set_collisions_shown(bool(on))
+
+    def move_object(self, name: str, pose: Any) -> IKResult:
+        """Move world object ``name`` to ``pose`` (what a drag of its gizmo does) and solve IK for
+        the current target again from the shown configuration, around the object where it is now.
+
+        Raises:
+            InvalidArgumentError: no world, no object of that name, or a bad pose.
+        """
+        if self.world is None or self.collisions is None:
+            raise InvalidArgumentError("name", "the viewer has no world: pass world= to move its objects")
+        if name not in self.world:
+            raise InvalidArgumentError("name", f"no world object {name!r}; objects: {list(self.world.names)}")
+        t = target_transform(pose, "pose")
+        with self._lock:
+            self.world.move(name, t)
+            self.collisions.place(name, t)
+            return self._solve_target(self._gizmo_pose())
 
     # ------------------------------------------------------------------ paths
     def track(self, path: Any = None, dt: float = 0.02, method: str = "qp") -> TrackResult:

@@ -70,14 +70,17 @@ solutions may be missing.
 
 from __future__ import annotations
 
+import ctypes
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from optik import native
 from optik.checks import as_transform, as_vector
 from optik.closed_form import registry
 from optik.closed_form.structure import Axes, axes_of
@@ -163,6 +166,13 @@ is below this at both test points."""
 _HALF = np.array([[1.0, 1.0, 1.0], [-2j, 0.0, 2j], [-1.0, 1.0, -1.0]])
 _GRID = 2.0 * np.pi * np.arange(5) / 5.0
 _TWO_PI = 2.0 * np.pi
+_POLISH = native.CFunction(
+    Path(__file__).with_name("general_6r_polish.c"),
+    "optik_general_6r_polish",
+    "optik_g6r_polish",
+    [ctypes.c_void_p, ctypes.c_int, ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p],
+)
+"""`_polish` in C."""
 
 
 # ---------------------------------------------------------------------------- DH kinematics
@@ -593,7 +603,20 @@ def _polish(
     the algebra holds for complex angles too, where it converges to complex solutions). Steps
     are bounded to 0.5 per entry; a candidate stops once ``max |r| < 1e-15``, or once it no
     longer halves below ``1e-9`` times its `_magnitude` (rounding). Returns the polished angles
-    and ``max |r|`` of each at them."""
+    and ``max |r|`` of each at them.
+
+    In C (``general_6r_polish.c``, built once per machine in the background,
+    `optik.native.CFunction`) when it is loaded; numpy otherwise, and for a batch with an exactly
+    singular Jacobian (numpy then takes least-squares steps)."""
+    fn = _POLISH.get()
+    if fn is not None and len(theta):
+        out = np.array(theta, dtype=complex)  # a copy, C-contiguous
+        targets = np.ascontiguousarray(tp, dtype=float)
+        size = np.empty(len(out))
+        dh = np.ascontiguousarray(np.concatenate([left.d, left.a, left.alpha]), dtype=float)
+        args = (dh.ctypes.data, len(out), iterations, out.ctypes.data, targets.ctypes.data, size.ctypes.data)
+        if fn(*args) == 0:
+            return (out if np.iscomplexobj(theta) else out.real.copy()), size
     theta = theta.copy()
     err, pre = _residual(left, theta, tp)
     size = np.max(np.abs(err), axis=1, initial=0.0)

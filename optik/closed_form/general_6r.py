@@ -305,11 +305,11 @@ class General6R:
             raise InvalidArgumentError(argument, f"{complaint} ({err:.1e})")
         return arm
 
-    @property
+    @cached_property
     def scale(self) -> float:
-        """The characteristic length of the arm."""
-        lengths = [*np.abs(self.a), *np.abs(self.d), *np.abs(self.base[:3, 3]), *np.abs(self.tool[:3, 3])]
-        return max(max(lengths), 1e-12)
+        """The characteristic length of the arm (computed once: a solve reads it several times)."""
+        lengths = np.concatenate([self.a, self.d, self.base[:3, 3], self.tool[:3, 3]])
+        return max(float(np.max(np.abs(lengths))), 1e-12)
 
     def fk(self, q: Any) -> np.ndarray:
         """``T(q)``: 4x4, or ``(N, 4, 4)`` for ``q`` of shape ``(N, 6)``."""

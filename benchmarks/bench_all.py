@@ -213,8 +213,8 @@ RUNS: tuple[Run, ...] = (
     Run(
         "collision",
         "Collision-free IK, Panda in clutter: optik against TRAC-IK + coal rejection",
-        ("--n", "100", "--time-limit", "0.05"),
-        ("--n", "10", "--time-limit", "0.05", "--compile-wait", "30"),
+        ("--n", "1000", "--time-limit", "0.01"),
+        ("--n", "10", "--time-limit", "0.01", "--compile-wait", "30"),
         in_readme=False,
     ),
     Run(

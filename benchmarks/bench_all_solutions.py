@@ -64,7 +64,6 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import time  # noqa: E402
 from collections.abc import Callable, Sequence  # noqa: E402
 from dataclasses import dataclass, field  # noqa: E402
-from importlib import metadata  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
@@ -73,7 +72,7 @@ import numpy as np  # noqa: E402
 import optik  # noqa: E402
 from optik import plot  # noqa: E402
 from optik.benchmarks import benchmark_parser  # noqa: E402
-from optik.catalog.industrial import PUMA560_DH  # noqa: E402
+from optik.benchmarks.peer_arms import eaik_dh, eaik_robot, ur_arm, valid_solutions  # noqa: E402
 from optik.closed_form.derived import chain_axes, derive, derive_axes  # noqa: E402
 from optik.harness.tally import timing_ms  # noqa: E402
 from optik.mechanism import Mechanism  # noqa: E402
@@ -83,75 +82,23 @@ try:  # an optional peer
     import ik_geo
 except ImportError:  # pragma: no cover - depends on the environment
     ik_geo = None
-try:  # an optional peer
-    import eaik.IK_DH as eaik_dh
-    import eaik.IK_URDF as eaik_urdf
-except ImportError:  # pragma: no cover - depends on the environment
-    eaik_dh = eaik_urdf = None
 
 BATCH_RUNS = 5
 """Interleaved runs of the whole-batch timings (median per pose reported)."""
 SAME = 1e-4
 """Joint distance under which two solutions are the same (the same-branch rule)."""
-FK_TOL = 1e-6
-"""FK check of a solution: position (m) and orientation (rad) errors at most this."""
-UR_DIR = "cmeel.prefix/share/example-robot-data/robots/ur_description/urdf"
-
-
-def _urdf_path(name: str) -> Path | None:
-    """The joint-limited URDF of a UR arm in example-robot-data, or None."""
-    try:
-        dist = metadata.distribution("example-robot-data")
-    except metadata.PackageNotFoundError:
-        return None
-    path = Path(str(dist.locate_file(f"{UR_DIR}/{name}_joint_limited_robot.urdf")))
-    return path if path.exists() else None
-
-
-def _ur(name: str) -> tuple[Mechanism | None, str]:
-    """A UR arm of example-robot-data (base ``base_link``, tip ``tool0``), or a note."""
-    path = _urdf_path(name)
-    if path is None:
-        return None, f'{name}: skipped, example-robot-data is not installed (pip install "optik[robots]")'
-    m = Mechanism.from_urdf(path, "base_link", "tool0")
-    m.name = name
-    return m, ""
 
 
 def _arms() -> tuple[list[Mechanism], list[str]]:
     arms, notes = [], []
     for name in ("ur5", "ur10"):
-        m, note = _ur(name)
+        m, note = ur_arm(name)
         if m is None:
             notes.append(note)
         else:
             arms.append(m)
     arms += [optik.catalog.puma560(), optik.catalog.seed_6r_arm()]
     return arms, notes
-
-
-def _eaik_robot(m: Mechanism) -> tuple[object, np.ndarray, str]:
-    """EAIK's robot for the arm, built by EAIK's own parser where it has one (its URDF reader
-    for the UR arms, its DH constructor for the PUMA 560), else from optik's joint axes at
-    ``q = 0`` (the seed arm); with ``X`` such that EAIK's FK is ``m.fk(q) X`` (EAIK's tool
-    frame differs), checked on 16 random configurations."""
-    path = _urdf_path(m.name) if m.name in ("ur5", "ur10") else None
-    if path is not None:
-        robot, source = eaik_urdf.UrdfRobot(str(path)), "EAIK's URDF parser"
-    elif m.kind == "puma560":
-        d, a, alpha = (np.array(c) for c in zip(*PUMA560_DH, strict=True))
-        robot, source = eaik_dh.DhRobot(alpha, a, d), "EAIK's DH constructor"
-    else:
-        ax = chain_axes(m)
-        offsets = np.vstack([ax.r[0], np.diff(ax.r, axis=0), ax.home[:3, 3] - ax.r[-1]])
-        robot, source = eaik_dh.EAIK.Robot(ax.h.T, offsets.T, ax.home[:3, :3], [], True), "optik's axes"
-    raw = getattr(robot, "_robot", robot)  # the compiled robot: timed without EAIK's Python wrapper
-    x = np.linalg.inv(m.fk(np.zeros(6))) @ np.asarray(raw.fwdkin(np.zeros(6)))
-    for q in m.random_q(16, seed=99):
-        gap = np.abs(m.fk(q) @ x - np.asarray(raw.fwdkin(q))).max()
-        if gap > 1e-9:
-            raise RuntimeError(f"{m.name}: EAIK's model ({source}) differs from optik's by {gap:.1e}")
-    return raw, x, source
 
 
 IK_GEO_FAMILY = {
@@ -180,19 +127,6 @@ def _ik_geo_robot(m: Mechanism, family: str) -> tuple[object, np.ndarray] | None
         r[list(joints)] = _common_point(h, r, joints)
     p = np.vstack([r[0], np.diff(r, axis=0), ax.home[:3, 3] - r[-1]])
     return getattr(ik_geo.Robot, name)(h, p), ax.home[:3, :3]
-
-
-def _valid(m: Mechanism, qs: Sequence[np.ndarray], target: np.ndarray) -> list[np.ndarray]:
-    """The ``qs`` (shifted into the limits by ``m.wrap``) passing the FK and limit check."""
-    out = []
-    for q in qs:
-        w = m.wrap(np.asarray(q, dtype=float))
-        t = m.fk(w)
-        rel = t[:3, :3].T @ target[:3, :3]
-        angle = np.arccos(np.clip(0.5 * (np.trace(rel) - 1.0), -1.0, 1.0))
-        if np.linalg.norm(t[:3, 3] - target[:3, 3]) <= FK_TOL and angle <= FK_TOL and m.within_limits(w):
-            out.append(w)
-    return out
 
 
 @dataclass
@@ -242,7 +176,7 @@ def run_arm(m: Mechanism, n: int, seed: int) -> Row:
     family = solver.structure.name if solver is not None else "none"
     row = Row(m.name, family, n)
     targets = m.fk(m.random_q(n, seed=seed))
-    robot, x, row.eaik_model = _eaik_robot(m) if eaik_dh is not None else (None, np.eye(4), "-")
+    robot, x, row.eaik_model = eaik_robot(m) if eaik_dh is not None else (None, np.eye(4), "-")
     theirs_targets = targets @ x  # EAIK's tool frame (outside the timing)
     geo = _ik_geo_robot(m, family)
     # ik-geo's targets: the last joint's frame, the rotation transposed for its bindings (untimed)
@@ -275,17 +209,17 @@ def run_arm(m: Mechanism, n: int, seed: int) -> Row:
         t0 = time.perf_counter()
         list(sols)
         row.results_times.append(time.perf_counter() - t0)
-        valid = _valid(m, np.asarray(got["eaik"].Q), t) if robot is not None else []
+        valid = valid_solutions(m, np.asarray(got["eaik"].Q), t) if robot is not None else []
         ours = [s.q for s in sols]
         if geo:
-            geo_valid = _valid(
+            geo_valid = valid_solutions(
                 m, [np.asarray(q, dtype=float) for q, least_squares in got["ikgeo"] if not least_squares], t
             )
             row.ikgeo_valid += len(geo_valid)
             row.ikgeo_found += sum(any(joint_distance(m, v, o) < SAME for o in ours) for v in geo_valid)
         row.optik_solutions += len(ours)
         row.outside_limits += len(sols.outside_limits)
-        row.optik_failed_check += len(ours) - len(_valid(m, ours, t))
+        row.optik_failed_check += len(ours) - len(valid_solutions(m, ours, t))
         pairs = [(a, b) for i, a in enumerate(ours) for b in ours[i + 1 :]]
         row.duplicates += sum(joint_distance(m, a, b) < SAME for a, b in pairs)
         row.eaik_valid += len(valid)
@@ -334,7 +268,7 @@ def _run_batches(m: Mechanism, row: Row, targets: np.ndarray, robot: object, the
             _per_pose(lambda: robot.calculate_IK_batched(theirs, 1), n, row.eaik_batched_times)
     for i, t in enumerate(targets):  # the last run's answer, every row
         rows = batch[i].q
-        row.batch_failed_check += len(rows) - len(_valid(m, rows, t))
+        row.batch_failed_check += len(rows) - len(valid_solutions(m, rows, t))
         row.batch_differs += not np.array_equal(rows, optik.solve_ik_all(m, t).q)
 
 

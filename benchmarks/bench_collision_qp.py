@@ -21,12 +21,15 @@ gain ``gamma / dt`` (its rows ``-J dq / dt <= gain (d - d_min)`` are then optik'
 
 Reported per run: the smallest exact distance along the path (``optik.collision.check_many`` at
 every configuration, robot against the ball and itself: one judge for all), steps below the
-margin, the largest position error (FK of each answer against its sample), QP failures, and the
-step time (mean / median / p95 over ``--repeats`` repetitions, the four runs interleaved sample by
-sample so they see the same load) with the ratio of medians to optik's plain step and to the same
-library's plain step (medians: on a loaded machine a step that the scheduler preempts takes a
-few milliseconds, which moves the means of the longer steps most). optik's C code is built (and
-waited for) before the timed runs.
+margin, the largest position error (FK of each answer against its sample) and QP failures; then
+the step time (mean / median / p95 over ``--repeats`` repetitions), the median CPU time of the
+process per step (``time.process_time``: what the step computes, whatever else the machine runs)
+and the ratios of the medians, wall / CPU, to optik's plain step and to the same library's plain
+step, twice: with the four runs interleaved sample by sample (they see the same load, but every
+step starts with caches the other runs' steps have filled) and with whole tracks one after the
+other (each run's steps back to back, warm, as in a control loop that does nothing else). Medians:
+on a loaded machine a step that the scheduler preempts takes a few milliseconds, which moves the
+means of the longer steps most. optik's C code is built (and waited for) before the timed runs.
 
 Run: ``optik benchmark collision_qp [--steps 200] [--margin 0.01] [--repeats 3] [--no-pink]``.
 """
@@ -35,6 +38,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -123,6 +127,38 @@ def pink_stepper(sc: Scenario, margin: float, barrier: bool) -> Callable[[], Ste
     return make
 
 
+@dataclass
+class Timed:
+    """Per run: the wall and CPU time of every step (s) and the configurations of the last repetition."""
+
+    wall: dict[str, list[float]]
+    cpu: dict[str, list[float]]
+    q: dict[str, np.ndarray]
+
+
+def _timed(
+    runs: dict[str, tuple[str, Callable[[], Stepper]]], steps: int, repeats: int, by_sample: bool
+) -> Timed:
+    """Every run ``repeats`` times from a fresh state, interleaved sample by sample (``by_sample``)
+    or whole track after whole track."""
+    out = Timed({name: [] for name in runs}, {name: [] for name in runs}, {})
+    for _ in range(max(1, repeats)):
+        steppers = {name: make() for name, (_, make) in runs.items()}
+        qs: dict[str, list[np.ndarray]] = {name: [] for name in runs}
+        order = (
+            [(k, name) for k in range(steps) for name in runs]
+            if by_sample
+            else [(k, name) for name in runs for k in range(steps)]
+        )
+        for k, name in order:
+            t0, c0 = time.perf_counter(), time.process_time()
+            qs[name].append(steppers[name](k))
+            out.wall[name].append(time.perf_counter() - t0)
+            out.cpu[name].append(time.process_time() - c0)
+        out.q = {name: np.array(v) for name, v in qs.items()}
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the tracks and print a markdown table; returns 0."""
     ap = benchmark_parser("collision_qp", __doc__)
@@ -157,40 +193,43 @@ def main(argv: Sequence[str] | None = None) -> int:
         for k in range(5):
             stepper(k)
     native.wait()
-    times: dict[str, list[float]] = {name: [] for name in runs}
-    qs: dict[str, np.ndarray] = {}
-    for _ in range(max(1, args.repeats)):
-        steppers = {name: make() for name, (_, make) in runs.items()}
-        out = {name: np.zeros((args.steps, sc.m.n_q)) for name in runs}
-        for k in range(args.steps):  # sample by sample, so that every run sees the same load
-            for name, stepper in steppers.items():
-                t0 = time.perf_counter()
-                out[name][k] = stepper(k)
-                times[name].append(time.perf_counter() - t0)
-        qs = out
-    medians = {name: timing_ms(t)[1] for name, t in times.items()}
+    interleaved = _timed(runs, args.steps, args.repeats, by_sample=True)
+    tracks = _timed(runs, args.steps, args.repeats, by_sample=False)
     print(
         f"Panda hand along {args.length:g} m past a ball of radius {args.radius:g} m "
         f"(its surface {args.offset:g} m beside the line), {args.steps} steps, dt {sc.dt:g} s, "
         f"margin {args.margin:g} m"
     )
-    print(
-        "| run | min distance mm | steps below margin | max position error mm | QP failures "
-        "| mean ms | median ms | p95 ms | median / optik qp | median / same library's plain |"
-    )
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-    for name, (plain, _) in runs.items():
-        q = qs[name]
+    print("\n| run | min distance mm | steps below margin | max position error mm | QP failures |")
+    print("|---|---:|---:|---:|---:|")
+    for name, q in interleaved.q.items():
         solved = np.flatnonzero(~np.isnan(q).any(axis=1))
         dist = optik.collision.check_many(sc.m, q[solved], sc.world).min_distance
         err = max(np.linalg.norm(sc.m.fk(q[k])[:3, 3] - sc.path[k, :3, 3]) for k in solved)
-        mean, median, p95 = timing_ms(times[name])
         below, failures = int((dist < args.margin).sum()), args.steps - len(solved)
+        print(f"| {name} | {dist.min() * 1e3:.1f} | {below} | {err * 1e3:.2f} | {failures} |")
+    for title, timed in (
+        (
+            "Step time, the four runs interleaved sample by sample (each step after the other runs' steps)",
+            interleaved,
+        ),
+        ("Step time, whole tracks one after the other (each run's steps back to back)", tracks),
+    ):
+        print(f"\n{title}:\n")
         print(
-            f"| {name} | {dist.min() * 1e3:.1f} | {below} | {err * 1e3:.2f} | {failures} | {mean:.3f} "
-            f"| {median:.3f} | {p95:.3f} | {median / medians['optik qp']:.2f} "
-            f"| {median / medians[plain]:.2f} |"
+            "| run | mean ms | median ms | p95 ms | CPU median ms | median / optik qp (wall / CPU) "
+            "| median / same library's plain (wall / CPU) |"
         )
+        print("|---|---:|---:|---:|---:|---:|---:|")
+        med = {name: timing_ms(t)[1] for name, t in timed.wall.items()}
+        cpu = {name: timing_ms(t)[1] for name, t in timed.cpu.items()}
+        for name, (plain, _) in runs.items():
+            mean, median, p95 = timing_ms(timed.wall[name])
+            print(
+                f"| {name} | {mean:.3f} | {median:.3f} | {p95:.3f} | {cpu[name]:.3f} "
+                f"| {median / med['optik qp']:.2f} / {cpu[name] / cpu['optik qp']:.2f} "
+                f"| {median / med[plain]:.2f} / {cpu[name] / cpu[plain]:.2f} |"
+            )
     return 0
 
 

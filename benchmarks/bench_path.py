@@ -9,8 +9,8 @@ fixed, times uniform, ``--dt`` s apart), in one process, interleaved workload by
   closed-form solution of every pose, the DP in C, the checks);
 * ``brute force``: the exact reference computed here, independently of optik's planner: every
   solution of every pose from EAIK's compiled ``calculate_IK`` (the robot of
-  ``bench_all_solutions``: EAIK's URDF parser for the UR5, its DH constructor for the PUMA),
-  each FK-checked and shifted into the limits by ``m.wrap`` (``bench_all_solutions._valid``),
+  ``peer_arms.eaik_robot``: EAIK's URDF parser for the UR5, its DH constructor for the PUMA),
+  each FK-checked and shifted into the limits by ``m.wrap`` (``peer_arms.valid_solutions``),
   every ``2 pi`` copy within the limits added, then a plain numpy DP over the full
   ``K x K`` edge matrices of each layer with the same velocity-limit rule (an edge is kept when
   every ``|dq_j| <= v_j dt``);
@@ -33,8 +33,11 @@ and without ``smooth``, against ``diffik.track`` from the same start (one run ea
 
 The timing goal of issue 24 (a 1,000-pose line, 8 solutions x 36 tool-axis samples per pose,
 <= 50 ms) is measured on the UR5 line with ``free_axis="z"`` and ``axis_step = 10`` degrees:
-the whole call, and the DP alone on the same graph (`optik.path.graph.least_motion`), each as
-wall time and as this process's CPU time (the two differ when other processes share the cores).
+the whole call, the nodes alone (`optik.path.samples.sample_solutions`: every solution of every
+pose, the axis joint's turned copies) and the DP alone on the same graph
+(`optik.path.graph.least_motion`), interleaved call by call, each as wall time and as this
+process's CPU time (the two differ when other processes share the cores); the rest is the
+whole call less the two.
 
 Run: ``optik benchmark path [--n 1000] [--dt 0.01] [--repeat 3] [--out report.md]``.
 """
@@ -57,7 +60,7 @@ import numpy as np  # noqa: E402
 import optik  # noqa: E402
 from optik import plot  # noqa: E402
 from optik.benchmarks import benchmark_parser  # noqa: E402
-from optik.benchmarks.bench_all_solutions import _eaik_robot, _ur, _valid, eaik_dh  # noqa: E402
+from optik.benchmarks.peer_arms import eaik_dh, eaik_robot, ur_arm, valid_solutions  # noqa: E402
 from optik.mechanism import Mechanism  # noqa: E402
 from optik.path import graph, samples  # noqa: E402
 from optik.path.nodes import turn_copies, wrapping  # noqa: E402
@@ -99,7 +102,7 @@ def eaik_layers(m: Mechanism, robot: object, x: np.ndarray, poses: np.ndarray) -
     out = []
     angles = np.asarray(m.revolute_mask, dtype=bool)
     for t in poses:
-        got = _valid(m, list(np.asarray(robot.calculate_IK(t @ x).Q)), t)
+        got = valid_solutions(m, list(np.asarray(robot.calculate_IK(t @ x).Q)), t)
         q = np.array(got).reshape(-1, m.n_q)
         out.append(turn_copies(q, m.lower, m.upper, angles)[0])
     return out
@@ -174,19 +177,30 @@ def timed_cpu(fn: Callable[[], object], repeat: int) -> tuple[object, float, flo
     """``fn()`` once to warm up, then the last answer of ``repeat`` calls, their median wall time
     and their median CPU time of this process (``time.process_time``: on a shared machine the
     wall time also counts the time other processes held the cores)."""
-    fn()
-    wall, cpu, out = [], [], None
+    out, wall, cpu = interleaved([fn], repeat)
+    return out[0], wall[0], cpu[0]
+
+
+def interleaved(fns: Sequence[Callable[[], object]], repeat: int) -> tuple[list, list[float], list[float]]:
+    """Each of ``fns`` once to warm up, then ``repeat`` rounds calling each in turn: per function
+    its last answer, its median wall time and its median CPU time (`timed_cpu`)."""
+    for fn in fns:
+        fn()
+    wall: list[list[float]] = [[] for _ in fns]
+    cpu: list[list[float]] = [[] for _ in fns]
+    out: list[object] = [None] * len(fns)
     for _ in range(repeat):
-        t0, c0 = time.perf_counter(), time.process_time()
-        out = fn()
-        wall.append(time.perf_counter() - t0)
-        cpu.append(time.process_time() - c0)
-    return out, float(np.median(wall)), float(np.median(cpu))
+        for i, fn in enumerate(fns):
+            t0, c0 = time.perf_counter(), time.process_time()
+            out[i] = fn()
+            wall[i].append(time.perf_counter() - t0)
+            cpu[i].append(time.process_time() - c0)
+    return out, [float(np.median(x)) for x in wall], [float(np.median(x)) for x in cpu]
 
 
 def run_arm(m: Mechanism, n: int, dt: float, repeat: int) -> list[Row]:
     v = velocity_of(m)
-    robot, x, _ = _eaik_robot(m) if eaik_dh is not None else (None, np.eye(4), "")
+    robot, x, _ = eaik_robot(m) if eaik_dh is not None else (None, np.eye(4), "")
     rows = []
     for name, poses in workloads(m, n).items():
         times = np.arange(n) * dt
@@ -216,18 +230,28 @@ def run_arm(m: Mechanism, n: int, dt: float, repeat: int) -> list[Row]:
 
 
 def goal(m: Mechanism, n: int, repeat: int) -> str:
-    """The issue's timing goal on the UR5 line (module docstring)."""
+    """The issue's timing goal on the UR5 line, the whole call and its stages (module docstring)."""
     poses = workloads(m, n)["line"]
-    call = lambda: optik.plan_path(m, poses, free_axis="z", axis_step=np.pi / 18)  # noqa: E731
-    path, t_call, c_call = timed_cpu(call, repeat)
-    sp = samples.sample_poses(poses, "z", np.pi / 18, None)
-    layers, _ = samples.sample_solutions(m, sp, None, samples.axis_joint(m, "z", None))
-    _, t_dp, c_dp = timed_cpu(lambda: graph.least_motion(layers, np.ones(m.n_q), None, wrapping(m)), repeat)
+    shortcut = samples.axis_joint(m, "z", None)
+    sampled = lambda: samples.sample_poses(poses, "z", np.pi / 18, None)  # noqa: E731
+    layers, _ = samples.sample_solutions(m, sampled(), None, shortcut)
+    (path, _, _), wall, cpu = interleaved(
+        [
+            lambda: optik.plan_path(m, poses, free_axis="z", axis_step=np.pi / 18),
+            lambda: samples.sample_solutions(m, sampled(), None, shortcut),
+            lambda: graph.least_motion(layers, np.ones(m.n_q), None, wrapping(m)),
+        ],
+        repeat,
+    )
     nodes = np.mean([len(x) for x in layers])
+    ms = [f"{1e3 * w:.0f} ms wall / {1e3 * c:.0f} ms CPU" for w, c in zip(wall, cpu, strict=True)]
+    w_rest, c_rest = wall[0] - wall[1] - wall[2], cpu[0] - cpu[1] - cpu[2]
+    rest = f"{1e3 * w_rest:.0f} ms wall / {1e3 * c_rest:.0f} ms CPU"
     return (
         f"Goal (issue 24): {n} poses x 36 tool-axis samples on the {m.name} line, {nodes:.0f} nodes per "
-        f"pose ({path.message}): whole call {1e3 * t_call:.0f} ms wall / {1e3 * c_call:.0f} ms CPU, DP alone "
-        f"{1e3 * t_dp:.0f} ms wall / {1e3 * c_dp:.0f} ms CPU (medians of {repeat}; goal <= 50 ms)."
+        f"pose ({path.message}): whole call {ms[0]}; of it, the nodes (sampled poses, every solution "
+        f"in one C call, the turned copies) {ms[1]}, the DP {ms[2]}, the rest (timing, checks, branch "
+        f"count, tool deviation) {rest} (medians of {repeat}, the three interleaved; goal <= 50 ms)."
     )
 
 
@@ -297,7 +321,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.n < 2 or args.dt <= 0 or args.repeat < 1:
         parser.error("--n must be >= 2, --dt > 0, --repeat >= 1")
-    ur5, note = _ur("ur5")
+    ur5, note = ur_arm("ur5")
     arms = [a for a in (ur5, optik.catalog.puma560()) if a is not None]
     notes = [note] if note else []
     if eaik_dh is None:

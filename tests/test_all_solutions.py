@@ -176,3 +176,17 @@ def test_driver_errors_are_those_of_an_independent_fk(name: str) -> None:
             assert abs(ori - angle) <= 1e-14
             checked += 1
     assert checked >= 300  # at least the one each target was made from
+
+
+def test_without_a_compiler_every_call_is_solve_ik_all(monkeypatch: pytest.MonkeyPatch) -> None:
+    """No C compiler: the object says so and answers by solve_ik_all (CasADi's evaluator)."""
+    from optik import native
+
+    monkeypatch.setattr(native, "compiler", lambda: None)
+    arm = optik.catalog.seed_6r_arm(0.9, 0.7, 0.25)  # a new mechanism: its own derived solver
+    ik = optik.AllSolutions(arm)
+    assert not ik.compiled
+    for t in arm.fk(arm.random_q(5, seed=1)):
+        q = ik(t)
+        assert q.shape[1] == 6 and len(q)
+        np.testing.assert_array_equal(q, optik.solve_ik_all(arm, t).q)

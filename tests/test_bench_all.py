@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from optik.benchmarks import available, bench_all_solutions
+from optik.benchmarks import available, bench_all_solutions, peer_arms
 from optik.benchmarks.bench_all import (
     END,
     RUNS,
@@ -137,7 +137,7 @@ def test_a_quick_sitting_writes_the_page_the_index_and_the_readme(tmp_path, monk
     assert "Command: `optik benchmark all_solutions --n 30`" in page and "load average" in page
     assert "commit `" in page and "CPUs" in page
     rows = markdown_tables(page)[0][2:]
-    ur = ["ur5", "ur10"] if bench_all_solutions._urdf_path("ur5") is not None else []
+    ur = ["ur5", "ur10"] if peer_arms.urdf_path("ur5") is not None else []
     assert [r.split("|")[1].strip() for r in rows] == [*ur, "puma560", "seed_6r_arm"]
     assert all("| 0 | 0 | 0 |" in r for r in rows)  # no duplicates, no failed check, nothing extra
     text = readme.read_text(encoding="utf-8")

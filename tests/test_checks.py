@@ -293,3 +293,19 @@ def test_boolean_options_accept_booleans_only(flag: object) -> None:
     with pytest.raises(optik.OptikError, match=r"^floating_base"):
         optik.Mechanism.from_urdf(urdf, floating_base=flag)
     assert as_bool(True, "flag") is True and as_bool(np.bool_(False), "flag") is False
+
+
+def test_check_seed_takes_what_as_rng_takes():
+    """`check_seed` (which `make_request` calls, without making a generator) accepts and refuses
+    the seeds `as_rng` accepts and refuses."""
+    from optik.checks import as_rng, check_seed
+    from optik.errors import InvalidArgumentError
+
+    for good in (None, 0, 7, np.int64(3), np.random.default_rng(1)):
+        check_seed(good)
+        as_rng(good)
+    for bad in (-1, 1.5, True, "3", [1]):
+        with pytest.raises(InvalidArgumentError, match="seed"):
+            check_seed(bad)
+        with pytest.raises(InvalidArgumentError, match="seed"):
+            as_rng(bad)

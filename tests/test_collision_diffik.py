@@ -159,3 +159,17 @@ def test_panda_ball_pass_keeps_the_margin(ball, dampers):
         assert out.within_limits and all(s == "ok" for s in out.status)
     else:
         assert dist.min() < 0
+
+
+def test_panda_damper_rows_from_two_threads(ball):
+    """Two threads computing rows at once get exactly the serial answers (per-thread buffers of the
+    compiled screen and Jacobian calls, one coal result per query)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    m, w = ball.m, ball.world
+    qs = m.random_q(40, seed=7)
+    serial = [damper_rows(m, q, w, True, MARGIN, influence=0.15) for q in qs]
+    with ThreadPoolExecutor(2) as pool:
+        threaded = list(pool.map(lambda q: damper_rows(m, q, w, True, MARGIN, influence=0.15), qs))
+    for (g1, h1, d1), (g2, h2, d2) in zip(serial, threaded, strict=True):
+        assert np.array_equal(g1, g2) and np.array_equal(h1, h2) and d1 == d2

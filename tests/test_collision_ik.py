@@ -45,8 +45,9 @@ def _independent(arm, res, target, w):
     assert res.min_distance == pytest.approx(r.min_distance, abs=1e-12)
 
 
-@pytest.mark.parametrize("method", ["lm", "nlp"])
-def test_avoids_an_obstacle_on_the_nearest_branch(arm, method):
+@pytest.mark.parametrize(("method", "options"), [("lm", {}), ("lm", {"plain_rounds": 1}), ("nlp", {})])
+def test_avoids_an_obstacle_on_the_nearest_branch(arm, method, options):
+    """With ``plain_rounds=1`` the constrained lm kernel starts from the first, colliding answer."""
     qa, qb = _branches(arm)
     w = _blocking_world(arm, qa)
     target = arm.fk(qa)[:3, 3]
@@ -62,10 +63,14 @@ def test_avoids_an_obstacle_on_the_nearest_branch(arm, method):
         margin=MARGIN,
         time_limit=5.0,
         seed=2,
+        **options,
     )
     assert res.success, res.message
     _independent(arm, res, target, w)
     assert res.collision_pair is not None
+    if method == "nlp":
+        with pytest.raises(InvalidArgumentError, match="plain_rounds"):
+            optik.solve_ik(arm, optik.Position(target), method="nlp", world=w, plain_rounds=2)
 
 
 def test_no_collision_free_answer_says_which_pair_blocks(arm):

@@ -448,3 +448,19 @@ def test_linear_closures_are_checked():
         LinearClosure("row", (("a", 1.0),), float("nan"))
     m = optik.Mechanism(joints, linear_closures=[LinearClosure("row", (("a", 2.0),), 1.0)])
     assert m.is_closed and m.closure(np.array([0.2, 0.0, 0.0, 0.0])) == pytest.approx([-0.6])
+
+
+def test_two_joint_tendon_equality_on_a_coupled_joint_is_a_closure_row():
+    """A two-joint fixed tendon on a joint that already follows another (j3, by the joint
+    equality) cannot be a second coupling: it is a closure row, equal to MuJoCo's residual."""
+    tendon = """<joint joint="j1" coef="1"/><joint joint="j2" coef="-0.5"/>
+  <joint joint="j4" coef="2"/><joint joint="j3" coef="0.7"/>"""
+    xml = TENDON_ROW.replace(tendon, '<joint joint="j4" coef="2"/><joint joint="j3" coef="0.7"/>')
+    m, model = optik.Mechanism.from_mjcf(xml), mujoco.MjModel.from_xml_string(xml)
+    assert m.n_closure == 1 and m.linear_closures[0].coefficients == (("j4", 2.0), ("j3", 0.7))
+    data = mujoco.MjData(model)
+    for q in np.random.default_rng(5).uniform(m.lower, m.upper, (4, 3)):
+        data.qpos[:] = to_qpos(m, q)
+        mujoco.mj_forward(model, data)
+        rows = data.efc_pos[data.efc_type == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)]
+        assert abs(m.closure(q)[0] - rows[1]) < 1e-12

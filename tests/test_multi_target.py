@@ -41,6 +41,8 @@ def _check(m: Mechanism, res: optik.IKResult, targets: dict) -> None:
 
 def test_dual_panda_tree():
     assert DUAL.n_q == 15 and DUAL.base == "world" and set(TOOLS) <= set(DUAL.frames)
+    assert DUAL.ee == "left_tool"  # as documented, not a finger link (the hand's leaves come after it)
+    np.testing.assert_array_equal(DUAL.fk(DUAL.mid_q()), DUAL.fk(DUAL.mid_q(), "left_tool"))
     # both tools depend on the shared torso joint and only on their own arm otherwise
     jl, jr = DUAL.jacobian(DUAL.mid_q(), "left_tool"), DUAL.jacobian(DUAL.mid_q(), "right_tool")
     assert np.abs(jl[:, 0]).max() > 0.1 and np.abs(jr[:, 0]).max() > 0.1

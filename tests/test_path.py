@@ -118,6 +118,39 @@ def test_dynamic_program_is_the_brute_force_optimum(n_layers, width, seed, bound
         assert not any((k, got.index[k - 1], got.index[k]) in gone for k in range(1, n_layers))
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_compiled_dynamic_program_equals_numpy_on_wide_layers(seed):
+    """Wide layers listing their nodes mostly in the same order with small moves (the first bound
+    is the node of the same index), sometimes reordered, some nodes past the previous layer's
+    count, periodic joints, step bounds and removed edges: the C kernel's optimum costs what
+    numpy's full edge matrices give."""
+    rng = np.random.default_rng(seed)
+    base = rng.uniform(-3.0, 3.0, (40, 4))
+    layers = []
+    for _ in range(25):
+        base = base + rng.normal(0.0, 0.05, base.shape)
+        if rng.random() < 0.3:  # the order changes: the same index is another node
+            base = base[rng.permutation(len(base))]
+        layers.append(base[: int(rng.integers(30, 41))].copy())
+    w = rng.uniform(0.2, 2.0, 4)
+    periods = np.array([2 * np.pi, 0.0, 2 * np.pi, 0.0]) if seed % 2 else np.zeros(4)
+    bounds = np.full((len(layers) - 1, 4), 0.4) if seed % 3 == 0 else None
+    removed = np.array([(k, i, i) for k in range(1, len(layers)) for i in range(0, 30, 3)], dtype=int)
+    for cut in (None, removed):
+        got = graph.least_motion(layers, w, bounds, periods, cut)
+        want = graph.least_motion_numpy(layers, w, bounds, periods, cut)
+        assert got.blocked == want.blocked
+        assert got.cost == pytest.approx(want.cost, abs=1e-9)
+        if got.blocked == -1:
+            q = np.stack([layer[i] for layer, i in zip(layers, got.index, strict=True)])
+            d = graph.differences(q[:-1], q[1:], periods)
+            assert float(np.linalg.norm(d * w, axis=1).sum()) == pytest.approx(got.cost, abs=1e-9)
+            if cut is not None:
+                assert not {tuple(e) for e in cut.tolist()} & {
+                    (k, int(got.index[k - 1]), int(got.index[k])) for k in range(1, len(layers))
+                }
+
+
 def _fits(q, lo, hi, angle, margin):
     """Whether some whole-turn shift of ``q`` (any when ``angle``) lies in ``[lo + margin, hi - margin]``."""
     if not angle:

@@ -246,3 +246,17 @@ def test_kernels_are_thread_safe() -> None:
 
     with ThreadPoolExecutor(4) as pool:
         assert all(pool.map(work, range(4)))
+
+
+@pytest.mark.parametrize("name", ["planar_3rpr", "doggy", "five_bar", "slider_crank", "stewart_gough"])
+def test_mode_check_of_several_rows_equals_the_model(name: str) -> None:
+    """The mapped mode check of ``K`` rows: each row's closure and passive Jacobian (in the
+    orientation ``(m, p)``) equal the closure function's, and its pose equals ``m.fk``."""
+    m = getattr(optik.catalog, name)()
+    cm = _compiled(m)
+    for k in (1, 3):
+        qs = np.array([m.random_q(seed=i) for i in range(k)])
+        c, jac, pose = cm.modes(qs)  # type: ignore[misc]
+        c_ref, jac_ref = cm.evaluate(qs)
+        assert np.array_equal(c, c_ref) and np.array_equal(jac, jac_ref)
+        assert all(np.array_equal(pose[i], m.fk(qs[i])) for i in range(k))

@@ -190,7 +190,7 @@ def test_wrap_to_limits_is_the_per_entry_rule_over_any_leading_shape(shape, data
 
 
 def test_wrap_to_limits_is_wrap_into_entry_by_entry():
-    """The vectorized rules 1 and 2 give exactly the numbers of the one-angle rule `wrap_into`:
+    """The array arithmetic (every rule) gives exactly the numbers of the one-angle rule `wrap_into`:
     entries in and out of (-pi, pi], on +-pi, NaN and inf, limits beyond pi, one-sided and wide."""
     rng = np.random.default_rng(1)
     q = rng.uniform(-30.0, 30.0, (4000, 5))

@@ -20,38 +20,46 @@ from obstacles). A pair already closer than the margin gets a row that pushes it
 
 *Broad phase.* Only pairs that may be within ``d_i`` get an exact query: those whose screening
 bound (`optik.collision.screen`: one compiled call for the part poses and a lower bound of every
-pair's distance, from the spheres and capsules that contain the parts) is below ``d_i``. The
+pair's distance, from the spheres and capsules that contain the parts) is below ``d_i`` (the
+bound is at most the distance, so a pair whose bound is not below ``d_i`` is not within it). The
 screen is built for the smallest power of two of slots that holds the world's parts (the world's
 own slot values, cut there), not the world's capacity: each slot costs a bound per sphere. Parts on
 the base body get no world rows (their distance does not depend on ``q``: a row
 ``0 <= gamma (d - d_s)`` could only make the QP infeasible; the exact check still judges them).
 
-*Jacobians.* A second compiled function (`optik.diffik._codegen.CompiledFunction`, generated C)
-gives the origin and geometric Jacobian of one link of each moving body in one call (the point
-Jacobian above holds for any reference point of the body); the rows of all pairs are then two
-``einsum`` products.
+*Rows.* The coal queries go through per-thread objects made once (a transform per part, updated
+in place, one request and one result), and each pair within ``d_i`` writes its witness points,
+the sign of ``d``, ``d`` and the bodies of its ends straight into the input buffers of a second
+compiled function (`DamperKernel`), which computes the Jacobians and every row in one call. With
+``J^0 = J_v + [o]_x J_w`` (the velocity of the point of the body at the base origin) the point
+Jacobian is ``J^0 - [p]_x J_w``, so ``n^T J_x(p) = [n; p x n]^T [J^0; J_w]``, and since
+``(p_a - p_b) x n = 0`` both ends share ``c = p_a x n``:
+
+    G_pair = [n; c]^T (sigma_b [J^0; J_w]_b - sigma_a [J^0; J_w]_a),   h_pair = gamma (d - d_s),
+
+with ``sigma`` the ``+-1`` selection of the two ends' bodies (none for an obstacle or the base).
 """
 
 from __future__ import annotations
 
 import threading
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import casadi as ca
 import numpy as np
 
 from optik.checks import as_float
-from optik.collision.distance import coal_distance, signed_request
+from optik.collision.distance import signed_request
 from optik.collision.robot import RobotGeometry, robot_geometry
 from optik.collision.screen import screen
 from optik.collision.shapes import coal_module
 from optik.collision.slots import SLOT_SIZE
 from optik.collision.world import state_of
-from optik.diffik._codegen import CompiledFunction
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
+from optik.native import NativeFunction, library
 
 __all__ = ["DAMPER_GAIN", "INFLUENCE", "DamperKernel", "damper_kernel", "damper_rows"]
 
@@ -61,22 +69,77 @@ INFLUENCE = 0.05
 DAMPER_GAIN = 0.5
 """Default ``gamma``: the fraction of the excess distance a step may use up."""
 
+SLOTS = 8
+"""Pairs of the smallest row function; more candidate pairs take the next power of two."""
 
-@dataclass(frozen=True, eq=False)
+PAIR_SIZE = 8
+"""Numbers per pair in the row function's input: ``p_a`` (3), ``p_b`` (3), the sign of ``d``, ``d``."""
+
+
+def row_function(m: Mechanism, links: list[str], slots: int) -> ca.Function:
+    """``(q, pairs, sigma, (gamma, d_s)) -> rows``: the damper rows of ``slots`` pairs.
+
+    ``pairs``: `PAIR_SIZE` numbers per pair (``p_a``, ``p_b``, ``s = +-1`` the sign of ``d``,
+    ``d``); ``sigma``: ``len(links)`` numbers per pair, ``-1`` at the body of ``a``, ``+1`` at
+    that of ``b`` (0 elsewhere; both 0 for the base body or an obstacle); ``rows``: ``n + 2``
+    numbers per pair, the row ``G`` (module docstring, ``n = s (p_a - p_b) / |p_a - p_b|``),
+    ``h`` and ``|p_a - p_b|``.
+    """
+    n_b = len(links)
+    q = m.q_sym
+    pairs, sigma = ca.SX.sym("pairs", PAIR_SIZE * slots), ca.SX.sym("sigma", n_b * slots)
+    params = ca.SX.sym("params", 2)
+    blocks = []  # [J^0; J_w] of each body
+    for link in links:
+        jac, origin = m.jacobian_expr(link), m.frame_expr(link)[:3, 3]
+        blocks.append(ca.vertcat(jac[:3, :] + ca.mtimes(ca.skew(origin), jac[3:, :]), jac[3:, :]))
+    rows = []
+    for k in range(slots):
+        u = pairs[PAIR_SIZE * k : PAIR_SIZE * (k + 1)]
+        p_a, delta = u[:3], u[:3] - u[3:6]
+        length = ca.norm_2(delta)
+        normal = delta * (u[6] / ca.fmax(length, 1e-300))  # touching pairs (length ~ 0) are dropped
+        w = ca.vertcat(normal, ca.cross(p_a, normal)).T
+        sel = sigma[n_b * k : n_b * (k + 1)]
+        row = sum((sel[b] * ca.mtimes(w, blocks[b]) for b in range(n_b)), ca.SX.zeros(1, m.n_q))
+        rows.append(ca.vertcat(row.T, params[0] * (u[7] - params[1]), length))
+    return ca.Function(f"collision_damper_rows_{slots}", [q, pairs, sigma, params], [ca.vertcat(*rows)])
+
+
+@dataclass(eq=False)
 class DamperKernel:
-    """The Jacobians the dampers of one robot geometry evaluate at every step, built once.
+    """What the dampers of one robot geometry evaluate at every step, built once.
 
     Attributes:
-        function: ``q -> (J, o)``: ``(6, (B + 1) n)`` the geometric Jacobians of one link of each
-            of the ``B`` moving bodies that carry parts, side by side, and ``(3, B + 1)`` those
-            links' origins; the last block is the base body's (zeros).
-        part_body: ``(P,)`` the body of each part (``B`` for the base body, whose Jacobian is 0).
+        mechanism: the mechanism.
+        links: one link of each of the ``B`` moving bodies that carry parts.
+        part_body: ``(P,)`` the body of each part (``B`` for the base body, which has no rows).
         blocked: ``(P, 1)`` ``inf`` for the parts on the base body (no world rows), else 0.
     """
 
-    function: CompiledFunction
+    mechanism: Mechanism
+    links: list[str]
     part_body: np.ndarray
     blocked: np.ndarray
+    _functions: dict[int, tuple[ca.Function, Any]] = field(default_factory=dict, repr=False)
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+    _local: threading.local = field(default_factory=threading.local, repr=False)
+
+    def rows(self, slots: int) -> NativeFunction:
+        """This thread's [`row_function`][optik.diffik.collision.row_function] of ``slots`` pairs
+        (built at its first use, its C code in the background, CasADi's evaluator meanwhile)."""
+        per = getattr(self._local, "rows", None)
+        if per is None:
+            per = self._local.rows = {}
+        fn = per.get(slots)
+        if fn is None:
+            with self._lock:
+                made = self._functions.get(slots)
+                if made is None:
+                    f = row_function(self.mechanism, self.links, slots)
+                    made = self._functions[slots] = (f, library([f], "auto"))
+            fn = per[slots] = NativeFunction(*made)
+        return fn
 
 
 def _kernel(geo: RobotGeometry) -> DamperKernel:
@@ -89,17 +152,11 @@ def _kernel(geo: RobotGeometry) -> DamperKernel:
             bodies.setdefault(body, link)
     index = {body: i for i, body in enumerate(bodies)}
     links = list(bodies.values())
-    f = ca.Function(  # the base body's Jacobian (0) and origin (0) last, so that any part indexes it
-        "collision_damper_jacobians",
-        [m.q_sym],
-        [
-            ca.horzcat(*(m.jacobian_expr(link) for link in links), ca.SX.zeros(6, m.n_q)),
-            ca.horzcat(*(m.frame_expr(link)[:3, 3] for link in links), ca.SX.zeros(3, 1)),
-        ],
-    )
     part_body = np.array([index.get(m.frames[geo.links[int(k)]][0], len(links)) for k in geo.part_link])
     blocked = np.where(part_body < len(links), 0.0, np.inf)[:, None]
-    return DamperKernel(CompiledFunction(f), part_body, blocked)
+    kernel = DamperKernel(m, links, part_body, blocked)
+    kernel.rows(SLOTS)  # the usual size's C code starts building now
+    return kernel
 
 
 _KERNELS: weakref.WeakKeyDictionary[RobotGeometry, DamperKernel] = weakref.WeakKeyDictionary()
@@ -115,6 +172,38 @@ def damper_kernel(geo: RobotGeometry) -> DamperKernel:
         hit = _kernel(geo)
         with _LOCK:
             hit = _KERNELS.setdefault(geo, hit)
+    return hit
+
+
+class _Queries:
+    """One thread's coal objects for one geometry: a transform per part (set in place from the
+    screen's poses), one signed-distance request and one result (cleared before each query)."""
+
+    def __init__(self, geo: RobotGeometry) -> None:
+        coal = coal_module()
+        self.transforms = [coal.Transform3s() for _ in geo.parts]
+        self.set_rotation = [t.setRotation for t in self.transforms]
+        self.set_translation = [t.setTranslation for t in self.transforms]
+        self.geometries = [p.geometry for p in geo.parts]
+        self.self_pairs = geo.self_pairs.tolist()
+        self.body = geo_body = damper_kernel(geo).part_body.tolist()
+        self.moving = [b < len(damper_kernel(geo).links) for b in geo_body]
+        self.request = signed_request()
+        result = coal.DistanceResult()
+        self.distance, self.clear = coal.distance, result.clear
+        self.result, self.point_a, self.point_b = result, result.getNearestPoint1, result.getNearestPoint2
+
+
+_QUERIES = threading.local()
+
+
+def _queries(geo: RobotGeometry) -> _Queries:
+    per = getattr(_QUERIES, "per", None)
+    if per is None:
+        per = _QUERIES.per = weakref.WeakKeyDictionary()
+    hit = per.get(geo)
+    if hit is None:
+        hit = per[geo] = _Queries(geo)
     return hit
 
 
@@ -148,68 +237,62 @@ def damper_rows(
     n_obj = len(state.parts)
     capacity = 1 << max(n_obj - 1, 0).bit_length()  # the slots in use: every empty one costs a step time
     poses, to_world, own = screen(geo, capacity).bounds(q, state.slots[: capacity * SLOT_SIZE], n_obj)
-    near_a, near_b = np.nonzero(to_world + kernel.blocked < d_i)
-    pairs = list(zip(near_a.tolist(), near_b.tolist(), strict=True))
-    n_world = len(pairs)
+    near = np.flatnonzero(to_world + kernel.blocked < d_i).tolist()  # part a * n_obj + object b
+    n_world = len(near)
     if self_collision:
-        pairs += geo.self_pairs[own < d_i].tolist()
-    if not pairs:
+        near += np.flatnonzero(own < d_i).tolist()  # rows of geo.self_pairs
+    if not near:
         return np.zeros((0, m.n_q)), np.zeros(0), np.inf
-    coal = coal_module()
-    request = signed_request()
-    tfs: dict[int, Any] = {}  # coal transforms of the robot's parts, made when first needed
-
-    def tf(k: int) -> Any:
-        got = tfs.get(k)
-        if got is None:  # the rows of `poses`: row-major rotation, then translation
-            got = tfs[k] = coal.Transform3s(poses[k, :9].reshape(3, 3), poses[k, 9:])
-        return got
-
-    parts = geo.parts
-    found = []  # (d, row of `pairs`, coal's result) of the pairs within the influence distance
+    slots = max(SLOTS, 1 << (len(near) - 1).bit_length())
+    fn = kernel.rows(slots)
+    fn.inputs[0][:] = q
+    pairs, sigma = fn.inputs[1], fn.inputs[2]
+    sigma[:] = 0.0
+    fn.inputs[3][:] = gamma, d_s
+    cq = _queries(geo)
+    tfs, geometries, body, moving = cq.transforms, cq.geometries, cq.body, cq.moving
+    distance, clear, request, result = cq.distance, cq.clear, cq.request, cq.result
+    world_geometries, world_tfs = [p.geometry for p in state.parts], state.transforms
+    placed = [False] * len(tfs)
+    n_b = len(kernel.links)
+    dists: list[float] = []  # of the pairs within the influence distance, in slot order
     d_min = np.inf
-    for r, (a, b) in enumerate(pairs):
+    for r, i in enumerate(near):
         if r < n_world:
-            d, res = coal_distance(
-                parts[a].geometry, tf(a), state.parts[b].geometry, state.transforms[b], request
-            )
+            a, b = divmod(i, n_obj)
+            geometry_b, tf_b = world_geometries[b], world_tfs[b]
         else:
-            d, res = coal_distance(parts[a].geometry, tf(a), parts[b].geometry, tf(b), request)
-        d_min = min(d_min, d)
+            a, b = cq.self_pairs[i]
+            if not placed[b]:
+                cq.set_rotation[b](poses[b, :9].reshape(3, 3))
+                cq.set_translation[b](poses[b, 9:])
+                placed[b] = True
+            geometry_b, tf_b = geometries[b], tfs[b]
+        if not placed[a]:  # the rows of `poses`: row-major rotation, then translation
+            cq.set_rotation[a](poses[a, :9].reshape(3, 3))
+            cq.set_translation[a](poses[a, 9:])
+            placed[a] = True
+        clear()
+        d = distance(geometries[a], tfs[a], geometry_b, tf_b, request, result)
+        if d < d_min:
+            d_min = d
         if d < d_i:
-            found.append((d, r, res))
-    found.sort(key=lambda f: f[0])
-    k = len(found)
-    d, witness = np.empty(k), np.empty((k, 2, 3))
-    ends = np.empty((k, 2), dtype=int)  # the bodies of each pair (the base body's for an obstacle)
-    body = kernel.part_body.tolist()
-    for i, (dist, r, res) in enumerate(found):
-        d[i] = dist
-        witness[i, 0], witness[i, 1] = res.getNearestPoint1(), res.getNearestPoint2()
-        a, b = pairs[r]
-        ends[i] = body[a], (body[b] if r >= n_world else -1)
-    delta = witness[:, 0] - witness[:, 1]
-    length = np.sqrt(np.einsum("pk,pk->p", delta, delta))
+            k = len(dists)
+            at = PAIR_SIZE * k
+            pairs[at : at + 3] = cq.point_a()
+            pairs[at + 3 : at + 6] = cq.point_b()
+            pairs[at + 6] = 1.0 if d >= 0 else -1.0
+            pairs[at + 7] = d
+            if moving[a]:
+                sigma[n_b * k + body[a]] -= 1.0
+            if r >= n_world and moving[b]:
+                sigma[n_b * k + body[b]] += 1.0
+            dists.append(d)
+    if not dists:
+        return np.zeros((0, m.n_q)), np.zeros(0), float(d_min)
+    order = sorted(range(len(dists)), key=dists.__getitem__)
+    out = fn()[0].reshape(slots, m.n_q + 2)[order]
     # touching at one point (|p_a - p_b| ~ 0) has no direction: no row (the check still decides success)
-    ok = length >= 1e-12
-    if not ok.all():
-        d, witness, ends, delta, length = d[ok], witness[ok], ends[ok], delta[ok], length[ok]
-    n = delta * (np.where(d >= 0, 1.0, -1.0) / length)[:, None]
-    jac, origins = kernel.function.call_flat(q)
-    jt = jac.T.reshape(-1, m.n_q, 6)  # jt[body, j]: column j of the body's Jacobian (a view; -1: zeros)
-    # both ends at once: n^T J_a(p_a) + (-n)^T J_b(p_b), J_b = 0 for an obstacle (body -1)
-    bodies, points = ends.reshape(-1), witness.reshape(-1, 3)
-    normals = (n[:, None, :] * _BOTH_ENDS).reshape(-1, 3)
-    r = points - origins.T[bodies]
-    w = np.concatenate([normals, np.einsum("ijk,pj,pk->pi", _LEVI_CIVITA, r, normals)], axis=1)
-    rows = np.matmul(jt[bodies], w[:, :, None]).reshape(-1, 2, m.n_q).sum(axis=1)
-    return -rows, gamma * (d - d_s), float(d_min)
-
-
-_BOTH_ENDS = np.array([[1.0], [-1.0]])
-"""The normal's sign at each end of a pair (towards ``a`` from ``b``)."""
-
-_LEVI_CIVITA = np.zeros((3, 3, 3))
-_LEVI_CIVITA[[0, 1, 2], [1, 2, 0], [2, 0, 1]] = 1.0
-_LEVI_CIVITA[[0, 1, 2], [2, 0, 1], [1, 2, 0]] = -1.0
-"""``(r x n)_i = eps_ijk r_j n_k``: the rows ``[n, r x n] . [J_v; J_w] = n^T (J_v - [r]_x J_w)``."""
+    if out[:, -1].min() < 1e-12:
+        out = out[out[:, -1] >= 1e-12]
+    return out[:, : m.n_q], out[:, m.n_q], float(d_min)

@@ -21,7 +21,7 @@ import casadi as ca
 import numpy as np
 
 from optik import spatial
-from optik.checks import as_float, as_name, as_rng, as_vector
+from optik.checks import as_float, as_name, as_rng, as_vector, check_seed
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import LRU, PerMechanism
@@ -615,8 +615,7 @@ def make_request(
         tk = m._task(default_task(m, target) if task is None else task)  # raises on an unknown task
         m._frame(frame)  # raises UnknownFrameError naming the frame
     q_start = m.mid_q() if q0 is None else m.check_q(q0, "q0")
-    if seed is not None and not isinstance(seed, np.random.Generator):
-        as_rng(seed)  # validates the seed now (the generator itself is made on first use)
+    check_seed(seed)  # now (the generator itself is made on first use)
     if time_limit is None:
         limit = 0.1
     elif type(time_limit) is float and math.isfinite(time_limit):

@@ -98,23 +98,24 @@ class _ModeCheck:
     def __init__(self, m: Mechanism, closure: ca.Function) -> None:
         q = m.q_sym
         c, jac = closure(q)
+        # transposed: CasADi writes column-major, so the buffers hold J and T row-major
         self.function = ca.Function(
-            "fk_mode", [q], [ca.densify(c), ca.densify(jac), ca.densify(m.frame_expr(m.ee))]
+            "fk_mode", [q], [ca.densify(c), ca.densify(jac.T), ca.densify(m.frame_expr(m.ee).T)]
         )
         self.n_q, self.shape = m.n_q, jac.shape
         self._buffers: dict[int, tuple[Any, ...]] = {}
         self.lock = threading.Lock()
 
     def _buffer(self, k: int) -> tuple[Any, ...]:
-        """``(call, q (k, n), c (k, m), jac (k, p, m), pose (k, 4, 4))`` of the map over ``k``
-        rows: column-major outputs, so each row's Jacobian and pose come transposed."""
+        """``(call, q (k, n), c (k, m), jac (k, m, p), pose (k, 4, 4))`` of the map over ``k``
+        rows (the outputs of one row after the other)."""
         if k not in self._buffers:
             f = self.function if k == 1 else self.function.map(k)
             rows, cols = self.shape
             arrays = (
                 np.zeros((k, self.n_q)),
                 np.zeros((k, rows)),
-                np.zeros((k, cols, rows)),
+                np.zeros((k, rows, cols)),
                 np.zeros((k, 4, 4)),
             )
             buffer, call = f.buffer()
@@ -130,7 +131,7 @@ class _ModeCheck:
             call, q, c, jac, pose = self._buffer(len(qs))
             q[:] = qs
             call()
-            return c.copy(), jac.transpose(0, 2, 1).copy(), pose.transpose(0, 2, 1).copy()
+            return c.copy(), jac.copy(), pose.copy()
 
 
 _CACHE: PerMechanism[_Compiled] = PerMechanism()

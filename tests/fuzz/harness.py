@@ -171,7 +171,9 @@ def classify(call: Call, wall_ceiling: float = WALL_CEILING) -> Outcome:
 
 def _cpu_seconds() -> float:
     """CPU seconds used by this process (all its threads) and by its children waited for (the
-    command-line entries run ``optik`` in a subprocess)."""
+    command-line entries run ``optik`` in a subprocess; a background compiler that ends during a
+    call counts too, which the bound by the wall-clock time in `_classify` keeps within what the
+    wall-clock rule charged)."""
     children = resource.getrusage(resource.RUSAGE_CHILDREN)
     return time.process_time() + children.ru_utime + children.ru_stime
 

@@ -335,10 +335,11 @@ def _real_poses(
     rs, ts, err = polish_stewart_many(b, p, rho, r0, t0 * size)  # every real candidate at once
     ok = np.flatnonzero(err <= tol * max(size, 1.0))
     rs, ts = rs[ok], ts[ok]
-    # pairwise: translation gap and rotation angle of R_i^T R_j (spatial.angle_between)
-    gap = np.linalg.norm(ts[:, None] - ts[None], axis=-1)
-    angle = spatial.rotation_angle(np.swapaxes(rs, -1, -2)[:, None] @ rs[None])
-    same = (gap <= 1e-7 * size) & (angle <= 1e-7)
+    # pairwise: translation gap, and the rotation angle of R_i^T R_j (spatial.angle_between) of the
+    # pairs whose translations are that close
+    same = np.linalg.norm(ts[:, None] - ts[None], axis=-1) <= 1e-7 * size
+    i, j = np.nonzero(same)
+    same[i, j] = spatial.rotation_angle(np.swapaxes(rs[i], -1, -2) @ rs[j]) <= 1e-7
     # first come: a posture the same as a kept one is left out
     return [(rs[i], ts[i]) for i in stewart_parameter.first_of_groups(same)]
 

@@ -214,10 +214,10 @@ def solve(
 ) -> ParameterSolve:
     """All solutions of the (scaled) instance ``(b, p, c)`` by the 40-path parameter homotopy.
 
-    End points are refined by Newton on the target (`optik.closed_form.homotopy.refine`) and
-    kept when they solve it (relative residual below 1e-8); the count check asks for
-    `GENERAL_SOLUTIONS` distinct nonsingular ones (condition number below
-    `SINGULAR_CONDITION`).
+    End points are refined by two Newton steps on the target (`optik.closed_form.homotopy.refine`;
+    the tracker ends them within 1e-8) and kept when they solve it (relative residual below
+    1e-8); the count check asks for `GENERAL_SOLUTIONS` distinct nonsingular ones (condition
+    number below `SINGULAR_CONDITION`).
     """
     start = load()
     mats = coefficients(b, p, c, start)
@@ -226,7 +226,7 @@ def solve(
         mats, start.solutions, rng, time_limit=time_limit, abandon=_degenerate, legs=legs
     )
     ended = np.flatnonzero((res.status == "regular") | (res.status == "endgame"))
-    z = homotopy.refine(mats[0], res.z[ended])
+    z = homotopy.refine(mats[0], res.z[ended], iters=2)  # the tracker ends them to 1e-8 already
     solves = relative_residual(mats[0], z) < 1e-8
     z, cond = z[solves], res.condition[ended][solves]
     order = np.argsort(cond)  # nonsingular representatives first

@@ -237,10 +237,10 @@ def damper_rows(
     n_obj = len(state.parts)
     capacity = 1 << max(n_obj - 1, 0).bit_length()  # the slots in use: every empty one costs a step time
     poses, to_world, own = screen(geo, capacity).bounds(q, state.slots[: capacity * SLOT_SIZE], n_obj)
-    near = np.flatnonzero(to_world + kernel.blocked < d_i).tolist()  # part a * n_obj + object b
+    near = (to_world + kernel.blocked < d_i).ravel().nonzero()[0].tolist()  # part a * n_obj + object b
     n_world = len(near)
     if self_collision:
-        near += np.flatnonzero(own < d_i).tolist()  # rows of geo.self_pairs
+        near += (own < d_i).nonzero()[0].tolist()  # rows of geo.self_pairs
     if not near:
         return np.zeros((0, m.n_q)), np.zeros(0), np.inf
     slots = max(SLOTS, 1 << (len(near) - 1).bit_length())
@@ -254,6 +254,7 @@ def damper_rows(
     distance, clear, request, result = cq.distance, cq.clear, cq.request, cq.result
     world_geometries, world_tfs = [p.geometry for p in state.parts], state.transforms
     placed = [False] * len(tfs)
+    rotations, translations = poses[:, :9].reshape(-1, 3, 3), poses[:, 9:]  # row-major rotation, then origin
     n_b = len(kernel.links)
     dists: list[float] = []  # of the pairs within the influence distance, in slot order
     d_min = np.inf
@@ -264,13 +265,13 @@ def damper_rows(
         else:
             a, b = cq.self_pairs[i]
             if not placed[b]:
-                cq.set_rotation[b](poses[b, :9].reshape(3, 3))
-                cq.set_translation[b](poses[b, 9:])
+                cq.set_rotation[b](rotations[b])
+                cq.set_translation[b](translations[b])
                 placed[b] = True
             geometry_b, tf_b = geometries[b], tfs[b]
-        if not placed[a]:  # the rows of `poses`: row-major rotation, then translation
-            cq.set_rotation[a](poses[a, :9].reshape(3, 3))
-            cq.set_translation[a](poses[a, 9:])
+        if not placed[a]:
+            cq.set_rotation[a](rotations[a])
+            cq.set_translation[a](translations[a])
             placed[a] = True
         clear()
         d = distance(geometries[a], tfs[a], geometry_b, tf_b, request, result)
@@ -290,9 +291,11 @@ def damper_rows(
             dists.append(d)
     if not dists:
         return np.zeros((0, m.n_q)), np.zeros(0), float(d_min)
-    order = sorted(range(len(dists)), key=dists.__getitem__)
-    out = fn()[0].reshape(slots, m.n_q + 2)[order]
+    k = len(dists)
+    order = sorted(range(k), key=dists.__getitem__)
+    out = fn()[0].reshape(slots, m.n_q + 2)
+    out = out[:k].copy() if order == list(range(k)) else out[order]  # off the thread's buffer
     # touching at one point (|p_a - p_b| ~ 0) has no direction: no row (the check still decides success)
-    if out[:, -1].min() < 1e-12:
+    if min(out[:, -1].tolist()) < 1e-12:
         out = out[out[:, -1] >= 1e-12]
     return out[:, : m.n_q], out[:, m.n_q], float(d_min)

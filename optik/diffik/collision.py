@@ -53,10 +53,10 @@ import numpy as np
 from optik.checks import as_float
 from optik.collision.distance import signed_request
 from optik.collision.robot import RobotGeometry, robot_geometry
-from optik.collision.screen import screen
+from optik.collision.screen import Screen, screen
 from optik.collision.shapes import coal_module
 from optik.collision.slots import SLOT_SIZE
-from optik.collision.world import state_of
+from optik.collision.world import WorldState, state_of
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 from optik.native import NativeFunction, library
@@ -176,34 +176,56 @@ def damper_kernel(geo: RobotGeometry) -> DamperKernel:
 
 
 class _Queries:
-    """One thread's coal objects for one geometry: a transform per part (set in place from the
-    screen's poses), one signed-distance request and one result (cleared before each query)."""
+    """One thread's objects for one geometry: its kernel and screens (looked up here without the
+    shared caches' locks), a transform per part (set in place from the
+    screen's poses), coal's distance functor of every self-collision pair (its solver made once;
+    the same numbers as ``coal.distance``), one signed-distance request and one result (cleared
+    before each query), and the last world state's geometries."""
 
     def __init__(self, geo: RobotGeometry) -> None:
         coal = coal_module()
+        self.geo, self.kernel = geo, damper_kernel(geo)
+        self._screens: dict[int, Screen] = {}
         self.transforms = [coal.Transform3s() for _ in geo.parts]
         self.set_rotation = [t.setRotation for t in self.transforms]
         self.set_translation = [t.setTranslation for t in self.transforms]
         self.geometries = [p.geometry for p in geo.parts]
         self.self_pairs = geo.self_pairs.tolist()
-        self.body = geo_body = damper_kernel(geo).part_body.tolist()
-        self.moving = [b < len(damper_kernel(geo).links) for b in geo_body]
+        g = self.geometries
+        self.self_distance = [coal.ComputeDistance(g[i], g[j]) for i, j in self.self_pairs]
+        self.body = geo_body = self.kernel.part_body.tolist()
+        self.moving = [b < len(self.kernel.links) for b in geo_body]
         self.request = signed_request()
         result = coal.DistanceResult()
         self.distance, self.clear = coal.distance, result.clear
         self.result, self.point_a, self.point_b = result, result.getNearestPoint1, result.getNearestPoint2
+        self.state: WorldState | None = None
+        self.world_geometries: list[Any] = []
+
+    def screen(self, capacity: int) -> Screen:
+        """`optik.collision.screen.screen` of the geometry for ``capacity`` slots."""
+        hit = self._screens.get(capacity)
+        if hit is None:
+            hit = self._screens[capacity] = screen(self.geo, capacity)
+        return hit
+
+    def world(self, state: WorldState) -> list[Any]:
+        """The coal geometries of ``state``'s parts (listed again only when the state changes)."""
+        if state is not self.state:
+            self.state, self.world_geometries = state, [p.geometry for p in state.parts]
+        return self.world_geometries
 
 
 _QUERIES = threading.local()
 
 
-def _queries(geo: RobotGeometry) -> _Queries:
+def _queries(m: Mechanism) -> _Queries:
     per = getattr(_QUERIES, "per", None)
     if per is None:
         per = _QUERIES.per = weakref.WeakKeyDictionary()
-    hit = per.get(geo)
+    hit = per.get(m)
     if hit is None:
-        hit = per[geo] = _Queries(geo)
+        hit = per[m] = _Queries(robot_geometry(m))
     return hit
 
 
@@ -232,11 +254,11 @@ def damper_rows(
     if not 0.0 < gamma <= 1.0:
         raise InvalidArgumentError("collision_gain", f"must be in (0, 1], got {gamma:g}")
     state = state_of(world)
-    geo = robot_geometry(m)
-    kernel = damper_kernel(geo)
+    cq = _queries(m)
+    kernel = cq.kernel
     n_obj = len(state.parts)
     capacity = 1 << max(n_obj - 1, 0).bit_length()  # the slots in use: every empty one costs a step time
-    poses, to_world, own = screen(geo, capacity).bounds(q, state.slots[: capacity * SLOT_SIZE], n_obj)
+    poses, to_world, own = cq.screen(capacity).bounds(q, state.slots[: capacity * SLOT_SIZE], n_obj)
     near = (to_world + kernel.blocked < d_i).ravel().nonzero()[0].tolist()  # part a * n_obj + object b
     n_world = len(near)
     if self_collision:
@@ -249,32 +271,29 @@ def damper_rows(
     pairs, sigma = fn.inputs[1], fn.inputs[2]
     sigma[:] = 0.0
     fn.inputs[3][:] = gamma, d_s
-    cq = _queries(geo)
     tfs, geometries, body, moving = cq.transforms, cq.geometries, cq.body, cq.moving
     distance, clear, request, result = cq.distance, cq.clear, cq.request, cq.result
-    world_geometries, world_tfs = [p.geometry for p in state.parts], state.transforms
+    world_geometries, world_tfs, self_distance = cq.world(state), state.transforms, cq.self_distance
     placed = [False] * len(tfs)
     rotations, translations = poses[:, :9].reshape(-1, 3, 3), poses[:, 9:]  # row-major rotation, then origin
     n_b = len(kernel.links)
     dists: list[float] = []  # of the pairs within the influence distance, in slot order
     d_min = np.inf
     for r, i in enumerate(near):
-        if r < n_world:
-            a, b = divmod(i, n_obj)
-            geometry_b, tf_b = world_geometries[b], world_tfs[b]
-        else:
-            a, b = cq.self_pairs[i]
-            if not placed[b]:
-                cq.set_rotation[b](rotations[b])
-                cq.set_translation[b](translations[b])
-                placed[b] = True
-            geometry_b, tf_b = geometries[b], tfs[b]
+        a, b = divmod(i, n_obj) if r < n_world else cq.self_pairs[i]
         if not placed[a]:
             cq.set_rotation[a](rotations[a])
             cq.set_translation[a](translations[a])
             placed[a] = True
         clear()
-        d = distance(geometries[a], tfs[a], geometry_b, tf_b, request, result)
+        if r < n_world:
+            d = distance(geometries[a], tfs[a], world_geometries[b], world_tfs[b], request, result)
+        else:
+            if not placed[b]:
+                cq.set_rotation[b](rotations[b])
+                cq.set_translation[b](translations[b])
+                placed[b] = True
+            d = self_distance[i](tfs[a], tfs[b], request, result)
         if d < d_min:
             d_min = d
         if d < d_i:

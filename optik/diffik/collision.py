@@ -53,10 +53,10 @@ import numpy as np
 from optik.checks import as_float
 from optik.collision.distance import signed_request
 from optik.collision.robot import RobotGeometry, robot_geometry
-from optik.collision.screen import screen
+from optik.collision.screen import Screen, screen
 from optik.collision.shapes import coal_module
 from optik.collision.slots import SLOT_SIZE
-from optik.collision.world import state_of
+from optik.collision.world import WorldState, state_of
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
 from optik.native import NativeFunction, library
@@ -123,23 +123,17 @@ class DamperKernel:
     blocked: np.ndarray
     _functions: dict[int, tuple[ca.Function, Any]] = field(default_factory=dict, repr=False)
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
-    _local: threading.local = field(default_factory=threading.local, repr=False)
 
     def rows(self, slots: int) -> NativeFunction:
-        """This thread's [`row_function`][optik.diffik.collision.row_function] of ``slots`` pairs
-        (built at its first use, its C code in the background, CasADi's evaluator meanwhile)."""
-        per = getattr(self._local, "rows", None)
-        if per is None:
-            per = self._local.rows = {}
-        fn = per.get(slots)
-        if fn is None:
-            with self._lock:
-                made = self._functions.get(slots)
-                if made is None:
-                    f = row_function(self.mechanism, self.links, slots)
-                    made = self._functions[slots] = (f, library([f], "auto"))
-            fn = per[slots] = NativeFunction(*made)
-        return fn
+        """A new evaluator (for one thread) of the [`row_function`][optik.diffik.collision.row_function]
+        of ``slots`` pairs (built at its first use, its C code in the background, CasADi's
+        evaluator meanwhile)."""
+        with self._lock:
+            made = self._functions.get(slots)
+            if made is None:
+                f = row_function(self.mechanism, self.links, slots)
+                made = self._functions[slots] = (f, library([f], "auto"))
+        return NativeFunction(*made)
 
 
 def _kernel(geo: RobotGeometry) -> DamperKernel:
@@ -155,7 +149,7 @@ def _kernel(geo: RobotGeometry) -> DamperKernel:
     part_body = np.array([index.get(m.frames[geo.links[int(k)]][0], len(links)) for k in geo.part_link])
     blocked = np.where(part_body < len(links), 0.0, np.inf)[:, None]
     kernel = DamperKernel(m, links, part_body, blocked)
-    kernel.rows(SLOTS)  # the usual size's C code starts building now
+    kernel.rows(SLOTS)  # the usual size's C code starts building now (this evaluator is dropped)
     return kernel
 
 
@@ -176,34 +170,68 @@ def damper_kernel(geo: RobotGeometry) -> DamperKernel:
 
 
 class _Queries:
-    """One thread's coal objects for one geometry: a transform per part (set in place from the
-    screen's poses), one signed-distance request and one result (cleared before each query)."""
+    """One thread's objects for one geometry: its kernel and screens (looked up here without the
+    shared caches' locks), a transform per part (set in place from the
+    screen's poses), coal's distance functor of every self-collision pair (its solver made once;
+    the same numbers as ``coal.distance``), one signed-distance request and one result (cleared
+    before each query), and the last world state's geometries."""
 
     def __init__(self, geo: RobotGeometry) -> None:
         coal = coal_module()
+        self.geo, self.kernel = geo, damper_kernel(geo)
+        self._screens: dict[int, Screen] = {}
+        self._rows: dict[int, tuple[NativeFunction, list[float]]] = {}  # with its (gamma, d_s) input
         self.transforms = [coal.Transform3s() for _ in geo.parts]
         self.set_rotation = [t.setRotation for t in self.transforms]
         self.set_translation = [t.setTranslation for t in self.transforms]
         self.geometries = [p.geometry for p in geo.parts]
         self.self_pairs = geo.self_pairs.tolist()
-        self.body = geo_body = damper_kernel(geo).part_body.tolist()
-        self.moving = [b < len(damper_kernel(geo).links) for b in geo_body]
+        g = self.geometries
+        self.self_distance = [coal.ComputeDistance(g[i], g[j]) for i, j in self.self_pairs]
+        self.body = geo_body = self.kernel.part_body.tolist()
+        self.moving = [b < len(self.kernel.links) for b in geo_body]
         self.request = signed_request()
         result = coal.DistanceResult()
         self.distance, self.clear = coal.distance, result.clear
         self.result, self.point_a, self.point_b = result, result.getNearestPoint1, result.getNearestPoint2
+        self.state: WorldState | None = None
+        self.world_geometries: list[Any] = []
+
+    def rows(self, slots: int, gamma: float, d_s: float) -> NativeFunction:
+        """This thread's row evaluator of ``slots`` pairs (`DamperKernel.rows`), its parameter
+        input set to ``(gamma, d_s)`` (written only when they change)."""
+        hit = self._rows.get(slots)
+        if hit is None:
+            hit = self._rows[slots] = (self.kernel.rows(slots), [np.nan, np.nan])
+        fn, params = hit
+        if params[0] != gamma or params[1] != d_s:
+            fn.inputs[3][:] = params[:] = gamma, d_s
+        return fn
+
+    def screen(self, capacity: int) -> Screen:
+        """`optik.collision.screen.screen` of the geometry for ``capacity`` slots."""
+        hit = self._screens.get(capacity)
+        if hit is None:
+            hit = self._screens[capacity] = screen(self.geo, capacity)
+        return hit
+
+    def world(self, state: WorldState) -> list[Any]:
+        """The coal geometries of ``state``'s parts (listed again only when the state changes)."""
+        if state is not self.state:
+            self.state, self.world_geometries = state, [p.geometry for p in state.parts]
+        return self.world_geometries
 
 
 _QUERIES = threading.local()
 
 
-def _queries(geo: RobotGeometry) -> _Queries:
+def _queries(m: Mechanism) -> _Queries:
     per = getattr(_QUERIES, "per", None)
     if per is None:
         per = _QUERIES.per = weakref.WeakKeyDictionary()
-    hit = per.get(geo)
+    hit = per.get(m)
     if hit is None:
-        hit = per[geo] = _Queries(geo)
+        hit = per[m] = _Queries(robot_geometry(m))
     return hit
 
 
@@ -232,48 +260,45 @@ def damper_rows(
     if not 0.0 < gamma <= 1.0:
         raise InvalidArgumentError("collision_gain", f"must be in (0, 1], got {gamma:g}")
     state = state_of(world)
-    geo = robot_geometry(m)
-    kernel = damper_kernel(geo)
+    cq = _queries(m)
+    kernel = cq.kernel
     n_obj = len(state.parts)
     capacity = 1 << max(n_obj - 1, 0).bit_length()  # the slots in use: every empty one costs a step time
-    poses, to_world, own = screen(geo, capacity).bounds(q, state.slots[: capacity * SLOT_SIZE], n_obj)
-    near = np.flatnonzero(to_world + kernel.blocked < d_i).tolist()  # part a * n_obj + object b
+    poses, to_world, own = cq.screen(capacity).bounds(q, state.slots[: capacity * SLOT_SIZE], n_obj)
+    near = (to_world + kernel.blocked < d_i).ravel().nonzero()[0].tolist()  # part a * n_obj + object b
     n_world = len(near)
     if self_collision:
-        near += np.flatnonzero(own < d_i).tolist()  # rows of geo.self_pairs
+        near += (own < d_i).nonzero()[0].tolist()  # rows of geo.self_pairs
     if not near:
         return np.zeros((0, m.n_q)), np.zeros(0), np.inf
     slots = max(SLOTS, 1 << (len(near) - 1).bit_length())
-    fn = kernel.rows(slots)
+    fn = cq.rows(slots, gamma, d_s)
     fn.inputs[0][:] = q
     pairs, sigma = fn.inputs[1], fn.inputs[2]
     sigma[:] = 0.0
-    fn.inputs[3][:] = gamma, d_s
-    cq = _queries(geo)
     tfs, geometries, body, moving = cq.transforms, cq.geometries, cq.body, cq.moving
     distance, clear, request, result = cq.distance, cq.clear, cq.request, cq.result
-    world_geometries, world_tfs = [p.geometry for p in state.parts], state.transforms
+    world_geometries, world_tfs, self_distance = cq.world(state), state.transforms, cq.self_distance
     placed = [False] * len(tfs)
+    rotations, translations = poses[:, :9].reshape(-1, 3, 3), poses[:, 9:]  # row-major rotation, then origin
     n_b = len(kernel.links)
     dists: list[float] = []  # of the pairs within the influence distance, in slot order
     d_min = np.inf
     for r, i in enumerate(near):
-        if r < n_world:
-            a, b = divmod(i, n_obj)
-            geometry_b, tf_b = world_geometries[b], world_tfs[b]
-        else:
-            a, b = cq.self_pairs[i]
-            if not placed[b]:
-                cq.set_rotation[b](poses[b, :9].reshape(3, 3))
-                cq.set_translation[b](poses[b, 9:])
-                placed[b] = True
-            geometry_b, tf_b = geometries[b], tfs[b]
-        if not placed[a]:  # the rows of `poses`: row-major rotation, then translation
-            cq.set_rotation[a](poses[a, :9].reshape(3, 3))
-            cq.set_translation[a](poses[a, 9:])
+        a, b = divmod(i, n_obj) if r < n_world else cq.self_pairs[i]
+        if not placed[a]:
+            cq.set_rotation[a](rotations[a])
+            cq.set_translation[a](translations[a])
             placed[a] = True
         clear()
-        d = distance(geometries[a], tfs[a], geometry_b, tf_b, request, result)
+        if r < n_world:
+            d = distance(geometries[a], tfs[a], world_geometries[b], world_tfs[b], request, result)
+        else:
+            if not placed[b]:
+                cq.set_rotation[b](rotations[b])
+                cq.set_translation[b](translations[b])
+                placed[b] = True
+            d = self_distance[i](tfs[a], tfs[b], request, result)
         if d < d_min:
             d_min = d
         if d < d_i:
@@ -290,9 +315,11 @@ def damper_rows(
             dists.append(d)
     if not dists:
         return np.zeros((0, m.n_q)), np.zeros(0), float(d_min)
-    order = sorted(range(len(dists)), key=dists.__getitem__)
-    out = fn()[0].reshape(slots, m.n_q + 2)[order]
+    k = len(dists)
+    order = sorted(range(k), key=dists.__getitem__)
+    out = fn()[0].reshape(slots, m.n_q + 2)
+    out = out[:k].copy() if order == list(range(k)) else out[order]  # off the thread's buffer
     # touching at one point (|p_a - p_b| ~ 0) has no direction: no row (the check still decides success)
-    if out[:, -1].min() < 1e-12:
+    if min(out[:, -1].tolist()) < 1e-12:
         out = out[out[:, -1] >= 1e-12]
     return out[:, : m.n_q], out[:, m.n_q], float(d_min)

@@ -75,6 +75,7 @@ def test_a_fresh_process_on_an_empty_cache_solves_at_5_ms(tmp_path) -> None:
 def _copy(tmp_path: Path, n: int) -> tuple[Path, str]:
     """A copy of the shipped kernel of ``n`` joints and its manifest in ``tmp_path``."""
     path = _shipped(n)
+    tmp_path.mkdir(parents=True, exist_ok=True)
     shutil.copy(path, tmp_path / path.name)
     shutil.copy(path.with_name(path.name + ".json"), tmp_path / (path.name + ".json"))
     return tmp_path / path.name, generic_chain.prebuilt_name(n)
@@ -82,24 +83,24 @@ def _copy(tmp_path: Path, n: int) -> tuple[Path, str]:
 
 @needs_cc
 def test_a_sound_copy_loads_and_a_damaged_unrecorded_or_stale_one_does_not(tmp_path, caplog) -> None:
-    path, name = _copy(tmp_path, 6)
     key = generic_chain.prebuilt_key(6)
-    lib = native.prebuilt_library(tmp_path, name, key)
+    sound, name = _copy(tmp_path / "sound", 6)  # each case its own file: a loaded one is never rewritten
+    lib = native.prebuilt_library(sound.parent, name, key)
     assert lib is not None and lib.shipped and lib.state == "ready" and lib.files() == []
     with caplog.at_level("INFO", logger="optik.native"):
-        assert native.prebuilt_library(tmp_path, name, "0" * len(key)) is None  # other sources
+        assert native.prebuilt_library(sound.parent, name, "0" * len(key)) is None  # other sources
     assert "made from other sources" in caplog.text
     caplog.clear()
-    data = path.read_bytes()
-    path.write_bytes(data[: len(data) // 2])  # truncated: loading it could end the process
+    truncated, _ = _copy(tmp_path / "truncated", 6)
+    truncated.write_bytes(truncated.read_bytes()[:100_000])  # loading it could end the process
     with caplog.at_level("WARNING", logger="optik.native"):
-        assert native.prebuilt_library(tmp_path, name, key) is None
+        assert native.prebuilt_library(truncated.parent, name, key) is None
     assert "damaged" in caplog.text and "size" in caplog.text
     caplog.clear()
-    path.write_bytes(data)
-    path.with_name(path.name + ".json").unlink()
+    unrecorded, _ = _copy(tmp_path / "unrecorded", 6)
+    unrecorded.with_name(unrecorded.name + ".json").unlink()
     with caplog.at_level("WARNING", logger="optik.native"):
-        assert native.prebuilt_library(tmp_path, name, key) is None
+        assert native.prebuilt_library(unrecorded.parent, name, key) is None
     assert "no readable manifest" in caplog.text
     assert native.prebuilt_library(tmp_path / "none", name, key) is None  # not built: no warning
 

@@ -69,8 +69,9 @@ INFLUENCE = 0.05
 DAMPER_GAIN = 0.5
 """Default ``gamma``: the fraction of the excess distance a step may use up."""
 
-SLOTS = 8
-"""Pairs of the smallest row function; more candidate pairs take the next power of two."""
+SLOTS = (1, 2, 4, 8)
+"""Pair counts of the row functions compiled together when a kernel is made; a step takes the
+smallest power of two that holds its candidate pairs (larger ones are built when first needed)."""
 
 PAIR_SIZE = 8
 """Numbers per pair in the row function's input: ``p_a`` (3), ``p_b`` (3), the sign of ``d``, ``d``."""
@@ -123,23 +124,17 @@ class DamperKernel:
     blocked: np.ndarray
     _functions: dict[int, tuple[ca.Function, Any]] = field(default_factory=dict, repr=False)
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
-    _local: threading.local = field(default_factory=threading.local, repr=False)
 
     def rows(self, slots: int) -> NativeFunction:
-        """This thread's [`row_function`][optik.diffik.collision.row_function] of ``slots`` pairs
-        (built at its first use, its C code in the background, CasADi's evaluator meanwhile)."""
-        per = getattr(self._local, "rows", None)
-        if per is None:
-            per = self._local.rows = {}
-        fn = per.get(slots)
-        if fn is None:
-            with self._lock:
-                made = self._functions.get(slots)
-                if made is None:
-                    f = row_function(self.mechanism, self.links, slots)
-                    made = self._functions[slots] = (f, library([f], "auto"))
-            fn = per[slots] = NativeFunction(*made)
-        return fn
+        """A new evaluator (for one thread) of the [`row_function`][optik.diffik.collision.row_function]
+        of ``slots`` pairs (built at its first use, its C code in the background, CasADi's
+        evaluator meanwhile)."""
+        with self._lock:
+            made = self._functions.get(slots)
+            if made is None:
+                f = row_function(self.mechanism, self.links, slots)
+                made = self._functions[slots] = (f, library([f], "auto"))
+        return NativeFunction(*made)
 
 
 def _kernel(geo: RobotGeometry) -> DamperKernel:
@@ -155,7 +150,9 @@ def _kernel(geo: RobotGeometry) -> DamperKernel:
     part_body = np.array([index.get(m.frames[geo.links[int(k)]][0], len(links)) for k in geo.part_link])
     blocked = np.where(part_body < len(links), 0.0, np.inf)[:, None]
     kernel = DamperKernel(m, links, part_body, blocked)
-    kernel.rows(SLOTS)  # the usual size's C code starts building now
+    functions = [row_function(m, links, slots) for slots in SLOTS]
+    lib = library(functions, "auto")  # one library, its C code building from now on
+    kernel._functions.update({slots: (f, lib) for slots, f in zip(SLOTS, functions, strict=True)})
     return kernel
 
 
@@ -186,6 +183,7 @@ class _Queries:
         coal = coal_module()
         self.geo, self.kernel = geo, damper_kernel(geo)
         self._screens: dict[int, Screen] = {}
+        self._rows: dict[int, tuple[NativeFunction, list[float]]] = {}  # with its (gamma, d_s) input
         self.transforms = [coal.Transform3s() for _ in geo.parts]
         self.set_rotation = [t.setRotation for t in self.transforms]
         self.set_translation = [t.setTranslation for t in self.transforms]
@@ -201,6 +199,17 @@ class _Queries:
         self.result, self.point_a, self.point_b = result, result.getNearestPoint1, result.getNearestPoint2
         self.state: WorldState | None = None
         self.world_geometries: list[Any] = []
+
+    def rows(self, slots: int, gamma: float, d_s: float) -> NativeFunction:
+        """This thread's row evaluator of ``slots`` pairs (`DamperKernel.rows`), its parameter
+        input set to ``(gamma, d_s)`` (written only when they change)."""
+        hit = self._rows.get(slots)
+        if hit is None:
+            hit = self._rows[slots] = (self.kernel.rows(slots), [np.nan, np.nan])
+        fn, params = hit
+        if params[0] != gamma or params[1] != d_s:
+            fn.inputs[3][:] = params[:] = gamma, d_s
+        return fn
 
     def screen(self, capacity: int) -> Screen:
         """`optik.collision.screen.screen` of the geometry for ``capacity`` slots."""
@@ -265,12 +274,11 @@ def damper_rows(
         near += (own < d_i).nonzero()[0].tolist()  # rows of geo.self_pairs
     if not near:
         return np.zeros((0, m.n_q)), np.zeros(0), np.inf
-    slots = max(SLOTS, 1 << (len(near) - 1).bit_length())
-    fn = kernel.rows(slots)
+    slots = 1 << (len(near) - 1).bit_length()
+    fn = cq.rows(slots, gamma, d_s)
     fn.inputs[0][:] = q
     pairs, sigma = fn.inputs[1], fn.inputs[2]
     sigma[:] = 0.0
-    fn.inputs[3][:] = gamma, d_s
     tfs, geometries, body, moving = cq.transforms, cq.geometries, cq.body, cq.moving
     distance, clear, request, result = cq.distance, cq.clear, cq.request, cq.result
     world_geometries, world_tfs, self_distance = cq.world(state), state.transforms, cq.self_distance

@@ -33,7 +33,9 @@ def default_solver() -> str:
     return "daqp" if importlib.util.find_spec("daqp") is not None else "osqp"
 
 
-_SENSE: dict[int, np.ndarray] = {}
+_SENSE: dict[tuple[int, int, int], np.ndarray] = {}
+"""DAQP's constraint types (0 bound or inequality, 5 equality) per ``(n, equalities, inequalities)``
+(DAQP only reads them)."""
 
 
 _FREE = 1e30
@@ -57,6 +59,11 @@ def solve_daqp(problem: DiffIKProblem, **settings: Any) -> QPOutcome:
     """DAQP on the dense problem (``settings`` are DAQP settings, e.g. ``primal_tol``)."""
     daqp = require_backend("daqp", "daqp")
     n, m_eq, k = problem.n, problem.A.shape[0], problem.G.shape[0]
+    sense = _SENSE.get((n, m_eq, k))
+    if sense is None:
+        sense = np.zeros(n + m_eq + k, dtype=np.int32)
+        sense[n : n + m_eq] = 5
+        sense = _SENSE.setdefault((n, m_eq, k), sense)
     if k or m_eq:  # equalities, then inequalities (no lower bound): each array made in one call
         rows = problem.A if not k else problem.G if not m_eq else np.vstack([problem.A, problem.G])
         free = _FREE_ROWS.get(k)
@@ -64,11 +71,9 @@ def solve_daqp(problem: DiffIKProblem, **settings: Any) -> QPOutcome:
             free = _FREE_ROWS.setdefault(k, np.full(k, -_FREE))
         upper = np.concatenate([problem.ub, problem.b, problem.h])
         lower = np.concatenate([problem.lb, problem.b, free])
-        sense = np.zeros(n + m_eq + k, dtype=np.int32)
-        sense[n : n + m_eq] = 5
     else:
         rows = problem.A
-        upper, lower, sense = problem.ub, problem.lb, _SENSE.setdefault(n, np.zeros(n, dtype=np.int32))
+        upper, lower = problem.ub, problem.lb
     try:
         x, _, flag, _ = daqp.solve(problem.H, problem.c, rows, upper, lower, sense, **settings)
     except TypeError as exc:

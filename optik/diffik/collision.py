@@ -69,8 +69,9 @@ INFLUENCE = 0.05
 DAMPER_GAIN = 0.5
 """Default ``gamma``: the fraction of the excess distance a step may use up."""
 
-SLOTS = 8
-"""Pairs of the smallest row function; more candidate pairs take the next power of two."""
+SLOTS = (1, 2, 4, 8)
+"""Pair counts of the row functions compiled together when a kernel is made; a step takes the
+smallest power of two that holds its candidate pairs (larger ones are built when first needed)."""
 
 PAIR_SIZE = 8
 """Numbers per pair in the row function's input: ``p_a`` (3), ``p_b`` (3), the sign of ``d``, ``d``."""
@@ -149,7 +150,9 @@ def _kernel(geo: RobotGeometry) -> DamperKernel:
     part_body = np.array([index.get(m.frames[geo.links[int(k)]][0], len(links)) for k in geo.part_link])
     blocked = np.where(part_body < len(links), 0.0, np.inf)[:, None]
     kernel = DamperKernel(m, links, part_body, blocked)
-    kernel.rows(SLOTS)  # the usual size's C code starts building now (this evaluator is dropped)
+    functions = [row_function(m, links, slots) for slots in SLOTS]
+    lib = library(functions, "auto")  # one library, its C code building from now on
+    kernel._functions.update({slots: (f, lib) for slots, f in zip(SLOTS, functions, strict=True)})
     return kernel
 
 
@@ -271,7 +274,7 @@ def damper_rows(
         near += (own < d_i).nonzero()[0].tolist()  # rows of geo.self_pairs
     if not near:
         return np.zeros((0, m.n_q)), np.zeros(0), np.inf
-    slots = max(SLOTS, 1 << (len(near) - 1).bit_length())
+    slots = 1 << (len(near) - 1).bit_length()
     fn = cq.rows(slots, gamma, d_s)
     fn.inputs[0][:] = q
     pairs, sigma = fn.inputs[1], fn.inputs[2]

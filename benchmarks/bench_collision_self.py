@@ -16,8 +16,10 @@ the poses of the robot's frames there, so every target is reachable collision-fr
   ``base_link`` to ``gripper_left_base_link`` (9 joints: torso and left arm), the rest of the
   body held at zero and checked too: optik and TRAC-IK solve the same chain.
 
-TRAC-IK (pytracik, solve type Speed) + coal rejection: solve from the mid-limit seed, check the
-whole answer with `optik.collision.check` at the margin, and while it collides solve again from
+TRAC-IK (pytracik, solve type Speed) + coal rejection: solve from the mid-limit seed, wrap and
+clip the whole answer into the limits (`optik.harness.peers.rules.settle`, what optik's answers
+get: TRAC-IK's float32 limits overshoot by ~5e-9), check it with `optik.collision.check` at the
+margin, and while it collides solve again from
 a uniformly random seed until the time limit (what MoveIt does), each retry with the longest
 timeout of `optik.benchmarks.bench_collision.timeout_ladder` that fits in the time left, every
 solver constructed once before the timed calls.
@@ -48,6 +50,7 @@ import optik
 from optik import spatial
 from optik.benchmarks import benchmark_parser
 from optik.benchmarks.bench_collision import timeout_ladder
+from optik.harness.peers.rules import settle
 from optik.harness.tally import success_table
 
 Targets = dict[str, np.ndarray]
@@ -190,6 +193,7 @@ def tracik_solver(w: Workload, margin: float, tol: float, time_limit: float) -> 
                 left = time_limit - (time.perf_counter() - start)
                 if not found or left <= 0:
                     break
+            q = settle(m, q)  # the wrap and clip optik's answers get (float32 limits overshoot)
             if found and not optik.collision.check(m, q, margin=margin).in_collision:
                 return q
             q0 = m.random_q(seed=rng)
@@ -237,6 +241,7 @@ def run_robot(name: str, args) -> None:
             t0 = time.perf_counter()
             q = solve(target, args.time_limit, i)
             elapsed = time.perf_counter() - t0
+            q = None if q is None else settle(w.m, q)  # the same for every solver
             times, ok = results[s]
             times.append(elapsed)
             results[s] = (times, ok + judge.ok(q, target, w.m, args.tol, args.margin))

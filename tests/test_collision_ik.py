@@ -225,6 +225,27 @@ def test_dual_panda_both_hands_clear_of_each_other(method):
     assert solved >= 2
 
 
+def test_dual_panda_nlp_stops_each_ipopt_start_at_the_time_limit(cpu_clock):
+    """One IPOPT start of the dual Panda's constrained NLP (15 joints, the self rows) takes
+    seconds: the iteration callback stops it at the call's deadline (setup excluded: a warm-up
+    call builds the solver), timed as process CPU time (a busy machine's waits are no overrun),
+    and the answer stopped there is an honest failure re-checked from its q."""
+    m = optik.catalog.dual_panda()
+    if not len(optik.collision.robot_geometry(m).links) > 4:
+        pytest.skip("the Panda meshes of example-robot-data are not installed (extra 'robots')")
+    q = m.random_q(seed=np.random.default_rng(3))
+    targets = {f: m.fk(q, f) for f in ("left_tool", "right_tool")}
+    kw = {"self_collision": True, "margin": MARGIN, "method": "nlp", "time_limit": 0.05}
+    optik.solve_ik(m, targets, **kw)  # builds the solver (setup, excluded from the limit)
+    with cpu_clock() as cpu:
+        res = optik.solve_ik(m, targets, **kw)
+    assert cpu.seconds < 0.05 + 1.0  # a whole start from the mid-limit seed takes ~1-3 s
+    assert not res.success and res.status == "time_limit" and "time limit" in res.message
+    assert res.q.shape == (m.n_q,) and np.all(res.q >= m.lower) and np.all(res.q <= m.upper)
+    errors = [np.linalg.norm(m.fk(res.q, f)[:3, 3] - t[:3, 3]) for f, t in targets.items()]
+    assert max(errors) > 1e-6  # the call did fail: the pose is not met at the returned q
+
+
 def _clear_targets(arm, w, count, seed):
     rng = np.random.default_rng(seed)
     out = []

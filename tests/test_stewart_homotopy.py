@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import optik
-from optik.closed_form import parameter_homotopy
+from optik.closed_form import homotopy, parameter_homotopy
 from optik.closed_form.parallel import stewart_gough, stewart_parameter, stewart_poses, study
 
 pytestmark = pytest.mark.skipif(not parameter_homotopy.available(), reason="needs a C compiler")
@@ -173,6 +173,7 @@ def test_cauchy_endgame_finds_a_double_root_with_winding_number_two():
     assert list(res.status) == ["endgame", "endgame"]
     assert list(res.winding) == [2, 2]
     assert np.all(np.abs(res.z[:, 1] / res.z[:, 0]) < 1e-10)
+    assert np.all(res.condition > parameter_homotopy.SINGULAR_CONDITION)  # a double root is singular
 
 
 def test_without_a_compiler_the_total_method_answers(monkeypatch):
@@ -192,7 +193,7 @@ def test_unknown_method_is_rejected():
 
 def test_tracker_rejects_malformed_systems():
     c = np.zeros((1, 2, 2))
-    with pytest.raises(optik.OptikError, match="coefficients"):
+    with pytest.raises(optik.OptikError, match="system"):
         parameter_homotopy.track((c, c, np.zeros((1, 3, 3))), np.ones((2, 2)), np.random.default_rng(0))
     with pytest.raises(optik.OptikError, match="starts"):
         parameter_homotopy.track((c, c, c), np.ones((2, 3)), np.random.default_rng(0))
@@ -205,26 +206,58 @@ def _leg_line(rng):
     b, p, rho = b / size, p / size, rho / size
     c = study.leg_constants(b, p, rho)
     start = stewart_parameter.load()
-    mats = stewart_parameter.coefficients(b, p, c, start)
-    legs = parameter_homotopy.LegLine(b, start.base - b, p, start.platform - p, c, start.constants - c)
+    db, dp, dc = start.base - b, start.platform - p, start.constants - c
+    # M(s) = C0 + s C1 + s^2 C2 from M(0), M(1), M(-1) (M is quadratic in s)
+    m0, m_plus, m_minus = (study.study_matrices(b + s * db, p + s * dp, c + s * dc) for s in (0.0, 1.0, -1.0))
+    mats = (m0.astype(complex), (m_plus - m_minus) / 2, (m_plus + m_minus) / 2 - m0)
+    legs = parameter_homotopy.LegLine(b, db, p, dp, c, dc)
     return mats, legs, start
 
 
 def test_leg_line_evaluation_tracks_the_same_paths_as_the_matrices():
     mats, legs, start = _leg_line(np.random.default_rng(21))
     by_matrix = parameter_homotopy.track(mats, start.solutions, np.random.default_rng(4))
-    by_legs = parameter_homotopy.track(mats, start.solutions, np.random.default_rng(4), legs=legs)
+    by_legs = parameter_homotopy.track(legs, start.solutions, np.random.default_rng(4))
     assert list(by_legs.status) == list(by_matrix.status)
     assert np.allclose(by_legs.z, by_matrix.z, rtol=0, atol=1e-9)
     # and every end point solves the target (s = 0) quadrics
     assert np.max(stewart_parameter.relative_residual(mats[0], by_legs.z)) <= 1e-8
 
 
+@pytest.mark.parametrize("seed", [23, 24])
+@pytest.mark.parametrize("by_legs", [False, True])
+def test_tracker_condition_numbers_residuals_and_refinement_equal_numpy(seed: int, by_legs: bool):
+    mats, legs, start = _leg_line(np.random.default_rng(seed))
+    system = legs if by_legs else mats
+    plain = parameter_homotopy.track(system, start.solutions, np.random.default_rng(seed))
+    refined = parameter_homotopy.track(system, start.solutions, np.random.default_rng(seed), refine=2)
+    ended = (plain.status == "regular") | (plain.status == "endgame")
+    assert list(refined.status) == list(plain.status) and ended.sum() >= 30
+    for res in (plain, refined):
+        z = res.z[ended]
+        want = parameter_homotopy.condition_numbers(mats[0], z)
+        assert np.allclose(res.condition[ended], want, rtol=1e-9, atol=0)
+        want = stewart_parameter.relative_residual(mats[0], z)
+        assert np.allclose(res.residual[ended], want, rtol=1e-6, atol=1e-15)  # rounding: 1e-16
+        assert np.all(np.isinf(res.condition[~ended])) and np.all(np.isinf(res.residual[~ended]))
+    # the tracker's refinement is homotopy.refine's Newton steps, here from points moved off the
+    # solutions (the end points are exact to rounding already)
+    noise = np.random.default_rng(seed).normal(size=(2, *plain.z[ended].shape))
+    moved = plain.z[ended] + 1e-4 * (noise[0] + 1j * noise[1])
+    tracker = parameter_homotopy._Tracker(system, 1.0, np.ones(8, dtype=complex))
+    for iters in (1, 2):
+        got, cond, resid = tracker.finish(moved, iters)
+        want = homotopy.refine(mats[0], moved, iters=iters)
+        assert np.max(np.linalg.norm(got - want, axis=1) / np.linalg.norm(want, axis=1)) <= 1e-12
+        assert np.allclose(resid, stewart_parameter.relative_residual(mats[0], want), rtol=1e-6, atol=1e-15)
+        assert np.allclose(cond, parameter_homotopy.condition_numbers(mats[0], want), rtol=1e-9, atol=0)
+    assert np.max(resid) <= 1e-9 < 1e-6 < np.min(stewart_parameter.relative_residual(mats[0], moved))
+
+
 def test_leg_line_of_the_wrong_shape_is_rejected():
-    mats, legs, start = _leg_line(np.random.default_rng(22))
+    _, legs, start = _leg_line(np.random.default_rng(22))
     short = parameter_homotopy.LegLine(legs.base[:5], *list(vars(legs).values())[1:])
-    with pytest.raises(optik.OptikError, match="legs"):
-        parameter_homotopy.track(mats, start.solutions, np.random.default_rng(0), legs=short)
-    small = tuple(c[:2, :3, :3] for c in mats)
-    with pytest.raises(optik.OptikError, match="legs"):
-        parameter_homotopy.track(small, np.ones((1, 3)), np.random.default_rng(0), legs=legs)
+    with pytest.raises(optik.OptikError, match="system"):
+        parameter_homotopy.track(short, start.solutions, np.random.default_rng(0))
+    with pytest.raises(optik.OptikError, match="starts"):
+        parameter_homotopy.track(legs, np.ones((1, 3)), np.random.default_rng(0))

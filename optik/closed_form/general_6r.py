@@ -166,13 +166,18 @@ is below this at both test points."""
 _HALF = np.array([[1.0, 1.0, 1.0], [-2j, 0.0, 2j], [-1.0, 1.0, -1.0]])
 _GRID = 2.0 * np.pi * np.arange(5) / 5.0
 _TWO_PI = 2.0 * np.pi
+_SOURCE = Path(__file__).with_name("general_6r.c")
 _POLISH = native.CFunction(
-    Path(__file__).with_name("general_6r_polish.c"),
-    "optik_general_6r_polish",
+    _SOURCE,
+    "optik_general_6r",
     "optik_g6r_polish",
     [ctypes.c_void_p, ctypes.c_int, ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p],
 )
 """`_polish` in C."""
+_BACK = native.CFunction(
+    _SOURCE, "optik_general_6r", "optik_g6r_back", [ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 5]
+)
+"""The back-substitution of `_solve` in C."""
 
 
 # ---------------------------------------------------------------------------- DH kinematics
@@ -300,11 +305,11 @@ class General6R:
             raise InvalidArgumentError(argument, f"{complaint} ({err:.1e})")
         return arm
 
-    @property
+    @cached_property
     def scale(self) -> float:
-        """The characteristic length of the arm."""
-        lengths = [*np.abs(self.a), *np.abs(self.d), *np.abs(self.base[:3, 3]), *np.abs(self.tool[:3, 3])]
-        return max(max(lengths), 1e-12)
+        """The characteristic length of the arm (computed once: a solve reads it several times)."""
+        lengths = np.concatenate([self.a, self.d, self.base[:3, 3], self.tool[:3, 3]])
+        return max(float(np.max(np.abs(lengths))), 1e-12)
 
     def fk(self, q: Any) -> np.ndarray:
         """``T(q)``: 4x4, or ``(N, 4, 4)`` for ``q`` of shape ``(N, 6)``."""
@@ -445,6 +450,8 @@ class _Left:
         # the last columns of A6^-1 (independent of theta_6)
         self.inv6 = _inv(_dh(np.array(0.0), d[5], a[5], arm.alpha[5]))
         self.l6, self.p6 = self.inv6[:, 2], self.inv6[:, 3]
+        self.packed = np.concatenate([d, a, arm.alpha, ROTATIONS, self.inv6.reshape(-1)]).astype(float)
+        """``d, a, alpha, ROTATIONS, A6^-1`` in one array: the arm as the C code takes it."""
         g1, g2 = np.meshgrid(_GRID, _GRID, indexing="ij")
         self.grid12 = _inv(_dh(g2, d[1], a[1], arm.alpha[1])) @ _inv(_dh(g1, d[0], a[0], arm.alpha[0]))
         """``A2^-1 A1^-1`` on the ``5 x 5`` grid of ``(theta_1, theta_2)``."""
@@ -605,7 +612,7 @@ def _polish(
     longer halves below ``1e-9`` times its `_magnitude` (rounding). Returns the polished angles
     and ``max |r|`` of each at them.
 
-    In C (``general_6r_polish.c``, built once per machine in the background,
+    In C (``general_6r.c``, built once per machine in the background,
     `optik.native.CFunction`) when it is loaded; numpy otherwise, and for a batch with an exactly
     singular Jacobian (numpy then takes least-squares steps)."""
     fn = _POLISH.get()
@@ -746,7 +753,17 @@ def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[Ge
     pinv = np.swapaxes(vt[:, :8], 1, 2) @ (u[:, :, :8] / sv[:, None, :8]).transpose(0, 2, 1)
 
     def back_substitute(phi: np.ndarray, rows: np.ndarray) -> np.ndarray:
-        """``theta (K, 6)`` (complex) of ``(phi_3, phi_4, phi_5)`` of targets ``rows``."""
+        """``theta (K, 6)`` (complex) of ``(phi_3, phi_4, phi_5)`` of targets ``rows`` (in C,
+        `optik_g6r_back`, when its library is loaded)."""
+        fn = _BACK.get()
+        if fn is not None and len(rows):
+            theta = np.empty((len(rows), 6), dtype=complex)
+            given = [
+                np.ascontiguousarray(phi, dtype=complex),
+                *(np.ascontiguousarray(v[rows]) for v in (pinv, r0, tp)),
+            ]
+            fn(left.packed.ctypes.data, len(rows), *(v.ctypes.data for v in given), theta.ctypes.data)
+            return theta
         lhs = left.values(phi[:, 0], phi[:, 1], phi[:, 2])
         x_r = np.einsum("kij,kj->ki", pinv[rows], lhs - r0[rows])
         theta = np.zeros((len(rows), 6), dtype=complex)

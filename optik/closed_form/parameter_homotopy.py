@@ -77,6 +77,9 @@ they go to the endgame even when the corrector converged at ``t = 0``."""
 JUMP_GUARD = 1e-2
 """Largest accepted corrector displacement relative to ``1 + |z|`` (guards against path jumping)."""
 
+ENDGAME_FIRST_STEP = 0.05
+"""First step (in the segment's ``tau``) of each of the `ENDGAME_SAMPLES` arcs of an endgame loop."""
+
 ENDGAME_TOL = 1e-8
 """Corrector tolerance of the points at ``t = ENDGAME_RADIUS`` and ``t = 0`` and of the endgame
 loops (which close when they return to the first within ``1e-8 (1 + |z|)``)."""
@@ -225,22 +228,32 @@ static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx 
     ht[k] = 0.0;
 }
 
+/* Partial pivoting at column col of the n x n row-major a: the row r >= col of the largest
+   |Re| + |Im| in that column is swapped with row col (whole rows); returns r, or -1 when the
+   column is zero from col down. */
+static inline __attribute__((always_inline)) int pivot(int n, cplx *a, int col) {
+    int piv = col;
+    double best = fabs(creal(a[col * n + col])) + fabs(cimag(a[col * n + col]));
+    for (int r = col + 1; r < n; r++) {
+        double m = fabs(creal(a[r * n + col])) + fabs(cimag(a[r * n + col]));
+        if (m > best) { best = m; piv = r; }
+    }
+    if (!(best > 0.0)) return -1;
+    if (piv != col)
+        for (int j = 0; j < n; j++) {
+            cplx x = a[col * n + j];
+            a[col * n + j] = a[piv * n + j];
+            a[piv * n + j] = x;
+        }
+    return piv;
+}
+
 /* a x = b and a y = c in place (b, c become x, y; c may be NULL), partial pivoting; 0 on success */
 static inline __attribute__((always_inline)) int solve_n(int n, cplx *a, cplx *b, cplx *c) {
     for (int col = 0; col < n; col++) {
-        int piv = col;
-        double best = fabs(creal(a[col * n + col])) + fabs(cimag(a[col * n + col]));
-        for (int r = col + 1; r < n; r++) {
-            double m = fabs(creal(a[r * n + col])) + fabs(cimag(a[r * n + col]));
-            if (m > best) { best = m; piv = r; }
-        }
-        if (!(best > 0.0)) return 1;
+        const int piv = pivot(n, a, col);
+        if (piv < 0) return 1;
         if (piv != col) {
-            for (int j = 0; j < n; j++) {
-                cplx x = a[col * n + j];
-                a[col * n + j] = a[piv * n + j];
-                a[piv * n + j] = x;
-            }
             cplx x = b[col]; b[col] = b[piv]; b[piv] = x;
             if (c) { x = c[col]; c[col] = c[piv]; c[piv] = x; }
         }
@@ -373,6 +386,107 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, cplx *zmark, doub
     return status;
 }
 
+/* |x| without hypot's overflow guard (the values are scaled) */
+static inline double modulus(cplx x) { return sqrt(creal(x) * creal(x) + cimag(x) * cimag(x)); }
+
+/* |A^-1|_1 (the largest column sum of moduli) of the n x n row-major matrix a, which it overwrites
+   with its factors P A = L U (partial pivoting, whole rows swapped); then column c of A^-1 solves
+   L U x = P e_c. INFINITY when a pivot is zero or a column is not finite. */
+static double inverse_norm1(int n, cplx *a) {
+    int perm[NMAX];
+    cplx inv_diag[NMAX];
+    for (int i = 0; i < n; i++) perm[i] = i;
+    for (int col = 0; col < n; col++) {
+        const int piv = pivot(n, a, col);
+        if (piv < 0) return INFINITY;
+        if (piv != col) {
+            int x = perm[col]; perm[col] = perm[piv]; perm[piv] = x;
+        }
+        inv_diag[col] = 1.0 / a[col * n + col];
+        for (int r = col + 1; r < n; r++) {
+            const cplx f = a[r * n + col] * inv_diag[col];
+            a[r * n + col] = f;
+            for (int j = col + 1; j < n; j++) a[r * n + j] -= f * a[col * n + j];
+        }
+    }
+    double worst = 0.0;
+    for (int c = 0; c < n; c++) {
+        cplx x[NMAX];
+        for (int i = 0; i < n; i++) {
+            cplx v = perm[i] == c ? 1.0 : 0.0;
+            for (int j = 0; j < i; j++) v -= a[i * n + j] * x[j];
+            x[i] = v;
+        }
+        double sum = 0.0;
+        for (int i = n - 1; i >= 0; i--) {
+            cplx v = x[i];
+            for (int j = i + 1; j < n; j++) v -= a[i * n + j] * x[j];
+            x[i] = v * inv_diag[i];
+            sum += modulus(x[i]);
+        }
+        if (!isfinite(sum)) return INFINITY;
+        worst = fmax(worst, sum);
+    }
+    return worst;
+}
+
+/* The end points z (rows, in place) at t = tb: `iters` Newton steps with the point's own patch
+   conj(z)^T dz = 0 (a failed solve leaves the point), then cond[p], the 1-norm condition number
+   |A|_1 |A^-1|_1 of A = [J(u); conj(u)^T] with J(u) = 2 M(s) u the Jacobian rows at the unit
+   point u = z / |z| (INFINITY where A is singular), and resid[p] = max_j |z^T M_j(s) z| / |z|^2. */
+static void finish_one(const sys_t *q, cplx *z, int iters, double *cond, double *resid) {
+    const int n = q->n, k = q->k;
+    cplx jac[NMAX * NMAX], val[NMAX], ht[NMAX];
+    for (int it = 0; it < iters; it++) {
+        evaluate(q, z, 1.0, jac, val, ht);
+        for (int c = 0; c < n; c++) jac[k * n + c] = conj(z[c]);
+        val[k] = 0.0;
+        if (solve2(n, jac, val, NULL)) break;
+        for (int i = 0; i < n; i++) z[i] -= val[i];
+    }
+    const double len = norm(n, z);
+    if (!isfinite(len) || !(len > 0.0)) { *cond = *resid = INFINITY; return; }
+    cplx u[NMAX];
+    for (int i = 0; i < n; i++) u[i] = z[i] / len;
+    evaluate(q, u, 1.0, jac, val, ht);
+    double worst = 0.0, a_norm = 0.0;
+    for (int j = 0; j < k; j++) worst = fmax(worst, modulus(val[j]));
+    *resid = worst; /* homogeneous of degree 2: |F(u)| = |F(z)| / |z|^2 */
+    for (int c = 0; c < n; c++) jac[k * n + c] = conj(u[c]);
+    for (int c = 0; c < n; c++) {
+        double col = 0.0;
+        for (int r = 0; r < n; r++) col += modulus(jac[r * n + c]);
+        a_norm = fmax(a_norm, col);
+    }
+    *cond = a_norm * inverse_norm1(n, jac);
+}
+
+static int make_sys(sys_t *q, int k, int n, const long *ptr0, const int *col0, const cplx *val0,
+                    const long *ptr1, const int *col1, const cplx *val1,
+                    const long *ptr2, const int *col2, const cplx *val2,
+                    double g_re, double g_im, const cplx *patch, double ta_re, double ta_im,
+                    double tb_re, double tb_im, const cplx *legs) {
+    if (n > NMAX || k != n - 1 || (legs && n != 8)) return -1;
+    sys_t s = {k, n, {{ptr0, col0, val0}, {ptr1, col1, val1}, {ptr2, col2, val2}},
+               g_re + I * g_im, ta_re + I * ta_im, tb_re + I * tb_im, patch, legs};
+    *q = s;
+    return 0;
+}
+
+/* finish_one on every row of z at t = tb (the system as for optik_track_paths). */
+int optik_finish_paths(int paths, int k, int n, const long *ptr0, const int *col0, const cplx *val0,
+                       const long *ptr1, const int *col1, const cplx *val1,
+                       const long *ptr2, const int *col2, const cplx *val2,
+                       double g_re, double g_im, const cplx *patch, double ta_re, double ta_im,
+                       double tb_re, double tb_im, const cplx *legs, int iters, cplx *z,
+                       double *cond, double *resid) {
+    sys_t q;
+    if (make_sys(&q, k, n, ptr0, col0, val0, ptr1, col1, val1, ptr2, col2, val2, g_re, g_im, patch,
+                 ta_re, ta_im, tb_re, tb_im, legs)) return -1;
+    for (int p = 0; p < paths; p++) finish_one(&q, z + (long)p * n, iters, cond + p, resid + p);
+    return 0;
+}
+
 /* Track every path (rows of z, updated in place) along t: ta -> tb. opts: max_step, min_step,
    tol, guard, stall, seconds, h0, max_steps, predictor target, mark (tau, a step ends there and
    zmark keeps the point), end_tol (tol of the steps ending at the mark or at tb). Returns the
@@ -383,9 +497,9 @@ int optik_track_paths(int paths, int k, int n, const long *ptr0, const int *col0
                       double g_re, double g_im, const cplx *patch, double ta_re, double ta_im,
                       double tb_re, double tb_im, const double *opts, cplx *z, int *status,
                       double *tau, long *steps, cplx *zmark, const cplx *legs) {
-    if (n > NMAX || k != n - 1 || (legs && n != 8)) return -1;
-    sys_t q = {k, n, {{ptr0, col0, val0}, {ptr1, col1, val1}, {ptr2, col2, val2}},
-               g_re + I * g_im, ta_re + I * ta_im, tb_re + I * tb_im, patch, legs};
+    sys_t q;
+    if (make_sys(&q, k, n, ptr0, col0, val0, ptr1, col1, val1, ptr2, col2, val2, g_re, g_im, patch,
+                 ta_re, ta_im, tb_re, tb_im, legs)) return -1;
     opts_t o = {opts[0], opts[1], opts[2], opts[3], opts[4],
                 now() + opts[5], opts[6], opts[8], opts[9], opts[10], (long)opts[7]};
     int left = 0;
@@ -413,6 +527,10 @@ def compiled() -> ctypes.CDLL | None:
             ptr, dbl, i32 = ctypes.c_void_p, ctypes.c_double, ctypes.c_int
             fn.argtypes = [i32, i32, i32, *([ptr] * 9), dbl, dbl, ptr, dbl, dbl, dbl, dbl, *([ptr] * 7)]
             fn.restype = i32
+            fin = lib.optik_finish_paths
+            fin.argtypes = [i32, i32, i32, *([ptr] * 9), dbl, dbl, ptr, dbl, dbl, dbl, dbl, ptr, i32]
+            fin.argtypes += [ptr] * 3
+            fin.restype = i32
         _LIB.append(lib)
     return _LIB[0]
 
@@ -427,7 +545,8 @@ class ParameterTracking:
     """End points of the paths of a parameter homotopy.
 
     Attributes:
-        z: end points ``(paths, n)`` on the patch (``nan`` rows for unresolved paths).
+        z: end points ``(paths, n)`` (``nan`` rows for unresolved paths): on the tracking patch,
+            or on their own after ``refine`` Newton steps (`track`).
         status: per path ``"regular"`` (reached ``t = 0`` with a converged corrector),
             ``"endgame"`` (stalled near 0, end point from the Cauchy endgame), ``"abandoned"``
             (stalled near 0 where the caller's ``abandon`` test flagged it: ``z`` holds the
@@ -436,6 +555,8 @@ class ParameterTracking:
         winding: winding number found by the endgame (1 for regular paths, 0 otherwise).
         condition: condition number of the Jacobian at the end point (`condition_numbers`;
             ``inf`` for abandoned and failed paths).
+        residual: relative residual ``max_j |z^T M_j(0) z| / |z|^2`` of the end point (``inf``
+            for abandoned and failed paths).
         steps: predictor-corrector steps, all paths and the endgame together.
         solve_time: wall time (s).
     """
@@ -444,6 +565,7 @@ class ParameterTracking:
     status: np.ndarray
     winding: np.ndarray
     condition: np.ndarray
+    residual: np.ndarray
     steps: int
     solve_time: float
 
@@ -484,17 +606,16 @@ class _Tracker:
     """One call of the compiled tracker on a fixed system, gamma and patch."""
 
     def __init__(
-        self,
-        coefficients: tuple[np.ndarray, np.ndarray, np.ndarray],
-        gamma: complex,
-        patch: np.ndarray,
-        legs: LegLine | None = None,
+        self, system: tuple[np.ndarray, np.ndarray, np.ndarray] | LegLine, gamma: complex, patch: np.ndarray
     ):
-        self.k, self.n = coefficients[0].shape[0], coefficients[0].shape[1]
-        self.legs = None if legs is None else legs.packed()
-        rows = self.k * self.n + 1
-        no_matrix = (np.zeros(rows, dtype=np.int64), np.zeros(1, dtype=np.int32), np.zeros(1, dtype=complex))
-        self.c = [_csr(c) if legs is None else no_matrix for c in coefficients]
+        if isinstance(system, LegLine):
+            self.k, self.n, self.legs = 7, 8, system.packed()
+            rows = self.k * self.n + 1
+            empty = (np.zeros(rows, dtype=np.int64), np.zeros(1, dtype=np.int32), np.zeros(1, dtype=complex))
+            self.c = [empty] * 3
+        else:
+            self.k, self.n, self.legs = system[0].shape[0], system[0].shape[1], None
+            self.c = [_csr(c) for c in system]
         self.gamma = complex(gamma)
         self.patch = np.ascontiguousarray(patch, dtype=complex)
         self.steps = 0
@@ -507,9 +628,11 @@ class _Tracker:
         deadline: float,
         tol: float,
         max_step: float,
+        first_step: float,
         mark: float = 2.0,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Track the rows of ``z`` from ``t = ta`` to ``tb``.
+        """Track the rows of ``z`` from ``t = ta`` to ``tb`` (steps in ``tau``, ``t = ta + tau (tb - ta)``,
+        the first one ``first_step``, none longer than ``max_step``).
 
         Returns ``(end points, status per path, points at the mark, tau reached)``: a step ends
         exactly at ``t(mark) = ta + mark (tb - ta)`` (``mark`` in ``(0, 1)``; none by default)
@@ -523,9 +646,20 @@ class _Tracker:
         tau = np.zeros(p)
         steps = np.zeros(p, dtype=np.int64)
         seconds = max(deadline - time.monotonic(), 0.0)
-        h0 = min(0.05, max_step)
         opts = np.array(
-            [max_step, 1e-14, tol, JUMP_GUARD, 1e-3, seconds, h0, 1e6, PREDICTOR_TARGET, mark, ENDGAME_TOL]
+            [
+                max_step,
+                1e-14,
+                tol,
+                JUMP_GUARD,
+                1e-3,
+                seconds,
+                first_step,
+                1e6,
+                PREDICTOR_TARGET,
+                mark,
+                ENDGAME_TOL,
+            ],
         )
         compiled().optik_track_paths(
             p, self.k, self.n, *(a.ctypes.data for c in self.c for a in c), self.gamma.real, self.gamma.imag,
@@ -536,9 +670,25 @@ class _Tracker:
         self.steps += int(steps.sum())
         return z, status, z_mark, tau
 
+    def finish(self, z: np.ndarray, iters: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The points ``z`` at the target ``s = 0``: ``iters`` Newton steps with each point's own
+        patch ``conj(z)^T dz = 0`` (as `optik.closed_form.homotopy.refine`), then `condition_numbers`
+        and the relative residuals ``max_j |z^T M_j(0) z| / |z|^2``, all in C.
+
+        Returns ``(points, condition numbers, residuals)``.
+        """
+        z = np.ascontiguousarray(z, dtype=complex).copy()
+        cond, resid = np.empty(len(z)), np.empty(len(z))
+        compiled().optik_finish_paths(
+            len(z), self.k, self.n, *(a.ctypes.data for c in self.c for a in c), 1.0, 0.0,
+            self.patch.ctypes.data, 0.0, 0.0, 0.0, 0.0, None if self.legs is None else self.legs.ctypes.data,
+            iters, z.ctypes.data, cond.ctypes.data, resid.ctypes.data,
+        )  # fmt: skip
+        return z, cond, resid
+
 
 def track(
-    coefficients: tuple[np.ndarray, np.ndarray, np.ndarray],
+    system: tuple[np.ndarray, np.ndarray, np.ndarray] | LegLine,
     starts: np.ndarray,
     rng: np.random.Generator,
     *,
@@ -546,87 +696,91 @@ def track(
     tol: float = 1e-6,
     max_step: float = 0.25,
     abandon: Callable[[np.ndarray], np.ndarray] | None = None,
-    legs: LegLine | None = None,
+    refine: int = 0,
 ) -> ParameterTracking:
     """Track the start solutions ``starts`` (rows, solutions of ``M(1) = C0 + C1 + C2``) to ``s = 0``.
 
     Args:
-        coefficients: ``(C0, C1, C2)``, each ``(k, k + 1, k + 1)``, symmetric in the last two axes.
+        system: ``(C0, C1, C2)``, each ``(k, k + 1, k + 1)``, symmetric in the last two axes; or a
+            Stewart-Gough `LegLine` (``k = 7``), which the tracker evaluates from the points
+            instead of the matrices (fewer operations, the same values).
         starts: ``(paths, k + 1)`` complex start solutions (any scaling: projective points).
         rng: generator of ``gamma`` and the patch.
         time_limit: wall-time budget (s); paths unfinished then are ``"failed"``.
         tol: relative size of the last Newton update (measured or, after one update, estimated)
             for a corrector to be accepted while tracking; the points at ``t = ENDGAME_RADIUS``
             and ``t = 0`` and the endgame use `ENDGAME_TOL`.
-        max_step: largest step in ``t``.
+        max_step: largest step in ``t`` (and the first step of every path).
         abandon: optional test ``z -> bool mask`` on the points where paths stalled near
             ``t = 0``; flagged paths skip the endgame (e.g. paths that clearly entered a known
             positive-dimensional set of no interest).
-        legs: the same family as a Stewart-Gough `LegLine` (``k = 7``): the tracker evaluates
-            it from the points instead of the matrices (fewer operations, the same values);
-            ``coefficients`` still give the condition numbers of the end points.
+        refine: Newton steps on the target applied to the regular and endgame end points, each
+            on its own patch ``conj(z)^T dz = 0`` (as `optik.closed_form.homotopy.refine`),
+            before their condition numbers and residuals are taken.
 
     Raises:
-        InvalidArgumentError: coefficients not three ``(k, k + 1, k + 1)`` arrays with
-            ``k + 1 <= 16``, starts not ``(paths, k + 1)``, or ``legs`` given with ``k != 7``
-            or points and constants not of shapes ``(6, 3)`` and ``(6,)``.
+        InvalidArgumentError: ``system`` not three ``(k, k + 1, k + 1)`` arrays with
+            ``k + 1 <= 16`` nor a `LegLine` of points ``(6, 3)`` and constants ``(6,)``, or
+            starts not ``(paths, k + 1)``.
         SolverUnavailableError: no working C compiler (check `available` first).
     """
     start = time.perf_counter()
     deadline = time.monotonic() + time_limit
-    shapes = {np.shape(c) for c in coefficients}
-    k = coefficients[0].shape[0] if len(coefficients) == 3 and len(shapes) == 1 else -1
-    if k < 1 or shapes != {(k, k + 1, k + 1)} or k + 1 > 16:
-        raise InvalidArgumentError(
-            "coefficients", f"need three (k, k + 1, k + 1) arrays, k + 1 <= 16; got {shapes}"
-        )
+    if isinstance(system, LegLine):
+        shapes = [np.shape(a) for a in (system.base, system.d_base, system.platform, system.d_platform)]
+        shapes += [np.shape(system.constants), np.shape(system.d_constants)]
+        if shapes != [(6, 3)] * 4 + [(6,)] * 2:
+            raise InvalidArgumentError("system", f"need leg points (6, 3) and constants (6,); got {shapes}")
+        k = 7
+    else:
+        shapes = {np.shape(c) for c in system}
+        k = system[0].shape[0] if len(system) == 3 and len(shapes) == 1 else -1
+        if k < 1 or shapes != {(k, k + 1, k + 1)} or k + 1 > 16:
+            raise InvalidArgumentError(
+                "system", f"need three (k, k + 1, k + 1) arrays, k + 1 <= 16; got {shapes}"
+            )
     if np.ndim(starts) != 2 or np.shape(starts)[1] != k + 1:
         raise InvalidArgumentError("starts", f"need shape (paths, {k + 1}), got {np.shape(starts)}")
-    if legs is not None:
-        shapes = [np.shape(a) for a in (legs.base, legs.d_base, legs.platform, legs.d_platform)]
-        shapes += [np.shape(legs.constants), np.shape(legs.d_constants)]
-        if k != 7 or shapes != [(6, 3)] * 4 + [(6,)] * 2:
-            raise InvalidArgumentError(
-                "legs", f"need k = 7, points (6, 3) and constants (6,); got k = {k}, shapes {shapes}"
-            )
     if compiled() is None:
         raise SolverUnavailableError("the compiled path tracker needs a working C compiler")
-    n = coefficients[0].shape[1]
+    n = k + 1
     gamma = np.exp(1j * GAMMA_ANGLE * rng.uniform(-1, 1))
     patch = rng.normal(size=n) + 1j * rng.normal(size=n)
-    tracker = _Tracker(coefficients, gamma, patch, legs)
+    tracker = _Tracker(system, gamma, patch)
     z0 = np.asarray(starts, dtype=complex)
     z0 = z0 / (z0 @ patch)[:, None]
     r = ENDGAME_RADIUS
     # one run from t = 1 to 0 with a step ending at t = r (the endgame's start: mark 1 - r)
-    z_end, st_end, z_r, tau = tracker.segment(z0, 1.0, 0.0, deadline, tol, max_step, mark=1.0 - r)
+    z_end, st_end, z_r, tau = tracker.segment(z0, 1.0, 0.0, deadline, tol, max_step, max_step, mark=1.0 - r)
     st_r = np.where(tau >= 1.0 - r, 0, st_end)  # nonzero: the path failed before t = r
     status = np.where(st_end == 0, "regular", "failed").astype(object)
     status[st_r != 0] = "failed"
     winding = np.where(status == "regular", 1, 0)
     z_out = np.where((status == "regular")[:, None], z_end, np.nan)
-    condition = np.full(len(z0), np.inf)
+    condition, residual = np.full(len(z0), np.inf), np.full(len(z0), np.inf)
     arrived = np.flatnonzero(st_end == 0)
-    condition[arrived] = condition_numbers(coefficients[0], z_end[arrived])
+    z_end[arrived], condition[arrived], residual[arrived] = tracker.finish(z_end[arrived], refine)
+    z_out[arrived] = z_end[arrived]
     # stalled near 0, or arrived at a singular end point (where Newton converges only linearly)
     todo = np.flatnonzero((st_r == 0) & ((st_end == 1) | (condition > SINGULAR_CONDITION)))
     if abandon is not None and len(todo):
         gone = todo[abandon(z_end[todo])]
         status[gone] = "abandoned"
         z_out[gone] = z_end[gone]
+        condition[gone], residual[gone] = np.inf, np.inf
         todo = np.setdiff1d(todo, gone)
     if len(todo):
         points, loops = _cauchy(tracker, z_r[todo], r, deadline, ENDGAME_TOL)
         ok = loops > 0
-        z_out[todo[ok]] = points[ok]
         status[todo[ok]] = "endgame"
         status[todo[~ok]] = "failed"
         winding[todo[ok]] = loops[ok]
-        condition[todo] = np.inf
-        condition[todo[ok]] = condition_numbers(coefficients[0], points[ok])
+        condition[todo], residual[todo] = np.inf, np.inf
+        done = todo[ok]
+        z_out[done], condition[done], residual[done] = tracker.finish(points[ok], refine)
     z_out[status == "failed"] = np.nan
     return ParameterTracking(
-        z_out, status.astype(str), winding, condition, tracker.steps, time.perf_counter() - start
+        z_out, status.astype(str), winding, condition, residual, tracker.steps, time.perf_counter() - start
     )
 
 
@@ -646,7 +800,9 @@ def _cauchy(tracker: _Tracker, z_r: np.ndarray, r: float, deadline: float, tol: 
             # patch may have its pole (a^T z = 0) within the circle, this one stays far from it
             za = z[active]
             sums[active] += za / np.sum(np.conj(z_r[active]) * za, axis=1, keepdims=True)
-            z[active], st, _, _ = tracker.segment(z[active], ts[j], ts[j + 1], deadline, tol, 1.0)
+            z[active], st, _, _ = tracker.segment(
+                z[active], ts[j], ts[j + 1], deadline, tol, 1.0, ENDGAME_FIRST_STEP
+            )
             active = active[st == 0]
             if len(active) == 0:
                 return points, loops

@@ -20,38 +20,46 @@ from obstacles). A pair already closer than the margin gets a row that pushes it
 
 *Broad phase.* Only pairs that may be within ``d_i`` get an exact query: those whose screening
 bound (`optik.collision.screen`: one compiled call for the part poses and a lower bound of every
-pair's distance, from the spheres and capsules that contain the parts) is below ``d_i``. The
+pair's distance, from the spheres and capsules that contain the parts) is below ``d_i`` (the
+bound is at most the distance, so a pair whose bound is not below ``d_i`` is not within it). The
 screen is built for the smallest power of two of slots that holds the world's parts (the world's
 own slot values, cut there), not the world's capacity: each slot costs a bound per sphere. Parts on
 the base body get no world rows (their distance does not depend on ``q``: a row
 ``0 <= gamma (d - d_s)`` could only make the QP infeasible; the exact check still judges them).
 
-*Jacobians.* A second compiled function (`optik.diffik._codegen.CompiledFunction`, generated C)
-gives the origin and geometric Jacobian of one link of each moving body in one call (the point
-Jacobian above holds for any reference point of the body); the rows of all pairs are then two
-``einsum`` products.
+*Rows.* The coal queries go through per-thread objects made once (a transform per part, updated
+in place, one request and one result), and each pair within ``d_i`` writes its witness points,
+the sign of ``d``, ``d`` and the bodies of its ends straight into the input buffers of a second
+compiled function (`DamperKernel`), which computes the Jacobians and every row in one call. With
+``J^0 = J_v + [o]_x J_w`` (the velocity of the point of the body at the base origin) the point
+Jacobian is ``J^0 - [p]_x J_w``, so ``n^T J_x(p) = [n; p x n]^T [J^0; J_w]``, and since
+``(p_a - p_b) x n = 0`` both ends share ``c = p_a x n``:
+
+    G_pair = [n; c]^T (sigma_b [J^0; J_w]_b - sigma_a [J^0; J_w]_a),   h_pair = gamma (d - d_s),
+
+with ``sigma`` the ``+-1`` selection of the two ends' bodies (none for an obstacle or the base).
 """
 
 from __future__ import annotations
 
 import threading
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import casadi as ca
 import numpy as np
 
 from optik.checks import as_float
-from optik.collision.distance import coal_distance, signed_request
+from optik.collision.distance import signed_request
 from optik.collision.robot import RobotGeometry, robot_geometry
-from optik.collision.screen import screen
+from optik.collision.screen import Screen, screen
 from optik.collision.shapes import coal_module
 from optik.collision.slots import SLOT_SIZE
-from optik.collision.world import state_of
-from optik.diffik._codegen import CompiledFunction
+from optik.collision.world import WorldState, state_of
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
+from optik.native import NativeFunction, library
 
 __all__ = ["DAMPER_GAIN", "INFLUENCE", "DamperKernel", "damper_kernel", "damper_rows"]
 
@@ -61,22 +69,72 @@ INFLUENCE = 0.05
 DAMPER_GAIN = 0.5
 """Default ``gamma``: the fraction of the excess distance a step may use up."""
 
+SLOTS = (1, 2, 4, 8)
+"""Pair counts of the row functions compiled together when a kernel is made; a step takes the
+smallest power of two that holds its candidate pairs (larger ones are built when first needed)."""
 
-@dataclass(frozen=True, eq=False)
+PAIR_SIZE = 8
+"""Numbers per pair in the row function's input: ``p_a`` (3), ``p_b`` (3), the sign of ``d``, ``d``."""
+
+
+def row_function(m: Mechanism, links: list[str], slots: int) -> ca.Function:
+    """``(q, pairs, sigma, (gamma, d_s)) -> rows``: the damper rows of ``slots`` pairs.
+
+    ``pairs``: `PAIR_SIZE` numbers per pair (``p_a``, ``p_b``, ``s = +-1`` the sign of ``d``,
+    ``d``); ``sigma``: ``len(links)`` numbers per pair, ``-1`` at the body of ``a``, ``+1`` at
+    that of ``b`` (0 elsewhere; both 0 for the base body or an obstacle); ``rows``: ``n + 2``
+    numbers per pair, the row ``G`` (module docstring, ``n = s (p_a - p_b) / |p_a - p_b|``),
+    ``h`` and ``|p_a - p_b|``.
+    """
+    n_b = len(links)
+    q = m.q_sym
+    pairs, sigma = ca.SX.sym("pairs", PAIR_SIZE * slots), ca.SX.sym("sigma", n_b * slots)
+    params = ca.SX.sym("params", 2)
+    blocks = []  # [J^0; J_w] of each body
+    for link in links:
+        jac, origin = m.jacobian_expr(link), m.frame_expr(link)[:3, 3]
+        blocks.append(ca.vertcat(jac[:3, :] + ca.mtimes(ca.skew(origin), jac[3:, :]), jac[3:, :]))
+    rows = []
+    for k in range(slots):
+        u = pairs[PAIR_SIZE * k : PAIR_SIZE * (k + 1)]
+        p_a, delta = u[:3], u[:3] - u[3:6]
+        length = ca.norm_2(delta)
+        normal = delta * (u[6] / ca.fmax(length, 1e-300))  # touching pairs (length ~ 0) are dropped
+        w = ca.vertcat(normal, ca.cross(p_a, normal)).T
+        sel = sigma[n_b * k : n_b * (k + 1)]
+        row = sum((sel[b] * ca.mtimes(w, blocks[b]) for b in range(n_b)), ca.SX.zeros(1, m.n_q))
+        rows.append(ca.vertcat(row.T, params[0] * (u[7] - params[1]), length))
+    return ca.Function(f"collision_damper_rows_{slots}", [q, pairs, sigma, params], [ca.vertcat(*rows)])
+
+
+@dataclass(eq=False)
 class DamperKernel:
-    """The Jacobians the dampers of one robot geometry evaluate at every step, built once.
+    """What the dampers of one robot geometry evaluate at every step, built once.
 
     Attributes:
-        function: ``q -> (J, o)``: ``(6, (B + 1) n)`` the geometric Jacobians of one link of each
-            of the ``B`` moving bodies that carry parts, side by side, and ``(3, B + 1)`` those
-            links' origins; the last block is the base body's (zeros).
-        part_body: ``(P,)`` the body of each part (``B`` for the base body, whose Jacobian is 0).
+        mechanism: the mechanism.
+        links: one link of each of the ``B`` moving bodies that carry parts.
+        part_body: ``(P,)`` the body of each part (``B`` for the base body, which has no rows).
         blocked: ``(P, 1)`` ``inf`` for the parts on the base body (no world rows), else 0.
     """
 
-    function: CompiledFunction
+    mechanism: Mechanism
+    links: list[str]
     part_body: np.ndarray
     blocked: np.ndarray
+    _functions: dict[int, tuple[ca.Function, Any]] = field(default_factory=dict, repr=False)
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    def rows(self, slots: int) -> NativeFunction:
+        """A new evaluator (for one thread) of the [`row_function`][optik.diffik.collision.row_function]
+        of ``slots`` pairs (built at its first use, its C code in the background, CasADi's
+        evaluator meanwhile)."""
+        with self._lock:
+            made = self._functions.get(slots)
+            if made is None:
+                f = row_function(self.mechanism, self.links, slots)
+                made = self._functions[slots] = (f, library([f], "auto"))
+        return NativeFunction(*made)
 
 
 def _kernel(geo: RobotGeometry) -> DamperKernel:
@@ -89,17 +147,13 @@ def _kernel(geo: RobotGeometry) -> DamperKernel:
             bodies.setdefault(body, link)
     index = {body: i for i, body in enumerate(bodies)}
     links = list(bodies.values())
-    f = ca.Function(  # the base body's Jacobian (0) and origin (0) last, so that any part indexes it
-        "collision_damper_jacobians",
-        [m.q_sym],
-        [
-            ca.horzcat(*(m.jacobian_expr(link) for link in links), ca.SX.zeros(6, m.n_q)),
-            ca.horzcat(*(m.frame_expr(link)[:3, 3] for link in links), ca.SX.zeros(3, 1)),
-        ],
-    )
     part_body = np.array([index.get(m.frames[geo.links[int(k)]][0], len(links)) for k in geo.part_link])
     blocked = np.where(part_body < len(links), 0.0, np.inf)[:, None]
-    return DamperKernel(CompiledFunction(f), part_body, blocked)
+    kernel = DamperKernel(m, links, part_body, blocked)
+    functions = [row_function(m, links, slots) for slots in SLOTS]
+    lib = library(functions, "auto")  # one library, its C code building from now on
+    kernel._functions.update({slots: (f, lib) for slots, f in zip(SLOTS, functions, strict=True)})
+    return kernel
 
 
 _KERNELS: weakref.WeakKeyDictionary[RobotGeometry, DamperKernel] = weakref.WeakKeyDictionary()
@@ -115,6 +169,72 @@ def damper_kernel(geo: RobotGeometry) -> DamperKernel:
         hit = _kernel(geo)
         with _LOCK:
             hit = _KERNELS.setdefault(geo, hit)
+    return hit
+
+
+class _Queries:
+    """One thread's objects for one geometry: its kernel and screens (looked up here without the
+    shared caches' locks), a transform per part (set in place from the
+    screen's poses), coal's distance functor of every self-collision pair (its solver made once;
+    the same numbers as ``coal.distance``), one signed-distance request and one result (cleared
+    before each query), and the last world state's geometries."""
+
+    def __init__(self, geo: RobotGeometry) -> None:
+        coal = coal_module()
+        self.geo, self.kernel = geo, damper_kernel(geo)
+        self._screens: dict[int, Screen] = {}
+        self._rows: dict[int, tuple[NativeFunction, list[float]]] = {}  # with its (gamma, d_s) input
+        self.transforms = [coal.Transform3s() for _ in geo.parts]
+        self.set_rotation = [t.setRotation for t in self.transforms]
+        self.set_translation = [t.setTranslation for t in self.transforms]
+        self.geometries = [p.geometry for p in geo.parts]
+        self.self_pairs = geo.self_pairs.tolist()
+        g = self.geometries
+        self.self_distance = [coal.ComputeDistance(g[i], g[j]) for i, j in self.self_pairs]
+        self.body = geo_body = self.kernel.part_body.tolist()
+        self.moving = [b < len(self.kernel.links) for b in geo_body]
+        self.request = signed_request()
+        result = coal.DistanceResult()
+        self.distance, self.clear = coal.distance, result.clear
+        self.result, self.point_a, self.point_b = result, result.getNearestPoint1, result.getNearestPoint2
+        self.state: WorldState | None = None
+        self.world_geometries: list[Any] = []
+
+    def rows(self, slots: int, gamma: float, d_s: float) -> NativeFunction:
+        """This thread's row evaluator of ``slots`` pairs (`DamperKernel.rows`), its parameter
+        input set to ``(gamma, d_s)`` (written only when they change)."""
+        hit = self._rows.get(slots)
+        if hit is None:
+            hit = self._rows[slots] = (self.kernel.rows(slots), [np.nan, np.nan])
+        fn, params = hit
+        if params[0] != gamma or params[1] != d_s:
+            fn.inputs[3][:] = params[:] = gamma, d_s
+        return fn
+
+    def screen(self, capacity: int) -> Screen:
+        """`optik.collision.screen.screen` of the geometry for ``capacity`` slots."""
+        hit = self._screens.get(capacity)
+        if hit is None:
+            hit = self._screens[capacity] = screen(self.geo, capacity)
+        return hit
+
+    def world(self, state: WorldState) -> list[Any]:
+        """The coal geometries of ``state``'s parts (listed again only when the state changes)."""
+        if state is not self.state:
+            self.state, self.world_geometries = state, [p.geometry for p in state.parts]
+        return self.world_geometries
+
+
+_QUERIES = threading.local()
+
+
+def _queries(m: Mechanism) -> _Queries:
+    per = getattr(_QUERIES, "per", None)
+    if per is None:
+        per = _QUERIES.per = weakref.WeakKeyDictionary()
+    hit = per.get(m)
+    if hit is None:
+        hit = per[m] = _Queries(robot_geometry(m))
     return hit
 
 
@@ -143,73 +263,66 @@ def damper_rows(
     if not 0.0 < gamma <= 1.0:
         raise InvalidArgumentError("collision_gain", f"must be in (0, 1], got {gamma:g}")
     state = state_of(world)
-    geo = robot_geometry(m)
-    kernel = damper_kernel(geo)
+    cq = _queries(m)
+    kernel = cq.kernel
     n_obj = len(state.parts)
     capacity = 1 << max(n_obj - 1, 0).bit_length()  # the slots in use: every empty one costs a step time
-    poses, to_world, own = screen(geo, capacity).bounds(q, state.slots[: capacity * SLOT_SIZE], n_obj)
-    near_a, near_b = np.nonzero(to_world + kernel.blocked < d_i)
-    pairs = list(zip(near_a.tolist(), near_b.tolist(), strict=True))
-    n_world = len(pairs)
+    poses, to_world, own = cq.screen(capacity).bounds(q, state.slots[: capacity * SLOT_SIZE], n_obj)
+    near = (to_world + kernel.blocked < d_i).ravel().nonzero()[0].tolist()  # part a * n_obj + object b
+    n_world = len(near)
     if self_collision:
-        pairs += geo.self_pairs[own < d_i].tolist()
-    if not pairs:
+        near += (own < d_i).nonzero()[0].tolist()  # rows of geo.self_pairs
+    if not near:
         return np.zeros((0, m.n_q)), np.zeros(0), np.inf
-    coal = coal_module()
-    request = signed_request()
-    tfs: dict[int, Any] = {}  # coal transforms of the robot's parts, made when first needed
-
-    def tf(k: int) -> Any:
-        got = tfs.get(k)
-        if got is None:  # the rows of `poses`: row-major rotation, then translation
-            got = tfs[k] = coal.Transform3s(poses[k, :9].reshape(3, 3), poses[k, 9:])
-        return got
-
-    parts = geo.parts
-    found = []  # (d, row of `pairs`, coal's result) of the pairs within the influence distance
+    slots = 1 << (len(near) - 1).bit_length()
+    fn = cq.rows(slots, gamma, d_s)
+    fn.inputs[0][:] = q
+    pairs, sigma = fn.inputs[1], fn.inputs[2]
+    sigma[:] = 0.0
+    tfs, geometries, body, moving = cq.transforms, cq.geometries, cq.body, cq.moving
+    distance, clear, request, result = cq.distance, cq.clear, cq.request, cq.result
+    world_geometries, world_tfs, self_distance = cq.world(state), state.transforms, cq.self_distance
+    placed = [False] * len(tfs)
+    rotations, translations = poses[:, :9].reshape(-1, 3, 3), poses[:, 9:]  # row-major rotation, then origin
+    n_b = len(kernel.links)
+    dists: list[float] = []  # of the pairs within the influence distance, in slot order
     d_min = np.inf
-    for r, (a, b) in enumerate(pairs):
+    for r, i in enumerate(near):
+        a, b = divmod(i, n_obj) if r < n_world else cq.self_pairs[i]
+        if not placed[a]:
+            cq.set_rotation[a](rotations[a])
+            cq.set_translation[a](translations[a])
+            placed[a] = True
+        clear()
         if r < n_world:
-            d, res = coal_distance(
-                parts[a].geometry, tf(a), state.parts[b].geometry, state.transforms[b], request
-            )
+            d = distance(geometries[a], tfs[a], world_geometries[b], world_tfs[b], request, result)
         else:
-            d, res = coal_distance(parts[a].geometry, tf(a), parts[b].geometry, tf(b), request)
-        d_min = min(d_min, d)
+            if not placed[b]:
+                cq.set_rotation[b](rotations[b])
+                cq.set_translation[b](translations[b])
+                placed[b] = True
+            d = self_distance[i](tfs[a], tfs[b], request, result)
+        if d < d_min:
+            d_min = d
         if d < d_i:
-            found.append((d, r, res))
-    found.sort(key=lambda f: f[0])
-    k = len(found)
-    d, witness = np.empty(k), np.empty((k, 2, 3))
-    ends = np.empty((k, 2), dtype=int)  # the bodies of each pair (the base body's for an obstacle)
-    body = kernel.part_body.tolist()
-    for i, (dist, r, res) in enumerate(found):
-        d[i] = dist
-        witness[i, 0], witness[i, 1] = res.getNearestPoint1(), res.getNearestPoint2()
-        a, b = pairs[r]
-        ends[i] = body[a], (body[b] if r >= n_world else -1)
-    delta = witness[:, 0] - witness[:, 1]
-    length = np.sqrt(np.einsum("pk,pk->p", delta, delta))
+            k = len(dists)
+            at = PAIR_SIZE * k
+            pairs[at : at + 3] = cq.point_a()
+            pairs[at + 3 : at + 6] = cq.point_b()
+            pairs[at + 6] = 1.0 if d >= 0 else -1.0
+            pairs[at + 7] = d
+            if moving[a]:
+                sigma[n_b * k + body[a]] -= 1.0
+            if r >= n_world and moving[b]:
+                sigma[n_b * k + body[b]] += 1.0
+            dists.append(d)
+    if not dists:
+        return np.zeros((0, m.n_q)), np.zeros(0), float(d_min)
+    k = len(dists)
+    order = sorted(range(k), key=dists.__getitem__)
+    out = fn()[0].reshape(slots, m.n_q + 2)
+    out = out[:k].copy() if order == list(range(k)) else out[order]  # off the thread's buffer
     # touching at one point (|p_a - p_b| ~ 0) has no direction: no row (the check still decides success)
-    ok = length >= 1e-12
-    if not ok.all():
-        d, witness, ends, delta, length = d[ok], witness[ok], ends[ok], delta[ok], length[ok]
-    n = delta * (np.where(d >= 0, 1.0, -1.0) / length)[:, None]
-    jac, origins = kernel.function.call_flat(q)
-    jt = jac.T.reshape(-1, m.n_q, 6)  # jt[body, j]: column j of the body's Jacobian (a view; -1: zeros)
-    # both ends at once: n^T J_a(p_a) + (-n)^T J_b(p_b), J_b = 0 for an obstacle (body -1)
-    bodies, points = ends.reshape(-1), witness.reshape(-1, 3)
-    normals = (n[:, None, :] * _BOTH_ENDS).reshape(-1, 3)
-    r = points - origins.T[bodies]
-    w = np.concatenate([normals, np.einsum("ijk,pj,pk->pi", _LEVI_CIVITA, r, normals)], axis=1)
-    rows = np.matmul(jt[bodies], w[:, :, None]).reshape(-1, 2, m.n_q).sum(axis=1)
-    return -rows, gamma * (d - d_s), float(d_min)
-
-
-_BOTH_ENDS = np.array([[1.0], [-1.0]])
-"""The normal's sign at each end of a pair (towards ``a`` from ``b``)."""
-
-_LEVI_CIVITA = np.zeros((3, 3, 3))
-_LEVI_CIVITA[[0, 1, 2], [1, 2, 0], [2, 0, 1]] = 1.0
-_LEVI_CIVITA[[0, 1, 2], [2, 0, 1], [1, 2, 0]] = -1.0
-"""``(r x n)_i = eps_ijk r_j n_k``: the rows ``[n, r x n] . [J_v; J_w] = n^T (J_v - [r]_x J_w)``."""
+    if min(out[:, -1].tolist()) < 1e-12:
+        out = out[out[:, -1] >= 1e-12]
+    return out[:, : m.n_q], out[:, m.n_q], float(d_min)

@@ -374,7 +374,10 @@ def build_qp(
     own = (world is not None) if self_collision is None else bool(self_collision)
     if world is not None or own:
         g_c, h_c, _ = damper_rows(m, qq, world, own, margin, influence, collision_gain)
-        g_rows, h_rows = np.vstack([g_rows, g_c]), np.concatenate([h_rows, h_c])
+        if h_rows.size:
+            g_rows, h_rows = np.vstack([g_rows, g_c]), np.concatenate([h_rows, h_c])
+        else:
+            g_rows, h_rows = g_c, h_c
     return DiffIKProblem(
         H=h.reshape(m.n_q, m.n_q),
         c=c,

@@ -33,11 +33,16 @@ def default_solver() -> str:
     return "daqp" if importlib.util.find_spec("daqp") is not None else "osqp"
 
 
-_SENSE: dict[int, np.ndarray] = {}
+_SENSE: dict[tuple[int, int, int], np.ndarray] = {}
+"""DAQP's constraint types (0 bound or inequality, 5 equality) per ``(n, equalities, inequalities)``
+(DAQP only reads them)."""
 
 
 _FREE = 1e30
 """DAQP's stand-in for an absent lower bound of an inequality row."""
+
+_FREE_ROWS: dict[int, np.ndarray] = {}
+"""``-_FREE`` repeated, per count of inequality rows (only read)."""
 
 
 def _rows(problem: DiffIKProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -53,15 +58,22 @@ def _rows(problem: DiffIKProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def solve_daqp(problem: DiffIKProblem, **settings: Any) -> QPOutcome:
     """DAQP on the dense problem (``settings`` are DAQP settings, e.g. ``primal_tol``)."""
     daqp = require_backend("daqp", "daqp")
-    n, m_eq = problem.n, problem.A.shape[0]
-    rows, lo_rows, up_rows = _rows(problem)
-    if rows.shape[0]:
-        upper = np.concatenate([problem.ub, up_rows])
-        lower = np.concatenate([problem.lb, lo_rows])
-        sense = np.zeros(n + rows.shape[0], dtype=np.int32)
+    n, m_eq, k = problem.n, problem.A.shape[0], problem.G.shape[0]
+    sense = _SENSE.get((n, m_eq, k))
+    if sense is None:
+        sense = np.zeros(n + m_eq + k, dtype=np.int32)
         sense[n : n + m_eq] = 5
+        sense = _SENSE.setdefault((n, m_eq, k), sense)
+    if k or m_eq:  # equalities, then inequalities (no lower bound): each array made in one call
+        rows = problem.A if not k else problem.G if not m_eq else np.vstack([problem.A, problem.G])
+        free = _FREE_ROWS.get(k)
+        if free is None:
+            free = _FREE_ROWS.setdefault(k, np.full(k, -_FREE))
+        upper = np.concatenate([problem.ub, problem.b, problem.h])
+        lower = np.concatenate([problem.lb, problem.b, free])
     else:
-        upper, lower, sense = problem.ub, problem.lb, _SENSE.setdefault(n, np.zeros(n, dtype=np.int32))
+        rows = problem.A
+        upper, lower = problem.ub, problem.lb
     try:
         x, _, flag, _ = daqp.solve(problem.H, problem.c, rows, upper, lower, sense, **settings)
     except TypeError as exc:

@@ -55,6 +55,7 @@ from optik.problem import IKProblem, build_ik_problem, target_parameters
 from optik.results import IKResult
 from optik.solvers.base import IKRequest, PreparedCache, make_result, positive_int
 from optik.solvers.collision_kernel import bound_parameters, constrained_functions
+from optik.solvers.iteration_stop import IterationStop
 from optik.solvers.lm import lm_result, lm_settings, request_seed
 from optik.solvers.lm_kernel import LMKernel
 
@@ -233,7 +234,9 @@ def _solve_lm(
 
 class _IpoptPool:
     """IPOPT instances of one constrained problem, one per concurrent solve (nlpsol instances
-    are not safe to share between threads)."""
+    are not safe to share between threads), each with its `IterationStop` callback (the
+    deadline of the solve running on it: one IPOPT iteration here takes milliseconds, a start
+    hundreds of them)."""
 
     def __init__(self, problem: IKProblem, rows: DistanceRows, slots: ca.SX, max_iter: int) -> None:
         bound, flags = ca.SX.sym("bound"), ca.SX.sym("self_active", rows.self_rows.shape[0])
@@ -259,13 +262,17 @@ class _IpoptPool:
         self._free: list[Any] = []
         self._lock = threading.Lock()
 
-    def take(self) -> Any:
+    def take(self) -> tuple[Any, IterationStop]:
+        """An idle ``(nlpsol, its callback)``, or a new one."""
         with self._lock:
             if self._free:
                 return self._free.pop()
-        return ca.nlpsol("optik_collision_ipopt", "ipopt", self.nlp, self.options)
+        x, g, p = (self.nlp[k].shape[0] for k in ("x", "g", "p"))
+        stop = IterationStop(x, g, p, "optik_collision_stop")
+        options = {**self.options, "iteration_callback": stop, "error_on_fail": False}
+        return ca.nlpsol("optik_collision_ipopt", "ipopt", self.nlp, options), stop
 
-    def give(self, solver: Any) -> None:
+    def give(self, solver: tuple[Any, IterationStop]) -> None:
         with self._lock:
             self._free.append(solver)
 
@@ -290,7 +297,8 @@ def _solve_nlp(
         return _IpoptPool(base, rows, symbols, max_iter)
 
     pool = _cached(key, build)
-    solver = pool.take()
+    taken = pool.take()
+    solver, stop = taken
     bounds = bound_parameters(robot_geometry(m), self_collision, margin + buffer)
     request.exclude_setup(setup)
     task = pool.problem.parameter_values(request.target, posture=posture)
@@ -300,6 +308,7 @@ def _solve_nlp(
 
     rng = request.rng
     q0, iterations, restarts = request.q0, 0, -1
+    stop.deadline = request.start + request.time_limit  # after exclude_setup: the build is not counted
     try:
         while True:
             restarts += 1
@@ -312,7 +321,7 @@ def _solve_nlp(
                 return res
             q0 = m.random_q(seed=rng)
     finally:
-        pool.give(solver)
+        pool.give(taken)
 
 
 def solve_collision_free(

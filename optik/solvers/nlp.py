@@ -84,6 +84,7 @@ from optik.solvers.base import (
     start_points,
 )
 from optik.solvers.evaluation import ErrorFn, errors_against
+from optik.solvers.iteration_stop import IterationStop
 from optik.solvers.options import check_floats, check_max_restarts
 
 DEFAULTS: dict[str, Any] = {
@@ -132,21 +133,18 @@ _IPOPT_CLOSED = {
 targets within the quick-bench budget than the adaptive barrier update (see docs/solvers/nlp.md)."""
 
 
-class _Monitor(ca.Callback):
+class _Monitor(IterationStop):
     """Iteration callback: records the best iterate and asks the solver to stop at tolerance
     (when enabled) or at the deadline."""
 
     def __init__(self, n_x: int, n_g: int, n_p: int) -> None:
-        ca.Callback.__init__(self)
-        self.n_x, self.n_g, self.n_p = n_x, n_g, n_p
         self.errors: ErrorFn | None = None
         self.goal = (0.0, 0.0, 0.0)
         self.stop_at_tolerance = True
         self.stall = 1.0
         self.stall_near = 1.0
-        self.deadline = np.inf
         self.reset()
-        self.construct("optik_nlp_monitor", {})
+        IterationStop.__init__(self, n_x, n_g, n_p, "optik_nlp_monitor")
 
     def reset(self) -> None:
         self.best_x: np.ndarray | None = None
@@ -156,42 +154,6 @@ class _Monitor(ca.Callback):
         self.best_near = False
         self.iterations = 0
         self.history: list[float] = []
-
-    def get_n_in(self) -> int:
-        return ca.nlpsol_n_out()
-
-    def get_n_out(self) -> int:
-        return 1
-
-    def get_name_in(self, i: int) -> str:
-        return ca.nlpsol_out(i)
-
-    def get_name_out(self, i: int) -> str:
-        return "stop"
-
-    def get_sparsity_in(self, i: int) -> ca.Sparsity:
-        name = ca.nlpsol_out(i)
-        if name == "f":
-            return ca.Sparsity.scalar()
-        if name in ("x", "lam_x"):
-            return ca.Sparsity.dense(self.n_x)
-        if name in ("g", "lam_g"):
-            return ca.Sparsity.dense(self.n_g)
-        return ca.Sparsity.dense(self.n_p)  # lam_p: the solver writes all of it
-
-    def has_eval_buffer(self) -> bool:
-        return True
-
-    def eval_buffer(self, arg: list[memoryview], res: list[memoryview]) -> int:
-        """The callback through CasADi's buffer protocol: the iterate as a view of the solver's
-        memory, no ``DM`` conversions (half the cost of an IPOPT iteration on the Panda with
-        `eval`)."""
-        x = np.frombuffer(arg[0], dtype=float).copy()  # a copy: the buffer dies with the call
-        np.frombuffer(res[0], dtype=float)[0] = float(self.check(x))
-        return 0
-
-    def eval(self, arg: list[Any]) -> list[int]:
-        return [int(self.check(np.array(arg[0].nonzeros())))]
 
     def check(self, x: np.ndarray) -> bool:
         """Record the iterate ``x``; whether to stop the solver."""
@@ -207,7 +169,7 @@ class _Monitor(ca.Callback):
             factor = self.stall_near if self.best_near else self.stall
             self.stalled = self.best_score > factor * self.history[-1 - _STALL_WINDOW]
         stop = (self.reached and self.stop_at_tolerance) or (self.stalled and not self.reached)
-        return stop or time.perf_counter() >= self.deadline
+        return stop or IterationStop.check(self, x)
 
 
 @dataclass(frozen=True)

@@ -8,9 +8,10 @@ solutions, each Newton-refined to a residual at rounding level; 40 bounds the is
 nonsingular solutions of every instance of the family (the generic count), so none is missing.
 
 For a target ``(b, p, c)`` the parameters move on the line ``(b, p, c) + s (b0 - b, p0 - p,
-c0 - c)``, so the matrices are quadratic in ``s``: ``M(s) = C0 + s C1 + s^2 C2`` with
-``C0 = M(0)``, ``C1 = (M(1) - M(-1)) / 2``, ``C2 = (M(1) + M(-1)) / 2 - M(0)`` (exact: ``M`` is
-quadratic in ``s``). `optik.closed_form.parameter_homotopy.track` follows the 40 paths.
+c0 - c)``, so the matrices are quadratic in ``s``: ``M(s) = C0 + s C1 + s^2 C2``.
+`optik.closed_form.parameter_homotopy.track` follows the 40 paths, evaluating the seven quadrics
+from that line of points and constants (`optik.closed_form.parameter_homotopy.LegLine`) without
+forming the matrices.
 """
 
 from __future__ import annotations
@@ -197,38 +198,23 @@ def _degenerate(z: np.ndarray) -> np.ndarray:
     return np.linalg.norm(z[:, :4], axis=1) / np.linalg.norm(z, axis=1) < DEGENERATE_STALL
 
 
-def coefficients(
-    b: np.ndarray, p: np.ndarray, c: np.ndarray, start: StartInstance
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(C0, C1, C2)`` of ``M(s)`` on the line from the target ``(b, p, c)`` (``s = 0``) to the
-    start instance (``s = 1``)."""
-    db, dp, dc = start.base - b, start.platform - p, start.constants - c
-    m0 = study_matrices(b.astype(complex), p.astype(complex), c.astype(complex))
-    m_plus = study_matrices(b + db, p + dp, c + dc)
-    m_minus = study_matrices(b - db, p - dp, c - dc)
-    return m0, (m_plus - m_minus) / 2, (m_plus + m_minus) / 2 - m0
-
-
 def solve(
     b: np.ndarray, p: np.ndarray, c: np.ndarray, rng: np.random.Generator, time_limit: float
 ) -> ParameterSolve:
     """All solutions of the (scaled) instance ``(b, p, c)`` by the 40-path parameter homotopy.
 
-    End points are refined by two Newton steps on the target (`optik.closed_form.homotopy.refine`;
-    the tracker ends them within 1e-8) and kept when they solve it (relative residual below
-    1e-8); the count check asks for `GENERAL_SOLUTIONS` distinct nonsingular ones (condition
-    number below `SINGULAR_CONDITION`).
+    End points are refined by two Newton steps on the target (the tracker's ``refine``; it ends
+    them within 1e-8 already) and kept when they solve it (relative residual below 1e-8); the
+    count check asks for `GENERAL_SOLUTIONS` distinct nonsingular ones (condition number below
+    `SINGULAR_CONDITION`).
     """
     start = load()
-    mats = coefficients(b, p, c, start)
     legs = parameter_homotopy.LegLine(b, start.base - b, p, start.platform - p, c, start.constants - c)
     res = parameter_homotopy.track(
-        mats, start.solutions, rng, time_limit=time_limit, abandon=_degenerate, legs=legs
+        legs, start.solutions, rng, time_limit=time_limit, abandon=_degenerate, refine=2
     )
-    ended = np.flatnonzero((res.status == "regular") | (res.status == "endgame"))
-    z = homotopy.refine(mats[0], res.z[ended], iters=2)  # the tracker ends them to 1e-8 already
-    solves = relative_residual(mats[0], z) < 1e-8
-    z, cond = z[solves], res.condition[ended][solves]
+    solves = res.residual < 1e-8  # inf for failed and abandoned paths
+    z, cond = res.z[solves], res.condition[solves]
     order = np.argsort(cond)  # nonsingular representatives first
     z, cond = z[order], cond[order]
     keep = distinct(z)

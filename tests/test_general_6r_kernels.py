@@ -1,5 +1,6 @@
-"""The general 6R solver's Newton polish in C (``general_6r_polish.c``) against its numpy path:
-the same converged candidates, the same answers and certificates of `solve_general_6r`."""
+"""The general 6R solver's steps in C (``general_6r.c``: the Newton polish, the back-substitution)
+against their numpy paths: the same candidates, the same answers and certificates of
+`solve_general_6r`."""
 
 from __future__ import annotations
 
@@ -15,10 +16,11 @@ from optik.mechanism import dh_chain
 
 
 @pytest.fixture(scope="module", autouse=True)
-def compiled_polish() -> None:
-    g6._POLISH.get()
-    assert g6._POLISH.library is not None and g6._POLISH.library.wait(120) is not None
-    assert g6._POLISH.get() is not None
+def compiled_kernels() -> None:
+    for kernel in (g6._POLISH, g6._BACK):
+        kernel.get()
+        assert kernel.library is not None and kernel.library.wait(120) is not None
+        assert kernel.get() is not None
 
 
 def _arm(rng: np.random.Generator):
@@ -65,16 +67,19 @@ def test_singular_jacobian_is_left_to_numpy() -> None:
     assert np.array_equal(got[0], ref[0]) and np.array_equal(got[1], ref[1])
 
 
-def test_solve_general_6r_is_the_same_with_and_without_the_c_polish(monkeypatch) -> None:
+@pytest.mark.parametrize("numpy_paths", [("_POLISH",), ("_BACK",), ("_POLISH", "_BACK")])
+def test_solve_general_6r_is_the_same_with_and_without_the_c_kernels(monkeypatch, numpy_paths) -> None:
     """40 random arms x 2 poses: the same number of solutions, complex solutions and
-    certificates, the same solutions, each meeting its target by an independent FK."""
+    certificates, the same solutions, each meeting its target by an independent FK, with the
+    named steps on their numpy paths as with every step in C."""
     rng = np.random.default_rng(3)
     cases = []
     for _ in range(40):
         m = _arm(rng)
         cases += [(m, m.fk(rng.uniform(-np.pi, np.pi, 6))) for _ in range(2)]
     compiled = [g6.solve_general_6r(m, t) for m, t in cases]
-    monkeypatch.setattr(g6._POLISH, "get", lambda: None)
+    for name in numpy_paths:
+        monkeypatch.setattr(getattr(g6, name), "get", lambda: None)
     for (m, t), mine in zip(cases, compiled, strict=True):
         ref = g6.solve_general_6r(m, t)
         assert (len(mine.q), mine.n_complex, mine.count_ok) == (len(ref.q), ref.n_complex, ref.count_ok)
@@ -82,3 +87,33 @@ def test_solve_general_6r_is_the_same_with_and_without_the_c_polish(monkeypatch)
         for q in mine.q:
             assert np.min(np.max(np.abs(g6._wrap(ref.q - q)), axis=1)) < 1e-9
             assert np.allclose(m.fk(q), t, atol=1e-9)
+
+
+def test_back_substitution_in_c_equals_numpy(monkeypatch) -> None:
+    """The candidates the back-substitution hands to the polish (complex, and real retries) are
+    the same in C and in numpy, on 20 random arms x 2 poses, to rounding: relative to
+    `_magnitude` (``prod cosh(Im theta_i)``, the size of the DH products at complex angles,
+    which the rounding of both grows with)."""
+    rng = np.random.default_rng(8)
+    cases = []
+    for _ in range(20):
+        m = _arm(rng)
+        cases += [(m, m.fk(rng.uniform(-np.pi, np.pi, 6))) for _ in range(2)]
+    seen: list[np.ndarray] = []
+    polish = g6._polish
+
+    def spy(left, theta, tp, iterations=g6.NEWTON_ITERATIONS):
+        seen.append(theta.copy())
+        return polish(left, theta, tp, iterations)
+
+    monkeypatch.setattr(g6, "_polish", spy)
+    for m, t in cases:
+        g6.solve_general_6r(m, t)
+    in_c, seen[:] = list(seen), []
+    monkeypatch.setattr(g6._BACK, "get", lambda: None)
+    for m, t in cases:
+        g6.solve_general_6r(m, t)
+    assert len(in_c) == len(seen)
+    for a, b in zip(in_c, seen, strict=True):
+        assert a.dtype == b.dtype and a.shape == b.shape
+        assert np.all(np.max(np.abs(a - b), axis=1, initial=0.0) <= 1e-11 * g6._magnitude(b))

@@ -7,27 +7,26 @@ Method (docs/benchmarks.md): the Panda of example-robot-data from ``panda_link0`
 drawn uniformly within the limits (seeded) and kept when optik's exact check finds them clear by
 ``--margin`` (so every target is reachable collision-free). optik: ``optik.solve_ik(m, T,
 world=W, margin=margin, time_limit=...)``. TRAC-IK (pytracik, solve type Speed): solve from the
-mid-limit seed, check the answer with `optik.collision.check` (coal) at the margin, and while it
-collides solve again from a uniformly random seed until the time limit (what MoveIt does); each
-retry takes the longest timeout of `timeout_ladder` that fits in the time left, its solver built
-once before the timed calls (a TRAC-IK solver's timeout is fixed at construction).
+mid-limit seed, wrap and clip the answer into the limits (`optik.harness.peers.rules.settle`, what
+optik's answers get: TRAC-IK's float32 limits overshoot by ~5e-9), check it with
+`optik.collision.check` (coal) at the margin, and while it collides solve again from a uniformly
+random seed until the time limit (what MoveIt does); each retry takes the longest timeout of
+`timeout_ladder` that fits in the time left, its solver built once before the timed calls (a
+TRAC-IK solver's timeout is fixed at construction).
 
 The judge is Pinocchio's own model of the whole URDF (finger joints at 0) and its collision
 geometry (``buildGeomFromUrdf``, meshes as their convex hulls, as coal queries them), its
 self-collision pairs ``addAllCollisionPairs`` minus the SRDF's (``removeCollisionPairs``), every
-geometry against every obstacle, coal distances: a success needs the pose within ``--tol``
-(Pinocchio's FK), the limits, and every distance ``>= margin - 1e-9``. Calls are interleaved
-target by target; each solver has one untimed warm-up call (optik builds its constrained code
-then; the C compiler may still be running during the run: the kernel then answers through
-CasADi's evaluator, and the table says whether it was compiled).
-
-``--scene self``: no world, and the targets are kept only when the configuration is also closer
-than ``--near`` (5 cm) to the robot's own body (self-collision pairs of its SRDF): the hand near
-its links.
+geometry against every obstacle, coal distances: every solver's answer is settled into the limits
+the same way (`Judge.accepts`), then a success needs the pose within ``--tol`` (Pinocchio's FK),
+the limits, and every distance ``>= margin - 1e-9``. Calls are interleaved target by target; each
+solver has one untimed warm-up call (optik builds its constrained code then; the C compiler may
+still be running during the run: the kernel then answers through CasADi's evaluator, and the
+table says whether it was compiled).
 
 Run: ``optik benchmark collision [--n 1000] [--time-limit 0.01] [--margin 0.01] [--tol 1e-6] [--seed 0]
-[--compile-wait 600] [--scene clutter|self] [--near 0.05]`` (the wait for the C build of the
-constrained kernel is not timed).
+[--compile-wait 600]`` (the wait for the C build of the constrained kernel is not timed). Robots
+near their own bodies are ``optik benchmark collision_self``.
 """
 
 from __future__ import annotations
@@ -40,6 +39,7 @@ import numpy as np
 import optik
 from optik import spatial
 from optik.benchmarks import benchmark_parser
+from optik.harness.peers.rules import settle
 from optik.harness.tally import success_table
 
 Solver = Callable[[np.ndarray, float, int], "np.ndarray | None"]
@@ -95,9 +95,19 @@ class Judge:
                 t = o.pose @ offset
                 self.obstacles.append((geom, self.coal.Transform3s(t[:3, :3], t[:3, 3])))
 
+    def accepts(
+        self, q: np.ndarray | None, target: np.ndarray, m: optik.Mechanism, tol: float, margin: float
+    ) -> bool:
+        """Whether an answer, wrapped and clipped into the limits first (`settle`, what `solve_ik` does
+        to optik's own answers), passes `Judge.ok`: the one judge path for every solver."""
+        return self.ok(None if q is None else settle(m, q), target, m, tol, margin)
+
     def ok(
         self, q: np.ndarray | None, target: np.ndarray, m: optik.Mechanism, tol: float, margin: float
     ) -> bool:
+        """Whether ``q`` exactly (no settling) lies within the limits, puts ``panda_hand_tcp`` within
+        ``tol`` of ``target`` (m and rad, by Pinocchio's FK) and keeps every self pair and every
+        geometry-obstacle pair at a coal distance ``>= margin - 1e-9``."""
         if q is None or np.any(q < m.lower) or np.any(q > m.upper):
             return False
         pin, coal = self.pin, self.coal
@@ -163,6 +173,7 @@ def tracik_solver(
         while (left := time_limit - (time.perf_counter() - start)) > 1e-4:
             fits = ladder[ladder <= left]
             q, found = peer.attempt(q0, target, float(fits[0]) if fits.size else left, tolerances)
+            q = settle(m, q)  # the wrap and clip optik's answers get (float32 limits overshoot)
             if found and not optik.collision.check(m, q, w, margin=margin).in_collision:
                 return q
             q0 = m.random_q(seed=rng)
@@ -180,18 +191,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--tol", type=float, default=1e-6, help="position (m) and orientation (rad) tolerance")
     ap.add_argument("--seed", type=int, default=0, help="seed of the random draws")
     ap.add_argument("--compile-wait", type=float, default=600.0, help="seconds to wait for optik's C build")
-    ap.add_argument(
-        "--scene",
-        choices=("clutter", "self"),
-        default="clutter",
-        help="clutter: table, shelf and boxes; self: no world, targets near the robot's own body",
-    )
-    ap.add_argument(
-        "--near",
-        type=float,
-        default=0.05,
-        help="--scene self: the self-distance below which a target counts as near (m)",
-    )
     args = ap.parse_args(argv)
     if args.n < 1 or not args.time_limit > 0 or not args.tol > 0 or args.margin < 0:
         ap.error("--n must be >= 1, --time-limit and --tol > 0, --margin >= 0")
@@ -201,7 +200,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         d = robots_dir() / "panda_description"
         urdf, srdf = d / "urdf" / "panda.urdf", d / "srdf" / "panda.srdf"
         m = optik.Mechanism.from_urdf(urdf, "panda_link0", "panda_hand_tcp", srdf=srdf)
-        w = scene() if args.scene == "clutter" else optik.World()
+        w = scene()
         judge = Judge(str(urdf), str(srdf), str(d.parents[2]), w)
     except (ImportError, optik.OptikError) as exc:
         print(f"needs coal, pinocchio and example-robot-data (extras 'collision', 'peers', 'robots'): {exc}")
@@ -210,8 +209,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     targets = []
     while len(targets) < args.n:
         q = m.random_q(seed=rng)
-        report = optik.collision.check(m, q, w, margin=args.margin)
-        if not report.in_collision and (args.scene == "clutter" or report.min_distance < args.near):
+        if not optik.collision.check(m, q, w, margin=args.margin).in_collision:
             targets.append(m.fk(q))
     solvers: dict[str, Solver] = {"optik lm + collisions": optik_solver(m, w, args.margin, args.tol)}
     try:
@@ -235,13 +233,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             elapsed = time.perf_counter() - t0
             times, ok = results[name]
             times.append(elapsed)
-            results[name] = (times, ok + judge.ok(q, target, m, args.tol, args.margin))
+            results[name] = (times, ok + judge.accepts(q, target, m, args.tol, args.margin))
     print(
-        f"Panda ({m.n_q} joints) "
-        + (f"in a cluttered scene ({len(w)} boxes)" if args.scene == "clutter" else "alone (self-collisions)")
-        + f", {args.n} targets by FK of configurations clear by {args.margin:g} m"
-        + ("" if args.scene == "clutter" else f" and closer than {args.near:g} m to the robot's own body")
-        + f", time limit {args.time_limit * 1e3:g} ms, "
+        f"Panda ({m.n_q} joints) in a cluttered scene ({len(w)} boxes), {args.n} targets by FK of "
+        f"configurations clear by {args.margin:g} m, answers settled into the limits, "
+        f"time limit {args.time_limit * 1e3:g} ms, "
         f"tol {args.tol:g}, judged by Pinocchio + coal; constrained kernel compiled: {compiled_kernels()}"
     )
     print(success_table(results, args.n, "optik lm + collisions"))

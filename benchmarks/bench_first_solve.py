@@ -3,12 +3,13 @@
 What a new user waits for in a fresh process: load the Panda URDF shipped with optik
 (``Mechanism.from_urdf``) and answer the first ``solve_ik`` (or the first ``diffik.step``), on a
 robot never compiled: ``$OPTIK_CACHE_DIR`` is a new folder that holds only what a machine builds
-once for every robot (the generic lm kernel of 7 joints, `optik.solvers.generic_chain`, the
-generic QP stack of a frame task on 7 joints, `optik.diffik.generic_stack`, and the compiler's
-version record), so optik answers the first solves and steps through those while the Panda's own
-C libraries build in the background. The case "empty cache" has not even that (as
-on the first use of optik on a machine): the first answers then come from CasADi's virtual
-machine. Next to it, in the same
+once for every robot (the generic QP stack of a frame task on 7 joints,
+`optik.diffik.generic_stack`, and the compiler's version record; the generic lm kernel of 7
+joints, `optik.solvers.generic_chain`, is compiled into the package at install, or copied there
+too where the install had no compiler), so optik answers the first solves and steps through
+those while the Panda's own C libraries build in the background. The case "empty cache" has
+nothing in its cache (the first use of optik on a machine): only what the install compiled into
+the package. Next to it, in the same
 run, TRAC-IK's constructor plus its first ``ik`` call (``pytracik``, same URDF, same target) and,
 for the differential step, Pink's model construction plus its first ``solve_ik`` (``pin-pink``,
 same QP backend as optik's default). As a reference, optik with ``compile=True`` shows the wait
@@ -47,7 +48,7 @@ LIMIT = 0.005
 """Time limit of optik's first ``solve_ik`` (TRAC-IK keeps its 0.1 s timeout)."""
 CASES = {
     "optik_ik": "optik: from_urdf + first solve_ik (robot never compiled)",
-    "optik_ik_empty": "optik, empty cache (no generic kernel either)",
+    "optik_ik_empty": "optik, empty cache (only the kernels built at install)",
     "optik_ik_wait": "optik, compile=True (waits for the C build)",
     "trac_ik": "TRAC-IK: constructor + first ik",
     "optik_step": "optik: from_urdf + first diffik.step (robot never compiled)",

@@ -49,6 +49,7 @@ import contextvars
 import ctypes
 import functools
 import hashlib
+import importlib.machinery
 import json
 import logging
 import os
@@ -228,7 +229,7 @@ def _write_manifest(built: Path, lib: Path) -> None:
     """Record the size and hash of the freshly built ``built`` as the manifest of ``lib``
     (written to a temporary file and renamed: atomic)."""
     manifest = _manifest_file(lib)
-    tmp = built.with_name("manifest.json")
+    tmp = built.with_name(f"manifest-{uuid.uuid4().hex}.json")  # unique: builds of one folder at once
     tmp.write_text(json.dumps(_fingerprint(built)))
     os.replace(tmp, manifest)
 
@@ -365,6 +366,15 @@ class Library:
         self._cdll: ctypes.CDLL | None = None
         self._done = threading.Event()
         self._evaluated = 0.0  # seconds the callers spent in CasADi's evaluator while it builds
+        self.shipped = False  # a library of the installed package (`prebuilt_library`), not the cache's
+
+    @classmethod
+    def loaded(cls, path: Path, cdll: ctypes.CDLL) -> Library:
+        """A ready `Library` of the file ``path`` already loaded as ``cdll`` (`prebuilt_library`)."""
+        lib = cls(path)
+        lib._cdll, lib.shipped = cdll, True
+        lib._done.set()
+        return lib
 
     @property
     def state(self) -> str:
@@ -385,7 +395,9 @@ class Library:
     def files(self) -> list[Path]:
         """This library's files in the cache that exist: the library, its manifest and the record
         of the compiler's version its key was made with (what another cache directory needs to
-        load it: `optik benchmark first_solve` copies them)."""
+        load it: `optik benchmark first_solve` copies them); none for a `shipped` library."""
+        if self.shipped:
+            return []
         cc = compiler()
         memo = None if cc is None else _version_memo(cc)
         found = (self.path, _manifest_file(self.path), memo)
@@ -518,21 +530,75 @@ def source_library(
     return None if lib is None else lib.wait()
 
 
-def source_digest(sources: Sequence[str], *parts: object) -> str:
+def source_digest(sources: Sequence[str], *parts: object, casadi: bool = True) -> str:
     """The key of generated code for `keyed_library`: the SHA-256 of CasADi's version and
     ``parts`` (as text, NUL-separated), then the bytes of each file of ``sources``.
 
     Args:
         sources: the files the code is generated from, relative to the ``optik`` package.
         parts: what else selects the code (a joint count, a task structure).
+        casadi: include CasADi's version (False for `prebuilt_library`: the package is built
+            with the CasADi of its build environment, and any version's code computes the same
+            functions).
 
     Raises:
         OSError: a source cannot be read (a partial install).
     """
-    h = hashlib.sha256("\0".join([ca.__version__, *map(str, parts)]).encode())
+    h = hashlib.sha256("\0".join([ca.__version__ if casadi else "", *map(str, parts)]).encode())
     for rel in sources:
         h.update((_PACKAGE / rel).read_bytes())
     return h.hexdigest()
+
+
+KEY_SYMBOL = "optik_key"
+"""Name of the C string in a prebuilt library that holds the `source_digest` it was generated from."""
+
+
+def prebuilt_path(folder: Path, name: str) -> Path:
+    """The file of the extension module ``name`` in ``folder`` (this Python's extension suffix)."""
+    return folder / f"{name}{importlib.machinery.EXTENSION_SUFFIXES[0]}"
+
+
+def prebuilt_library(folder: Path, name: str, key: str) -> Library | None:
+    """The library ``name`` compiled when the package was installed (``setup.py``'s optional
+    extensions), loaded, or None: then the caller builds its library in the cache as usual.
+
+    The file ``prebuilt_path(folder, name)`` is loaded only when its size and SHA-256 match the
+    manifest written beside it at build time (as for the cache: a truncated or foreign file is
+    never loaded) and its `KEY_SYMBOL` string equals ``key`` (it was generated from the sources
+    now installed: an editable install whose sources changed since its build finds it stale). A
+    damaged or stale file is logged (logger ``optik.native``) and left in place; a missing one
+    (no compiler at install time) is logged at debug level.
+
+    Args:
+        folder: where the package's extension modules are.
+        name: the module's name (file name stem).
+        key: the `source_digest` the library must have been generated from.
+    """
+    path = prebuilt_path(folder, name)
+    if not path.exists():
+        _LOG.debug("optik: no prebuilt %s (none was compiled at install)", path.name)
+        return None
+    damage = _damage(path)
+    if damage is not None:
+        _LOG.warning("optik: the prebuilt library %s is damaged (%s): not loaded", path, damage)
+        return None
+    try:
+        cdll = ctypes.CDLL(str(path))
+        found = (ctypes.c_char * (len(key) + 1)).in_dll(cdll, KEY_SYMBOL).value.decode()
+    except (OSError, ValueError) as exc:
+        _LOG.warning("optik: the prebuilt library %s cannot be loaded: %s", path, exc)
+        return None
+    if found != key:
+        _LOG.info("optik: the prebuilt library %s was made from other sources: not used", path.name)
+        return None
+    return Library.loaded(path, cdll)
+
+
+def write_manifest(lib: Path) -> None:
+    """Record the size and SHA-256 of the built library ``lib`` beside it (atomically), as a
+    build into the cache does: what `prebuilt_library` checks before loading it."""
+    _write_manifest(lib, lib)
 
 
 def keyed_library(stem: str, key: str, make_source: Callable[[], str]) -> Library | None:

@@ -50,6 +50,10 @@ peers = ["trac_ik", "pink", "ikpy"]                    # default: none
 time_limit = 0.1             # seconds per IK call
 quick_time_limit = 0.05
 
+[world.table]                # obstacles, one sub-table per object (World.from_table): shown by
+box = [1.0, 1.2, 0.04]       # `optik view`, avoided by its gizmo's IK
+xyz = [0.5, 0.0, -0.03]
+
 [path]                       # a tool path for `optik path` (Problem.path_poses, optik.path.shapes)
 kind = "line"                # "line", "arc", "polyline" or "waypoints"
 start_q = [...]              # first pose = FK(start_q) (line, arc, polyline)
@@ -94,6 +98,7 @@ import numpy as np
 
 from optik import catalog, closed_form, spatial
 from optik.checks import as_name, as_rng
+from optik.collision.world import World
 from optik.errors import InvalidArgumentError, OptikError, ProblemFileError, SolverUnavailableError
 from optik.mechanism import TASK_ROWS, Mechanism
 from optik.solvers import Tolerances
@@ -304,8 +309,10 @@ def _validate(path: Path, data: dict[str, Any]) -> dict[str, dict[str, Any]]:
     """Check every table and key against [`SCHEMA`][optik.problem_files.SCHEMA]; return the parsed values."""
     out: dict[str, dict[str, Any]] = {}
     for table in data:
-        if table not in SCHEMA:
-            raise ProblemFileError(f"{path}: [{table}]: unknown table; known tables: {sorted(SCHEMA)}")
+        if table not in SCHEMA and table != "world":  # [world] is read by World.from_table
+            raise ProblemFileError(
+                f"{path}: [{table}]: unknown table; known tables: {sorted([*SCHEMA, 'world'])}"
+            )
     for table, keys in SCHEMA.items():
         if table not in data:
             if table in REQUIRED_TABLES:
@@ -405,6 +412,8 @@ class Problem:
         time_limit, quick_time_limit: seconds per IK call.
         path_table: the parsed ``[path]`` table ({} without one; `path_poses`).
         mjcf: the MuJoCo model file of ``mechanism.mjcf`` (None: a catalog constructor).
+        world: the obstacles of the ``[world]`` table ([`World.from_table`][optik.World.from_table],
+            mesh paths relative to the file; None without one).
     """
 
     name: str
@@ -430,6 +439,7 @@ class Problem:
     quick_time_limit: float
     path_table: dict[str, Any] = field(default_factory=dict)
     mjcf: Path | None = None
+    world: World | None = None
 
     def _error(self, key: str, what: str) -> ProblemFileError:
         return ProblemFileError(f"{self.path}: {key}: {what}")
@@ -690,6 +700,14 @@ def _from_data(path: Path, data: dict[str, Any]) -> Problem:
                 f"{path}: mechanism.params.{key}: not a parameter of optik.catalog.{constructor}; "
                 f"parameters: {list(signature.parameters)}"
             )
+    world = None
+    if "world" in data:
+        if not isinstance(data["world"], dict):
+            raise ProblemFileError(f"{path}: world: expected a table [world], got {data['world']!r}")
+        try:
+            world = World.from_table(data["world"], folder=path.parent)
+        except InvalidArgumentError as exc:
+            raise ProblemFileError(f"{path}: {exc}") from None
     return Problem(
         name=prob.get("name", path.stem),
         path=path,
@@ -718,6 +736,7 @@ def _from_data(path: Path, data: dict[str, Any]) -> Problem:
         quick_time_limit=sol.get("quick_time_limit", DEFAULT_QUICK_TIME_LIMIT),
         path_table=path_table,
         mjcf=mjcf,
+        world=world,
     )
 
 

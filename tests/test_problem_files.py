@@ -194,3 +194,38 @@ def test_an_mjcf_model_in_a_problem_file(tmp_path):
         bad = f'[problem]\ndescription = "arm"\n[mechanism]\n{mech}\n'
         with pytest.raises(ProblemFileError, match=what):
             problem_files.load_problem(write(tmp_path, bad, "bad.toml"))
+
+
+WORLD = """
+[world.table]
+box = [1.0, 1.2, 0.04]
+xyz = [0.5, 0.0, -0.03]
+
+[world.ball]
+sphere = 0.05
+xyz = [0.4, 0.1, 0.5]
+"""
+
+
+def test_a_world_table_becomes_the_problems_world(tmp_path):
+    pytest.importorskip("coal", reason="worlds need coal (extra 'collision')")
+    p = problem_files.load_problem(write(tmp_path, MINIMAL + WORLD))
+    assert sorted(p.world.names) == ["ball", "table"]
+    assert np.allclose(p.world["ball"].pose[:3, 3], [0.4, 0.1, 0.5])
+    assert problem_files.load_problem(write(tmp_path, MINIMAL, "none.toml")).world is None
+
+
+@pytest.mark.parametrize(
+    ("extra", "key"),
+    [
+        ("[world.table]\nbox = [1.0, 1.2, 0.04]\nsphere = 0.1\n", "world.table"),
+        ("[world.table]\nbox = [1.0, 1.2, 0.04]\ncolour = 'red'\n", "world.table"),
+        ("[world.ball]\nsphere = 0.05\nxyz = [0.4, 0.1]\n", "world.ball.xyz"),
+        ("world = 3\n", "world: expected a table"),
+    ],
+)
+def test_a_bad_world_table_names_the_object(tmp_path, extra, key):
+    pytest.importorskip("coal", reason="worlds need coal (extra 'collision')")
+    body = extra + MINIMAL if extra.startswith("world =") else MINIMAL + extra
+    with pytest.raises(ProblemFileError, match=key.replace(".", r"\.").replace("[", r"\[")):
+        problem_files.load_problem(write(tmp_path, body))

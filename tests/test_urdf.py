@@ -351,3 +351,57 @@ def test_panda_jacobian_vs_finite_differences(source):
     )
     for q in m.random_q(10, seed=np.random.default_rng(11)):
         np.testing.assert_allclose(m.jacobian(q), finite_difference_jacobian(m, q), atol=1e-8)
+
+
+def _tree_with_fingers(tool: str, finger_kind: str = "fixed") -> str:
+    """An arm whose flange carries a hand with two fingers (collision boxes), listed before a
+    geometry-free tool frame ``tool``."""
+    box = '<collision><geometry><box size="0.02 0.02 0.02"/></geometry></collision>'
+    lim = '<limit lower="0" upper="0.04" effort="1" velocity="1"/>' if finger_kind != "fixed" else ""
+    joints = [
+        _joint("j1", "revolute", "base", "l1", xyz="0 0 0.3", axis="0 0 1", limit=(-1, 1)),
+        _joint("j2", "revolute", "l1", "flange", xyz="0.4 0 0", axis="0 1 0", limit=(-1, 1)),
+        _joint("hand_joint", "fixed", "flange", "hand", xyz="0 0 0.05"),
+        *(
+            f'<joint name="{f}_joint" type="{finger_kind}"><parent link="hand"/><child link="{f}"/>'
+            f'<origin xyz="0 0 0.05"/><axis xyz="0 1 0"/>{lim}</joint>'
+            for f in ("finger_a", "finger_b")
+        ),
+        _joint(f"{tool}_joint", "fixed", "flange", tool, xyz="0 0 0.1"),
+    ]
+    links = "".join(f'<link name="{n}">{box}</link>' for n in ("hand", "finger_a", "finger_b"))
+    links += "".join(f'<link name="{n}"/>' for n in ("base", "l1", "flange", tool))
+    return f'<?xml version="1.0"?>\n<robot name="test">{links}{"".join(joints)}</robot>'
+
+
+@pytest.mark.parametrize(
+    ("tool", "finger_kind", "ee"),
+    [
+        ("tcp", "fixed", "tcp"),  # named as a tool, listed after the fingers
+        ("tcp", "prismatic", "tcp"),  # named as a tool, the fingers one moving joint deeper
+        ("grasp_point", "fixed", "grasp_point"),  # no tool name: the geometry-free leaf
+        ("grasp_point", "prismatic", "finger_a"),  # no tool name: the deepest leaf, first listed
+    ],
+)
+def test_whole_tree_end_effector_is_the_tool_not_a_finger(tool, finger_kind, ee):
+    m = load_urdf(_tree_with_fingers(tool, finger_kind))
+    assert m.ee == ee
+    np.testing.assert_array_equal(m.fk(m.mid_q()), m.fk(m.mid_q(), ee))
+
+
+def test_whole_tree_end_effectors_of_the_pandas(tmp_path):
+    assert load_urdf(urdf_path("panda")).ee == "panda_link8"  # the shipped arm ends at the flange
+    text = urdf_path("dual_panda").read_text(encoding="utf-8")
+    start, end = text.index('  <link name="left_tool"/>'), text.index('  <link name="left_panda_hand">')
+    mark = "  <!-- right arm -->"
+    moved = text[:start] + text[end:].replace(mark, text[start:end] + mark)
+    assert moved.index('<link name="left_tool"/>') > moved.index("left_panda_rightfinger")  # fingers first
+    path = tmp_path / "dual_panda.urdf"
+    path.write_text(moved, encoding="utf-8")
+    assert load_urdf(urdf_path("dual_panda")).ee == load_urdf(path).ee == "left_tool"
+    try:
+        erd = optik.catalog.robots.robot_urdf("panda")
+    except optik.errors.MissingExtraError:
+        pytest.skip("example-robot-data (extra 'robots') is not installed")
+    # example-robot-data's Panda: prismatic fingers below panda_hand_tcp, which wins by its name
+    assert load_urdf(erd).ee == "panda_hand_tcp"

@@ -121,3 +121,37 @@ def test_bad_collision_arguments_name_the_argument(arm, viewers):
     assert plain.collisions is None and plain.panel.collisions is None
     with pytest.raises(InvalidArgumentError, match=r"^on"):
         plain.show_collisions(True)
+
+
+def test_optik_view_of_a_problem_file_shows_its_world(tmp_path, viewers):
+    """``optik view PROBLEM``: the file's ``[world]`` reaches the viewer, drawn and avoided."""
+    import textwrap
+
+    from optik.cli import build_parser
+    from optik.view.command import _viewer
+
+    path = tmp_path / "panda_box.toml"
+    path.write_text(
+        textwrap.dedent(
+            """
+            [problem]
+            description = "Two Pandas beside a box"
+
+            [mechanism]
+            constructor = "dual_panda"
+
+            [world.box]
+            box = [0.1, 0.1, 0.1]
+            xyz = [0.6, 0.3, 0.4]
+            """
+        )
+    )
+    v = _viewer(build_parser().parse_args(["view", str(path), "--port", str(_port())]))
+    viewers.append(v)
+    assert v.world is not None and v.world.names == ("box",)
+    assert np.allclose(v.world["box"].pose[:3, 3], [0.6, 0.3, 0.4])
+    res = v.move_object("box", spatial.translation(0.5, -0.2, 0.5))  # the file's object is draggable
+    np.testing.assert_allclose(v.world["box"].pose[:3, 3], [0.5, -0.2, 0.5], atol=1e-12)
+    assert v.collisions.gizmos["box"] is not None
+    if res.success:  # a shown answer clears the moved box exactly
+        assert check(v.m, v.q, v.world, margin=v.margin).min_distance >= v.margin

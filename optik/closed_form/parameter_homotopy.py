@@ -228,22 +228,32 @@ static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx 
     ht[k] = 0.0;
 }
 
+/* Partial pivoting at column col of the n x n row-major a: the row r >= col of the largest
+   |Re| + |Im| in that column is swapped with row col (whole rows); returns r, or -1 when the
+   column is zero from col down. */
+static inline __attribute__((always_inline)) int pivot(int n, cplx *a, int col) {
+    int piv = col;
+    double best = fabs(creal(a[col * n + col])) + fabs(cimag(a[col * n + col]));
+    for (int r = col + 1; r < n; r++) {
+        double m = fabs(creal(a[r * n + col])) + fabs(cimag(a[r * n + col]));
+        if (m > best) { best = m; piv = r; }
+    }
+    if (!(best > 0.0)) return -1;
+    if (piv != col)
+        for (int j = 0; j < n; j++) {
+            cplx x = a[col * n + j];
+            a[col * n + j] = a[piv * n + j];
+            a[piv * n + j] = x;
+        }
+    return piv;
+}
+
 /* a x = b and a y = c in place (b, c become x, y; c may be NULL), partial pivoting; 0 on success */
 static inline __attribute__((always_inline)) int solve_n(int n, cplx *a, cplx *b, cplx *c) {
     for (int col = 0; col < n; col++) {
-        int piv = col;
-        double best = fabs(creal(a[col * n + col])) + fabs(cimag(a[col * n + col]));
-        for (int r = col + 1; r < n; r++) {
-            double m = fabs(creal(a[r * n + col])) + fabs(cimag(a[r * n + col]));
-            if (m > best) { best = m; piv = r; }
-        }
-        if (!(best > 0.0)) return 1;
+        const int piv = pivot(n, a, col);
+        if (piv < 0) return 1;
         if (piv != col) {
-            for (int j = 0; j < n; j++) {
-                cplx x = a[col * n + j];
-                a[col * n + j] = a[piv * n + j];
-                a[piv * n + j] = x;
-            }
             cplx x = b[col]; b[col] = b[piv]; b[piv] = x;
             if (c) { x = c[col]; c[col] = c[piv]; c[piv] = x; }
         }
@@ -379,6 +389,47 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, cplx *zmark, doub
 /* |x| without hypot's overflow guard (the values are scaled) */
 static inline double modulus(cplx x) { return sqrt(creal(x) * creal(x) + cimag(x) * cimag(x)); }
 
+/* |A^-1|_1 (the largest column sum of moduli) of the n x n row-major matrix a, which it overwrites
+   with its factors P A = L U (partial pivoting, whole rows swapped); then column c of A^-1 solves
+   L U x = P e_c. INFINITY when a pivot is zero or a column is not finite. */
+static double inverse_norm1(int n, cplx *a) {
+    int perm[NMAX];
+    cplx inv_diag[NMAX];
+    for (int i = 0; i < n; i++) perm[i] = i;
+    for (int col = 0; col < n; col++) {
+        const int piv = pivot(n, a, col);
+        if (piv < 0) return INFINITY;
+        if (piv != col) {
+            int x = perm[col]; perm[col] = perm[piv]; perm[piv] = x;
+        }
+        inv_diag[col] = 1.0 / a[col * n + col];
+        for (int r = col + 1; r < n; r++) {
+            const cplx f = a[r * n + col] * inv_diag[col];
+            a[r * n + col] = f;
+            for (int j = col + 1; j < n; j++) a[r * n + j] -= f * a[col * n + j];
+        }
+    }
+    double worst = 0.0;
+    for (int c = 0; c < n; c++) {
+        cplx x[NMAX];
+        for (int i = 0; i < n; i++) {
+            cplx v = perm[i] == c ? 1.0 : 0.0;
+            for (int j = 0; j < i; j++) v -= a[i * n + j] * x[j];
+            x[i] = v;
+        }
+        double sum = 0.0;
+        for (int i = n - 1; i >= 0; i--) {
+            cplx v = x[i];
+            for (int j = i + 1; j < n; j++) v -= a[i * n + j] * x[j];
+            x[i] = v * inv_diag[i];
+            sum += modulus(x[i]);
+        }
+        if (!isfinite(sum)) return INFINITY;
+        worst = fmax(worst, sum);
+    }
+    return worst;
+}
+
 /* The end points z (rows, in place) at t = tb: `iters` Newton steps with the point's own patch
    conj(z)^T dz = 0 (a failed solve leaves the point), then cond[p], the 1-norm condition number
    |A|_1 |A^-1|_1 of A = [J(u); conj(u)^T] with J(u) = 2 M(s) u the Jacobian rows at the unit
@@ -398,7 +449,7 @@ static void finish_one(const sys_t *q, cplx *z, int iters, double *cond, double 
     cplx u[NMAX];
     for (int i = 0; i < n; i++) u[i] = z[i] / len;
     evaluate(q, u, 1.0, jac, val, ht);
-    double worst = 0.0, a_norm = 0.0, inv_norm = 0.0;
+    double worst = 0.0, a_norm = 0.0;
     for (int j = 0; j < k; j++) worst = fmax(worst, modulus(val[j]));
     *resid = worst; /* homogeneous of degree 2: |F(u)| = |F(z)| / |z|^2 */
     for (int c = 0; c < n; c++) jac[k * n + c] = conj(u[c]);
@@ -407,21 +458,7 @@ static void finish_one(const sys_t *q, cplx *z, int iters, double *cond, double 
         for (int r = 0; r < n; r++) col += modulus(jac[r * n + c]);
         a_norm = fmax(a_norm, col);
     }
-    for (int c = 0; c < n; c += 2) { /* columns c and c + 1 of A^-1, two right-hand sides */
-        cplx a[NMAX * NMAX], x[NMAX], y[NMAX];
-        for (int i = 0; i < n * n; i++) a[i] = jac[i];
-        for (int i = 0; i < n; i++) x[i] = y[i] = 0.0;
-        x[c] = 1.0;
-        if (c + 1 < n) y[c + 1] = 1.0;
-        if (solve2(n, a, x, y)) { *cond = INFINITY; return; }
-        double sx = 0.0, sy = 0.0;
-        for (int i = 0; i < n; i++) {
-            sx += modulus(x[i]);
-            sy += modulus(y[i]);
-        }
-        inv_norm = fmax(inv_norm, c + 1 < n ? fmax(sx, sy) : sx);
-    }
-    *cond = a_norm * inv_norm;
+    *cond = a_norm * inverse_norm1(n, jac);
 }
 
 static int make_sys(sys_t *q, int k, int n, const long *ptr0, const int *col0, const cplx *val0,

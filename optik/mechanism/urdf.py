@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import warnings
 from dataclasses import dataclass
 
@@ -295,7 +296,21 @@ def _float_base(
     velocities[:0] = [np.inf] * 6
 
 
-def _deepest_leaf(selected: list[tuple[etree._Element, str]], base: str) -> str:
+TOOL_NAME = re.compile(r"(?:^|[^a-z])(?:tool\d*|tcp|ee|eef|end_?effector)(?:[^a-z]|$)", re.IGNORECASE)
+"""A link name that says it is a tool frame: a word ``tool`` (``tool0``...), ``tcp``, ``ee``,
+``eef`` or ``end_effector`` between non-letters (``left_tool``, ``panda_hand_tcp``,
+``iiwa_link_ee``; not ``wheel``)."""
+
+
+def _default_ee(tree: _Tree, selected: list[tuple[etree._Element, str]], base: str) -> str:
+    """The end effector of a whole tree (or subtree): one of its leaves (links no joint leaves).
+
+    A leaf named as a tool frame (`TOOL_NAME`) wins over one that is not; then the leaf with the
+    most moving joints from ``base``; then a leaf without ``<visual>`` or ``<collision>`` (a
+    frame rather than a body such as a finger); then the first in document order. So fingers or
+    other bodies listed after a tool frame, or deeper than it (the Panda's prismatic fingers
+    below its ``panda_hand_tcp``), do not become the end effector.
+    """
     depth = {base: 0}
     parents = set()
     for el, child in selected:
@@ -303,7 +318,13 @@ def _deepest_leaf(selected: list[tuple[etree._Element, str]], base: str) -> str:
         parents.add(parent)
         depth[child] = depth[parent] + (el.get("type") != "fixed")
     leaves = [child for _, child in selected if child not in parents]
-    return max(leaves, key=lambda link: depth[link])  # max keeps the first of equal depth
+
+    def rank(link: str) -> tuple[bool, int, bool]:
+        el = tree.links[link]
+        bare = el.find("visual") is None and el.find("collision") is None
+        return TOOL_NAME.search(link) is not None, depth[link], bare
+
+    return max(leaves, key=rank)  # max keeps the first of equal rank
 
 
 def _held_value(src: UrdfXml, el: etree._Element, kind: str, where: str) -> float:
@@ -448,7 +469,7 @@ def parse_urdf(
         raise ModelError(f"{src.label}: no moving joint {where}")
     resolved = _resolve_mimics(src, mimics)
     joints = tuple(Joint(**spec, mimic=resolved.get(str(spec["name"]))) for spec in specs)
-    ee = tip if tip is not None else _deepest_leaf(selected, base)
+    ee = tip if tip is not None else _default_ee(tree, selected, base)
     held: dict[str, float] = {}
     if tip is not None:
         extra, held = _off_path(src, tree, place)

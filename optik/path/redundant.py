@@ -21,6 +21,7 @@ from collections import OrderedDict
 import casadi as ca
 import numpy as np
 
+from optik.batch import fk_batch
 from optik.closed_form.derived import DerivedIK, derive_locked
 from optik.errors import SolverUnavailableError
 from optik.mechanism import Mechanism
@@ -44,38 +45,102 @@ def _locked(m: Mechanism, index: int, value: float) -> DerivedIK | None:
     return per.setdefault(key, derive_locked(m, {index: value}))
 
 
+END_TOL = 1e-9
+"""FK agreement required of `end_turns` at each test configuration."""
+
+
+def end_turns(m: Mechanism, index: int, values: np.ndarray, seed: int = 0) -> tuple[bool, np.ndarray] | None:
+    """``(right, D)`` when coordinate ``index`` moves the tool by a fixed transform, whatever the
+    other coordinates: ``fk(q | q_index = v) = fk(q | q_index = v_0) D_v`` for every ``q`` (the
+    last joint of a chain; ``right``) or ``= D_v fk(q | q_index = v_0)`` (the first; not
+    ``right``), ``v_0 = values[0]``; ``D (V, 4, 4)``, one per value. Checked by FK at three random
+    configurations within the limits, else None."""
+    rng = np.random.default_rng(seed)
+    lo, hi = np.maximum(m.lower, -np.pi), np.minimum(m.upper, np.pi)
+    q = np.repeat(rng.uniform(lo, hi, (3, 1, m.n_q)), len(values), axis=1)
+    q[:, :, index] = values
+    f = fk_batch(m, q.reshape(-1, m.n_q)).reshape(3, len(values), 4, 4)
+    base = f[:, :1]
+    for right in (True, False):
+        d = np.linalg.inv(base) @ f if right else f @ np.linalg.inv(base)
+        if np.abs(d - d[:1]).max() <= END_TOL:
+            return right, d[0]
+    return None
+
+
 def self_motion_solutions(
     m: Mechanism, poses: np.ndarray, index: int, values: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every solution of ``poses (P, 4, 4)`` with coordinate ``index`` at one of the ``values``:
     the solutions ``(K, n)``, the pose of each ``(K,)`` (ascending) and the index of its value
-    ``(K,)`` (per pose in the order of the values). One vectorized closed-form call per value.
+    ``(K,)`` (per pose in the order of the values).
+
+    When the coordinate moves the tool by a fixed transform (`end_turns`: the last or the first
+    joint), the solutions with ``q_index = v`` of a pose ``T`` are those with ``q_index = v_0``
+    of ``T D_v^-1`` (or ``D_v^-1 T``): one vectorized call of one locked closed form over every
+    value and pose. Otherwise one call per value, each with its own locked closed form.
 
     Raises:
         SolverUnavailableError: locking that coordinate leaves no derived closed form.
     """
     free = [k for k in range(m.n_q) if k != index]
     angles = np.asarray(m.revolute_mask, dtype=bool)
+    turns = end_turns(m, index, values) if len(values) > 1 else None
+    if turns is None:
+        calls = [(np.array([i]), float(v), poses) for i, v in enumerate(values)]
+    else:
+        right, d = turns
+        inv = np.linalg.inv(d)[:, None]  # (V, 1, 4, 4)
+        moved = poses[None] @ inv if right else inv @ poses[None]
+        calls = [(np.arange(len(values)), float(values[0]), moved.reshape(-1, 4, 4))]
     rows, pose, tag = [np.zeros((0, m.n_q))], [np.zeros(0, dtype=np.int64)], [np.zeros(0, dtype=np.int64)]
-    for i, v in enumerate(values):
-        solver = _locked(m, index, float(v))
+    for which, v, targets in calls:
+        solver = _locked(m, index, v)
         if solver is None:
             raise SolverUnavailableError(
                 f"locking {m.coordinate_names[index]!r} of {m.name!r} at {v:g} leaves no derived closed form "
                 "(lock another joint)"
             )
-        q6, ok = solver.solve(poses)
-        p, b = np.nonzero(ok)
-        full = np.empty((len(p), m.n_q))
-        full[:, free] = q6[p, b]
-        full[:, index] = v
+        q6, t = _every_solution(solver, targets)  # t: the target (value-major over the poses)
+        value, p = which[t // len(poses)], t % len(poses)
+        full = np.empty((len(t), m.n_q))
+        full[:, free] = q6
+        full[:, index] = values[value]
         full = into_limits(full, m.lower, m.upper, angles)
         fits = np.isfinite(full).all(axis=1)
         rows.append(full[fits])
         pose.append(p[fits])
-        tag.append(np.full(int(fits.sum()), i))
+        tag.append(value[fits])
     order = np.argsort(np.concatenate(pose), kind="stable")  # by pose, each in the order of the values
     return np.concatenate(rows)[order], np.concatenate(pose)[order], np.concatenate(tag)[order]
+
+
+_UNLIMITED = (np.full(6, -np.inf), np.full(6, np.inf))
+"""No limits for the compiled driver: `self_motion_solutions` fits the rows into the arm's."""
+
+
+def _every_solution(solver: DerivedIK, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every solution of each of ``targets (M, 4, 4)`` by the locked closed form, wrapped to
+    ``(-pi, pi]``, as rows ``(K, 6)`` target after target (in the candidate order) and the target
+    of each ``(K,)``: through its compiled driver over every target in one call once it is
+    loaded (`optik.closed_form.ik_all`; the targets it hands back, and every target before,
+    by the numpy kernel `DerivedIK.solve`)."""
+    driver = solver.driver()
+    many = None if driver is None else driver.many
+    got = None if many is None else many(np.ascontiguousarray(targets, dtype=float), None, *_UNLIMITED, False)
+    if got is None:
+        q6, ok = solver.solve(targets)
+        t, b = np.nonzero(ok)
+        return q6[t, b], t
+    rows, _, counts, _, _, status = got
+    t = np.repeat(np.arange(len(targets)), counts)
+    back = np.flatnonzero(status)
+    if back.size:  # answered by numpy, put in their place
+        q6, ok = solver.solve(targets[back])
+        tb, b = np.nonzero(ok)
+        order = np.argsort(np.concatenate([t, back[tb]]), kind="stable")
+        rows, t = np.concatenate([rows, q6[tb, b]])[order], np.concatenate([t, back[tb]])[order]
+    return rows, t
 
 
 class _Refiner:

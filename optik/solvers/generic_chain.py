@@ -36,6 +36,13 @@ of the sources its code is generated from (this module, `optik.solvers.lm_kernel
 thread (about a second; logged when it fails) and the per-robot path answers meanwhile. Without a
 C compiler there is no library and the per-robot path (CasADi's evaluator) answers, as before.
 `build` makes the library ahead of time (``optik benchmark first_solve`` does it for its runs).
+
+*Shipped with the package.* So that the first robot on a fresh install waits for nothing, the
+install compiles the kernels of `PREBUILT` joint counts (``setup.py``: optional C extensions
+``optik._chain<n>`` made from `prebuilt_source`; a missing compiler leaves them out and the
+install goes on). `ChainKernel` loads such a library when its manifest and its key (a digest of
+the sources above, without CasADi's version) match (`optik.native.prebuilt_library`), and builds
+its own in the cache otherwise (logged when the shipped one is damaged).
 """
 
 from __future__ import annotations
@@ -57,12 +64,14 @@ from optik.errors import SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
 from optik.native import (
+    KEY_SYMBOL,
     CCall,
     Library,
     c_source,
     driver_source,
     in_background,
     keyed_library,
+    prebuilt_library,
     source_digest,
 )
 from optik.problem import frame_errors, target_parameters, task_blocks
@@ -87,6 +96,10 @@ _SOURCES = (
     "spatial.py",
 )
 _SOURCES += ("native.py",)
+PREBUILT = (6, 7)
+"""Joint counts whose kernels the install compiles into the package (``setup.py``)."""
+PREBUILT_DIR = Path(__file__).resolve().parent.parent
+"""Where the install puts them: the ``optik`` package folder."""
 
 
 def n_chain_parameters(n: int) -> int:
@@ -209,6 +222,21 @@ def _source(n: int) -> str:
     return c_source([step, errors], driver_defines(n, 12 + n_chain_parameters(n)) + str(driver))
 
 
+def prebuilt_name(n: int) -> str:
+    """Module name (in the ``optik`` package) of the shipped kernel of ``n`` joints."""
+    return f"_chain{n}"
+
+
+def prebuilt_key(n: int) -> str:
+    """The key a shipped kernel of ``n`` joints must carry: a digest of its sources and ``n``."""
+    return source_digest(_SOURCES, n, "prebuilt", casadi=False)
+
+
+def prebuilt_source(n: int) -> str:
+    """The C source of the shipped kernel of ``n`` joints: `_source` and its key (`KEY_SYMBOL`)."""
+    return f'{_source(n)}\nconst char {KEY_SYMBOL}[] = "{prebuilt_key(n)}";\n'
+
+
 class ChainKernel:
     """The generic kernel of ``n`` joints (thread-safe: each thread has its own buffers).
 
@@ -222,14 +250,15 @@ class ChainKernel:
     def __init__(self, n: int) -> None:
         self.n = n
         self.n_target = 12 + n_chain_parameters(n)
+        self.library: Library | None = None
         try:
-            digest = source_digest(_SOURCES, n)
+            if n in PREBUILT:
+                self.library = prebuilt_library(PREBUILT_DIR, prebuilt_name(n), prebuilt_key(n))
+            if self.library is None:
+                digest = source_digest(_SOURCES, n)
+                self.library = keyed_library(f"optik_chain{n}", digest, lambda: _source(n))
         except OSError as exc:  # a partial install: no generic kernel, the per-robot path answers
             _LOG.warning("optik: no generic lm kernel, its sources cannot be read: %s", exc)
-            digest = None
-        self.library: Library | None = (
-            None if digest is None else keyed_library(f"optik_chain{n}", digest, lambda: _source(n))
-        )
         self.calls = 0
         self._packed: Any = None
         self._local = threading.local()

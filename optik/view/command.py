@@ -1,9 +1,10 @@
 """``optik view PROBLEM|URDF``: serve a mechanism in the browser until Ctrl-C.
 
 ``PROBLEM`` is a problem name or ``.toml`` file, resolved like ``optik solve`` does (its
-mechanism, task and tolerances); a ``.urdf`` file needs ``--base`` and ``--tip``. The page binds
-to ``127.0.0.1`` (this machine); ``--host 0.0.0.0`` serves it to the network (or keep the default
-and forward the port: ``ssh -L 8080:localhost:8080 HOST``). Ctrl-C (SIGINT) or SIGTERM stops the
+mechanism, task, tolerances and ``[world]`` obstacles, shown and avoided by the gizmo's IK); a
+``.urdf`` file needs ``--base`` and ``--tip``. The page binds to ``127.0.0.1`` (this machine);
+``--host 0.0.0.0`` serves it to the network (or keep the default and forward the port: ``ssh -L
+8080:localhost:8080 HOST``). Ctrl-C (SIGINT) or SIGTERM stops the
 server and exits with code 0. ``--path`` plans the problem's ``[path]`` table as ``optik path
 PROBLEM`` does and loads the joint path for playback (the sample slider and the play button).
 """
@@ -73,7 +74,8 @@ def _viewer(args: argparse.Namespace) -> Any:
             reach_points(args.reach)
         except InvalidArgumentError as exc:
             raise InvalidArgumentError("--reach", str(exc).partition(": ")[2]) from None
-    viewer = Viewer(m, host=args.host, port=args.port, task=task, tol=tol, method=args.method)
+    world = problem.world if problem is not None else None  # the file's [world] table
+    viewer = Viewer(m, host=args.host, port=args.port, task=task, tol=tol, method=args.method, world=world)
     if args.reach is not None:
         viewer.show_reach(args.reach)
     if args.path:

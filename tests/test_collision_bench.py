@@ -1,0 +1,76 @@
+"""The clutter benchmark (benchmarks/bench_collision.py) judges every solver's answer the same way:
+wrapped and clipped into the limits (`settle`, what `solve_ik` does to optik's answers) before the
+Pinocchio + coal judge, so a peer's answer a float32 rounding past a limit is not failed."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import optik
+
+pytest.importorskip("coal", reason="collision checks need coal (extra 'collision')")
+pytest.importorskip("pinocchio", reason="the judge is Pinocchio + coal (extra 'peers')")
+
+MARGIN = 0.01
+TOL = 1e-6
+
+
+@pytest.fixture(scope="module")
+def panda_judge():
+    from optik.benchmarks.bench_collision import Judge, scene
+    from optik.catalog.robots import robots_dir
+
+    d = robots_dir() / "panda_description"
+    urdf, srdf = d / "urdf" / "panda.urdf", d / "srdf" / "panda.srdf"
+    m = optik.Mechanism.from_urdf(urdf, "panda_link0", "panda_hand_tcp", srdf=srdf)
+    w = scene()
+    return m, w, Judge(str(urdf), str(srdf), str(d.parents[2]), w)
+
+
+@pytest.mark.parametrize("joint", [0, 3, 6])
+@pytest.mark.parametrize("side", ["lower", "upper"])
+def test_an_answer_5e9_past_a_limit_is_settled_onto_it_and_accepted(panda_judge, joint, side):
+    m, w, judge = panda_judge
+    rng = np.random.default_rng(joint)
+    limit = getattr(m, side)[joint]
+    for q in m.random_q(200, seed=rng):  # a configuration on the limit, clear of the clutter
+        q[joint] = limit
+        if not optik.collision.check(m, q, w, margin=1.5 * MARGIN).in_collision:
+            break
+    else:
+        pytest.fail("no clear configuration on the limit")
+    target = m.fk(q)
+    raw = q.copy()
+    raw[joint] += 5e-9 if side == "upper" else -5e-9  # TRAC-IK's float32 limit overshoot
+    assert not judge.ok(raw, target, m, TOL, MARGIN)  # the judge itself is exact: outside is outside
+    assert judge.accepts(raw, target, m, TOL, MARGIN)  # the benchmark's path settles it first
+    assert judge.accepts(q, target, m, TOL, MARGIN) and judge.ok(q, target, m, TOL, MARGIN)
+
+
+def test_a_real_miss_stays_a_failure_after_settling(panda_judge):
+    m, _, judge = panda_judge
+    q = m.mid_q()
+    target = m.fk(q)
+    far = q.copy()
+    far[0] = m.upper[0] + 0.3  # past the limit by far more than a rounding: clipped, then misses
+    assert not judge.accepts(far, target, m, TOL, MARGIN)
+    assert not judge.accepts(None, target, m, TOL, MARGIN)
+
+
+def test_optik_answers_take_the_same_path_and_pass_it(panda_judge):
+    from optik.benchmarks.bench_collision import optik_solver
+
+    m, w, judge = panda_judge
+    solve = optik_solver(m, w, MARGIN, TOL)
+    rng = np.random.default_rng(3)
+    accepted = 0
+    for q in m.random_q(30, seed=rng):
+        if optik.collision.check(m, q, w, margin=MARGIN).in_collision:
+            continue
+        target = m.fk(q)
+        answer = solve(target, 1.0, 0)
+        if answer is not None:
+            assert judge.ok(answer, target, m, TOL, MARGIN)  # optik's answers are settled already
+            accepted += judge.accepts(answer, target, m, TOL, MARGIN)
+    assert accepted >= 5

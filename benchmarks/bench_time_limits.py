@@ -7,6 +7,10 @@ Each solver is warmed up first (its problem built and its C code compiled and lo
 excluded from time limits and reported apart), so the table measures the steady state. Cases:
 
 * ``lm`` and ``nlp`` (IPOPT): ``solve_ik`` on the Panda, pose targets 2 m out of reach;
+* ``nlp`` collision (IPOPT with the sphere and capsule constraints): ``solve_ik`` on the dual
+  Panda, both hands 2 m out of reach, ``self_collision=True`` (one IPOPT iteration of its 15
+  joints and self rows takes milliseconds; skipped without the Panda meshes of
+  example-robot-data);
 * ``solve_ik_all`` general 6R: the certified solver on a 6R arm with no decomposable closed
   form (`optik.dh_chain`), a pose out of reach (it has no iteration to cut short: the overrun
   is its whole run past the limit);
@@ -39,11 +43,28 @@ GENERAL_6R = [
 """DH rows ``(a, d, alpha)`` of the general 6R arm (issue 18's reproducer, without its 7th joint)."""
 
 
-def _far(m: optik.Mechanism, seed: int) -> np.ndarray:
-    """A pose 2 m beyond the reach of ``m`` (a reachable pose moved out along x)."""
-    t = m.fk(m.random_q(seed=seed))
+def _far(m: optik.Mechanism, seed: int, frame: str | None = None) -> np.ndarray:
+    """A pose of ``frame`` (None: the end effector) 2 m beyond the reach of ``m`` (a reachable
+    pose moved out along x)."""
+    t = m.fk(m.random_q(seed=seed), frame)
     t[0, 3] += 2.0
     return t
+
+
+def _collision_case() -> dict[str, tuple[Callable[[float, int], object], tuple[float, ...]]]:
+    """The collision-aware ``nlp`` case on the dual Panda (none without its meshes)."""
+    duo = optik.catalog.dual_panda()
+    if len(optik.collision.robot_geometry(duo).links) <= 4:  # no meshes: no collision geometry
+        return {}
+    hands = ("left_tool", "right_tool")
+    far = [{f: _far(duo, s, f) for f in hands} for s in range(16)]
+
+    def call(lim: float, i: int) -> object:
+        return optik.solve_ik(
+            duo, far[i % 16], method="nlp", self_collision=True, margin=0.01, time_limit=lim, seed=i
+        )
+
+    return {"nlp collision (dual Panda)": (call, (1e-2, 5e-2))}
 
 
 def cases() -> dict[str, tuple[Callable[[float, int], object], tuple[float, ...]]]:
@@ -69,6 +90,7 @@ def cases() -> dict[str, tuple[Callable[[float, int], object], tuple[float, ...]
             lambda lim, i: optik.solve_ik_all(panda, far_panda[i % 16], time_limit=lim, seed=i),
             (1e-2,),
         ),
+        **_collision_case(),
     }
 
 

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -182,6 +183,38 @@ def tracik_solver(
     return solve
 
 
+def timed_in_turn(
+    solvers: dict[str, Callable[[Any, float, int], np.ndarray | None]],
+    targets: Sequence[Any],
+    time_limit: float,
+    compile_wait: float,
+    accept: Callable[[np.ndarray | None, Any], bool],
+) -> dict[str, tuple[list[float], int]]:
+    """Each solver's wall times and accepted count, the solvers interleaved target by target.
+
+    Every solver first solves ``targets[0]`` untimed (optik builds its constrained code there),
+    then optik's compiled kernels get up to ``compile_wait`` seconds; ``accept(q, target)`` judges
+    each answer (None: no answer).
+    """
+    from optik.solvers.collision_free import compiled_kernels
+
+    for solve in solvers.values():
+        solve(targets[0], 60.0, 0)
+    waited = time.perf_counter()
+    while not all(compiled_kernels().values()) and time.perf_counter() - waited < compile_wait:
+        time.sleep(1.0)
+    results: dict[str, tuple[list[float], int]] = {name: ([], 0) for name in solvers}
+    for i, target in enumerate(targets):
+        for name, solve in solvers.items():
+            t0 = time.perf_counter()
+            q = solve(target, time_limit, i)
+            elapsed = time.perf_counter() - t0
+            times, ok = results[name]
+            times.append(elapsed)
+            results[name] = (times, ok + accept(q, target))
+    return results
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the benchmark and print a markdown table with the ratio to optik; returns 0."""
     ap = benchmark_parser("collision", __doc__)
@@ -218,22 +251,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
     except (ImportError, optik.OptikError) as exc:
         print(f"pytracik is not available ({exc}): TRAC-IK skipped")
-    for solve in solvers.values():  # untimed warm-up (optik builds its constrained code here)
-        solve(targets[0], 60.0, 0)
+    results = timed_in_turn(
+        solvers,
+        targets,
+        args.time_limit,
+        args.compile_wait,
+        lambda q, target: judge.accepts(q, target, m, args.tol, args.margin),
+    )
     from optik.solvers.collision_free import compiled_kernels
 
-    waited = time.perf_counter()
-    while not all(compiled_kernels().values()) and time.perf_counter() - waited < args.compile_wait:
-        time.sleep(1.0)
-    results: dict[str, tuple[list[float], int]] = {name: ([], 0) for name in solvers}
-    for i, target in enumerate(targets):
-        for name, solve in solvers.items():
-            t0 = time.perf_counter()
-            q = solve(target, args.time_limit, i)
-            elapsed = time.perf_counter() - t0
-            times, ok = results[name]
-            times.append(elapsed)
-            results[name] = (times, ok + judge.accepts(q, target, m, args.tol, args.margin))
     print(
         f"Panda ({m.n_q} joints) in a cluttered scene ({len(w)} boxes), {args.n} targets by FK of "
         f"configurations clear by {args.margin:g} m, answers settled into the limits, "

@@ -49,7 +49,7 @@ import numpy as np
 import optik
 from optik import spatial
 from optik.benchmarks import benchmark_parser
-from optik.benchmarks.bench_collision import timeout_ladder
+from optik.benchmarks.bench_collision import timed_in_turn, timeout_ladder
 from optik.harness.peers.rules import settle
 from optik.harness.tally import success_table
 
@@ -228,23 +228,15 @@ def run_robot(name: str, args) -> None:
         solvers["TRAC-IK + coal rejection"] = tracik_solver(w, args.margin, args.tol, args.time_limit)
     except (ImportError, optik.OptikError) as exc:
         print(f"pytracik is not available ({exc}): TRAC-IK skipped")
-    for solve in solvers.values():  # untimed warm-up (optik builds its constrained code here)
-        solve(targets[0], 60.0, 0)
+    results = timed_in_turn(  # every answer settled into the limits, the same for every solver
+        solvers,
+        targets,
+        args.time_limit,
+        args.compile_wait,
+        lambda q, target: judge.ok(None if q is None else settle(w.m, q), target, w.m, args.tol, args.margin),
+    )
     from optik.solvers.collision_free import compiled_kernels
 
-    waited = time.perf_counter()
-    while not all(compiled_kernels().values()) and time.perf_counter() - waited < args.compile_wait:
-        time.sleep(1.0)
-    results: dict[str, tuple[list[float], int]] = {s: ([], 0) for s in solvers}
-    for i, target in enumerate(targets):
-        for s, solve in solvers.items():
-            t0 = time.perf_counter()
-            q = solve(target, args.time_limit, i)
-            elapsed = time.perf_counter() - t0
-            q = None if q is None else settle(w.m, q)  # the same for every solver
-            times, ok = results[s]
-            times.append(elapsed)
-            results[s] = (times, ok + judge.ok(q, target, w.m, args.tol, args.margin))
     print(
         f"{name} ({w.m.n_q} joints, frames {', '.join(w.frames)}; TRAC-IK chains "
         + ", then ".join(f"{a} to {b}" for a, b in w.chains)

@@ -173,3 +173,60 @@ def test_panda_damper_rows_from_two_threads(ball):
         threaded = list(pool.map(lambda q: damper_rows(m, q, w, True, MARGIN, influence=0.15), qs))
     for (g1, h1, d1), (g2, h2, d2) in zip(serial, threaded, strict=True):
         assert np.array_equal(g1, g2) and np.array_equal(h1, h2) and d1 == d2
+
+
+def _both_paths(m, q, w, influence):
+    """``damper_rows`` (the compiled pair call once its library is loaded) and the same rows from
+    coal's distances (`_coal_rows` on the same screen outputs), and the compiled call's count."""
+    from optik.collision.world import state_of
+    from optik.diffik import collision as dc
+
+    fast = damper_rows(m, q, w, True, MARGIN, influence=influence)
+    cq, state = dc._queries(m), state_of(w)
+    capacity = 1 << max(len(state.parts) - 1, 0).bit_length()
+    fn = cq.screen_call(capacity, state)
+    fn.inputs[0][:] = q
+    outputs = fn()
+    compiled = cq.compiled_pairs()
+    assert compiled is not None
+    compiled.bind(state, outputs)
+    k = compiled(influence, True)
+    slow = dc._coal_rows(m, q, cq, state, outputs, True, influence, dc.DAMPER_GAIN, MARGIN)
+    return fast, slow, k
+
+
+def test_panda_compiled_pairs_are_coals(ball):
+    """The compiled pair call (GJK on the hulls of boxes, spheres, capsules and meshes) gives
+    coal's rows: the same pairs in the same order, the same distances (never above coal's, at most
+    1e-6 m below: coal's GJK tolerance) and rows (to 1e-4 but for at most 5 %: witness points are
+    not unique for parallel faces, and coal's are exact only to its tolerance; the rows' slopes are
+    checked against the exact distance in test_panda_damper_rows_are_the_distance_gradients). It
+    leaves every pair to coal when two hulls overlap (a random configuration inside an obstacle)
+    or a cylinder is in the world."""
+    from optik import native
+
+    m = ball.m
+    w = World()
+    w.add_box("box", (0.2, 0.1, 0.3), spatial.translation(0.4, 0.2, 0.4))
+    w.add_sphere("ball", 0.06, spatial.translation(0.3, -0.3, 0.5))
+    w.add_capsule("rod", 0.03, 0.4, spatial.translation(0.5, 0.0, 0.3))
+    damper_rows(m, m.random_q(1, seed=0)[0], w, True, MARGIN)
+    native.wait()
+    rows = left = off = 0
+    for q in m.random_q(60, seed=11):
+        (g1, h1, d1), (g2, h2, d2), k = _both_paths(m, q, w, 0.2)
+        if k < 0:  # only when hulls overlap: then coal's own rows
+            assert d2 < 0 and np.array_equal(g1, g2) and np.array_equal(h1, h2)
+            left += 1
+            continue
+        assert g1.shape == g2.shape
+        assert d1 == pytest.approx(d2, abs=1e-6) or d1 == d2 == np.inf
+        # both GJK answers are upper bounds of the distance; coal stops at its tolerance (1e-6)
+        assert np.all(h1 <= h2 + 1e-12) and np.all(h2 - h1 <= 1e-6)
+        off += int((np.abs(g1 - g2).max(axis=1, initial=0.0) > 1e-4).sum())
+        rows += len(h1)
+    assert rows > 60 and left < 20 and off <= 0.05 * rows
+    w.add_cylinder("post", 0.05, 0.5, spatial.translation(0.3, 0.3, 0.25))
+    for q in m.random_q(10, seed=12):
+        (g1, h1, d1), (g2, h2, d2), k = _both_paths(m, q, w, 0.3)
+        assert k == -1 and np.array_equal(g1, g2) and np.array_equal(h1, h2) and d1 == d2

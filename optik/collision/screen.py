@@ -107,10 +107,19 @@ class Screen:
         object and of every self-collision pair (see the module docstring)."""
         fn = getattr(self._local, "fn", None)
         if fn is None:
-            fn = self._local.fn = NativeFunction(self.function, self.library)
+            fn = self._local.fn = self.evaluator()
         fn.inputs[0][:] = q
         fn.inputs[1][:] = slots
-        poses, world, own = fn()
+        return self.reduce(fn(), n_objects)
+
+    def evaluator(self) -> NativeFunction:
+        """A new evaluator of `function` (for one thread): inputs ``q`` and the slot values."""
+        return NativeFunction(self.function, self.library)
+
+    def reduce(self, outputs: list[np.ndarray], n_objects: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`bounds` from an `evaluator`'s outputs: each part's bound against an object is the
+        least of its spheres' (copies, not views of the evaluator's buffers)."""
+        poses, world, own = outputs
         spheres = world.reshape(self.capacity, self._spheres)[:n_objects].T
         parts = np.minimum.reduceat(spheres, self._starts, axis=0) if n_objects else spheres[: self.n_parts]
         return poses.reshape(self.n_parts, 12).copy(), parts, own.copy()

@@ -27,10 +27,14 @@ own slot values, cut there), not the world's capacity: each slot costs a bound p
 the base body get no world rows (their distance does not depend on ``q``: a row
 ``0 <= gamma (d - d_s)`` could only make the QP infeasible; the exact check still judges them).
 
-*Rows.* The coal queries go through per-thread objects made once (a transform per part, updated
-in place, one request and one result), and each pair within ``d_i`` writes its witness points,
-the sign of ``d``, ``d`` and the bodies of its ends straight into the input buffers of a second
-compiled function (`DamperKernel`), which computes the Jacobians and every row in one call. With
+*Pairs.* With the compiled code loaded, one C call (`optik.diffik.damper_pairs`) takes the
+screen's outputs, computes the exact distance and witness points of every pair whose bound is
+below ``d_i`` and writes those within ``d_i``, closest first (their witness points, the sign of
+``d``, ``d`` and the bodies of their ends), for the input buffers of a second compiled function
+(`DamperKernel`), which computes the Jacobians and every row in one call. Without it (no
+compiler, the build still running) or when that call cannot decide a pair (hulls that overlap,
+a cylinder), coal answers every pair, through per-thread objects made once (a transform per part,
+updated in place, one request and one result). With
 ``J^0 = J_v + [o]_x J_w`` (the velocity of the point of the body at the base origin) the point
 Jacobian is ``J^0 - [p]_x J_w``, so ``n^T J_x(p) = [n; p x n]^T [J^0; J_w]``, and since
 ``(p_a - p_b) x n = 0`` both ends share ``c = p_a x n``:
@@ -57,9 +61,10 @@ from optik.collision.screen import Screen, screen
 from optik.collision.shapes import coal_module
 from optik.collision.slots import SLOT_SIZE
 from optik.collision.world import WorldState, state_of
+from optik.diffik.damper_pairs import DRIVER, CompiledPairs
 from optik.errors import InvalidArgumentError
 from optik.mechanism import Mechanism
-from optik.native import NativeFunction, library
+from optik.native import Library, NativeFunction, driver_source, library
 
 __all__ = ["DAMPER_GAIN", "INFLUENCE", "DamperKernel", "damper_kernel", "damper_rows"]
 
@@ -116,12 +121,15 @@ class DamperKernel:
         links: one link of each of the ``B`` moving bodies that carry parts.
         part_body: ``(P,)`` the body of each part (``B`` for the base body, which has no rows).
         blocked: ``(P, 1)`` ``inf`` for the parts on the base body (no world rows), else 0.
+        driver: the library of the row functions of `SLOTS` and of `optik.diffik.damper_pairs`'s
+            driver (None: no compiler, or its source unreadable).
     """
 
     mechanism: Mechanism
     links: list[str]
     part_body: np.ndarray
     blocked: np.ndarray
+    driver: Library | None = None
     _functions: dict[int, tuple[ca.Function, Any]] = field(default_factory=dict, repr=False)
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
@@ -149,9 +157,10 @@ def _kernel(geo: RobotGeometry) -> DamperKernel:
     links = list(bodies.values())
     part_body = np.array([index.get(m.frames[geo.links[int(k)]][0], len(links)) for k in geo.part_link])
     blocked = np.where(part_body < len(links), 0.0, np.inf)[:, None]
-    kernel = DamperKernel(m, links, part_body, blocked)
     functions = [row_function(m, links, slots) for slots in SLOTS]
-    lib = library(functions, "auto")  # one library, its C code building from now on
+    source = driver_source(DRIVER)
+    lib = library(functions, "auto", source or "")  # one library, its C code building from now on
+    kernel = DamperKernel(m, links, part_body, blocked, lib if source else None)
     kernel._functions.update({slots: (f, lib) for slots, f in zip(SLOTS, functions, strict=True)})
     return kernel
 
@@ -183,6 +192,8 @@ class _Queries:
         coal = coal_module()
         self.geo, self.kernel = geo, damper_kernel(geo)
         self._screens: dict[int, Screen] = {}
+        self._screen_calls: dict[int, tuple[NativeFunction, list[WorldState | None]]] = {}
+        self._pairs: CompiledPairs | None = None
         self._rows: dict[int, tuple[NativeFunction, list[float]]] = {}  # with its (gamma, d_s) input
         self.transforms = [coal.Transform3s() for _ in geo.parts]
         self.set_rotation = [t.setRotation for t in self.transforms]
@@ -217,6 +228,28 @@ class _Queries:
         if hit is None:
             hit = self._screens[capacity] = screen(self.geo, capacity)
         return hit
+
+    def screen_call(self, capacity: int, state: WorldState) -> NativeFunction:
+        """This thread's evaluator of the screen for ``capacity`` slots, its slot input holding
+        ``state``'s values (written only when the state changes)."""
+        hit = self._screen_calls.get(capacity)
+        if hit is None:
+            hit = self._screen_calls[capacity] = (self.screen(capacity).evaluator(), [None])
+        fn, written = hit
+        if written[0] is not state:
+            fn.inputs[1][:] = state.slots[: capacity * SLOT_SIZE]
+            written[0] = state
+        return fn
+
+    def compiled_pairs(self) -> CompiledPairs | None:
+        """The compiled pair call (`optik.diffik.damper_pairs`), or None while its library is not
+        loaded (building, or no compiler)."""
+        if self._pairs is None and self.kernel.driver is not None:
+            cdll = self.kernel.driver.get()
+            if cdll is not None:
+                n_b = len(self.kernel.links)
+                self._pairs = CompiledPairs(self.geo, cdll, self.moving, self.body, n_b)
+        return self._pairs
 
     def world(self, state: WorldState) -> list[Any]:
         """The coal geometries of ``state``'s parts (listed again only when the state changes)."""
@@ -264,10 +297,46 @@ def damper_rows(
         raise InvalidArgumentError("collision_gain", f"must be in (0, 1], got {gamma:g}")
     state = state_of(world)
     cq = _queries(m)
-    kernel = cq.kernel
     n_obj = len(state.parts)
     capacity = 1 << max(n_obj - 1, 0).bit_length()  # the slots in use: every empty one costs a step time
-    poses, to_world, own = cq.screen(capacity).bounds(q, state.slots[: capacity * SLOT_SIZE], n_obj)
+    screen_fn = cq.screen_call(capacity, state)
+    screen_fn.inputs[0][:] = q
+    outputs = screen_fn()
+    compiled = cq.compiled_pairs()
+    if compiled is not None:
+        compiled.bind(state, outputs)
+        k = compiled(d_i, self_collision)
+        if k == 0:
+            return np.zeros((0, m.n_q)), np.zeros(0), float(compiled.d_min[0])
+        if k > 0:
+            slots = 1 << (k - 1).bit_length()
+            fn = cq.rows(slots, gamma, d_s)
+            fn.inputs[0][:] = q
+            n_b = len(cq.kernel.links)
+            fn.inputs[1][: PAIR_SIZE * k] = compiled.pairs[: PAIR_SIZE * k]
+            sigma = fn.inputs[2]
+            sigma[: n_b * k] = compiled.sigma[: n_b * k]
+            sigma[n_b * k :] = 0.0
+            return _rows_out(fn, slots, k, m.n_q, float(compiled.d_min[0]))
+    return _coal_rows(m, q, cq, state, outputs, self_collision, d_i, gamma, d_s)
+
+
+def _coal_rows(
+    m: Mechanism,
+    q: np.ndarray,
+    cq: _Queries,
+    state: WorldState,
+    outputs: list[np.ndarray],
+    self_collision: bool,
+    d_i: float,
+    gamma: float,
+    d_s: float,
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """`damper_rows` with coal's distances, from the screen's ``outputs``."""
+    kernel = cq.kernel
+    n_obj = len(state.parts)
+    capacity = 1 << max(n_obj - 1, 0).bit_length()
+    poses, to_world, own = cq.screen(capacity).reduce(outputs, n_obj)
     near = (to_world + kernel.blocked < d_i).ravel().nonzero()[0].tolist()  # part a * n_obj + object b
     n_world = len(near)
     if self_collision:
@@ -320,9 +389,18 @@ def damper_rows(
         return np.zeros((0, m.n_q)), np.zeros(0), float(d_min)
     k = len(dists)
     order = sorted(range(k), key=dists.__getitem__)
-    out = fn()[0].reshape(slots, m.n_q + 2)
-    out = out[:k].copy() if order == list(range(k)) else out[order]  # off the thread's buffer
+    if order != list(range(k)):  # closest first, as the compiled call writes them
+        pairs[: PAIR_SIZE * k] = pairs[: PAIR_SIZE * k].reshape(k, PAIR_SIZE)[order].ravel()
+        sigma[: n_b * k] = sigma[: n_b * k].reshape(k, n_b)[order].ravel()
+    return _rows_out(fn, slots, k, m.n_q, float(d_min))
+
+
+def _rows_out(
+    fn: NativeFunction, slots: int, k: int, n_q: int, d_min: float
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(G, h, d_min)`` of the row function ``fn`` of ``slots`` pairs whose first ``k`` are set."""
+    out = fn()[0].reshape(slots, n_q + 2)[:k].copy()  # off the thread's buffer
     # touching at one point (|p_a - p_b| ~ 0) has no direction: no row (the check still decides success)
     if min(out[:, -1].tolist()) < 1e-12:
         out = out[out[:, -1] >= 1e-12]
-    return out[:, : m.n_q], out[:, m.n_q], float(d_min)
+    return out[:, :n_q], out[:, n_q], d_min

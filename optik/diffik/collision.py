@@ -100,14 +100,8 @@ def screen_blocks(geo: RobotGeometry, links: list[str], capacity: int) -> ca.Fun
     outputs and the `body_blocks` of ``links`` (each column-major, one after the other): what
     `optik.diffik.damper_pairs`'s driver reads."""
     m = geo.mechanism
-    bounds = screen_function(geo, capacity)
-    blocks = ca.Function(
-        "damper_blocks",
-        [m.q_sym],
-        [ca.densify(ca.vertcat(ca.SX(0, 1), *(ca.vec(b) for b in body_blocks(m, links))))],
-    )
-    q, slots = ca.MX.sym("q", m.n_q), ca.MX.sym("slots", capacity * SLOT_SIZE)
-    return ca.Function("optik_damper_screen", [q, slots], [*bounds(q, slots), blocks(q)])
+    blocks = ca.densify(ca.vertcat(ca.SX(0, 1), *(ca.vec(b) for b in body_blocks(m, links))))
+    return screen_function(geo, capacity, blocks)
 
 
 def row_function(m: Mechanism, links: list[str], slots: int) -> ca.Function:

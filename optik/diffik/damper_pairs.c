@@ -91,15 +91,19 @@ static int dp_face(const dp_point *s, const int *idx, int k, double *lam) {
     return 1;
 }
 
-/* The point v of the hull of the *n points of s nearest the origin: the face it is inside of is
- * the one of smallest distance among the faces whose nearest affine point is inside them (every
- * such point is in the hull, and the nearest point is inside its own face). Keeps that face's
- * points in s and their weights in lam; returns 0 when it is the whole tetrahedron (the origin is
- * inside: the hulls overlap). */
+/* The point v of the hull of the *n points of s nearest the origin, among the faces that hold the
+ * newest point s[*n - 1] (GJK's new nearest point is on one of them, the old one being the nearest
+ * of the other points; the caller keeps the old one when this is not nearer): the face it is
+ * inside of is the one of smallest distance among the faces whose nearest affine point is inside
+ * them (every such point is in the hull, and the nearest point is inside its own face). Keeps that
+ * face's points in s and their weights in lam; returns 0 when it is the whole tetrahedron (the
+ * origin is inside: the hulls overlap). */
 static int dp_closest(dp_point *s, int *n, double *lam, double *v) {
     int best_mask = 0, best_k = 0, best_idx[4] = {0, 0, 0, 0};
     double best = INFINITY, best_lam[4] = {0.0, 0.0, 0.0, 0.0};
-    for (int mask = 1; mask < (1 << *n); ++mask) {
+    int newest = 1 << (*n - 1);
+    for (int mask = newest; mask < (1 << *n); ++mask) {
+        if (!(mask & newest)) continue;
         int idx[4], k = 0;
         double l[4], p[3] = {0.0, 0.0, 0.0};
         for (int i = 0; i < *n; ++i)
@@ -165,9 +169,18 @@ static int dp_gjk(const double *va, long long na, const double *ra, const double
             converged = 1;
             break;
         }
+        dp_point old[4];
+        double old_lam[4], old_v[3] = {v[0], v[1], v[2]};
+        int old_n = n;
+        memcpy(old, s, sizeof old);
+        memcpy(old_lam, lam, sizeof old_lam);
         s[n++] = p;
         if (!dp_closest(s, &n, lam, v)) return 0;
-        if (!(dp_dot(v, v) < vv)) { /* no progress (rounding): v is as near as it gets */
+        if (!(dp_dot(v, v) < vv)) { /* no progress (rounding): the old v is as near as it gets */
+            memcpy(s, old, sizeof old);
+            memcpy(lam, old_lam, sizeof old_lam);
+            v[0] = old_v[0], v[1] = old_v[1], v[2] = old_v[2];
+            n = old_n;
             converged = 1;
             break;
         }

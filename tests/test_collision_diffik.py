@@ -184,13 +184,14 @@ def _both_paths(m, q, w, influence):
     fast = damper_rows(m, q, w, True, MARGIN, influence=influence)
     cq, state = dc._queries(m), state_of(w)
     capacity = 1 << max(len(state.parts) - 1, 0).bit_length()
-    fn = cq.screen_call(capacity, state)
+    compiled = cq.compiled(capacity, state)
+    assert compiled is not None
+    fn, call = compiled
     fn.inputs[0][:] = q
     outputs = fn()
-    compiled = cq.compiled_pairs()
-    assert compiled is not None
-    compiled.bind(state, outputs)
-    k = compiled(influence, True)
+    call.bind(state, outputs)
+    k = call(influence, dc.DAMPER_GAIN, MARGIN, True)
+    outputs = outputs[:3]
     slow = dc._coal_rows(m, q, cq, state, outputs, True, influence, dc.DAMPER_GAIN, MARGIN)
     return fast, slow, k
 

@@ -380,3 +380,28 @@ def test_world_only_without_self_collision_rows(arm, method):
     exact = check(arm, res.q, w, margin=MARGIN, self_collision=False)  # the world only, as asked
     assert not exact.in_collision and exact.min_distance >= MARGIN
     assert res.min_distance == pytest.approx(exact.min_distance, abs=1e-12)
+
+
+def test_nlp_clear_stop_and_no_world_rows_for_an_empty_world(arm):
+    """The collision-aware IPOPT's callback stops only at an iterate within the tolerances whose
+    model rows all hold (or at the deadline); an empty world gives the NLP no world rows."""
+    from optik.solvers.collision_free import _CACHE, ClearStop
+
+    stop = ClearStop(2, 3, 0, 1)
+    stop.goal = (1e-6, 1e-6, 1e-9)
+    stop.errors = lambda x: (float(x[0]), 0.0, 0.0)
+    x_ok, x_off = np.array([1e-7, 0.0]), np.array([1e-3, 0.0])
+    assert stop.clear(x_ok, np.array([-5.0, 0.0, 1e-3]))  # row 0 is the closure, not a model row
+    assert not stop.clear(x_ok, np.array([0.0, -1e-12, 1e-3]))
+    assert not stop.clear(x_off, np.array([0.0, 0.0, 0.0]))
+    assert not stop.check(x_off) and (stop.deadline == np.inf)
+    q = np.array([0.3, 0.4])
+    res = optik.solve_ik(
+        arm, optik.Position(arm.fk(q)[:3, 3]), self_collision=True, margin=MARGIN, method="nlp", seed=1
+    )
+    assert res.success, res.message
+    pools = [v for k, v in _CACHE.items() if k[0] == "nlp" and k[1] is arm and k[4] == 0]
+    assert pools
+    for pool in pools:  # g: the closures and one row per self pair; p: the task's, the bound, a flag per pair
+        n_self = pool.nlp["g"].shape[0] - arm.n_closure
+        assert pool.nlp["p"].shape[0] == pool.problem.parameters.shape[0] + 1 + n_self

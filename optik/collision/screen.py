@@ -38,9 +38,10 @@ from optik.native import NativeFunction, library
 __all__ = ["Screen", "screen", "screen_function"]
 
 
-def screen_function(geo: RobotGeometry, capacity: int) -> ca.Function:
+def screen_function(geo: RobotGeometry, capacity: int, extra: ca.SX | None = None) -> ca.Function:
     """``(q, slots) -> (poses, world, self)`` for a world of ``capacity`` slots
-    (`optik.collision.slots`).
+    (`optik.collision.slots`), and ``extra`` (a dense column of expressions in ``q``, computed with
+    the poses, sharing their subexpressions) as a fourth output when given.
 
     ``poses``: ``12 P`` numbers, each part's base-frame rotation (row-major) and origin;
     ``world``: ``capacity * S`` bounds, sphere ``s`` of the sphere model against slot ``k`` at
@@ -68,17 +69,18 @@ def screen_function(geo: RobotGeometry, capacity: int) -> ca.Function:
         rows.append(ca.fmax(capsules, spheres - geo.parts[i].radius - geo.parts[j].radius))
     q = m.q_sym
     own = ca.vertcat(*rows) if rows else ca.SX(0, 1)
-    robot = ca.Function("robot", [q], [ca.vertcat(*poses), centres, own])
+    outs = [ca.vertcat(*poses), centres, own] + ([] if extra is None else [extra])
+    robot = ca.Function("robot", [q], outs)
     c, radius, slot = ca.SX.sym("c", 3), ca.SX.sym("radius"), ca.SX.sym("slot", SLOT_SIZE)
     row = ca.Function("sphere_slot", [c, radius, slot], [slot_distance(slot, c, 0.0) - radius])
     n_s = len(model.radii)
     qm, slots = ca.MX.sym("q", m.n_q), ca.MX.sym("slots", capacity * SLOT_SIZE)
-    pose_out, centre_out, self_out = robot(qm)
+    pose_out, centre_out, self_out, *more = robot(qm)
     # one map over every (slot k, sphere s) at column k S + s: spheres repeated, slots each S times
     spheres = ca.repmat(centre_out, 1, capacity), ca.repmat(ca.DM(model.radii).T, 1, capacity)
     per_slot = ca.kron(ca.reshape(slots, SLOT_SIZE, capacity), ca.DM.ones(1, n_s))
     bounds = row.map(capacity * n_s)(*spheres, per_slot)
-    return ca.Function("optik_collision_screen", [qm, slots], [pose_out, ca.vec(bounds), self_out])
+    return ca.Function("optik_collision_screen", [qm, slots], [pose_out, ca.vec(bounds), self_out, *more])
 
 
 class Screen:

@@ -27,14 +27,17 @@ own slot values, cut there), not the world's capacity: each slot costs a bound p
 the base body get no world rows (their distance does not depend on ``q``: a row
 ``0 <= gamma (d - d_s)`` could only make the QP infeasible; the exact check still judges them).
 
-*Pairs.* With the compiled code loaded, one C call (`optik.diffik.damper_pairs`) takes the
-screen's outputs, computes the exact distance and witness points of every pair whose bound is
-below ``d_i`` and writes those within ``d_i``, closest first (their witness points, the sign of
-``d``, ``d`` and the bodies of their ends), for the input buffers of a second compiled function
-(`DamperKernel`), which computes the Jacobians and every row in one call. Without it (no
-compiler, the build still running) or when that call cannot decide a pair (hulls that overlap,
-a cylinder), coal answers every pair, through per-thread objects made once (a transform per part,
-updated in place, one request and one result). With
+*Pairs.* With the compiled code loaded, one compiled function (`screen_blocks`) gives the screen's
+outputs and every moving body's ``[J^0; J_w]`` (below), and one C call
+(`optik.diffik.damper_pairs`, compiled with it) computes the exact distance and witness points of
+every pair whose bound is below ``d_i`` and the rows of those within ``d_i``, closest first. Without
+it (no compiler, the build still running) or when that call cannot decide a pair (hulls that
+overlap, a cylinder), coal answers every pair, through per-thread objects made once (a transform
+per part, updated in place, one request and one result), and each pair within ``d_i`` writes its
+witness points, the sign of ``d``, ``d`` and the bodies of its ends into the input buffers of a
+second compiled function (`DamperKernel`), which computes every row in one call.
+
+With
 ``J^0 = J_v + [o]_x J_w`` (the velocity of the point of the body at the base origin) the point
 Jacobian is ``J^0 - [p]_x J_w``, so ``n^T J_x(p) = [n; p x n]^T [J^0; J_w]``, and since
 ``(p_a - p_b) x n = 0`` both ends share ``c = p_a x n``:
@@ -57,7 +60,7 @@ import numpy as np
 from optik.checks import as_float
 from optik.collision.distance import signed_request
 from optik.collision.robot import RobotGeometry, robot_geometry
-from optik.collision.screen import Screen, screen
+from optik.collision.screen import Screen, screen, screen_function
 from optik.collision.shapes import coal_module
 from optik.collision.slots import SLOT_SIZE
 from optik.collision.world import WorldState, state_of
@@ -82,6 +85,25 @@ PAIR_SIZE = 8
 """Numbers per pair in the row function's input: ``p_a`` (3), ``p_b`` (3), the sign of ``d``, ``d``."""
 
 
+def body_blocks(m: Mechanism, links: list[str]) -> list[ca.SX]:
+    """``[J^0; J_w]`` (6 x n) of the body of each link: ``J^0 = J_v + [o]_x J_w``, the velocity of
+    the body's point at the base origin (module docstring)."""
+    blocks = []
+    for link in links:
+        jac, origin = m.jacobian_expr(link), m.frame_expr(link)[:3, 3]
+        blocks.append(ca.vertcat(jac[:3, :] + ca.mtimes(ca.skew(origin), jac[3:, :]), jac[3:, :]))
+    return blocks
+
+
+def screen_blocks(geo: RobotGeometry, links: list[str], capacity: int) -> ca.Function:
+    """``(q, slots) -> (poses, world, self, blocks)``: `optik.collision.screen.screen_function`'s
+    outputs and the `body_blocks` of ``links`` (each column-major, one after the other): what
+    `optik.diffik.damper_pairs`'s driver reads."""
+    m = geo.mechanism
+    blocks = ca.densify(ca.vertcat(ca.SX(0, 1), *(ca.vec(b) for b in body_blocks(m, links))))
+    return screen_function(geo, capacity, blocks)
+
+
 def row_function(m: Mechanism, links: list[str], slots: int) -> ca.Function:
     """``(q, pairs, sigma, (gamma, d_s)) -> rows``: the damper rows of ``slots`` pairs.
 
@@ -95,10 +117,7 @@ def row_function(m: Mechanism, links: list[str], slots: int) -> ca.Function:
     q = m.q_sym
     pairs, sigma = ca.SX.sym("pairs", PAIR_SIZE * slots), ca.SX.sym("sigma", n_b * slots)
     params = ca.SX.sym("params", 2)
-    blocks = []  # [J^0; J_w] of each body
-    for link in links:
-        jac, origin = m.jacobian_expr(link), m.frame_expr(link)[:3, 3]
-        blocks.append(ca.vertcat(jac[:3, :] + ca.mtimes(ca.skew(origin), jac[3:, :]), jac[3:, :]))
+    blocks = body_blocks(m, links)
     rows = []
     for k in range(slots):
         u = pairs[PAIR_SIZE * k : PAIR_SIZE * (k + 1)]
@@ -121,16 +140,14 @@ class DamperKernel:
         links: one link of each of the ``B`` moving bodies that carry parts.
         part_body: ``(P,)`` the body of each part (``B`` for the base body, which has no rows).
         blocked: ``(P, 1)`` ``inf`` for the parts on the base body (no world rows), else 0.
-        driver: the library of the row functions of `SLOTS` and of `optik.diffik.damper_pairs`'s
-            driver (None: no compiler, or its source unreadable).
     """
 
     mechanism: Mechanism
     links: list[str]
     part_body: np.ndarray
     blocked: np.ndarray
-    driver: Library | None = None
     _functions: dict[int, tuple[ca.Function, Any]] = field(default_factory=dict, repr=False)
+    _screens: dict[int, tuple[ca.Function, Library | None]] = field(default_factory=dict, repr=False)
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def rows(self, slots: int) -> NativeFunction:
@@ -143,6 +160,18 @@ class DamperKernel:
                 f = row_function(self.mechanism, self.links, slots)
                 made = self._functions[slots] = (f, library([f], "auto"))
         return NativeFunction(*made)
+
+    def screen(self, geo: RobotGeometry, capacity: int) -> tuple[ca.Function, Library | None]:
+        """`screen_blocks` of ``capacity`` slots and its library, with `optik.diffik.damper_pairs`'s
+        driver (built at the first use, its C code in the background; None: no compiler, or the
+        driver's source unreadable)."""
+        with self._lock:
+            made = self._screens.get(capacity)
+            if made is None:
+                f = screen_blocks(geo, self.links, capacity)
+                source = driver_source(DRIVER)
+                made = self._screens[capacity] = (f, library([f], "auto", source) if source else None)
+        return made
 
 
 def _kernel(geo: RobotGeometry) -> DamperKernel:
@@ -157,10 +186,9 @@ def _kernel(geo: RobotGeometry) -> DamperKernel:
     links = list(bodies.values())
     part_body = np.array([index.get(m.frames[geo.links[int(k)]][0], len(links)) for k in geo.part_link])
     blocked = np.where(part_body < len(links), 0.0, np.inf)[:, None]
+    kernel = DamperKernel(m, links, part_body, blocked)
     functions = [row_function(m, links, slots) for slots in SLOTS]
-    source = driver_source(DRIVER)
-    lib = library(functions, "auto", source or "")  # one library, its C code building from now on
-    kernel = DamperKernel(m, links, part_body, blocked, lib if source else None)
+    lib = library(functions, "auto")  # one library, its C code building from now on
     kernel._functions.update({slots: (f, lib) for slots, f in zip(SLOTS, functions, strict=True)})
     return kernel
 
@@ -193,7 +221,7 @@ class _Queries:
         self.geo, self.kernel = geo, damper_kernel(geo)
         self._screens: dict[int, Screen] = {}
         self._screen_calls: dict[int, tuple[NativeFunction, list[WorldState | None]]] = {}
-        self._pairs: CompiledPairs | None = None
+        self._compiled: dict[int, tuple[NativeFunction, CompiledPairs, list[WorldState | None]]] = {}
         self._rows: dict[int, tuple[NativeFunction, list[float]]] = {}  # with its (gamma, d_s) input
         self.transforms = [coal.Transform3s() for _ in geo.parts]
         self.set_rotation = [t.setRotation for t in self.transforms]
@@ -241,15 +269,24 @@ class _Queries:
             written[0] = state
         return fn
 
-    def compiled_pairs(self) -> CompiledPairs | None:
-        """The compiled pair call (`optik.diffik.damper_pairs`), or None while its library is not
-        loaded (building, or no compiler)."""
-        if self._pairs is None and self.kernel.driver is not None:
-            cdll = self.kernel.driver.get()
-            if cdll is not None:
-                n_b = len(self.kernel.links)
-                self._pairs = CompiledPairs(self.geo, cdll, self.moving, self.body, n_b)
-        return self._pairs
+    def compiled(self, capacity: int, state: WorldState) -> tuple[NativeFunction, CompiledPairs] | None:
+        """This thread's compiled `screen_blocks` of ``capacity`` slots (its slot input holding
+        ``state``'s values) and driver call (`optik.diffik.damper_pairs`), or None while their
+        library is not loaded (building, or no compiler)."""
+        hit = self._compiled.get(capacity)
+        if hit is None:
+            f, lib = self.kernel.screen(self.geo, capacity)
+            cdll = None if lib is None else lib.get()
+            if cdll is None:
+                return None
+            n_b, n_q = len(self.kernel.links), self.geo.mechanism.n_q
+            call = CompiledPairs(self.geo, cdll, self.moving, self.body, n_b, n_q)
+            hit = self._compiled[capacity] = (NativeFunction(f, lib), call, [None])
+        fn, call, written = hit
+        if written[0] is not state:
+            fn.inputs[1][:] = state.slots[: capacity * SLOT_SIZE]
+            written[0] = state
+        return fn, call
 
     def world(self, state: WorldState) -> list[Any]:
         """The coal geometries of ``state``'s parts (listed again only when the state changes)."""
@@ -299,26 +336,21 @@ def damper_rows(
     cq = _queries(m)
     n_obj = len(state.parts)
     capacity = 1 << max(n_obj - 1, 0).bit_length()  # the slots in use: every empty one costs a step time
-    screen_fn = cq.screen_call(capacity, state)
-    screen_fn.inputs[0][:] = q
-    outputs = screen_fn()
-    compiled = cq.compiled_pairs()
+    compiled = cq.compiled(capacity, state)
     if compiled is not None:
-        compiled.bind(state, outputs)
-        k = compiled(d_i, self_collision)
-        if k == 0:
-            return np.zeros((0, m.n_q)), np.zeros(0), float(compiled.d_min[0])
-        if k > 0:
-            slots = 1 << (k - 1).bit_length()
-            fn = cq.rows(slots, gamma, d_s)
-            fn.inputs[0][:] = q
-            n_b = len(cq.kernel.links)
-            fn.inputs[1][: PAIR_SIZE * k] = compiled.pairs[: PAIR_SIZE * k]
-            sigma = fn.inputs[2]
-            sigma[: n_b * k] = compiled.sigma[: n_b * k]
-            sigma[n_b * k :] = 0.0
-            return _rows_out(fn, slots, k, m.n_q, float(compiled.d_min[0]))
-    return _coal_rows(m, q, cq, state, outputs, self_collision, d_i, gamma, d_s)
+        fn, call = compiled
+        fn.inputs[0][:] = q
+        outputs = fn()
+        call.bind(state, outputs)
+        k = call(d_i, gamma, d_s, self_collision)
+        if k >= 0:
+            out = call.rows[: (m.n_q + 1) * k].reshape(k, m.n_q + 1).copy()  # off the thread's buffer
+            return out[:, : m.n_q], out[:, m.n_q], float(call.d_min[0])
+    else:
+        fn = cq.screen_call(capacity, state)
+        fn.inputs[0][:] = q
+        outputs = fn()
+    return _coal_rows(m, q, cq, state, outputs[:3], self_collision, d_i, gamma, d_s)
 
 
 def _coal_rows(

@@ -91,15 +91,19 @@ static int dp_face(const dp_point *s, const int *idx, int k, double *lam) {
     return 1;
 }
 
-/* The point v of the hull of the *n points of s nearest the origin: the face it is inside of is
- * the one of smallest distance among the faces whose nearest affine point is inside them (every
- * such point is in the hull, and the nearest point is inside its own face). Keeps that face's
- * points in s and their weights in lam; returns 0 when it is the whole tetrahedron (the origin is
- * inside: the hulls overlap). */
+/* The point v of the hull of the *n points of s nearest the origin, among the faces that hold the
+ * newest point s[*n - 1] (GJK's new nearest point is on one of them, the old one being the nearest
+ * of the other points; the caller keeps the old one when this is not nearer): the face it is
+ * inside of is the one of smallest distance among the faces whose nearest affine point is inside
+ * them (every such point is in the hull, and the nearest point is inside its own face). Keeps that
+ * face's points in s and their weights in lam; returns 0 when it is the whole tetrahedron (the
+ * origin is inside: the hulls overlap). */
 static int dp_closest(dp_point *s, int *n, double *lam, double *v) {
     int best_mask = 0, best_k = 0, best_idx[4] = {0, 0, 0, 0};
     double best = INFINITY, best_lam[4] = {0.0, 0.0, 0.0, 0.0};
-    for (int mask = 1; mask < (1 << *n); ++mask) {
+    int newest = 1 << (*n - 1);
+    for (int mask = newest; mask < (1 << *n); ++mask) {
+        if (!(mask & newest)) continue;
         int idx[4], k = 0;
         double l[4], p[3] = {0.0, 0.0, 0.0};
         for (int i = 0; i < *n; ++i)
@@ -165,9 +169,18 @@ static int dp_gjk(const double *va, long long na, const double *ra, const double
             converged = 1;
             break;
         }
+        dp_point old[4];
+        double old_lam[4], old_v[3] = {v[0], v[1], v[2]};
+        int old_n = n;
+        memcpy(old, s, sizeof old);
+        memcpy(old_lam, lam, sizeof old_lam);
         s[n++] = p;
         if (!dp_closest(s, &n, lam, v)) return 0;
-        if (!(dp_dot(v, v) < vv)) { /* no progress (rounding): v is as near as it gets */
+        if (!(dp_dot(v, v) < vv)) { /* no progress (rounding): the old v is as near as it gets */
+            memcpy(s, old, sizeof old);
+            memcpy(lam, old_lam, sizeof old_lam);
+            v[0] = old_v[0], v[1] = old_v[1], v[2] = old_v[2];
+            n = old_n;
             converged = 1;
             break;
         }
@@ -200,17 +213,18 @@ static int dp_pair(const double *va, long long na, double rad_a, const double *r
     return 1;
 }
 
-/* The pairs of damper_pairs.py's `pair_inputs`, closest first: returns their count k (slot j of
- * pairs and sigma, the row function's inputs, for j < k), or -1 when a pair needs coal; *d_min is
- * the smallest distance of the pairs queried (those whose bound is below the influence). */
+/* The damper rows of the pairs within the influence, closest first (damper_pairs.py): returns their
+ * count (rows[j * (n_q + 1) ...]: G's row j, then h_j), or -1 when a pair needs coal; *d_min is the
+ * smallest distance of the pairs queried (those whose bound is below the influence). */
 int optik_damper_pairs(void **p, const long long *dims, const double *par, double *d_min) {
     const double *poses = p[0], *world_bounds = p[1], *own_bounds = p[2];
     const long long *sphere_start = p[3], *moving = p[4], *body = p[5], *self_pairs = p[6];
     const long long *rv_start = p[7], *r_exact = p[10], *wv_start = p[11], *w_exact = p[14];
     const double *rv = p[8], *r_rad = p[9], *wv = p[12], *w_rad = p[13];
-    double *pairs = p[15], *sigma = p[16], *dist = p[17];
-    long long n_parts = dims[0], n_obj = dims[1], n_self = dims[2], n_b = dims[3], n_s = dims[4];
-    double influence = par[0], least = INFINITY;
+    double *pairs = p[15], *sigma = p[16], *dist = p[17], *rows = p[19];
+    const double *blocks = p[18];
+    long long n_parts = dims[0], n_obj = dims[1], n_self = dims[2], n_b = dims[3], n_s = dims[4], n_q = dims[5];
+    double influence = par[0], gain = par[1], margin = par[2], least = INFINITY;
     long long k = 0;
     for (long long a = 0; a < n_parts; ++a) {
         if (!moving[a]) continue;
@@ -260,5 +274,30 @@ int optik_damper_pairs(void **p, const long long *dims, const double *par, doubl
         }
     }
     *d_min = least;
-    return (int)k;
+    long long written = 0;
+    for (long long j = 0; j < k; ++j) { /* G = [n; p_a x n]^T (sum_b sigma_b [J^0; J_w]_b), h = gain (d - margin) */
+        const double *u = pairs + 8 * j;
+        double delta[3] = {u[0] - u[3], u[1] - u[4], u[2] - u[5]};
+        double length = sqrt(dp_dot(delta, delta));
+        if (!(length >= 1e-12)) continue; /* touching at a point: no direction, no row */
+        double w[6];
+        for (int c = 0; c < 3; ++c) w[c] = delta[c] * u[6] / length;
+        w[3] = u[1] * w[2] - u[2] * w[1];
+        w[4] = u[2] * w[0] - u[0] * w[2];
+        w[5] = u[0] * w[1] - u[1] * w[0];
+        double *row = rows + (n_q + 1) * written;
+        for (long long c = 0; c < n_q; ++c) row[c] = 0.0;
+        for (long long b = 0; b < n_b; ++b) {
+            double sb = sigma[n_b * j + b];
+            if (sb == 0.0) continue;
+            const double *blk = blocks + 6 * n_q * b; /* column-major 6 x n_q */
+            for (long long c = 0; c < n_q; ++c) {
+                const double *col = blk + 6 * c;
+                row[c] += sb * (w[0] * col[0] + w[1] * col[1] + w[2] * col[2] + w[3] * col[3] + w[4] * col[4] + w[5] * col[5]);
+            }
+        }
+        row[n_q] = gain * (u[7] - margin);
+        ++written;
+    }
+    return (int)written;
 }

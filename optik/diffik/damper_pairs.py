@@ -1,12 +1,12 @@
-"""The dampers' pairs in one compiled call: screening bounds to witness points without Python per pair.
+"""The dampers' rows in one compiled call: screening bounds to rows without Python per pair.
 
-`DRIVER` (C, compiled into the library of the damper row functions) takes the screen's raw
-outputs (`optik.collision.screen`: part poses, the bound of every sphere against every world slot,
-the bound of every self-collision pair), takes each part's bound against an object as the least
-of its spheres', and for every pair whose bound is below the influence distance ``d_i`` computes
-the exact signed distance and witness points; the pairs closer than ``d_i`` go, closest first,
-straight into the row function's inputs (``p_a``, ``p_b``, the sign of ``d``, ``d``, and the
-``+-1`` selection of the two ends' bodies: `optik.diffik.collision`).
+`DRIVER` (C, compiled with the dampers' screen: `optik.diffik.collision.screen_blocks`) takes
+that screen's outputs (`optik.collision.screen`: part poses, the bound of every sphere against
+every world slot, the bound of every self-collision pair; and each moving body's ``[J^0; J_w]``),
+takes each part's bound against an object as the least of its spheres', and for every pair
+whose bound is below the influence distance ``d_i`` computes the exact signed distance and
+witness points; the pairs closer than ``d_i`` give, closest first, their rows ``G``, ``h``
+(`optik.diffik.collision`'s formula, with the ``+-1`` selection of the two ends' bodies).
 
 *Distances.* Every part of the kinds below is ``H + B(r)``, the convex hull ``H`` of a few points
 grown by a ball of radius ``r`` (`optik.collision.shapes.shape_vertices`, which is exact for
@@ -85,10 +85,17 @@ class CompiledPairs:
         moving: per part, True when it is on a moving body.
         body: per part, its body's index in the row function's selection (unused when not moving).
         n_bodies: the selection's length per pair.
+        n_q: the mechanism's coordinates.
     """
 
     def __init__(
-        self, geo: RobotGeometry, cdll: ctypes.CDLL, moving: list[bool], body: list[int], n_bodies: int
+        self,
+        geo: RobotGeometry,
+        cdll: ctypes.CDLL,
+        moving: list[bool],
+        body: list[int],
+        n_bodies: int,
+        n_q: int,
     ):
         self._fn = cdll["optik_damper_pairs"]  # its own function object: argtypes per call site
         self._fn.argtypes, self._fn.restype = [_P, _P, _P, _P], ctypes.c_int
@@ -103,28 +110,30 @@ class CompiledPairs:
             *shape_table(geo.parts),
         )
         self._n_parts, self._n_self, self._n_b = n_parts, len(geo.self_pairs), n_bodies
-        self.dims = np.zeros(5, dtype=np.int64)
-        self.par = np.zeros(1)
+        self._n_q = n_q
+        self.dims = np.zeros(6, dtype=np.int64)
+        self.par = np.zeros(3)
         self.d_min = np.zeros(1)
         self._args: tuple[int, int, int, int] | None = None
         self._keep: tuple[Any, ...] = ()
         self._state: WorldState | None = None
         self._screen: tuple[np.ndarray, ...] = ()
-        self.pairs = self.sigma = np.zeros(0)
+        self.rows = np.zeros(0)
 
     def bind(self, state: WorldState, screen_outputs: list[np.ndarray]) -> None:
-        """Point the driver at ``state``'s objects and the screen evaluator's output buffers (only
-        when either changed)."""
-        if state is self._state and all(a is b for a, b in zip(self._screen, screen_outputs, strict=True)):
+        """Point the driver at ``state``'s objects and the screen evaluator's output buffers
+        (poses, world bounds, self bounds, body blocks; only when either changed)."""
+        if state is self._state and self._screen and screen_outputs[0] is self._screen[0]:
             return
         n_obj = len(state.parts)
         world = shape_table(state.parts, [p.offset for p in state.parts])
         most = self._n_parts * n_obj + self._n_self
-        self.pairs, self.sigma, dist = np.zeros(8 * most), np.zeros(self._n_b * most), np.zeros(most)
-        buffers = (*screen_outputs, *self._robot[:4], *self._robot[4:], *world, self.pairs, self.sigma, dist)
+        scratch = np.zeros(8 * most), np.zeros(self._n_b * most), np.zeros(most)  # pairs, sigma, distances
+        self.rows = np.zeros((self._n_q + 1) * most)
+        buffers = (*screen_outputs[:3], *self._robot, *world, *scratch, screen_outputs[3], self.rows)
         table = (_P * len(buffers))(*[b.ctypes.data for b in buffers])
         self._keep = (buffers, table)  # the arrays the table points into live as long as it
-        self.dims[:] = self._n_parts, n_obj, self._n_self, self._n_b, self._n_spheres
+        self.dims[:] = self._n_parts, n_obj, self._n_self, self._n_b, self._n_spheres, self._n_q
         self._args = (
             ctypes.addressof(table),
             self.dims.ctypes.data,
@@ -133,11 +142,11 @@ class CompiledPairs:
         )
         self._state, self._screen = state, tuple(screen_outputs)
 
-    def __call__(self, influence: float, self_collision: bool) -> int:
-        """The driver on the bound screen outputs: the count ``k`` of pairs within ``influence``
-        (in `pairs` and `sigma`, closest first), or -1 (ask coal); `d_min` holds the least
-        distance queried."""
+    def __call__(self, influence: float, gain: float, margin: float, self_collision: bool) -> int:
+        """The driver on the bound screen outputs: the count ``k`` of rows (in `rows`, ``n_q + 1``
+        numbers each: ``G``'s row, then ``h``; closest first), or -1 (ask coal); `d_min` holds the
+        least distance queried."""
         assert self._args is not None  # bind first
-        self.par[0] = influence
+        self.par[:] = influence, gain, margin
         self.dims[2] = self._n_self if self_collision else 0
         return int(self._fn(*self._args))

@@ -302,3 +302,32 @@ def test_seed_6r_shoulder_singularity_has_a_representative() -> None:
         np.testing.assert_allclose(m.fk(np.array(got)), np.broadcast_to(target, (len(got), 4, 4)), atol=1e-9)
         answered += 1
     assert answered == 40
+
+
+def test_orthogonal_wrist_second_solution_is_the_flip_of_the_first() -> None:
+    """An orthogonal wrist (h5 perpendicular to h4, h6 = +-h4 at q = 0: PUMA) gets its second
+    wrist solution as ``(q4 + pi, -q5, q6 + pi)``: per arm solution, the two candidates have
+    the same FK and differ by that flip; a skewed wrist takes both SP2 roots and is still
+    solved completely."""
+    from optik.closed_form import spherical_wrist
+
+    m = optik.catalog.puma560()
+    solver = closed_form.derive(m)
+    assert spherical_wrist.flips(solver.axes)
+    qs = m.random_q(40, seed=3)
+    cand = solver.candidates(m.fk(qs))  # (N, 8, 6): per arm solution, the first and its flip
+    first, second = cand[:, 0::2], cand[:, 1::2]
+    np.testing.assert_allclose(second[..., :3], first[..., :3], atol=0.0)
+    turn = lambda a: (a + np.pi) % (2 * np.pi) - np.pi  # noqa: E731
+    np.testing.assert_allclose(turn(second[..., 3] - first[..., 3] - np.pi), 0.0, atol=1e-12)
+    np.testing.assert_allclose(second[..., 4], -first[..., 4], atol=0.0)
+    np.testing.assert_allclose(turn(second[..., 5] - first[..., 5] - np.pi), 0.0, atol=1e-12)
+    both = np.isfinite(first).all(axis=-1)
+    np.testing.assert_allclose(m.fk(second[both]), m.fk(first[both]), atol=1e-12)
+    skewed = list(ARMS["sw_12_intersecting"])
+    skewed[3] = (0.43, 0, 1.2)  # h5 no longer perpendicular to h4
+    arm = dh_chain(skewed, "standard", name="skewed_wrist", task="pose")
+    skew_solver = closed_form.derive(arm)
+    assert skew_solver.structure.name == FAMILY["sw_12_intersecting"]
+    assert not spherical_wrist.flips(skew_solver.axes)
+    _check_all(arm)

@@ -22,8 +22,10 @@ position is ``W = R (w - p_M) + p_T = E_1 E_2 E_3 (w)``, a 3R position problem:
 Then the wrist: ``R36 = (rot(h1, q1) rot(h2, q2) rot(h3, q3))^T R = rot(h4, q4) rot(h5, q5)
 rot(h6, q6)``; ``rot(h5, q5) h6 = rot(h4, -q4) R36 h6`` is an SP2 in ``(q5, -q4)`` and
 ``rot(h6, q6) x = (rot(h4, q4) rot(h5, q5))^T R36 x`` (``x`` perpendicular to ``h6``) an SP1 in
-``q6``. Up to 8 branches (4 x 2), as component tuples (`optik.closed_form.vec3`); each is
-checked by the caller.
+``q6``; for an orthogonal wrist (`flips`: PUMA and most industrial arms) the second SP2 root
+is the flip ``(q4 + pi, -q5, q6 + pi)`` of the first, which costs no ``atan2``. Up to 8
+branches (4 x 2), as component tuples (`optik.closed_form.vec3`); each is checked by the caller
+(the flipped ones too: the FK check does not rely on the identity).
 """
 
 from __future__ import annotations
@@ -107,11 +109,33 @@ def _wrist(
     x = np.cross(axes.h[5], axes.h[4])
     x = v3.vec(x / np.linalg.norm(x))
     r36x = v3.mat_vec(r36, x)
-    for q5, mq4 in sp.sp2_c(h[4], h[5], h[3], v3.mat_vec(r36, h[5]), ops):
+    pairs = sp.sp2_c(h[4], h[5], h[3], v3.mat_vec(r36, h[5]), ops)
+    flip = flips(axes)
+    for q5, mq4 in pairs[:1] if flip else pairs:
         r45 = v3.mat_mul(
             v3.rot_mat(h[3], ops.cos(mq4), -ops.sin(mq4)), v3.rot_mat(h[4], ops.cos(q5), ops.sin(q5))
         )
-        yield v3.neg(mq4, ops), q5, sp.sp1_c(h[5], x, v3.mat_t_vec(r45, r36x), ops)
+        q4, q6 = v3.neg(mq4, ops), sp.sp1_c(h[5], x, v3.mat_t_vec(r45, r36x), ops)
+        yield q4, q5, q6
+        if flip:
+            yield v3.half_turn(q4, ops), v3.neg(q5, ops), v3.half_turn(q6, ops)
+
+
+FLIP_TOL = 1e-14
+"""Largest ``|h4 . h5|`` and ``| |h4 . h6| - 1 |`` (unit axes at ``q = 0``) of a wrist solved by
+its flip (`flips`): the flipped solution is then off by about this much, far within the FK check."""
+
+
+def flips(axes: Axes) -> bool:
+    """True when the second wrist solution is the first one flipped, ``(q4 + pi, -q5, q6 + pi)``:
+    ``h5`` perpendicular to ``h4`` and ``h6`` parallel to it at ``q = 0`` (the usual wrist:
+    PUMA, most industrial arms). Then ``rot(h4, pi) rot(h5, -q5) = rot(h5, q5) rot(h4, pi)``
+    (``rot(h4, pi)`` maps ``h5`` to ``-h5``) and ``rot(h4, pi) rot(h6, pi) = I`` (``h6 = +-h4``),
+    so both give the same wrist rotation; the SP2 of `_wrist` is solved for one root and its
+    second SP1 (``q6``) is not needed (the other root of that SP2 is ``-q5`` modulo ``2 pi``:
+    its constant phase ``atan2(h4 . (h5 x h6), h4 . h6)`` is 0 or pi)."""
+    h4, h5, h6 = (np.asarray(a, dtype=float) / np.linalg.norm(a) for a in axes.h[3:6])
+    return abs(float(h4 @ h5)) <= FLIP_TOL and abs(abs(float(h4 @ h6)) - 1.0) <= FLIP_TOL
 
 
 def branches(axes: Axes, case: str, rel: v3.Mat, pt: v3.Vec, ops: v3.Ops) -> list[Branch]:

@@ -80,6 +80,11 @@ def neg(angle: Any, ops: Ops) -> Any:
     return ops.known(-angle, ops.cos(angle), -ops.sin(angle)) if ops.remembers else -angle
 
 
+def half_turn(angle: Any, ops: Ops) -> Any:
+    """``angle + pi``, its cosine and sine known to ``ops`` (``-cos``, ``-sin`` of ``angle``)."""
+    return ops.known(angle + np.pi, -ops.cos(angle), -ops.sin(angle)) if ops.remembers else angle + np.pi
+
+
 def vec(a: Any) -> Vec:
     """A constant 3-vector (numpy ``(3,)``) as a tuple of floats."""
     return (float(a[0]), float(a[1]), float(a[2]))

@@ -1,9 +1,10 @@
-"""The general 6R solver's steps in C (``general_6r.c``: the Newton polish, the back-substitution)
-against their numpy paths: the same candidates, the same answers and certificates of
-`solve_general_6r`."""
+"""The general 6R solver's steps in C (``general_6r.c``: the Newton polish, the back-substitution,
+the whole elimination of a target) against their numpy paths: the same candidates, the same
+answers and certificates of `solve_general_6r`."""
 
 from __future__ import annotations
 
+import ctypes
 from types import SimpleNamespace
 
 import numpy as np
@@ -17,7 +18,7 @@ from optik.mechanism import dh_chain
 
 @pytest.fixture(scope="module", autouse=True)
 def compiled_kernels() -> None:
-    for kernel in (g6._POLISH, g6._BACK):
+    for kernel in (g6._POLISH, g6._BACK, g6._SOLVE):
         kernel.get()
         assert kernel.library is not None and kernel.library.wait(120) is not None
         assert kernel.get() is not None
@@ -67,7 +68,9 @@ def test_singular_jacobian_is_left_to_numpy() -> None:
     assert np.array_equal(got[0], ref[0]) and np.array_equal(got[1], ref[1])
 
 
-@pytest.mark.parametrize("numpy_paths", [("_POLISH",), ("_BACK",), ("_POLISH", "_BACK")])
+@pytest.mark.parametrize(
+    "numpy_paths", [("_SOLVE", "_POLISH"), ("_SOLVE", "_BACK"), ("_SOLVE", "_POLISH", "_BACK"), ("_SOLVE",)]
+)
 def test_solve_general_6r_is_the_same_with_and_without_the_c_kernels(monkeypatch, numpy_paths) -> None:
     """40 random arms x 2 poses: the same number of solutions, complex solutions and
     certificates, the same solutions, each meeting its target by an independent FK, with the
@@ -107,6 +110,7 @@ def test_back_substitution_in_c_equals_numpy(monkeypatch) -> None:
         return polish(left, theta, tp, iterations)
 
     monkeypatch.setattr(g6, "_polish", spy)
+    monkeypatch.setattr(g6._SOLVE, "get", lambda: None)  # the candidates of the numpy pipeline
     for m, t in cases:
         g6.solve_general_6r(m, t)
     in_c, seen[:] = list(seen), []
@@ -117,3 +121,85 @@ def test_back_substitution_in_c_equals_numpy(monkeypatch) -> None:
     for a, b in zip(in_c, seen, strict=True):
         assert a.dtype == b.dtype and a.shape == b.shape
         assert np.all(np.max(np.abs(a - b), axis=1, initial=0.0) <= 1e-11 * g6._magnitude(b))
+
+
+def _same_answers(mine: g6.General6RSolutions, ref: g6.General6RSolutions, m, target) -> None:
+    """The same counts and certificate, the same solutions (both ways, 1e-9 rad), each meeting the
+    target by the mechanism's own FK."""
+    assert (len(mine.q), mine.n_complex, mine.n_finite, mine.n_real_candidates, mine.n_rejected) == (
+        len(ref.q),
+        ref.n_complex,
+        ref.n_finite,
+        ref.n_real_candidates,
+        ref.n_rejected,
+    )
+    assert mine.count_ok == ref.count_ok
+    for a, b in ((mine.q, ref.q), (ref.q, mine.q)):
+        for q in a:
+            assert np.min(np.max(np.abs(g6._wrap(b - q)), axis=1)) < 1e-9
+    for q in mine.q:
+        assert np.allclose(m.fk(q), target, atol=1e-9)
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(st.integers(0, 2**32 - 1))
+def test_whole_solve_in_c_equals_numpy(seed: int) -> None:
+    """Random arms, three random poses each, solved stacked: the whole elimination in C
+    (``optik_g6r_solve``) gives the same certified answers as the numpy pipeline, every solution
+    meets its target by ``m.fk`` and the drawn ``q`` is among them."""
+    rng = np.random.default_rng(seed)
+    m = _arm(rng)
+    qs = rng.uniform(-np.pi, np.pi, (3, 6))
+    targets = m.fk(qs)
+    mine = g6.solve_general_6r(m, targets)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(g6._SOLVE, "get", lambda: None)
+        ref = g6.solve_general_6r(m, targets)
+    for q, t, a, b in zip(qs, targets, mine, ref, strict=True):
+        assert a.count_ok
+        _same_answers(a, b, m, t)
+        assert np.min(np.max(np.abs(g6._wrap(a.q - q)), axis=1)) < 1e-8
+
+
+def test_whole_solve_in_c_is_used_and_hands_targets_back(monkeypatch) -> None:
+    """The C solve answers (no numpy eigenvalue problem runs), and targets it hands back to
+    numpy (here every other one, as for a badly conditioned leading matrix) are merged into the
+    same answers: 10 random arms x 4 poses."""
+    rng = np.random.default_rng(5)
+    cases = []
+    for _ in range(10):
+        m = _arm(rng)
+        cases.append((m, m.fk(rng.uniform(-np.pi, np.pi, (4, 6)))))
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(g6._SOLVE, "get", lambda: None)
+        ref = [g6.solve_general_6r(m, t) for m, t in cases]
+    eigen = g6._eigen
+    calls: list[int] = []
+    monkeypatch.setattr(g6, "_eigen", lambda mats: calls.append(len(mats)) or eigen(mats))
+    for (m, t), r in zip(cases, ref, strict=True):
+        for a, b, ti in zip(g6.solve_general_6r(m, t), r, t, strict=True):
+            _same_answers(a, b, m, ti)
+    assert not calls
+    solve = g6._SOLVE.get()
+
+    def hand_back(model, lapack, n, tp, info, *rest):
+        solve(model, lapack, n, tp, info, *rest)
+        flags = np.frombuffer((ctypes.c_double * (8 * n)).from_address(info), dtype=float).reshape(n, 8)
+        flags[1::2, 0] = 1.0
+        return 0
+
+    monkeypatch.setattr(g6._SOLVE, "get", lambda: hand_back)
+    for (m, t), r in zip(cases, ref, strict=True):
+        for a, b, ti in zip(g6.solve_general_6r(m, t), r, t, strict=True):
+            _same_answers(a, b, m, ti)
+    assert calls == [2] * len(cases)
+
+
+def test_without_lapack_the_numpy_path_answers(monkeypatch) -> None:
+    """No LAPACK addresses (scipy's capsules unreadable): the numpy pipeline answers, the same."""
+    rng = np.random.default_rng(6)
+    m = _arm(rng)
+    t = m.fk(rng.uniform(-np.pi, np.pi, 6))
+    mine = g6.solve_general_6r(m, t)
+    monkeypatch.setattr(g6, "_lapack", lambda: None)
+    _same_answers(mine, g6.solve_general_6r(m, t), m, t)

@@ -97,6 +97,36 @@ static int solve6(cplx j[6][6], cplx *b, cplx *x) {
     return 1;
 }
 
+/* Newton on one candidate th (6 complex angles, in place) towards the target tn (4 x 4); `size` gets
+ * max |r| at the end. Returns 0, or 1 when a Jacobian was exactly singular. */
+static int polish_one(const double *d, const double *a, const double *ca, const double *sa, int iterations, cplx *th,
+                      const double *tn, double *size) {
+    cplx err[6], pre[7][4][4];
+    chain(d, a, ca, sa, th, 6, pre);
+    double now = residual(pre, tn, err), before = now;
+    for (int it = 0; it < iterations && now >= 1e-15; ++it) {
+        cplx jac[6][6], step[6];
+        for (int i = 0; i < 6; ++i) {
+            cplx z[3] = {pre[i][0][2], pre[i][1][2], pre[i][2][2]};
+            cplx v[3] = {pre[6][0][3] - pre[i][0][3], pre[6][1][3] - pre[i][1][3], pre[6][2][3] - pre[i][2][3]};
+            jac[0][i] = z[1] * v[2] - z[2] * v[1];
+            jac[1][i] = z[2] * v[0] - z[0] * v[2];
+            jac[2][i] = z[0] * v[1] - z[1] * v[0];
+            jac[3][i] = z[0], jac[4][i] = z[1], jac[5][i] = z[2];
+        }
+        if (!solve6(jac, err, step)) return 1;
+        for (int i = 0; i < 6; ++i) th[i] -= step[i] / fmax(1.0, 2.0 * cabs(step[i]));
+        chain(d, a, ca, sa, th, 6, pre);
+        now = residual(pre, tn, err);
+        double magnitude = 1.0;
+        for (int i = 0; i < 6; ++i) magnitude *= cosh(cimag(th[i]));
+        if (now > 0.5 * before && now < 1e-9 * magnitude) break; /* stalled at rounding */
+        before = now;
+    }
+    *size = now;
+    return 0;
+}
+
 /* `dh`: d (6), a (6), alpha (6) of the unit-scale arm; `theta`: k candidates x 6 complex angles
  * (interleaved real, imaginary), polished in place; `t`: their targets (k x 4 x 4); `size`: max
  * |r| of each at the end. Returns 0, or 1 when a Jacobian was exactly singular (the caller's
@@ -105,32 +135,8 @@ int optik_g6r_polish(const double *dh, int k, int iterations, double *theta, con
     const double *d = dh, *a = dh + 6;
     double ca[6], sa[6];
     for (int i = 0; i < 6; ++i) ca[i] = cos(dh[12 + i]), sa[i] = sin(dh[12 + i]);
-    for (int n = 0; n < k; ++n) {
-        cplx *th = (cplx *)theta + 6 * n, err[6], pre[7][4][4];
-        const double *tn = t + 16 * n;
-        chain(d, a, ca, sa, th, 6, pre);
-        double now = residual(pre, tn, err), before = now;
-        for (int it = 0; it < iterations && now >= 1e-15; ++it) {
-            cplx jac[6][6], step[6];
-            for (int i = 0; i < 6; ++i) {
-                cplx z[3] = {pre[i][0][2], pre[i][1][2], pre[i][2][2]};
-                cplx v[3] = {pre[6][0][3] - pre[i][0][3], pre[6][1][3] - pre[i][1][3], pre[6][2][3] - pre[i][2][3]};
-                jac[0][i] = z[1] * v[2] - z[2] * v[1];
-                jac[1][i] = z[2] * v[0] - z[0] * v[2];
-                jac[2][i] = z[0] * v[1] - z[1] * v[0];
-                jac[3][i] = z[0], jac[4][i] = z[1], jac[5][i] = z[2];
-            }
-            if (!solve6(jac, err, step)) return 1;
-            for (int i = 0; i < 6; ++i) th[i] -= step[i] / fmax(1.0, 2.0 * cabs(step[i]));
-            chain(d, a, ca, sa, th, 6, pre);
-            now = residual(pre, tn, err);
-            double magnitude = 1.0;
-            for (int i = 0; i < 6; ++i) magnitude *= cosh(cimag(th[i]));
-            if (now > 0.5 * before && now < 1e-9 * magnitude) break; /* stalled at rounding */
-            before = now;
-        }
-        size[n] = now;
-    }
+    for (int n = 0; n < k; ++n)
+        if (polish_one(d, a, ca, sa, iterations, (cplx *)theta + 6 * n, t + 16 * n, size + n)) return 1;
     return 0;
 }
 
@@ -138,56 +144,295 @@ int optik_g6r_polish(const double *dh, int k, int iterations, double *theta, con
  * analytically to complex values: -i log((c + i s) / sqrt(c^2 + s^2)) */
 static cplx angle(cplx c, cplx s) { return -I * clog((c + I * s) / csqrt(c * c + s * s)); }
 
+/* the 14 Raghavan-Roth quantities (l, p, p.p, p.l, p x l, (p.p) l - 2 (p.l) p) of general_6r._fourteen */
+static void fourteen(const cplx *l, const cplx *p, cplx *e) {
+    cplx pp = p[0] * p[0] + p[1] * p[1] + p[2] * p[2], pl = p[0] * l[0] + p[1] * l[1] + p[2] * l[2];
+    for (int i = 0; i < 3; ++i) e[i] = l[i], e[3 + i] = p[i], e[11 + i] = pp * l[i] - 2.0 * pl * p[i];
+    e[6] = pp, e[7] = pl;
+    e[8] = p[1] * l[2] - p[2] * l[1], e[9] = p[2] * l[0] - p[0] * l[2], e[10] = p[0] * l[1] - p[1] * l[0];
+}
+
+/* the back-substitution of one candidate ph (phi_3..5) with the pseudo-inverse pn (8 x 14), the
+ * constants rn (14) and the unit-scale target tn of its target: th (6 angles, non-finite ones 0) */
+static void back_one(const double *arm, const double *ca, const double *sa, const cplx *ph, const double *pn,
+                     const double *rn, const double *tn, cplx *th) {
+    const double *d = arm, *a = arm + 6, *rot = arm + 18, *inv6 = arm + 21;
+    cplx t[4][4], m[4][4], u[4][4], lhs[14], x[8];
+    dh(ph[0] + rot[0], d[2], a[2], ca[2], sa[2], t);
+    dh(ph[1] + rot[1], d[3], a[3], ca[3], sa[3], m);
+    mul4(t, m, u);
+    dh(ph[2] + rot[2], d[4], a[4], ca[4], sa[4], m);
+    mul4(u, m, t);
+    cplx l[3] = {t[0][2], t[1][2], t[2][2]}, p[3] = {t[0][3], t[1][3], t[2][3]};
+    fourteen(l, p, lhs);
+    for (int i = 0; i < 8; ++i) {
+        cplx v = 0;
+        for (int j = 0; j < 14; ++j) v += pn[14 * i + j] * (lhs[j] - rn[j]);
+        x[i] = v;
+    }
+    th[0] = angle(x[2], x[5]);
+    th[1] = angle(x[0], x[1]);
+    for (int i = 0; i < 3; ++i) th[2 + i] = ph[i] + rot[i];
+    cplx pre[7][4][4], inv[4][4], w[4][4];
+    chain(d, a, ca, sa, th, 5, pre);
+    for (int r = 0; r < 3; ++r) { /* (A_1 ... A_5)^-1: transposed rotation, -R^T p */
+        for (int c = 0; c < 3; ++c) inv[r][c] = pre[5][c][r];
+        inv[r][3] = -(pre[5][0][r] * pre[5][0][3] + pre[5][1][r] * pre[5][1][3] + pre[5][2][r] * pre[5][2][3]);
+        inv[3][r] = 0;
+    }
+    inv[3][3] = 1;
+    for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c) {
+            cplx v = 0;
+            for (int j = 0; j < 4; ++j) v += inv[r][j] * tn[4 * j + c];
+            w[r][c] = v;
+        }
+    cplx a60 = 0, a61 = 0; /* column 0 of w A_6^-1, rows 0 and 1 */
+    for (int j = 0; j < 4; ++j) a60 += w[0][j] * inv6[4 * j], a61 += w[1][j] * inv6[4 * j];
+    th[5] = angle(a60, a61);
+    for (int i = 0; i < 6; ++i)
+        if (!isfinite(creal(th[i])) || !isfinite(cimag(th[i]))) th[i] = 0;
+}
+
 /* `arm`: d (6), a (6), alpha (6) of the unit-scale arm, the rotations delta_3..5 (3), A_6^-1 at
  * theta_6 = 0 (4 x 4); per candidate n < k: phi (3 complex, interleaved), the pseudo-inverse of
  * its target's Q (8 x 14), the constants r0 (14), the unit-scale target T' (4 x 4). `theta` gets
  * the six (complex) angles of each (non-finite ones 0). Returns 0. */
 int optik_g6r_back(const double *arm, int k, const double *phi, const double *pinv, const double *r0,
                    const double *tp, double *theta) {
-    const double *d = arm, *a = arm + 6, *rot = arm + 18, *inv6 = arm + 21;
     double ca[6], sa[6];
     for (int i = 0; i < 6; ++i) ca[i] = cos(arm[12 + i]), sa[i] = sin(arm[12 + i]);
-    for (int n = 0; n < k; ++n) {
-        const cplx *ph = (const cplx *)phi + 3 * n;
-        const double *pn = pinv + 112 * n, *rn = r0 + 14 * n, *tn = tp + 16 * n;
-        cplx *th = (cplx *)theta + 6 * n, t[4][4], m[4][4], u[4][4], lhs[14], x[8];
-        dh(ph[0] + rot[0], d[2], a[2], ca[2], sa[2], t);
-        dh(ph[1] + rot[1], d[3], a[3], ca[3], sa[3], m);
-        mul4(t, m, u);
-        dh(ph[2] + rot[2], d[4], a[4], ca[4], sa[4], m);
-        mul4(u, m, t);
-        cplx l[3] = {t[0][2], t[1][2], t[2][2]}, p[3] = {t[0][3], t[1][3], t[2][3]};
-        cplx pp = p[0] * p[0] + p[1] * p[1] + p[2] * p[2], pl = p[0] * l[0] + p[1] * l[1] + p[2] * l[2];
-        for (int i = 0; i < 3; ++i) lhs[i] = l[i], lhs[3 + i] = p[i], lhs[11 + i] = pp * l[i] - 2.0 * pl * p[i];
-        lhs[6] = pp, lhs[7] = pl;
-        lhs[8] = p[1] * l[2] - p[2] * l[1], lhs[9] = p[2] * l[0] - p[0] * l[2], lhs[10] = p[0] * l[1] - p[1] * l[0];
-        for (int i = 0; i < 8; ++i) {
-            cplx v = 0;
-            for (int j = 0; j < 14; ++j) v += pn[14 * i + j] * (lhs[j] - rn[j]);
-            x[i] = v;
-        }
-        th[0] = angle(x[2], x[5]);
-        th[1] = angle(x[0], x[1]);
-        for (int i = 0; i < 3; ++i) th[2 + i] = ph[i] + rot[i];
-        cplx pre[7][4][4], inv[4][4], w[4][4];
-        chain(d, a, ca, sa, th, 5, pre);
-        for (int r = 0; r < 3; ++r) { /* (A_1 ... A_5)^-1: transposed rotation, -R^T p */
-            for (int c = 0; c < 3; ++c) inv[r][c] = pre[5][c][r];
-            inv[r][3] = -(pre[5][0][r] * pre[5][0][3] + pre[5][1][r] * pre[5][1][3] + pre[5][2][r] * pre[5][2][3]);
-            inv[3][r] = 0;
-        }
-        inv[3][3] = 1;
-        for (int r = 0; r < 4; ++r)
-            for (int c = 0; c < 4; ++c) {
-                cplx v = 0;
-                for (int j = 0; j < 4; ++j) v += inv[r][j] * tn[4 * j + c];
-                w[r][c] = v;
-            }
-        cplx a60 = 0, a61 = 0; /* column 0 of w A_6^-1, rows 0 and 1 */
-        for (int j = 0; j < 4; ++j) a60 += w[0][j] * inv6[4 * j], a61 += w[1][j] * inv6[4 * j];
-        th[5] = angle(a60, a61);
-        for (int i = 0; i < 6; ++i)
-            if (!isfinite(creal(th[i])) || !isfinite(cimag(th[i]))) th[i] = 0;
+    for (int n = 0; n < k; ++n)
+        back_one(arm, ca, sa, (const cplx *)phi + 3 * n, pinv + 112 * n, r0 + 14 * n, tp + 16 * n, (cplx *)theta + 6 * n);
+    return 0;
+}
+
+/* ---------------------------------------------------------------- the whole solve of one target
+ * optik_g6r_solve runs steps 1-3 of general_6r (the 14 x 8 matrix Q of the right sides, its SVD,
+ * the 12 x 12 coefficients of M(x_3), the singular-pencil probes, the 24 x 24 companion matrix and
+ * its eigenvectors), the choice of candidates (finite, not spurious, not far) and, per candidate,
+ * the back-substitution, the complex polish and the real retry: what general_6r._candidates does
+ * in numpy. The linear algebra is LAPACK's (scipy's, through the function pointers `lapack`:
+ * dgesdd, dgeev, dgetrf, dgetrs; one OpenBLAS thread during the call). The right sides are trigonometric of degree one in theta_1 and
+ * theta_2, so three samples per angle (0, 2 pi / 3, 4 pi / 3) give their coefficients exactly. */
+typedef void (*dgesdd_t)(char *, int *, int *, double *, int *, double *, double *, int *, double *, int *, double *,
+                         int *, int *, int *);
+typedef void (*dgeev_t)(char *, char *, int *, double *, int *, double *, double *, double *, int *, double *, int *,
+                        double *, int *, int *);
+typedef void (*dgetrf_t)(int *, int *, double *, int *, int *, int *);
+typedef void (*dgetrs_t)(char *, int *, int *, double *, int *, int *, double *, int *, int *);
+
+enum { WORK = 4096, GEEV_WORK = 4 * 24, MAX_CANDIDATES = 24 };
+typedef int (*threads_t)(int);
+
+/* singular values of the n x n column-major matrix a (destroyed), largest first; 0 on success */
+static int singular_values(dgesdd_t gesdd, int n, double *a, double *s) {
+    char jobz = 'N';
+    int lwork = WORK, info = 0, iwork[8 * 12], one = 1;
+    double work[WORK], dummy = 0.0;
+    gesdd(&jobz, &n, &n, a, &n, s, &dummy, &one, &dummy, &one, work, &lwork, iwork, &info);
+    return info;
+}
+
+/* the least-squares ratio of general_6r._half_angle: 2 atan(x) from the blocks lo, hi (count
+ * entries each, hi = x lo for an exact eigenvector); with `real` from the ratios' real parts */
+static cplx half_angle(const cplx *lo, const cplx *hi, int count, int real) {
+    cplx fwd = 0, rev = 0;
+    double nlo = 0, nhi = 0;
+    for (int i = 0; i < count; ++i) {
+        fwd += conj(lo[i]) * hi[i], rev += conj(hi[i]) * lo[i];
+        nlo += creal(lo[i]) * creal(lo[i]) + cimag(lo[i]) * cimag(lo[i]);
+        nhi += creal(hi[i]) * creal(hi[i]) + cimag(hi[i]) * cimag(hi[i]);
     }
+    fwd /= fmax(nlo, 1e-300), rev /= fmax(nhi, 1e-300);
+    if (real) fwd = creal(fwd), rev = creal(rev);
+    return cabs(fwd) <= 1.0 ? 2.0 * catan(fwd) : M_PI - 2.0 * catan(rev);
+}
+
+/* (phi_4, phi_5) of the normalized eigenvector part w = (x_4^i x_5^j), i <= 3, j <= 2 */
+static void wrist_angles(const cplx *w, int real, cplx *phi) {
+    cplx lo[12], hi[12];
+    for (int i = 0; i < 9; ++i) lo[i] = w[i], hi[i] = w[i + 3]; /* rows 0..2 against 1..3 */
+    phi[0] = half_angle(lo, hi, 9, real);
+    for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 2; ++j) lo[2 * i + j] = w[3 * i + j], hi[2 * i + j] = w[3 * i + j + 1];
+    phi[1] = half_angle(lo, hi, 8, real);
+}
+
+/* `model`: the arm as optik_g6r_back takes it (37 numbers), then the 14 x 3 x 3 x 3 coefficients of
+ * the left sides (_Left.coef) and A_2^-1 A_1^-1 at the 3 x 3 sample angles (3 x 3 x 4 x 4);
+ * `lapack`: dgesdd, dgeev, dgetrf, dgetrs and OpenBLAS's openblas_set_num_threads_local (or NULL:
+ * the threaded BLAS of OpenBLAS costs milliseconds on matrices this small); `tp`: n unit-scale targets T' (4 x 4). Per target t:
+ * `info` (8): status (0 done, 1 A too badly conditioned for the companion matrix: QZ needed,
+ * 2 a LAPACK failure or an exactly singular Jacobian: the numpy path answers), Q of full rank,
+ * pencil regular, pencil well posed, finite non-spurious eigenvalues, those far from the real
+ * axis, candidates k; `theta` (24 x 6 complex): the polished candidates, `size` (24) their
+ * residuals, `retry` (24) whether each was polished from its real part too, `again` (24 x 6) the
+ * result of that. Returns 0. */
+int optik_g6r_solve(const double *model, void *const *lapack, int n, const double *tp, double *info, double *theta,
+                    double *size, int *retry, double *again) {
+    static const double probes[2][3] = {{1.0, 0.5773502692, 0.3333333333}, {1.0, -1.7320508076, 3.0}};
+    dgesdd_t gesdd = (dgesdd_t)lapack[0];
+    dgeev_t geev = (dgeev_t)lapack[1];
+    dgetrf_t getrf = (dgetrf_t)lapack[2];
+    dgetrs_t getrs = (dgetrs_t)lapack[3];
+    const double *arm = model, *coef = model + 37, *grid = model + 37 + 378, *inv6 = arm + 21;
+    const double *d = arm, *a = arm + 6;
+    double ca[6], sa[6], wt[3][3];
+    for (int i = 0; i < 6; ++i) ca[i] = cos(arm[12 + i]), sa[i] = sin(arm[12 + i]);
+    for (int k = 0; k < 3; ++k) { /* f = sum_k wt[basis][k] f(2 pi k / 3) in the basis (1, cos, sin) */
+        double g = 2.0 * M_PI * k / 3.0;
+        wt[0][k] = 1.0 / 3.0, wt[1][k] = 2.0 / 3.0 * cos(g), wt[2][k] = 2.0 / 3.0 * sin(g);
+    }
+    threads_t threads = (threads_t)lapack[4]; /* this thread's OpenBLAS threads: 1 for these sizes */
+    int threads_before = threads ? threads(1) : 0;
+    for (int t = 0; t < n; ++t) {
+        const double *tn = tp + 16 * t;
+        double *out = info + 8 * t;
+        for (int i = 0; i < 8; ++i) out[i] = 0.0;
+        out[0] = 2.0;
+        /* step 1: the fourteen right sides at the 3 x 3 samples, then their coefficients */
+        double lv[4], pv[4], f[3][3][14], rhs[14][9];
+        for (int r = 0; r < 4; ++r) {
+            lv[r] = pv[r] = 0.0;
+            for (int j = 0; j < 4; ++j) lv[r] += tn[4 * r + j] * inv6[4 * j + 2], pv[r] += tn[4 * r + j] * inv6[4 * j + 3];
+        }
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) {
+                const double *g = grid + 16 * (3 * i + j);
+                cplx l[3] = {0}, p[3] = {0}, e[14];
+                for (int r = 0; r < 3; ++r)
+                    for (int c = 0; c < 4; ++c) l[r] += g[4 * r + c] * lv[c], p[r] += g[4 * r + c] * pv[c];
+                fourteen(l, p, e);
+                for (int r = 0; r < 14; ++r) f[i][j][r] = creal(e[r]);
+            }
+        for (int e = 0; e < 14; ++e)
+            for (int u = 0; u < 3; ++u)
+                for (int v = 0; v < 3; ++v) {
+                    double s = 0.0;
+                    for (int i = 0; i < 3; ++i)
+                        for (int j = 0; j < 3; ++j) s += wt[u][i] * wt[v][j] * f[i][j][e];
+                    rhs[e][3 * u + v] = s;
+                }
+        /* step 2: SVD of Q (column-major 14 x 8), the pseudo-inverse and the six left null vectors */
+        double q[14 * 8], sv[8], uu[14 * 14], vt[8 * 8], r0[14], pinv[8 * 14], work[WORK];
+        int iwork[64], m14 = 14, n8 = 8, lwork = WORK, res = 0;
+        char jobz = 'A';
+        for (int e = 0; e < 14; ++e) {
+            r0[e] = rhs[e][0];
+            for (int c = 0; c < 8; ++c) q[e + 14 * c] = rhs[e][c + 1];
+        }
+        gesdd(&jobz, &m14, &n8, q, &m14, sv, uu, &m14, vt, &n8, work, &lwork, iwork, &res);
+        if (res) continue;
+        out[1] = sv[7] > 1e-11 * sv[0];
+        for (int i = 0; i < 8; ++i)
+            for (int j = 0; j < 14; ++j) {
+                double s = 0.0;
+                for (int k = 0; k < 8; ++k) s += vt[k + 8 * i] * uu[j + 14 * k] / sv[k];
+                pinv[14 * i + j] = s;
+            }
+        /* step 3: M(x_3) = C + B x + A x^2, column-major 12 x 12 each (mats[0] = C) */
+        double mats[3][144] = {{0}};
+        for (int p3 = 0; p3 < 3; ++p3)
+            for (int e = 0; e < 6; ++e)
+                for (int c = 0; c < 9; ++c) {
+                    int b4 = c / 3, b5 = c % 3;
+                    double one = (p3 != 1) * (b4 != 1) * (b5 != 1), s = 0.0;
+                    for (int k = 0; k < 14; ++k)
+                        s += uu[k + 14 * (8 + e)] * (coef[27 * k + 9 * p3 + c] - r0[k] * one);
+                    mats[p3][e + 12 * c] = s, mats[p3][(e + 6) + 12 * (c + 3)] = s;
+                }
+        double ratio = 0.0, s12[12], tmp[144];
+        int failed = 0;
+        for (int p = 0; p < 2 && !failed; ++p) {
+            for (int i = 0; i < 144; ++i)
+                tmp[i] = probes[p][0] * mats[0][i] + probes[p][1] * mats[1][i] + probes[p][2] * mats[2][i];
+            failed = singular_values(gesdd, 12, tmp, s12);
+            ratio = fmax(ratio, s12[11] / s12[0]);
+        }
+        if (failed) continue;
+        out[2] = ratio > 1e-10, out[3] = ratio > 1e-7;
+        for (int i = 0; i < 144; ++i) tmp[i] = mats[2][i];
+        if (singular_values(gesdd, 12, tmp, s12)) continue;
+        if (!(s12[0] / s12[11] < 1e10)) { /* QZ (the numpy path) */
+            out[0] = 1.0;
+            continue;
+        }
+        /* the companion matrix [0 I; -A^-1 C  -A^-1 B] (column-major 24 x 24) and its eigenvectors */
+        double lu[144], x[12 * 24], comp[24 * 24], wr[24], wi[24], vr[24 * 24];
+        int piv[12], n12 = 12, n24 = 24, one = 1;
+        char trans = 'N', no = 'N', yes = 'V';
+        for (int i = 0; i < 144; ++i) lu[i] = mats[2][i], x[i] = mats[0][i], x[144 + i] = mats[1][i];
+        getrf(&n12, &n12, lu, &n12, piv, &res);
+        if (res) continue;
+        getrs(&trans, &n12, &n24, lu, &n12, piv, x, &n12, &res);
+        if (res) continue;
+        for (int c = 0; c < 24; ++c)
+            for (int r = 0; r < 24; ++r) comp[r + 24 * c] = r < 12 ? (double)(r == c - 12) : -x[(r - 12) + 12 * c];
+        int geev_work = GEEV_WORK; /* the minimum: the unblocked back-transformation, faster at this size */
+        geev(&no, &yes, &n24, comp, &n24, wr, wi, &wr[0], &one, vr, &n24, work, &geev_work, &res);
+        if (res) continue;
+        /* finite, not one of the 4 + 4 nearest +-i (the spurious factor), not far */
+        cplx vals[24];
+        int good[24], spurious[24] = {0};
+        for (int j = 0; j < 24; ++j) {
+            vals[j] = wr[j] + I * wi[j];
+            good[j] = isfinite(wr[j]) && isfinite(wi[j]) && cabs(vals[j]) < 1e12;
+        }
+        for (int sign = 1; sign >= -1; sign -= 2)
+            for (int rep = 0; rep < 4; ++rep) {
+                int best = -1;
+                double dist = INFINITY;
+                for (int j = 0; j < 24; ++j)
+                    if (good[j] && !spurious[j] && cabs(vals[j] - sign * I) < dist) dist = cabs(vals[j] - sign * I), best = j;
+                if (best >= 0) spurious[best] = 1;
+            }
+        int count = 0, far = 0, k = 0;
+        double *th_out = theta + 2 * 6 * MAX_CANDIDATES * t, *size_out = size + MAX_CANDIDATES * t;
+        double *again_out = again + 6 * MAX_CANDIDATES * t;
+        int *retry_out = retry + MAX_CANDIDATES * t;
+        for (int j = 0; j < 24 && !failed; ++j) {
+            if (!good[j] || spurious[j]) continue;
+            ++count;
+            cplx phi3 = 2.0 * catan(vals[j]);
+            if (fabs(cimag(phi3)) > 1.0 && out[3]) {
+                ++far;
+                continue;
+            }
+            /* the eigenvector (a pair's: columns j, j + 1 of vr), its better scaled half */
+            cplx v[12];
+            int first = wi[j] == 0.0 || wi[j] > 0.0 ? j : j - 1, off = cabs(vals[j]) > 1.0 ? 12 : 0;
+            double sgn = wi[j] < 0.0 ? -1.0 : 1.0;
+            for (int r = 0; r < 12; ++r)
+                v[r] = vr[off + r + 24 * first] + (wi[j] == 0.0 ? 0.0 : sgn * I * vr[off + r + 24 * (first + 1)]);
+            int top = 0;
+            for (int r = 1; r < 12; ++r)
+                if (cabs(v[r]) > cabs(v[top])) top = r;
+            cplx scale = v[top];
+            for (int r = 0; r < 12; ++r) v[r] /= scale;
+            cplx phi[3], *th = (cplx *)th_out + 6 * k;
+            phi[0] = phi3;
+            wrist_angles(v, 0, phi + 1);
+            back_one(arm, ca, sa, phi, pinv, r0, tn, th);
+            failed |= polish_one(d, a, ca, sa, 12, th, tn, size_out + k);
+            double imag = 0.0;
+            for (int i = 0; i < 6; ++i) imag = fmax(imag, fabs(cimag(th[i])));
+            retry_out[k] = imag > 1e-8 && fabs(cimag(phi3)) <= 1e-3;
+            if (retry_out[k]) { /* from the real parts */
+                cplx flat[3], re[6];
+                double ignored;
+                flat[0] = creal(phi3);
+                wrist_angles(v, 1, flat + 1);
+                back_one(arm, ca, sa, flat, pinv, r0, tn, re);
+                for (int i = 0; i < 6; ++i) re[i] = creal(re[i]);
+                failed |= polish_one(d, a, ca, sa, 12, re, tn, &ignored);
+                for (int i = 0; i < 6; ++i) again_out[6 * k + i] = creal(re[i]);
+            }
+            ++k;
+        }
+        if (failed) continue;
+        out[0] = 0.0, out[4] = count, out[5] = far, out[6] = k;
+    }
+    if (threads) threads(threads_before);
     return 0;
 }

@@ -66,11 +66,21 @@ singular at two test points (a singular pencil, whose eigenvalues mean nothing),
 candidate did not converge or a real one failed its check: the arm or the pose is then
 degenerate (special geometry, a pose on a singular boundary, a root that cannot be decided) and
 solutions may be missing.
+
+**In C.** Steps 1-3, the eigenvalues and the candidates' back-substitution and complex polish
+run for each target in one C call (``general_6r.c``, ``optik_g6r_solve``, built once per machine
+in the background, `optik.native.CFunction`; its linear algebra is scipy's LAPACK, ``dgesdd``,
+``dgeev``, ``dgetrf``, ``dgetrs``, run on one OpenBLAS thread); numpy answers until it is built,
+without a compiler (logged), for a badly conditioned ``A`` (QZ) and for an exactly singular
+Jacobian. Both give the same candidates to rounding; the last polish, the FK check (one ``m.fk``
+call per batch, reused from the polish) and the count check are common.
 """
 
 from __future__ import annotations
 
 import ctypes
+import functools
+import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -165,7 +175,10 @@ is below this at both test points."""
 # (1 + x^2) e^{i k phi} = (1 + i x)^(1 + k) (1 - i x)^(1 - k), k = -1, 0, 1 -> powers x^0, x^1, x^2
 _HALF = np.array([[1.0, 1.0, 1.0], [-2j, 0.0, 2j], [-1.0, 1.0, -1.0]])
 _GRID = 2.0 * np.pi * np.arange(5) / 5.0
+_GRID3 = 2.0 * np.pi * np.arange(3) / 3.0
+"""Three samples per angle: exact for the right sides (trigonometric of degree one), in C."""
 _TWO_PI = 2.0 * np.pi
+_LOG = logging.getLogger(__name__)
 _SOURCE = Path(__file__).with_name("general_6r.c")
 _POLISH = native.CFunction(
     _SOURCE,
@@ -177,7 +190,17 @@ _POLISH = native.CFunction(
 _BACK = native.CFunction(
     _SOURCE, "optik_general_6r", "optik_g6r_back", [ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 5]
 )
-"""The back-substitution of `_solve` in C."""
+"""The back-substitution of `_candidates` in C."""
+_SOLVE = native.CFunction(
+    _SOURCE,
+    "optik_general_6r",
+    "optik_g6r_solve",
+    [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 6],
+)
+"""`_candidates` in C, the whole elimination of many targets in one call (`_candidates_c`)."""
+_MAX_CANDIDATES = 24
+"""Candidates per target the C solve has room for (at most 16 eigenvalues are candidates)."""
+_LAPACK_ROUTINES = ("dgesdd", "dgeev", "dgetrf", "dgetrs")
 
 
 # ---------------------------------------------------------------------------- DH kinematics
@@ -319,6 +342,14 @@ class General6R:
             t = t @ _dh(theta[..., i], self.d[i], self.a[i], self.alpha[i])
         return t @ self.tool
 
+    @cached_property
+    def _base_inv(self) -> np.ndarray:
+        return _inv(self.base)
+
+    @cached_property
+    def _tool_inv(self) -> np.ndarray:
+        return _inv(self.tool)
+
     def _unit(self) -> tuple[np.ndarray, np.ndarray]:
         """Scaled ``(a, d)``: the arm at unit size."""
         return self.a / self.scale, self.d / self.scale
@@ -336,9 +367,9 @@ class General6R:
         intersecting, three consecutive parallel axes at an end, and most decomposable families;
         a router should send only covered arms to `solve_general_6r`."""
         targets = self.fk(np.random.default_rng(0).uniform(-np.pi, np.pi, (3, 6)))
-        fwd = _matrices(self, targets)
-        back = _matrices(self.reversed, _inv(targets))
-        return bool(np.all((fwd[6] & fwd[7]) | (back[6] & back[7])))
+        fwd = _matrices(self, _unit_targets(self, targets))
+        back = _matrices(self.reversed, _unit_targets(self.reversed, _inv(targets)))
+        return bool(np.all((fwd[5] & fwd[6]) | (back[5] & back[6])))
 
     @cached_property
     def perturbed(self) -> General6R:
@@ -455,6 +486,11 @@ class _Left:
         g1, g2 = np.meshgrid(_GRID, _GRID, indexing="ij")
         self.grid12 = _inv(_dh(g2, d[1], a[1], arm.alpha[1])) @ _inv(_dh(g1, d[0], a[0], arm.alpha[0]))
         """``A2^-1 A1^-1`` on the ``5 x 5`` grid of ``(theta_1, theta_2)``."""
+        g1, g2 = np.meshgrid(_GRID3, _GRID3, indexing="ij")
+        grid3 = _inv(_dh(g2, d[1], a[1], arm.alpha[1])) @ _inv(_dh(g1, d[0], a[0], arm.alpha[0]))
+        self.model = np.concatenate([self.packed, self.coef.reshape(-1), grid3.reshape(-1)])
+        """`packed`, `coef` and ``A2^-1 A1^-1`` on the ``3 x 3`` grid of ``(theta_1, theta_2)``
+        (`_GRID3`): the arm as the whole solve in C (``optik_g6r_solve``) takes it."""
 
     def values(self, phi3: np.ndarray, phi4: np.ndarray, phi5: np.ndarray) -> np.ndarray:
         """The 14 left sides at ``theta_k = phi_k + delta_k``: shape ``phi.shape + (14,)``."""
@@ -699,14 +735,20 @@ def _dedup(q: np.ndarray) -> np.ndarray:
     return q[keep]
 
 
-def _matrices(arm: General6R, targets: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Steps 1-3 for targets ``(N, 4, 4)``: the unit-scale targets, the SVD ``u, sv, vt`` of
-    ``Q``, the constants ``r0``, the coefficients ``(C, B, A)`` of ``M(x_3)`` (``(N, 3, 12, 12)``)
-    and the masks ``rank_ok`` (``Q`` of rank 8) and ``regular`` (``M`` not singular for all x)."""
-    left = arm._left
-    n = len(targets)
-    tp = _inv(arm.base) @ targets @ _inv(arm.tool)
+def _unit_targets(arm: General6R, targets: np.ndarray) -> np.ndarray:
+    """``T' = B^-1 T E^-1`` of targets ``(N, 4, 4)``, scaled to the unit-size arm."""
+    tp = arm._base_inv @ targets @ arm._tool_inv
     tp[:, :3, 3] /= arm.scale
+    return tp
+
+
+def _matrices(arm: General6R, tp: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Steps 1-3 for unit-scale targets ``tp`` (`_unit_targets`, ``(N, 4, 4)``): the SVD
+    ``u, sv, vt`` of ``Q``, the constants ``r0``, the coefficients ``(C, B, A)`` of ``M(x_3)``
+    (``(N, 3, 12, 12)``) and the masks ``rank_ok`` (``Q`` of rank 8), ``regular`` (``M`` not
+    singular for all x) and ``well`` (well posed, `_WELL_POSED`)."""
+    left = arm._left
+    n = len(tp)
     rhs = _right(left, tp)
     q_mat, r0 = rhs.reshape(n, 14, 9)[:, :, 1:], rhs[:, :, 0, 0]
     u, sv, vt = np.linalg.svd(q_mat)
@@ -721,16 +763,40 @@ def _matrices(arm: General6R, targets: np.ndarray) -> tuple[np.ndarray, ...]:
     probe = np.einsum("nkab,pk->npab", mats, _PROBES)
     probe_sv = np.linalg.svd(probe, compute_uv=False)
     ratio = np.max(probe_sv[..., -1] / probe_sv[..., 0], axis=1)
-    return tp, u, sv, vt, r0, mats, rank_ok, ratio > _SINGULAR_PENCIL, ratio > _WELL_POSED
+    return u, sv, vt, r0, mats, rank_ok, ratio > _SINGULAR_PENCIL, ratio > _WELL_POSED
 
 
-def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[General6RSolutions]:
-    """The eigenvalue solver on validated targets ``(N, 4, 4)``; ``fk`` is the independent
-    forward kinematics used for the final check (``q (K, 6) -> (K, 4, 4)``), ``refine`` the
-    last polish of the candidates on the exact model (``(q, target index) -> q``)."""
+@dataclass
+class _Candidates:
+    """The polished candidates of targets ``0 .. N-1`` (steps 1-3, the eigenvalues, the
+    back-substitution and the complex polish), what `_verify` decides on.
+
+    Attributes:
+        rank_ok, regular: per target, ``Q`` of full rank and the pencil regular.
+        n_good, n_far: per target, finite non-spurious eigenvalues and those counted complex
+            without polishing (`_FAR`).
+        owner: per candidate, its target.
+        theta, residual: per candidate, the polished (complex) angles and ``max |r|`` at them.
+        retry: the candidates also polished from their real parts (`_REAL_RETRY`), ascending.
+        again: their polished real angles, ``(len(retry), 6)``.
+    """
+
+    rank_ok: np.ndarray
+    regular: np.ndarray
+    n_good: np.ndarray
+    n_far: np.ndarray
+    owner: np.ndarray
+    theta: np.ndarray
+    residual: np.ndarray
+    retry: np.ndarray
+    again: np.ndarray
+
+
+def _candidates(arm: General6R, tp: np.ndarray) -> _Candidates:
+    """`_Candidates` of the unit-scale targets ``tp`` in numpy (the C kernels `_BACK` and
+    `_POLISH` where loaded): the path without the whole solve in C (`_candidates_c`)."""
     left = arm._left
-    n = len(targets)
-    tp, u, sv, vt, r0, mats, rank_ok, regular, well = _matrices(arm, targets)
+    u, sv, vt, r0, mats, rank_ok, regular, well = _matrices(arm, tp)
     vals, vecs = _eigen(mats)
     finite = np.isfinite(vals) & (np.abs(vals) < 1e12)
     spurious = np.zeros_like(finite)
@@ -775,23 +841,132 @@ def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[Ge
         return np.where(np.isfinite(theta), theta, 0.0)
 
     theta, residual = _polish(left, back_substitute(phi, idx_n), tp[idx_n])
-    converged = residual <= _CONVERGED * _magnitude(theta)
-    # real to IMAG_TOL: a real candidate, which the last polish and the FK check decide (the DH
-    # description of an inverse chain may be too coarse for its residual to converge)
     real = np.max(np.abs(theta.imag), axis=1, initial=0.0) <= IMAG_TOL
     # a candidate near the real axis that did not end real is polished from its real part too
     # (on a singular pencil the eigenvalues mean nothing, yet their real parts often lie next
-    # to real solutions); one that passes the FK check is a real solution, not a complex one
+    # to real solutions)
     retry = np.flatnonzero(~real & (np.abs(phi[:, 0].imag) <= _REAL_RETRY))
     flat_phi = np.concatenate([phi[retry, :1].real, _half_angle(w[retry], real=True)], 1)
     again = _polish(left, back_substitute(flat_phi, idx_n[retry]).real, tp[idx_n[retry]])[0]
+    return _Candidates(
+        rank_ok, regular, np.sum(good, axis=1), np.sum(far, axis=1), idx_n, theta, residual, retry, again
+    )
+
+
+@functools.cache
+def _lapack() -> np.ndarray | None:
+    """The addresses of scipy's LAPACK routines `_LAPACK_ROUTINES` (``scipy.linalg.cython_lapack``,
+    the library scipy itself calls) and of ``openblas_set_num_threads_local`` of the library that
+    holds them (0 when it has none: not OpenBLAS, or older than 0.3.27), or None when the routines
+    cannot be read (logged)."""
+    try:
+        from scipy.linalg import cython_lapack
+
+        name_of = ctypes.pythonapi.PyCapsule_GetName
+        name_of.restype, name_of.argtypes = ctypes.c_char_p, [ctypes.py_object]
+        pointer = ctypes.pythonapi.PyCapsule_GetPointer
+        pointer.restype, pointer.argtypes = ctypes.c_void_p, [ctypes.py_object, ctypes.c_char_p]
+        capsules = [cython_lapack.__pyx_capi__[r] for r in _LAPACK_ROUTINES]
+        found = [pointer(c, name_of(c)) for c in capsules]
+    except Exception as exc:  # any failure: the numpy path answers
+        _LOG.warning("general 6R: scipy's LAPACK is not reachable from C (%s); numpy path", exc)
+        return None
+    return np.array([*found, _threads_local(found[0])], dtype=np.uintp)
+
+
+def _threads_local(address: int) -> int:
+    """The address of ``openblas_set_num_threads_local`` in the shared library that holds
+    ``address`` (found by ``dladdr``), 0 when there is none."""
+
+    class DlInfo(ctypes.Structure):
+        _fields_ = [(k, ctypes.c_void_p) for k in ("fname", "fbase", "sname", "saddr")]
+
+    try:
+        libc = ctypes.CDLL(None)
+        info = DlInfo()
+        if not libc.dladdr(ctypes.c_void_p(address), ctypes.byref(info)) or not info.fname:
+            return 0
+        lib = ctypes.CDLL(ctypes.string_at(info.fname).decode())
+        return int(ctypes.cast(lib.openblas_set_num_threads_local, ctypes.c_void_p).value or 0)
+    except (OSError, AttributeError, UnicodeDecodeError):
+        return 0
+
+
+def _candidates_c(arm: General6R, tp: np.ndarray) -> _Candidates:
+    """`_candidates` with the whole solve of each target in C (``optik_g6r_solve``: one call for
+    all targets) when its library and scipy's LAPACK are loaded; targets that it hands back (QZ
+    needed, a LAPACK failure, an exactly singular Jacobian) and every target without the library
+    take the numpy path."""
+    fn, lapack = _SOLVE.get(), _lapack()
+    if fn is None or lapack is None or not len(tp):
+        return _candidates(arm, tp)
+    n, cap = len(tp), _MAX_CANDIDATES
+    tp = np.ascontiguousarray(tp)
+    info = np.empty((n, 8))
+    theta = np.empty((n, cap, 6), dtype=complex)
+    size = np.empty((n, cap))
+    retry = np.zeros((n, cap), dtype=np.intc)
+    again = np.empty((n, cap, 6))
+    out = (info, theta, size, retry, again)
+    fn(arm._left.model.ctypes.data, lapack.ctypes.data, n, tp.ctypes.data, *(v.ctypes.data for v in out))
+    done = info[:, 0] == 0
+    count = np.where(done, info[:, 6], 0).astype(int)
+    mask = np.arange(cap)[None] < count[:, None]
+    owner = np.nonzero(mask)[0]
+    flags = retry[mask].astype(bool)
+    cand = _Candidates(
+        info[:, 1] > 0,
+        info[:, 2] > 0,
+        info[:, 4].astype(int),
+        info[:, 5].astype(int),
+        owner,
+        theta[mask],
+        size[mask],
+        np.flatnonzero(flags),
+        again[mask][flags],
+    )
+    rest = np.flatnonzero(~done)
+    if len(rest):
+        cand = _join(cand, rest, _candidates(arm, tp[rest]))
+    return cand
+
+
+def _join(cand: _Candidates, rows: np.ndarray, other: _Candidates) -> _Candidates:
+    """``cand`` with the targets ``rows`` answered by ``other`` (the candidates of ``tp[rows]``)."""
+    per = (cand.rank_ok, cand.regular, cand.n_good, cand.n_far)
+    for mine, theirs in zip(per, (other.rank_ok, other.regular, other.n_good, other.n_far), strict=True):
+        mine[rows] = theirs
+    return _Candidates(
+        *per,
+        np.concatenate([cand.owner, rows[other.owner]]),
+        np.concatenate([cand.theta, other.theta]),
+        np.concatenate([cand.residual, other.residual]),
+        np.concatenate([cand.retry, len(cand.owner) + other.retry]),
+        np.concatenate([cand.again, other.again]),
+    )
+
+
+def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[General6RSolutions]:
+    """The eigenvalue solver on validated targets ``(N, 4, 4)``; ``fk`` is the independent
+    forward kinematics used for the final check (``q (K, 6) -> (K, 4, 4)``), ``refine`` the
+    last polish of the candidates on the exact model (``(q, target index) -> (q, poses)``, the
+    poses ``fk(q)`` when it computed them, else None)."""
+    n = len(targets)
+    cand = _candidates_c(arm, _unit_targets(arm, targets))
+    idx_n, theta = cand.owner, cand.theta
+    converged = cand.residual <= _CONVERGED * _magnitude(theta)
+    # real to IMAG_TOL: a real candidate, which the last polish and the FK check decide (the DH
+    # description of an inverse chain may be too coarse for its residual to converge); a
+    # retried one that passes the FK check is a real solution, not a complex one
+    real = np.max(np.abs(theta.imag), axis=1, initial=0.0) <= IMAG_TOL
+    retry = cand.retry
     at = np.flatnonzero(real)
     owner = np.concatenate([idx_n[at], idx_n[retry]])
-    q = refine(_wrap(np.concatenate([theta[at].real, again]) - arm.offset), owner)
+    q, pose = refine(_wrap(np.concatenate([theta[at].real, cand.again]) - arm.offset), owner)
     ok = np.zeros(len(q), dtype=bool)
     fk_err = np.full(len(q), np.inf)
     if len(q):
-        dp, dr = _pose_errors(fk(q), targets[owner])
+        dp, dr = _pose_errors(fk(q) if pose is None else pose, targets[owner])
         fk_err = np.maximum(dp / arm.scale, dr)
         ok = fk_err <= FK_TOL
     rescued = np.zeros(len(theta), dtype=bool)
@@ -801,11 +976,11 @@ def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[Ge
     for k in range(n):
         mine, mine_real = idx_n == k, owner == k
         sols = _dedup(q[mine_real & ok])
-        n_finite = int(np.sum(good[k]))
-        n_complex = len(_dedup(theta[mine & converged & ~real & ~rescued])) + int(np.sum(far[k]))
+        n_finite = int(cand.n_good[k])
+        n_complex = len(_dedup(theta[mine & converged & ~real & ~rescued])) + int(cand.n_far[k])
         n_rejected = int(np.sum(mine & ~real & ~converged & ~rescued) + np.sum(mine_real & first & ~ok))
         count_ok = (
-            bool(rank_ok[k] and regular[k])
+            bool(cand.rank_ok[k] and cand.regular[k])
             and n_finite == 16
             and n_rejected == 0
             and len(sols) + n_complex == 16
@@ -816,8 +991,8 @@ def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[Ge
                 f"count check failed: {n_finite} finite eigenvalues (16 expected), {len(sols)} distinct real "
                 f"and {n_complex} distinct complex solutions verified, {n_rejected} candidates that did not "
                 "converge or failed the FK check"
-                + ("" if rank_ok[k] else ", rank-deficient elimination (special geometry)")
-                + ("" if regular[k] else ", singular 12 x 12 matrix for every x_3 (special geometry)")
+                + ("" if cand.rank_ok[k] else ", rank-deficient elimination (special geometry)")
+                + ("" if cand.regular[k] else ", singular 12 x 12 matrix for every x_3 (special geometry)")
             )
         elif not len(sols):
             reason = "unreachable: all 16 solutions are complex"
@@ -863,7 +1038,7 @@ def solve_general_6r(
     if bad:  # special geometry at both ends: candidates from a nearby generic arm
         near = _both_ends(g.perturbed, targets[bad], g.perturbed.fk, None)
         for k, sol in zip(bad, near, strict=True):
-            q = _refine(g, m, sol.q.copy(), np.repeat(targets[k][None], len(sol.q), axis=0))
+            q = _refine(g, m, sol.q.copy(), np.repeat(targets[k][None], len(sol.q), axis=0))[0]
             out[k] = _add(out[k], q, targets[k], fk, g.scale)
     return out[0] if single else out
 
@@ -872,8 +1047,13 @@ def _both_ends(g: General6R, targets: np.ndarray, fk: Any, m: Mechanism | None) 
     """The eigenvalue solver on ``g``, then on its inverse chain for the targets whose count
     check failed (``m``: the mechanism whose ``m.fk`` polishes the solutions last, or None)."""
 
-    def refine(q: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    def refine(q: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         return _refine(g, m, q, targets[idx])
+
+    def refine_reversed(q: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """`refine` of the inverse chain's candidates ``q`` (reversed) of the targets ``bad[idx]``."""
+        fwd, pose = refine(q[:, ::-1], np.asarray(bad, dtype=int)[idx])
+        return fwd[:, ::-1], None if pose is None else _inv(pose)
 
     out = _solve(g, targets, fk, refine)
     bad = [k for k, s in enumerate(out) if not s.count_ok]
@@ -882,7 +1062,7 @@ def _both_ends(g: General6R, targets: np.ndarray, fk: Any, m: Mechanism | None) 
             g.reversed,
             _inv(targets[bad]),
             lambda q: _inv(fk(q[:, ::-1])),
-            lambda q, idx: refine(q[:, ::-1], np.asarray(bad, dtype=int)[idx])[:, ::-1],
+            refine_reversed,
         )
         for k, rev in zip(bad, back, strict=True):
             out[k] = _merge(out[k], rev, targets[k], fk, g.scale)
@@ -914,29 +1094,33 @@ def _add(
     )
 
 
-def _refine(g: General6R, m: Mechanism | None, q: np.ndarray, targets: np.ndarray) -> np.ndarray:
+def _refine(
+    g: General6R, m: Mechanism | None, q: np.ndarray, targets: np.ndarray
+) -> tuple[np.ndarray, np.ndarray | None]:
     """The last Newton polish on the exact model: the DH model ``g`` (exact for a `General6R`;
     candidates of the inverse chain come from its own, less accurate, DH description), then for
     a mechanism a few steps on ``m.fk`` and ``m.jacobian`` wherever the FK error is still above
-    rounding (the DH description of near-parallel axes loses digits)."""
+    rounding (the DH description of near-parallel axes loses digits). Returns the polished
+    angles (wrapped) and, for a mechanism whose last evaluation of ``m.fk`` was at them (no step
+    left to take: the usual case), those poses, which the caller's FK check reuses; else None."""
     if not len(q):
-        return q
-    tp = _inv(g.base) @ targets @ _inv(g.tool)
-    tp[:, :3, 3] /= g.scale
+        return q, None
+    tp = _unit_targets(g, targets)
     q = _wrap(_polish(g._left, q + g.offset, tp)[0] - g.offset)
     if m is None:
-        return q
+        return q, None
     for _ in range(3):
         pose = m.fk(q).reshape(-1, 4, 4)
         dp, dr = _pose_errors(pose, targets)
         todo = np.flatnonzero(np.maximum(dp / g.scale, dr) > _EXACT)
         if not len(todo):
-            break
+            return q, pose
         for k in todo:
             rot = pose[k, :3, :3] @ targets[k, :3, :3].T
             err = np.concatenate([pose[k, :3, 3] - targets[k, :3, 3], 0.5 * _skew(rot)])
             q[k] = q[k] - np.linalg.lstsq(m.jacobian(q[k]), err, rcond=None)[0]
-    return _wrap(q)
+        q = _wrap(q)
+    return q, None
 
 
 def _merge(

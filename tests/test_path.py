@@ -118,6 +118,21 @@ def test_dynamic_program_is_the_brute_force_optimum(n_layers, width, seed, bound
         assert not any((k, got.index[k - 1], got.index[k]) in gone for k in range(1, n_layers))
 
 
+@pytest.mark.parametrize("seed", range(40))
+def test_periodic_key_many_turns_out_equals_numpy(seed):
+    """The joint the C kernel scans by is periodic and its values lie several turns apart
+    (raw angles in [-15, 15] rad, where the order of the values is not the order around the
+    circle): the kernel's optimum costs what numpy's full edge matrices give."""
+    rng = np.random.default_rng(seed)
+    layers = [rng.uniform(-15.0, 15.0, (int(rng.integers(2, 10)), 2)) * [1.0, 0.01] for _ in range(4)]
+    w, periods = np.array([1.0, 0.1]), np.array([2 * np.pi, 0.0])
+    assert graph._key_joint(layers, w) == 0
+    got = graph.least_motion(layers, w, None, periods)
+    want = graph.least_motion_numpy(layers, w, None, periods)
+    assert got.blocked == want.blocked == -1
+    assert got.cost == pytest.approx(want.cost, abs=1e-9)
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_compiled_dynamic_program_equals_numpy_on_wide_layers(seed):
     """Wide layers listing their nodes mostly in the same order with small moves (the first bound

@@ -10,7 +10,8 @@
  * edges that cannot improve on the best. On equal totals the first edge found is kept.
  *
  * A joint with period[j] > 0 measures its difference modulo the period, in [-period/2,
- * period/2] (the relaxed graph of optik.path.plan, one node per solution and no turns).
+ * period/2] (the relaxed graph of optik.path.plan, one node per solution and no turns); a
+ * periodic key is ordered by its value modulo the period, whatever turn the node is on.
  *
  * Reentrant: every buffer belongs to the caller.
  */
@@ -40,13 +41,10 @@ static void sort_by(int *idx, int *tmp, int k, const double *key) {
     for (int q = 0; q < k; ++q) idx[q] = tmp[q];
 }
 
+/* d modulo p in [-p/2, p/2] (p > 0; d itself when p is 0): d - p round(d / p), one step for
+ * any number of periods, as optik.path.graph.differences */
 static double wrapped(double d, double p) {
-    if (p > 0.0) { /* |d| is a few periods at most: subtract whole ones */
-        double half = 0.5 * p;
-        while (d > half) d -= p;
-        while (d < -half) d += p;
-    }
-    return d;
+    return p > 0.0 ? d - p * nearbyint(d / p) : d;
 }
 
 /* Sorts the nodes [p0, p0 + k) into out[0..k) by key, warm-started from `prev`, the sorted
@@ -92,9 +90,18 @@ int optik_path_dp(int n_layers, const int *offset, const double *nodes, int n, i
                   const double *period, const double *bounds, double *cost, int *back, int *order,
                   int *tmp, int *index, double *total, double *key, int *here, const int *fstart,
                   const int *fpred) {
-    for (int a = 0; a < offset[n_layers]; ++a) key[a] = nodes[(long)a * n + first];
-    for (int a = offset[0]; a < offset[1]; ++a) cost[a] = 0.0;
     const double w0 = fabs(w[first]), p0d = period[first];
+    /* a periodic key is taken into [0, p0d), so that the key order is the order around the
+     * circle: the unvisited predecessors are then one arc, nearest at one of its two ends */
+    for (int a = 0; a < offset[n_layers]; ++a) {
+        double v = nodes[(long)a * n + first];
+        if (p0d > 0.0) {
+            v -= p0d * floor(v / p0d);
+            if (v >= p0d) v -= p0d; /* a rounding of a tiny negative v */
+        }
+        key[a] = v;
+    }
+    for (int a = offset[0]; a < offset[1]; ++a) cost[a] = 0.0;
     for (int i = 0; i < offset[1] - offset[0]; ++i) order[i] = offset[0] + i;
     sort_by(order, tmp, offset[1] - offset[0], key);
     for (int k = 1; k < n_layers; ++k) {
@@ -108,7 +115,7 @@ int optik_path_dp(int n_layers, const int *offset, const double *nodes, int n, i
         for (int ib = 0; ib < kb; ++ib) { /* the nodes in increasing key: lo only moves up */
             int b = here[ib];
             const double *qb = nodes + (long)b * n;
-            double b0 = qb[first], best = INFINITY;
+            double b0 = key[b], best = INFINITY;
             int arg = -1;
             while (lo < kp && key[order[lo]] < b0) ++lo; /* first predecessor with key >= b0 */
             int r = lo, l = lo - 1;

@@ -405,3 +405,135 @@ def test_nlp_clear_stop_and_no_world_rows_for_an_empty_world(arm):
     for pool in pools:  # g: the closures and one row per self pair; p: the task's, the bound, a flag per pair
         n_self = pool.nlp["g"].shape[0] - arm.n_closure
         assert pool.nlp["p"].shape[0] == pool.problem.parameters.shape[0] + 1 + n_self
+
+
+def _no_calls(arm):
+    """Drop the prepared calls `optik.solve_ik` keeps for the arm."""
+    from optik.solvers import api
+
+    api._CALLS.setdefault(arm, {}).clear()
+
+
+def _prepared_call(arm):
+    """The collision-aware prepared call `optik.solve_ik` keeps for the arm (one, after `_no_calls`)."""
+    from optik.solvers import api
+    from optik.solvers.collision_free import CollisionCall
+
+    calls = [c for c in api._CALLS.get(arm, {}).values() if isinstance(c, CollisionCall)]
+    assert len(calls) == 1
+    return calls[0]
+
+
+def _same(a, b):
+    """Two results of one solve: the same answer, judgement and search counts."""
+    assert np.array_equal(a.q, b.q)
+    assert (a.success, a.status, a.message) == (b.success, b.status, b.message)
+    assert (a.min_distance, a.collision_pair) == (b.min_distance, b.collision_pair)
+    assert (a.iterations, a.restarts) == (b.iterations, b.restarts)
+
+
+@pytest.mark.parametrize("options", [{}, {"plain_rounds": 1}])
+def test_the_prepared_call_answers_as_the_general_path(arm, options):
+    """Later calls with a 4x4 target go through `CollisionCall` (the first round as ``lm``'s own
+    prepared call, judged by the exact check): the same answers as the general path (an
+    ``np.int64`` seed takes it), the first target's first round colliding (more rounds, and with
+    ``plain_rounds=1`` the constrained kernel, from the prepared call)."""
+    import time
+
+    qa, _ = _branches(arm)
+    w = _blocking_world(arm, qa)
+    targets = [arm.fk(qa), *(spatial.translation(*p) for p in _clear_targets(arm, w, 6, seed=8))]
+    kw = dict(task="position", world=w, margin=MARGIN, time_limit=5.0, **options)
+    _no_calls(arm)
+    first = optik.solve_ik(arm, targets[0], q0=qa + 0.05, seed=0, **kw)
+    call = _prepared_call(arm)
+    assert first.success and first.restarts > 0, first.message  # its first round collided
+    for i, target in enumerate(targets):
+        general = optik.solve_ik(arm, target, q0=qa + 0.05, seed=np.int64(i), **kw)
+        prepared = call(time.perf_counter(), target, qa + 0.05, i, w)
+        assert prepared is not None
+        _same(prepared, general)
+        _same(optik.solve_ik(arm, target, q0=qa + 0.05, seed=i, **kw), general)
+        assert general.success, general.message
+        _independent(arm, general, target[:3, 3], w)
+
+
+def test_the_prepared_call_reads_the_world_as_it_is_at_each_call(arm):
+    """`CollisionCall` caches nothing of the world: after a move, a removal and an addition each
+    answer avoids the world as it is then (the general path's answer too)."""
+    qa, qb = _branches(arm)
+    w = _blocking_world(arm, qa)
+    target = arm.fk(qa)
+    kw = dict(task="position", world=w, margin=MARGIN, time_limit=5.0, seed=3)
+
+    def solve(q0):
+        general = optik.solve_ik(arm, target, q0=q0, **{**kw, "seed": np.int64(3)})
+        res = optik.solve_ik(arm, target, q0=q0, **kw)
+        _same(res, general)
+        assert res.success, res.message
+        _independent(arm, res, target[:3, 3], w)
+        return res
+
+    _no_calls(arm)
+    solve(qa + 0.05)
+    _prepared_call(arm)
+    elbow = lambda q: arm.fk(q, "fore")[:3, 3]  # noqa: E731
+    w.move("ball", spatial.translation(*elbow(qb)))  # now on the other branch: qa is clear
+    assert np.allclose(elbow(solve(qb + 0.05).q), elbow(qa), atol=0.05)
+    w.remove("ball")  # nothing in the way: the nearest branch from the start
+    assert np.allclose(elbow(solve(qb + 0.05).q), elbow(qb), atol=0.05)
+    w.add_sphere("ball", 0.05, spatial.translation(*elbow(qa)))  # back on qa
+    assert np.allclose(elbow(solve(qa + 0.05).q), elbow(qb), atol=0.05)
+
+
+def test_the_prepared_call_from_four_threads_gives_the_answers_of_one(arm):
+    """`CollisionCall` is thread-safe: 4 threads at once give the sequential answers."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    qa, _ = _branches(arm)
+    w = _blocking_world(arm, qa)
+    targets = [arm.fk(qa), *(spatial.translation(*p) for p in _clear_targets(arm, w, 11, seed=9))]
+
+    def solve(i):
+        kw = dict(task="position", world=w, margin=MARGIN, time_limit=10.0, seed=i)
+        return optik.solve_ik(arm, targets[i % len(targets)], q0=qa + 0.05, **kw)
+
+    _no_calls(arm)
+    alone = [solve(i) for i in range(24)]
+    _prepared_call(arm)
+    with ThreadPoolExecutor(4) as pool:
+        together = list(pool.map(solve, range(24)))
+    for i, (a, b) in enumerate(zip(alone, together, strict=True)):
+        assert a.success, a.message
+        _same(a, b)
+        _independent(arm, b, targets[i % len(targets)][:3, 3], w)
+
+
+def test_the_solves_exact_check_is_the_full_report(arm):
+    """A solve's judgement (`collision_free._Exact`: the search without report objects) agrees
+    with `check`'s full report on seeded random configurations, a third of them in near contact
+    (a ball placed within 0.2 mm of the margin from a link)."""
+    from optik.results import IKResult
+    from optik.solvers.collision_free import _Exact
+
+    rng = np.random.default_rng(11)
+    near = 0
+    for k in range(60):
+        q = arm.random_q(seed=rng)
+        w = World()
+        w.add_box("box", (0.2, 0.2, 0.2), spatial.translation(*rng.uniform(-0.8, 0.8, 3)))
+        if k % 3 == 0:  # a ball whose clearance to the forearm's nearest point is margin +- 0.2 mm
+            probe = World()
+            probe.add_sphere("ball", 0.05, spatial.translation(*(arm.fk(q, "fore")[:3, 3] + [0, 0, 0.3])))
+            d = check(arm, q, probe, self_collision=False).min_distance
+            shift = d - MARGIN + rng.uniform(-2e-4, 2e-4)
+            w.add_sphere("ball", 0.05, spatial.translation(*(arm.fk(q, "fore")[:3, 3] + [0, 0, 0.3 - shift])))
+        report = check(arm, q, w, margin=MARGIN)
+        near += abs(report.min_distance - MARGIN) < 5e-4
+        res = IKResult(q, True, 0.0, 0.0, 0.0, True, 0, 0.0, "lm", "solved", "")
+        judged = _Exact(arm, w.state(), True, MARGIN).finish(res)
+        assert judged.success == (not report.in_collision)
+        assert judged.min_distance == report.min_distance and judged.collision_pair == report.pair
+        if report.in_collision:
+            assert judged.status == "in_collision" and repr(report.close_pairs[0].a) in judged.message
+    assert near >= 10

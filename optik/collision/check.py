@@ -19,12 +19,12 @@ it. `CollisionReport.min_distance` is the smallest signed distance over the pair
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from optik.checks import as_batch, as_bool, as_float
-from optik.collision.distance import coal_distance, signed_request
+from optik.collision.distance import signed_request
 from optik.collision.parts import Part
 from optik.collision.robot import RobotGeometry, robot_geometry
 from optik.collision.screen import screen
@@ -36,9 +36,11 @@ __all__ = [
     "CollisionBatch",
     "CollisionPair",
     "CollisionReport",
+    "Search",
     "check",
     "check_many",
     "report_at",
+    "search",
     "world_parts",
 ]
 
@@ -122,17 +124,56 @@ def world_parts(world: World | None) -> tuple[Part, ...]:
     return state_of(world).parts
 
 
-def report_at(
+Entry = tuple[float, int, int, bool, Any]
+"""A pair checked by coal: ``(signed distance, a, b, on_world, coal's DistanceResult)``."""
+
+
+class Search(NamedTuple):
+    """What the search of the module docstring found at one configuration, before any report
+    object is made (`report_at` makes them; a solve reads the nearest pair alone).
+
+    Attributes:
+        nearest: ``(distance, a, b, on_world, coal result)`` of the closest pair (None: no pair):
+            ``a`` a robot part index, ``b`` a part index or (``on_world``) a world part index.
+        close: every entry closer than the margin or touching, in the order found.
+        checked: pairs whose exact distance was computed.
+        candidates: pairs considered.
+    """
+
+    nearest: Entry | None
+    close: list[Entry]
+    checked: int
+    candidates: int
+
+    @property
+    def in_collision(self) -> bool:
+        """Some pair is closer than the margin or touches."""
+        return bool(self.close)
+
+    def names(self, geo: RobotGeometry, world: WorldState) -> tuple[str, str] | None:
+        """The names of the closest pair (None: no pair)."""
+        e = self.nearest
+        if e is None:
+            return None
+        return geo.parts[e[1]].name, (world.parts[e[2]] if e[3] else geo.parts[e[2]]).name
+
+
+def search(
     geo: RobotGeometry, q: np.ndarray, world: WorldState, margin: float, self_collision: bool
-) -> CollisionReport:
-    """The `CollisionReport` of ``geo`` at checked coordinates ``q`` against one version of a
-    world (`World.state`): the search of the module docstring."""
+) -> Search:
+    """The search of the module docstring at checked coordinates ``q`` against one version of a
+    world (`World.state`): each pair's screening bound (one compiled call), then coal on the
+    pairs in increasing order of it until the bound exceeds ``max(margin, 0, nearest found)``.
+
+    The nearest entry's distance is exact (coal's), and so is the set of pairs closer than
+    ``margin`` or touching: a pair skipped has a bound above both.
+    """
     n_obj = len(world.parts)
     poses, to_world, own = screen(geo, world.capacity).bounds(q, world.slots, n_obj)
     n_self = len(geo.self_pairs) if self_collision else 0
-    lb = np.concatenate([own[:n_self], to_world.ravel()])
+    bounds = own[:n_self].tolist() + to_world.ravel().tolist()
     coal = coal_module()
-    request = signed_request()
+    distance, request, parts, others = coal.distance, signed_request(), geo.parts, world.parts
     tfs: dict[int, Any] = {}  # coal transforms of the robot's parts, made when first needed
 
     def tf(k: int) -> Any:
@@ -142,46 +183,55 @@ def report_at(
         return got
 
     floor = max(margin, 0.0)  # pairs below it are reported, and the nearest always is
-    best: tuple[float, int, int, bool, Any] | None = None
-    close: list[tuple[float, int, int, bool, Any]] = []
+    limit = np.inf  # max(floor, nearest found) + _SLACK once a pair is found
+    best: Entry | None = None
+    close: list[Entry] = []
     checked = 0
-    bounds = lb.tolist()
-    for k in np.argsort(lb, kind="stable").tolist():
-        if best is not None and bounds[k] > max(floor, best[0]) + _SLACK:
+    for k in sorted(range(len(bounds)), key=bounds.__getitem__):
+        if bounds[k] > limit:
             break
+        res = coal.DistanceResult()
         if k < n_self:
-            a, b = (int(v) for v in geo.self_pairs[k])
-            found = coal_distance(geo.parts[a].geometry, tf(a), geo.parts[b].geometry, tf(b), request)
-            entry = (found[0], a, b, False, found[1])
+            a, b = geo.pair_list[k]
+            d = float(distance(parts[a].geometry, tf(a), parts[b].geometry, tf(b), request, res))
+            entry = (d, a, b, False, res)
         else:
             a, b = divmod(k - n_self, n_obj)
-            found = coal_distance(
-                geo.parts[a].geometry, tf(a), world.parts[b].geometry, world.transforms[b], request
-            )
-            entry = (found[0], a, b, True, found[1])
-        if best is None or entry[0] < best[0]:
+            other, tf_b = others[b].geometry, world.transforms[b]
+            d = float(distance(parts[a].geometry, tf(a), other, tf_b, request, res))
+            entry = (d, a, b, True, res)
+        if best is None or d < best[0]:
             best = entry
-        if entry[0] < margin or entry[0] <= 0:
+            limit = max(floor, d) + _SLACK
+        if d < margin or d <= 0:
             close.append(entry)
         checked += 1
-    close.sort(key=lambda e: e[0])
+    return Search(best, close, checked, len(bounds))
 
-    def pair(e: tuple[float, int, int, bool, Any]) -> CollisionPair:
+
+def report_at(
+    geo: RobotGeometry, q: np.ndarray, world: WorldState, margin: float, self_collision: bool
+) -> CollisionReport:
+    """The `CollisionReport` of ``geo`` at checked coordinates ``q`` against one version of a
+    world (`World.state`): the `search` of the module docstring."""
+    found = search(geo, q, world, margin, self_collision)
+
+    def pair(e: Entry) -> CollisionPair:
         d, a, b, on_world, res = e
         other = world.parts[b].name if on_world else geo.parts[b].name
         witness = np.array(res.getNearestPoint1()), np.array(res.getNearestPoint2())
         return CollisionPair(geo.parts[a].name, other, d, *witness, on_world)
 
-    nearest = None if best is None else pair(best)
+    nearest = None if found.nearest is None else pair(found.nearest)
     return CollisionReport(
-        in_collision=bool(close),
+        in_collision=found.in_collision,
         min_distance=np.inf if nearest is None else nearest.distance,
         pair=None if nearest is None else (nearest.a, nearest.b),
         witness=None if nearest is None else (nearest.point_a, nearest.point_b),
-        close_pairs=tuple(pair(e) for e in close),
+        close_pairs=tuple(pair(e) for e in sorted(found.close, key=lambda e: e[0])),
         margin=margin,
-        checked=checked,
-        candidates=len(bounds),
+        checked=found.checked,
+        candidates=found.candidates,
     )
 
 

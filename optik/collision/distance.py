@@ -2,12 +2,13 @@
 
 For two convex parts coal's GJK gives the distance and the nearest points when they are apart,
 and EPA the penetration depth (as a negative distance) and the deepest points when they
-overlap: the *signed distance*. Every call makes its own request and result objects, so the
-queries are safe from any thread (the geometries are only read).
+overlap: the *signed distance*. Every call makes its own result object and reads one shared
+request (`signed_request`), so the queries are safe from any thread (the geometries are only read).
 """
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from typing import Any
 
@@ -44,9 +45,10 @@ def signed_distance(a: Part, pose_a: np.ndarray, b: Part, pose_b: np.ndarray) ->
     return placed_distance(a, coal_transform(pose_a), b, coal_transform(pose_b))
 
 
+@functools.cache
 def signed_request() -> Any:
-    """A coal ``DistanceRequest`` for signed distances (coal only reads it: one serves a whole
-    query of many pairs)."""
+    """coal's ``DistanceRequest`` for signed distances, one shared by every query of the process
+    (coal only reads a request, from any thread; never change it)."""
     req = coal_module().DistanceRequest()
     req.enable_signed_distance = True
     return req

@@ -28,6 +28,7 @@ on the ``optik.collision.robot`` logger and replaced by a new sampling.
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import json
 import logging
@@ -78,6 +79,11 @@ class RobotGeometry:
     disabled: dict[tuple[str, str], str]
     notes: tuple[str, ...]
     _poses: ca.Function = field(repr=False)
+
+    @functools.cached_property
+    def pair_list(self) -> list[tuple[int, int]]:
+        """`self_pairs` as a list of int pairs (what a search indexes per pair)."""
+        return [(int(a), int(b)) for a, b in self.self_pairs]
 
     def link_poses(self, q: np.ndarray) -> np.ndarray:
         """Poses of `links` at ``q``: ``(L, 4, 4)``."""

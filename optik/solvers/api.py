@@ -26,7 +26,7 @@ from optik.solvers.base import (
     methods,
     registrations,
 )
-from optik.solvers.collision_free import solve_collision_free
+from optik.solvers.collision_free import CollisionCall, prepare_collision_free, solve_collision_free
 
 DEFAULT_ORDER = ("closed_form", "lm", "nlp")
 """Preference of ``method=None``: the first registered method that applies."""
@@ -118,13 +118,17 @@ def solve_ik(
     """
     start = time.perf_counter()
     key = None
-    plain = type(target) is np.ndarray and contacts is None and support is None and world is None
-    if plain and not self_collision and com_margin == 0.0 and isinstance(m, Mechanism):
-        key = _call_key(method, task, frame, time_limit, tol, options)  # a prepared call, if any
+    collide = world is not None or bool(self_collision)
+    plain = type(target) is np.ndarray and contacts is None and support is None and com_margin == 0.0
+    if plain and isinstance(m, Mechanism):
+        # a prepared call, if any (a collision-aware one takes the world: read once per call)
+        where = (self_collision, type(margin), margin) if collide else None
+        key = _call_key(method, task, frame, time_limit, tol, options, where)
         call = _CALLS.get(m, _NO_CALLS).get(key) if key is not None else None
-        res = None if call is None else call(start, target, q0, seed)
-        if res is not None:
-            return res
+        if call is not None:
+            res = call(start, target, q0, seed, world) if collide else call(start, target, q0, seed)
+            if res is not None:
+                return res
     if isinstance(support, str):
         if support != "auto":
             raise InvalidArgumentError("support", f'expected a (k, 2) polygon or "auto", got {support!r}')
@@ -138,9 +142,12 @@ def solve_ik(
     if support is not None:
         with native.deadline(request.start + request.time_limit):
             return solve_balance(request, support, com_margin, method)
-    if world is not None or self_collision:
+    if collide:
         own = True if self_collision is None else bool(self_collision)
-        return solve_collision_free(request, method or "lm", world, own, margin)
+        res = solve_collision_free(request, method or "lm", world, own, margin)
+        if key is not None and key not in _CALLS.get(m, _NO_CALLS):
+            _keep(m, key, prepare_collision_free(request, method, own, margin))
+        return res
     multi = request.multi_target
     own_frame = not multi and request.frame in (None, m.ee)  # closed forms solve for the end effector only
     if method is None:
@@ -170,22 +177,31 @@ def solve_ik(
         return res
 
 
-_CALLS: PerMechanism[dict[tuple[Any, ...], PreparedCall | None]] = PerMechanism()
-"""The prepared calls of each mechanism by `_call_key` (None: the method has none)."""
+_CALLS: PerMechanism[dict[tuple[Any, ...], PreparedCall | CollisionCall | None]] = PerMechanism()
+"""The prepared calls of each mechanism by `_call_key` (None: the method has none); a
+collision-aware key's call is a `optik.solvers.collision_free.CollisionCall`."""
 _CALLS_MAX = 256
 """Prepared calls kept per mechanism (all are dropped past it: option values drawn anew per call)."""
-_NO_CALLS: dict[tuple[Any, ...], PreparedCall | None] = {}
+_NO_CALLS: dict[tuple[Any, ...], PreparedCall | CollisionCall | None] = {}
 
 
 def _call_key(
-    method: Any, task: Any, frame: Any, time_limit: Any, tol: Any, options: dict[str, Any]
+    method: Any,
+    task: Any,
+    frame: Any,
+    time_limit: Any,
+    tol: Any,
+    options: dict[str, Any],
+    collision: tuple[Any, ...] | None = None,
 ) -> tuple[Any, ...] | None:
-    """The key of a call's prepared call: every argument but the target, ``q0`` and the seed,
-    with the type of each value (``True == 1``, yet an option may take one and refuse the
-    other) and the count of method registrations (`optik.solvers.base.registrations`); None
-    when a value is unhashable (no prepared call then)."""
+    """The key of a call's prepared call: every argument but the target, ``q0``, the seed and
+    the world (``collision``: ``(self_collision, type(margin), margin)`` of a collision-aware
+    call, None for the others), with the type of each value (``True == 1``, yet an option may
+    take one and refuse the other) and the count of method registrations
+    (`optik.solvers.base.registrations`); None when a value is unhashable (no prepared call then)."""
     opts = tuple((k, type(v), v) for k, v in options.items()) if options else ()
     key = (registrations(), method, task, frame, type(time_limit), time_limit, type(tol), tol, opts)
+    key += (collision,)
     try:
         hash(key)
     except TypeError:
@@ -196,10 +212,15 @@ def _call_key(
 def _remember(m: Mechanism, key: tuple[Any, ...], info: MethodInfo, request: IKRequest) -> None:
     """Keep the prepared call of a validated single-target ``request`` (made by the method's
     ``prepare``; None when it has none) for the later calls of `solve_ik` with ``key``."""
+    _keep(m, key, None if info.prepare is None else info.prepare(request))
+
+
+def _keep(m: Mechanism, key: tuple[Any, ...], call: Any) -> None:
+    """Keep ``call`` (None: there is none) for the later calls of `solve_ik` with ``key``."""
     calls = _CALLS.setdefault(m, {})
     if len(calls) >= _CALLS_MAX:
         calls.clear()
-    calls[key] = None if info.prepare is None else info.prepare(request)
+    calls[key] = call
 
 
 NUMERICAL_SHARE = 0.5

@@ -33,6 +33,11 @@ others are left to the exact check): the code is cached per mechanism, task, fra
 capacity, so a moved, added or removed object or a new margin builds nothing new. The first
 build of a key is made once, under a lock (a second thread waits for it).
 
+Later calls of `optik.solve_ik` with a 4x4 target and the options of a first call (``lm``) go
+through its `CollisionCall`: the first round is ``lm``'s own prepared C call, its answer judged
+by the exact check (`optik.collision.check.search`, no report objects); the rounds go on from it
+when it is not clear. The answers are the general path's.
+
 **Success** is decided by the exact check (`optik.collision.check` at ``margin``) of the final
 answer, after the tolerances: a start whose answer the check finds closer than the margin is
 rejected and the search goes on from a new random start until the time limit. The result
@@ -51,22 +56,30 @@ import casadi as ca
 import numpy as np
 
 from optik.checks import as_float
-from optik.collision.check import CollisionReport, report_at
+from optik.collision.check import search
 from optik.collision.robot import robot_geometry
 from optik.collision.slots import SLOT_SIZE
 from optik.collision.spheres import DistanceRows, distance_expressions
-from optik.collision.world import WorldState, state_of
+from optik.collision.world import World, WorldState, state_of
 from optik.errors import InvalidArgumentError, SolverUnavailableError
+from optik.mechanism import Mechanism
 from optik.problem import IKProblem, build_ik_problem, target_parameters
 from optik.results import IKResult
 from optik.solvers.base import IKRequest, PreparedCache, make_result, positive_int
 from optik.solvers.collision_kernel import bound_parameters, constrained_functions
 from optik.solvers.evaluation import ErrorFn, errors_against
 from optik.solvers.iteration_stop import IterationStop
-from optik.solvers.lm import lm_result, lm_settings, request_seed
+from optik.solvers.lm import LMCall, lm_result, lm_settings, prepare_kernel, prepare_lm, request_seed
 from optik.solvers.lm_kernel import LMKernel
 
-__all__ = ["METHODS", "collision_rows", "compiled_kernels", "solve_collision_free"]
+__all__ = [
+    "METHODS",
+    "CollisionCall",
+    "collision_rows",
+    "compiled_kernels",
+    "prepare_collision_free",
+    "solve_collision_free",
+]
 
 METHODS = ("lm", "nlp")
 """Methods that take collision constraints."""
@@ -126,23 +139,7 @@ def compiled_kernels() -> dict[str, bool]:
     answering through CasADi's evaluator while the C compiler runs)."""
     with _LOCK:
         hits = [(key[1].name, v) for key, v in _CACHE.items() if key[0] == "lm"]
-    return {name: kernels[1].compiled for name, kernels in hits}
-
-
-def _finish(res: IKResult, report_of: Any) -> IKResult:
-    """``res`` judged by the exact check as well (see the module docstring), with the distance
-    and the closest pair of its ``q``."""
-    report = report_of(res.q)
-    res.min_distance = report.min_distance
-    res.collision_pair = report.pair
-    if res.success and report.in_collision:
-        pair = report.close_pairs[0]
-        res.success, res.status = False, "in_collision"
-        res.message = (
-            f"the pose is reached but {pair.a!r} and {pair.b!r} are {pair.distance:.4g} m apart "
-            f"(margin {report.margin:g} m)"
-        )
-    return res
+    return {name: kernel.compiled for name, kernel in hits}
 
 
 def _split_options(request: IKRequest, method: str) -> tuple[IKRequest, float, int]:
@@ -154,14 +151,29 @@ def _split_options(request: IKRequest, method: str) -> tuple[IKRequest, float, i
     return dataclasses.replace(request, options=opts), buffer, rounds
 
 
-def _reports(request: IKRequest, world: WorldState, self_collision: bool, margin: float) -> Any:
-    """``q -> CollisionReport``: the exact check against the one world version of the solve."""
-    geo = robot_geometry(request.mechanism)
+class _Exact:
+    """The exact check of a solve's answers (`optik.collision.check.search` at ``margin``) against
+    the one world version the solve read."""
 
-    def report_of(q: np.ndarray) -> CollisionReport:
-        return report_at(geo, q, world, margin, self_collision)
+    def __init__(self, m: Mechanism, world: WorldState, self_collision: bool, margin: float) -> None:
+        self.geo, self.world = robot_geometry(m), world
+        self.self_collision, self.margin = self_collision, margin
 
-    return report_of
+    def finish(self, res: IKResult) -> IKResult:
+        """``res`` judged by the exact check as well (see the module docstring), with the distance
+        and the names of the closest pair of its ``q``."""
+        found = search(self.geo, res.q, self.world, self.margin, self.self_collision)
+        res.min_distance = np.inf if found.nearest is None else found.nearest[0]
+        res.collision_pair = found.names(self.geo, self.world)
+        if res.success and found.in_collision:
+            d, a, b, on_world, _ = min(found.close, key=lambda e: e[0])
+            other = (self.world.parts[b] if on_world else self.geo.parts[b]).name
+            res.success, res.status = False, "in_collision"
+            res.message = (
+                f"the pose is reached but {self.geo.parts[a].name!r} and {other!r} are {d:.4g} m apart "
+                f"(margin {self.margin:g} m)"
+            )
+        return res
 
 
 _PREPARED: PreparedCache[tuple[LMKernel, LMKernel, np.ndarray]] = PreparedCache()
@@ -171,26 +183,31 @@ _PREPARED: PreparedCache[tuple[LMKernel, LMKernel, np.ndarray]] = PreparedCache(
 def _kernels(
     request: IKRequest, capacity: int, self_collision: bool
 ) -> tuple[LMKernel, LMKernel, np.ndarray]:
-    """The unconstrained and constrained kernels of a request and the driver's ``conf``, the
-    validated settings cached per request key (validation costs more than a solve)."""
+    """The unconstrained kernel of a request (``lm``'s own, `optik.solvers.lm.prepare_kernel`), the
+    constrained one and the driver's ``conf``, the validated settings cached per request key
+    (validation costs more than a solve)."""
     m = request.mechanism
     key = _PREPARED.key(request, capacity, self_collision)
     hit = _PREPARED.get(m, key)
     if hit is not None:
         return hit
-    settings, closure_weight, compile = lm_settings(request)
+    plain, conf = prepare_kernel(request)  # type: ignore[misc]  # built: never None
+    _, closure_weight, compile = lm_settings(request)
 
-    def build() -> tuple[LMKernel, LMKernel]:
+    def build() -> LMKernel:
         problem = build_ik_problem(m, request.task, request.frame)
         geo = robot_geometry(m)
         functions = constrained_functions(problem, geo, capacity, self_collision, closure_weight)
-        plain = LMKernel(m, request.task, request.frame, closure_weight, compile)
-        return plain, LMKernel(m, request.task, request.frame, closure_weight, compile, functions=functions)
+        return LMKernel(m, request.task, request.frame, closure_weight, compile, functions=functions)
 
-    kernels = _cached(
+    constrained = _cached(
         ("lm", m, request.task, request.frame, closure_weight, compile, capacity, self_collision), build
     )
-    return _PREPARED.put(m, key, (*kernels, settings.conf(m)))
+    return _PREPARED.put(m, key, (plain, constrained, conf))
+
+
+_SEEDS = 2**63 - 1
+"""Mask of the round seeds of the collision-aware ``lm``."""
 
 
 def _solve_lm(
@@ -200,43 +217,116 @@ def _solve_lm(
     margin: float,
     buffer: float,
     plain_rounds: int,
+    first: IKResult | None = None,
 ) -> IKResult:
+    """The rounds of the module docstring; ``first``: the first round's answer already judged by
+    the exact check (`CollisionCall`), the rounds going on from it."""
     m = request.mechanism
     setup = time.perf_counter()
-    prepared = _kernels(request, world.capacity, self_collision)
-    plain, constrained = prepared[:2]
-    bounds = bound_parameters(robot_geometry(m), self_collision, margin + buffer)
+    plain, constrained, base = _kernels(request, world.capacity, self_collision)
     request.exclude_setup(setup)
-    conf = prepared[2].copy()
+    conf = base.copy()
     pose = target_parameters(request.target)
-    params = np.concatenate([pose, world.slots, bounds])
-    report_of = _reports(request, world, self_collision, margin)
-    seed = request_seed(request.seed) & (2**63 - 1)
-    iterations, restarts, q0, rounds = 0, -1, request.q0, 0
-    res: IKResult | None = None
+    exact = _Exact(m, world, self_collision, margin)
+    seed = request_seed(request.seed) & _SEEDS
+    res, rounds = first, int(first is not None)
+    iterations, restarts = (0, -1) if first is None else (first.iterations, first.restarts)
+
+    def slide(res: IKResult) -> IKResult:
+        """From a colliding answer (from round ``plain_rounds`` on), the constrained kernel (one
+        start), its answer judged by the pose errors alone (its own closure error holds the
+        model's hinges)."""
+        nonlocal iterations
+        if res.status != "in_collision" or rounds < plain_rounds or request.remaining() <= 0:
+            return res
+        bounds = bound_parameters(robot_geometry(m), self_collision, margin + buffer)
+        once = conf.copy()
+        once[2], once[3] = 0, request.remaining()
+        params = np.concatenate([pose, world.slots, bounds])
+        q, _, it, _, code = constrained.run_one(params, res.q, seed, once)
+        iterations += it
+        err = plain.final_errors(q, pose)
+        return exact.finish(lm_result(request, plain, q, err, iterations, restarts, code, pose))
+
+    if res is not None:
+        res = slide(res)
     while res is None or (not res.success and request.remaining() > 0):
-        rounds += 1
+        q0 = request.q0
         if res is not None:  # a new round from a new random configuration
-            seed = (seed * 6364136223846793005 + 1442695040888963407) & (2**63 - 1)
+            seed = (seed * 6364136223846793005 + 1442695040888963407) & _SEEDS
             q0 = m.random_q(seed=seed)
+        rounds += 1
         # the unconstrained kernel (its own restarts) until the pose is met ...
         conf[3] = max(request.remaining(), 0.0)
         q, err, it, starts, code = plain.run_one(pose, q0, seed, conf)
         iterations += it
         restarts += starts + 1
-        res = _finish(lm_result(request, plain, q, err, iterations, restarts, code, pose), report_of)
-        if res.status == "in_collision" and rounds >= plain_rounds and request.remaining() > 0:
-            # ... then, from that colliding answer, the constrained kernel (one start), its answer
-            # judged by the pose errors alone (its own closure error holds the model's hinges)
-            once = conf.copy()
-            once[2], once[3] = 0, request.remaining()
-            q, _, it, _, code = constrained.run_one(params, res.q, seed, once)
-            iterations += it
-            err = plain.final_errors(q, pose)
-            res = _finish(lm_result(request, plain, q, err, iterations, restarts, code, pose), report_of)
+        # ... then, when that answer collides, perhaps the constrained kernel from it
+        res = slide(exact.finish(lm_result(request, plain, q, err, iterations, restarts, code, pose)))
     if not res.success and res.status == "not_converged":
         res.status = "time_limit"
     return res
+
+
+class CollisionCall:
+    """The prepared call of the collision-aware ``lm`` (see `optik.solvers.base.PreparedCall`,
+    with the world as a fifth argument): the later calls of `optik.solve_ik` with the options of a
+    first request (time limit, tolerances, options, margin and ``self_collision`` validated once).
+
+    The first round is ``lm``'s own prepared call (`optik.solvers.lm.LMCall`: one C call, the
+    unconstrained kernel from ``q0`` with the seed), whose answer the exact check judges against
+    the world read once here (`optik.World.state`); a clear answer is the result, any other goes
+    on through the rounds of `_solve_lm` from it (same answers as the general path: the same
+    kernel, seed and rounds). It returns None before solving, for the general path to take the
+    call, when ``lm``'s call does (input it does not take, code not built) and for a seed that
+    is not None or an int in ``[0, 2^63)`` (a Generator's draw would be taken twice), a world that
+    is not an `optik.World` or None (the general path names it).
+
+    Args:
+        request: the first, validated request (its collision options ``buffer`` and
+            ``plain_rounds`` split off: `_split_options`).
+        plain: ``lm``'s prepared call of ``request``.
+        self_collision, margin, buffer, plain_rounds: the validated collision settings.
+    """
+
+    def __init__(
+        self,
+        request: IKRequest,
+        plain: LMCall,
+        self_collision: bool,
+        margin: float,
+        buffer: float,
+        plain_rounds: int,
+    ) -> None:
+        self.request, self.plain = request, plain
+        self.settings = (self_collision, margin, buffer, plain_rounds)
+
+    def __call__(self, start: float, target: np.ndarray, q0: Any, seed: Any, world: Any) -> IKResult | None:
+        """Solve for ``target`` from ``q0`` (None: mid-limit) with seed ``seed`` clear of ``world``;
+        None when the call is left to the general path (see the class)."""
+        if not (seed is None or (type(seed) is int and 0 <= seed <= _SEEDS)):
+            return None
+        if world is not None and not isinstance(world, World):
+            return None
+        res = self.plain(start, target, q0, seed)
+        if res is None:
+            return None
+        self_collision, margin, buffer, plain_rounds = self.settings
+        state = state_of(world)
+        m = self.request.mechanism
+        res = _Exact(m, state, self_collision, margin).finish(res)
+        if res.success:
+            return res
+        request = dataclasses.replace(
+            self.request,
+            target=target,
+            q0=m.mid_q() if q0 is None else m.check_q(q0, "q0"),  # taken by the first round: valid
+            seed=seed,
+            options=dict(self.request.options),
+            start=start,
+            setup_time=0.0,
+        )
+        return _solve_lm(request, state, self_collision, margin, buffer, plain_rounds, first=res)
 
 
 class ClearStop(IterationStop):
@@ -347,7 +437,7 @@ def _solve_nlp(
     task = pool.problem.parameter_values(request.target, posture=posture)
     params = ca.DM(np.concatenate([task, world.slots[: capacity * SLOT_SIZE], bounds]))
     limits = {"lbx": ca.DM(m.lower), "ubx": ca.DM(m.upper), "lbg": pool.lbg, "ubg": pool.ubg}
-    report_of = _reports(request, world, self_collision, margin)
+    exact = _Exact(m, world, self_collision, margin)
 
     rng = request.rng
     q0, iterations, restarts = request.q0, 0, -1
@@ -361,12 +451,27 @@ def _solve_nlp(
             iterations += int(solver.stats().get("iter_count", 0))
             status = None if request.remaining() > 0 else "time_limit"
             q = np.asarray(sol["x"]).ravel()
-            res = _finish(make_result(request, q, "nlp", iterations, restarts, status), report_of)
+            res = exact.finish(make_result(request, q, "nlp", iterations, restarts, status))
             if res.success or request.remaining() <= 0:
                 return res
             q0 = m.random_q(seed=rng)
     finally:
         pool.give(taken)
+
+
+def prepare_collision_free(
+    request: IKRequest, method: str | None, self_collision: bool, margin: Any
+) -> CollisionCall | None:
+    """The `CollisionCall` of a request solved once by `solve_collision_free` (its input valid),
+    None for the ``nlp`` method or where ``lm`` has no prepared call (`optik.solvers.lm.prepare_lm`)."""
+    if method not in (None, "lm"):
+        return None
+    plain_request, buffer, rounds = _split_options(request, "lm")
+    plain = prepare_lm(plain_request)
+    if plain is None:
+        return None
+    mg = as_float(margin, "margin", 0.0)
+    return CollisionCall(plain_request, plain, bool(self_collision), mg, buffer, rounds)
 
 
 def solve_collision_free(

@@ -135,10 +135,10 @@ def request_seed(seed: int | np.random.Generator | None) -> int:
 
 
 _PREPARED: PreparedCache[tuple[LMKernel, np.ndarray]] = PreparedCache()
-"""Per mechanism: the validated requests (`_prepare`)."""
+"""Per mechanism: the validated requests (`prepare_kernel`)."""
 
 
-def _prepare(request: IKRequest, build: bool = True) -> tuple[LMKernel, np.ndarray] | None:
+def prepare_kernel(request: IKRequest, build: bool = True) -> tuple[LMKernel, np.ndarray] | None:
     """The kernel and the driver's ``conf`` of a request, cached per mechanism, task, frame,
     tolerances and option values when those are hashable (validation costs more than a solve);
     None when not cached and ``build`` is False."""
@@ -160,15 +160,15 @@ def solve_lm(request: IKRequest) -> IKResult:
     the kernel of the mechanism is compiled, by the generic chain kernel where it applies
     (`optik.solvers.generic_chain`)."""
     seed = request_seed(request.seed) & (2**64 - 1)
-    prepared = _prepare(request, build=False)
+    prepared = prepare_kernel(request, build=False)
     if prepared is None or not prepared[0].compiled:
         settings, closure_weight, compile = lm_settings(request)
         first = generic_chain.solve_first(
-            request, settings, closure_weight, compile, _prepare, seed, lm_result
+            request, settings, closure_weight, compile, prepare_kernel, seed, lm_result
         )
         if first is not None:
             return first
-    k, base = prepared or _prepare(request)  # type: ignore[misc]  # built when None
+    k, base = prepared or prepare_kernel(request)  # type: ignore[misc]  # built when None
     conf = base.copy()
     conf[3] = max(request.remaining(), 0.0)
     params = target_parameters(request.target)
@@ -243,7 +243,7 @@ class LMCall:
     def kernel(self) -> LMKernel | None:
         """The kernel once it is built (None before)."""
         if self._prepared is None:
-            self._prepared = _prepare(self.request, build=False)
+            self._prepared = prepare_kernel(self.request, build=False)
         return None if self._prepared is None else self._prepared[0]
 
     def _buffers(self, k: LMKernel, conf: np.ndarray) -> OneTarget:
@@ -256,7 +256,7 @@ class LMCall:
         when this call is left to the general path (see the class)."""
         prepared = self._prepared
         if prepared is None:
-            prepared = self._prepared = _prepare(self.request, build=False)
+            prepared = self._prepared = prepare_kernel(self.request, build=False)
             if prepared is None:
                 return None
         k = prepared[0]

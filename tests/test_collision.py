@@ -410,7 +410,9 @@ def _cluttered_world(tmp_path):
 def test_panda_screened_search_equals_every_pair(tmp_path):
     """The Panda among every kind of obstacle, self pairs included: the screened search gives the
     minimum distance, the closest pair and the close pairs of the brute force over every pair, at
-    clear and at colliding configurations, and computes far fewer exact distances at clear ones."""
+    clear and at colliding configurations, and computes far fewer exact distances at clear ones;
+    both with the coarse world bounds alone and with them refined (`check.search`)."""
+    from optik.collision.check import search
     from optik.collision.distance import signed_distance
 
     m, _ = _panda()
@@ -418,7 +420,9 @@ def test_panda_screened_search_equals_every_pair(tmp_path):
     geo = robot_geometry(m)
     obstacles = w.parts()
     clear_checked = []
+    refined = set()
     for q in m.random_q(40, seed=21):
+        refined.add(search(geo, q, w.state(), 0.02, True).refined)
         poses = geo.part_poses(q)
         pairs = [
             (
@@ -445,11 +449,14 @@ def test_panda_screened_search_equals_every_pair(tmp_path):
         if not close:
             clear_checked.append(r.checked / r.candidates)
     assert clear_checked and max(clear_checked) < 0.25
+    assert refined == {False, True}
 
 
-def test_screen_bounds_never_exceed_exact_distances(tmp_path):
-    """The screening bounds (`optik.collision.screen`) of every pair are at most the exact
-    distance wherever that is >= 0, and the part poses are those of `RobotGeometry.part_poses`."""
+@pytest.mark.parametrize("coarse", [False, True])
+def test_screen_bounds_never_exceed_exact_distances(tmp_path, coarse):
+    """The screening bounds (`optik.collision.screen`, the sphere model's or the coarse bounding
+    spheres') of every pair are at most the exact distance wherever that is >= 0, and the part
+    poses are those of `RobotGeometry.part_poses`."""
     from optik.collision.distance import signed_distance
     from optik.collision.screen import screen
 
@@ -457,8 +464,13 @@ def test_screen_bounds_never_exceed_exact_distances(tmp_path):
     w = _cluttered_world(tmp_path)
     geo = robot_geometry(m)
     state = w.state()
+    fine = screen(geo, state.capacity)
     for q in m.random_q(15, seed=22):
-        poses, to_world, own = screen(geo, state.capacity).bounds(q, state.slots, len(state.parts))
+        poses, to_world, own = screen(geo, state.capacity, coarse).bounds(q, state.slots, len(state.parts))
+        if coarse:  # other world bounds (neither is always the larger), the same poses and self bounds
+            finer = fine.bounds(q, state.slots, len(state.parts))
+            assert np.array_equal(poses, finer[0]) and np.array_equal(own, finer[2])
+            assert not np.allclose(to_world, finer[1])
         exact = geo.part_poses(q)
         assert np.allclose(poses[:, :9].reshape(-1, 3, 3), exact[:, :3, :3], atol=1e-12)
         assert np.allclose(poses[:, 9:], exact[:, :3, 3], atol=1e-12)

@@ -6,7 +6,8 @@ bounds come from models that contain the parts (`optik.collision.spheres`, `opti
 
 * robot part ``a`` to world object ``o``: ``min_s (sdf_o(c_s) - R_s)`` over the spheres
   ``(c_s, R_s)`` that cover ``a``, with ``sdf_o`` the signed distance function of the rounded box
-  that contains ``o``;
+  that contains ``o``; or, *coarse*, ``sdf_o(c_a) - r_a`` of the part's bounding sphere alone (one
+  row per part instead of one per sphere: the cheaper call, mostly looser bounds);
 * robot part ``a`` to robot part ``b`` (the self-collision pairs): the larger of the distance of
   their capsules, ``|x_a - x_b| - rho_a - rho_b`` at the closest points of the segments, and of
   their bounding spheres, ``|c_a - c_b| - r_a - r_b`` (`optik.collision.parts.Part`).
@@ -26,6 +27,7 @@ from __future__ import annotations
 
 import threading
 import weakref
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -38,18 +40,22 @@ from optik.native import NativeFunction, library
 __all__ = ["Screen", "screen", "screen_function"]
 
 
-def screen_function(geo: RobotGeometry, capacity: int, extra: ca.SX | None = None) -> ca.Function:
+def screen_function(
+    geo: RobotGeometry, capacity: int, extra: ca.SX | None = None, coarse: bool = False
+) -> ca.Function:
     """``(q, slots) -> (poses, world, self)`` for a world of ``capacity`` slots
     (`optik.collision.slots`), and ``extra`` (a dense column of expressions in ``q``, computed with
     the poses, sharing their subexpressions) as a fourth output when given.
 
     ``poses``: ``12 P`` numbers, each part's base-frame rotation (row-major) and origin;
-    ``world``: ``capacity * S`` bounds, sphere ``s`` of the sphere model against slot ``k`` at
-    ``k * S + s`` (an empty slot's entries are meaningless: the caller drops them);
+    ``world``: ``capacity * S`` bounds, sphere ``s`` against slot ``k`` at ``k * S + s`` (an empty
+    slot's entries are meaningless: the caller drops them), the spheres those of the sphere model
+    or, when ``coarse``, each part's bounding sphere (``S = P``: a quarter of the rows on the Panda,
+    mostly looser bounds, some tighter);
     ``self``: one bound per row of ``geo.self_pairs``.
     """
     m = geo.mechanism
-    model = sphere_model(geo)
+    model, capsule = _spheres(geo, coarse), sphere_model(geo)
     links = [m.frame_expr(link) for link in geo.links]
 
     def placed(k: int, x: np.ndarray) -> ca.SX:
@@ -63,8 +69,8 @@ def screen_function(geo: RobotGeometry, capacity: int, extra: ca.SX | None = Non
     centres = ca.horzcat(*(placed(int(k), c) for k, c in zip(model.part, model.centres, strict=True)))
     rows = []
     for i, j in geo.self_pairs:
-        ends = [placed(int(k), x) for k in (i, j) for x in model.segments[k]]
-        capsules = segment_distance(*ends) - model.capsule_radii[i] - model.capsule_radii[j]
+        ends = [placed(int(k), x) for k in (i, j) for x in capsule.segments[k]]
+        capsules = segment_distance(*ends) - capsule.capsule_radii[i] - capsule.capsule_radii[j]
         spheres = ca.norm_2(placed(int(i), geo.parts[i].centre) - placed(int(j), geo.parts[j].centre))
         rows.append(ca.fmax(capsules, spheres - geo.parts[i].radius - geo.parts[j].radius))
     q = m.q_sym
@@ -83,20 +89,39 @@ def screen_function(geo: RobotGeometry, capacity: int, extra: ca.SX | None = Non
     return ca.Function("optik_collision_screen", [qm, slots], [pose_out, ca.vec(bounds), self_out, *more])
 
 
+class _Spheres(NamedTuple):
+    """The spheres of the world rows: centres in their part's frame, radii, owning part."""
+
+    centres: np.ndarray
+    radii: np.ndarray
+    part: np.ndarray
+
+
+def _spheres(geo: RobotGeometry, coarse: bool) -> _Spheres:
+    """The sphere model of ``geo`` (`optik.collision.spheres.sphere_model`), or when ``coarse``
+    each part's bounding sphere (`optik.collision.parts.Part`: it contains the part)."""
+    if not coarse:
+        model = sphere_model(geo)
+        return _Spheres(model.centres, model.radii, model.part)
+    centres = np.array([p.centre for p in geo.parts]).reshape(-1, 3)
+    return _Spheres(centres, np.array([p.radius for p in geo.parts]), np.arange(len(geo.parts)))
+
+
 class Screen:
     """`screen_function` of one geometry and capacity, compiled, with one evaluator per thread.
 
     Args:
         geo: the robot geometry.
         capacity: the world's slot capacity.
+        coarse: the world rows from the parts' bounding spheres (see `screen_function`).
     """
 
-    def __init__(self, geo: RobotGeometry, capacity: int) -> None:
-        self.function = screen_function(geo, capacity)
+    def __init__(self, geo: RobotGeometry, capacity: int, coarse: bool = False) -> None:
+        self.function = screen_function(geo, capacity, coarse=coarse)
         self.library = library([self.function], "auto")
         self.capacity = capacity
         self.n_parts = len(geo.parts)
-        part = sphere_model(geo).part
+        part = _spheres(geo, coarse).part
         self._starts = np.searchsorted(part, np.arange(self.n_parts))  # spheres are in part order
         self._spheres = len(part)
         self._local = threading.local()
@@ -127,16 +152,16 @@ class Screen:
         return poses.reshape(self.n_parts, 12).copy(), parts, own.copy()
 
 
-_CACHE: weakref.WeakKeyDictionary[RobotGeometry, dict[int, Screen]] = weakref.WeakKeyDictionary()
+_CACHE: weakref.WeakKeyDictionary[RobotGeometry, dict[tuple[int, bool], Screen]] = weakref.WeakKeyDictionary()
 _LOCK = threading.Lock()
 
 
-def screen(geo: RobotGeometry, capacity: int) -> Screen:
-    """The `Screen` of ``geo`` for ``capacity`` slots (built once, under a lock, and cached with
-    the geometry)."""
+def screen(geo: RobotGeometry, capacity: int, coarse: bool = False) -> Screen:
+    """The `Screen` of ``geo`` for ``capacity`` slots, with the world rows of the bounding spheres
+    when ``coarse`` (built once, under a lock, and cached with the geometry)."""
     with _LOCK:
         per = _CACHE.setdefault(geo, {})
-        hit = per.get(capacity)
+        hit = per.get((capacity, coarse))
         if hit is None:
-            hit = per[capacity] = Screen(geo, capacity)
+            hit = per[capacity, coarse] = Screen(geo, capacity, coarse)
         return hit

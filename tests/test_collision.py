@@ -518,3 +518,26 @@ def test_negative_mesh_scale_mirrors_the_hull(tmp_path):
     assert {tuple(np.round(v, 12)) for v in mirrored} == {tuple(np.round(v, 12)) for v in flip}
     with pytest.raises(InvalidArgumentError, match="nonzero"):
         Shape("mesh", (1.0, 0.0, 1.0), path=path)
+
+
+def test_a_search_that_stops_at_the_first_close_pair(tmp_path):
+    """``search(..., stop=True)`` (how a solve rejects a round's answer): the same verdict as the
+    full search, its one close pair one of the full search's, and where nothing is close the
+    full search's answer."""
+    from optik.collision.check import search
+
+    m, _ = _panda()
+    w = _cluttered_world(tmp_path)
+    geo = robot_geometry(m)
+    state = w.state()
+    stopped = 0
+    for q in m.random_q(40, seed=23):
+        full, quick = search(geo, q, state, 0.02, True), search(geo, q, state, 0.02, True, stop=True)
+        assert quick.in_collision == full.in_collision
+        if full.in_collision:
+            assert len(quick.close) == 1 and quick.close[0][:4] in [e[:4] for e in full.close]
+            assert quick.checked <= full.checked
+            stopped += quick.checked < full.checked
+        else:
+            assert quick.nearest[:4] == full.nearest[:4] and quick.checked == full.checked
+    assert stopped >= 5

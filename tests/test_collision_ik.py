@@ -83,6 +83,12 @@ def test_no_collision_free_answer_says_which_pair_blocks(arm):
     assert res.min_distance is not None and res.collision_pair is not None
     if res.status == "in_collision":
         assert "ball" in res.message
+    # the rounds' searches stop at a first close pair; the answer returned is judged in full
+    report = check(arm, res.q, w, margin=MARGIN)
+    assert res.min_distance == report.min_distance and res.collision_pair == report.pair
+    if report.in_collision:
+        pair = report.close_pairs[0]
+        assert f"{pair.a!r} and {pair.b!r} are {pair.distance:.4g} m apart" in res.message
 
 
 def test_every_success_is_clear_by_the_exact_check(arm):

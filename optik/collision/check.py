@@ -169,7 +169,12 @@ Panda in clutter (8 boxes) the coarse call took 16 us, the fine one 40 us and a 
 
 
 def search(
-    geo: RobotGeometry, q: np.ndarray, world: WorldState, margin: float, self_collision: bool
+    geo: RobotGeometry,
+    q: np.ndarray,
+    world: WorldState,
+    margin: float,
+    self_collision: bool,
+    stop: bool = False,
 ) -> Search:
     """The search of the module docstring at checked coordinates ``q`` against one version of a
     world (`World.state`): each pair's screening bound, then coal on the pairs in increasing order
@@ -181,6 +186,10 @@ def search(
     are lower bounds), the search going on over the pairs not yet checked. The nearest entry's
     distance is exact (coal's), and so is the set of pairs closer than ``margin`` or touching: a
     pair skipped has a bound above both.
+
+    With ``stop``, the search ends at the first pair closer than ``margin`` or touching (what
+    rejecting an answer needs): ``in_collision`` is then exact, ``close`` holds that pair alone and
+    ``nearest`` is the nearest pair checked so far (exact only when no pair is close).
     """
     n_obj = len(world.parts)
     poses, to_world, own = screen(geo, world.capacity, coarse=True).bounds(q, world.slots, n_obj)
@@ -226,6 +235,8 @@ def search(
             limit = max(floor, d) + _SLACK
         if d < margin or d <= 0:
             close.append(entry)
+            if stop:
+                break
         if n_obj and not refined and int(np.count_nonzero(lb <= limit)) - len(done) > REFINE:
             refined = True
             fine = screen(geo, world.capacity).bounds(q, world.slots, n_obj)[1]

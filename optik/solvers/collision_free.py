@@ -56,7 +56,7 @@ import casadi as ca
 import numpy as np
 
 from optik.checks import as_float
-from optik.collision.check import search
+from optik.collision.check import Search, search
 from optik.collision.robot import robot_geometry
 from optik.collision.slots import SLOT_SIZE
 from optik.collision.spheres import DistanceRows, distance_expressions
@@ -159,13 +159,28 @@ class _Exact:
         self.geo, self.world = robot_geometry(m), world
         self.self_collision, self.margin = self_collision, margin
 
-    def finish(self, res: IKResult) -> IKResult:
+    def finish(self, res: IKResult, stop: bool = False) -> IKResult:
         """``res`` judged by the exact check as well (see the module docstring), with the distance
-        and the names of the closest pair of its ``q``."""
+        and the names of the closest pair of its ``q``; with ``stop``, the search of an answer
+        that collides ends at its first close pair (a round's answer, rejected: `complete` makes
+        the distance, the pair and the message exact for the answer returned)."""
+        found = search(self.geo, res.q, self.world, self.margin, self.self_collision, stop)
+        return self._judged(res, found, res.success)
+
+    def complete(self, res: IKResult) -> IKResult:
+        """The answer a solve returns, judged by `finish` with ``stop``, judged in full when it
+        failed (a success is clear: its search ran in full)."""
+        if res.success:
+            return res
         found = search(self.geo, res.q, self.world, self.margin, self.self_collision)
+        return self._judged(res, found, res.status == "in_collision")
+
+    def _judged(self, res: IKResult, found: Search, reached: bool) -> IKResult:
+        """``res`` with the distance and pair of ``found``; when the pose is ``reached`` and some
+        pair is close, failed as ``"in_collision"``, its message naming the closest close pair."""
         res.min_distance = np.inf if found.nearest is None else found.nearest[0]
         res.collision_pair = found.names(self.geo, self.world)
-        if res.success and found.in_collision:
+        if reached and found.in_collision:
             d, a, b, on_world, _ = min(found.close, key=lambda e: e[0])
             other = (self.world.parts[b] if on_world else self.geo.parts[b]).name
             res.success, res.status = False, "in_collision"
@@ -229,6 +244,7 @@ def _solve_lm(
     pose = target_parameters(request.target)
     exact = _Exact(m, world, self_collision, margin)
     seed = request_seed(request.seed) & _SEEDS
+    rng: np.random.Generator | None = None  # the random starts of rounds 2, 3, ...
     res, rounds = first, int(first is not None)
     iterations, restarts = (0, -1) if first is None else (first.iterations, first.restarts)
 
@@ -246,7 +262,8 @@ def _solve_lm(
         q, _, it, _, code = constrained.run_one(params, res.q, seed, once)
         iterations += it
         err = plain.final_errors(q, pose)
-        return exact.finish(lm_result(request, plain, q, err, iterations, restarts, code, pose))
+        res = lm_result(request, plain, q, err, iterations, restarts, code, pose)
+        return exact.finish(res, stop=True)
 
     if res is not None:
         res = slide(res)
@@ -254,7 +271,8 @@ def _solve_lm(
         q0 = request.q0
         if res is not None:  # a new round from a new random configuration
             seed = (seed * 6364136223846793005 + 1442695040888963407) & _SEEDS
-            q0 = m.random_q(seed=seed)
+            rng = np.random.default_rng(seed) if rng is None else rng
+            q0 = m.random_q(seed=rng)
         rounds += 1
         # the unconstrained kernel (its own restarts) until the pose is met ...
         conf[3] = max(request.remaining(), 0.0)
@@ -262,7 +280,9 @@ def _solve_lm(
         iterations += it
         restarts += starts + 1
         # ... then, when that answer collides, perhaps the constrained kernel from it
-        res = slide(exact.finish(lm_result(request, plain, q, err, iterations, restarts, code, pose)))
+        res = lm_result(request, plain, q, err, iterations, restarts, code, pose)
+        res = slide(exact.finish(res, stop=True))  # a rejected answer's search stops early
+    exact.complete(res)
     if not res.success and res.status == "not_converged":
         res.status = "time_limit"
     return res
@@ -314,7 +334,7 @@ class CollisionCall:
         self_collision, margin, buffer, plain_rounds = self.settings
         state = state_of(world)
         m = self.request.mechanism
-        res = _Exact(m, state, self_collision, margin).finish(res)
+        res = _Exact(m, state, self_collision, margin).finish(res, stop=True)
         if res.success:
             return res
         request = dataclasses.replace(

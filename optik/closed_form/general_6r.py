@@ -712,6 +712,13 @@ def _wrap(q: np.ndarray) -> np.ndarray:
     return np.where(w <= -np.pi, w + _TWO_PI, w)
 
 
+def _fk_errors(t: np.ndarray, target: np.ndarray, scale: float) -> np.ndarray:
+    """The FK error that `FK_TOL` bounds: position error / ``scale`` or orientation angle,
+    whichever is larger (batched)."""
+    dp, dr = _pose_errors(t, target)
+    return np.maximum(dp / scale, dr)
+
+
 def _pose_errors(t: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Position error and geodesic orientation angle of ``t`` against ``target`` (batched)."""
     dp = np.linalg.norm(t[..., :3, 3] - target[..., :3, 3], axis=-1)
@@ -733,6 +740,24 @@ def _dedup(q: np.ndarray) -> np.ndarray:
         if not close[i, keep].any():
             keep.append(i)
     return q[keep]
+
+
+def _distinct(rows: np.ndarray, owner: np.ndarray, n: int) -> list[np.ndarray]:
+    """`_dedup` of the rows of each target ``0 .. n-1`` (``owner``: each row's target), in
+    their order: a list of ``n`` arrays. Each row is compared with the earlier rows of its
+    target all at once; only a target with a close pair goes through `_dedup`."""
+    order = np.argsort(owner, kind="stable")
+    rows, owner = rows[order], owner[order]
+    start = np.searchsorted(owner, np.arange(n + 1))
+    groups = np.split(rows, start[1:-1])
+    rank = np.arange(len(owner)) - start[owner]  # of each row in its target's group
+    later = np.repeat(np.arange(len(owner)), rank)  # row i once per earlier row j of its group
+    earlier = later - rank[later] + np.arange(len(later)) - np.repeat(np.cumsum(rank) - rank, rank)
+    diff = rows[later] - rows[earlier]
+    close = np.max(np.abs(_wrap(diff.real)) + np.abs(diff.imag), axis=-1, initial=0.0) < _SAME
+    for k in np.unique(owner[later[close]]):
+        groups[k] = _dedup(groups[k])
+    return groups
 
 
 def _unit_targets(arm: General6R, targets: np.ndarray) -> np.ndarray:
@@ -946,11 +971,11 @@ def _join(cand: _Candidates, rows: np.ndarray, other: _Candidates) -> _Candidate
     )
 
 
-def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[General6RSolutions]:
-    """The eigenvalue solver on validated targets ``(N, 4, 4)``; ``fk`` is the independent
-    forward kinematics used for the final check (``q (K, 6) -> (K, 4, 4)``), ``refine`` the
-    last polish of the candidates on the exact model (``(q, target index) -> (q, poses)``, the
-    poses ``fk(q)`` when it computed them, else None)."""
+def _solve(arm: General6R, targets: np.ndarray, check: Any) -> list[General6RSolutions]:
+    """The eigenvalue solver on validated targets ``(N, 4, 4)``; ``check`` polishes the real
+    candidates last on the exact model and measures them by the independent forward kinematics
+    (``(q, target index) -> (q, FK errors)``, errors as `_fk_errors` of ``arm``). The per-target
+    counts are taken for all targets at once (``np.bincount`` over the candidates' targets)."""
     n = len(targets)
     cand = _candidates_c(arm, _unit_targets(arm, targets))
     idx_n, theta = cand.owner, cand.theta
@@ -962,43 +987,46 @@ def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[Ge
     retry = cand.retry
     at = np.flatnonzero(real)
     owner = np.concatenate([idx_n[at], idx_n[retry]])
-    q, pose = refine(_wrap(np.concatenate([theta[at].real, cand.again]) - arm.offset), owner)
-    ok = np.zeros(len(q), dtype=bool)
-    fk_err = np.full(len(q), np.inf)
-    if len(q):
-        dp, dr = _pose_errors(fk(q) if pose is None else pose, targets[owner])
-        fk_err = np.maximum(dp / arm.scale, dr)
-        ok = fk_err <= FK_TOL
+    q, fk_err = check(_wrap(np.concatenate([theta[at].real, cand.again]) - arm.offset), owner)
+    ok = fk_err <= FK_TOL
     rescued = np.zeros(len(theta), dtype=bool)
     rescued[retry[ok[len(at) :]]] = True
     first = np.arange(len(q)) < len(at)  # the real candidates (the rest: the retried ones)
+    sols = _distinct(q[ok], owner[ok], n)
+    complex_ = converged & ~real & ~rescued
+    n_complex = np.array([len(c) for c in _distinct(theta[complex_], idx_n[complex_], n)]) + cand.n_far
+    n_rejected = np.bincount(idx_n[~real & ~converged & ~rescued], minlength=n) + np.bincount(
+        owner[first & ~ok], minlength=n
+    )
+    n_real = np.bincount(idx_n[real | rescued], minlength=n)
+    err = np.zeros(n)
+    np.maximum.at(err, owner[ok], fk_err[ok])
     out = []
     for k in range(n):
-        mine, mine_real = idx_n == k, owner == k
-        sols = _dedup(q[mine_real & ok])
-        n_finite = int(cand.n_good[k])
-        n_complex = len(_dedup(theta[mine & converged & ~real & ~rescued])) + int(cand.n_far[k])
-        n_rejected = int(np.sum(mine & ~real & ~converged & ~rescued) + np.sum(mine_real & first & ~ok))
-        count_ok = (
-            bool(cand.rank_ok[k] and cand.regular[k])
+        n_sols, n_finite = len(sols[k]), int(cand.n_good[k])
+        count_ok = bool(
+            cand.rank_ok[k]
+            and cand.regular[k]
             and n_finite == 16
-            and n_rejected == 0
-            and len(sols) + n_complex == 16
+            and n_rejected[k] == 0
+            and n_sols + n_complex[k] == 16
         )
         reason = ""
         if not count_ok:
             reason = (
-                f"count check failed: {n_finite} finite eigenvalues (16 expected), {len(sols)} distinct real "
-                f"and {n_complex} distinct complex solutions verified, {n_rejected} candidates that did not "
-                "converge or failed the FK check"
+                f"count check failed: {n_finite} finite eigenvalues (16 expected), {n_sols} distinct real "
+                f"and {n_complex[k]} distinct complex solutions verified, {n_rejected[k]} candidates that did "
+                "not converge or failed the FK check"
                 + ("" if cand.rank_ok[k] else ", rank-deficient elimination (special geometry)")
                 + ("" if cand.regular[k] else ", singular 12 x 12 matrix for every x_3 (special geometry)")
             )
-        elif not len(sols):
+        elif not n_sols:
             reason = "unreachable: all 16 solutions are complex"
-        err = float(np.max(fk_err[mine_real & ok], initial=0.0))
-        n_real = int(np.sum(mine & (real | rescued)))
-        out.append(General6RSolutions(sols, n_finite, n_real, n_complex, n_rejected, err, count_ok, reason))
+        out.append(
+            General6RSolutions(
+                sols[k], n_finite, int(n_real[k]), int(n_complex[k]), int(n_rejected[k]), float(err[k]), count_ok, reason
+            )
+        )
     return out
 
 
@@ -1038,8 +1066,8 @@ def solve_general_6r(
     if bad:  # special geometry at both ends: candidates from a nearby generic arm
         near = _both_ends(g.perturbed, targets[bad], g.perturbed.fk, None)
         for k, sol in zip(bad, near, strict=True):
-            q = _refine(g, m, sol.q.copy(), np.repeat(targets[k][None], len(sol.q), axis=0))[0]
-            out[k] = _add(out[k], q, targets[k], fk, g.scale)
+            q, _, err = _refine(g, m, sol.q.copy(), np.repeat(targets[k][None], len(sol.q), axis=0))
+            out[k] = _add(out[k], q, err)
     return out[0] if single else out
 
 
@@ -1047,37 +1075,31 @@ def _both_ends(g: General6R, targets: np.ndarray, fk: Any, m: Mechanism | None) 
     """The eigenvalue solver on ``g``, then on its inverse chain for the targets whose count
     check failed (``m``: the mechanism whose ``m.fk`` polishes the solutions last, or None)."""
 
-    def refine(q: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-        return _refine(g, m, q, targets[idx])
+    def check(q: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        q, _, err = _refine(g, m, q, targets[idx])
+        return q, err
 
-    def refine_reversed(q: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-        """`refine` of the inverse chain's candidates ``q`` (reversed) of the targets ``bad[idx]``."""
-        fwd, pose = refine(q[:, ::-1], np.asarray(bad, dtype=int)[idx])
-        return fwd[:, ::-1], None if pose is None else _inv(pose)
+    def check_reversed(q: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """`check` of the inverse chain's candidates ``q`` (reversed) of the targets ``bad[idx]``,
+        its FK errors measured on the inverse chain."""
+        fwd, pose, _ = _refine(g, m, q[:, ::-1], bad_targets[idx])
+        return fwd[:, ::-1], _fk_errors(_inv(pose), inverse[idx], g.reversed.scale)
 
-    out = _solve(g, targets, fk, refine)
+    out = _solve(g, targets, check)
     bad = [k for k, s in enumerate(out) if not s.count_ok]
     if bad:  # special geometry at the first axes: solve the inverse chain from the other end
-        back = _solve(
-            g.reversed,
-            _inv(targets[bad]),
-            lambda q: _inv(fk(q[:, ::-1])),
-            refine_reversed,
-        )
+        bad_targets = targets[bad]
+        inverse = _inv(bad_targets)
+        back = _solve(g.reversed, inverse, check_reversed)
         for k, rev in zip(bad, back, strict=True):
             out[k] = _merge(out[k], rev, targets[k], fk, g.scale)
     return out
 
 
-def _add(
-    sols: General6RSolutions, q: np.ndarray, target: np.ndarray, fk: Any, scale: float
-) -> General6RSolutions:
-    """``sols`` (flagged) with the candidates ``q`` that pass the FK check added (deduplicated)."""
-    err = np.zeros(0)
-    if len(q):
-        dp, dr = _pose_errors(fk(q), target)
-        err = np.maximum(dp / scale, dr)
-        q = q[err <= FK_TOL]
+def _add(sols: General6RSolutions, q: np.ndarray, err: np.ndarray) -> General6RSolutions:
+    """``sols`` (flagged) with the candidates ``q`` whose FK errors ``err`` pass the FK check
+    added (deduplicated)."""
+    q = q[err <= FK_TOL]
     merged = _dedup(np.vstack([sols.q, q]))
     added = len(merged) - len(sols.q)
     fk_error = max(sols.fk_error, float(np.max(err[err <= FK_TOL], initial=0.0)))
@@ -1096,31 +1118,31 @@ def _add(
 
 def _refine(
     g: General6R, m: Mechanism | None, q: np.ndarray, targets: np.ndarray
-) -> tuple[np.ndarray, np.ndarray | None]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The last Newton polish on the exact model: the DH model ``g`` (exact for a `General6R`;
     candidates of the inverse chain come from its own, less accurate, DH description), then for
     a mechanism a few steps on ``m.fk`` and ``m.jacobian`` wherever the FK error is still above
     rounding (the DH description of near-parallel axes loses digits). Returns the polished
-    angles (wrapped) and, for a mechanism whose last evaluation of ``m.fk`` was at them (no step
-    left to take: the usual case), those poses, which the caller's FK check reuses; else None."""
+    angles (wrapped), their poses by the independent forward kinematics (``m.fk``, or ``g.fk``
+    for a `General6R`; the last evaluation of the polish when no step was left to take, the
+    usual case) and their FK errors (`_fk_errors`), which the FK check reads."""
     if not len(q):
-        return q, None
+        return q, np.zeros((0, 4, 4)), np.zeros(0)
     tp = _unit_targets(g, targets)
     q = _wrap(_polish(g._left, q + g.offset, tp)[0] - g.offset)
-    if m is None:
-        return q, None
-    for _ in range(3):
+    for _ in range(3 if m is not None else 0):
         pose = m.fk(q).reshape(-1, 4, 4)
-        dp, dr = _pose_errors(pose, targets)
-        todo = np.flatnonzero(np.maximum(dp / g.scale, dr) > _EXACT)
+        fk_err = _fk_errors(pose, targets, g.scale)
+        todo = np.flatnonzero(fk_err > _EXACT)
         if not len(todo):
-            return q, pose
+            return q, pose, fk_err
         for k in todo:
             rot = pose[k, :3, :3] @ targets[k, :3, :3].T
             err = np.concatenate([pose[k, :3, 3] - targets[k, :3, 3], 0.5 * _skew(rot)])
             q[k] = q[k] - np.linalg.lstsq(m.jacobian(q[k]), err, rcond=None)[0]
         q = _wrap(q)
-    return q, None
+    pose = (g.fk if m is None else m.fk)(q).reshape(-1, 4, 4)
+    return q, pose, _fk_errors(pose, targets, g.scale)
 
 
 def _merge(
@@ -1129,10 +1151,7 @@ def _merge(
     """The answer of the reversed chain if its count check passed, else the union of both
     verified sets (still flagged); the FK error is recomputed on the forward chain."""
     q = rev.q[:, ::-1] if rev.count_ok else _dedup(np.vstack([fwd.q, rev.q[:, ::-1]]))
-    err = 0.0
-    if len(q):
-        dp, dr = _pose_errors(fk(q), target)
-        err = float(np.max(np.maximum(dp / scale, dr)))
+    err = float(np.max(_fk_errors(fk(q), target, scale), initial=0.0)) if len(q) else 0.0
     if rev.count_ok:
         return General6RSolutions(
             q, rev.n_finite, rev.n_real_candidates, rev.n_complex, rev.n_rejected, err, True, rev.reason

@@ -140,6 +140,31 @@ int optik_g6r_polish(const double *dh, int k, int iterations, double *theta, con
     return 0;
 }
 
+/* general_6r._wrap: q wrapped to (-pi, pi] with numpy's floating remainder ((q + pi) % 2 pi, the
+ * sign of the divisor), then - pi: the same numbers as numpy's */
+static double wrap(double q) {
+    double two_pi = 2.0 * M_PI, mod = fmod(q + M_PI, two_pi);
+    if (mod != 0.0) {
+        if (mod < 0.0) mod += two_pi;
+    } else
+        mod = 0.0;
+    double w = mod - M_PI;
+    return w <= -M_PI ? w + two_pi : w;
+}
+
+/* general_6r._last_polish of one real candidate th (DH angles): the joint angles q = wrap(th - offset)
+ * polished on the DH model from q + offset, then wrap(theta - offset) again, into q. Returns
+ * polish_one's code. */
+static int last_polish(const double *d, const double *a, const double *ca, const double *sa, const double *offset,
+                       const double *th, const double *tn, double *q) {
+    cplx x[6];
+    double ignored;
+    for (int i = 0; i < 6; ++i) x[i] = wrap(th[i] - offset[i]) + offset[i];
+    if (polish_one(d, a, ca, sa, 12, x, tn, &ignored)) return 1;
+    for (int i = 0; i < 6; ++i) q[i] = wrap(creal(x[i]) - offset[i]);
+    return 0;
+}
+
 /* general_6r._angle: the angle whose cosine and sine are proportional to c, s, continued
  * analytically to complex values: -i log((c + i s) / sqrt(c^2 + s^2)) */
 static cplx angle(cplx c, cplx s) { return -I * clog((c + I * s) / csqrt(c * c + s * s)); }
@@ -268,9 +293,11 @@ static void wrist_angles(const cplx *w, int real, cplx *phi) {
  * pencil regular, pencil well posed, finite non-spurious eigenvalues, those far from the real
  * axis, candidates k; `theta` (24 x 6 complex): the polished candidates, `size` (24) their
  * residuals, `retry` (24) whether each was polished from its real part too, `again` (24 x 6) the
- * result of that. Returns 0. */
+ * result of that. With `offset` (the arm's 6 joint offsets, or NULL: not done) the last polish of
+ * general_6r._last_polish runs here too: `real` (24 x 6) gets it for each candidate real to 1e-8
+ * (IMAG_TOL; the other rows are left as they are) and `again` is replaced by it. Returns 0. */
 int optik_g6r_solve(const double *model, void *const *lapack, int n, const double *tp, double *info, double *theta,
-                    double *size, int *retry, double *again) {
+                    double *size, int *retry, double *again, const double *offset, double *real) {
     static const double probes[2][3] = {{1.0, 0.5773502692, 0.3333333333}, {1.0, -1.7320508076, 3.0}};
     dgesdd_t gesdd = (dgesdd_t)lapack[0];
     dgeev_t geev = (dgeev_t)lapack[1];
@@ -389,7 +416,7 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
             }
         int count = 0, far = 0, k = 0;
         double *th_out = theta + 2 * 6 * MAX_CANDIDATES * t, *size_out = size + MAX_CANDIDATES * t;
-        double *again_out = again + 6 * MAX_CANDIDATES * t;
+        double *again_out = again + 6 * MAX_CANDIDATES * t, *real_out = real + 6 * MAX_CANDIDATES * t;
         int *retry_out = retry + MAX_CANDIDATES * t;
         for (int j = 0; j < 24 && !failed; ++j) {
             if (!good[j] || spurious[j]) continue;
@@ -427,6 +454,12 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
                 for (int i = 0; i < 6; ++i) re[i] = creal(re[i]);
                 failed |= polish_one(d, a, ca, sa, 12, re, tn, &ignored);
                 for (int i = 0; i < 6; ++i) again_out[6 * k + i] = creal(re[i]);
+                if (offset) failed |= last_polish(d, a, ca, sa, offset, again_out + 6 * k, tn, again_out + 6 * k);
+            }
+            if (offset && imag <= 1e-8) {
+                double re[6];
+                for (int i = 0; i < 6; ++i) re[i] = creal(th[i]);
+                failed |= last_polish(d, a, ca, sa, offset, re, tn, real_out + 6 * k);
             }
             ++k;
         }

@@ -195,7 +195,7 @@ _SOLVE = native.CFunction(
     _SOURCE,
     "optik_general_6r",
     "optik_g6r_solve",
-    [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 6],
+    [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 8],
 )
 """`_candidates` in C, the whole elimination of many targets in one call (`_candidates_c`)."""
 _MAX_CANDIDATES = 24
@@ -794,7 +794,7 @@ def _matrices(arm: General6R, tp: np.ndarray) -> tuple[np.ndarray, ...]:
 @dataclass
 class _Candidates:
     """The polished candidates of targets ``0 .. N-1`` (steps 1-3, the eigenvalues, the
-    back-substitution and the complex polish), what `_verify` decides on.
+    back-substitution and the complex polish), what `_solve` decides on.
 
     Attributes:
         rank_ok, regular: per target, ``Q`` of full rank and the pencil regular.
@@ -803,7 +803,9 @@ class _Candidates:
         owner: per candidate, its target.
         theta, residual: per candidate, the polished (complex) angles and ``max |r|`` at them.
         retry: the candidates also polished from their real parts (`_REAL_RETRY`), ascending.
-        again: their polished real angles, ``(len(retry), 6)``.
+        again: their polished real angles in joint coordinates (`_joint_rows`), ``(len(retry), 6)``.
+        real: per candidate real to `IMAG_TOL`, its real part in joint coordinates (`_joint_rows`;
+            NaN for the others).
     """
 
     rank_ok: np.ndarray
@@ -815,11 +817,35 @@ class _Candidates:
     residual: np.ndarray
     retry: np.ndarray
     again: np.ndarray
+    real: np.ndarray
 
 
-def _candidates(arm: General6R, tp: np.ndarray) -> _Candidates:
+def _joint_rows(
+    arm: General6R, theta: np.ndarray, owner: np.ndarray, retry: np.ndarray, again: np.ndarray, tp: np.ndarray, last: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """`_Candidates.real` and `_Candidates.again` of polished candidates ``theta`` (DH angles,
+    complex; ``owner``: their targets) and the real retries ``again`` of the candidates
+    ``retry``: joint angles ``_wrap(theta - offset)``, after `_last_polish` (unit-scale targets
+    ``tp``) with ``last``."""
+    rows = np.flatnonzero(np.max(np.abs(theta.imag), axis=1, initial=0.0) <= IMAG_TOL)
+    q = _wrap(np.concatenate([theta[rows].real, again]) - arm.offset)
+    if last and len(q):
+        q = _last_polish(arm, q, tp[np.concatenate([owner[rows], owner[retry]])])
+    real = np.full((len(theta), 6), np.nan)
+    real[rows] = q[: len(rows)]
+    return real, q[len(rows) :]
+
+
+def _last_polish(arm: General6R, q: np.ndarray, tp: np.ndarray) -> np.ndarray:
+    """`_polish` of real joint angles ``q (K, 6)`` on the DH model towards the unit-scale targets
+    ``tp (K, 4, 4)``, wrapped: the first step of `_refine`."""
+    return _wrap(_polish(arm._left, q + arm.offset, tp)[0] - arm.offset)
+
+
+def _candidates(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candidates:
     """`_Candidates` of the unit-scale targets ``tp`` in numpy (the C kernels `_BACK` and
-    `_POLISH` where loaded): the path without the whole solve in C (`_candidates_c`)."""
+    `_POLISH` where loaded): the path without the whole solve in C (`_candidates_c`); with
+    ``last`` the real ones (and the real retries) after `_last_polish` too."""
     left = arm._left
     u, sv, vt, r0, mats, rank_ok, regular, well = _matrices(arm, tp)
     vals, vecs = _eigen(mats)
@@ -873,8 +899,9 @@ def _candidates(arm: General6R, tp: np.ndarray) -> _Candidates:
     retry = np.flatnonzero(~real & (np.abs(phi[:, 0].imag) <= _REAL_RETRY))
     flat_phi = np.concatenate([phi[retry, :1].real, _half_angle(w[retry], real=True)], 1)
     again = _polish(left, back_substitute(flat_phi, idx_n[retry]).real, tp[idx_n[retry]])[0]
+    real_rows, again = _joint_rows(arm, theta, idx_n, retry, again, tp, last)
     return _Candidates(
-        rank_ok, regular, np.sum(good, axis=1), np.sum(far, axis=1), idx_n, theta, residual, retry, again
+        rank_ok, regular, np.sum(good, axis=1), np.sum(far, axis=1), idx_n, theta, residual, retry, again, real_rows
     )
 
 
@@ -917,14 +944,14 @@ def _threads_local(address: int) -> int:
         return 0
 
 
-def _candidates_c(arm: General6R, tp: np.ndarray) -> _Candidates:
+def _candidates_c(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candidates:
     """`_candidates` with the whole solve of each target in C (``optik_g6r_solve``: one call for
-    all targets) when its library and scipy's LAPACK are loaded; targets that it hands back (QZ
-    needed, a LAPACK failure, an exactly singular Jacobian) and every target without the library
-    take the numpy path."""
+    all targets, `_last_polish` included with ``last``) when its library and scipy's LAPACK are
+    loaded; targets that it hands back (QZ needed, a LAPACK failure, an exactly singular
+    Jacobian) and every target without the library take the numpy path."""
     fn, lapack = _SOLVE.get(), _lapack()
     if fn is None or lapack is None or not len(tp):
-        return _candidates(arm, tp)
+        return _candidates(arm, tp, last)
     n, cap = len(tp), _MAX_CANDIDATES
     tp = np.ascontiguousarray(tp)
     info = np.empty((n, 8))
@@ -932,27 +959,34 @@ def _candidates_c(arm: General6R, tp: np.ndarray) -> _Candidates:
     size = np.empty((n, cap))
     retry = np.zeros((n, cap), dtype=np.intc)
     again = np.empty((n, cap, 6))
+    real = np.full((n, cap, 6), np.nan)
     out = (info, theta, size, retry, again)
-    fn(arm._left.model.ctypes.data, lapack.ctypes.data, n, tp.ctypes.data, *(v.ctypes.data for v in out))
+    offset = arm.offset.ctypes.data if last else None
+    fn(arm._left.model.ctypes.data, lapack.ctypes.data, n, tp.ctypes.data, *(v.ctypes.data for v in out), offset, real.ctypes.data)
     done = info[:, 0] == 0
     count = np.where(done, info[:, 6], 0).astype(int)
     mask = np.arange(cap)[None] < count[:, None]
     owner = np.nonzero(mask)[0]
     flags = retry[mask].astype(bool)
+    retried, theta, again = np.flatnonzero(flags), theta[mask], again[mask][flags]
+    real = real[mask]
+    if not last:
+        real, again = _joint_rows(arm, theta, owner, retried, again, tp, last)
     cand = _Candidates(
         info[:, 1] > 0,
         info[:, 2] > 0,
         info[:, 4].astype(int),
         info[:, 5].astype(int),
         owner,
-        theta[mask],
+        theta,
         size[mask],
-        np.flatnonzero(flags),
-        again[mask][flags],
+        retried,
+        again,
+        real,
     )
     rest = np.flatnonzero(~done)
     if len(rest):
-        cand = _join(cand, rest, _candidates(arm, tp[rest]))
+        cand = _join(cand, rest, _candidates(arm, tp[rest], last))
     return cand
 
 
@@ -968,16 +1002,18 @@ def _join(cand: _Candidates, rows: np.ndarray, other: _Candidates) -> _Candidate
         np.concatenate([cand.residual, other.residual]),
         np.concatenate([cand.retry, len(cand.owner) + other.retry]),
         np.concatenate([cand.again, other.again]),
+        np.concatenate([cand.real, other.real]),
     )
 
 
-def _solve(arm: General6R, targets: np.ndarray, check: Any) -> list[General6RSolutions]:
+def _solve(arm: General6R, targets: np.ndarray, check: Any, last: bool) -> list[General6RSolutions]:
     """The eigenvalue solver on validated targets ``(N, 4, 4)``; ``check`` polishes the real
     candidates last on the exact model and measures them by the independent forward kinematics
-    (``(q, target index) -> (q, FK errors)``, errors as `_fk_errors` of ``arm``). The per-target
+    (``(q, target index) -> (q, FK errors)``, errors as `_fk_errors` of ``arm``), after
+    `_last_polish` on ``arm`` with ``last`` (which ``check`` then leaves out). The per-target
     counts are taken for all targets at once (``np.bincount`` over the candidates' targets)."""
     n = len(targets)
-    cand = _candidates_c(arm, _unit_targets(arm, targets))
+    cand = _candidates_c(arm, _unit_targets(arm, targets), last)
     idx_n, theta = cand.owner, cand.theta
     converged = cand.residual <= _CONVERGED * _magnitude(theta)
     # real to IMAG_TOL: a real candidate, which the last polish and the FK check decide (the DH
@@ -987,7 +1023,7 @@ def _solve(arm: General6R, targets: np.ndarray, check: Any) -> list[General6RSol
     retry = cand.retry
     at = np.flatnonzero(real)
     owner = np.concatenate([idx_n[at], idx_n[retry]])
-    q, fk_err = check(_wrap(np.concatenate([theta[at].real, cand.again]) - arm.offset), owner)
+    q, fk_err = check(np.concatenate([cand.real[at], cand.again]), owner)
     ok = fk_err <= FK_TOL
     rescued = np.zeros(len(theta), dtype=bool)
     rescued[retry[ok[len(at) :]]] = True
@@ -1076,7 +1112,8 @@ def _both_ends(g: General6R, targets: np.ndarray, fk: Any, m: Mechanism | None) 
     check failed (``m``: the mechanism whose ``m.fk`` polishes the solutions last, or None)."""
 
     def check(q: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        q, _, err = _refine(g, m, q, targets[idx])
+        """`_refine` after `_last_polish` (in `_solve`)."""
+        q, _, err = _refine(g, m, q, targets[idx], dh=False)
         return q, err
 
     def check_reversed(q: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -1085,12 +1122,12 @@ def _both_ends(g: General6R, targets: np.ndarray, fk: Any, m: Mechanism | None) 
         fwd, pose, _ = _refine(g, m, q[:, ::-1], bad_targets[idx])
         return fwd[:, ::-1], _fk_errors(_inv(pose), inverse[idx], g.reversed.scale)
 
-    out = _solve(g, targets, check)
+    out = _solve(g, targets, check, True)
     bad = [k for k, s in enumerate(out) if not s.count_ok]
     if bad:  # special geometry at the first axes: solve the inverse chain from the other end
         bad_targets = targets[bad]
         inverse = _inv(bad_targets)
-        back = _solve(g.reversed, inverse, check_reversed)
+        back = _solve(g.reversed, inverse, check_reversed, False)
         for k, rev in zip(bad, back, strict=True):
             out[k] = _merge(out[k], rev, targets[k], fk, g.scale)
     return out
@@ -1117,9 +1154,10 @@ def _add(sols: General6RSolutions, q: np.ndarray, err: np.ndarray) -> General6RS
 
 
 def _refine(
-    g: General6R, m: Mechanism | None, q: np.ndarray, targets: np.ndarray
+    g: General6R, m: Mechanism | None, q: np.ndarray, targets: np.ndarray, dh: bool = True
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The last Newton polish on the exact model: the DH model ``g`` (exact for a `General6R`;
+    """The last Newton polish on the exact model: the DH model ``g`` (`_last_polish`, unless
+    ``dh`` is False: the candidates had it; exact for a `General6R`;
     candidates of the inverse chain come from its own, less accurate, DH description), then for
     a mechanism a few steps on ``m.fk`` and ``m.jacobian`` wherever the FK error is still above
     rounding (the DH description of near-parallel axes loses digits). Returns the polished
@@ -1128,8 +1166,8 @@ def _refine(
     usual case) and their FK errors (`_fk_errors`), which the FK check reads."""
     if not len(q):
         return q, np.zeros((0, 4, 4)), np.zeros(0)
-    tp = _unit_targets(g, targets)
-    q = _wrap(_polish(g._left, q + g.offset, tp)[0] - g.offset)
+    if dh:
+        q = _last_polish(g, q, _unit_targets(g, targets))
     for _ in range(3 if m is not None else 0):
         pose = m.fk(q).reshape(-1, 4, 4)
         fk_err = _fk_errors(pose, targets, g.scale)

@@ -713,18 +713,16 @@ def _wrap(q: np.ndarray) -> np.ndarray:
 
 
 def _fk_errors(t: np.ndarray, target: np.ndarray, scale: float) -> np.ndarray:
-    """The FK error that `FK_TOL` bounds: position error / ``scale`` or orientation angle,
-    whichever is larger (batched)."""
-    dp, dr = _pose_errors(t, target)
-    return np.maximum(dp / scale, dr)
-
-
-def _pose_errors(t: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Position error and geodesic orientation angle of ``t`` against ``target`` (batched)."""
-    dp = np.linalg.norm(t[..., :3, 3] - target[..., :3, 3], axis=-1)
+    """The FK error that `FK_TOL` bounds (batched): the position error ``|p - p*| / scale`` or
+    the geodesic angle of ``R = R*^T R(q)``, ``atan2(|vee(R - R^T)| / 2, (tr R - 1) / 2)``,
+    whichever is larger. The sums are written out in the order of ``np.linalg.norm`` and
+    ``np.trace`` (the same numbers, without their per-call cost)."""
+    d = t[..., :3, 3] - target[..., :3, 3]
+    dp = np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2])
     r = np.swapaxes(target[..., :3, :3], -1, -2) @ t[..., :3, :3]
-    cos = np.clip((np.trace(r, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)
-    return dp, np.arctan2(0.5 * np.linalg.norm(_skew(r), axis=-1), cos)
+    x, y, z = r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]
+    cos = np.minimum(np.maximum((r[..., 0, 0] + r[..., 1, 1] + r[..., 2, 2] - 1.0) / 2.0, -1.0), 1.0)
+    return np.maximum(dp / scale, np.arctan2(0.5 * np.sqrt(x * x + y * y + z * z), cos))
 
 
 def _dedup(q: np.ndarray) -> np.ndarray:
@@ -749,13 +747,14 @@ def _distinct(rows: np.ndarray, owner: np.ndarray, n: int) -> list[np.ndarray]:
     order = np.argsort(owner, kind="stable")
     rows, owner = rows[order], owner[order]
     start = np.searchsorted(owner, np.arange(n + 1))
-    groups = np.split(rows, start[1:-1])
+    bounds = start.tolist()
+    groups = [rows[i:j] for i, j in zip(bounds[:-1], bounds[1:], strict=True)]
     rank = np.arange(len(owner)) - start[owner]  # of each row in its target's group
     later = np.repeat(np.arange(len(owner)), rank)  # row i once per earlier row j of its group
     earlier = later - rank[later] + np.arange(len(later)) - np.repeat(np.cumsum(rank) - rank, rank)
     diff = rows[later] - rows[earlier]
     close = np.max(np.abs(_wrap(diff.real)) + np.abs(diff.imag), axis=-1, initial=0.0) < _SAME
-    for k in np.unique(owner[later[close]]):
+    for k in np.unique(owner[later[close]]) if close.any() else ():
         groups[k] = _dedup(groups[k])
     return groups
 
@@ -1028,9 +1027,12 @@ def _solve(arm: General6R, targets: np.ndarray, check: Any, last: bool) -> list[
     rescued = np.zeros(len(theta), dtype=bool)
     rescued[retry[ok[len(at) :]]] = True
     first = np.arange(len(q)) < len(at)  # the real candidates (the rest: the retried ones)
-    sols = _distinct(q[ok], owner[ok], n)
+    # the distinct real solutions (rows 2k) and complex ones (rows 2k + 1) of each target k in one go
     complex_ = converged & ~real & ~rescued
-    n_complex = np.array([len(c) for c in _distinct(theta[complex_], idx_n[complex_], n)]) + cand.n_far
+    rows = np.concatenate([q[ok], theta[complex_]])
+    groups = _distinct(rows, np.concatenate([2 * owner[ok], 2 * idx_n[complex_] + 1]), 2 * n)
+    sols = [np.ascontiguousarray(x.real) for x in groups[0::2]]
+    n_complex = np.array([len(x) for x in groups[1::2]], dtype=int) + cand.n_far
     n_rejected = np.bincount(idx_n[~real & ~converged & ~rescued], minlength=n) + np.bincount(
         owner[first & ~ok], minlength=n
     )

@@ -67,19 +67,23 @@ candidate did not converge or a real one failed its check: the arm or the pose i
 degenerate (special geometry, a pose on a singular boundary, a root that cannot be decided) and
 solutions may be missing.
 
-**In C.** Steps 1-3, the eigenvalues and the candidates' back-substitution and complex polish
-run for each target in one C call (``general_6r.c``, ``optik_g6r_solve``, built once per machine
-in the background, `optik.native.CFunction`; its linear algebra is scipy's LAPACK, ``dgesdd``,
-``dgeev``, ``dgetrf``, ``dgetrs``, run on one OpenBLAS thread); numpy answers until it is built,
+**In C.** Steps 1-3, the eigenvalues, the candidates' back-substitution and complex polish and
+the real candidates' last polish on the DH model run for each target in one C call
+(``general_6r.c``, ``optik_g6r_solve``, built once per machine in the background,
+`optik.native.CFunction`; its linear algebra is scipy's LAPACK, ``dgesdd``, ``dgeev``,
+``dgetrf``, ``dgetrs``, run on one OpenBLAS thread); numpy answers until it is built,
 without a compiler (logged), for a badly conditioned ``A`` (QZ) and for an exactly singular
-Jacobian. Both give the same candidates to rounding; the last polish, the FK check (one ``m.fk``
-call per batch, reused from the polish) and the count check are common.
+Jacobian. Both give the same candidates to rounding; the polish on ``m.fk``, the FK check (one
+``m.fk`` call per batch, reused from that polish) and the count check are common, the count
+check for all targets of a batch at once (counts by ``np.bincount`` over the candidates' targets,
+`_distinct` for the deduplication).
 """
 
 from __future__ import annotations
 
 import ctypes
 import functools
+import itertools
 import logging
 import math
 from collections.abc import Sequence
@@ -748,7 +752,7 @@ def _distinct(rows: np.ndarray, owner: np.ndarray, n: int) -> list[np.ndarray]:
     rows, owner = rows[order], owner[order]
     start = np.searchsorted(owner, np.arange(n + 1))
     bounds = start.tolist()
-    groups = [rows[i:j] for i, j in zip(bounds[:-1], bounds[1:], strict=True)]
+    groups = [rows[i:j] for i, j in itertools.pairwise(bounds)]
     rank = np.arange(len(owner)) - start[owner]  # of each row in its target's group
     later = np.repeat(np.arange(len(owner)), rank)  # row i once per earlier row j of its group
     earlier = later - rank[later] + np.arange(len(later)) - np.repeat(np.cumsum(rank) - rank, rank)
@@ -820,7 +824,13 @@ class _Candidates:
 
 
 def _joint_rows(
-    arm: General6R, theta: np.ndarray, owner: np.ndarray, retry: np.ndarray, again: np.ndarray, tp: np.ndarray, last: bool
+    arm: General6R,
+    theta: np.ndarray,
+    owner: np.ndarray,
+    retry: np.ndarray,
+    again: np.ndarray,
+    tp: np.ndarray,
+    last: bool,
 ) -> tuple[np.ndarray, np.ndarray]:
     """`_Candidates.real` and `_Candidates.again` of polished candidates ``theta`` (DH angles,
     complex; ``owner``: their targets) and the real retries ``again`` of the candidates
@@ -900,7 +910,16 @@ def _candidates(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candidat
     again = _polish(left, back_substitute(flat_phi, idx_n[retry]).real, tp[idx_n[retry]])[0]
     real_rows, again = _joint_rows(arm, theta, idx_n, retry, again, tp, last)
     return _Candidates(
-        rank_ok, regular, np.sum(good, axis=1), np.sum(far, axis=1), idx_n, theta, residual, retry, again, real_rows
+        rank_ok,
+        regular,
+        np.sum(good, axis=1),
+        np.sum(far, axis=1),
+        idx_n,
+        theta,
+        residual,
+        retry,
+        again,
+        real_rows,
     )
 
 
@@ -961,7 +980,15 @@ def _candidates_c(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candid
     real = np.full((n, cap, 6), np.nan)
     out = (info, theta, size, retry, again)
     offset = arm.offset.ctypes.data if last else None
-    fn(arm._left.model.ctypes.data, lapack.ctypes.data, n, tp.ctypes.data, *(v.ctypes.data for v in out), offset, real.ctypes.data)
+    fn(
+        arm._left.model.ctypes.data,
+        lapack.ctypes.data,
+        n,
+        tp.ctypes.data,
+        *(v.ctypes.data for v in out),
+        offset,
+        real.ctypes.data,
+    )
     done = info[:, 0] == 0
     count = np.where(done, info[:, 6], 0).astype(int)
     mask = np.arange(cap)[None] < count[:, None]
@@ -1053,8 +1080,8 @@ def _solve(arm: General6R, targets: np.ndarray, check: Any, last: bool) -> list[
         if not count_ok:
             reason = (
                 f"count check failed: {n_finite} finite eigenvalues (16 expected), {n_sols} distinct real "
-                f"and {n_complex[k]} distinct complex solutions verified, {n_rejected[k]} candidates that did "
-                "not converge or failed the FK check"
+                f"and {n_complex[k]} distinct complex solutions verified, {n_rejected[k]} candidates that "
+                "did not converge or failed the FK check"
                 + ("" if cand.rank_ok[k] else ", rank-deficient elimination (special geometry)")
                 + ("" if cand.regular[k] else ", singular 12 x 12 matrix for every x_3 (special geometry)")
             )
@@ -1062,7 +1089,14 @@ def _solve(arm: General6R, targets: np.ndarray, check: Any, last: bool) -> list[
             reason = "unreachable: all 16 solutions are complex"
         out.append(
             General6RSolutions(
-                sols[k], n_finite, int(n_real[k]), int(n_complex[k]), int(n_rejected[k]), float(err[k]), count_ok, reason
+                sols[k],
+                n_finite,
+                int(n_real[k]),
+                int(n_complex[k]),
+                int(n_rejected[k]),
+                float(err[k]),
+                count_ok,
+                reason,
             )
         )
     return out

@@ -28,14 +28,16 @@ static void dh(cplx theta, double d, double a, double ca, double sa, cplx m[4][4
     m[3][0] = 0, m[3][1] = 0, m[3][2] = 0, m[3][3] = 1;
 }
 
-/* out = x y (4 x 4) */
+/* out = x y (4 x 4) of homogeneous transforms (last rows 0, 0, 0, 1): the terms of the last row
+ * of y (zero, and one in the last column) are left out */
 static void mul4(cplx x[4][4], cplx y[4][4], cplx out[4][4]) {
-    for (int r = 0; r < 4; ++r)
+    for (int r = 0; r < 3; ++r)
         for (int k = 0; k < 4; ++k) {
             cplx v = 0;
-            for (int j = 0; j < 4; ++j) v += x[r][j] * y[j][k];
-            out[r][k] = v;
+            for (int j = 0; j < 3; ++j) v += x[r][j] * y[j][k];
+            out[r][k] = k == 3 ? v + x[r][3] : v;
         }
+    for (int k = 0; k < 4; ++k) out[3][k] = k == 3;
 }
 
 /* prefix products pre[0..joints] of the DH transforms at theta */
@@ -72,8 +74,11 @@ static double residual(cplx pre[7][4][4], const double *t, cplx *err) {
 static int solve6(cplx j[6][6], cplx *b, cplx *x) {
     for (int c = 0; c < 6; ++c) {
         int p = c;
-        for (int r = c + 1; r < 6; ++r)
-            if (cabs(j[r][c]) > cabs(j[p][c])) p = r;
+        double top = cabs(j[c][c]);
+        for (int r = c + 1; r < 6; ++r) {
+            double size = cabs(j[r][c]);
+            if (size > top) top = size, p = r;
+        }
         if (j[p][c] == 0) return 0;
         if (p != c) {
             for (int k = 0; k < 6; ++k) {

@@ -1032,14 +1032,18 @@ def _join(cand: _Candidates, rows: np.ndarray, other: _Candidates) -> _Candidate
     )
 
 
-def _solve(arm: General6R, targets: np.ndarray, check: Any, last: bool) -> list[General6RSolutions]:
+def _solve(
+    arm: General6R, targets: np.ndarray, check: Any, last: bool, candidates: Any = None
+) -> list[General6RSolutions]:
     """The eigenvalue solver on validated targets ``(N, 4, 4)``; ``check`` polishes the real
     candidates last on the exact model and measures them by the independent forward kinematics
     (``(q, target index) -> (q, FK errors)``, errors as `_fk_errors` of ``arm``), after
     `_last_polish` on ``arm`` with ``last`` (which ``check`` then leaves out). The per-target
-    counts are taken for all targets at once (``np.bincount`` over the candidates' targets)."""
+    counts are taken for all targets at once (``np.bincount`` over the candidates' targets).
+    ``candidates``: the elimination (`_candidates_c` when None, `_candidates` for the numpy
+    pipeline alone)."""
     n = len(targets)
-    cand = _candidates_c(arm, _unit_targets(arm, targets), last)
+    cand = (candidates or _candidates_c)(arm, _unit_targets(arm, targets), last)
     idx_n, theta = cand.owner, cand.theta
     converged = cand.residual <= _CONVERGED * _magnitude(theta)
     # real to IMAG_TOL: a real candidate, which the last polish and the FK check decide (the DH
@@ -1135,6 +1139,11 @@ def solve_general_6r(
     fk = arm.fk if m is not None else g.fk
     out = _both_ends(g, targets, fk, m)
     bad = [k for k, s in enumerate(out) if not s.count_ok]
+    if bad and _compiled():  # a second opinion: the numpy pipeline's own eigen-solutions
+        again = _both_ends(g, targets[bad], fk, m, _candidates)
+        for k, sol in zip(bad, again, strict=True):
+            out[k] = sol if sol.count_ok else _union(out[k], sol)
+        bad = [k for k in bad if not out[k].count_ok]
     if bad:  # special geometry at both ends: candidates from a nearby generic arm
         near = _both_ends(g.perturbed, targets[bad], g.perturbed.fk, None)
         for k, sol in zip(bad, near, strict=True):
@@ -1143,9 +1152,12 @@ def solve_general_6r(
     return out[0] if single else out
 
 
-def _both_ends(g: General6R, targets: np.ndarray, fk: Any, m: Mechanism | None) -> list[General6RSolutions]:
+def _both_ends(
+    g: General6R, targets: np.ndarray, fk: Any, m: Mechanism | None, candidates: Any = None
+) -> list[General6RSolutions]:
     """The eigenvalue solver on ``g``, then on its inverse chain for the targets whose count
-    check failed (``m``: the mechanism whose ``m.fk`` polishes the solutions last, or None)."""
+    check failed (``m``: the mechanism whose ``m.fk`` polishes the solutions last, or None;
+    ``candidates``: the elimination, as for `_solve`)."""
 
     def check(q: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """`_refine` after `_last_polish` (in `_solve`)."""
@@ -1158,15 +1170,41 @@ def _both_ends(g: General6R, targets: np.ndarray, fk: Any, m: Mechanism | None) 
         fwd, pose, _ = _refine(g, m, q[:, ::-1], bad_targets[idx])
         return fwd[:, ::-1], _fk_errors(_inv(pose), inverse[idx], g.reversed.scale)
 
-    out = _solve(g, targets, check, True)
+    out = _solve(g, targets, check, True, candidates)
     bad = [k for k, s in enumerate(out) if not s.count_ok]
     if bad:  # special geometry at the first axes: solve the inverse chain from the other end
         bad_targets = targets[bad]
         inverse = _inv(bad_targets)
-        back = _solve(g.reversed, inverse, check_reversed, False)
+        back = _solve(g.reversed, inverse, check_reversed, False, candidates)
         for k, rev in zip(bad, back, strict=True):
             out[k] = _merge(out[k], rev, targets[k], fk, g.scale)
     return out
+
+
+def _compiled() -> bool:
+    """Whether `_candidates_c` runs the C elimination (its library and scipy's LAPACK loaded)."""
+    return _SOLVE.get() is not None and _lapack() is not None
+
+
+def _union(first: General6RSolutions, second: General6RSolutions) -> General6RSolutions:
+    """Both verified sets of one target (each row passed the FK check), deduplicated, flagged:
+    near special geometry the compiled and the numpy eliminations (the same algebra, other
+    LAPACK builds and rounding) can each miss a solution that the other finds."""
+    merged = _dedup(np.vstack([first.q, second.q]))
+    reason = (
+        f"{first.reason}; {len(merged) - len(first.q)} more from the numpy pipeline "
+        f"({second.reason.removeprefix('count check failed: ')})"
+    )
+    return General6RSolutions(
+        merged,
+        first.n_finite,
+        first.n_real_candidates,
+        first.n_complex,
+        first.n_rejected,
+        max(first.fk_error, second.fk_error),
+        False,
+        reason,
+    )
 
 
 def _add(sols: General6RSolutions, q: np.ndarray, err: np.ndarray) -> General6RSolutions:

@@ -135,7 +135,8 @@ class IKSolutions(Sequence[IKResult]):
     """
 
     __slots__ = (
-        "_arrays", "_outside", "_results", "failed_check", "in_collision", "method", "uncertified_reason"
+        "_arrays", "_n_q", "_outside", "_results", "failed_check", "in_collision", "method",
+        "uncertified_reason",
     )  # fmt: skip
 
     def __init__(
@@ -145,8 +146,12 @@ class IKSolutions(Sequence[IKResult]):
         failed_check: int = 0,
         method: str = "",
         uncertified_reason: str = "",
+        n_q: int = 0,
     ) -> None:
+        """Args: the attributes of the same names; ``results`` the solutions, ``n_q`` the
+        mechanism's coordinate count (the width of `q` when there is no solution)."""
         self._results: list[IKResult] | None = list(results)
+        self._n_q = n_q
         self._arrays: tuple[np.ndarray, np.ndarray, float] | None = None
         self._outside: Any = outside_limits if outside_limits is not None else ()
         self.failed_check = failed_check
@@ -164,6 +169,7 @@ class IKSolutions(Sequence[IKResult]):
         out = _new(cls)
         out._results = None
         out._arrays = (q, errors, solve_time)
+        out._n_q = q.shape[1]
         out._outside = outside_limits
         out.failed_check = 0
         out.in_collision = []
@@ -173,12 +179,12 @@ class IKSolutions(Sequence[IKResult]):
 
     @property
     def q(self) -> np.ndarray:
-        """The solutions' coordinates as one ``(K, n)`` array, in order (an empty array, of
-        shape ``(0, n)`` or ``(0, 0)``, when there are none)."""
+        """The solutions' coordinates as one ``(K, n)`` array, in order (``(0, n)`` when there
+        are none)."""
         if self._arrays is not None:
             return self._arrays[0]
         rows = [r.q for r in self._list()]
-        return np.array(rows) if rows else np.zeros((0, 0))
+        return np.array(rows) if rows else np.zeros((0, self._n_q))
 
     @property
     def certified(self) -> bool:

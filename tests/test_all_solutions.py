@@ -190,3 +190,24 @@ def test_without_a_compiler_every_call_is_solve_ik_all(monkeypatch: pytest.Monke
         q = ik(t)
         assert q.shape[1] == 6 and len(q)
         np.testing.assert_array_equal(q, optik.solve_ik_all(arm, t).q)
+
+
+def test_no_solution_is_an_empty_row_array_on_every_path() -> None:
+    """An unreachable target gives ``q`` of shape ``(0, n)`` whichever path answered: a
+    compiled closed form, a closed form's rows (the planar 3R), the numerical multi-start and
+    a locked joint (the Panda); ``AllSolutions`` of a mechanism without a compiled closed form
+    answers ``(0, n)`` too."""
+    far = np.eye(4)
+    far[:3, 3] = 50.0
+    panda, planar = optik.catalog.panda(), optik.catalog.planar_3r(lengths=(1.0, 0.8, 0.5))
+    cases = {
+        "compiled closed form": (ARMS["seed_6r_arm"], far, {}),
+        "closed-form rows": (planar, optik.Pose2D(50.0, 0.0, 0.3), {}),
+        "numerical multi-start": (panda, far, {"method": "lm", "time_limit": 0.05}),
+        "locked joint": (panda, far, {"fixed": {"q1": 0.3}, "time_limit": 0.05}),
+    }
+    for name, (m, target, options) in cases.items():
+        sols = optik.solve_ik_all(m, target, **options)
+        assert len(sols) == 0, name
+        assert sols.q.shape == (0, m.n_q), name
+    assert optik.AllSolutions(planar)(optik.Pose2D(50.0, 0.0, 0.3)).shape == (0, 3)

@@ -364,3 +364,31 @@ def test_solve_ik_does_not_call_a_reachable_target_unreachable() -> None:
         assert res.success and res.status == "solved", res.message
         assert np.abs(m.fk(res.q) - target).max() < 1e-9  # independent FK check
         assert optik.solve_ik(m, target).success
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 5), st.booleans())
+def test_distinct_is_dedup_per_target(seed: int, n: int, complex_rows: bool) -> None:
+    """`_distinct` (all targets at once) keeps exactly the rows that `_dedup` keeps of each
+    target's rows in their order: with owners out of order, copies within 1e-9, copies shifted
+    by 2 pi, and chains of rows 0.6e-6 apart (the second dropped, the third kept)."""
+    from optik.closed_form import general_6r as g6
+
+    rng = np.random.default_rng(seed)
+    rows = rng.uniform(-np.pi, np.pi, (int(rng.integers(0, 20)), 6)).astype(
+        complex if complex_rows else float
+    )
+    if complex_rows:
+        rows += 1j * rng.normal(size=rows.shape) * (rng.uniform(size=(len(rows), 1)) < 0.5)
+    picks = rng.integers(0, max(len(rows), 1), size=int(rng.integers(0, 6))) if len(rows) else []
+    extra = [
+        rows[i] + rng.choice([1e-9, 2.0 * np.pi, 0.6e-6, 1.2e-6]) * (np.arange(6) == rng.integers(6))
+        for i in picks
+    ]
+    rows = np.concatenate([rows, *[e[None] for e in extra]]) if extra else rows
+    owner = rng.integers(0, n, size=len(rows))
+    got = g6._distinct(rows, owner, n)
+    assert len(got) == n
+    for k in range(n):
+        ref = g6._dedup(rows[owner == k])
+        assert got[k].shape == ref.shape and np.array_equal(got[k], ref)

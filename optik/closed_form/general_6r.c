@@ -28,14 +28,16 @@ static void dh(cplx theta, double d, double a, double ca, double sa, cplx m[4][4
     m[3][0] = 0, m[3][1] = 0, m[3][2] = 0, m[3][3] = 1;
 }
 
-/* out = x y (4 x 4) */
+/* out = x y (4 x 4) of homogeneous transforms (last rows 0, 0, 0, 1): the terms of the last row
+ * of y (zero, and one in the last column) are left out */
 static void mul4(cplx x[4][4], cplx y[4][4], cplx out[4][4]) {
-    for (int r = 0; r < 4; ++r)
+    for (int r = 0; r < 3; ++r)
         for (int k = 0; k < 4; ++k) {
             cplx v = 0;
-            for (int j = 0; j < 4; ++j) v += x[r][j] * y[j][k];
-            out[r][k] = v;
+            for (int j = 0; j < 3; ++j) v += x[r][j] * y[j][k];
+            out[r][k] = k == 3 ? v + x[r][3] : v;
         }
+    for (int k = 0; k < 4; ++k) out[3][k] = k == 3;
 }
 
 /* prefix products pre[0..joints] of the DH transforms at theta */
@@ -72,8 +74,11 @@ static double residual(cplx pre[7][4][4], const double *t, cplx *err) {
 static int solve6(cplx j[6][6], cplx *b, cplx *x) {
     for (int c = 0; c < 6; ++c) {
         int p = c;
-        for (int r = c + 1; r < 6; ++r)
-            if (cabs(j[r][c]) > cabs(j[p][c])) p = r;
+        double top = cabs(j[c][c]);
+        for (int r = c + 1; r < 6; ++r) {
+            double size = cabs(j[r][c]);
+            if (size > top) top = size, p = r;
+        }
         if (j[p][c] == 0) return 0;
         if (p != c) {
             for (int k = 0; k < 6; ++k) {
@@ -137,6 +142,31 @@ int optik_g6r_polish(const double *dh, int k, int iterations, double *theta, con
     for (int i = 0; i < 6; ++i) ca[i] = cos(dh[12 + i]), sa[i] = sin(dh[12 + i]);
     for (int n = 0; n < k; ++n)
         if (polish_one(d, a, ca, sa, iterations, (cplx *)theta + 6 * n, t + 16 * n, size + n)) return 1;
+    return 0;
+}
+
+/* general_6r._wrap: q wrapped to (-pi, pi] with numpy's floating remainder ((q + pi) % 2 pi, the
+ * sign of the divisor), then - pi: the same numbers as numpy's */
+static double wrap(double q) {
+    double two_pi = 2.0 * M_PI, mod = fmod(q + M_PI, two_pi);
+    if (mod != 0.0) {
+        if (mod < 0.0) mod += two_pi;
+    } else
+        mod = 0.0;
+    double w = mod - M_PI;
+    return w <= -M_PI ? w + two_pi : w;
+}
+
+/* general_6r._last_polish of one real candidate th (DH angles): the joint angles q = wrap(th - offset)
+ * polished on the DH model from q + offset, then wrap(theta - offset) again, into q. Returns
+ * polish_one's code. */
+static int last_polish(const double *d, const double *a, const double *ca, const double *sa, const double *offset,
+                       const double *th, const double *tn, double *q) {
+    cplx x[6];
+    double ignored;
+    for (int i = 0; i < 6; ++i) x[i] = wrap(th[i] - offset[i]) + offset[i];
+    if (polish_one(d, a, ca, sa, 12, x, tn, &ignored)) return 1;
+    for (int i = 0; i < 6; ++i) q[i] = wrap(creal(x[i]) - offset[i]);
     return 0;
 }
 
@@ -268,9 +298,11 @@ static void wrist_angles(const cplx *w, int real, cplx *phi) {
  * pencil regular, pencil well posed, finite non-spurious eigenvalues, those far from the real
  * axis, candidates k; `theta` (24 x 6 complex): the polished candidates, `size` (24) their
  * residuals, `retry` (24) whether each was polished from its real part too, `again` (24 x 6) the
- * result of that. Returns 0. */
+ * result of that. With `offset` (the arm's 6 joint offsets, or NULL: not done) the last polish of
+ * general_6r._last_polish runs here too: `real` (24 x 6) gets it for each candidate real to 1e-8
+ * (IMAG_TOL; the other rows are left as they are) and `again` is replaced by it. Returns 0. */
 int optik_g6r_solve(const double *model, void *const *lapack, int n, const double *tp, double *info, double *theta,
-                    double *size, int *retry, double *again) {
+                    double *size, int *retry, double *again, const double *offset, double *real) {
     static const double probes[2][3] = {{1.0, 0.5773502692, 0.3333333333}, {1.0, -1.7320508076, 3.0}};
     dgesdd_t gesdd = (dgesdd_t)lapack[0];
     dgeev_t geev = (dgeev_t)lapack[1];
@@ -389,7 +421,7 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
             }
         int count = 0, far = 0, k = 0;
         double *th_out = theta + 2 * 6 * MAX_CANDIDATES * t, *size_out = size + MAX_CANDIDATES * t;
-        double *again_out = again + 6 * MAX_CANDIDATES * t;
+        double *again_out = again + 6 * MAX_CANDIDATES * t, *real_out = real + 6 * MAX_CANDIDATES * t;
         int *retry_out = retry + MAX_CANDIDATES * t;
         for (int j = 0; j < 24 && !failed; ++j) {
             if (!good[j] || spurious[j]) continue;
@@ -427,6 +459,12 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
                 for (int i = 0; i < 6; ++i) re[i] = creal(re[i]);
                 failed |= polish_one(d, a, ca, sa, 12, re, tn, &ignored);
                 for (int i = 0; i < 6; ++i) again_out[6 * k + i] = creal(re[i]);
+                if (offset) failed |= last_polish(d, a, ca, sa, offset, again_out + 6 * k, tn, again_out + 6 * k);
+            }
+            if (offset && imag <= 1e-8) {
+                double re[6];
+                for (int i = 0; i < 6; ++i) re[i] = creal(th[i]);
+                failed |= last_polish(d, a, ca, sa, offset, re, tn, real_out + 6 * k);
             }
             ++k;
         }

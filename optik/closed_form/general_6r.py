@@ -67,19 +67,23 @@ candidate did not converge or a real one failed its check: the arm or the pose i
 degenerate (special geometry, a pose on a singular boundary, a root that cannot be decided) and
 solutions may be missing.
 
-**In C.** Steps 1-3, the eigenvalues and the candidates' back-substitution and complex polish
-run for each target in one C call (``general_6r.c``, ``optik_g6r_solve``, built once per machine
-in the background, `optik.native.CFunction`; its linear algebra is scipy's LAPACK, ``dgesdd``,
-``dgeev``, ``dgetrf``, ``dgetrs``, run on one OpenBLAS thread); numpy answers until it is built,
+**In C.** Steps 1-3, the eigenvalues, the candidates' back-substitution and complex polish and
+the real candidates' last polish on the DH model run for each target in one C call
+(``general_6r.c``, ``optik_g6r_solve``, built once per machine in the background,
+`optik.native.CFunction`; its linear algebra is scipy's LAPACK, ``dgesdd``, ``dgeev``,
+``dgetrf``, ``dgetrs``, run on one OpenBLAS thread); numpy answers until it is built,
 without a compiler (logged), for a badly conditioned ``A`` (QZ) and for an exactly singular
-Jacobian. Both give the same candidates to rounding; the last polish, the FK check (one ``m.fk``
-call per batch, reused from the polish) and the count check are common.
+Jacobian. Both give the same candidates to rounding; the polish on ``m.fk``, the FK check (one
+``m.fk`` call per batch, reused from that polish) and the count check are common, the count
+check for all targets of a batch at once (counts by ``np.bincount`` over the candidates' targets,
+`_distinct` for the deduplication).
 """
 
 from __future__ import annotations
 
 import ctypes
 import functools
+import itertools
 import logging
 import math
 from collections.abc import Sequence
@@ -195,7 +199,7 @@ _SOLVE = native.CFunction(
     _SOURCE,
     "optik_general_6r",
     "optik_g6r_solve",
-    [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 6],
+    [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 8],
 )
 """`_candidates` in C, the whole elimination of many targets in one call (`_candidates_c`)."""
 _MAX_CANDIDATES = 24
@@ -712,12 +716,17 @@ def _wrap(q: np.ndarray) -> np.ndarray:
     return np.where(w <= -np.pi, w + _TWO_PI, w)
 
 
-def _pose_errors(t: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Position error and geodesic orientation angle of ``t`` against ``target`` (batched)."""
-    dp = np.linalg.norm(t[..., :3, 3] - target[..., :3, 3], axis=-1)
+def _fk_errors(t: np.ndarray, target: np.ndarray, scale: float) -> np.ndarray:
+    """The FK error that `FK_TOL` bounds (batched): the position error ``|p - p*| / scale`` or
+    the geodesic angle of ``R = R*^T R(q)``, ``atan2(|vee(R - R^T)| / 2, (tr R - 1) / 2)``,
+    whichever is larger. The sums are written out in the order of ``np.linalg.norm`` and
+    ``np.trace`` (the same numbers, without their per-call cost)."""
+    d = t[..., :3, 3] - target[..., :3, 3]
+    dp = np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2])
     r = np.swapaxes(target[..., :3, :3], -1, -2) @ t[..., :3, :3]
-    cos = np.clip((np.trace(r, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)
-    return dp, np.arctan2(0.5 * np.linalg.norm(_skew(r), axis=-1), cos)
+    x, y, z = r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]
+    cos = np.minimum(np.maximum((r[..., 0, 0] + r[..., 1, 1] + r[..., 2, 2] - 1.0) / 2.0, -1.0), 1.0)
+    return np.maximum(dp / scale, np.arctan2(0.5 * np.sqrt(x * x + y * y + z * z), cos))
 
 
 def _dedup(q: np.ndarray) -> np.ndarray:
@@ -733,6 +742,25 @@ def _dedup(q: np.ndarray) -> np.ndarray:
         if not close[i, keep].any():
             keep.append(i)
     return q[keep]
+
+
+def _distinct(rows: np.ndarray, owner: np.ndarray, n: int) -> list[np.ndarray]:
+    """`_dedup` of the rows of each target ``0 .. n-1`` (``owner``: each row's target), in
+    their order: a list of ``n`` arrays. Each row is compared with the earlier rows of its
+    target all at once; only a target with a close pair goes through `_dedup`."""
+    order = np.argsort(owner, kind="stable")
+    rows, owner = rows[order], owner[order]
+    start = np.searchsorted(owner, np.arange(n + 1))
+    bounds = start.tolist()
+    groups = [rows[i:j] for i, j in itertools.pairwise(bounds)]
+    rank = np.arange(len(owner)) - start[owner]  # of each row in its target's group
+    later = np.repeat(np.arange(len(owner)), rank)  # row i once per earlier row j of its group
+    earlier = later - rank[later] + np.arange(len(later)) - np.repeat(np.cumsum(rank) - rank, rank)
+    diff = rows[later] - rows[earlier]
+    close = np.max(np.abs(_wrap(diff.real)) + np.abs(diff.imag), axis=-1, initial=0.0) < _SAME
+    for k in np.unique(owner[later[close]]) if close.any() else ():
+        groups[k] = _dedup(groups[k])
+    return groups
 
 
 def _unit_targets(arm: General6R, targets: np.ndarray) -> np.ndarray:
@@ -769,7 +797,7 @@ def _matrices(arm: General6R, tp: np.ndarray) -> tuple[np.ndarray, ...]:
 @dataclass
 class _Candidates:
     """The polished candidates of targets ``0 .. N-1`` (steps 1-3, the eigenvalues, the
-    back-substitution and the complex polish), what `_verify` decides on.
+    back-substitution and the complex polish), what `_solve` decides on.
 
     Attributes:
         rank_ok, regular: per target, ``Q`` of full rank and the pencil regular.
@@ -778,7 +806,9 @@ class _Candidates:
         owner: per candidate, its target.
         theta, residual: per candidate, the polished (complex) angles and ``max |r|`` at them.
         retry: the candidates also polished from their real parts (`_REAL_RETRY`), ascending.
-        again: their polished real angles, ``(len(retry), 6)``.
+        again: their polished real angles in joint coordinates (`_joint_rows`), ``(len(retry), 6)``.
+        real: per candidate real to `IMAG_TOL`, its real part in joint coordinates (`_joint_rows`;
+            NaN for the others).
     """
 
     rank_ok: np.ndarray
@@ -790,11 +820,41 @@ class _Candidates:
     residual: np.ndarray
     retry: np.ndarray
     again: np.ndarray
+    real: np.ndarray
 
 
-def _candidates(arm: General6R, tp: np.ndarray) -> _Candidates:
+def _joint_rows(
+    arm: General6R,
+    theta: np.ndarray,
+    owner: np.ndarray,
+    retry: np.ndarray,
+    again: np.ndarray,
+    tp: np.ndarray,
+    last: bool,
+) -> tuple[np.ndarray, np.ndarray]:
+    """`_Candidates.real` and `_Candidates.again` of polished candidates ``theta`` (DH angles,
+    complex; ``owner``: their targets) and the real retries ``again`` of the candidates
+    ``retry``: joint angles ``_wrap(theta - offset)``, after `_last_polish` (unit-scale targets
+    ``tp``) with ``last``."""
+    rows = np.flatnonzero(np.max(np.abs(theta.imag), axis=1, initial=0.0) <= IMAG_TOL)
+    q = _wrap(np.concatenate([theta[rows].real, again]) - arm.offset)
+    if last and len(q):
+        q = _last_polish(arm, q, tp[np.concatenate([owner[rows], owner[retry]])])
+    real = np.full((len(theta), 6), np.nan)
+    real[rows] = q[: len(rows)]
+    return real, q[len(rows) :]
+
+
+def _last_polish(arm: General6R, q: np.ndarray, tp: np.ndarray) -> np.ndarray:
+    """`_polish` of real joint angles ``q (K, 6)`` on the DH model towards the unit-scale targets
+    ``tp (K, 4, 4)``, wrapped: the first step of `_refine`."""
+    return _wrap(_polish(arm._left, q + arm.offset, tp)[0] - arm.offset)
+
+
+def _candidates(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candidates:
     """`_Candidates` of the unit-scale targets ``tp`` in numpy (the C kernels `_BACK` and
-    `_POLISH` where loaded): the path without the whole solve in C (`_candidates_c`)."""
+    `_POLISH` where loaded): the path without the whole solve in C (`_candidates_c`); with
+    ``last`` the real ones (and the real retries) after `_last_polish` too."""
     left = arm._left
     u, sv, vt, r0, mats, rank_ok, regular, well = _matrices(arm, tp)
     vals, vecs = _eigen(mats)
@@ -848,8 +908,18 @@ def _candidates(arm: General6R, tp: np.ndarray) -> _Candidates:
     retry = np.flatnonzero(~real & (np.abs(phi[:, 0].imag) <= _REAL_RETRY))
     flat_phi = np.concatenate([phi[retry, :1].real, _half_angle(w[retry], real=True)], 1)
     again = _polish(left, back_substitute(flat_phi, idx_n[retry]).real, tp[idx_n[retry]])[0]
+    real_rows, again = _joint_rows(arm, theta, idx_n, retry, again, tp, last)
     return _Candidates(
-        rank_ok, regular, np.sum(good, axis=1), np.sum(far, axis=1), idx_n, theta, residual, retry, again
+        rank_ok,
+        regular,
+        np.sum(good, axis=1),
+        np.sum(far, axis=1),
+        idx_n,
+        theta,
+        residual,
+        retry,
+        again,
+        real_rows,
     )
 
 
@@ -892,14 +962,14 @@ def _threads_local(address: int) -> int:
         return 0
 
 
-def _candidates_c(arm: General6R, tp: np.ndarray) -> _Candidates:
+def _candidates_c(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candidates:
     """`_candidates` with the whole solve of each target in C (``optik_g6r_solve``: one call for
-    all targets) when its library and scipy's LAPACK are loaded; targets that it hands back (QZ
-    needed, a LAPACK failure, an exactly singular Jacobian) and every target without the library
-    take the numpy path."""
+    all targets, `_last_polish` included with ``last``) when its library and scipy's LAPACK are
+    loaded; targets that it hands back (QZ needed, a LAPACK failure, an exactly singular
+    Jacobian) and every target without the library take the numpy path."""
     fn, lapack = _SOLVE.get(), _lapack()
     if fn is None or lapack is None or not len(tp):
-        return _candidates(arm, tp)
+        return _candidates(arm, tp, last)
     n, cap = len(tp), _MAX_CANDIDATES
     tp = np.ascontiguousarray(tp)
     info = np.empty((n, 8))
@@ -907,27 +977,42 @@ def _candidates_c(arm: General6R, tp: np.ndarray) -> _Candidates:
     size = np.empty((n, cap))
     retry = np.zeros((n, cap), dtype=np.intc)
     again = np.empty((n, cap, 6))
+    real = np.full((n, cap, 6), np.nan)
     out = (info, theta, size, retry, again)
-    fn(arm._left.model.ctypes.data, lapack.ctypes.data, n, tp.ctypes.data, *(v.ctypes.data for v in out))
+    offset = arm.offset.ctypes.data if last else None
+    fn(
+        arm._left.model.ctypes.data,
+        lapack.ctypes.data,
+        n,
+        tp.ctypes.data,
+        *(v.ctypes.data for v in out),
+        offset,
+        real.ctypes.data,
+    )
     done = info[:, 0] == 0
     count = np.where(done, info[:, 6], 0).astype(int)
     mask = np.arange(cap)[None] < count[:, None]
     owner = np.nonzero(mask)[0]
     flags = retry[mask].astype(bool)
+    retried, theta, again = np.flatnonzero(flags), theta[mask], again[mask][flags]
+    real = real[mask]
+    if not last:
+        real, again = _joint_rows(arm, theta, owner, retried, again, tp, last)
     cand = _Candidates(
         info[:, 1] > 0,
         info[:, 2] > 0,
         info[:, 4].astype(int),
         info[:, 5].astype(int),
         owner,
-        theta[mask],
+        theta,
         size[mask],
-        np.flatnonzero(flags),
-        again[mask][flags],
+        retried,
+        again,
+        real,
     )
     rest = np.flatnonzero(~done)
     if len(rest):
-        cand = _join(cand, rest, _candidates(arm, tp[rest]))
+        cand = _join(cand, rest, _candidates(arm, tp[rest], last))
     return cand
 
 
@@ -943,16 +1028,22 @@ def _join(cand: _Candidates, rows: np.ndarray, other: _Candidates) -> _Candidate
         np.concatenate([cand.residual, other.residual]),
         np.concatenate([cand.retry, len(cand.owner) + other.retry]),
         np.concatenate([cand.again, other.again]),
+        np.concatenate([cand.real, other.real]),
     )
 
 
-def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[General6RSolutions]:
-    """The eigenvalue solver on validated targets ``(N, 4, 4)``; ``fk`` is the independent
-    forward kinematics used for the final check (``q (K, 6) -> (K, 4, 4)``), ``refine`` the
-    last polish of the candidates on the exact model (``(q, target index) -> (q, poses)``, the
-    poses ``fk(q)`` when it computed them, else None)."""
+def _solve(
+    arm: General6R, targets: np.ndarray, check: Any, last: bool, candidates: Any = None
+) -> list[General6RSolutions]:
+    """The eigenvalue solver on validated targets ``(N, 4, 4)``; ``check`` polishes the real
+    candidates last on the exact model and measures them by the independent forward kinematics
+    (``(q, target index) -> (q, FK errors)``, errors as `_fk_errors` of ``arm``), after
+    `_last_polish` on ``arm`` with ``last`` (which ``check`` then leaves out). The per-target
+    counts are taken for all targets at once (``np.bincount`` over the candidates' targets).
+    ``candidates``: the elimination (`_candidates_c` when None, `_candidates` for the numpy
+    pipeline alone)."""
     n = len(targets)
-    cand = _candidates_c(arm, _unit_targets(arm, targets))
+    cand = (candidates or _candidates_c)(arm, _unit_targets(arm, targets), last)
     idx_n, theta = cand.owner, cand.theta
     converged = cand.residual <= _CONVERGED * _magnitude(theta)
     # real to IMAG_TOL: a real candidate, which the last polish and the FK check decide (the DH
@@ -962,43 +1053,56 @@ def _solve(arm: General6R, targets: np.ndarray, fk: Any, refine: Any) -> list[Ge
     retry = cand.retry
     at = np.flatnonzero(real)
     owner = np.concatenate([idx_n[at], idx_n[retry]])
-    q, pose = refine(_wrap(np.concatenate([theta[at].real, cand.again]) - arm.offset), owner)
-    ok = np.zeros(len(q), dtype=bool)
-    fk_err = np.full(len(q), np.inf)
-    if len(q):
-        dp, dr = _pose_errors(fk(q) if pose is None else pose, targets[owner])
-        fk_err = np.maximum(dp / arm.scale, dr)
-        ok = fk_err <= FK_TOL
+    q, fk_err = check(np.concatenate([cand.real[at], cand.again]), owner)
+    ok = fk_err <= FK_TOL
     rescued = np.zeros(len(theta), dtype=bool)
     rescued[retry[ok[len(at) :]]] = True
     first = np.arange(len(q)) < len(at)  # the real candidates (the rest: the retried ones)
+    # the distinct real solutions (rows 2k) and complex ones (rows 2k + 1) of each target k in one go
+    complex_ = converged & ~real & ~rescued
+    rows = np.concatenate([q[ok], theta[complex_]])
+    groups = _distinct(rows, np.concatenate([2 * owner[ok], 2 * idx_n[complex_] + 1]), 2 * n)
+    sols = [np.ascontiguousarray(x.real) for x in groups[0::2]]
+    n_complex = np.array([len(x) for x in groups[1::2]], dtype=int) + cand.n_far
+    n_rejected = np.bincount(idx_n[~real & ~converged & ~rescued], minlength=n) + np.bincount(
+        owner[first & ~ok], minlength=n
+    )
+    n_real = np.bincount(idx_n[real | rescued], minlength=n)
+    err = np.zeros(n)
+    np.maximum.at(err, owner[ok], fk_err[ok])
     out = []
     for k in range(n):
-        mine, mine_real = idx_n == k, owner == k
-        sols = _dedup(q[mine_real & ok])
-        n_finite = int(cand.n_good[k])
-        n_complex = len(_dedup(theta[mine & converged & ~real & ~rescued])) + int(cand.n_far[k])
-        n_rejected = int(np.sum(mine & ~real & ~converged & ~rescued) + np.sum(mine_real & first & ~ok))
-        count_ok = (
-            bool(cand.rank_ok[k] and cand.regular[k])
+        n_sols, n_finite = len(sols[k]), int(cand.n_good[k])
+        count_ok = bool(
+            cand.rank_ok[k]
+            and cand.regular[k]
             and n_finite == 16
-            and n_rejected == 0
-            and len(sols) + n_complex == 16
+            and n_rejected[k] == 0
+            and n_sols + n_complex[k] == 16
         )
         reason = ""
         if not count_ok:
             reason = (
-                f"count check failed: {n_finite} finite eigenvalues (16 expected), {len(sols)} distinct real "
-                f"and {n_complex} distinct complex solutions verified, {n_rejected} candidates that did not "
-                "converge or failed the FK check"
+                f"count check failed: {n_finite} finite eigenvalues (16 expected), {n_sols} distinct real "
+                f"and {n_complex[k]} distinct complex solutions verified, {n_rejected[k]} candidates that "
+                "did not converge or failed the FK check"
                 + ("" if cand.rank_ok[k] else ", rank-deficient elimination (special geometry)")
                 + ("" if cand.regular[k] else ", singular 12 x 12 matrix for every x_3 (special geometry)")
             )
-        elif not len(sols):
+        elif not n_sols:
             reason = "unreachable: all 16 solutions are complex"
-        err = float(np.max(fk_err[mine_real & ok], initial=0.0))
-        n_real = int(np.sum(mine & (real | rescued)))
-        out.append(General6RSolutions(sols, n_finite, n_real, n_complex, n_rejected, err, count_ok, reason))
+        out.append(
+            General6RSolutions(
+                sols[k],
+                n_finite,
+                int(n_real[k]),
+                int(n_complex[k]),
+                int(n_rejected[k]),
+                float(err[k]),
+                count_ok,
+                reason,
+            )
+        )
     return out
 
 
@@ -1035,49 +1139,78 @@ def solve_general_6r(
     fk = arm.fk if m is not None else g.fk
     out = _both_ends(g, targets, fk, m)
     bad = [k for k, s in enumerate(out) if not s.count_ok]
+    if bad and _compiled():  # a second opinion: the numpy pipeline's own eigen-solutions
+        again = _both_ends(g, targets[bad], fk, m, _candidates)
+        for k, sol in zip(bad, again, strict=True):
+            out[k] = sol if sol.count_ok else _union(out[k], sol)
+        bad = [k for k in bad if not out[k].count_ok]
     if bad:  # special geometry at both ends: candidates from a nearby generic arm
         near = _both_ends(g.perturbed, targets[bad], g.perturbed.fk, None)
         for k, sol in zip(bad, near, strict=True):
-            q = _refine(g, m, sol.q.copy(), np.repeat(targets[k][None], len(sol.q), axis=0))[0]
-            out[k] = _add(out[k], q, targets[k], fk, g.scale)
+            q, _, err = _refine(g, m, sol.q.copy(), np.repeat(targets[k][None], len(sol.q), axis=0))
+            out[k] = _add(out[k], q, err)
     return out[0] if single else out
 
 
-def _both_ends(g: General6R, targets: np.ndarray, fk: Any, m: Mechanism | None) -> list[General6RSolutions]:
+def _both_ends(
+    g: General6R, targets: np.ndarray, fk: Any, m: Mechanism | None, candidates: Any = None
+) -> list[General6RSolutions]:
     """The eigenvalue solver on ``g``, then on its inverse chain for the targets whose count
-    check failed (``m``: the mechanism whose ``m.fk`` polishes the solutions last, or None)."""
+    check failed (``m``: the mechanism whose ``m.fk`` polishes the solutions last, or None;
+    ``candidates``: the elimination, as for `_solve`)."""
 
-    def refine(q: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-        return _refine(g, m, q, targets[idx])
+    def check(q: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """`_refine` after `_last_polish` (in `_solve`)."""
+        q, _, err = _refine(g, m, q, targets[idx], dh=False)
+        return q, err
 
-    def refine_reversed(q: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-        """`refine` of the inverse chain's candidates ``q`` (reversed) of the targets ``bad[idx]``."""
-        fwd, pose = refine(q[:, ::-1], np.asarray(bad, dtype=int)[idx])
-        return fwd[:, ::-1], None if pose is None else _inv(pose)
+    def check_reversed(q: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """`check` of the inverse chain's candidates ``q`` (reversed) of the targets ``bad[idx]``,
+        its FK errors measured on the inverse chain."""
+        fwd, pose, _ = _refine(g, m, q[:, ::-1], bad_targets[idx])
+        return fwd[:, ::-1], _fk_errors(_inv(pose), inverse[idx], g.reversed.scale)
 
-    out = _solve(g, targets, fk, refine)
+    out = _solve(g, targets, check, True, candidates)
     bad = [k for k, s in enumerate(out) if not s.count_ok]
     if bad:  # special geometry at the first axes: solve the inverse chain from the other end
-        back = _solve(
-            g.reversed,
-            _inv(targets[bad]),
-            lambda q: _inv(fk(q[:, ::-1])),
-            refine_reversed,
-        )
+        bad_targets = targets[bad]
+        inverse = _inv(bad_targets)
+        back = _solve(g.reversed, inverse, check_reversed, False, candidates)
         for k, rev in zip(bad, back, strict=True):
             out[k] = _merge(out[k], rev, targets[k], fk, g.scale)
     return out
 
 
-def _add(
-    sols: General6RSolutions, q: np.ndarray, target: np.ndarray, fk: Any, scale: float
-) -> General6RSolutions:
-    """``sols`` (flagged) with the candidates ``q`` that pass the FK check added (deduplicated)."""
-    err = np.zeros(0)
-    if len(q):
-        dp, dr = _pose_errors(fk(q), target)
-        err = np.maximum(dp / scale, dr)
-        q = q[err <= FK_TOL]
+def _compiled() -> bool:
+    """Whether `_candidates_c` runs the C elimination (its library and scipy's LAPACK loaded)."""
+    return _SOLVE.get() is not None and _lapack() is not None
+
+
+def _union(first: General6RSolutions, second: General6RSolutions) -> General6RSolutions:
+    """Both verified sets of one target (each row passed the FK check), deduplicated, flagged:
+    near special geometry the compiled and the numpy eliminations (the same algebra, other
+    LAPACK builds and rounding) can each miss a solution that the other finds."""
+    merged = _dedup(np.vstack([first.q, second.q]))
+    reason = (
+        f"{first.reason}; {len(merged) - len(first.q)} more from the numpy pipeline "
+        f"({second.reason.removeprefix('count check failed: ')})"
+    )
+    return General6RSolutions(
+        merged,
+        first.n_finite,
+        first.n_real_candidates,
+        first.n_complex,
+        first.n_rejected,
+        max(first.fk_error, second.fk_error),
+        False,
+        reason,
+    )
+
+
+def _add(sols: General6RSolutions, q: np.ndarray, err: np.ndarray) -> General6RSolutions:
+    """``sols`` (flagged) with the candidates ``q`` whose FK errors ``err`` pass the FK check
+    added (deduplicated)."""
+    q = q[err <= FK_TOL]
     merged = _dedup(np.vstack([sols.q, q]))
     added = len(merged) - len(sols.q)
     fk_error = max(sols.fk_error, float(np.max(err[err <= FK_TOL], initial=0.0)))
@@ -1095,32 +1228,33 @@ def _add(
 
 
 def _refine(
-    g: General6R, m: Mechanism | None, q: np.ndarray, targets: np.ndarray
-) -> tuple[np.ndarray, np.ndarray | None]:
-    """The last Newton polish on the exact model: the DH model ``g`` (exact for a `General6R`;
+    g: General6R, m: Mechanism | None, q: np.ndarray, targets: np.ndarray, dh: bool = True
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The last Newton polish on the exact model: the DH model ``g`` (`_last_polish`, unless
+    ``dh`` is False: the candidates had it; exact for a `General6R`;
     candidates of the inverse chain come from its own, less accurate, DH description), then for
     a mechanism a few steps on ``m.fk`` and ``m.jacobian`` wherever the FK error is still above
     rounding (the DH description of near-parallel axes loses digits). Returns the polished
-    angles (wrapped) and, for a mechanism whose last evaluation of ``m.fk`` was at them (no step
-    left to take: the usual case), those poses, which the caller's FK check reuses; else None."""
+    angles (wrapped), their poses by the independent forward kinematics (``m.fk``, or ``g.fk``
+    for a `General6R`; the last evaluation of the polish when no step was left to take, the
+    usual case) and their FK errors (`_fk_errors`), which the FK check reads."""
     if not len(q):
-        return q, None
-    tp = _unit_targets(g, targets)
-    q = _wrap(_polish(g._left, q + g.offset, tp)[0] - g.offset)
-    if m is None:
-        return q, None
-    for _ in range(3):
+        return q, np.zeros((0, 4, 4)), np.zeros(0)
+    if dh:
+        q = _last_polish(g, q, _unit_targets(g, targets))
+    for _ in range(3 if m is not None else 0):
         pose = m.fk(q).reshape(-1, 4, 4)
-        dp, dr = _pose_errors(pose, targets)
-        todo = np.flatnonzero(np.maximum(dp / g.scale, dr) > _EXACT)
+        fk_err = _fk_errors(pose, targets, g.scale)
+        todo = np.flatnonzero(fk_err > _EXACT)
         if not len(todo):
-            return q, pose
+            return q, pose, fk_err
         for k in todo:
             rot = pose[k, :3, :3] @ targets[k, :3, :3].T
             err = np.concatenate([pose[k, :3, 3] - targets[k, :3, 3], 0.5 * _skew(rot)])
             q[k] = q[k] - np.linalg.lstsq(m.jacobian(q[k]), err, rcond=None)[0]
         q = _wrap(q)
-    return q, None
+    pose = (g.fk if m is None else m.fk)(q).reshape(-1, 4, 4)
+    return q, pose, _fk_errors(pose, targets, g.scale)
 
 
 def _merge(
@@ -1129,10 +1263,7 @@ def _merge(
     """The answer of the reversed chain if its count check passed, else the union of both
     verified sets (still flagged); the FK error is recomputed on the forward chain."""
     q = rev.q[:, ::-1] if rev.count_ok else _dedup(np.vstack([fwd.q, rev.q[:, ::-1]]))
-    err = 0.0
-    if len(q):
-        dp, dr = _pose_errors(fk(q), target)
-        err = float(np.max(np.maximum(dp / scale, dr)))
+    err = float(np.max(_fk_errors(fk(q), target, scale), initial=0.0)) if len(q) else 0.0
     if rev.count_ok:
         return General6RSolutions(
             q, rev.n_finite, rev.n_real_candidates, rev.n_complex, rev.n_rejected, err, True, rev.reason

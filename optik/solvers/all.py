@@ -189,7 +189,9 @@ def _collision_free(
             hit.append(r)
         else:
             clear.append(r)
-    out = IKSolutions(clear, found.outside_limits, found.failed_check, found.method, found.uncertified_reason)
+    out = IKSolutions(
+        clear, found.outside_limits, found.failed_check, found.method, found.uncertified_reason, m.n_q
+    )
     out.in_collision = hit
     return out
 
@@ -278,7 +280,7 @@ def _from_rows(request: IKRequest, rows: list[list[float]]) -> IKSolutions:
         else:
             failed += 1
     reason = (rows.reason or "no reason given") if isinstance(rows, registry.Uncertified) else ""
-    return IKSolutions(kept, outside, failed, "closed_form", reason)
+    return IKSolutions(kept, outside, failed, "closed_form", reason, m.n_q)
 
 
 def _locks(m: Mechanism, fixed: Mapping[str, float]) -> dict[int, float]:
@@ -435,7 +437,7 @@ def _numeric_all(
         misses = 0
     kept = sorted((r for r, _ in found), key=lambda r: joint_distance(m, r.q, near))
     why = f"found by the numerical multi-start ({name}), which does not prove that no solution is missing"
-    return IKSolutions(kept, method=name, uncertified_reason=why)
+    return IKSolutions(kept, method=name, uncertified_reason=why, n_q=m.n_q)
 
 
 def _polished(request: IKRequest, res: IKResult, q: np.ndarray) -> IKResult:

@@ -88,6 +88,5 @@ class AllSolutions:
             if got is not None and got is not False:
                 return got
         sols = solve_ik_all(self.mechanism, target, q0)
-        n = self.mechanism.n_q
-        q = sols.q.reshape(-1, n)
-        return (q, np.array(sols.outside_limits).reshape(-1, n)) if outside else q
+        q = sols.q
+        return (q, np.array(sols.outside_limits).reshape(-1, q.shape[1])) if outside else q

@@ -165,7 +165,7 @@ class _Exact:
         that collides ends at its first close pair (a round's answer, rejected: `complete` makes
         the distance, the pair and the message exact for the answer returned)."""
         found = search(self.geo, res.q, self.world, self.margin, self.self_collision, stop)
-        return self._judged(res, found, res.success)
+        return self._judged(res, found, res.success, False)
 
     def complete(self, res: IKResult) -> IKResult:
         """The answer a solve returns, judged by `finish` with ``stop``, judged in full when it
@@ -173,21 +173,25 @@ class _Exact:
         if res.success:
             return res
         found = search(self.geo, res.q, self.world, self.margin, self.self_collision)
-        return self._judged(res, found, res.status == "in_collision")
+        return self._judged(res, found, res.status == "in_collision", True)
 
-    def _judged(self, res: IKResult, found: Search, reached: bool) -> IKResult:
-        """``res`` with the distance and pair of ``found``; when the pose is ``reached`` and some
-        pair is close, failed as ``"in_collision"``, its message naming the closest close pair."""
+    def _judged(self, res: IKResult, found: Search, reached: bool, full: bool) -> IKResult:
+        """``res`` with the distance and pair of ``found``; when some pair is close, its message
+        names the closest close pair, and when the pose is ``reached`` it fails as
+        ``"in_collision"`` (an answer that failed otherwise, e.g. at the time limit, keeps its
+        status and, when ``found`` is a full search, says which pair its configuration also
+        brings too close)."""
         res.min_distance = np.inf if found.nearest is None else found.nearest[0]
         res.collision_pair = found.names(self.geo, self.world)
-        if reached and found.in_collision:
+        if found.in_collision:
             d, a, b, on_world, _ = min(found.close, key=lambda e: e[0])
             other = (self.world.parts[b] if on_world else self.geo.parts[b]).name
-            res.success, res.status = False, "in_collision"
-            res.message = (
-                f"the pose is reached but {self.geo.parts[a].name!r} and {other!r} are {d:.4g} m apart "
-                f"(margin {self.margin:g} m)"
-            )
+            pair = f"{self.geo.parts[a].name!r} and {other!r} are {d:.4g} m apart (margin {self.margin:g} m)"
+            if reached:
+                res.success, res.status = False, "in_collision"
+                res.message = f"the pose is reached but {pair}"
+            elif full:
+                res.message = f"{res.message}; in its configuration {pair}"
         return res
 
 

@@ -86,7 +86,7 @@ import functools
 import itertools
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -1033,17 +1033,21 @@ def _join(cand: _Candidates, rows: np.ndarray, other: _Candidates) -> _Candidate
 
 
 def _solve(
-    arm: General6R, targets: np.ndarray, check: Any, last: bool, candidates: Any = None
+    arm: General6R,
+    targets: np.ndarray,
+    check: Any,
+    last: bool,
+    candidates: Callable[[General6R, np.ndarray, bool], _Candidates] = _candidates_c,
 ) -> list[General6RSolutions]:
     """The eigenvalue solver on validated targets ``(N, 4, 4)``; ``check`` polishes the real
     candidates last on the exact model and measures them by the independent forward kinematics
     (``(q, target index) -> (q, FK errors)``, errors as `_fk_errors` of ``arm``), after
     `_last_polish` on ``arm`` with ``last`` (which ``check`` then leaves out). The per-target
     counts are taken for all targets at once (``np.bincount`` over the candidates' targets).
-    ``candidates``: the elimination (`_candidates_c` when None, `_candidates` for the numpy
+    ``candidates``: the elimination (`_candidates_c`, or `_candidates` for the numpy
     pipeline alone)."""
     n = len(targets)
-    cand = (candidates or _candidates_c)(arm, _unit_targets(arm, targets), last)
+    cand = candidates(arm, _unit_targets(arm, targets), last)
     idx_n, theta = cand.owner, cand.theta
     converged = cand.residual <= _CONVERGED * _magnitude(theta)
     # real to IMAG_TOL: a real candidate, which the last polish and the FK check decide (the DH
@@ -1153,7 +1157,11 @@ def solve_general_6r(
 
 
 def _both_ends(
-    g: General6R, targets: np.ndarray, fk: Any, m: Mechanism | None, candidates: Any = None
+    g: General6R,
+    targets: np.ndarray,
+    fk: Any,
+    m: Mechanism | None,
+    candidates: Callable[[General6R, np.ndarray, bool], _Candidates] = _candidates_c,
 ) -> list[General6RSolutions]:
     """The eigenvalue solver on ``g``, then on its inverse chain for the targets whose count
     check failed (``m``: the mechanism whose ``m.fk`` polishes the solutions last, or None;

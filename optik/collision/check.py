@@ -219,16 +219,16 @@ def search(
             break
         if k in done:  # checked before the bounds were refined
             continue
-        res = coal.DistanceResult()
-        if k < n_self:
-            a, b = geo.pair_list[k]
-            d = float(distance(parts[a].geometry, tf(a), parts[b].geometry, tf(b), request, res))
-            entry = (d, a, b, False, res)
-        else:
+        on_world = k >= n_self
+        if on_world:
             a, b = divmod(k - n_self, n_obj)
             other, tf_b = others[b].geometry, world.transforms[b]
-            d = float(distance(parts[a].geometry, tf(a), other, tf_b, request, res))
-            entry = (d, a, b, True, res)
+        else:
+            a, b = geo.pair_list[k]
+            other, tf_b = parts[b].geometry, tf(b)
+        res = coal.DistanceResult()
+        d = float(distance(parts[a].geometry, tf(a), other, tf_b, request, res))
+        entry = (d, a, b, on_world, res)
         done.add(k)
         if best is None or d < best[0]:
             best = entry

@@ -252,6 +252,8 @@ def _solve_lm(
     res, rounds = first, int(first is not None)
     iterations, restarts = (0, -1) if first is None else (first.iterations, first.restarts)
 
+    params: list[np.ndarray] = []  # the constrained kernel's, made when first needed
+
     def slide(res: IKResult) -> IKResult:
         """From a colliding answer (from round ``plain_rounds`` on), the constrained kernel (one
         start), its answer judged by the pose errors alone (its own closure error holds the
@@ -259,11 +261,12 @@ def _solve_lm(
         nonlocal iterations
         if res.status != "in_collision" or rounds < plain_rounds or request.remaining() <= 0:
             return res
-        bounds = bound_parameters(robot_geometry(m), self_collision, margin + buffer)
+        if not params:
+            bounds = bound_parameters(exact.geo, self_collision, margin + buffer)
+            params.append(np.concatenate([pose, world.slots, bounds]))
         once = conf.copy()
         once[2], once[3] = 0, request.remaining()
-        params = np.concatenate([pose, world.slots, bounds])
-        q, _, it, _, code = constrained.run_one(params, res.q, seed, once)
+        q, _, it, _, code = constrained.run_one(params[0], res.q, seed, once)
         iterations += it
         err = plain.final_errors(q, pose)
         res = lm_result(request, plain, q, err, iterations, restarts, code, pose)

@@ -5,6 +5,7 @@ answers and certificates of `solve_general_6r`."""
 from __future__ import annotations
 
 import ctypes
+import threading
 from types import SimpleNamespace
 
 import numpy as np
@@ -228,3 +229,48 @@ def test_last_polish_in_the_c_solve_equals_numpy(seed: int) -> None:
     ref = g6._candidates(arm, tp, last=True)
     assert np.array_equal(ref.owner[np.isfinite(ref.real[:, 0])], raw.owner[at])
     assert np.max(np.abs(g6._wrap(ref.real[np.isfinite(ref.real[:, 0])] - done.real[at]))) < 1e-9
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 3 * g6._FK_ROWS + 3))
+def test_batched_fk_check_equals_m_fk_row_by_row(seed: int, n: int) -> None:
+    """The FK check's evaluation of the mechanism (`_MechanismFK`, chunks of `_FK_ROWS` rows)
+    gives exactly ``m.fk`` of each row, for any number of rows (none, a partial chunk, several)
+    and rows that are views (reversed columns, as for the inverse chain's candidates)."""
+    rng = np.random.default_rng(seed)
+    m = _arm(rng)
+    q = rng.uniform(-np.pi, np.pi, (n, 6))
+    fk = g6._mechanism_fk(m)
+    assert g6._mechanism_fk(m) is fk  # made once per mechanism
+    got = fk(q)
+    assert got.shape == (n, 4, 4)
+    for row, pose in zip(q, got, strict=True):
+        assert np.array_equal(pose, m.fk(row))
+    flipped = q[:, ::-1]
+    assert np.array_equal(fk(flipped), m.fk(flipped).reshape(n, 4, 4))
+
+
+def test_batched_fk_check_in_four_threads_equals_one() -> None:
+    """Four threads evaluating one mechanism's `_MechanismFK` at once (each on its own buffers)
+    get the single thread's poses, call for call."""
+    rng = np.random.default_rng(3)
+    m = _arm(rng)
+    batches = [rng.uniform(-np.pi, np.pi, (int(k), 6)) for k in rng.integers(1, 3 * g6._FK_ROWS, 200)]
+    fk = g6._mechanism_fk(m)
+    ref = [fk(q) for q in batches]
+    start = threading.Barrier(4)
+    wrong: list[int] = []
+
+    def work(shift: int) -> None:
+        start.wait()
+        for k in range(len(batches)):
+            i = (k + 50 * shift) % len(batches)
+            if not np.array_equal(fk(batches[i]), ref[i]):
+                wrong.append(i)
+
+    threads = [threading.Thread(target=work, args=(t,)) for t in range(4)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    assert not wrong

@@ -159,6 +159,29 @@ def test_batch_matches_single_targets() -> None:
         assert all(min(angle_distance(x, y) for y in b.q) < 1e-9 for x in one.q)
 
 
+@settings(max_examples=20, deadline=None, derandomize=True)
+@given(st.integers(0, 2**32 - 1))
+def test_checked_rows_carry_the_fk_errors_of_each_solution(seed: int) -> None:
+    """A certified answer reaches the solvers layer as `registry.CheckedRows` whose errors are
+    each row's position and orientation errors by ``m.fk`` (evaluated here independently), and
+    `optik.solve_ik_all` reports those errors for the same solutions."""
+    from optik.solvers.base import task_errors
+
+    rng = np.random.default_rng(seed)
+    m = _random_arm(rng)
+    target = m.fk(rng.uniform(-np.pi, np.pi, 6))
+    rows = ik_general_6r(m, target)
+    assert isinstance(rows, registry.CheckedRows) and rows.wrapped
+    assert np.array_equal(np.array(rows).reshape(-1, 6), solve_general_6r(m, target).q)
+    for row, (pos, ori) in zip(rows, rows.errors, strict=True):
+        ref = task_errors("pose", m.fk(row), target)
+        assert abs(pos - ref[0]) < 1e-15 and abs(ori - ref[1]) < 1e-14
+    found = optik.solve_ik_all(m, target)
+    assert found.certified and len(found) == len(rows)
+    for r in found:
+        assert abs(r.position_error - task_errors("pose", m.fk(r.q), target)[0]) < 1e-15
+
+
 def test_unreachable_pose_is_an_empty_answer_with_a_reason() -> None:
     m = dh_chain(REF_DH, "standard")
     far = spatial.translation(50.0, 0.0, 0.0)
@@ -391,4 +414,5 @@ def test_distinct_is_dedup_per_target(seed: int, n: int, complex_rows: bool) -> 
     assert len(got) == n
     for k in range(n):
         ref = g6._dedup(rows[owner == k])
-        assert got[k].shape == ref.shape and np.array_equal(got[k], ref)
+        assert np.all(owner[got[k]] == k)
+        assert rows[got[k]].shape == ref.shape and np.array_equal(rows[got[k]], ref)

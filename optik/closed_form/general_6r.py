@@ -521,6 +521,9 @@ class General6RSolutions:
         fk_error: largest FK error of a returned solution.
         count_ok: the count check passed (see the module docstring).
         reason: why the list is empty or the count check failed ("" otherwise).
+        errors: ``(k, 2)`` position (m) and orientation (rad) errors of each solution by the
+            independent forward kinematics that checked it (the mechanism's own, or
+            `General6R.fk`), or None where a merged answer did not keep them.
     """
 
     q: np.ndarray
@@ -531,6 +534,7 @@ class General6RSolutions:
     fk_error: float
     count_ok: bool
     reason: str = ""
+    errors: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.q)
@@ -768,50 +772,67 @@ def _wrap(q: np.ndarray) -> np.ndarray:
     return np.where(w <= -np.pi, w + _TWO_PI, w)
 
 
-def _fk_errors(t: np.ndarray, target: np.ndarray, scale: float) -> np.ndarray:
-    """The FK error that `FK_TOL` bounds (batched): the position error ``|p - p*| / scale`` or
-    the geodesic angle of ``R = R*^T R(q)``, ``atan2(|vee(R - R^T)| / 2, (tr R - 1) / 2)``,
-    whichever is larger. The sums are written out in the order of ``np.linalg.norm`` and
-    ``np.trace`` (the same numbers, without their per-call cost)."""
+def _pose_errors(t: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Position and orientation errors of poses ``t`` against ``target`` (batched, ``(..., 2)``):
+    ``|p - p*|`` (m) and the geodesic angle of ``R = R*^T R(q)``,
+    ``atan2(|vee(R - R^T)| / 2, (tr R - 1) / 2)`` (rad). The sums are written out in the order
+    of ``np.linalg.norm`` and ``np.trace`` (the same numbers, without their per-call cost)."""
     d = t[..., :3, 3] - target[..., :3, 3]
     dp = np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2])
     r = np.swapaxes(target[..., :3, :3], -1, -2) @ t[..., :3, :3]
     x, y, z = r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]
     cos = np.minimum(np.maximum((r[..., 0, 0] + r[..., 1, 1] + r[..., 2, 2] - 1.0) / 2.0, -1.0), 1.0)
-    return np.maximum(dp / scale, np.arctan2(0.5 * np.sqrt(x * x + y * y + z * z), cos))
+    return np.stack([dp, np.arctan2(0.5 * np.sqrt(x * x + y * y + z * z), cos)], axis=-1)
 
 
-def _dedup(q: np.ndarray) -> np.ndarray:
-    """The distinct rows of ``q`` (real or complex angles; real parts compared modulo 2 pi),
-    the first of each group of rows closer than `_SAME`."""
-    q = q.reshape(-1, 6)
+def _fk_error(errors: np.ndarray, scale: float) -> np.ndarray:
+    """The FK error that `FK_TOL` bounds, of `_pose_errors` ``errors``: the position error
+    relative to ``scale`` or the angle, whichever is larger."""
+    return np.maximum(errors[..., 0] / scale, errors[..., 1])
+
+
+def _fk_errors(t: np.ndarray, target: np.ndarray, scale: float) -> np.ndarray:
+    """`_fk_error` of poses ``t`` against ``target`` (batched)."""
+    return _fk_error(_pose_errors(t, target), scale)
+
+
+def _keep(q: np.ndarray) -> np.ndarray:
+    """The indices of the distinct rows of ``q (K, 6)`` (real or complex angles; real parts
+    compared modulo 2 pi): the first of each group of rows closer than `_SAME`."""
     if len(q) < 2:
-        return q
+        return np.arange(len(q))
     diff = q[:, None, :] - q[None, :, :]
     close = np.max(np.abs(_wrap(diff.real)) + np.abs(diff.imag), axis=-1) < _SAME
     keep: list[int] = []
     for i in range(len(q)):
         if not close[i, keep].any():
             keep.append(i)
-    return q[keep]
+    return np.array(keep, dtype=int)
+
+
+def _dedup(q: np.ndarray) -> np.ndarray:
+    """The distinct rows of ``q`` (`_keep`)."""
+    q = q.reshape(-1, 6)
+    return q[_keep(q)]
 
 
 def _distinct(rows: np.ndarray, owner: np.ndarray, n: int) -> list[np.ndarray]:
-    """`_dedup` of the rows of each target ``0 .. n-1`` (``owner``: each row's target), in
-    their order: a list of ``n`` arrays. Each row is compared with the earlier rows of its
-    target all at once; only a target with a close pair goes through `_dedup`."""
+    """The indices into ``rows`` of `_dedup` of the rows of each target ``0 .. n-1``
+    (``owner``: each row's target), in their order: a list of ``n`` index arrays. Each row is
+    compared with the earlier rows of its target all at once; only a target with a close pair
+    goes through `_keep`."""
     order = np.argsort(owner, kind="stable")
     rows, owner = rows[order], owner[order]
     start = np.searchsorted(owner, np.arange(n + 1))
     bounds = start.tolist()
-    groups = [rows[i:j] for i, j in itertools.pairwise(bounds)]
+    groups = [order[i:j] for i, j in itertools.pairwise(bounds)]
     rank = np.arange(len(owner)) - start[owner]  # of each row in its target's group
     later = np.repeat(np.arange(len(owner)), rank)  # row i once per earlier row j of its group
     earlier = later - rank[later] + np.arange(len(later)) - np.repeat(np.cumsum(rank) - rank, rank)
     diff = rows[later] - rows[earlier]
     close = np.max(np.abs(_wrap(diff.real)) + np.abs(diff.imag), axis=-1, initial=0.0) < _SAME
     for k in np.unique(owner[later[close]]) if close.any() else ():
-        groups[k] = _dedup(groups[k])
+        groups[k] = groups[k][_keep(rows[bounds[k] : bounds[k + 1]])]
     return groups
 
 
@@ -1093,7 +1114,7 @@ def _solve(
 ) -> list[General6RSolutions]:
     """The eigenvalue solver on validated targets ``(N, 4, 4)``; ``check`` polishes the real
     candidates last on the exact model and measures them by the independent forward kinematics
-    (``(q, target index) -> (q, FK errors)``, errors as `_fk_errors` of ``arm``), after
+    (``(q, target index) -> (q, errors)``, errors as `_pose_errors` on ``arm``'s targets), after
     `_last_polish` on ``arm`` with ``last`` (which ``check`` then leaves out). The per-target
     counts are taken for all targets at once (``np.bincount`` over the candidates' targets).
     ``candidates``: the elimination (`_candidates_c`, or `_candidates` for the numpy
@@ -1109,16 +1130,19 @@ def _solve(
     retry = cand.retry
     at = np.flatnonzero(real)
     owner = np.concatenate([idx_n[at], idx_n[retry]])
-    q, fk_err = check(np.concatenate([cand.real[at], cand.again]), owner)
+    q, errors = check(np.concatenate([cand.real[at], cand.again]), owner)
+    fk_err = _fk_error(errors, arm.scale)
     ok = fk_err <= FK_TOL
     rescued = np.zeros(len(theta), dtype=bool)
     rescued[retry[ok[len(at) :]]] = True
     first = np.arange(len(q)) < len(at)  # the real candidates (the rest: the retried ones)
     # the distinct real solutions (rows 2k) and complex ones (rows 2k + 1) of each target k in one go
     complex_ = converged & ~real & ~rescued
-    rows = np.concatenate([q[ok], theta[complex_]])
+    q_ok = q[ok]
+    rows = np.concatenate([q_ok, theta[complex_]])
     groups = _distinct(rows, np.concatenate([2 * owner[ok], 2 * idx_n[complex_] + 1]), 2 * n)
-    sols = [np.ascontiguousarray(x.real) for x in groups[0::2]]
+    sols = [q_ok[x] for x in groups[0::2]]  # real rows come first: indices into q_ok
+    errors_ok = errors[ok]
     n_complex = np.array([len(x) for x in groups[1::2]], dtype=int) + cand.n_far
     n_rejected = np.bincount(idx_n[~real & ~converged & ~rescued], minlength=n) + np.bincount(
         owner[first & ~ok], minlength=n
@@ -1157,6 +1181,7 @@ def _solve(
                 float(err[k]),
                 count_ok,
                 reason,
+                errors_ok[groups[2 * k]],
             )
         )
     return out
@@ -1203,8 +1228,8 @@ def solve_general_6r(
     if bad:  # special geometry at both ends: candidates from a nearby generic arm
         near = _both_ends(g.perturbed, targets[bad], g.perturbed.fk, None)
         for k, sol in zip(bad, near, strict=True):
-            q, _, err = _refine(g, m, sol.q.copy(), np.repeat(targets[k][None], len(sol.q), axis=0))
-            out[k] = _add(out[k], q, err)
+            q, _, errors = _refine(g, m, sol.q.copy(), np.repeat(targets[k][None], len(sol.q), axis=0))
+            out[k] = _add(out[k], q, _fk_error(errors, g.scale))
     return out[0] if single else out
 
 
@@ -1221,14 +1246,14 @@ def _both_ends(
 
     def check(q: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """`_refine` after `_last_polish` (in `_solve`)."""
-        q, _, err = _refine(g, m, q, targets[idx], dh=False)
-        return q, err
+        q, _, errors = _refine(g, m, q, targets[idx], dh=False)
+        return q, errors
 
     def check_reversed(q: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """`check` of the inverse chain's candidates ``q`` (reversed) of the targets ``bad[idx]``,
-        its FK errors measured on the inverse chain."""
+        its errors measured on the inverse chain."""
         fwd, pose, _ = _refine(g, m, q[:, ::-1], bad_targets[idx])
-        return fwd[:, ::-1], _fk_errors(_inv(pose), inverse[idx], g.reversed.scale)
+        return fwd[:, ::-1], _pose_errors(_inv(pose), inverse[idx])
 
     out = _solve(g, targets, check, True, candidates)
     bad = [k for k, s in enumerate(out) if not s.count_ok]
@@ -1297,26 +1322,26 @@ def _refine(
     rounding (the DH description of near-parallel axes loses digits). Returns the polished
     angles (wrapped), their poses by the independent forward kinematics (the mechanism's own,
     `_MechanismFK`, or ``g.fk`` for a `General6R`; the last evaluation of the polish when no
-    step was left to take, the usual case) and their FK errors (`_fk_errors`), which the FK
-    check reads."""
+    step was left to take, the usual case) and their position and orientation errors
+    (`_pose_errors`), which the FK check reads."""
     if not len(q):
-        return q, np.zeros((0, 4, 4)), np.zeros(0)
+        return q, np.zeros((0, 4, 4)), np.zeros((0, 2))
     if dh:
         q = _last_polish(g, q, _unit_targets(g, targets))
     fk = g.fk if m is None else _mechanism_fk(m)
     for _ in range(3 if m is not None else 0):
         pose = fk(q)
-        fk_err = _fk_errors(pose, targets, g.scale)
-        todo = np.flatnonzero(fk_err > _EXACT)
+        errors = _pose_errors(pose, targets)
+        todo = np.flatnonzero(_fk_error(errors, g.scale) > _EXACT)
         if not len(todo):
-            return q, pose, fk_err
+            return q, pose, errors
         for k in todo:
             rot = pose[k, :3, :3] @ targets[k, :3, :3].T
             err = np.concatenate([pose[k, :3, 3] - targets[k, :3, 3], 0.5 * _skew(rot)])
             q[k] = q[k] - np.linalg.lstsq(m.jacobian(q[k]), err, rcond=None)[0]
         q = _wrap(q)
     pose = fk(q).reshape(-1, 4, 4)
-    return q, pose, _fk_errors(pose, targets, g.scale)
+    return q, pose, _pose_errors(pose, targets)
 
 
 def _merge(
@@ -1346,11 +1371,18 @@ def covers(arm: Mechanism | General6R) -> bool:
         return False
 
 
-def ik_general_6r(m: Mechanism, target: Any) -> list[np.ndarray]:
-    """All real IK solutions of a 6R mechanism for one 4x4 target, as a list of ``q`` (the
+def ik_general_6r(m: Mechanism, target: Any) -> list[list[float]]:
+    """All real IK solutions of a 6R mechanism for one 4x4 target, as rows ``q`` (the
     closed-form registry's solver contract ``(m, T) -> list[q]``; ``[]`` when unreachable).
     `solve_general_6r` returns the same solutions with the count check and the reason; when the
     count check fails the list is a [`registry.Uncertified`][optik.closed_form.registry.Uncertified]
-    carrying that reason (route only arms for which `covers` is True here)."""
+    carrying that reason (route only arms for which `covers` is True here), else a
+    [`registry.CheckedRows`][optik.closed_form.registry.CheckedRows] carrying each row's
+    position and orientation errors by ``m``'s FK (the FK check's own evaluation), which
+    `optik.solve_ik_all` then reports instead of evaluating the FK of every row again."""
     sols = solve_general_6r(m, target)
-    return list(sols.q) if sols.count_ok else registry.Uncertified(list(sols.q), sols.reason)
+    if not sols.count_ok:
+        return registry.Uncertified(sols.q.tolist(), sols.reason)
+    if sols.errors is None:
+        return sols.q.tolist()
+    return registry.CheckedRows(sols.q.tolist(), [tuple(e) for e in sols.errors.tolist()], True)

@@ -749,7 +749,7 @@ def _polish(
 def _magnitude(theta: np.ndarray) -> np.ndarray:
     """``prod_i cosh(Im theta_i)``: a bound on the entries of ``A1 ... A6`` at complex angles
     (1 for real ones), the scale of the rounding error of their residual."""
-    return np.prod(np.cosh(theta.imag), axis=-1)
+    return np.multiply.reduce(np.cosh(theta.imag), axis=-1)
 
 
 def _residual(left: _Left, theta: np.ndarray, tp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -782,7 +782,10 @@ def _pose_errors(t: np.ndarray, target: np.ndarray) -> np.ndarray:
     r = np.swapaxes(target[..., :3, :3], -1, -2) @ t[..., :3, :3]
     x, y, z = r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]
     cos = np.minimum(np.maximum((r[..., 0, 0] + r[..., 1, 1] + r[..., 2, 2] - 1.0) / 2.0, -1.0), 1.0)
-    return np.stack([dp, np.arctan2(0.5 * np.sqrt(x * x + y * y + z * z), cos)], axis=-1)
+    out = np.empty((*dp.shape, 2))
+    out[..., 0] = dp
+    out[..., 1] = np.arctan2(0.5 * np.sqrt(x * x + y * y + z * z), cos)
+    return out
 
 
 def _fk_error(errors: np.ndarray, scale: float) -> np.ndarray:
@@ -796,13 +799,20 @@ def _fk_errors(t: np.ndarray, target: np.ndarray, scale: float) -> np.ndarray:
     return _fk_error(_pose_errors(t, target), scale)
 
 
+def _gap(diff: np.ndarray) -> np.ndarray:
+    """The distance of rows of angle differences ``diff (..., 6)`` (real or complex): the
+    largest ``|wrap(Re)| + |Im|`` of a joint, with ``|wrap(x)| = |(x + pi) mod 2 pi - pi|``
+    (the last step of `_wrap`, from ``-pi`` to ``pi``, leaves the absolute value alone)."""
+    wrapped = np.abs((diff.real + np.pi) % _TWO_PI - np.pi)
+    return np.maximum.reduce(wrapped + np.abs(diff.imag), axis=-1, initial=0.0)
+
+
 def _keep(q: np.ndarray) -> np.ndarray:
     """The indices of the distinct rows of ``q (K, 6)`` (real or complex angles; real parts
     compared modulo 2 pi): the first of each group of rows closer than `_SAME`."""
     if len(q) < 2:
         return np.arange(len(q))
-    diff = q[:, None, :] - q[None, :, :]
-    close = np.max(np.abs(_wrap(diff.real)) + np.abs(diff.imag), axis=-1) < _SAME
+    close = _gap(q[:, None, :] - q[None, :, :]) < _SAME
     keep: list[int] = []
     for i in range(len(q)):
         if not close[i, keep].any():
@@ -829,8 +839,7 @@ def _distinct(rows: np.ndarray, owner: np.ndarray, n: int) -> list[np.ndarray]:
     rank = np.arange(len(owner)) - start[owner]  # of each row in its target's group
     later = np.repeat(np.arange(len(owner)), rank)  # row i once per earlier row j of its group
     earlier = later - rank[later] + np.arange(len(later)) - np.repeat(np.cumsum(rank) - rank, rank)
-    diff = rows[later] - rows[earlier]
-    close = np.max(np.abs(_wrap(diff.real)) + np.abs(diff.imag), axis=-1, initial=0.0) < _SAME
+    close = _gap(rows[later] - rows[earlier]) < _SAME
     for k in np.unique(owner[later[close]]) if close.any() else ():
         groups[k] = groups[k][_keep(rows[bounds[k] : bounds[k + 1]])]
     return groups
@@ -1126,7 +1135,7 @@ def _solve(
     # real to IMAG_TOL: a real candidate, which the last polish and the FK check decide (the DH
     # description of an inverse chain may be too coarse for its residual to converge); a
     # retried one that passes the FK check is a real solution, not a complex one
-    real = np.max(np.abs(theta.imag), axis=1, initial=0.0) <= IMAG_TOL
+    real = np.maximum.reduce(np.abs(theta.imag), axis=1, initial=0.0) <= IMAG_TOL
     retry = cand.retry
     at = np.flatnonzero(real)
     owner = np.concatenate([idx_n[at], idx_n[retry]])

@@ -1055,11 +1055,11 @@ def _candidates_c(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candid
     n, cap = len(tp), _MAX_CANDIDATES
     tp = np.ascontiguousarray(tp)
     info = np.empty((n, 8))
-    theta = np.empty((n, cap, 6), dtype=complex)
-    size = np.empty((n, cap))
-    retry = np.zeros((n, cap), dtype=np.intc)
-    again = np.empty((n, cap, 6))
-    real = np.full((n, cap, 6), np.nan)
+    theta = np.empty((n * cap, 6), dtype=complex)  # (n, cap, 6) for the C code: slot j of target t
+    size = np.empty(n * cap)
+    retry = np.zeros(n * cap, dtype=np.intc)
+    again = np.empty((n * cap, 6))
+    real = np.full((n * cap, 6), np.nan)
     out = (info, theta, size, retry, again)
     offset = arm.offset.ctypes.data if last else None
     fn(
@@ -1073,21 +1073,23 @@ def _candidates_c(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candid
     )
     done = info[:, 0] == 0
     count = np.where(done, info[:, 6], 0).astype(int)
-    mask = np.arange(cap)[None] < count[:, None]
-    owner = np.nonzero(mask)[0]
-    flags = retry[mask].astype(bool)
-    retried, theta, again = np.flatnonzero(flags), theta[mask], again[mask][flags]
-    real = real[mask]
-    if not last:
+    pick = np.flatnonzero(np.arange(cap) < count[:, None])  # the filled slots, target by target
+    owner, retried = pick // cap, np.flatnonzero(retry[pick])
+    theta, again = theta[pick], again[pick[retried]]
+    if last:
+        real = real[pick]
+    else:
         real, again = _joint_rows(arm, theta, owner, retried, again, tp, last)
+    flags = info[:, 1:3] > 0
+    counts = info[:, 4:6].astype(int)
     cand = _Candidates(
-        info[:, 1] > 0,
-        info[:, 2] > 0,
-        info[:, 4].astype(int),
-        info[:, 5].astype(int),
+        flags[:, 0],
+        flags[:, 1],
+        counts[:, 0],
+        counts[:, 1],
         owner,
         theta,
-        size[mask],
+        size[pick],
         retried,
         again,
         real,
@@ -1142,21 +1144,21 @@ def _solve(
     q, errors = check(np.concatenate([cand.real[at], cand.again]), owner)
     fk_err = _fk_error(errors, arm.scale)
     ok = fk_err <= FK_TOL
-    rescued = np.zeros(len(theta), dtype=bool)
-    rescued[retry[ok[len(at) :]]] = True
-    first = np.arange(len(q)) < len(at)  # the real candidates (the rest: the retried ones)
+    decided = real.copy()  # real, or rescued: a retried one that passed the FK check
+    decided[retry[ok[len(at) :]]] = True
     # the distinct real solutions (rows 2k) and complex ones (rows 2k + 1) of each target k in one go
-    complex_ = converged & ~real & ~rescued
+    complex_ = converged & ~decided
     q_ok = q[ok]
     rows = np.concatenate([q_ok, theta[complex_]])
     groups = _distinct(rows, np.concatenate([2 * owner[ok], 2 * idx_n[complex_] + 1]), 2 * n)
     sols = [q_ok[x] for x in groups[0::2]]  # real rows come first: indices into q_ok
     errors_ok = errors[ok]
     n_complex = np.array([len(x) for x in groups[1::2]], dtype=int) + cand.n_far
-    n_rejected = np.bincount(idx_n[~real & ~converged & ~rescued], minlength=n) + np.bincount(
-        owner[first & ~ok], minlength=n
+    failed = ~ok[: len(at)]  # real candidates (the first rows of the check) that failed it
+    n_rejected = np.bincount(idx_n[~(decided | converged)], minlength=n) + np.bincount(
+        owner[: len(at)][failed], minlength=n
     )
-    n_real = np.bincount(idx_n[real | rescued], minlength=n)
+    n_real = np.bincount(idx_n[decided], minlength=n)
     err = np.zeros(n)
     np.maximum.at(err, owner[ok], fk_err[ok])
     out = []

@@ -111,12 +111,19 @@ static inline __attribute__((always_inline)) c2 c2_splat(cplx x) {
     c2 r = {{creal(x), creal(x)}, {cimag(x), cimag(x)}};
     return r;
 }
-/* lane l of x into out (through its two doubles: C11 lays a complex out as double[2]) */
-static inline __attribute__((always_inline)) void c2_store(c2 x, int l, cplx *out) {
-    double *d = (double *)out;
-    d[0] = x.re[l];
-    d[1] = x.im[l];
+/* A complex number as one vector (re, im), through its two doubles (C11 lays a complex out as
+   double[2]) */
+static inline __attribute__((always_inline)) v2 load2(const cplx *x) {
+    const double *d = (const double *)x;
+    return (v2){d[0], d[1]};
 }
+static inline __attribute__((always_inline)) void store2(cplx *out, v2 x) {
+    double *d = (double *)out;
+    d[0] = x[0];
+    d[1] = x[1];
+}
+/* lane l of x into out */
+static inline __attribute__((always_inline)) void c2_store(c2 x, int l, cplx *out) { store2(out, (v2){x.re[l], x.im[l]}); }
 
 typedef struct {
     int k, n;
@@ -296,7 +303,13 @@ static inline __attribute__((always_inline)) int lu_factor(int n, cplx *a, int *
         for (int r = col + 1; r < n; r++) {
             const cplx f = a[r * n + col] * inv[col];
             a[r * n + col] = f;
-            for (int j = col + 1; j < n; j++) a[r * n + j] -= f * a[col * n + j];
+            /* a_rj -= f a_cj with a complex as one SIMD register (re, im): f a_cj = re(f) a_cj
+               + (-im(f), im(f)) (im(a_cj), re(a_cj)) */
+            const v2 fr = {creal(f), creal(f)}, fi = {-cimag(f), cimag(f)};
+            for (int j = col + 1; j < n; j++) {
+                const v2 x = load2(a + col * n + j);
+                store2(a + r * n + j, load2(a + r * n + j) - (fr * x + fi * (v2){x[1], x[0]}));
+            }
         }
     }
     return 0;

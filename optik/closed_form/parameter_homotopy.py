@@ -19,10 +19,11 @@ at a time, no Python in the loop): fourth-order Runge-Kutta predictor on
 ``d_1, d_2, ...``, accepted when the last update is below ``tol (1 + |z|)`` (or, but in the end
 steps below, after the first when the quadratic-convergence estimate of the next one,
 ``kappa d_1^2``, is; ``kappa`` is the largest ``d_2 / d_1^2`` the path has shown, at least 1)
-and the corrected point stays within ``JUMP_GUARD (1 + |z|)`` of the prediction. The step aims
+and the corrected point stays within ``JUMP_GUARD (1 + |z|)`` of the prediction (a first update
+beyond that rejects the step at once). The step aims
 the predictor error (the corrector's displacement) at ``PREDICTOR_TARGET`` (RK4: error
 ``O(h^5)``; growth at most 2x per step, none right after a rejection) and shrinks by the same
-rule on rejection (0.1x to 0.5x). Each path runs from
+rule on rejection (0.1x to 0.5x; 0.5x when the corrector did not converge). Each path runs from
 ``t = 1`` to ``0`` in one go, with a step that ends exactly at ``t = ENDGAME_RADIUS``, where the
 point is kept for the endgame; that step and the last one (to ``t = 0``) are corrected to
 `ENDGAME_TOL`, so a singular end point (where Newton converges only linearly) stalls the path.
@@ -409,7 +410,7 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, cplx *zmark, doub
         for (int i = 0; i < n; i++) zt[i] = z[i] + st * k3[i];
         bad = bad || tangent(q, zt, tau + st, k4);
         int ok = !bad;
-        double last = INFINITY;
+        double last = INFINITY, moved = INFINITY;
         if (ok) {
             for (int i = 0; i < n; i++)
                 zc[i] = zp[i] = z[i] + st / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
@@ -420,8 +421,12 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, cplx *zmark, doub
                 if (solve2(n, jac, val, ht)) { ok = 0; break; }
                 for (int i = 0; i < n; i++) zc[i] -= val[i];
                 last = norm(n, val);
-                const double lim = tol * (1.0 + norm(n, zc));
+                const double scale = 1.0 + norm(n, zc), lim = tol * scale;
                 if (last <= lim) break;
+                /* a first update beyond the guard fails the step whatever follows (the corrected
+                   point would end about that far from the prediction): no more updates, and
+                   the step shrinks by it as the predictor error */
+                if (it == 0 && last > o->guard * scale) { ok = 0; moved = last / scale; break; }
                 /* Newton converges quadratically (near a nonsingular point): the update after a
                    first one of size d is about kappa d^2, kappa the largest ratio d2 / d1^2 this
                    path has shown; the end steps measure it */
@@ -430,7 +435,6 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, cplx *zmark, doub
                 else if (it == 1 && first > 0.0) kappa = fmax(kappa, last / (first * first));
             }
         }
-        double moved = INFINITY;
         if (ok) {
             const double scale = 1.0 + norm(n, zc);
             for (int i = 0; i < n; i++) zt[i] = zc[i] - zp[i];

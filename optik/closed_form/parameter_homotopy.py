@@ -15,7 +15,7 @@ instance). Homogeneous coordinates are fixed on a random affine patch ``a^T z = 
 
 *Tracking* (generated C, compiled once per machine by `optik.native.source_library`; one path
 at a time, no Python in the loop): fourth-order Runge-Kutta predictor on
-``dz/dt = -J^{-1} dH/dt`` with ``J = [2 M(s) z; a^T]``, Newton corrector of at most 3 updates
+``dz/dt = -J^{-1} dH/dt`` with ``J = [2 M(s) z; a^T]``, Newton corrector of at most 4 updates
 ``d_1, d_2, ...``, accepted when the last update is below ``tol (1 + |z|)`` (or, but in the end
 steps below, after the first when the quadratic-convergence estimate of the next one,
 ``kappa d_1^2``, is; ``kappa`` is the largest ``d_2 / d_1^2`` the path has shown, at least 1)
@@ -415,7 +415,7 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, cplx *zmark, doub
             for (int i = 0; i < n; i++)
                 zc[i] = zp[i] = z[i] + st / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
             double first = 0.0;
-            for (int it = 0; it < 3 && ok; it++) {
+            for (int it = 0; it < 4 && ok; it++) {
                 evaluate(q, zc, tau + st, jac, val, ht);
                 for (int i = 0; i < n; i++) ht[i] = -ht[i];
                 if (solve2(n, jac, val, ht)) { ok = 0; break; }

@@ -15,8 +15,9 @@ instance). Homogeneous coordinates are fixed on a random affine patch ``a^T z = 
 
 *Tracking* (generated C, compiled once per machine by `optik.native.source_library`; one path
 at a time, no Python in the loop): fourth-order Runge-Kutta predictor on
-``dz/dt = -J^{-1} dH/dt`` with ``J = [2 M(s) z; a^T]``, Newton corrector of at most 4 updates
-``d_1, d_2, ...``, accepted when the last update is below ``tol (1 + |z|)`` (or, but in the end
+``dz/dt = -J^{-1} dH/dt`` with ``J = [2 M(s) z; a^T]``, a corrector of at most 4 updates
+``d_1, d_2, ...`` (two Newton updates, then chord updates with the second one's factorized
+Jacobian), accepted when the last update is below ``tol (1 + |z|)`` (or, but in the end
 steps below, after the first when the quadratic-convergence estimate of the next one,
 ``kappa d_1^2``, is; ``kappa`` is the largest ``d_2 / d_1^2`` the path has shown, at least 1)
 and the corrected point stays within ``JUMP_GUARD (1 + |z|)`` of the prediction (a first update
@@ -180,18 +181,21 @@ static inline __attribute__((always_inline)) c2 dot4(const c2 *a, const c2 *b) {
    dF_i/de = 2 c e + 2 b o (u + 2 g) + 2 (w - 2 g) o p (L(b)^T = -L(b), R(p)^T = -R(p) for pure
    quaternions), dF_i/dg = 4 (u - w) + 8 g and
    dF_i/ds = dc e.e - 2 ((db o e).u + w.(e o dp)) + 4 (e o dp - db o e).g. Two legs at a time
-   (sys_t.pairs, the lanes of c2). */
-static void evaluate_legs(const sys_t *q, const cplx *z, cplx s, cplx ds, cplx *jac, cplx *val, cplx *ht) {
+   (sys_t.pairs, the lanes of c2). No J when jac is NULL (inlined: a constant NULL drops its
+   operations). */
+static inline __attribute__((always_inline)) void evaluate_legs(const sys_t *q, const cplx *z, cplx s, cplx ds,
+                                                                cplx *jac, cplx *val, cplx *ht) {
     c2 e[4], g[4];
     for (int a = 0; a < 4; a++) {
         e[a] = c2_splat(z[a]);
         g[a] = c2_splat(z[4 + a]);
     }
     const c2 ee = dot4(e, e), gg4 = c2_scale(4.0, dot4(g, g)), sv = c2_splat(s), dsv = c2_splat(ds);
-    for (int c = 0; c < 4; c++) {
-        jac[c] = z[4 + c];
-        jac[4 + c] = z[c];
-    }
+    if (jac)
+        for (int c = 0; c < 4; c++) {
+            jac[c] = z[4 + c];
+            jac[4 + c] = z[c];
+        }
     c2_store(dot4(e, g), 0, val);
     ht[0] = 0.0;
     for (int k = 0; k < 3; k++) {
@@ -207,16 +211,19 @@ static void evaluate_legs(const sys_t *q, const cplx *z, cplx s, cplx ds, cplx *
         c2 uw_g = c2_mul(c2_sub(u[0], w[0]), g[0]);
         for (int a = 1; a < 4; a++) uw_g = c2_add(uw_g, c2_mul(c2_sub(u[a], w[a]), g[a]));
         const c2 v = c2_add(c2_add(c2_sub(c2_mul(c, ee), c2_scale(2.0, dot4(w, u))), c2_scale(4.0, uw_g)), gg4);
-        c2 row[8], x[4], y[4];
-        for (int a = 0; a < 4; a++) {
-            x[a] = c2_add(u[a], c2_scale(2.0, g[a]));
-            y[a] = c2_sub(w[a], c2_scale(2.0, g[a]));
-        }
-        pure_times(b, x, row);
-        times_pure(y, p, row + 4); /* scratch: the e part is 2 c e + 2 row[0..3] + 2 row[4..7] */
-        for (int a = 0; a < 4; a++) {
-            row[a] = c2_scale(2.0, c2_add(c2_add(c2_mul(c, e[a]), row[a]), row[4 + a]));
-            row[4 + a] = c2_add(c2_scale(4.0, c2_sub(u[a], w[a])), c2_scale(8.0, g[a]));
+        c2 row[8];
+        if (jac) {
+            c2 x[4], y[4];
+            for (int a = 0; a < 4; a++) {
+                x[a] = c2_add(u[a], c2_scale(2.0, g[a]));
+                y[a] = c2_sub(w[a], c2_scale(2.0, g[a]));
+            }
+            pure_times(b, x, row);
+            times_pure(y, p, row + 4); /* scratch: the e part is 2 c e + 2 row[0..3] + 2 row[4..7] */
+            for (int a = 0; a < 4; a++) {
+                row[a] = c2_scale(2.0, c2_add(c2_add(c2_mul(c, e[a]), row[a]), row[4 + a]));
+                row[4 + a] = c2_add(c2_scale(4.0, c2_sub(u[a], w[a])), c2_scale(8.0, g[a]));
+            }
         }
         times_pure(e, l + 9, du);
         pure_times(l + 3, e, dw);
@@ -227,20 +234,23 @@ static void evaluate_legs(const sys_t *q, const cplx *z, cplx s, cplx ds, cplx *
             const int i = 1 + 2 * k + lane;
             c2_store(v, lane, val + i);
             c2_store(d, lane, ht + i);
-            for (int c = 0; c < 8; c++) c2_store(row[c], lane, jac + 8 * i + c);
+            if (jac)
+                for (int c = 0; c < 8; c++) c2_store(row[c], lane, jac + 8 * i + c);
         }
     }
 }
 
-/* J = [2 M(s) z; a^T] (row-major), value [z^T M(s) z; a^T z - 1], dH/dtau */
+/* J = [2 M(s) z; a^T] (row-major; not formed when jac is NULL), value [z^T M(s) z; a^T z - 1], dH/dtau */
 static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx *val, cplx *ht) {
     const int n = q->n, k = q->k;
     const cplx t = q->ta + tau * (q->tb - q->ta);
     const cplx den = 1.0 + (q->gamma - 1.0) * t;
     const cplx s = q->gamma * t / den, s2 = s * s;
     const cplx ds = q->gamma / (den * den) * (q->tb - q->ta);
-    if (q->legs) {
+    if (q->legs && jac) {
         evaluate_legs(q, z, s, ds, jac, val, ht);
+    } else if (q->legs) {
+        evaluate_legs(q, z, s, ds, NULL, val, ht);
     } else {
     for (int j = 0; j < k; j++) {
         cplx v = 0.0, w = 0.0;
@@ -255,7 +265,7 @@ static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx 
             }
             const cplx y0 = y[0], y1 = y[1], y2 = y[2];
             const cplx my = y0 + s * y1 + s2 * y2;
-            jac[j * n + r] = 2.0 * my;
+            if (jac) jac[j * n + r] = 2.0 * my;
             v += z[r] * my;
             w += z[r] * (y1 + 2.0 * s * y2);
         }
@@ -265,7 +275,7 @@ static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx 
     }
     cplx pz = 0.0;
     for (int c = 0; c < n; c++) {
-        jac[k * n + c] = q->patch[c];
+        if (jac) jac[k * n + c] = q->patch[c];
         pz += q->patch[c] * z[c];
     }
     val[k] = pz - 1.0;
@@ -381,7 +391,8 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, cplx *zmark, doub
                      long *steps_out) {
     const int n = q->n;
     cplx k1[NMAX], k2[NMAX], k3[NMAX], k4[NMAX], zt[NMAX], zp[NMAX], zc[NMAX];
-    cplx jac[NMAX * NMAX], val[NMAX], ht[NMAX];
+    cplx jac[NMAX * NMAX], val[NMAX], ht[NMAX], inv[NMAX];
+    int piv[NMAX];
     const double seglen = cabs(q->tb - q->ta);
     double tau = 0.0, h = o->h0;
     int status = 0, have_k1 = 0, retried = 0;
@@ -416,9 +427,14 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, cplx *zmark, doub
                 zc[i] = zp[i] = z[i] + st / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
             double first = 0.0;
             for (int it = 0; it < 4 && ok; it++) {
-                evaluate(q, zc, tau + st, jac, val, ht);
+                /* two Newton updates, then chord updates with the second one's factors (no new
+                   J: only the value and dH/dtau), which contract about as fast from there,
+                   d_(m+1) ~ kappa d_2 d_m; the next k1 (the last update's dH/dtau solve) then
+                   has the Jacobian of a point within about d_3 */
+                const int newton = it < 2;
+                evaluate(q, zc, tau + st, newton ? jac : NULL, val, ht);
                 for (int i = 0; i < n; i++) ht[i] = -ht[i];
-                if (solve2(n, jac, val, ht)) { ok = 0; break; }
+                if ((newton && factor2(n, jac, piv, inv)) || back2(n, jac, piv, inv, val, ht)) { ok = 0; break; }
                 for (int i = 0; i < n; i++) zc[i] -= val[i];
                 last = norm(n, val);
                 const double scale = 1.0 + norm(n, zc), lim = tol * scale;

@@ -93,6 +93,7 @@ _C_SOURCE = r"""
 
 typedef double complex cplx;
 #define NMAX 16
+#define INLINE static inline __attribute__((always_inline))
 
 typedef struct { const long *ptr; const int *col; const cplx *val; } csr_t; /* rows j * n + r */
 
@@ -102,30 +103,30 @@ typedef struct { const long *ptr; const int *col; const cplx *val; } csr_t; /* r
 typedef double v2 __attribute__((vector_size(16)));
 typedef struct { v2 re, im; } c2;
 
-static inline __attribute__((always_inline)) c2 c2_add(c2 a, c2 b) { c2 r = {a.re + b.re, a.im + b.im}; return r; }
-static inline __attribute__((always_inline)) c2 c2_sub(c2 a, c2 b) { c2 r = {a.re - b.re, a.im - b.im}; return r; }
-static inline __attribute__((always_inline)) c2 c2_mul(c2 a, c2 b) {
+INLINE c2 c2_add(c2 a, c2 b) { c2 r = {a.re + b.re, a.im + b.im}; return r; }
+INLINE c2 c2_sub(c2 a, c2 b) { c2 r = {a.re - b.re, a.im - b.im}; return r; }
+INLINE c2 c2_mul(c2 a, c2 b) {
     c2 r = {a.re * b.re - a.im * b.im, a.re * b.im + a.im * b.re};
     return r;
 }
-static inline __attribute__((always_inline)) c2 c2_scale(double f, c2 a) { c2 r = {f * a.re, f * a.im}; return r; }
-static inline __attribute__((always_inline)) c2 c2_splat(cplx x) {
+INLINE c2 c2_scale(double f, c2 a) { c2 r = {f * a.re, f * a.im}; return r; }
+INLINE c2 c2_splat(cplx x) {
     c2 r = {{creal(x), creal(x)}, {cimag(x), cimag(x)}};
     return r;
 }
 /* A complex number as one vector (re, im), through its two doubles (C11 lays a complex out as
    double[2]) */
-static inline __attribute__((always_inline)) v2 load2(const cplx *x) {
+INLINE v2 load2(const cplx *x) {
     const double *d = (const double *)x;
     return (v2){d[0], d[1]};
 }
-static inline __attribute__((always_inline)) void store2(cplx *out, v2 x) {
+INLINE void store2(cplx *out, v2 x) {
     double *d = (double *)out;
     d[0] = x[0];
     d[1] = x[1];
 }
 /* lane l of x into out */
-static inline __attribute__((always_inline)) void c2_store(c2 x, int l, cplx *out) { store2(out, (v2){x.re[l], x.im[l]}); }
+INLINE void c2_store(c2 x, int l, cplx *out) { store2(out, (v2){x.re[l], x.im[l]}); }
 
 typedef struct {
     int k, n;
@@ -154,7 +155,7 @@ static double norm(int n, const cplx *z) {
 }
 
 /* x o v for a quaternion x and a pure quaternion v = (0, v): (-x_v . v, x0 v + x_v cross v) */
-static inline __attribute__((always_inline)) void times_pure(const c2 *x, const c2 *v, c2 *out) {
+INLINE void times_pure(const c2 *x, const c2 *v, c2 *out) {
     out[0] = c2_scale(-1.0, c2_add(c2_add(c2_mul(x[1], v[0]), c2_mul(x[2], v[1])), c2_mul(x[3], v[2])));
     out[1] = c2_sub(c2_add(c2_mul(x[0], v[0]), c2_mul(x[2], v[2])), c2_mul(x[3], v[1]));
     out[2] = c2_sub(c2_add(c2_mul(x[0], v[1]), c2_mul(x[3], v[0])), c2_mul(x[1], v[2]));
@@ -162,15 +163,16 @@ static inline __attribute__((always_inline)) void times_pure(const c2 *x, const 
 }
 
 /* v o x for a pure quaternion v and a quaternion x: (-v . x_v, x0 v + v cross x_v) */
-static inline __attribute__((always_inline)) void pure_times(const c2 *v, const c2 *x, c2 *out) {
+INLINE void pure_times(const c2 *v, const c2 *x, c2 *out) {
     out[0] = c2_scale(-1.0, c2_add(c2_add(c2_mul(v[0], x[1]), c2_mul(v[1], x[2])), c2_mul(v[2], x[3])));
     out[1] = c2_sub(c2_add(c2_mul(x[0], v[0]), c2_mul(v[1], x[3])), c2_mul(v[2], x[2]));
     out[2] = c2_sub(c2_add(c2_mul(x[0], v[1]), c2_mul(v[2], x[1])), c2_mul(v[0], x[3]));
     out[3] = c2_sub(c2_add(c2_mul(x[0], v[2]), c2_mul(v[0], x[2])), c2_mul(v[1], x[1]));
 }
 
-static inline __attribute__((always_inline)) c2 dot4(const c2 *a, const c2 *b) {
-    return c2_add(c2_add(c2_add(c2_mul(a[0], b[0]), c2_mul(a[1], b[1])), c2_mul(a[2], b[2])), c2_mul(a[3], b[3]));
+INLINE c2 dot4(const c2 *a, const c2 *b) {
+    const c2 ab = c2_add(c2_mul(a[0], b[0]), c2_mul(a[1], b[1]));
+    return c2_add(c2_add(ab, c2_mul(a[2], b[2])), c2_mul(a[3], b[3]));
 }
 
 /* The same J, value and dH/dtau as evaluate, for the Study quadric and the six leg quadrics of a
@@ -183,7 +185,7 @@ static inline __attribute__((always_inline)) c2 dot4(const c2 *a, const c2 *b) {
    dF_i/ds = dc e.e - 2 ((db o e).u + w.(e o dp)) + 4 (e o dp - db o e).g. Two legs at a time
    (sys_t.pairs, the lanes of c2). No J when jac is NULL (inlined: a constant NULL drops its
    operations). */
-static inline __attribute__((always_inline)) void evaluate_legs(const sys_t *q, const cplx *z, cplx s, cplx ds,
+INLINE void evaluate_legs(const sys_t *q, const cplx *z, cplx s, cplx ds,
                                                                 cplx *jac, cplx *val, cplx *ht) {
     c2 e[4], g[4];
     for (int a = 0; a < 4; a++) {
@@ -210,7 +212,8 @@ static inline __attribute__((always_inline)) void evaluate_legs(const sys_t *q, 
         pure_times(b, e, w);
         c2 uw_g = c2_mul(c2_sub(u[0], w[0]), g[0]);
         for (int a = 1; a < 4; a++) uw_g = c2_add(uw_g, c2_mul(c2_sub(u[a], w[a]), g[a]));
-        const c2 v = c2_add(c2_add(c2_sub(c2_mul(c, ee), c2_scale(2.0, dot4(w, u))), c2_scale(4.0, uw_g)), gg4);
+        const c2 cw = c2_sub(c2_mul(c, ee), c2_scale(2.0, dot4(w, u)));
+        const c2 v = c2_add(c2_add(cw, c2_scale(4.0, uw_g)), gg4);
         c2 row[8];
         if (jac) {
             c2 x[4], y[4];
@@ -285,7 +288,7 @@ static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx 
 /* Partial pivoting at column col of the n x n row-major a: the row r >= col of the largest
    |Re| + |Im| in that column is swapped with row col (whole rows); returns r, or -1 when the
    column is zero from col down. */
-static inline __attribute__((always_inline)) int pivot(int n, cplx *a, int col) {
+INLINE int pivot(int n, cplx *a, int col) {
     int piv = col;
     double best = fabs(creal(a[col * n + col])) + fabs(cimag(a[col * n + col]));
     for (int r = col + 1; r < n; r++) {
@@ -305,7 +308,7 @@ static inline __attribute__((always_inline)) int pivot(int n, cplx *a, int col) 
 /* P A = L U of the n x n row-major a in place (partial pivoting: at column col, row col and
    row piv[col] >= col are swapped whole, multipliers included), L's multipliers below the
    diagonal, inv[col] = 1 / U[col][col]; 0 on success, 1 when a column is zero. */
-static inline __attribute__((always_inline)) int lu_factor(int n, cplx *a, int *piv, cplx *inv) {
+INLINE int lu_factor(int n, cplx *a, int *piv, cplx *inv) {
     for (int col = 0; col < n; col++) {
         const int r0 = pivot(n, a, col);
         if (r0 < 0) return 1;
@@ -328,7 +331,7 @@ static inline __attribute__((always_inline)) int lu_factor(int n, cplx *a, int *
 
 /* A x = b and A y = c in place (b, c become x, y; c may be NULL) from lu_factor's factors of A:
    the swaps in order, then L and U; 0 when the solution is finite. */
-static inline __attribute__((always_inline)) int lu_solve(int n, const cplx *a, const int *piv, const cplx *inv,
+INLINE int lu_solve(int n, const cplx *a, const int *piv, const cplx *inv,
                                                           cplx *b, cplx *c) {
     for (int col = 0; col < n; col++) {
         const int r = piv[col];
@@ -434,7 +437,10 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, cplx *zmark, doub
                 const int newton = it < 2;
                 evaluate(q, zc, tau + st, newton ? jac : NULL, val, ht);
                 for (int i = 0; i < n; i++) ht[i] = -ht[i];
-                if ((newton && factor2(n, jac, piv, inv)) || back2(n, jac, piv, inv, val, ht)) { ok = 0; break; }
+                if ((newton && factor2(n, jac, piv, inv)) || back2(n, jac, piv, inv, val, ht)) {
+                    ok = 0;
+                    break;
+                }
                 for (int i = 0; i < n; i++) zc[i] -= val[i];
                 last = norm(n, val);
                 const double scale = 1.0 + norm(n, zc), lim = tol * scale;

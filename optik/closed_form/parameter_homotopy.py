@@ -114,12 +114,9 @@ INLINE c2 c2_splat(cplx x) {
     c2 r = {{creal(x), creal(x)}, {cimag(x), cimag(x)}};
     return r;
 }
-/* A complex number as one vector (re, im), through its two doubles (C11 lays a complex out as
-   double[2]) */
-INLINE v2 load2(const cplx *x) {
-    const double *d = (const double *)x;
-    return (v2){d[0], d[1]};
-}
+/* A complex number as one vector (re, im); stored through its two doubles (C11 lays a complex
+   out as double[2]) */
+INLINE v2 load2(const cplx *x) { return (v2){creal(*x), cimag(*x)}; }
 INLINE void store2(cplx *out, v2 x) {
     double *d = (double *)out;
     d[0] = x[0];
@@ -185,8 +182,7 @@ INLINE c2 dot4(const c2 *a, const c2 *b) {
    dF_i/ds = dc e.e - 2 ((db o e).u + w.(e o dp)) + 4 (e o dp - db o e).g. Two legs at a time
    (sys_t.pairs, the lanes of c2). No J when jac is NULL (inlined: a constant NULL drops its
    operations). */
-INLINE void evaluate_legs(const sys_t *q, const cplx *z, cplx s, cplx ds,
-                                                                cplx *jac, cplx *val, cplx *ht) {
+INLINE void evaluate_legs(const sys_t *q, const cplx *z, cplx s, cplx ds, cplx *jac, cplx *val, cplx *ht) {
     c2 e[4], g[4];
     for (int a = 0; a < 4; a++) {
         e[a] = c2_splat(z[a]);

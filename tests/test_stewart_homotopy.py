@@ -261,3 +261,21 @@ def test_leg_line_of_the_wrong_shape_is_rejected():
         parameter_homotopy.track(short, start.solutions, np.random.default_rng(0))
     with pytest.raises(optik.OptikError, match="starts"):
         parameter_homotopy.track(legs, np.ones((1, 3)), np.random.default_rng(0))
+
+
+def test_tracker_solves_a_generic_pair_of_conics_from_a_product_start():
+    # two conics in P^2 (n = 3: the matrix evaluation and the general-size LU): Bezout's 4
+    # intersections, from the start z1^2 = z0^2, z2^2 = z0^2 (solutions (1, +-1, +-1)) on the
+    # line M(s) = T + s (S - T)
+    rng = np.random.default_rng(5)
+    target = rng.normal(size=(2, 3, 3)) + 1j * rng.normal(size=(2, 3, 3))
+    target = target + np.swapaxes(target, 1, 2)
+    start = np.zeros((2, 3, 3))
+    start[:, 0, 0] = -1.0
+    start[0, 1, 1] = start[1, 2, 2] = 1.0
+    starts = np.array([[1.0, a, b] for a in (1.0, -1.0) for b in (1.0, -1.0)])
+    res = parameter_homotopy.track((target, start - target, np.zeros_like(target)), starts, rng, refine=2)
+    assert list(res.status) == ["regular"] * 4
+    assert len(stewart_parameter.distinct(res.z)) == 4
+    assert np.max(stewart_parameter.relative_residual(target, res.z)) <= 1e-13
+    assert np.all(res.condition < 1e6)

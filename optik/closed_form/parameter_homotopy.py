@@ -15,14 +15,16 @@ instance). Homogeneous coordinates are fixed on a random affine patch ``a^T z = 
 
 *Tracking* (generated C, compiled once per machine by `optik.native.source_library`; one path
 at a time, no Python in the loop): fourth-order Runge-Kutta predictor on
-``dz/dt = -J^{-1} dH/dt`` with ``J = [2 M(s) z; a^T]``, Newton corrector of at most 3 updates
-``d_1, d_2, ...``, accepted when the last update is below ``tol (1 + |z|)`` (or, but in the end
+``dz/dt = -J^{-1} dH/dt`` with ``J = [2 M(s) z; a^T]``, a corrector of at most 4 updates
+``d_1, d_2, ...`` (two Newton updates, then chord updates with the second one's factorized
+Jacobian), accepted when the last update is below ``tol (1 + |z|)`` (or, but in the end
 steps below, after the first when the quadratic-convergence estimate of the next one,
 ``kappa d_1^2``, is; ``kappa`` is the largest ``d_2 / d_1^2`` the path has shown, at least 1)
-and the corrected point stays within ``JUMP_GUARD (1 + |z|)`` of the prediction. The step aims
+and the corrected point stays within ``JUMP_GUARD (1 + |z|)`` of the prediction (a first update
+beyond that rejects the step at once). The step aims
 the predictor error (the corrector's displacement) at ``PREDICTOR_TARGET`` (RK4: error
 ``O(h^5)``; growth at most 2x per step, none right after a rejection) and shrinks by the same
-rule on rejection (0.1x to 0.5x). Each path runs from
+rule on rejection (0.1x to 0.5x; 0.5x when the corrector did not converge). Each path runs from
 ``t = 1`` to ``0`` in one go, with a step that ends exactly at ``t = ENDGAME_RADIUS``, where the
 point is kept for the endgame; that step and the last one (to ``t = 0``) are corrected to
 `ENDGAME_TOL`, so a singular end point (where Newton converges only linearly) stalls the path.
@@ -91,8 +93,37 @@ _C_SOURCE = r"""
 
 typedef double complex cplx;
 #define NMAX 16
+#define INLINE static inline __attribute__((always_inline))
 
 typedef struct { const long *ptr; const int *col; const cplx *val; } csr_t; /* rows j * n + r */
+
+/* Two complex numbers, real and imaginary parts apart, lane l of each vector belonging to one of
+   a pair of legs: the leg quadrics are evaluated two legs at a time in SIMD registers (SSE2
+   on x86-64; the compiler lowers the vector type to scalars where there is none). */
+typedef double v2 __attribute__((vector_size(16)));
+typedef struct { v2 re, im; } c2;
+
+INLINE c2 c2_add(c2 a, c2 b) { c2 r = {a.re + b.re, a.im + b.im}; return r; }
+INLINE c2 c2_sub(c2 a, c2 b) { c2 r = {a.re - b.re, a.im - b.im}; return r; }
+INLINE c2 c2_mul(c2 a, c2 b) {
+    c2 r = {a.re * b.re - a.im * b.im, a.re * b.im + a.im * b.re};
+    return r;
+}
+INLINE c2 c2_scale(double f, c2 a) { c2 r = {f * a.re, f * a.im}; return r; }
+INLINE c2 c2_splat(cplx x) {
+    c2 r = {{creal(x), creal(x)}, {cimag(x), cimag(x)}};
+    return r;
+}
+/* A complex number as one vector (re, im); stored through its two doubles (C11 lays a complex
+   out as double[2]) */
+INLINE v2 load2(const cplx *x) { return (v2){creal(*x), cimag(*x)}; }
+INLINE void store2(cplx *out, v2 x) {
+    double *d = (double *)out;
+    d[0] = x[0];
+    d[1] = x[1];
+}
+/* lane l of x into out */
+INLINE void c2_store(c2 x, int l, cplx *out) { store2(out, (v2){x.re[l], x.im[l]}); }
 
 typedef struct {
     int k, n;
@@ -100,6 +131,7 @@ typedef struct {
     cplx gamma, ta, tb;       /* arc parameter and segment t(tau) = ta + tau (tb - ta) */
     const cplx *patch;
     const cplx *legs; /* NULL, or the Stewart-Gough leg line (b, db, p, dp, c, dc), see evaluate_legs */
+    c2 pairs[3][14];  /* legs (2 k, 2 k + 1) of the line: b[3], db[3], p[3], dp[3], c, dc (make_sys) */
 } sys_t;
 
 typedef struct {
@@ -120,23 +152,24 @@ static double norm(int n, const cplx *z) {
 }
 
 /* x o v for a quaternion x and a pure quaternion v = (0, v): (-x_v . v, x0 v + x_v cross v) */
-static inline __attribute__((always_inline)) void times_pure(const cplx *x, const cplx *v, cplx *out) {
-    out[0] = -(x[1] * v[0] + x[2] * v[1] + x[3] * v[2]);
-    out[1] = x[0] * v[0] + x[2] * v[2] - x[3] * v[1];
-    out[2] = x[0] * v[1] + x[3] * v[0] - x[1] * v[2];
-    out[3] = x[0] * v[2] + x[1] * v[1] - x[2] * v[0];
+INLINE void times_pure(const c2 *x, const c2 *v, c2 *out) {
+    out[0] = c2_scale(-1.0, c2_add(c2_add(c2_mul(x[1], v[0]), c2_mul(x[2], v[1])), c2_mul(x[3], v[2])));
+    out[1] = c2_sub(c2_add(c2_mul(x[0], v[0]), c2_mul(x[2], v[2])), c2_mul(x[3], v[1]));
+    out[2] = c2_sub(c2_add(c2_mul(x[0], v[1]), c2_mul(x[3], v[0])), c2_mul(x[1], v[2]));
+    out[3] = c2_sub(c2_add(c2_mul(x[0], v[2]), c2_mul(x[1], v[1])), c2_mul(x[2], v[0]));
 }
 
 /* v o x for a pure quaternion v and a quaternion x: (-v . x_v, x0 v + v cross x_v) */
-static inline __attribute__((always_inline)) void pure_times(const cplx *v, const cplx *x, cplx *out) {
-    out[0] = -(v[0] * x[1] + v[1] * x[2] + v[2] * x[3]);
-    out[1] = x[0] * v[0] + v[1] * x[3] - v[2] * x[2];
-    out[2] = x[0] * v[1] + v[2] * x[1] - v[0] * x[3];
-    out[3] = x[0] * v[2] + v[0] * x[2] - v[1] * x[1];
+INLINE void pure_times(const c2 *v, const c2 *x, c2 *out) {
+    out[0] = c2_scale(-1.0, c2_add(c2_add(c2_mul(v[0], x[1]), c2_mul(v[1], x[2])), c2_mul(v[2], x[3])));
+    out[1] = c2_sub(c2_add(c2_mul(x[0], v[0]), c2_mul(v[1], x[3])), c2_mul(v[2], x[2]));
+    out[2] = c2_sub(c2_add(c2_mul(x[0], v[1]), c2_mul(v[2], x[1])), c2_mul(v[0], x[3]));
+    out[3] = c2_sub(c2_add(c2_mul(x[0], v[2]), c2_mul(v[0], x[2])), c2_mul(v[1], x[1]));
 }
 
-static inline cplx dot4(const cplx *a, const cplx *b) {
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3];
+INLINE c2 dot4(const c2 *a, const c2 *b) {
+    const c2 ab = c2_add(c2_mul(a[0], b[0]), c2_mul(a[1], b[1]));
+    return c2_add(c2_add(ab, c2_mul(a[2], b[2])), c2_mul(a[3], b[3]));
 }
 
 /* The same J, value and dH/dtau as evaluate, for the Study quadric and the six leg quadrics of a
@@ -146,57 +179,77 @@ static inline cplx dot4(const cplx *a, const cplx *b) {
    F_0 = e . g and F_i = c e.e - 2 w.u + 4 (u - w).g + 4 g.g, so
    dF_i/de = 2 c e + 2 b o (u + 2 g) + 2 (w - 2 g) o p (L(b)^T = -L(b), R(p)^T = -R(p) for pure
    quaternions), dF_i/dg = 4 (u - w) + 8 g and
-   dF_i/ds = dc e.e - 2 ((db o e).u + w.(e o dp)) + 4 (e o dp - db o e).g. */
-static void evaluate_legs(const sys_t *q, const cplx *z, cplx s, cplx ds, cplx *jac, cplx *val, cplx *ht) {
-    const cplx *e = z, *g = z + 4, *lb = q->legs, *ldb = lb + 18, *lp = lb + 36, *ldp = lb + 54;
-    const cplx *lc = lb + 72, *ldc = lb + 78;
-    const cplx ee = dot4(e, e), gg = dot4(g, g);
-    for (int c = 0; c < 4; c++) {
-        jac[c] = g[c];
-        jac[4 + c] = e[c];
+   dF_i/ds = dc e.e - 2 ((db o e).u + w.(e o dp)) + 4 (e o dp - db o e).g. Two legs at a time
+   (sys_t.pairs, the lanes of c2). No J when jac is NULL (inlined: a constant NULL drops its
+   operations). */
+INLINE void evaluate_legs(const sys_t *q, const cplx *z, cplx s, cplx ds, cplx *jac, cplx *val, cplx *ht) {
+    c2 e[4], g[4];
+    for (int a = 0; a < 4; a++) {
+        e[a] = c2_splat(z[a]);
+        g[a] = c2_splat(z[4 + a]);
     }
-    val[0] = dot4(e, g);
-    ht[0] = 0.0;
-    for (int i = 0; i < 6; i++) {
-        cplx b[3], p[3], u[4], w[4], x[4], y[4], du[4], dw[4];
-        for (int a = 0; a < 3; a++) {
-            b[a] = lb[3 * i + a] + s * ldb[3 * i + a];
-            p[a] = lp[3 * i + a] + s * ldp[3 * i + a];
+    const c2 ee = dot4(e, e), gg4 = c2_scale(4.0, dot4(g, g)), sv = c2_splat(s), dsv = c2_splat(ds);
+    if (jac)
+        for (int c = 0; c < 4; c++) {
+            jac[c] = z[4 + c];
+            jac[4 + c] = z[c];
         }
-        const cplx c = lc[i] + s * ldc[i];
+    c2_store(dot4(e, g), 0, val);
+    ht[0] = 0.0;
+    for (int k = 0; k < 3; k++) {
+        const c2 *l = q->pairs[k];
+        c2 b[3], p[3], u[4], w[4], du[4], dw[4];
+        for (int a = 0; a < 3; a++) {
+            b[a] = c2_add(l[a], c2_mul(sv, l[3 + a]));
+            p[a] = c2_add(l[6 + a], c2_mul(sv, l[9 + a]));
+        }
+        const c2 c = c2_add(l[12], c2_mul(sv, l[13]));
         times_pure(e, p, u);
         pure_times(b, e, w);
-        cplx uw_g = 0.0;
-        for (int a = 0; a < 4; a++) {
-            x[a] = u[a] + 2.0 * g[a];
-            y[a] = w[a] - 2.0 * g[a];
-            uw_g += (u[a] - w[a]) * g[a];
+        c2 uw_g = c2_mul(c2_sub(u[0], w[0]), g[0]);
+        for (int a = 1; a < 4; a++) uw_g = c2_add(uw_g, c2_mul(c2_sub(u[a], w[a]), g[a]));
+        const c2 cw = c2_sub(c2_mul(c, ee), c2_scale(2.0, dot4(w, u)));
+        const c2 v = c2_add(c2_add(cw, c2_scale(4.0, uw_g)), gg4);
+        c2 row[8];
+        if (jac) {
+            c2 x[4], y[4];
+            for (int a = 0; a < 4; a++) {
+                x[a] = c2_add(u[a], c2_scale(2.0, g[a]));
+                y[a] = c2_sub(w[a], c2_scale(2.0, g[a]));
+            }
+            pure_times(b, x, row);
+            times_pure(y, p, row + 4); /* scratch: the e part is 2 c e + 2 row[0..3] + 2 row[4..7] */
+            for (int a = 0; a < 4; a++) {
+                row[a] = c2_scale(2.0, c2_add(c2_add(c2_mul(c, e[a]), row[a]), row[4 + a]));
+                row[4 + a] = c2_add(c2_scale(4.0, c2_sub(u[a], w[a])), c2_scale(8.0, g[a]));
+            }
         }
-        val[i + 1] = c * ee - 2.0 * dot4(w, u) + 4.0 * uw_g + 4.0 * gg;
-        cplx *row = jac + 8 * (i + 1);
-        pure_times(b, x, row);
-        times_pure(y, p, row + 4); /* scratch: the e part is 2 c e + 2 row[0..3] + 2 row[4..7] */
-        for (int a = 0; a < 4; a++) {
-            row[a] = 2.0 * (c * e[a] + row[a] + row[4 + a]);
-            row[4 + a] = 4.0 * (u[a] - w[a]) + 8.0 * g[a];
+        times_pure(e, l + 9, du);
+        pure_times(l + 3, e, dw);
+        c2 d = c2_sub(c2_mul(l[13], ee), c2_scale(2.0, c2_add(dot4(dw, u), dot4(w, du))));
+        for (int a = 0; a < 4; a++) d = c2_add(d, c2_mul(c2_scale(4.0, c2_sub(du[a], dw[a])), g[a]));
+        d = c2_mul(d, dsv);
+        for (int lane = 0; lane < 2; lane++) {
+            const int i = 1 + 2 * k + lane;
+            c2_store(v, lane, val + i);
+            c2_store(d, lane, ht + i);
+            if (jac)
+                for (int c = 0; c < 8; c++) c2_store(row[c], lane, jac + 8 * i + c);
         }
-        times_pure(e, ldp + 3 * i, du);
-        pure_times(ldb + 3 * i, e, dw);
-        cplx d = ldc[i] * ee - 2.0 * (dot4(dw, u) + dot4(w, du));
-        for (int a = 0; a < 4; a++) d += 4.0 * (du[a] - dw[a]) * g[a];
-        ht[i + 1] = d * ds;
     }
 }
 
-/* J = [2 M(s) z; a^T] (row-major), value [z^T M(s) z; a^T z - 1], dH/dtau */
+/* J = [2 M(s) z; a^T] (row-major; not formed when jac is NULL), value [z^T M(s) z; a^T z - 1], dH/dtau */
 static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx *val, cplx *ht) {
     const int n = q->n, k = q->k;
     const cplx t = q->ta + tau * (q->tb - q->ta);
     const cplx den = 1.0 + (q->gamma - 1.0) * t;
     const cplx s = q->gamma * t / den, s2 = s * s;
     const cplx ds = q->gamma / (den * den) * (q->tb - q->ta);
-    if (q->legs) {
+    if (q->legs && jac) {
         evaluate_legs(q, z, s, ds, jac, val, ht);
+    } else if (q->legs) {
+        evaluate_legs(q, z, s, ds, NULL, val, ht);
     } else {
     for (int j = 0; j < k; j++) {
         cplx v = 0.0, w = 0.0;
@@ -211,7 +264,7 @@ static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx 
             }
             const cplx y0 = y[0], y1 = y[1], y2 = y[2];
             const cplx my = y0 + s * y1 + s2 * y2;
-            jac[j * n + r] = 2.0 * my;
+            if (jac) jac[j * n + r] = 2.0 * my;
             v += z[r] * my;
             w += z[r] * (y1 + 2.0 * s * y2);
         }
@@ -221,7 +274,7 @@ static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx 
     }
     cplx pz = 0.0;
     for (int c = 0; c < n; c++) {
-        jac[k * n + c] = q->patch[c];
+        if (jac) jac[k * n + c] = q->patch[c];
         pz += q->patch[c] * z[c];
     }
     val[k] = pz - 1.0;
@@ -231,7 +284,7 @@ static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx 
 /* Partial pivoting at column col of the n x n row-major a: the row r >= col of the largest
    |Re| + |Im| in that column is swapped with row col (whole rows); returns r, or -1 when the
    column is zero from col down. */
-static inline __attribute__((always_inline)) int pivot(int n, cplx *a, int col) {
+INLINE int pivot(int n, cplx *a, int col) {
     int piv = col;
     double best = fabs(creal(a[col * n + col])) + fabs(cimag(a[col * n + col]));
     for (int r = col + 1; r < n; r++) {
@@ -248,44 +301,82 @@ static inline __attribute__((always_inline)) int pivot(int n, cplx *a, int col) 
     return piv;
 }
 
-/* a x = b and a y = c in place (b, c become x, y; c may be NULL), partial pivoting; 0 on success */
-static inline __attribute__((always_inline)) int solve_n(int n, cplx *a, cplx *b, cplx *c) {
+/* P A = L U of the n x n row-major a in place (partial pivoting: at column col, row col and
+   row piv[col] >= col are swapped whole, multipliers included), L's multipliers below the
+   diagonal, inv[col] = 1 / U[col][col]; 0 on success, 1 when a column is zero. */
+INLINE int lu_factor(int n, cplx *a, int *piv, cplx *inv) {
     for (int col = 0; col < n; col++) {
-        const int piv = pivot(n, a, col);
-        if (piv < 0) return 1;
-        if (piv != col) {
-            cplx x = b[col]; b[col] = b[piv]; b[piv] = x;
-            if (c) { x = c[col]; c[col] = c[piv]; c[piv] = x; }
-        }
-        const cplx inv = 1.0 / a[col * n + col];
+        const int r0 = pivot(n, a, col);
+        if (r0 < 0) return 1;
+        piv[col] = r0;
+        inv[col] = 1.0 / a[col * n + col];
         for (int r = col + 1; r < n; r++) {
-            const cplx f = a[r * n + col] * inv;
-            for (int j = col + 1; j < n; j++) a[r * n + j] -= f * a[col * n + j];
-            b[r] -= f * b[col];
-            if (c) c[r] -= f * c[col];
+            const cplx f = a[r * n + col] * inv[col];
+            a[r * n + col] = f;
+            /* a_rj -= f a_cj with a complex as one SIMD register (re, im): f a_cj = re(f) a_cj
+               + (-im(f), im(f)) (im(a_cj), re(a_cj)) */
+            const v2 fr = {creal(f), creal(f)}, fi = {-cimag(f), cimag(f)};
+            for (int j = col + 1; j < n; j++) {
+                const v2 x = load2(a + col * n + j);
+                store2(a + r * n + j, load2(a + r * n + j) - (fr * x + fi * (v2){x[1], x[0]}));
+            }
         }
     }
+    return 0;
+}
+
+/* A x = b and A y = c in place (b, c become x, y; c may be NULL) from lu_factor's factors of A:
+   the swaps in order, then L and U; 0 when the solution is finite. */
+INLINE int lu_solve(int n, const cplx *a, const int *piv, const cplx *inv,
+                                                          cplx *b, cplx *c) {
+    for (int col = 0; col < n; col++) {
+        const int r = piv[col];
+        if (r != col) {
+            cplx x = b[col]; b[col] = b[r]; b[r] = x;
+            if (c) { x = c[col]; c[col] = c[r]; c[r] = x; }
+        }
+    }
+    for (int r = 1; r < n; r++) {
+        cplx x = b[r], y = c ? c[r] : 0.0;
+        for (int j = 0; j < r; j++) {
+            x -= a[r * n + j] * b[j];
+            if (c) y -= a[r * n + j] * c[j];
+        }
+        b[r] = x;
+        if (c) c[r] = y;
+    }
     for (int r = n - 1; r >= 0; r--) {
-        const cplx inv = 1.0 / a[r * n + r];
         cplx x = b[r], y = c ? c[r] : 0.0;
         for (int j = r + 1; j < n; j++) {
             x -= a[r * n + j] * b[j];
             if (c) y -= a[r * n + j] * c[j];
         }
-        b[r] = x * inv;
+        b[r] = x * inv[r];
         if (!isfinite(creal(b[r])) || !isfinite(cimag(b[r]))) return 1;
         if (c) {
-            c[r] = y * inv;
+            c[r] = y * inv[r];
             if (!isfinite(creal(c[r])) || !isfinite(cimag(c[r]))) return 1;
         }
     }
     return 0;
 }
 
-/* solve_n with the dimension a constant where it is the Stewart-Gough one (8): unrolled loops */
-static int solve8(cplx *a, cplx *b, cplx *c) { return solve_n(8, a, b, c); }
+/* lu_factor and lu_solve with the dimension a constant where it is the Stewart-Gough one (8):
+   unrolled loops */
+static int factor2(int n, cplx *a, int *piv, cplx *inv) {
+    return n == 8 ? lu_factor(8, a, piv, inv) : lu_factor(n, a, piv, inv);
+}
 
-static int solve2(int n, cplx *a, cplx *b, cplx *c) { return n == 8 ? solve8(a, b, c) : solve_n(n, a, b, c); }
+static int back2(int n, const cplx *a, const int *piv, const cplx *inv, cplx *b, cplx *c) {
+    return n == 8 ? lu_solve(8, a, piv, inv, b, c) : lu_solve(n, a, piv, inv, b, c);
+}
+
+/* a x = b and a y = c in place (a overwritten by its factors; c may be NULL); 0 on success */
+static int solve2(int n, cplx *a, cplx *b, cplx *c) {
+    int piv[NMAX];
+    cplx inv[NMAX];
+    return factor2(n, a, piv, inv) || back2(n, a, piv, inv, b, c);
+}
 
 static int tangent(const sys_t *q, const cplx *z, double tau, cplx *out) {
     cplx jac[NMAX * NMAX], val[NMAX];
@@ -299,7 +390,8 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, cplx *zmark, doub
                      long *steps_out) {
     const int n = q->n;
     cplx k1[NMAX], k2[NMAX], k3[NMAX], k4[NMAX], zt[NMAX], zp[NMAX], zc[NMAX];
-    cplx jac[NMAX * NMAX], val[NMAX], ht[NMAX];
+    cplx jac[NMAX * NMAX], val[NMAX], ht[NMAX], inv[NMAX];
+    int piv[NMAX];
     const double seglen = cabs(q->tb - q->ta);
     double tau = 0.0, h = o->h0;
     int status = 0, have_k1 = 0, retried = 0;
@@ -328,19 +420,31 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, cplx *zmark, doub
         for (int i = 0; i < n; i++) zt[i] = z[i] + st * k3[i];
         bad = bad || tangent(q, zt, tau + st, k4);
         int ok = !bad;
-        double last = INFINITY;
+        double last = INFINITY, moved = INFINITY;
         if (ok) {
             for (int i = 0; i < n; i++)
                 zc[i] = zp[i] = z[i] + st / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
             double first = 0.0;
-            for (int it = 0; it < 3 && ok; it++) {
-                evaluate(q, zc, tau + st, jac, val, ht);
+            for (int it = 0; it < 4 && ok; it++) {
+                /* two Newton updates, then chord updates with the second one's factors (no new
+                   J: only the value and dH/dtau), which contract about as fast from there,
+                   d_(m+1) ~ kappa d_2 d_m; the next k1 (the last update's dH/dtau solve) then
+                   has the Jacobian of a point within about d_3 */
+                const int newton = it < 2;
+                evaluate(q, zc, tau + st, newton ? jac : NULL, val, ht);
                 for (int i = 0; i < n; i++) ht[i] = -ht[i];
-                if (solve2(n, jac, val, ht)) { ok = 0; break; }
+                if ((newton && factor2(n, jac, piv, inv)) || back2(n, jac, piv, inv, val, ht)) {
+                    ok = 0;
+                    break;
+                }
                 for (int i = 0; i < n; i++) zc[i] -= val[i];
                 last = norm(n, val);
-                const double lim = tol * (1.0 + norm(n, zc));
+                const double scale = 1.0 + norm(n, zc), lim = tol * scale;
                 if (last <= lim) break;
+                /* a first update beyond the guard fails the step whatever follows (the corrected
+                   point would end about that far from the prediction): no more updates, and
+                   the step shrinks by it as the predictor error */
+                if (it == 0 && last > o->guard * scale) { ok = 0; moved = last / scale; break; }
                 /* Newton converges quadratically (near a nonsingular point): the update after a
                    first one of size d is about kappa d^2, kappa the largest ratio d2 / d1^2 this
                    path has shown; the end steps measure it */
@@ -349,7 +453,6 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, cplx *zmark, doub
                 else if (it == 1 && first > 0.0) kappa = fmax(kappa, last / (first * first));
             }
         }
-        double moved = INFINITY;
         if (ok) {
             const double scale = 1.0 + norm(n, zc);
             for (int i = 0; i < n; i++) zt[i] = zc[i] - zp[i];
@@ -390,40 +493,19 @@ static int track_one(const sys_t *q, const opts_t *o, cplx *z, cplx *zmark, doub
 static inline double modulus(cplx x) { return sqrt(creal(x) * creal(x) + cimag(x) * cimag(x)); }
 
 /* |A^-1|_1 (the largest column sum of moduli) of the n x n row-major matrix a, which it overwrites
-   with its factors P A = L U (partial pivoting, whole rows swapped); then column c of A^-1 solves
-   L U x = P e_c. INFINITY when a pivot is zero or a column is not finite. */
+   with its factors (lu_factor); column c of A^-1 solves A x = e_c. INFINITY when a pivot is zero
+   or a column is not finite. */
 static double inverse_norm1(int n, cplx *a) {
-    int perm[NMAX];
-    cplx inv_diag[NMAX];
-    for (int i = 0; i < n; i++) perm[i] = i;
-    for (int col = 0; col < n; col++) {
-        const int piv = pivot(n, a, col);
-        if (piv < 0) return INFINITY;
-        if (piv != col) {
-            int x = perm[col]; perm[col] = perm[piv]; perm[piv] = x;
-        }
-        inv_diag[col] = 1.0 / a[col * n + col];
-        for (int r = col + 1; r < n; r++) {
-            const cplx f = a[r * n + col] * inv_diag[col];
-            a[r * n + col] = f;
-            for (int j = col + 1; j < n; j++) a[r * n + j] -= f * a[col * n + j];
-        }
-    }
+    int piv[NMAX];
+    cplx inv[NMAX];
+    if (factor2(n, a, piv, inv)) return INFINITY;
     double worst = 0.0;
     for (int c = 0; c < n; c++) {
         cplx x[NMAX];
-        for (int i = 0; i < n; i++) {
-            cplx v = perm[i] == c ? 1.0 : 0.0;
-            for (int j = 0; j < i; j++) v -= a[i * n + j] * x[j];
-            x[i] = v;
-        }
+        for (int i = 0; i < n; i++) x[i] = i == c ? 1.0 : 0.0;
+        if (back2(n, a, piv, inv, x, NULL)) return INFINITY;
         double sum = 0.0;
-        for (int i = n - 1; i >= 0; i--) {
-            cplx v = x[i];
-            for (int j = i + 1; j < n; j++) v -= a[i * n + j] * x[j];
-            x[i] = v * inv_diag[i];
-            sum += modulus(x[i]);
-        }
+        for (int i = 0; i < n; i++) sum += modulus(x[i]);
         if (!isfinite(sum)) return INFINITY;
         worst = fmax(worst, sum);
     }
@@ -468,8 +550,19 @@ static int make_sys(sys_t *q, int k, int n, const long *ptr0, const int *col0, c
                     double tb_re, double tb_im, const cplx *legs) {
     if (n > NMAX || k != n - 1 || (legs && n != 8)) return -1;
     sys_t s = {k, n, {{ptr0, col0, val0}, {ptr1, col1, val1}, {ptr2, col2, val2}},
-               g_re + I * g_im, ta_re + I * ta_im, tb_re + I * tb_im, patch, legs};
+               g_re + I * g_im, ta_re + I * ta_im, tb_re + I * tb_im, patch, legs, {{{{0}}}}};
     *q = s;
+    if (legs)
+        for (int i = 0; i < 6; i++) {
+            c2 *pair = q->pairs[i / 2];
+            const int lane = i % 2;
+            for (int m = 0; m < 14; m++) {
+                /* component m % 3 of b, db, p, dp (m / 3 = 0 .. 3), then c, dc (m = 12, 13) */
+                const cplx x = m < 12 ? legs[18 * (m / 3) + 3 * i + m % 3] : legs[72 + 6 * (m - 12) + i];
+                pair[m].re[lane] = creal(x);
+                pair[m].im[lane] = cimag(x);
+            }
+        }
     return 0;
 }
 

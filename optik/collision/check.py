@@ -168,6 +168,14 @@ Panda in clutter (8 boxes) the coarse call took 16 us, the fine one 40 us and a 
 (same run); 4 is a round choice, not tuned: either way the answer is the same."""
 
 
+def _under(lb: np.ndarray, limit: float) -> tuple[list[int], np.ndarray, int]:
+    """The indices of the bounds ``lb <= limit`` in increasing order of bound (stable: ties in
+    index order), their sorted bounds, and 0 (the search's position in them)."""
+    idx = np.flatnonzero(lb <= limit)
+    idx = idx[np.argsort(lb[idx], kind="stable")]
+    return idx.tolist(), lb[idx], 0
+
+
 def search(
     geo: RobotGeometry,
     q: np.ndarray,
@@ -211,11 +219,13 @@ def search(
     close: list[Entry] = []
     done: set[int] = set()
     refined = False
-    bounds, order, i = lb.tolist(), np.argsort(lb, kind="stable").tolist(), 0
+    # the pairs in increasing order of bound: the least first, then, once a pair's distance sets
+    # the limit (it only decreases), those under it alone (the rest of a full sort is never read)
+    order, ordered, i = [int(np.argmin(lb))] if lb.size else [], lb[:0], 0
     while i < len(order):
         k = order[i]
         i += 1
-        if bounds[k] > limit:
+        if lb[k] > limit:
             break
         if k in done:  # checked before the bounds were refined
             continue
@@ -237,12 +247,14 @@ def search(
             close.append(entry)
             if stop:
                 break
-        if n_obj and not refined and int(np.count_nonzero(lb <= limit)) - len(done) > REFINE:
+        if len(done) == 1:
+            order, ordered, i = _under(lb, limit)
+        if n_obj and not refined and int(np.searchsorted(ordered, limit, "right")) - len(done) > REFINE:
             refined = True
             fine = screen(geo, world.capacity).bounds(q, world.slots, n_obj)[1]
             np.maximum(lb[n_self:], fine.ravel(), out=lb[n_self:])
-            bounds, order, i = lb.tolist(), np.argsort(lb, kind="stable").tolist(), 0
-    return Search(best, close, len(done), len(bounds), refined)
+            order, ordered, i = _under(lb, limit)
+    return Search(best, close, len(done), int(lb.size), refined)
 
 
 def report_at(

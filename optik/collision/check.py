@@ -19,6 +19,8 @@ it. `CollisionReport.min_distance` is the smallest signed distance over the pair
 
 from __future__ import annotations
 
+import threading
+import weakref
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -168,11 +170,26 @@ Panda in clutter (8 boxes) the coarse call took 16 us, the fine one 40 us and a 
 (same run); 4 is a round choice, not tuned: either way the answer is the same."""
 
 
+_LOCAL = threading.local()
+
+
+def _transforms(geo: RobotGeometry, coal: Any) -> list[Any]:
+    """This thread's coal transforms of ``geo``'s parts, one per part, reused by every search on
+    the thread (each sets those it reads: setting one costs a third of making one)."""
+    per = getattr(_LOCAL, "transforms", None)
+    if per is None:
+        per = _LOCAL.transforms = weakref.WeakKeyDictionary()
+    got = per.get(geo)
+    if got is None:
+        got = per[geo] = [coal.Transform3s() for _ in geo.parts]
+    return got
+
+
 def _under(lb: np.ndarray, limit: float) -> tuple[list[int], np.ndarray, int]:
     """The indices of the bounds ``lb <= limit`` in increasing order of bound (stable: ties in
     index order), their sorted bounds, and 0 (the search's position in them)."""
-    idx = np.flatnonzero(lb <= limit)
-    idx = idx[np.argsort(lb[idx], kind="stable")]
+    idx = (lb <= limit).nonzero()[0]
+    idx = idx[lb[idx].argsort(kind="stable")]
     return idx.tolist(), lb[idx], 0
 
 
@@ -200,18 +217,21 @@ def search(
     ``nearest`` is the nearest pair checked so far (exact only when no pair is close).
     """
     n_obj = len(world.parts)
-    poses, to_world, own = screen(geo, world.capacity, coarse=True).bounds(q, world.slots, n_obj)
     n_self = len(geo.self_pairs) if self_collision else 0
-    lb = np.concatenate([own[:n_self], to_world.ravel()])
+    poses, lb = screen(geo, world.capacity, coarse=True).pair_bounds(q, world.slots, n_obj, n_self)
     coal = coal_module()
     distance, request, parts, others = coal.distance, signed_request(), geo.parts, world.parts
-    tfs: dict[int, Any] = {}  # coal transforms of the robot's parts, made when first needed
+    tfs = _transforms(geo, coal)
+    rotations, origins = poses[:, :9].reshape(-1, 3, 3), poses[:, 9:]
+    placed: set[int] = set()  # the parts whose transform is set for this q
 
     def tf(k: int) -> Any:
-        got = tfs.get(k)
-        if got is None:
-            got = tfs[k] = coal.Transform3s(poses[k, :9].reshape(3, 3), poses[k, 9:])
-        return got
+        t = tfs[k]
+        if k not in placed:
+            t.setRotation(rotations[k])
+            t.setTranslation(origins[k])
+            placed.add(k)
+        return t
 
     floor = max(margin, 0.0)  # pairs below it are reported, and the nearest always is
     limit = np.inf  # max(floor, nearest found) + _SLACK once a pair is found
@@ -221,7 +241,7 @@ def search(
     refined = False
     # the pairs in increasing order of bound: the least first, then, once a pair's distance sets
     # the limit (it only decreases), those under it alone (the rest of a full sort is never read)
-    order, ordered, i = [int(np.argmin(lb))] if lb.size else [], lb[:0], 0
+    order, ordered, i = [int(lb.argmin())] if lb.size else [], lb[:0], 0
     while i < len(order):
         k = order[i]
         i += 1
@@ -249,7 +269,7 @@ def search(
                 break
         if len(done) == 1:
             order, ordered, i = _under(lb, limit)
-        if n_obj and not refined and int(np.searchsorted(ordered, limit, "right")) - len(done) > REFINE:
+        if n_obj and not refined and int(ordered.searchsorted(limit, "right")) - len(done) > REFINE:
             refined = True
             fine = screen(geo, world.capacity).bounds(q, world.slots, n_obj)[1]
             np.maximum(lb[n_self:], fine.ravel(), out=lb[n_self:])

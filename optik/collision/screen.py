@@ -132,12 +132,29 @@ class Screen:
         """``(poses (P, 12), world (P, n_objects), self (k,))`` at ``q`` for the slot values ``slots``
         of ``n_objects`` obstacles: the part poses, and the bounds of every part against every
         object and of every self-collision pair (see the module docstring)."""
+        return self.reduce(self._evaluate(q, slots), n_objects)
+
+    def pair_bounds(
+        self, q: np.ndarray, slots: np.ndarray, n_objects: int, n_self: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """`bounds` as the exact check reads them: ``(poses, lb)``, ``lb`` the bounds of the first
+        ``n_self`` self-collision pairs, then part ``a`` against object ``o`` at ``n_self + a
+        n_objects + o``. ``poses`` ``(P, 12)`` is a view of this thread's evaluator buffer: valid
+        until its next call on this thread."""
+        poses, world, own = self._evaluate(q, slots)
+        lb = np.empty(n_self + self.n_parts * n_objects)
+        lb[:n_self] = own[:n_self]
+        lb[n_self:].reshape(self.n_parts, n_objects)[:] = self._part_rows(world, n_objects)
+        return poses.reshape(self.n_parts, 12), lb
+
+    def _evaluate(self, q: np.ndarray, slots: np.ndarray) -> list[np.ndarray]:
+        """This thread's evaluator's outputs at ``q`` and ``slots`` (its buffers, not copies)."""
         fn = getattr(self._local, "fn", None)
         if fn is None:
             fn = self._local.fn = self.evaluator()
         fn.inputs[0][:] = q
         fn.inputs[1][:] = slots
-        return self.reduce(fn(), n_objects)
+        return fn()
 
     def evaluator(self) -> NativeFunction:
         """A new evaluator of `function` (for one thread): inputs ``q`` and the slot values."""
@@ -147,9 +164,16 @@ class Screen:
         """`bounds` from an `evaluator`'s outputs: each part's bound against an object is the
         least of its spheres' (copies, not views of the evaluator's buffers)."""
         poses, world, own = outputs
+        parts = self._part_rows(world, n_objects)
+        return poses.reshape(self.n_parts, 12).copy(), np.array(parts), own.copy()
+
+    def _part_rows(self, world: np.ndarray, n_objects: int) -> np.ndarray:
+        """``(P, n_objects)``: each part's least sphere bound against each object (a view of
+        ``world`` when every part has one sphere, as in the coarse model)."""
         spheres = world.reshape(self.capacity, self._spheres)[:n_objects].T
-        parts = np.minimum.reduceat(spheres, self._starts, axis=0) if n_objects else spheres[: self.n_parts]
-        return poses.reshape(self.n_parts, 12).copy(), parts, own.copy()
+        if self._spheres == self.n_parts or not n_objects:
+            return spheres[: self.n_parts]
+        return np.minimum.reduceat(spheres, self._starts, axis=0)
 
 
 _CACHE: weakref.WeakKeyDictionary[RobotGeometry, dict[tuple[int, bool], Screen]] = weakref.WeakKeyDictionary()

@@ -9,7 +9,10 @@ obstacle's rounded box; one compiled call for all pairs, a second one where the 
 world bounds leave many pairs: `search`), the pairs are taken in increasing order of it, and the
 search stops once the bound exceeds the smallest distance found, the margin and 0: no pair left out can
 be the closest, closer than the margin, or touching. The witness points are read from coal only
-for the pairs reported.
+for the pairs reported. A part no joint moves (`RobotGeometry.fixed_parts`: the Panda's base
+link) is as far from each object at every ``q``: its coal entries are kept per world version once
+found, their distance taken as their bound (the Panda's base on its table was the least coarse
+bound, so coal's first query, at nearly every configuration).
 
 ``in_collision`` is True when some pair is closer than ``margin`` or touches (distance
 ``<= 0``): at ``margin=0`` it means contact or penetration; with a margin, a clearance below
@@ -185,6 +188,28 @@ def _transforms(geo: RobotGeometry, coal: Any) -> list[Any]:
     return got
 
 
+_FIXED: weakref.WeakKeyDictionary[RobotGeometry, weakref.WeakKeyDictionary[WorldState, dict[tuple[int, int], Entry]]]
+_FIXED = weakref.WeakKeyDictionary()
+"""Per geometry and world version: the coal entries of the pairs of a fixed part
+(`RobotGeometry.fixed_parts`) and a world part found so far, by ``(part, world part)``: the same
+at every ``q``. Each dict is replaced, never changed (a reader holds a consistent one)."""
+_FIXED_LOCK = threading.Lock()
+
+
+def _fixed_entries(geo: RobotGeometry, world: WorldState) -> dict[tuple[int, int], Entry]:
+    """The known entries of ``geo``'s fixed parts against ``world`` (see `_FIXED`)."""
+    per = _FIXED.get(geo)
+    got = None if per is None else per.get(world)
+    return {} if got is None else got
+
+
+def _keep_fixed(geo: RobotGeometry, world: WorldState, entry: Entry) -> None:
+    """Add a fixed part's entry to `_FIXED`."""
+    with _FIXED_LOCK:
+        per = _FIXED.setdefault(geo, weakref.WeakKeyDictionary())
+        per[world] = {**per.get(world, {}), (entry[1], entry[2]): entry}
+
+
 def _under(lb: np.ndarray, limit: float) -> tuple[list[int], np.ndarray, int]:
     """The indices of the bounds ``lb <= limit`` in increasing order of bound (stable: ties in
     index order), their sorted bounds, and 0 (the search's position in them)."""
@@ -219,6 +244,10 @@ def search(
     n_obj = len(world.parts)
     n_self = len(geo.self_pairs) if self_collision else 0
     poses, lb = screen(geo, world.capacity, coarse=True).pair_bounds(q, world.slots, n_obj, n_self)
+    fixed = geo.fixed_parts if n_obj else frozenset()
+    known = _fixed_entries(geo, world) if fixed else {}
+    for (a, b), e in known.items():  # their exact distance is the tightest bound
+        lb[n_self + a * n_obj + b] = e[0]
     coal = coal_module()
     distance, request, parts, others = coal.distance, signed_request(), geo.parts, world.parts
     tfs = _transforms(geo, coal)
@@ -252,13 +281,19 @@ def search(
         on_world = k >= n_self
         if on_world:
             a, b = divmod(k - n_self, n_obj)
-            other, tf_b = others[b].geometry, world.transforms[b]
+            entry = known.get((a, b))
+            if entry is None:
+                res = coal.DistanceResult()
+                d = float(distance(parts[a].geometry, tf(a), others[b].geometry, world.transforms[b], request, res))
+                entry = (d, a, b, True, res)
+                if a in fixed:
+                    _keep_fixed(geo, world, entry)
+            d = entry[0]
         else:
             a, b = geo.pair_list[k]
-            other, tf_b = parts[b].geometry, tf(b)
-        res = coal.DistanceResult()
-        d = float(distance(parts[a].geometry, tf(a), other, tf_b, request, res))
-        entry = (d, a, b, on_world, res)
+            res = coal.DistanceResult()
+            d = float(distance(parts[a].geometry, tf(a), parts[b].geometry, tf(b), request, res))
+            entry = (d, a, b, False, res)
         done.add(k)
         if best is None or d < best[0]:
             best = entry

@@ -241,13 +241,13 @@ def search(
     rejecting an answer needs): ``in_collision`` is then exact, ``close`` holds that pair alone and
     ``nearest`` is the nearest pair checked so far (exact only when no pair is close).
     """
-    n_obj = len(world.parts)
+    n_obj, n_parts = len(world.parts), len(geo.parts)
     n_self = len(geo.self_pairs) if self_collision else 0
     poses, lb = screen(geo, world.capacity, coarse=True).pair_bounds(q, world.slots, n_obj, n_self)
     fixed = geo.fixed_parts if n_obj else frozenset()
     known = _fixed_entries(geo, world) if fixed else {}
     for (a, b), e in known.items():  # their exact distance is the tightest bound
-        lb[n_self + a * n_obj + b] = e[0]
+        lb[n_self + b * n_parts + a] = e[0]
     coal = coal_module()
     distance, request, parts, others = coal.distance, signed_request(), geo.parts, world.parts
     tfs = _transforms(geo, coal)
@@ -280,7 +280,7 @@ def search(
             continue
         on_world = k >= n_self
         if on_world:
-            a, b = divmod(k - n_self, n_obj)
+            b, a = divmod(k - n_self, n_parts)
             entry = known.get((a, b))
             if entry is None:
                 res = coal.DistanceResult()
@@ -307,7 +307,7 @@ def search(
         if n_obj and not refined and int(ordered.searchsorted(limit, "right")) - len(done) > REFINE:
             refined = True
             fine = screen(geo, world.capacity).bounds(q, world.slots, n_obj)[1]
-            np.maximum(lb[n_self:], fine.ravel(), out=lb[n_self:])
+            np.maximum(lb[n_self:], fine.T.ravel(), out=lb[n_self:])
             order, ordered, i = _under(lb, limit)
     return Search(best, close, len(done), int(lb.size), refined)
 

@@ -154,14 +154,16 @@ class Screen:
         self, q: np.ndarray, slots: np.ndarray, n_objects: int, n_self: int
     ) -> tuple[np.ndarray, np.ndarray]:
         """`bounds` as the exact check reads them: ``(poses, lb)``, ``lb`` the bounds of the first
-        ``n_self`` self-collision pairs, then part ``a`` against object ``o`` at ``n_self + a
-        n_objects + o``. ``poses`` ``(P, 12)`` is a view of this thread's evaluator buffer: valid
-        until its next call on this thread."""
+        ``n_self`` self-collision pairs, then part ``a`` against object ``o`` at ``n_self + o P +
+        a`` (object-major: the evaluator's order where each part has one sphere, one copy).
+        ``poses`` ``(P, 12)`` is a view of this thread's evaluator buffer: valid until its next
+        call on this thread."""
         poses, world, own = self._evaluate(q, slots)
-        lb = np.empty(n_self + self.n_parts * n_objects)
-        lb[:n_self] = own[:n_self]
-        lb[n_self:].reshape(self.n_parts, n_objects)[:] = self._part_rows(world, n_objects)
-        return poses.reshape(self.n_parts, 12), lb
+        if self._spheres == self.n_parts:
+            rows = world[: n_objects * self.n_parts]
+        else:
+            rows = self._part_rows(world, n_objects).T.ravel()
+        return poses.reshape(self.n_parts, 12), np.concatenate((own[:n_self], rows))
 
     def _evaluate(self, q: np.ndarray, slots: np.ndarray) -> list[np.ndarray]:
         """This thread's evaluator's outputs at ``q`` and ``slots`` (its buffers, not copies)."""

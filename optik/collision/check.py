@@ -167,10 +167,13 @@ class Search(NamedTuple):
 
 
 REFINE = 4
-"""Pairs left under the search's limit after an exact distance above which the coarse world bounds
-(each part's bounding sphere, `optik.collision.screen`) are refined by the sphere model's. On the
-Panda in clutter (8 boxes) the coarse call took 16 us, the fine one 40 us and a coal query 2-5 us
-(same run); 4 is a round choice, not tuned: either way the answer is the same."""
+"""World pairs left under the search's limit after an exact distance above which the coarse world
+bounds (each part's bounding sphere, `optik.collision.screen`) are refined by the sphere model's
+(self pairs left do not count: the refinement cannot skip them; the Panda's folded answers, their
+elbow near its shoulder, left 4 to 13 self pairs and 1 or 2 world pairs, and the refinement cost
+more than the rest of the search). On the Panda in clutter (8 boxes) the coarse call took 16 us,
+the fine one 40 us and a coal query 2-5 us (same run); 4 is a round choice, not tuned: either way
+the answer is the same."""
 
 
 _LOCAL = threading.local()
@@ -210,12 +213,13 @@ def _keep_fixed(geo: RobotGeometry, world: WorldState, entry: Entry) -> None:
         per[world] = {**per.get(world, {}), (entry[1], entry[2]): entry}
 
 
-def _under(lb: np.ndarray, limit: float) -> tuple[list[int], np.ndarray, int]:
+def _under(lb: np.ndarray, limit: float, n_self: int) -> tuple[list[int], np.ndarray, int]:
     """The indices of the bounds ``lb <= limit`` in increasing order of bound (stable: ties in
-    index order), their sorted bounds, and 0 (the search's position in them)."""
+    index order), the sorted bounds of the world pairs among them (those after the ``n_self``
+    self pairs), and 0 (the search's position in them)."""
     idx = (lb <= limit).nonzero()[0]
     idx = idx[lb[idx].argsort(kind="stable")]
-    return idx.tolist(), lb[idx], 0
+    return idx.tolist(), lb[idx[idx >= n_self]], 0
 
 
 def search(
@@ -231,7 +235,7 @@ def search(
     of it until the bound exceeds ``max(margin, 0, nearest found)``.
 
     The bounds come from one compiled call with the coarse world rows (`optik.collision.screen`);
-    when more than `REFINE` pairs are still under the limit after an exact distance, a second call
+    when more than `REFINE` world pairs are still under the limit after an exact distance, a second call
     gives the sphere model's world rows and each world bound becomes the larger of the two (both
     are lower bounds), the search going on over the pairs not yet checked. The nearest entry's
     distance is exact (coal's), and so is the set of pairs closer than ``margin`` or touching: a
@@ -267,6 +271,7 @@ def search(
     best: Entry | None = None
     close: list[Entry] = []
     done: set[int] = set()
+    done_world = 0
     refined = False
     # the pairs in increasing order of bound: the least first, then, once a pair's distance sets
     # the limit (it only decreases), those under it alone (the rest of a full sort is never read)
@@ -295,6 +300,7 @@ def search(
             d = float(distance(parts[a].geometry, tf(a), parts[b].geometry, tf(b), request, res))
             entry = (d, a, b, False, res)
         done.add(k)
+        done_world += on_world
         if best is None or d < best[0]:
             best = entry
             limit = max(floor, d) + _SLACK
@@ -303,12 +309,12 @@ def search(
             if stop:
                 break
         if len(done) == 1:
-            order, ordered, i = _under(lb, limit)
-        if n_obj and not refined and int(ordered.searchsorted(limit, "right")) - len(done) > REFINE:
+            order, ordered, i = _under(lb, limit, n_self)
+        if n_obj and not refined and int(ordered.searchsorted(limit, "right")) - done_world > REFINE:
             refined = True
             fine = screen(geo, world.capacity).bounds(q, world.slots, n_obj)[1]
             np.maximum(lb[n_self:], fine.T.ravel(), out=lb[n_self:])
-            order, ordered, i = _under(lb, limit)
+            order, ordered, i = _under(lb, limit, n_self)
     return Search(best, close, len(done), int(lb.size), refined)
 
 

@@ -617,3 +617,23 @@ def test_search_with_fixed_entries_is_the_same_from_threads():
     with ThreadPoolExecutor(4) as pool:
         answers = list(pool.map(run, range(4)))
     assert all(a == run() for a in answers)
+
+
+def test_self_pairs_left_do_not_refine_the_world_bounds():
+    """A folded Panda (elbow near its shoulder, an answer of the clutter benchmark) leaves more
+    than `REFINE` self pairs under the limit and one world pair: the search computes them without
+    the fine world screen (it could skip none of them) and finds the brute force's nearest pair."""
+    from optik.benchmarks.bench_collision import scene
+    from optik.collision.check import REFINE, search
+    from optik.collision.distance import signed_distance
+
+    m, _ = _panda()
+    geo = robot_geometry(m)
+    w = scene()
+    q = np.array([1.74, -0.79, -1.62, -2.84, 0.48, 1.05, -2.9])
+    found = search(geo, q, w.state(), 0.01, True)
+    assert not found.refined and found.checked > REFINE + 1
+    poses = geo.part_poses(q)
+    ds = [signed_distance(geo.parts[i], poses[i], geo.parts[j], poses[j])[0] for i, j in geo.self_pairs]
+    ds += [signed_distance(p, poses[i], o, o.offset)[0] for i, p in enumerate(geo.parts) for o in w.parts()]
+    assert found.nearest[0] == pytest.approx(min(ds), abs=1e-9) and not found.close

@@ -572,7 +572,9 @@ def test_fixed_part_distances_follow_the_world():
     def brute(q):
         poses = geo.part_poses(q)
         ds = [signed_distance(geo.parts[i], poses[i], geo.parts[j], poses[j])[0] for i, j in geo.self_pairs]
-        ds += [signed_distance(p, poses[i], o, o.offset)[0] for i, p in enumerate(geo.parts) for o in w.parts()]
+        ds += [
+            signed_distance(p, poses[i], o, o.offset)[0] for i, p in enumerate(geo.parts) for o in w.parts()
+        ]
         return min(ds), sorted(d for d in ds if d < 0.02)
 
     def agrees():

@@ -191,7 +191,8 @@ def _transforms(geo: RobotGeometry, coal: Any) -> list[Any]:
     return got
 
 
-_FIXED: weakref.WeakKeyDictionary[RobotGeometry, weakref.WeakKeyDictionary[WorldState, dict[tuple[int, int], Entry]]]
+_Known = dict[tuple[int, int], Entry]
+_FIXED: weakref.WeakKeyDictionary[RobotGeometry, weakref.WeakKeyDictionary[WorldState, _Known]]
 _FIXED = weakref.WeakKeyDictionary()
 """Per geometry and world version: the coal entries of the pairs of a fixed part
 (`RobotGeometry.fixed_parts`) and a world part found so far, by ``(part, world part)``: the same
@@ -199,7 +200,7 @@ at every ``q``. Each dict is replaced, never changed (a reader holds a consisten
 _FIXED_LOCK = threading.Lock()
 
 
-def _fixed_entries(geo: RobotGeometry, world: WorldState) -> dict[tuple[int, int], Entry]:
+def _fixed_entries(geo: RobotGeometry, world: WorldState) -> _Known:
     """The known entries of ``geo``'s fixed parts against ``world`` (see `_FIXED`)."""
     per = _FIXED.get(geo)
     got = None if per is None else per.get(world)
@@ -289,7 +290,8 @@ def search(
             entry = known.get((a, b))
             if entry is None:
                 res = coal.DistanceResult()
-                d = float(distance(parts[a].geometry, tf(a), others[b].geometry, world.transforms[b], request, res))
+                tf_b = world.transforms[b]
+                d = float(distance(parts[a].geometry, tf(a), others[b].geometry, tf_b, request, res))
                 entry = (d, a, b, True, res)
                 if a in fixed:
                     _keep_fixed(geo, world, entry)

@@ -140,6 +140,7 @@ class Screen:
         part = _spheres(geo, coarse).part
         self._starts = np.searchsorted(part, np.arange(self.n_parts))  # spheres are in part order
         self._spheres = len(part)
+        self._one_each = bool(np.array_equal(part, np.arange(self.n_parts)))  # the coarse model
         self._local = threading.local()
 
     def bounds(
@@ -159,7 +160,7 @@ class Screen:
         ``poses`` ``(P, 12)`` is a view of this thread's evaluator buffer: valid until its next
         call on this thread."""
         poses, world, own = self._evaluate(q, slots)
-        if self._spheres == self.n_parts:
+        if self._one_each:
             rows = world[: n_objects * self.n_parts]
         else:
             rows = self._part_rows(world, n_objects).T.ravel()
@@ -189,7 +190,7 @@ class Screen:
         """``(P, n_objects)``: each part's least sphere bound against each object (a view of
         ``world`` when every part has one sphere, as in the coarse model)."""
         spheres = world.reshape(self.capacity, self._spheres)[:n_objects].T
-        if self._spheres == self.n_parts or not n_objects:
+        if self._one_each or not n_objects:
             return spheres[: self.n_parts]
         return np.minimum.reduceat(spheres, self._starts, axis=0)
 

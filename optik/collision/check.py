@@ -214,13 +214,13 @@ def _keep_fixed(geo: RobotGeometry, world: WorldState, entry: Entry) -> None:
         per[world] = {**per.get(world, {}), (entry[1], entry[2]): entry}
 
 
-def _under(lb: np.ndarray, limit: float, n_self: int) -> tuple[list[int], np.ndarray, int]:
+def _under(lb: np.ndarray, limit: float) -> tuple[list[int], int]:
     """The indices of the bounds ``lb <= limit`` in increasing order of bound (stable: ties in
-    index order), the sorted bounds of the world pairs among them (those after the ``n_self``
-    self pairs), and 0 (the search's position in them)."""
+    index order), and 0 (the search's position in them)."""
     idx = (lb <= limit).nonzero()[0]
-    idx = idx[lb[idx].argsort(kind="stable")]
-    return idx.tolist(), lb[idx[idx >= n_self]], 0
+    if len(idx) > 1:
+        idx = idx[lb[idx].argsort(kind="stable")]
+    return idx.tolist(), 0
 
 
 def search(
@@ -276,7 +276,7 @@ def search(
     refined = False
     # the pairs in increasing order of bound: the least first, then, once a pair's distance sets
     # the limit (it only decreases), those under it alone (the rest of a full sort is never read)
-    order, ordered, i = [int(lb.argmin())] if lb.size else [], lb[:0], 0
+    order, i = [int(lb.argmin())] if lb.size else [], 0
     while i < len(order):
         k = order[i]
         i += 1
@@ -311,12 +311,19 @@ def search(
             if stop:
                 break
         if len(done) == 1:
-            order, ordered, i = _under(lb, limit, n_self)
-        if n_obj and not refined and int(ordered.searchsorted(limit, "right")) - done_world > REFINE:
+            order, i = _under(lb, limit)
+        # world pairs left under the limit (counted only when the pairs under it could hold more
+        # than REFINE: order holds every pair under the limit of when it was made, a larger one)
+        if (
+            n_obj
+            and not refined
+            and len(order) - done_world > REFINE
+            and int(np.count_nonzero(lb[n_self:] <= limit)) - done_world > REFINE
+        ):
             refined = True
             fine = screen(geo, world.capacity).bounds(q, world.slots, n_obj)[1]
             np.maximum(lb[n_self:], fine.T.ravel(), out=lb[n_self:])
-            order, ordered, i = _under(lb, limit, n_self)
+            order, i = _under(lb, limit)
     return Search(best, close, len(done), int(lb.size), refined)
 
 

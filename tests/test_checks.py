@@ -309,3 +309,52 @@ def test_check_seed_takes_what_as_rng_takes():
             check_seed(bad)
         with pytest.raises(InvalidArgumentError, match="seed"):
             as_rng(bad)
+
+
+@pytest.mark.parametrize("name", ["panda", "planar_3r", "rp_arm", "puma560", "stewart_gough"])
+def test_canonical_coordinates_are_their_own_wrap(name) -> None:
+    """`is_canonical` (the fast path of `make_result` and of lm's prepared call) only where
+    `Mechanism.wrap` returns ``q`` as it is within the limits; on each mechanism and on a copy
+    whose finite limits span more than a turn, at draws around the limits, the limits themselves
+    and +-pi, rotation vectors scaled beyond a half-turn."""
+    from optik.solvers.base import is_canonical
+
+    rng = np.random.default_rng(11)
+    base = getattr(optik.catalog, name)()
+    lo, hi = base.sampling_bounds
+    finite = np.isfinite(base.lower) & np.isfinite(base.upper)
+    wide = base.with_limits(
+        np.where(finite, base.lower - 2.0, base.lower), np.where(finite, base.upper + 2.0, base.upper)
+    )
+    kept = 0
+    for m in (base, wide):
+        rows = rng.uniform(lo - 0.5, hi + 0.5, size=(3000, m.n_q))
+        rows[::7] = np.where(rng.random((len(rows[::7]), m.n_q)) < 0.5, m.lower, m.upper)
+        rows[1::7] = rng.choice(
+            [-np.pi, np.pi, np.nextafter(np.pi, 0), -np.nextafter(np.pi, 0)], size=rows[1::7].shape
+        )
+        for sl in m.spherical_slices:
+            rows[2::7, sl] *= rng.uniform(0.5, 4.0, size=(len(rows[2::7]), 1))
+        for q in np.where(np.isfinite(rows), rows, 0.0):
+            if is_canonical(m, q.tolist()):
+                kept += 1
+                assert m.within_limits(q), q
+                np.testing.assert_array_equal(m.wrap(q), q)
+    assert kept > 100
+
+
+def test_panda_joint_6_beyond_pi_is_canonical() -> None:
+    """The Panda's joint 6 (limits -0.0175 .. 3.7525) spans less than a turn: a value beyond pi
+    within it is its own wrap, so `make_result` keeps it without wrapping (the same answer)."""
+    from optik.solvers.base import is_canonical
+
+    m = optik.catalog.panda()
+    q = m.mid_q()
+    q[5] = 3.5
+    assert is_canonical(m, q.tolist())
+    np.testing.assert_array_equal(m.wrap(q), q)
+    res = make_result(make_request(m, m.fk(q)), q, "test", 1)
+    assert res.success and res.limits_ok
+    np.testing.assert_array_equal(res.q, q)
+    q[5] = 3.7525 + 1e-6  # outside its limits: not canonical (clipped by make_result)
+    assert not is_canonical(m, q.tolist())

@@ -541,3 +541,101 @@ def test_a_search_that_stops_at_the_first_close_pair(tmp_path):
         else:
             assert quick.nearest[:4] == full.nearest[:4] and quick.checked == full.checked
     assert stopped >= 5
+
+
+def test_fixed_parts_are_those_no_joint_moves(arm):
+    """`RobotGeometry.fixed_parts`: the parts of links whose pose is the same at every ``q``."""
+    m, _ = _panda()
+    geo = robot_geometry(m)
+    assert {geo.parts[k].name for k in geo.fixed_parts} == {"panda_link0"}
+    toy = robot_geometry(arm)
+    for k, part in enumerate(toy.parts):
+        poses = [toy.part_poses(q)[k] for q in arm.random_q(5, seed=3)]
+        same = all(np.array_equal(p, poses[0]) for p in poses)
+        assert same == (k in toy.fixed_parts), part.name
+
+
+def test_fixed_part_distances_follow_the_world():
+    """A fixed part's distance to an object is kept per world version (`check._FIXED`): after
+    every add, move and remove the search still gives the brute force's nearest distance and
+    close pairs, and a repeated search (entries known) gives the same nearest pair and close
+    pairs as the first (found in another order: a known entry's bound is its distance)."""
+    from optik.collision.check import search
+    from optik.collision.distance import signed_distance
+
+    m, _ = _panda()
+    geo = robot_geometry(m)
+    w = World()
+    w.add_box("floor", (1.0, 1.0, 0.02), spatial.translation(0.0, 0.0, -0.02))
+    qs = m.random_q(6, seed=5)
+
+    def brute(q):
+        poses = geo.part_poses(q)
+        ds = [signed_distance(geo.parts[i], poses[i], geo.parts[j], poses[j])[0] for i, j in geo.self_pairs]
+        ds += [
+            signed_distance(p, poses[i], o, o.offset)[0] for i, p in enumerate(geo.parts) for o in w.parts()
+        ]
+        return min(ds), sorted(d for d in ds if d < 0.02)
+
+    def agrees():
+        state = w.state()
+        for q in qs:
+            first, again = search(geo, q, state, 0.02, True), search(geo, q, state, 0.02, True)
+            assert first.nearest[:4] == again.nearest[:4]
+            assert sorted(e[:4] for e in first.close) == sorted(e[:4] for e in again.close)
+            nearest, close = brute(q)
+            assert first.nearest[0] == pytest.approx(nearest, abs=1e-9)
+            assert sorted(e[0] for e in first.close) == pytest.approx(close, abs=1e-9)
+
+    agrees()
+    w.move("floor", spatial.translation(0.0, 0.0, -0.015))  # 5 mm closer to the base link
+    agrees()
+    w.add_box("post", (0.05, 0.05, 0.3), spatial.translation(0.16, 0.0, 0.1))  # next to panda_link0
+    agrees()
+    w.remove("floor")
+    agrees()
+
+
+def test_search_with_fixed_entries_is_the_same_from_threads():
+    """Searches from 4 threads at once (the fixed parts' entries found by whichever thread comes
+    first) give every thread the answers of one thread alone."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from optik.collision.check import search
+
+    m, _ = _panda()
+    geo = robot_geometry(m)
+    w = World()
+    w.add_box("table", (1.4, 1.6, 0.04), spatial.translation(0.3, 0.0, -0.04))
+    w.add_box("post", (0.05, 0.05, 0.3), spatial.translation(0.16, 0.0, 0.1))
+    qs = m.random_q(40, seed=8)
+
+    def run(_=None):
+        state = w.state()
+        found = (search(geo, q, state, 0.02, True) for q in qs)
+        return [(s.nearest[:4], sorted(e[:4] for e in s.close)) for s in found]
+
+    w.move("post", spatial.translation(0.17, 0.0, 0.1))  # a version no thread has searched yet
+    with ThreadPoolExecutor(4) as pool:
+        answers = list(pool.map(run, range(4)))
+    assert all(a == run() for a in answers)
+
+
+def test_self_pairs_left_do_not_refine_the_world_bounds():
+    """A folded Panda (elbow near its shoulder, an answer of the clutter benchmark) leaves more
+    than `REFINE` self pairs under the limit and one world pair: the search computes them without
+    the fine world screen (it could skip none of them) and finds the brute force's nearest pair."""
+    from optik.benchmarks.bench_collision import scene
+    from optik.collision.check import REFINE, search
+    from optik.collision.distance import signed_distance
+
+    m, _ = _panda()
+    geo = robot_geometry(m)
+    w = scene()
+    q = np.array([1.74, -0.79, -1.62, -2.84, 0.48, 1.05, -2.9])
+    found = search(geo, q, w.state(), 0.01, True)
+    assert not found.refined and found.checked > REFINE + 1
+    poses = geo.part_poses(q)
+    ds = [signed_distance(geo.parts[i], poses[i], geo.parts[j], poses[j])[0] for i, j in geo.self_pairs]
+    ds += [signed_distance(p, poses[i], o, o.offset)[0] for i, p in enumerate(geo.parts) for o in w.parts()]
+    assert found.nearest[0] == pytest.approx(min(ds), abs=1e-9) and not found.close

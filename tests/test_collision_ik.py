@@ -550,3 +550,40 @@ def test_the_solves_exact_check_is_the_full_report(arm):
         if report.in_collision:
             assert judged.status == "in_collision" and repr(report.close_pairs[0].a) in judged.message
     assert near >= 10
+
+
+def test_panda_in_clutter_four_threads_give_the_answers_of_one():
+    """The clutter benchmark's scene and targets (the Panda's base against the table kept per
+    world version, `optik.collision.check`): 4 threads at once, starting on a world version no
+    solve has read, give the answers of one thread, each clear by the exact check."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from optik.benchmarks.bench_collision import scene
+    from optik.catalog.robots import robots_dir
+
+    try:
+        d = robots_dir() / "panda_description"
+    except optik.MissingExtraError:
+        pytest.skip("example-robot-data (extra 'robots') is not installed")
+    urdf, srdf = d / "urdf" / "panda.urdf", d / "srdf" / "panda.srdf"
+    m = optik.Mechanism.from_urdf(urdf, "panda_link0", "panda_hand_tcp", srdf=srdf)
+    w = scene()
+    rng = np.random.default_rng(4)
+    targets = []
+    while len(targets) < 24:
+        q = m.random_q(seed=rng)
+        if not check(m, q, w, margin=0.01).in_collision:
+            targets.append(m.fk(q))
+
+    def solve(i):
+        return optik.solve_ik(m, targets[i], world=w, margin=0.01, time_limit=10.0, seed=i)
+
+    w.move("box_a", spatial.translation(0.35, 0.46, 0.04))  # a new version: nothing known of it
+    with ThreadPoolExecutor(4) as pool:
+        together = list(pool.map(solve, range(len(targets))))
+    alone = [solve(i) for i in range(len(targets))]
+    for a, b in zip(alone, together, strict=True):
+        assert a.success and b.success, (a.message, b.message)
+        assert np.array_equal(a.q, b.q) and a.min_distance == b.min_distance
+        assert a.collision_pair == b.collision_pair
+        assert check(m, b.q, w, margin=0.01).in_collision is False

@@ -9,7 +9,10 @@ obstacle's rounded box; one compiled call for all pairs, a second one where the 
 world bounds leave many pairs: `search`), the pairs are taken in increasing order of it, and the
 search stops once the bound exceeds the smallest distance found, the margin and 0: no pair left out can
 be the closest, closer than the margin, or touching. The witness points are read from coal only
-for the pairs reported.
+for the pairs reported. A part no joint moves (`RobotGeometry.fixed_parts`: the Panda's base
+link) is as far from each object at every ``q``: its coal entries are kept per world version once
+found, their distance taken as their bound (the Panda's base on its table was the least coarse
+bound, so coal's first query, at nearly every configuration).
 
 ``in_collision`` is True when some pair is closer than ``margin`` or touches (distance
 ``<= 0``): at ``margin=0`` it means contact or penetration; with a margin, a clearance below
@@ -19,6 +22,8 @@ it. `CollisionReport.min_distance` is the smallest signed distance over the pair
 
 from __future__ import annotations
 
+import threading
+import weakref
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -162,10 +167,60 @@ class Search(NamedTuple):
 
 
 REFINE = 4
-"""Pairs left under the search's limit after an exact distance above which the coarse world bounds
-(each part's bounding sphere, `optik.collision.screen`) are refined by the sphere model's. On the
-Panda in clutter (8 boxes) the coarse call took 16 us, the fine one 40 us and a coal query 2-5 us
-(same run); 4 is a round choice, not tuned: either way the answer is the same."""
+"""World pairs left under the search's limit after an exact distance above which the coarse world
+bounds (each part's bounding sphere, `optik.collision.screen`) are refined by the sphere model's
+(self pairs left do not count: the refinement cannot skip them; the Panda's folded answers, their
+elbow near its shoulder, left 4 to 13 self pairs and 1 or 2 world pairs, and the refinement cost
+more than the rest of the search). On the Panda in clutter (8 boxes) the coarse call took 16 us,
+the fine one 40 us and a coal query 2-5 us (same run); 4 is a round choice, not tuned: either way
+the answer is the same."""
+
+
+_LOCAL = threading.local()
+
+
+def _transforms(geo: RobotGeometry, coal: Any) -> list[Any]:
+    """This thread's coal transforms of ``geo``'s parts, one per part, reused by every search on
+    the thread (each sets those it reads: setting one costs a third of making one)."""
+    per = getattr(_LOCAL, "transforms", None)
+    if per is None:
+        per = _LOCAL.transforms = weakref.WeakKeyDictionary()
+    got = per.get(geo)
+    if got is None:
+        got = per[geo] = [coal.Transform3s() for _ in geo.parts]
+    return got
+
+
+_Known = dict[tuple[int, int], Entry]
+_FIXED: weakref.WeakKeyDictionary[RobotGeometry, weakref.WeakKeyDictionary[WorldState, _Known]]
+_FIXED = weakref.WeakKeyDictionary()
+"""Per geometry and world version: the coal entries of the pairs of a fixed part
+(`RobotGeometry.fixed_parts`) and a world part found so far, by ``(part, world part)``: the same
+at every ``q``. Each dict is replaced, never changed (a reader holds a consistent one)."""
+_FIXED_LOCK = threading.Lock()
+
+
+def _fixed_entries(geo: RobotGeometry, world: WorldState) -> _Known:
+    """The known entries of ``geo``'s fixed parts against ``world`` (see `_FIXED`)."""
+    per = _FIXED.get(geo)
+    got = None if per is None else per.get(world)
+    return {} if got is None else got
+
+
+def _keep_fixed(geo: RobotGeometry, world: WorldState, entry: Entry) -> None:
+    """Add a fixed part's entry to `_FIXED`."""
+    with _FIXED_LOCK:
+        per = _FIXED.setdefault(geo, weakref.WeakKeyDictionary())
+        per[world] = {**per.get(world, {}), (entry[1], entry[2]): entry}
+
+
+def _under(lb: np.ndarray, limit: float) -> tuple[list[int], int]:
+    """The indices of the bounds ``lb <= limit`` in increasing order of bound (stable: ties in
+    index order), and 0 (the search's position in them)."""
+    idx = (lb <= limit).nonzero()[0]
+    if len(idx) > 1:
+        idx = idx[lb[idx].argsort(kind="stable")]
+    return idx.tolist(), 0
 
 
 def search(
@@ -181,7 +236,7 @@ def search(
     of it until the bound exceeds ``max(margin, 0, nearest found)``.
 
     The bounds come from one compiled call with the coarse world rows (`optik.collision.screen`);
-    when more than `REFINE` pairs are still under the limit after an exact distance, a second call
+    when more than `REFINE` world pairs are still under the limit after an exact distance, a second call
     gives the sphere model's world rows and each world bound becomes the larger of the two (both
     are lower bounds), the search going on over the pairs not yet checked. The nearest entry's
     distance is exact (coal's), and so is the set of pairs closer than ``margin`` or touching: a
@@ -191,45 +246,63 @@ def search(
     rejecting an answer needs): ``in_collision`` is then exact, ``close`` holds that pair alone and
     ``nearest`` is the nearest pair checked so far (exact only when no pair is close).
     """
-    n_obj = len(world.parts)
-    poses, to_world, own = screen(geo, world.capacity, coarse=True).bounds(q, world.slots, n_obj)
+    n_obj, n_parts = len(world.parts), len(geo.parts)
     n_self = len(geo.self_pairs) if self_collision else 0
-    lb = np.concatenate([own[:n_self], to_world.ravel()])
+    poses, lb = screen(geo, world.capacity, coarse=True).pair_bounds(q, world.slots, n_obj, n_self)
+    fixed = geo.fixed_parts if n_obj else frozenset()
+    known = _fixed_entries(geo, world) if fixed else {}
+    for (a, b), e in known.items():  # their exact distance is the tightest bound
+        lb[n_self + b * n_parts + a] = e[0]
     coal = coal_module()
     distance, request, parts, others = coal.distance, signed_request(), geo.parts, world.parts
-    tfs: dict[int, Any] = {}  # coal transforms of the robot's parts, made when first needed
+    tfs = _transforms(geo, coal)
+    rotations, origins = poses[:, :9].reshape(-1, 3, 3), poses[:, 9:]
+    placed: set[int] = set()  # the parts whose transform is set for this q
 
     def tf(k: int) -> Any:
-        got = tfs.get(k)
-        if got is None:
-            got = tfs[k] = coal.Transform3s(poses[k, :9].reshape(3, 3), poses[k, 9:])
-        return got
+        t = tfs[k]
+        if k not in placed:
+            t.setRotation(rotations[k])
+            t.setTranslation(origins[k])
+            placed.add(k)
+        return t
 
     floor = max(margin, 0.0)  # pairs below it are reported, and the nearest always is
     limit = np.inf  # max(floor, nearest found) + _SLACK once a pair is found
     best: Entry | None = None
     close: list[Entry] = []
     done: set[int] = set()
+    done_world = 0
     refined = False
-    bounds, order, i = lb.tolist(), np.argsort(lb, kind="stable").tolist(), 0
+    # the pairs in increasing order of bound: the least first, then, once a pair's distance sets
+    # the limit (it only decreases), those under it alone (the rest of a full sort is never read)
+    order, i = [int(lb.argmin())] if lb.size else [], 0
     while i < len(order):
         k = order[i]
         i += 1
-        if bounds[k] > limit:
+        if lb[k] > limit:
             break
         if k in done:  # checked before the bounds were refined
             continue
         on_world = k >= n_self
         if on_world:
-            a, b = divmod(k - n_self, n_obj)
-            other, tf_b = others[b].geometry, world.transforms[b]
+            b, a = divmod(k - n_self, n_parts)
+            entry = known.get((a, b))
+            if entry is None:
+                res = coal.DistanceResult()
+                tf_b = world.transforms[b]
+                d = float(distance(parts[a].geometry, tf(a), others[b].geometry, tf_b, request, res))
+                entry = (d, a, b, True, res)
+                if a in fixed:
+                    _keep_fixed(geo, world, entry)
+            d = entry[0]
         else:
             a, b = geo.pair_list[k]
-            other, tf_b = parts[b].geometry, tf(b)
-        res = coal.DistanceResult()
-        d = float(distance(parts[a].geometry, tf(a), other, tf_b, request, res))
-        entry = (d, a, b, on_world, res)
+            res = coal.DistanceResult()
+            d = float(distance(parts[a].geometry, tf(a), parts[b].geometry, tf(b), request, res))
+            entry = (d, a, b, False, res)
         done.add(k)
+        done_world += on_world
         if best is None or d < best[0]:
             best = entry
             limit = max(floor, d) + _SLACK
@@ -237,12 +310,21 @@ def search(
             close.append(entry)
             if stop:
                 break
-        if n_obj and not refined and int(np.count_nonzero(lb <= limit)) - len(done) > REFINE:
+        if len(done) == 1:
+            order, i = _under(lb, limit)
+        # world pairs left under the limit (counted only when the pairs under it could hold more
+        # than REFINE: order holds every pair under the limit of when it was made, a larger one)
+        if (
+            n_obj
+            and not refined
+            and len(order) - done_world > REFINE
+            and int(np.count_nonzero(lb[n_self:] <= limit)) - done_world > REFINE
+        ):
             refined = True
             fine = screen(geo, world.capacity).bounds(q, world.slots, n_obj)[1]
-            np.maximum(lb[n_self:], fine.ravel(), out=lb[n_self:])
-            bounds, order, i = lb.tolist(), np.argsort(lb, kind="stable").tolist(), 0
-    return Search(best, close, len(done), len(bounds), refined)
+            np.maximum(lb[n_self:], fine.T.ravel(), out=lb[n_self:])
+            order, i = _under(lb, limit)
+    return Search(best, close, len(done), int(lb.size), refined)
 
 
 def report_at(

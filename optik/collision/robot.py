@@ -81,6 +81,15 @@ class RobotGeometry:
     _poses: ca.Function = field(repr=False)
 
     @functools.cached_property
+    def fixed_parts(self) -> frozenset[int]:
+        """The parts whose pose does not depend on the coordinates (their link is fixed to the
+        base): their distance to a world object is the same at every ``q``."""
+        m = self.mechanism
+        q = m.q_sym
+        fixed = [not ca.depends_on(ca.vec(m.frame_expr(link)), q) for link in self.links]
+        return frozenset(k for k, link in enumerate(self.part_link.tolist()) if fixed[link])
+
+    @functools.cached_property
     def pair_list(self) -> list[tuple[int, int]]:
         """`self_pairs` as a list of int pairs (what a search indexes per pair)."""
         return [(int(a), int(b)) for a, b in self.self_pairs]

@@ -67,26 +67,42 @@ def screen_function(
         t = ca.mtimes(links[int(geo.part_link[k])], ca.DM(part.offset))
         poses.append(ca.vertcat(ca.vec(t[:3, :3].T), t[:3, 3]))
     centres = ca.horzcat(*(placed(int(k), c) for k, c in zip(model.part, model.centres, strict=True)))
-    rows = []
-    for i, j in geo.self_pairs:
-        ends = [placed(int(k), x) for k in (i, j) for x in capsule.segments[k]]
-        capsules = segment_distance(*ends) - capsule.capsule_radii[i] - capsule.capsule_radii[j]
-        spheres = ca.norm_2(placed(int(i), geo.parts[i].centre) - placed(int(j), geo.parts[j].centre))
-        rows.append(ca.fmax(capsules, spheres - geo.parts[i].radius - geo.parts[j].radius))
+    # each part's capsule ends and bounding-sphere centre, placed once; the self rows are one
+    # function mapped over the pairs (a loop in the generated C, not one copy of it per pair)
+    n_p = len(geo.parts)
+    ends = [ca.horzcat(*(placed(k, capsule.segments[k][e]) for k in range(n_p))) for e in (0, 1)]
+    middles = ca.horzcat(*(placed(k, geo.parts[k].centre) for k in range(n_p)))
     q = m.q_sym
-    own = ca.vertcat(*rows) if rows else ca.SX(0, 1)
-    outs = [ca.vertcat(*poses), centres, own] + ([] if extra is None else [extra])
-    robot = ca.Function("robot", [q], outs)
+    outs = [ca.vertcat(*poses), centres, ends[0], ends[1], middles] + ([] if extra is None else [extra])
+    # common subexpressions merged (a part's placed points share its link's pose)
+    robot = ca.Function("robot", [q], outs, {"cse": True})
     c, radius, slot = ca.SX.sym("c", 3), ca.SX.sym("radius"), ca.SX.sym("slot", SLOT_SIZE)
     row = ca.Function("sphere_slot", [c, radius, slot], [slot_distance(slot, c, 0.0) - radius])
     n_s = len(model.radii)
     qm, slots = ca.MX.sym("q", m.n_q), ca.MX.sym("slots", capacity * SLOT_SIZE)
-    pose_out, centre_out, self_out, *more = robot(qm)
+    pose_out, centre_out, a_out, b_out, middle_out, *more = robot(qm)
     # one map over every (slot k, sphere s) at column k S + s: spheres repeated, slots each S times
     spheres = ca.repmat(centre_out, 1, capacity), ca.repmat(ca.DM(model.radii).T, 1, capacity)
     per_slot = ca.kron(ca.reshape(slots, SLOT_SIZE, capacity), ca.DM.ones(1, n_s))
     bounds = row.map(capacity * n_s)(*spheres, per_slot)
-    return ca.Function("optik_collision_screen", [qm, slots], [pose_out, ca.vec(bounds), self_out, *more])
+    pairs = np.asarray(geo.self_pairs, dtype=int).reshape(-1, 2)
+    if len(pairs):
+        x = [ca.SX.sym(name, 3) for name in ("p1", "q1", "p2", "q2", "ci", "cj")]
+        rho_i, rho_j, r_i, r_j = (ca.SX.sym(name) for name in ("rho_i", "rho_j", "r_i", "r_j"))
+        capsules = segment_distance(*x[:4]) - rho_i - rho_j
+        pair = ca.Function(
+            "self_pair",
+            [*x, rho_i, rho_j, r_i, r_j],
+            [ca.fmax(capsules, ca.norm_2(x[4] - x[5]) - r_i - r_j)],
+        )
+        i, j = pairs[:, 0].tolist(), pairs[:, 1].tolist()
+        rho, r = capsule.capsule_radii, np.array([p.radius for p in geo.parts])
+        args = [a_out[:, i], b_out[:, i], a_out[:, j], b_out[:, j], middle_out[:, i], middle_out[:, j]]
+        consts = [ca.DM(v[idx]).T for v in (rho, r) for idx in (pairs[:, 0], pairs[:, 1])]
+        own = ca.vec(pair.map(len(pairs))(*args, consts[0], consts[1], consts[2], consts[3]))
+    else:
+        own = ca.MX(0, 1)
+    return ca.Function("optik_collision_screen", [qm, slots], [pose_out, ca.vec(bounds), own, *more])
 
 
 class _Spheres(NamedTuple):
@@ -124,6 +140,7 @@ class Screen:
         part = _spheres(geo, coarse).part
         self._starts = np.searchsorted(part, np.arange(self.n_parts))  # spheres are in part order
         self._spheres = len(part)
+        self._one_each = bool(np.array_equal(part, np.arange(self.n_parts)))  # the coarse model
         self._local = threading.local()
 
     def bounds(
@@ -132,12 +149,31 @@ class Screen:
         """``(poses (P, 12), world (P, n_objects), self (k,))`` at ``q`` for the slot values ``slots``
         of ``n_objects`` obstacles: the part poses, and the bounds of every part against every
         object and of every self-collision pair (see the module docstring)."""
+        return self.reduce(self._evaluate(q, slots), n_objects)
+
+    def pair_bounds(
+        self, q: np.ndarray, slots: np.ndarray, n_objects: int, n_self: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """`bounds` as the exact check reads them: ``(poses, lb)``, ``lb`` the bounds of the first
+        ``n_self`` self-collision pairs, then part ``a`` against object ``o`` at ``n_self + o P +
+        a`` (object-major: the evaluator's order where each part has one sphere, one copy).
+        ``poses`` ``(P, 12)`` is a view of this thread's evaluator buffer: valid until its next
+        call on this thread."""
+        poses, world, own = self._evaluate(q, slots)
+        if self._one_each:
+            rows = world[: n_objects * self.n_parts]
+        else:
+            rows = self._part_rows(world, n_objects).T.ravel()
+        return poses.reshape(self.n_parts, 12), np.concatenate((own[:n_self], rows))
+
+    def _evaluate(self, q: np.ndarray, slots: np.ndarray) -> list[np.ndarray]:
+        """This thread's evaluator's outputs at ``q`` and ``slots`` (its buffers, not copies)."""
         fn = getattr(self._local, "fn", None)
         if fn is None:
             fn = self._local.fn = self.evaluator()
         fn.inputs[0][:] = q
         fn.inputs[1][:] = slots
-        return self.reduce(fn(), n_objects)
+        return fn()
 
     def evaluator(self) -> NativeFunction:
         """A new evaluator of `function` (for one thread): inputs ``q`` and the slot values."""
@@ -147,9 +183,16 @@ class Screen:
         """`bounds` from an `evaluator`'s outputs: each part's bound against an object is the
         least of its spheres' (copies, not views of the evaluator's buffers)."""
         poses, world, own = outputs
+        parts = self._part_rows(world, n_objects)
+        return poses.reshape(self.n_parts, 12).copy(), np.array(parts), own.copy()
+
+    def _part_rows(self, world: np.ndarray, n_objects: int) -> np.ndarray:
+        """``(P, n_objects)``: each part's least sphere bound against each object (a view of
+        ``world`` when every part has one sphere, as in the coarse model)."""
         spheres = world.reshape(self.capacity, self._spheres)[:n_objects].T
-        parts = np.minimum.reduceat(spheres, self._starts, axis=0) if n_objects else spheres[: self.n_parts]
-        return poses.reshape(self.n_parts, 12).copy(), parts, own.copy()
+        if self._one_each or not n_objects:
+            return spheres[: self.n_parts]
+        return np.minimum.reduceat(spheres, self._starts, axis=0)
 
 
 _CACHE: weakref.WeakKeyDictionary[RobotGeometry, dict[tuple[int, bool], Screen]] = weakref.WeakKeyDictionary()

@@ -216,6 +216,49 @@ def _wrap_angle(a: float) -> float:
     return w + _TWO_PI if w <= -math.pi else w
 
 
+_BANDS: PerMechanism[tuple[list[float], list[float], list[float], list[float]]] = PerMechanism()
+
+
+def _wrap_bands(m: Mechanism) -> tuple[list[float], list[float], list[float], list[float]]:
+    """``m``'s limits and, per coordinate, the open interval ``(a, b)`` of the values within the
+    limits that [`Mechanism.wrap`][optik.Mechanism.wrap] returns as they are (`is_canonical`),
+    as plain float lists (cached per mechanism).
+
+    An angle whose limits span ``2 pi`` or more (less a rounding margin) gets ``(-pi, pi)``; one
+    whose limits span less gets the whole line: a value ``x`` within them has no other turn
+    ``x + 2 pi k`` within them, so `optik.spatial.wrap_to_limits` keeps ``x`` (its rule 2: the
+    Panda's joint 6, limits ``[-0.0175, 3.7525]``, beyond pi on a sixth of its range). A rotation
+    vector coordinate gets ``(-pi, pi)`` (its norm is checked too: `rotation_vectors_canonical`),
+    every other coordinate (prismatic: `wrap` does not touch it) the whole line.
+    """
+    hit = _BANDS.get(m)
+    if hit is not None:
+        return hit
+    lower, upper = m.lower.tolist(), m.upper.tolist()
+    angle = np.asarray(m.revolute_mask, dtype=bool)
+    rotation = np.zeros(m.n_q, dtype=bool)
+    for sl in m.spherical_slices:
+        rotation[sl] = True
+    short = m.upper - m.lower < _TWO_PI - 1e-9  # an unbounded angle spans inf: not short
+    free = (angle & short) | ~(angle | rotation)
+    a = np.where(free, -np.inf, -math.pi).tolist()
+    b = np.where(free, np.inf, math.pi).tolist()
+    return _BANDS.setdefault(m, (lower, upper, a, b))
+
+
+def is_canonical(m: Mechanism, q: list[float]) -> bool:
+    """Whether ``q`` (a plain float list of ``n_q`` entries) lies within ``m``'s limits and is
+    its own [`Mechanism.wrap`][optik.Mechanism.wrap] (`_wrap_bands`, `rotation_vectors_canonical`):
+    a result may keep it as it is. NaN is not canonical."""
+    lower, upper, a, b = _wrap_bands(m)
+    le, lt = operator.le, operator.lt
+    if not (all(map(le, lower, q)) and all(map(le, q, upper))):
+        return False
+    if not (all(map(lt, a, q)) and all(map(lt, q, b))):
+        return False
+    return not m.spherical_slices or rotation_vectors_canonical(m, q)
+
+
 def rotation_vectors_canonical(m: Mechanism, q: list[float]) -> bool:
     """Whether every rotation vector of ``q`` (a plain float list of ``n_q`` entries: the
     spherical joints' coordinates and the free joints' last three) has norm ``< pi - 1e-9``, so
@@ -263,15 +306,13 @@ def make_result(
         qq, err, frame_errors = _multi_target_errors(request, q)
         return _result(request, qq, err, method, iterations, restarts, status, message, frame_errors)
     lower, upper = m.lower, m.upper
-    # already wrapped and within limits: m.wrap would return q itself (every coordinate in
-    # (-pi, pi) and every rotation vector of norm <= pi)
+    # already wrapped and within limits: m.wrap would return q itself (`is_canonical`)
     if q.shape == lower.shape:
         # plain-float comparisons (NaN compares False, as in numpy): cheaper than four ufuncs
         ql = q.tolist()
-        inside = all(map(operator.le, lower.tolist(), ql)) and all(map(operator.le, ql, upper.tolist()))
-        wrapped = inside and (not ql or (-math.pi < min(ql) and max(ql) < math.pi))
-        if wrapped and m.spherical_slices:
-            wrapped = rotation_vectors_canonical(m, ql)
+        wrapped = is_canonical(m, ql)
+        le = operator.le
+        inside = wrapped or (all(map(le, lower.tolist(), ql)) and all(map(le, ql, upper.tolist())))
     else:
         inside = bool((q >= lower).all() and (q <= upper).all())
         wrapped = inside and bool((np.abs(q) < np.pi).all()) and not m.spherical_slices

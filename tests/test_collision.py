@@ -301,6 +301,36 @@ def test_sphere_model_bounds_never_exceed_exact_distances(arm, tmp_path):
             assert np.all(bound[clear] <= np.array(exact)[clear] + 1e-6)
 
 
+def test_capsule_gaps_are_the_self_rows_at_the_sampled_configurations():
+    """`capsule_gaps` (link poses of all samples at once, then one mapped segment distance) equals
+    the kernel's own self rows (`distance_expressions`) evaluated one sampled configuration at a
+    time; `separable_pairs` thresholds it; the entry dies with its geometry (no mechanism kept)."""
+    import gc
+    import weakref
+
+    import casadi as ca
+
+    from optik.collision.spheres import SEPARABLE_SAMPLES, capsule_gaps, distance_expressions, separable_pairs
+
+    m, _ = _panda()
+    geo = robot_geometry(m)
+    gaps = capsule_gaps(geo)
+    assert gaps.shape == (len(geo.self_pairs), SEPARABLE_SAMPLES)
+    rows = distance_expressions(geo, [m.frame_expr(link) for link in geo.links], ca.SX(0, 1), True)
+    f = ca.Function("self_rows", [m.q_sym], [rows.self_rows])
+    samples = m.random_q(SEPARABLE_SAMPLES, seed=0)
+    for s in range(0, SEPARABLE_SAMPLES, 7):
+        assert np.allclose(np.asarray(f(samples[s])).ravel(), gaps[:, s], rtol=0, atol=1e-12)
+    mixed = np.quantile(np.quantile(gaps, 0.95, axis=1), 0.5)  # a bound half the pairs keep
+    for bound in (0.0, 0.01, mixed):
+        assert np.array_equal(separable_pairs(geo, bound), (gaps >= bound).mean(axis=1) >= 0.05)
+    assert 0 < separable_pairs(geo, mixed).sum() < len(geo.self_pairs)
+    ref = weakref.ref(geo)
+    del m, geo, f, rows
+    gc.collect()
+    assert ref() is None  # _GAPS holds its keys weakly and its values (arrays) hold no geometry
+
+
 def test_slots_contain_their_obstacles(tmp_path):
     """Every slot's rounded box holds its obstacle (points of the solid have slot distance <= 0) and
     is exact for boxes, spheres and capsules (coal's distance of a probe sphere, shifted by its radius)."""

@@ -39,6 +39,7 @@ from optik.collision.slots import SLOT_SIZE, slot_distance, smooth_norm
 __all__ = [
     "DistanceRows",
     "SphereModel",
+    "capsule_gaps",
     "distance_expressions",
     "fit_capsule",
     "segment_distance",
@@ -132,25 +133,51 @@ SEPARABLE_SAMPLES = 200
 def separable_pairs(geo: RobotGeometry, bound: float) -> np.ndarray:
     """The self-collision part pairs (rows of ``geo.self_pairs``) whose capsules are apart by
     ``bound`` in at least 5 % of `SEPARABLE_SAMPLES` configurations drawn within the limits
-    (seeded). The others (the capsule of a squat base against a link fixed just above it, say)
-    would make every configuration infeasible: the solvers leave them to the exact check, which
-    still decides success."""
-    key = (geo, bound)
+    (seeded; `capsule_gaps`). The others (the capsule of a squat base against a link fixed just
+    above it, say) would make every configuration infeasible: the solvers leave them to the exact
+    check, which still decides success."""
+    return (capsule_gaps(geo) >= bound).sum(axis=1) >= 0.05 * SEPARABLE_SAMPLES
+
+
+def capsule_gaps(geo: RobotGeometry) -> np.ndarray:
+    """``(pairs, SEPARABLE_SAMPLES)``: the capsule distance (`segment_distance` minus both radii)
+    of each self-collision pair of ``geo`` at `SEPARABLE_SAMPLES` configurations drawn within the
+    limits (seed 0), computed once per geometry (the constrained kernel's build asks for it, so
+    that no solve pays for it): the link poses of all samples in one mapped evaluation, then
+    one mapped `segment_distance` over every (pair, sample)."""
     with _LOCK:
-        hit = _SEPARABLE.get(key)
+        hit = _GAPS.get(geo)
     if hit is not None:
         return hit
-    m = geo.mechanism
-    poses = [m.frame_expr(link) for link in geo.links]
-    d = _self_rows(geo, sphere_model(geo), poses, geo.self_pairs)
-    f = ca.Function("capsule_self_distances", [m.q_sym], [d]).map(SEPARABLE_SAMPLES)
-    gaps = np.asarray(f(m.random_q(SEPARABLE_SAMPLES, seed=0).T)).reshape(-1, SEPARABLE_SAMPLES)
-    keep = (gaps >= bound).sum(axis=1) >= 0.05 * SEPARABLE_SAMPLES
+    m, model, pairs = geo.mechanism, sphere_model(geo), geo.self_pairs
+    if len(pairs) == 0:
+        gaps = np.zeros((0, SEPARABLE_SAMPLES))
+    else:
+        poses = ca.vertcat(*[ca.vec(m.frame_expr(link)[:3, :]) for link in geo.links])
+        links = ca.Function("link_poses", [m.q_sym], [poses]).map(SEPARABLE_SAMPLES)
+        # (samples, links, 4, 3) -> rotation R[s, l] (3, 3) and translation t[s, l] (3,)
+        flat = np.asarray(links(m.random_q(SEPARABLE_SAMPLES, seed=0).T)).T
+        tf = flat.reshape(SEPARABLE_SAMPLES, len(geo.links), 4, 3).transpose(0, 1, 3, 2)
+        rot, trans = tf[..., :3], tf[..., 3]
+        part_link = np.asarray(geo.part_link)
+        # segment ends of every part at every sample: (samples, parts, 2, 3)
+        ends = np.einsum("spij,pkj->spki", rot[:, part_link], model.segments) + trans[:, part_link, None]
+        i, j = pairs[:, 0], pairs[:, 1]
+        cols = [ends[:, i, 0], ends[:, i, 1], ends[:, j, 0], ends[:, j, 1]]  # each (samples, pairs, 3)
+        args = [c.reshape(-1, 3).T for c in cols]
+        gaps = np.asarray(_segment_function().map(args[0].shape[1])(*args)).reshape(SEPARABLE_SAMPLES, -1).T
+        gaps = gaps - model.capsule_radii[i, None] - model.capsule_radii[j, None]
     with _LOCK:
-        return _SEPARABLE.setdefault(key, keep)
+        return _GAPS.setdefault(geo, gaps)
 
 
-_SEPARABLE: dict[tuple[RobotGeometry, float], np.ndarray] = {}
+_GAPS: weakref.WeakKeyDictionary[RobotGeometry, np.ndarray] = weakref.WeakKeyDictionary()
+
+
+def _segment_function() -> ca.Function:
+    """`segment_distance` as a function of its four points (3-vectors)."""
+    p1, q1, p2, q2 = (ca.SX.sym(name, 3) for name in ("p1", "q1", "p2", "q2"))
+    return ca.Function("segment_distance", [p1, q1, p2, q2], [segment_distance(p1, q1, p2, q2)])
 
 
 def _clamp01(x: ca.SX) -> ca.SX:

@@ -59,7 +59,7 @@ from optik.checks import as_float
 from optik.collision.check import Search, search
 from optik.collision.robot import robot_geometry
 from optik.collision.slots import SLOT_SIZE
-from optik.collision.spheres import DistanceRows, distance_expressions
+from optik.collision.spheres import DistanceRows, capsule_gaps, distance_expressions
 from optik.collision.world import World, WorldState, state_of
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
@@ -217,6 +217,8 @@ def _kernels(
         problem = build_ik_problem(m, request.task, request.frame)
         geo = robot_geometry(m)
         functions = constrained_functions(problem, geo, capacity, self_collision, closure_weight)
+        if self_collision:
+            capsule_gaps(geo)  # what the solves' bound_parameters read: built here, not in a solve
         return LMKernel(m, request.task, request.frame, closure_weight, compile, functions=functions)
 
     constrained = _cached(

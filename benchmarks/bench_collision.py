@@ -25,7 +25,7 @@ still be running during the run: the kernel then answers through CasADi's evalua
 table says whether it was compiled).
 
 Run: ``optik benchmark collision [--n 1000] [--time-limit 0.01] [--margin 0.01] [--tol 1e-6] [--seed 0]
-[--compile-wait 600]`` (the wait for the C build of the constrained kernel is not timed). Robots
+[--compile-wait 600]`` (the wait for optik's C builds, kernels and collision screens, is not timed). Robots
 near their own bodies are ``optik benchmark collision_self``.
 """
 
@@ -193,16 +193,14 @@ def timed_in_turn(
     """Each solver's wall times and accepted count, the solvers interleaved target by target.
 
     Every solver first solves ``targets[0]`` untimed (optik builds its constrained code there),
-    then optik's compiled kernels get up to ``compile_wait`` seconds; ``accept(q, target)`` judges
-    each answer (None: no answer).
+    then optik's background C builds (the kernels and the collision screens) get up to
+    ``compile_wait`` seconds in all; ``accept(q, target)`` judges each answer (None: no answer).
     """
-    from optik.solvers.collision_free import compiled_kernels
+    from optik import native
 
     for solve in solvers.values():
         solve(targets[0], 60.0, 0)
-    waited = time.perf_counter()
-    while not all(compiled_kernels().values()) and time.perf_counter() - waited < compile_wait:
-        time.sleep(1.0)
+    native.wait(compile_wait)
     results: dict[str, tuple[list[float], int]] = {name: ([], 0) for name in solvers}
     for i, target in enumerate(targets):
         for name, solve in solvers.items():

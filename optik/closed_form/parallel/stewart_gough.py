@@ -3,6 +3,7 @@ continuation in Study's coordinates."""
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 import warnings
@@ -187,10 +188,11 @@ def _entered_degenerate_set(z: np.ndarray, t: np.ndarray) -> np.ndarray:
     return (t < 1e-3) & (_e_part(z) < DEGENERATE_E / 2)
 
 
-def _merge(sols: np.ndarray, new: np.ndarray) -> np.ndarray:
-    """``sols`` followed by the rows of ``new`` that are new projective points."""
+def _merge(mats: stewart_parameter.Quadrics, sols: np.ndarray, new: np.ndarray) -> np.ndarray:
+    """``sols`` followed by the rows of ``new`` that are new solutions of ``mats``
+    (`optik.closed_form.parallel.stewart_parameter.distinct`)."""
     both = np.concatenate([sols, new])
-    return both[stewart_parameter.distinct(both)]
+    return both[stewart_parameter.distinct(mats, both)]
 
 
 def _total_round(mats: np.ndarray, rng: np.random.Generator, time_limit: float) -> tuple[np.ndarray, bool]:
@@ -207,17 +209,11 @@ def _total_round(mats: np.ndarray, rng: np.random.Generator, time_limit: float) 
     candidate = (e_part > DEGENERATE_E) & (stewart_parameter.relative_residual(mats, z) < 1e-8)
     sharp = (res.converged & (res.condition < 1e8))[candidate]
     z = z[candidate]
-    keep = stewart_parameter.distinct(z)
-    jumped = bool(np.any(sharp) and len(keep) < len(z) and _shared_sharp_end(z, sharp))
+    same = stewart_parameter.same_points(mats, z)
+    keep = stewart_parameter.first_of_groups(same)
+    np.fill_diagonal(same, False)
+    jumped = bool(np.any(same[sharp]))  # a well-conditioned end point reached by two paths
     return z[keep], not jumped and bool(np.all(candidate | (e_part <= DEGENERATE_E)))
-
-
-def _shared_sharp_end(z: np.ndarray, sharp: np.ndarray) -> bool:
-    """Whether a well-conditioned end point is reached by two paths."""
-    u = z / np.linalg.norm(z, axis=1, keepdims=True)
-    close = np.abs(np.conj(u) @ u.T) > 1 - stewart_parameter.SAME_POINT
-    np.fill_diagonal(close, False)
-    return bool(np.any(close[sharp]))
 
 
 def stewart_poses(
@@ -268,6 +264,7 @@ def stewart_poses(
     rng = np.random.default_rng(seed) if not isinstance(seed, np.random.Generator) else seed
     size = float(max(np.max(np.linalg.norm(b, axis=1)), np.max(np.linalg.norm(p, axis=1)), np.max(rho)))
     bs, ps, rs = b / size, p / size, rho / size
+    mats = functools.cache(lambda: stewart_quadrics(bs, ps, rs))  # built when first needed
     sols = np.zeros((0, 8), dtype=complex)
     complete, rounds, paths, used = False, 0, 0, []
     if method != "total" and parameter_homotopy.available():
@@ -282,23 +279,22 @@ def stewart_poses(
             nonsingular = res.condition < stewart_parameter.SINGULAR_CONDITION
             # singular end points: possible (double) real postures, never on the set e = 0
             keep = nonsingular | (_e_part(res.solutions) > DEGENERATE_E)
-            sols = _merge(sols, res.solutions[keep])
-            sharp = _merge(sharp, res.solutions[nonsingular])
+            sols = _merge(mats, sols, res.solutions[keep])
+            sharp = _merge(mats, sharp, res.solutions[nonsingular])
             complete = len(sharp) >= GENERAL_STEWART_SOLUTIONS
             if complete or not np.any(res.status == "failed"):
                 break  # every path accounted for: a special geometry, retrying cannot add solutions
     if not complete and method != "parameter":
         used.append("total")
-        mats = stewart_quadrics(bs, ps, rs)
         while rounds < max_rounds and not complete:
             remaining = time_limit - (time.perf_counter() - start)
             if remaining <= 0:
                 break
             rounds += 1
             before = len(sols)
-            ends, clean = _total_round(mats, rng, remaining)
+            ends, clean = _total_round(mats(), rng, remaining)
             paths += 128
-            sols = _merge(sols, ends)
+            sols = _merge(mats, sols, ends)
             agreed = rounds > 1 and len(sols) == before
             complete = len(sols) >= GENERAL_STEWART_SOLUTIONS or clean or agreed
     poses = _real_poses(sols, b, p, rho, size, tol)

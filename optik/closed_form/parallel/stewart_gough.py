@@ -142,9 +142,11 @@ class StewartFK:
         paths: number of tracked homotopy paths (40 per parameter-homotopy attempt, 128 per
             total-degree round).
         rounds: total-degree rounds used (0 when the parameter homotopy was complete).
-        complete: the count check passed (40 distinct nonsingular solutions, which bounds the
-            isolated ones), or a total-degree round accounted for every path with no two paths
-            at the same end point.
+        complete: the count check passed (40 distinct nonsingular solutions of the parameter
+            homotopy, or 40 distinct solutions merged over every round: 40 bounds the isolated
+            ones), or a total-degree round accounted for every path with no two paths at the
+            same end point. Two total-degree rounds that agree end the search but do not make
+            the set complete.
         solve_time: wall time (s).
         method: ``"parameter"`` (40 paths), ``"total"`` (128 paths per round) or
             ``"parameter+total"`` (the count check failed and the total method completed the set).
@@ -243,7 +245,9 @@ def stewart_poses(
       quadrics reduce to ``|g|^2 = 0``). A round is *complete* when every path is accounted for
       and no two paths share an end point (a shared end point reveals path jumping), or when 40
       distinct solutions are found. Otherwise a new round (fresh gamma and patch) is tracked and
-      the solutions merged, up to ``max_rounds``; two rounds that agree also end the search.
+      the solutions merged, up to ``max_rounds``; two rounds that agree also end the search,
+      with ``complete`` False (agreement is no proof: a solution both rounds merged with a
+      neighbour stays missing).
     * ``method="auto"`` (default): the parameter homotopy, and the total method (solutions
       merged) when its count check fails: special geometries (planar base and platform, 6-4,
       3-3 platforms) have fewer than 40 isolated solutions. Without a C compiler: the total
@@ -295,8 +299,9 @@ def stewart_poses(
             ends, clean = _total_round(mats(), rng, remaining)
             paths += 128
             sols = _merge(mats, sols, ends)
-            agreed = rounds > 1 and len(sols) == before
-            complete = len(sols) >= GENERAL_STEWART_SOLUTIONS or clean or agreed
+            complete = len(sols) >= GENERAL_STEWART_SOLUTIONS or clean
+            if rounds > 1 and len(sols) == before:
+                break  # two rounds agree: a further round is unlikely to add a solution (no proof)
     poses = _real_poses(sols, b, p, rho, size, tol)
     kept = _unscaled(sols, size) if keep_complex else None
     return StewartFK(

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import optik
 from optik.closed_form import homotopy, parameter_homotopy
@@ -352,3 +354,28 @@ def test_two_real_postures_1e4_apart_are_both_found(case):
     gaps = [np.linalg.norm(t1 - t2) for i, (_, t1) in enumerate(fk.poses) for _, t2 in fk.poses[:i]]
     assert 1e-5 < min(gaps) < 1e-3  # the close pair, both kept
     assert _max_leg_error(b, p, rho, fk.poses) <= 1e-9
+    _assert_conjugate_closed(b, p, rho, stewart_poses(b, p, rho, seed=case, keep_complex=True))
+
+
+def _assert_conjugate_closed(b, p, rho, fk):
+    """A complete set of a real platform: 40 solutions closed under conjugation, the real ones
+    (each its own conjugate) exactly the postures, so their number is even."""
+    assert fk.complete and fk.complex_solutions == 40
+    mats = study.study_matrices(b, p, study.leg_constants(b, p, rho))  # fk.solutions: unscaled
+    both = np.concatenate([fk.solutions, np.conj(fk.solutions)])
+    assert len(stewart_parameter.distinct(mats, both)) == 40
+    assert np.sum(stewart_parameter.self_conjugate(mats, fk.solutions)) == len(fk.poses)
+    assert len(fk.poses) % 2 == 0
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_complete_sets_of_random_platforms_have_an_even_real_count(seed):
+    rng = np.random.default_rng(seed)
+    b, p = _general(rng)
+    r, t = optik.spatial.so3_exp(rng.normal(size=3)), np.r_[0.2 * rng.normal(size=3)] + [0, 0, 1.0]
+    rho = _legs(b, p, r, t)
+    fk = stewart_poses(b, p, rho, seed=seed, keep_complex=True)
+    if fk.complete:  # a general platform: always, within the default time limit
+        _assert_conjugate_closed(b, p, rho, fk)
+    assert any(np.allclose(r2, r, atol=1e-8) and np.allclose(t2, t, atol=1e-8) for r2, t2 in fk.poses)

@@ -253,9 +253,12 @@ def stewart_poses(
       3-3 platforms) have fewer than 40 isolated solutions. Without a C compiler: the total
       method.
 
-    Real solutions (``max |Im|`` small after fixing the projective phase) are polished by
-    Newton on the real leg equations and kept when every leg length is met to ``tol``
-    (relative to the platform size).
+    Real solutions are those that are the same solution as their complex conjugate by the rule
+    that tells solutions apart (`optik.closed_form.parallel.stewart_parameter.self_conjugate`:
+    the distance of ``z`` to ``conj(z)`` explained by the error of ``z``), so a near-real
+    conjugate pair is two complex solutions and the real count of a complete general set is
+    even. Their real parts are polished by Newton on the real leg equations and kept when every
+    leg length is met to ``tol`` (relative to the platform size).
 
     Raises:
         InvalidArgumentError: unknown ``method``.
@@ -302,7 +305,7 @@ def stewart_poses(
             complete = len(sols) >= GENERAL_STEWART_SOLUTIONS or clean
             if rounds > 1 and len(sols) == before:
                 break  # two rounds agree: a further round is unlikely to add a solution (no proof)
-    poses = _real_poses(sols, b, p, rho, size, tol)
+    poses = _real_poses(mats, sols, b, p, rho, size, tol)
     kept = _unscaled(sols, size) if keep_complex else None
     return StewartFK(
         poses, len(sols), paths, rounds, complete, time.perf_counter() - start, "+".join(used), kept
@@ -317,15 +320,21 @@ def _unscaled(z: np.ndarray, size: float) -> np.ndarray:
 
 
 def _real_poses(
-    sols: np.ndarray, b: np.ndarray, p: np.ndarray, rho: np.ndarray, size: float, tol: float
+    mats: stewart_parameter.Quadrics,
+    sols: np.ndarray,
+    b: np.ndarray,
+    p: np.ndarray,
+    rho: np.ndarray,
+    size: float,
+    tol: float,
 ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The real solutions as polished, distinct postures ``(R, t)`` (see `stewart_poses`)."""
+    """The real solutions of the (scaled) quadrics ``mats`` among ``sols`` as polished, distinct
+    postures ``(R, t)`` (see `stewart_poses`)."""
     poses: list[tuple[np.ndarray, np.ndarray]] = []
     if len(sols) == 0:
         return poses
     w = sols / sols[np.arange(len(sols)), np.argmax(np.abs(sols[:, :4]), axis=1)][:, None]
-    real = np.max(np.abs(w.imag), axis=1) <= 1e-5 * np.max(np.abs(w), axis=1)
-    v = w[real].real
+    v = w[stewart_parameter.self_conjugate(mats, sols)].real
     if not len(v):
         return poses
     e, g = v[:, :4], v[:, 4:]

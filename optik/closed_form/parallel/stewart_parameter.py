@@ -114,12 +114,34 @@ def same_points(mats: Quadrics, z: np.ndarray) -> np.ndarray:
     same = np.abs(np.conj(u) @ u.T) > 1 - SAME_POINT
     np.fill_diagonal(same, False)
     i, j = np.nonzero(np.triu(same))
-    if len(i):
-        err = error_estimates(mats() if callable(mats) else mats, z)
-        far = projective_distance(u[i], u[j]) > SAME_ERRORS * (err[i] + err[j]) + ROUNDING
-        same[i[far], j[far]] = same[j[far], i[far]] = False
+    far = ~_within_errors(mats, z, i, j, projective_distance(u[i], u[j]))
+    same[i[far], j[far]] = same[j[far], i[far]] = False
     np.fill_diagonal(same, True)
     return same
+
+
+def self_conjugate(mats: Quadrics, z: np.ndarray) -> np.ndarray:
+    """Which rows of ``z`` are the same solution (`same_points`) as their complex conjugate: the
+    real solutions of real quadrics ``mats`` (``conj(z)`` is a solution too, with the same error
+    estimate). A near-real pair ``z, conj(z)`` whose distance exceeds what their errors explain is
+    two complex solutions; a real root known only to ``1e-6`` (ill-conditioned) is real."""
+    u = z / np.linalg.norm(z, axis=1, keepdims=True)
+    k = np.flatnonzero(np.abs(np.sum(u * u, axis=1)) > 1 - SAME_POINT)  # |<conj(u), u>|
+    real = np.zeros(len(z), dtype=bool)
+    real[k] = _within_errors(mats, z, k, k, projective_distance(u[k], np.conj(u[k])))
+    return real
+
+
+def _within_errors(mats: Quadrics, z: np.ndarray, i: np.ndarray, j: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """``d <= SAME_ERRORS (e_i + e_j) + ROUNDING`` with ``e`` the `error_estimates` of the rows
+    of ``z`` (computed only when some ``d`` exceeds ``ROUNDING``, for those rows only)."""
+    ok = d <= ROUNDING
+    if not np.all(ok):
+        rows, inverse = np.unique(np.r_[i[~ok], j[~ok]], return_inverse=True)
+        err = error_estimates(mats() if callable(mats) else mats, z[rows])
+        e_i, e_j = np.split(err[inverse], 2)
+        ok[~ok] = d[~ok] <= SAME_ERRORS * (e_i + e_j) + ROUNDING
+    return ok
 
 
 def distinct(mats: Quadrics, z: np.ndarray) -> np.ndarray:

@@ -102,7 +102,7 @@ Quadrics = np.ndarray | Callable[[], np.ndarray]
 
 def same_points(mats: Quadrics, z: np.ndarray) -> np.ndarray:
     """The symmetric boolean matrix "rows ``i`` and ``j`` of ``z`` are the same solution" of the
-    quadrics ``mats`` (built only when two rows are within ``sqrt(2 SAME_POINT)``).
+    quadrics ``mats`` (built only when two rows are that close and not equal to rounding).
 
     Rows are the same when their projective distance (`projective_distance`) is
     ``d_ij <= min(sqrt(2 SAME_POINT), SAME_ERRORS (e_i + e_j) + ROUNDING)`` with ``e`` the
@@ -112,11 +112,10 @@ def same_points(mats: Quadrics, z: np.ndarray) -> np.ndarray:
     converging to one double root (errors of the order of their distance) are one."""
     u = z / np.linalg.norm(z, axis=1, keepdims=True)
     same = np.abs(np.conj(u) @ u.T) > 1 - SAME_POINT
-    np.fill_diagonal(same, False)
-    i, j = np.nonzero(np.triu(same))
-    far = ~_within_errors(mats, z, i, j, projective_distance(u[i], u[j]))
-    same[i[far], j[far]] = same[j[far], i[far]] = False
-    np.fill_diagonal(same, True)
+    if np.count_nonzero(same) > len(z):  # usually not: distinct solutions are far apart
+        i, j = np.nonzero(np.triu(same, 1))
+        far = ~_within_errors(mats, z, i, j, projective_distance(u[i], u[j]))
+        same[i[far], j[far]] = same[j[far], i[far]] = False
     return same
 
 
@@ -126,8 +125,8 @@ def self_conjugate(mats: Quadrics, z: np.ndarray) -> np.ndarray:
     estimate). A near-real pair ``z, conj(z)`` whose distance exceeds what their errors explain is
     two complex solutions; a real root known only to ``1e-6`` (ill-conditioned) is real."""
     u = z / np.linalg.norm(z, axis=1, keepdims=True)
-    k = np.flatnonzero(np.abs(np.sum(u * u, axis=1)) > 1 - SAME_POINT)  # |<conj(u), u>|
-    real = np.zeros(len(z), dtype=bool)
+    real = np.abs(np.einsum("ij,ij->i", u, u)) > 1 - SAME_POINT  # |<conj(u), u>|: candidates
+    k = np.flatnonzero(real)
     real[k] = _within_errors(mats, z, k, k, projective_distance(u[k], np.conj(u[k])))
     return real
 
@@ -147,9 +146,8 @@ def _within_errors(mats: Quadrics, z: np.ndarray, i: np.ndarray, j: np.ndarray, 
 def distinct(mats: Quadrics, z: np.ndarray) -> np.ndarray:
     """Indices of the rows of ``z`` that are distinct solutions of the quadrics ``mats``
     (`same_points`; the first of each group)."""
-    if len(z) == 0:
-        return np.zeros(0, dtype=int)
-    return first_of_groups(same_points(mats, z))
+    same = same_points(mats, z)
+    return first_of_groups(same) if np.count_nonzero(same) > len(z) else np.arange(len(z))
 
 
 def first_of_groups(same: np.ndarray) -> np.ndarray:

@@ -216,17 +216,21 @@ def track(
     return TrackingResult(z, converged, residual, np.nan_to_num(condition, nan=np.inf), steps)
 
 
+def newton_step(mats: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """The Newton update ``dz`` of each row of ``z`` on ``F(z) = (z^T M_k z)_k = 0`` with the patch
+    ``conj(z)^T dz = 0``: ``[2 M_k z; conj(z)^T] dz = [z^T M_k z; 0]`` (``inf`` rows where that
+    system is singular). Near a nonsingular root ``z*`` it is ``z - z*`` to first order."""
+    mz = np.einsum("kij,pj->pki", mats, z)
+    val = np.einsum("pki,pi->pk", mz, z)
+    jac = np.concatenate([2 * mz, np.conj(z)[:, None, :]], axis=1)
+    return _solve(jac, np.concatenate([val, np.zeros((len(z), 1))], axis=1))
+
+
 def refine(mats: np.ndarray, z: np.ndarray, iters: int = 3) -> np.ndarray:
-    """Newton steps on ``F`` at ``t = 0`` with a per-point patch ``conj(z)^T w = |z|^2``."""
+    """``iters`` `newton_step` updates on ``F`` at ``t = 0`` (a row whose system is singular stays)."""
     f = mats.astype(complex)
     for _ in range(iters):
-        mz = np.einsum("kij,pj->pki", f, z)
-        val = np.einsum("pki,pi->pk", mz, z)
-        patch = np.conj(z)
-        jac = np.concatenate([2 * mz, patch[:, None, :]], axis=1)
-        rhs = np.concatenate([val, np.zeros((len(z), 1))], axis=1)
-        dz = _solve(jac, rhs)
-        bad = ~np.all(np.isfinite(dz), axis=1)
-        dz[bad] = 0
+        dz = newton_step(f, z)
+        dz[~np.all(np.isfinite(dz), axis=1)] = 0
         z = z - dz
     return z

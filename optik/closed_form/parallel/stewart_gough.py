@@ -3,6 +3,7 @@ continuation in Study's coordinates."""
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 import warnings
@@ -141,9 +142,11 @@ class StewartFK:
         paths: number of tracked homotopy paths (40 per parameter-homotopy attempt, 128 per
             total-degree round).
         rounds: total-degree rounds used (0 when the parameter homotopy was complete).
-        complete: the count check passed (40 distinct nonsingular solutions, which bounds the
-            isolated ones), or a total-degree round accounted for every path with no two paths
-            at the same end point.
+        complete: the count check passed (40 distinct nonsingular solutions of the parameter
+            homotopy, or 40 distinct solutions merged over every round: 40 bounds the isolated
+            ones), or a total-degree round accounted for every path with no two paths at the
+            same end point. Two total-degree rounds that agree end the search but do not make
+            the set complete.
         solve_time: wall time (s).
         method: ``"parameter"`` (40 paths), ``"total"`` (128 paths per round) or
             ``"parameter+total"`` (the count check failed and the total method completed the set).
@@ -187,10 +190,11 @@ def _entered_degenerate_set(z: np.ndarray, t: np.ndarray) -> np.ndarray:
     return (t < 1e-3) & (_e_part(z) < DEGENERATE_E / 2)
 
 
-def _merge(sols: np.ndarray, new: np.ndarray) -> np.ndarray:
-    """``sols`` followed by the rows of ``new`` that are new projective points."""
+def _merge(mats: stewart_parameter.Quadrics, sols: np.ndarray, new: np.ndarray) -> np.ndarray:
+    """``sols`` followed by the rows of ``new`` that are new solutions of ``mats``
+    (`optik.closed_form.parallel.stewart_parameter.distinct`)."""
     both = np.concatenate([sols, new])
-    return both[stewart_parameter.distinct(both)]
+    return both[stewart_parameter.distinct(mats, both)]
 
 
 def _total_round(mats: np.ndarray, rng: np.random.Generator, time_limit: float) -> tuple[np.ndarray, bool]:
@@ -207,17 +211,11 @@ def _total_round(mats: np.ndarray, rng: np.random.Generator, time_limit: float) 
     candidate = (e_part > DEGENERATE_E) & (stewart_parameter.relative_residual(mats, z) < 1e-8)
     sharp = (res.converged & (res.condition < 1e8))[candidate]
     z = z[candidate]
-    keep = stewart_parameter.distinct(z)
-    jumped = bool(np.any(sharp) and len(keep) < len(z) and _shared_sharp_end(z, sharp))
+    same = stewart_parameter.same_points(mats, z)
+    keep = stewart_parameter.first_of_groups(same)
+    np.fill_diagonal(same, False)
+    jumped = bool(np.any(same[sharp]))  # a well-conditioned end point reached by two paths
     return z[keep], not jumped and bool(np.all(candidate | (e_part <= DEGENERATE_E)))
-
-
-def _shared_sharp_end(z: np.ndarray, sharp: np.ndarray) -> bool:
-    """Whether a well-conditioned end point is reached by two paths."""
-    u = z / np.linalg.norm(z, axis=1, keepdims=True)
-    close = np.abs(np.conj(u) @ u.T) > 1 - stewart_parameter.SAME_POINT
-    np.fill_diagonal(close, False)
-    return bool(np.any(close[sharp]))
 
 
 def stewart_poses(
@@ -247,15 +245,20 @@ def stewart_poses(
       quadrics reduce to ``|g|^2 = 0``). A round is *complete* when every path is accounted for
       and no two paths share an end point (a shared end point reveals path jumping), or when 40
       distinct solutions are found. Otherwise a new round (fresh gamma and patch) is tracked and
-      the solutions merged, up to ``max_rounds``; two rounds that agree also end the search.
+      the solutions merged, up to ``max_rounds``; two rounds that agree also end the search,
+      with ``complete`` False (agreement is no proof: a solution both rounds merged with a
+      neighbour stays missing).
     * ``method="auto"`` (default): the parameter homotopy, and the total method (solutions
       merged) when its count check fails: special geometries (planar base and platform, 6-4,
       3-3 platforms) have fewer than 40 isolated solutions. Without a C compiler: the total
       method.
 
-    Real solutions (``max |Im|`` small after fixing the projective phase) are polished by
-    Newton on the real leg equations and kept when every leg length is met to ``tol``
-    (relative to the platform size).
+    Real solutions are those that are the same solution as their complex conjugate by the rule
+    that tells solutions apart (`optik.closed_form.parallel.stewart_parameter.self_conjugate`:
+    the distance of ``z`` to ``conj(z)`` explained by the error of ``z``), so a near-real
+    conjugate pair is two complex solutions and the real count of a complete general set is
+    even. Their real parts are polished by Newton on the real leg equations and kept when every
+    leg length is met to ``tol`` (relative to the platform size).
 
     Raises:
         InvalidArgumentError: unknown ``method``.
@@ -268,6 +271,7 @@ def stewart_poses(
     rng = np.random.default_rng(seed) if not isinstance(seed, np.random.Generator) else seed
     size = float(max(np.max(np.linalg.norm(b, axis=1)), np.max(np.linalg.norm(p, axis=1)), np.max(rho)))
     bs, ps, rs = b / size, p / size, rho / size
+    mats = functools.cache(lambda: stewart_quadrics(bs, ps, rs))  # built when first needed
     sols = np.zeros((0, 8), dtype=complex)
     complete, rounds, paths, used = False, 0, 0, []
     if method != "total" and parameter_homotopy.available():
@@ -282,26 +286,26 @@ def stewart_poses(
             nonsingular = res.condition < stewart_parameter.SINGULAR_CONDITION
             # singular end points: possible (double) real postures, never on the set e = 0
             keep = nonsingular | (_e_part(res.solutions) > DEGENERATE_E)
-            sols = _merge(sols, res.solutions[keep])
-            sharp = _merge(sharp, res.solutions[nonsingular])
+            sols = _merge(mats, sols, res.solutions[keep])
+            sharp = _merge(mats, sharp, res.solutions[nonsingular])
             complete = len(sharp) >= GENERAL_STEWART_SOLUTIONS
             if complete or not np.any(res.status == "failed"):
                 break  # every path accounted for: a special geometry, retrying cannot add solutions
     if not complete and method != "parameter":
         used.append("total")
-        mats = stewart_quadrics(bs, ps, rs)
         while rounds < max_rounds and not complete:
             remaining = time_limit - (time.perf_counter() - start)
             if remaining <= 0:
                 break
             rounds += 1
             before = len(sols)
-            ends, clean = _total_round(mats, rng, remaining)
+            ends, clean = _total_round(mats(), rng, remaining)
             paths += 128
-            sols = _merge(sols, ends)
-            agreed = rounds > 1 and len(sols) == before
-            complete = len(sols) >= GENERAL_STEWART_SOLUTIONS or clean or agreed
-    poses = _real_poses(sols, b, p, rho, size, tol)
+            sols = _merge(mats, sols, ends)
+            complete = len(sols) >= GENERAL_STEWART_SOLUTIONS or clean
+            if rounds > 1 and len(sols) == before:
+                break  # two rounds agree: a further round is unlikely to add a solution (no proof)
+    poses = _real_poses(mats, sols, b, p, rho, size, tol)
     kept = _unscaled(sols, size) if keep_complex else None
     return StewartFK(
         poses, len(sols), paths, rounds, complete, time.perf_counter() - start, "+".join(used), kept
@@ -316,15 +320,21 @@ def _unscaled(z: np.ndarray, size: float) -> np.ndarray:
 
 
 def _real_poses(
-    sols: np.ndarray, b: np.ndarray, p: np.ndarray, rho: np.ndarray, size: float, tol: float
+    mats: stewart_parameter.Quadrics,
+    sols: np.ndarray,
+    b: np.ndarray,
+    p: np.ndarray,
+    rho: np.ndarray,
+    size: float,
+    tol: float,
 ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The real solutions as polished, distinct postures ``(R, t)`` (see `stewart_poses`)."""
+    """The real solutions of the (scaled) quadrics ``mats`` among ``sols`` as polished, distinct
+    postures ``(R, t)`` (see `stewart_poses`)."""
     poses: list[tuple[np.ndarray, np.ndarray]] = []
     if len(sols) == 0:
         return poses
     w = sols / sols[np.arange(len(sols)), np.argmax(np.abs(sols[:, :4]), axis=1)][:, None]
-    real = np.max(np.abs(w.imag), axis=1) <= 1e-5 * np.max(np.abs(w), axis=1)
-    v = w[real].real
+    v = w[stewart_parameter.self_conjugate(mats, sols)].real
     if not len(v):
         return poses
     e, g = v[:, :4], v[:, 4:]

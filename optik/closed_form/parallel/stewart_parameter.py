@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import os
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -38,7 +39,16 @@ GENERAL_SOLUTIONS = 40
 """Isolated solutions of a general (complex) Stewart-Gough instance."""
 
 SAME_POINT = 1e-7
-"""Two projective points are the same when ``1 - |<u, v>| / (|u| |v|)`` is below this."""
+"""Two projective points can be the same only when ``1 - |<u, v>| / (|u| |v|)`` is below this
+(projective distance below ``sqrt(2e-7) = 4.5e-4``); `same_points` decides those pairs."""
+
+SAME_ERRORS = 10.0
+"""Two end points are the same solution when their projective distance is at most this many
+times the sum of their error estimates (`error_estimates`) plus `ROUNDING`."""
+
+ROUNDING = 1e-11
+"""The projective distance under which two unit end points always count as the same (rounding
+of a converged point, whose Newton step can be exactly zero)."""
 
 SINGULAR_CONDITION = parameter_homotopy.SINGULAR_CONDITION
 """End points whose Jacobian condition number exceeds this count as singular."""
@@ -68,13 +78,76 @@ class StartInstance:
         return float(np.max(np.abs(np.einsum("kij,pi,pj->pk", mats, self.solutions, self.solutions))))
 
 
-def distinct(z: np.ndarray) -> np.ndarray:
-    """Indices of the rows of ``z`` that are distinct projective points (first of each group)."""
-    if len(z) == 0:
-        return np.zeros(0, dtype=int)
+def error_estimates(mats: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Relative error estimate ``|dz| / |z|`` of each row of ``z`` as a root of the quadrics
+    ``mats``: the length of one Newton step (`optik.closed_form.homotopy.newton_step`), which is
+    the distance to a nonsingular root to first order and about half the distance to a double one
+    (``inf`` where the Jacobian is singular)."""
+    dz = homotopy.newton_step(mats, z)
+    err = np.linalg.norm(dz, axis=1) / np.linalg.norm(z, axis=1)
+    return np.where(np.isfinite(err), err, np.inf)
+
+
+def projective_distance(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``min_phi |u - e^{i phi} v|`` of unit rows ``u``, ``v`` with ``<v, u> != 0`` (from the aligned
+    difference, so it resolves distances down to rounding, which ``1 - |<u, v>|`` does not below
+    about ``1e-8``)."""
+    inner = np.sum(np.conj(v) * u, axis=1)
+    return np.linalg.norm(u - (inner / np.abs(inner))[:, None] * v, axis=1)
+
+
+Quadrics = np.ndarray | Callable[[], np.ndarray]
+"""The quadrics ``M_k`` of a system, or a function that builds them (called only when needed)."""
+
+
+def same_points(mats: Quadrics, z: np.ndarray) -> np.ndarray:
+    """The symmetric boolean matrix "rows ``i`` and ``j`` of ``z`` are the same solution" of the
+    quadrics ``mats`` (built only when two rows are that close and not equal to rounding).
+
+    Rows are the same when their projective distance (`projective_distance`) is
+    ``d_ij <= min(sqrt(2 SAME_POINT), SAME_ERRORS (e_i + e_j) + ROUNDING)`` with ``e`` the
+    `error_estimates`. Two end points are thus the same only when their
+    distance is explained by their own errors: two nonsingular roots ``1e-4`` apart, with errors
+    near ``1e-10``, are two solutions (a fixed distance would merge them), while two paths
+    converging to one double root (errors of the order of their distance) are one."""
     u = z / np.linalg.norm(z, axis=1, keepdims=True)
-    close = np.abs(np.conj(u) @ u.T) > 1 - SAME_POINT
-    return first_of_groups(close)
+    same = np.abs(np.conj(u) @ u.T) > 1 - SAME_POINT
+    if np.count_nonzero(same) > len(z):  # usually not: distinct solutions are far apart
+        i, j = np.nonzero(np.triu(same, 1))
+        far = ~_within_errors(mats, z, i, j, projective_distance(u[i], u[j]))
+        same[i[far], j[far]] = same[j[far], i[far]] = False
+    return same
+
+
+def self_conjugate(mats: Quadrics, z: np.ndarray) -> np.ndarray:
+    """Which rows of ``z`` are the same solution (`same_points`) as their complex conjugate: the
+    real solutions of real quadrics ``mats`` (``conj(z)`` is a solution too, with the same error
+    estimate). A near-real pair ``z, conj(z)`` whose distance exceeds what their errors explain is
+    two complex solutions; a real root known only to ``1e-6`` (ill-conditioned) is real."""
+    u = z / np.linalg.norm(z, axis=1, keepdims=True)
+    real = np.abs(np.einsum("ij,ij->i", u, u)) > 1 - SAME_POINT  # |<conj(u), u>|: candidates
+    k = np.flatnonzero(real)
+    real[k] = _within_errors(mats, z, k, k, projective_distance(u[k], np.conj(u[k])))
+    return real
+
+
+def _within_errors(mats: Quadrics, z: np.ndarray, i: np.ndarray, j: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """``d <= SAME_ERRORS (e_i + e_j) + ROUNDING`` with ``e`` the `error_estimates` of the rows
+    of ``z`` (computed only when some ``d`` exceeds ``ROUNDING``, for those rows only)."""
+    ok = d <= ROUNDING
+    if not np.all(ok):
+        rows, inverse = np.unique(np.r_[i[~ok], j[~ok]], return_inverse=True)
+        err = error_estimates(mats() if callable(mats) else mats, z[rows])
+        e_i, e_j = np.split(err[inverse], 2)
+        ok[~ok] = d[~ok] <= SAME_ERRORS * (e_i + e_j) + ROUNDING
+    return ok
+
+
+def distinct(mats: Quadrics, z: np.ndarray) -> np.ndarray:
+    """Indices of the rows of ``z`` that are distinct solutions of the quadrics ``mats``
+    (`same_points`; the first of each group)."""
+    same = same_points(mats, z)
+    return first_of_groups(same) if np.count_nonzero(same) > len(z) else np.arange(len(z))
 
 
 def first_of_groups(same: np.ndarray) -> np.ndarray:
@@ -123,7 +196,7 @@ def generate(seed: int = START_SEED, max_rounds: int = 20, time_limit: float = 6
         z = homotopy.refine(mats, res.z, iters=6)
         good = (relative_residual(mats, z) < 1e-13) & (parameter_homotopy.condition_numbers(mats, z) < 1e6)
         sols = np.concatenate([sols, z[good]])
-        sols = sols[distinct(sols)]
+        sols = sols[distinct(mats, sols)]
         if len(sols) >= GENERAL_SOLUTIONS:
             break
     if len(sols) != GENERAL_SOLUTIONS:
@@ -217,7 +290,7 @@ def solve(
     z, cond = res.z[solves], res.condition[solves]
     order = np.argsort(cond)  # nonsingular representatives first
     z, cond = z[order], cond[order]
-    keep = distinct(z)
+    keep = distinct(lambda: study_matrices(b, p, c), z)
     nonsingular = int(np.sum(cond[keep] < SINGULAR_CONDITION))
     return ParameterSolve(
         z[keep], cond[keep], nonsingular, nonsingular == GENERAL_SOLUTIONS, res.status, res.steps

@@ -232,6 +232,26 @@ def test_last_polish_in_the_c_solve_equals_numpy(seed: int) -> None:
 
 
 @settings(max_examples=30, deadline=None, derandomize=True)
+@given(st.integers(0, 2**32 - 1))
+def test_c_candidates_from_null_vectors_equal_numpy_eigenvectors(seed: int) -> None:
+    """Random arms, three random poses each: the C solve's candidates, complex ones included
+    (each from the null vector of ``M(x_3)`` at its eigenvalue, a conjugate pair's second as the
+    conjugate of the first's), are the numpy pipeline's (from the companion matrix's
+    eigenvectors) target by target to 1e-9 after the polish, with the same per-target counts."""
+    rng = np.random.default_rng(seed)
+    arm = g6.General6R.from_mechanism(_arm(rng))
+    tp = g6._unit_targets(arm, arm.fk(rng.uniform(-np.pi, np.pi, (3, 6))))
+    mine, ref = g6._candidates_c(arm, tp), g6._candidates(arm, tp)
+    assert np.array_equal(mine.n_good, ref.n_good) and np.array_equal(mine.n_far, ref.n_far)
+    assert np.array_equal(np.bincount(mine.owner, minlength=3), np.bincount(ref.owner, minlength=3))
+    for t in range(3):
+        a, b = mine.theta[mine.owner == t], ref.theta[ref.owner == t]
+        diff = a[:, None, :] - b[None, :, :]
+        gap = np.maximum(np.abs(g6._wrap(diff.real)), np.abs(diff.imag)).max(axis=2)
+        assert len(a) and np.max(np.min(gap, axis=1)) < 1e-9 and np.max(np.min(gap, axis=0)) < 1e-9
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
 @given(st.integers(0, 2**32 - 1), st.integers(0, 3 * g6._FK_ROWS + 3))
 def test_batched_fk_check_equals_m_fk_row_by_row(seed: int, n: int) -> None:
     """The FK check's evaluation of the mechanism (`_MechanismFK`, chunks of `_FK_ROWS` rows)

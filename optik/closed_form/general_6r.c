@@ -240,19 +240,25 @@ int optik_g6r_back(const double *arm, int k, const double *phi, const double *pi
 /* ---------------------------------------------------------------- the whole solve of one target
  * optik_g6r_solve runs steps 1-3 of general_6r (the 14 x 8 matrix Q of the right sides, its SVD,
  * the 12 x 12 coefficients of M(x_3), the singular-pencil probes, the 24 x 24 companion matrix and
- * its eigenvectors), the choice of candidates (finite, not spurious, not far) and, per candidate,
- * the back-substitution, the complex polish and the real retry: what general_6r._candidates does
- * in numpy. The linear algebra is LAPACK's (scipy's, through the function pointers `lapack`:
- * dgesdd, dgeev, dgetrf, dgetrs; one OpenBLAS thread during the call). The right sides are trigonometric of degree one in theta_1 and
+ * its eigenvalues), the choice of candidates (finite, not spurious, not far) and, per candidate,
+ * the null vector w of M(x_3) (the eigenvector's upper half), the back-substitution, the complex
+ * polish and the real retry: what general_6r._candidates does in numpy (which takes w from the
+ * companion matrix's eigenvectors instead). The linear algebra is LAPACK's (scipy's, through the
+ * function pointers `lapack`: dgesdd, dgebal, dgehd2, dlahqr, dgetrf, dgetrs; one OpenBLAS thread
+ * during the call): the eigenvalues alone, by balancing, Hessenberg reduction and the double-shift
+ * QR (what dgeev runs without eigenvectors, minus its workspace and block-size queries), because
+ * the eigenvectors of all 24 cost more than the null vectors of the 16 candidates' 12 x 12 M(x_3). The right sides are trigonometric of degree one in theta_1 and
  * theta_2, so three samples per angle (0, 2 pi / 3, 4 pi / 3) give their coefficients exactly. */
 typedef void (*dgesdd_t)(char *, int *, int *, double *, int *, double *, double *, int *, double *, int *, double *,
                          int *, int *, int *);
-typedef void (*dgeev_t)(char *, char *, int *, double *, int *, double *, double *, double *, int *, double *, int *,
-                        double *, int *, int *);
+typedef void (*dgebal_t)(char *, int *, double *, int *, int *, int *, double *, int *);
+typedef void (*dgehd2_t)(int *, int *, int *, double *, int *, double *, double *, int *);
+typedef void (*dlahqr_t)(int *, int *, int *, int *, int *, double *, int *, double *, double *, int *, int *, double *,
+                         int *, int *);
 typedef void (*dgetrf_t)(int *, int *, double *, int *, int *, int *);
 typedef void (*dgetrs_t)(char *, int *, int *, double *, int *, int *, double *, int *, int *);
 
-enum { WORK = 4096, GEEV_WORK = 4 * 24, MAX_CANDIDATES = 24 };
+enum { WORK = 4096, MAX_CANDIDATES = 24 };
 typedef int (*threads_t)(int);
 
 /* singular values of the n x n column-major matrix a (destroyed), largest first; 0 on success */
@@ -289,9 +295,60 @@ static void wrist_angles(const cplx *w, int real, cplx *phi) {
     phi[1] = half_angle(lo, hi, 8, real);
 }
 
+/* w with M(x) w = 0 for the 12 x 12 column-major coefficients mats (C, B, A) of M(x) = C + B x + A x^2
+ * at an eigenvalue x: Gaussian elimination with complete pivoting (the near-zero pivot comes
+ * last), then w from the back-substitution with its last entry 1, permuted back, scaled to
+ * largest entry 1 */
+static void null_vector(const double mats[3][144], cplx x, cplx *w) {
+    cplx m[12][12], y[12], x2 = x * x;
+    int col[12];
+    for (int r = 0; r < 12; ++r)
+        for (int c = 0; c < 12; ++c) m[r][c] = mats[0][r + 12 * c] + x * mats[1][r + 12 * c] + x2 * mats[2][r + 12 * c];
+    for (int c = 0; c < 12; ++c) col[c] = c;
+    for (int k = 0; k < 11; ++k) {
+        int pr = k, pc = k;
+        double top = -1.0;
+        for (int r = k; r < 12; ++r)
+            for (int c = k; c < 12; ++c) {
+                double size = fabs(creal(m[r][c])) + fabs(cimag(m[r][c]));
+                if (size > top) top = size, pr = r, pc = c;
+            }
+        if (pr != k)
+            for (int c = 0; c < 12; ++c) {
+                cplx v = m[k][c];
+                m[k][c] = m[pr][c], m[pr][c] = v;
+            }
+        if (pc != k) {
+            for (int r = 0; r < 12; ++r) {
+                cplx v = m[r][k];
+                m[r][k] = m[r][pc], m[r][pc] = v;
+            }
+            int v = col[k];
+            col[k] = col[pc], col[pc] = v;
+        }
+        if (top == 0.0) continue; /* a null column: its entry of y is taken free below */
+        cplx inv = 1.0 / m[k][k];
+        for (int r = k + 1; r < 12; ++r) {
+            cplx f = m[r][k] * inv;
+            for (int c = k + 1; c < 12; ++c) m[r][c] -= f * m[k][c];
+        }
+    }
+    y[11] = 1.0;
+    for (int r = 10; r >= 0; --r) {
+        cplx v = 0;
+        for (int c = r + 1; c < 12; ++c) v -= m[r][c] * y[c];
+        y[r] = m[r][r] != 0 ? v / m[r][r] : 0.0;
+    }
+    int top = 0;
+    for (int r = 1; r < 12; ++r)
+        if (cabs(y[r]) > cabs(y[top])) top = r;
+    cplx scale = y[top];
+    for (int r = 0; r < 12; ++r) w[col[r]] = y[r] / scale;
+}
+
 /* `model`: the arm as optik_g6r_back takes it (37 numbers), then the 14 x 3 x 3 x 3 coefficients of
  * the left sides (_Left.coef) and A_2^-1 A_1^-1 at the 3 x 3 sample angles (3 x 3 x 4 x 4);
- * `lapack`: dgesdd, dgeev, dgetrf, dgetrs and OpenBLAS's openblas_set_num_threads_local (or NULL:
+ * `lapack`: dgesdd, dgebal, dgehd2, dlahqr, dgetrf, dgetrs and OpenBLAS's openblas_set_num_threads_local (or NULL:
  * the threaded BLAS of OpenBLAS costs milliseconds on matrices this small); `tp`: n unit-scale targets T' (4 x 4). Per target t:
  * `info` (8): status (0 done, 1 A too badly conditioned for the companion matrix: QZ needed,
  * 2 a LAPACK failure or an exactly singular Jacobian: the numpy path answers), Q of full rank,
@@ -305,9 +362,11 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
                     double *size, int *retry, double *again, const double *offset, double *real) {
     static const double probes[2][3] = {{1.0, 0.5773502692, 0.3333333333}, {1.0, -1.7320508076, 3.0}};
     dgesdd_t gesdd = (dgesdd_t)lapack[0];
-    dgeev_t geev = (dgeev_t)lapack[1];
-    dgetrf_t getrf = (dgetrf_t)lapack[2];
-    dgetrs_t getrs = (dgetrs_t)lapack[3];
+    dgebal_t gebal = (dgebal_t)lapack[1];
+    dgehd2_t gehd2 = (dgehd2_t)lapack[2];
+    dlahqr_t lahqr = (dlahqr_t)lapack[3];
+    dgetrf_t getrf = (dgetrf_t)lapack[4];
+    dgetrs_t getrs = (dgetrs_t)lapack[5];
     const double *arm = model, *coef = model + 37, *grid = model + 37 + 378, *inv6 = arm + 21;
     const double *d = arm, *a = arm + 6;
     double ca[6], sa[6], wt[3][3];
@@ -316,7 +375,7 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
         double g = 2.0 * M_PI * k / 3.0;
         wt[0][k] = 1.0 / 3.0, wt[1][k] = 2.0 / 3.0 * cos(g), wt[2][k] = 2.0 / 3.0 * sin(g);
     }
-    threads_t threads = (threads_t)lapack[4]; /* this thread's OpenBLAS threads: 1 for these sizes */
+    threads_t threads = (threads_t)lapack[6]; /* this thread's OpenBLAS threads: 1 for these sizes */
     int threads_before = threads ? threads(1) : 0;
     for (int t = 0; t < n; ++t) {
         const double *tn = tp + 16 * t;
@@ -390,10 +449,10 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
             out[0] = 1.0;
             continue;
         }
-        /* the companion matrix [0 I; -A^-1 C  -A^-1 B] (column-major 24 x 24) and its eigenvectors */
-        double lu[144], x[12 * 24], comp[24 * 24], wr[24], wi[24], vr[24 * 24];
-        int piv[12], n12 = 12, n24 = 24, one = 1;
-        char trans = 'N', no = 'N', yes = 'V';
+        /* the companion matrix [0 I; -A^-1 C  -A^-1 B] (column-major 24 x 24) and its eigenvalues */
+        double lu[144], x[12 * 24], comp[24 * 24], wr[24], wi[24], scale[24], tau[24], unused = 0.0;
+        int piv[12], n12 = 12, n24 = 24, one = 1, lo = 1, hi = 24, no_schur = 0;
+        char trans = 'N', both = 'B';
         for (int i = 0; i < 144; ++i) lu[i] = mats[2][i], x[i] = mats[0][i], x[144 + i] = mats[1][i];
         getrf(&n12, &n12, lu, &n12, piv, &res);
         if (res) continue;
@@ -401,12 +460,17 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
         if (res) continue;
         for (int c = 0; c < 24; ++c)
             for (int r = 0; r < 24; ++r) comp[r + 24 * c] = r < 12 ? (double)(r == c - 12) : -x[(r - 12) + 12 * c];
-        int geev_work = GEEV_WORK; /* the minimum: the unblocked back-transformation, faster at this size */
-        geev(&no, &yes, &n24, comp, &n24, wr, wi, &wr[0], &one, vr, &n24, work, &geev_work, &res);
+        gebal(&both, &n24, comp, &n24, &lo, &hi, scale, &res);
         if (res) continue;
+        gehd2(&n24, &lo, &hi, comp, &n24, tau, work, &res);
+        if (res) continue;
+        lahqr(&no_schur, &no_schur, &n24, &lo, &hi, comp, &n24, wr, wi, &one, &n24, &unused, &one, &res);
+        if (res) continue;
+        for (int i = 0; i < 24; ++i) /* the eigenvalues that balancing isolated (rows outside lo..hi) */
+            if (i < lo - 1 || i >= hi) wr[i] = comp[i + 24 * i], wi[i] = 0.0;
         /* finite, not one of the 4 + 4 nearest +-i (the spurious factor), not far */
-        cplx vals[24];
-        int good[24], spurious[24] = {0};
+        cplx vals[24], vecs[24][12];
+        int good[24], spurious[24] = {0}, have[24] = {0};
         for (int j = 0; j < 24; ++j) {
             vals[j] = wr[j] + I * wi[j];
             good[j] = isfinite(wr[j]) && isfinite(wi[j]) && cabs(vals[j]) < 1e12;
@@ -431,17 +495,12 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
                 ++far;
                 continue;
             }
-            /* the eigenvector (a pair's: columns j, j + 1 of vr), its better scaled half */
-            cplx v[12];
-            int first = wi[j] == 0.0 || wi[j] > 0.0 ? j : j - 1, off = cabs(vals[j]) > 1.0 ? 12 : 0;
-            double sgn = wi[j] < 0.0 ? -1.0 : 1.0;
-            for (int r = 0; r < 12; ++r)
-                v[r] = vr[off + r + 24 * first] + (wi[j] == 0.0 ? 0.0 : sgn * I * vr[off + r + 24 * (first + 1)]);
-            int top = 0;
-            for (int r = 1; r < 12; ++r)
-                if (cabs(v[r]) > cabs(v[top])) top = r;
-            cplx scale = v[top];
-            for (int r = 0; r < 12; ++r) v[r] /= scale;
+            cplx *v = vecs[j]; /* a pair's second (conjugate) eigenvalue: the conjugate of the first's */
+            if (j > 0 && wi[j] < 0.0 && have[j - 1] && wi[j - 1] == -wi[j] && wr[j - 1] == wr[j])
+                for (int r = 0; r < 12; ++r) v[r] = conj(vecs[j - 1][r]);
+            else
+                null_vector(mats, vals[j], v);
+            have[j] = 1;
             cplx phi[3], *th = (cplx *)th_out + 6 * k;
             phi[0] = phi3;
             wrist_angles(v, 0, phi + 1);

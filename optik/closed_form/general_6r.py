@@ -70,8 +70,10 @@ solutions may be missing.
 **In C.** Steps 1-3, the eigenvalues, the candidates' back-substitution and complex polish and
 the real candidates' last polish on the DH model run for each target in one C call
 (``general_6r.c``, ``optik_g6r_solve``, built once per machine in the background,
-`optik.native.CFunction`; its linear algebra is scipy's LAPACK, ``dgesdd``, ``dgeev``,
-``dgetrf``, ``dgetrs``, run on one OpenBLAS thread); numpy answers until it is built,
+`optik.native.CFunction`; its linear algebra is scipy's LAPACK, ``dgesdd``, ``dgetrf``,
+``dgetrs`` and, for the eigenvalues alone, ``dgebal``, ``dgehd2``, ``dlahqr``, run on one
+OpenBLAS thread; each candidate's ``w`` is the null vector of its ``M(x_3)`` by complete
+pivoting, not the companion matrix's eigenvector); numpy answers until it is built,
 without a compiler (logged), for a badly conditioned ``A`` (QZ) and for an exactly singular
 Jacobian. Both give the same candidates to rounding; the polish on ``m.fk``, the FK check (the
 mechanism's own FK expression on all candidates of a batch at once, `_MechanismFK`, reused from
@@ -207,7 +209,7 @@ _SOLVE = native.CFunction(
 """`_candidates` in C, the whole elimination of many targets in one call (`_candidates_c`)."""
 _MAX_CANDIDATES = 24
 """Candidates per target the C solve has room for (at most 16 eigenvalues are candidates)."""
-_LAPACK_ROUTINES = ("dgesdd", "dgeev", "dgetrf", "dgetrs")
+_LAPACK_ROUTINES = ("dgesdd", "dgebal", "dgehd2", "dlahqr", "dgetrf", "dgetrs")
 
 
 # ---------------------------------------------------------------------------- DH kinematics

@@ -19,7 +19,7 @@ from optik.mechanism import dh_chain
 
 @pytest.fixture(scope="module", autouse=True)
 def compiled_kernels() -> None:
-    for kernel in (g6._POLISH, g6._BACK, g6._SOLVE):
+    for kernel in (g6._POLISH, g6._BACK, g6._SOLVE, g6._DISTINCT):
         kernel.get()
         assert kernel.library is not None and kernel.library.wait(120) is not None
         assert kernel.get() is not None
@@ -229,6 +229,39 @@ def test_last_polish_in_the_c_solve_equals_numpy(seed: int) -> None:
     ref = g6._candidates(arm, tp, last=True)
     assert np.array_equal(ref.owner[np.isfinite(ref.real[:, 0])], raw.owner[at])
     assert np.max(np.abs(g6._wrap(ref.real[np.isfinite(ref.real[:, 0])] - done.real[at]))) < 1e-9
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 40), st.integers(1, 6))
+def test_distinct_in_c_equals_numpy(seed: int, k: int, n: int) -> None:
+    """Random rows (real and complex) of random targets, many of them copies of earlier rows
+    moved by 2 pi in some joints or by less or more than `_SAME`: `_distinct` in C keeps the
+    same rows, target by target in the same order, as its numpy path (and so as `_keep`)."""
+    rng = np.random.default_rng(seed)
+    rows = rng.uniform(-np.pi, np.pi, (k, 6)) + 1j * rng.uniform(-1, 1, (k, 6)) * (
+        rng.uniform(size=(k, 1)) < 0.5
+    )
+    for i in range(1, k):
+        if rng.uniform() < 0.5:
+            j = rng.integers(i)
+            step = rng.choice([0.0, 3e-7, 2e-6]) * rng.choice([-1, 1], 6) + 2 * np.pi * rng.integers(-1, 2, 6)
+            rows[i] = rows[j] + step
+    owner = rng.integers(0, n, k)
+    got = g6._distinct(rows, owner, n)
+    assert g6._DISTINCT.get() is not None
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(g6._DISTINCT, "get", lambda: None)
+        ref = g6._distinct(rows, owner, n)
+    assert len(got) == len(ref) == n
+    for a, b in zip(got, ref, strict=True):
+        assert np.array_equal(a, b)
+    for t, kept in enumerate(got):  # kept rows pairwise apart, every dropped row near a kept one
+        mine = np.flatnonzero(owner == t)
+        assert set(kept) <= set(mine)
+        if len(mine):
+            assert np.all(g6._gap(rows[mine][:, None, :] - rows[kept][None, :, :]).min(axis=1) < g6._SAME)
+        apart = g6._gap(rows[kept][:, None, :] - rows[kept][None, :, :]) + np.eye(len(kept))
+        assert np.all(apart >= g6._SAME)
 
 
 @settings(max_examples=30, deadline=None, derandomize=True)

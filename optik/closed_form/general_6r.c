@@ -533,3 +533,36 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
     if (threads) threads(threads_before);
     return 0;
 }
+
+/* ---------------------------------------------------------------- the deduplication of the answers
+ * general_6r._distinct: `rows` (k x 6 complex, interleaved) of the targets `owner` (k, each in
+ * 0 .. n-1); `order` (k) is scratch. Per target, in the rows' order, a row is kept unless it is
+ * within 1e-6 (general_6r._SAME) of a row kept before it, by general_6r._gap: the largest
+ * |wrap(Re d)| + |Im d| over the joints of the difference d (the same floating operations as
+ * numpy's, so the same decisions). `idx` gets the kept rows' indices target by target, `bounds`
+ * (n + 1) where each target's start in `idx`. Returns 0. */
+int optik_g6r_distinct(const double *rows, const long long *owner, int k, int n, long long *order, long long *idx,
+                       long long *bounds) {
+    for (int t = 0; t <= n; ++t) bounds[t] = 0;
+    for (int i = 0; i < k; ++i) ++bounds[owner[i] + 1];
+    for (int t = 0; t < n; ++t) bounds[t + 1] += bounds[t];
+    for (int i = 0; i < k; ++i) order[bounds[owner[i]]++] = i; /* stable; bounds[t] is now the end of t */
+    long long start = 0, out = 0;
+    for (int t = 0; t < n; ++t) {
+        long long end = bounds[t], first = out;
+        for (long long g = start; g < end; ++g) {
+            const double *r = rows + 12 * order[g];
+            int close = 0;
+            for (long long h = first; h < out && !close; ++h) {
+                const double *s = rows + 12 * idx[h];
+                double gap = 0.0;
+                for (int j = 0; j < 6; ++j) gap = fmax(gap, fabs(wrap(r[2 * j] - s[2 * j])) + fabs(r[2 * j + 1] - s[2 * j + 1]));
+                close = gap < 1e-6;
+            }
+            if (!close) idx[out++] = order[g];
+        }
+        bounds[t] = first, start = end;
+    }
+    bounds[n] = out;
+    return 0;
+}

@@ -207,6 +207,13 @@ _SOLVE = native.CFunction(
     [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 8],
 )
 """`_candidates` in C, the whole elimination of many targets in one call (`_candidates_c`)."""
+_DISTINCT = native.CFunction(
+    _SOURCE,
+    "optik_general_6r",
+    "optik_g6r_distinct",
+    [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_int, *[ctypes.c_void_p] * 3],
+)
+"""`_distinct` in C."""
 _MAX_CANDIDATES = 24
 """Candidates per target the C solve has room for (at most 16 eigenvalues are candidates)."""
 _LAPACK_ROUTINES = ("dgesdd", "dgebal", "dgehd2", "dlahqr", "dgetrf", "dgetrs")
@@ -834,9 +841,25 @@ def _dedup(q: np.ndarray) -> np.ndarray:
 
 def _distinct(rows: np.ndarray, owner: np.ndarray, n: int) -> list[np.ndarray]:
     """The indices into ``rows`` of `_dedup` of the rows of each target ``0 .. n-1``
-    (``owner``: each row's target), in their order: a list of ``n`` index arrays. Each row is
-    compared with the earlier rows of its target all at once; only a target with a close pair
-    goes through `_keep`."""
+    (``owner``: each row's target), in their order: a list of ``n`` index arrays. In C
+    (``optik_g6r_distinct``: a stable counting sort by target, then each row against the kept
+    rows of its target, `_gap`'s floating operations, so the same decisions) once its library
+    is loaded, else `_distinct_numpy`."""
+    fn = _DISTINCT.get()
+    if fn is None:
+        return _distinct_numpy(rows, owner, n)
+    rows = np.ascontiguousarray(rows, dtype=complex)
+    owner = np.ascontiguousarray(owner, dtype=np.int64)
+    k = len(owner)
+    scratch, bounds = np.empty(2 * k, dtype=np.int64), np.empty(n + 1, dtype=np.int64)
+    idx = scratch[k:]
+    fn(rows.ctypes.data, owner.ctypes.data, k, n, scratch.ctypes.data, idx.ctypes.data, bounds.ctypes.data)
+    return [idx[i:j] for i, j in itertools.pairwise(bounds.tolist())]
+
+
+def _distinct_numpy(rows: np.ndarray, owner: np.ndarray, n: int) -> list[np.ndarray]:
+    """`_distinct` in numpy: each row is compared with the earlier rows of its target all at
+    once; only a target with a close pair goes through `_keep`."""
     order = np.argsort(owner, kind="stable")
     rows, owner = rows[order], owner[order]
     start = np.searchsorted(owner, np.arange(n + 1))

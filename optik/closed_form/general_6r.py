@@ -507,6 +507,9 @@ class _Left:
         self.model = np.concatenate([self.packed, self.coef.reshape(-1), grid3.reshape(-1)])
         """`packed`, `coef` and ``A2^-1 A1^-1`` on the ``3 x 3`` grid of ``(theta_1, theta_2)``
         (`_GRID3`): the arm as the whole solve in C (``optik_g6r_solve``) takes it."""
+        self.offset = np.ascontiguousarray(arm.offset, dtype=float)
+        self.addresses = (self.model.ctypes.data, self.offset.ctypes.data)
+        """The addresses of `model` and `offset` (for the C solve: read once, not per call)."""
 
     def values(self, phi3: np.ndarray, phi4: np.ndarray, phi5: np.ndarray) -> np.ndarray:
         """The 14 left sides at ``theta_k = phi_k + delta_k``: shape ``phi.shape + (14,)``."""
@@ -1035,11 +1038,11 @@ def _candidates(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candidat
 
 
 @functools.cache
-def _lapack() -> np.ndarray | None:
+def _lapack() -> tuple[np.ndarray, int] | None:
     """The addresses of scipy's LAPACK routines `_LAPACK_ROUTINES` (``scipy.linalg.cython_lapack``,
     the library scipy itself calls) and of ``openblas_set_num_threads_local`` of the library that
-    holds them (0 when it has none: not OpenBLAS, or older than 0.3.27), or None when the routines
-    cannot be read (logged)."""
+    holds them (0 when it has none: not OpenBLAS, or older than 0.3.27), with the address of that
+    array, or None when the routines cannot be read (logged)."""
     try:
         from scipy.linalg import cython_lapack
 
@@ -1052,7 +1055,8 @@ def _lapack() -> np.ndarray | None:
     except Exception as exc:  # any failure: the numpy path answers
         _LOG.warning("general 6R: scipy's LAPACK is not reachable from C (%s); numpy path", exc)
         return None
-    return np.array([*found, _threads_local(found[0])], dtype=np.uintp)
+    table = np.array([*found, _threads_local(found[0])], dtype=np.uintp)
+    return table, table.ctypes.data
 
 
 def _threads_local(address: int) -> int:
@@ -1083,22 +1087,29 @@ def _candidates_c(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candid
         return _candidates(arm, tp, last)
     n, cap = len(tp), _MAX_CANDIDATES
     tp = np.ascontiguousarray(tp)
-    info = np.empty((n, 8))
-    theta = np.empty((n * cap, 6), dtype=complex)  # (n, cap, 6) for the C code: slot j of target t
-    size = np.empty(n * cap)
-    retry = np.zeros(n * cap, dtype=np.intc)
-    again = np.empty((n * cap, 6))
-    real = np.full((n * cap, 6), np.nan)
-    out = (info, theta, size, retry, again)
-    offset = arm.offset.ctypes.data if last else None
+    # the float outputs in one buffer (one address read): info (n, 8), theta (n * cap, 6) complex
+    # ((n, cap, 6) for the C code: slot j of target t), size (n * cap), again and real (n * cap, 6)
+    slots = n * cap
+    ends = list(itertools.accumulate([8 * n, 12 * slots, slots, 6 * slots, 6 * slots]))
+    out = np.empty(ends[-1])
+    info, size = out[: ends[0]].reshape(n, 8), out[ends[1] : ends[2]]
+    theta = out[ends[0] : ends[1]].view(complex).reshape(slots, 6)
+    again, real = out[ends[2] : ends[3]].reshape(slots, 6), out[ends[3] :].reshape(slots, 6)
+    real.fill(np.nan)
+    retry = np.zeros(slots, dtype=np.intc)
+    base, (model, offset) = out.ctypes.data, arm._left.addresses
     fn(
-        arm._left.model.ctypes.data,
-        lapack.ctypes.data,
+        model,
+        lapack[1],
         n,
         tp.ctypes.data,
-        *(v.ctypes.data for v in out),
-        offset,
-        real.ctypes.data,
+        base,
+        base + 8 * ends[0],
+        base + 8 * ends[1],
+        retry.ctypes.data,
+        base + 8 * ends[2],
+        offset if last else None,
+        base + 8 * ends[3],
     )
     done = info[:, 0] == 0
     count = np.where(done, info[:, 6], 0).astype(int)

@@ -19,7 +19,7 @@ from optik.mechanism import dh_chain
 
 @pytest.fixture(scope="module", autouse=True)
 def compiled_kernels() -> None:
-    for kernel in (g6._POLISH, g6._BACK, g6._SOLVE, g6._DISTINCT):
+    for kernel in (g6._POLISH, g6._BACK, g6._SOLVE, g6._DISTINCT, g6._POSE_ERRORS):
         kernel.get()
         assert kernel.library is not None and kernel.library.wait(120) is not None
         assert kernel.get() is not None
@@ -262,6 +262,35 @@ def test_distinct_in_c_equals_numpy(seed: int, k: int, n: int) -> None:
             assert np.all(g6._gap(rows[mine][:, None, :] - rows[kept][None, :, :]).min(axis=1) < g6._SAME)
         apart = g6._gap(rows[kept][:, None, :] - rows[kept][None, :, :]) + np.eye(len(kept))
         assert np.all(apart >= g6._SAME)
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 20), st.floats(1e-12, 3.0))
+def test_pose_errors_in_c_equal_numpy(seed: int, k: int, size: float) -> None:
+    """Random poses near random targets (rotations up to angle ``size``, and half turns):
+    `_pose_errors` in C equals its numpy path to rounding, and the angle is the rotation's."""
+    rng = np.random.default_rng(seed)
+    m = _arm(rng)
+    q = rng.uniform(-np.pi, np.pi, (k, 6))
+    target = m.fk(q).reshape(k, 4, 4)
+    axis = rng.normal(size=(k, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    angle = np.where(rng.uniform(size=k) < 0.2, np.pi, rng.uniform(0, size, k))
+    pose = target.copy()
+    for i in range(k):
+        w = np.array(
+            [[0, -axis[i, 2], axis[i, 1]], [axis[i, 2], 0, -axis[i, 0]], [-axis[i, 1], axis[i, 0], 0]]
+        )
+        rot = np.eye(3) + np.sin(angle[i]) * w + (1 - np.cos(angle[i])) * w @ w
+        pose[i, :3, :3] = target[i, :3, :3] @ rot
+        pose[i, :3, 3] += rng.normal(size=3) * size
+    got = g6._pose_errors(pose, target)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(g6._POSE_ERRORS, "get", lambda: None)
+        ref = g6._pose_errors(pose, target)
+    assert got.shape == ref.shape == (k, 2)
+    assert np.allclose(got, ref, rtol=1e-12, atol=1e-15)
+    assert np.allclose(got[:, 1], angle, rtol=1e-9, atol=1e-7)
 
 
 @settings(max_examples=30, deadline=None, derandomize=True)

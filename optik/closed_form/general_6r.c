@@ -566,3 +566,21 @@ int optik_g6r_distinct(const double *rows, const long long *owner, int k, int n,
     bounds[n] = out;
     return 0;
 }
+
+/* general_6r._pose_errors of k poses t against k targets (4 x 4 each, row-major): per pair the
+ * position error |p - p*| and the geodesic angle atan2(|vee(R - R^T)| / 2, (tr R - 1) / 2) of
+ * R = R*^T R(q), with the sums in _pose_errors's order; out (k x 2). Returns 0. */
+int optik_g6r_pose_errors(const double *t, const double *target, int k, double *out) {
+    for (int n = 0; n < k; ++n) {
+        const double *a = t + 16 * n, *b = target + 16 * n;
+        double d[3], r[3][3];
+        for (int i = 0; i < 3; ++i) d[i] = a[4 * i + 3] - b[4 * i + 3];
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) r[i][j] = b[i] * a[j] + b[4 + i] * a[4 + j] + b[8 + i] * a[8 + j];
+        double x = r[2][1] - r[1][2], y = r[0][2] - r[2][0], z = r[1][0] - r[0][1];
+        double cosine = fmin(fmax((r[0][0] + r[1][1] + r[2][2] - 1.0) / 2.0, -1.0), 1.0);
+        out[2 * n] = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        out[2 * n + 1] = atan2(0.5 * sqrt(x * x + y * y + z * z), cosine);
+    }
+    return 0;
+}

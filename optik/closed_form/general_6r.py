@@ -214,6 +214,13 @@ _DISTINCT = native.CFunction(
     [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_int, *[ctypes.c_void_p] * 3],
 )
 """`_distinct` in C."""
+_POSE_ERRORS = native.CFunction(
+    _SOURCE,
+    "optik_general_6r",
+    "optik_g6r_pose_errors",
+    [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p],
+)
+"""`_pose_errors` in C."""
 _MAX_CANDIDATES = 24
 """Candidates per target the C solve has room for (at most 16 eigenvalues are candidates)."""
 _LAPACK_ROUTINES = ("dgesdd", "dgebal", "dgehd2", "dlahqr", "dgetrf", "dgetrs")
@@ -792,7 +799,16 @@ def _pose_errors(t: np.ndarray, target: np.ndarray) -> np.ndarray:
     """Position and orientation errors of poses ``t`` against ``target`` (batched, ``(..., 2)``):
     ``|p - p*|`` (m) and the geodesic angle of ``R = R*^T R(q)``,
     ``atan2(|vee(R - R^T)| / 2, (tr R - 1) / 2)`` (rad). The sums are written out in the order
-    of ``np.linalg.norm`` and ``np.trace`` (the same numbers, without their per-call cost)."""
+    of ``np.linalg.norm`` and ``np.trace`` (the same numbers, without their per-call cost). For
+    ``(K, 4, 4)`` stacks of one shape in C (``optik_g6r_pose_errors``: the same operations, but
+    the product ``R*^T R`` in plain sums where numpy's matmul may use BLAS, so equal to
+    rounding) once its library is loaded, else (and for broadcast shapes) in numpy."""
+    fn = _POSE_ERRORS.get()
+    if fn is not None and t.ndim == 3 and t.shape == target.shape:
+        t, target = np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(target, dtype=float)
+        out = np.empty((len(t), 2))
+        fn(t.ctypes.data, target.ctypes.data, len(t), out.ctypes.data)
+        return out
     d = t[..., :3, 3] - target[..., :3, 3]
     dp = np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2])
     r = np.swapaxes(target[..., :3, :3], -1, -2) @ t[..., :3, :3]

@@ -475,14 +475,17 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
             vals[j] = wr[j] + I * wi[j];
             good[j] = isfinite(wr[j]) && isfinite(wi[j]) && cabs(vals[j]) < 1e12;
         }
-        for (int sign = 1; sign >= -1; sign -= 2)
+        for (int sign = 1; sign >= -1; sign -= 2) {
+            double dist[24];
+            for (int j = 0; j < 24; ++j) dist[j] = cabs(vals[j] - sign * I);
             for (int rep = 0; rep < 4; ++rep) {
                 int best = -1;
-                double dist = INFINITY;
+                double nearest = INFINITY;
                 for (int j = 0; j < 24; ++j)
-                    if (good[j] && !spurious[j] && cabs(vals[j] - sign * I) < dist) dist = cabs(vals[j] - sign * I), best = j;
+                    if (good[j] && !spurious[j] && dist[j] < nearest) nearest = dist[j], best = j;
                 if (best >= 0) spurious[best] = 1;
             }
+        }
         int count = 0, far = 0, k = 0;
         double *th_out = theta + 2 * 6 * MAX_CANDIDATES * t, *size_out = size + MAX_CANDIDATES * t;
         double *again_out = again + 6 * MAX_CANDIDATES * t, *real_out = real + 6 * MAX_CANDIDATES * t;

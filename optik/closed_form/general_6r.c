@@ -19,9 +19,15 @@
 
 typedef double complex cplx;
 
-/* the DH transform of one joint at a (complex) angle */
+/* the DH transform of one joint at a (complex) angle theta = x + i y: cos theta = cos x cosh y -
+ * i sin x sinh y, sin theta = sin x cosh y + i cos x sinh y, the products glibc's ccos and csin
+ * form (for |y| < 709, where they need no scaling), with one sin, cos, cosh and sinh for both
+ * and none of the latter two for a real angle (cosh 0 = 1, sinh(+-0) = +-0) */
 static void dh(cplx theta, double d, double a, double ca, double sa, cplx m[4][4]) {
-    cplx c = ccos(theta), s = csin(theta);
+    double x = creal(theta), y = cimag(theta), cx = cos(x), sx = sin(x);
+    double ch = y == 0.0 ? 1.0 : cosh(y), sh = y == 0.0 ? y : sinh(y);
+    cplx c = fabs(y) < 709.0 ? CMPLX(cx * ch, -(sx * sh)) : ccos(theta);
+    cplx s = fabs(y) < 709.0 ? CMPLX(sx * ch, cx * sh) : csin(theta);
     m[0][0] = c, m[0][1] = -s * ca, m[0][2] = s * sa, m[0][3] = a * c;
     m[1][0] = s, m[1][1] = c * ca, m[1][2] = -c * sa, m[1][3] = a * s;
     m[2][0] = 0, m[2][1] = sa, m[2][2] = ca, m[2][3] = d;

@@ -294,6 +294,27 @@ def test_pose_errors_in_c_equal_numpy(seed: int, k: int, size: float) -> None:
 
 
 @settings(max_examples=30, deadline=None, derandomize=True)
+@given(
+    st.integers(0, 2**32 - 1),
+    st.sampled_from([{}, {"a": [0]}, {"alpha": [0]}, {"a": [0, 4]}, {"alpha": [3, 4]}]),
+)
+def test_c_pencil_flags_equal_numpy(seed: int, zero: dict) -> None:
+    """Random arms, generic or with axes 1-2 intersecting or parallel, 1-2 and 5-6 intersecting,
+    4, 5, 6 parallel (all singular pencils): the C solve's flags (Q of full rank, the
+    pencil regular, from the 12 x 12 singular values of its own bidiagonalization and dlasq1)
+    and counts of finite and far eigenvalues equal the numpy pipeline's (numpy's SVD)."""
+    rng = np.random.default_rng(seed)
+    a, alpha, d = rng.uniform(0.1, 1, 6), rng.uniform(-np.pi, np.pi, 6), rng.uniform(-1, 1, 6)
+    a[zero.get("a", [])] = 0.0
+    alpha[zero.get("alpha", [])] = 0.0
+    arm = g6.General6R(a=a, alpha=alpha, d=d)
+    tp = g6._unit_targets(arm, arm.fk(rng.uniform(-np.pi, np.pi, (3, 6))))
+    mine, ref = g6._candidates_c(arm, tp), g6._candidates(arm, tp)
+    assert np.array_equal(mine.rank_ok, ref.rank_ok) and np.array_equal(mine.regular, ref.regular)
+    assert np.all(mine.regular) if not zero else not np.any(mine.regular)  # these special ones are singular
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
 @given(st.integers(0, 2**32 - 1))
 def test_c_candidates_from_null_vectors_equal_numpy_eigenvectors(seed: int) -> None:
     """Random arms, three random poses each: the C solve's candidates, complex ones included

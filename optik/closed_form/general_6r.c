@@ -250,8 +250,9 @@ int optik_g6r_back(const double *arm, int k, const double *phi, const double *pi
  * the null vector w of M(x_3) (the eigenvector's upper half), the back-substitution, the complex
  * polish and the real retry: what general_6r._candidates does in numpy (which takes w from the
  * companion matrix's eigenvectors instead). The linear algebra is LAPACK's (scipy's, through the
- * function pointers `lapack`: dgesdd, dgebal, dgehd2, dlahqr, dgetrf, dgetrs; one OpenBLAS thread
- * during the call): the eigenvalues alone, by balancing, Hessenberg reduction and the double-shift
+ * function pointers `lapack`: dgesdd, dgebal, dgehd2, dlahqr, dgetrf, dgetrs, dlasq1; one OpenBLAS
+ * thread during the call; the 12 x 12 singular values of the probes and of A by our own
+ * bidiagonalization and dlasq1): the eigenvalues alone, by balancing, Hessenberg reduction and the double-shift
  * QR (what dgeev runs without eigenvectors, minus its workspace and block-size queries), because
  * the eigenvectors of all 24 cost more than the null vectors of the 16 candidates' 12 x 12 M(x_3). The right sides are trigonometric of degree one in theta_1 and
  * theta_2, so three samples per angle (0, 2 pi / 3, 4 pi / 3) give their coefficients exactly. */
@@ -261,18 +262,58 @@ typedef void (*dgebal_t)(char *, int *, double *, int *, int *, int *, double *,
 typedef void (*dgehd2_t)(int *, int *, int *, double *, int *, double *, double *, int *);
 typedef void (*dlahqr_t)(int *, int *, int *, int *, int *, double *, int *, double *, double *, int *, int *, double *,
                          int *, int *);
+typedef void (*dlasq1_t)(int *, double *, double *, double *, int *);
 typedef void (*dgetrf_t)(int *, int *, double *, int *, int *, int *);
 typedef void (*dgetrs_t)(char *, int *, int *, double *, int *, int *, double *, int *, int *);
 
 enum { WORK = 4096, MAX_CANDIDATES = 24 };
 typedef int (*threads_t)(int);
 
-/* singular values of the n x n column-major matrix a (destroyed), largest first; 0 on success */
-static int singular_values(dgesdd_t gesdd, int n, double *a, double *s) {
-    char jobz = 'N';
-    int lwork = WORK, info = 0, iwork[8 * 12], one = 1;
-    double work[WORK], dummy = 0.0;
-    gesdd(&jobz, &n, &n, a, &n, s, &dummy, &one, &dummy, &one, work, &lwork, iwork, &info);
+/* the Householder reflector H = I - tau v v^T with H x = (beta, 0, ..., 0) of x (n entries,
+ * stride inc; x_0 = alpha): beta = -sign(alpha) |x|, tau = (beta - alpha) / beta, v = (1,
+ * x_1.. / (alpha - beta)), v's tail written over x's (LAPACK's dlarfg, without its rescaling of
+ * tiny norms: the entries here are of order one); returns beta */
+static double reflector(int n, double *x, int inc, double *tau) {
+    double alpha = x[0], tail = 0.0;
+    for (int i = 1; i < n; ++i) tail += x[i * inc] * x[i * inc];
+    if (tail == 0.0) {
+        *tau = 0.0;
+        return alpha;
+    }
+    double beta = -copysign(hypot(alpha, sqrt(tail)), alpha), scale = 1.0 / (alpha - beta);
+    *tau = (beta - alpha) / beta;
+    for (int i = 1; i < n; ++i) x[i * inc] *= scale;
+    return beta;
+}
+
+/* singular values of the 12 x 12 column-major matrix a (destroyed), largest first; 0 on
+ * success: the Householder bidiagonalization (LAPACK's dgebd2: a reflector from the left on each
+ * column, from the right on each row), then dlasq1 (dqds) on the bidiagonal: what dgesdd without
+ * vectors does for a matrix this small, without the overhead of its ~50 BLAS calls */
+static int singular_values(dlasq1_t lasq1, double *a, double *s) {
+    enum { N = 12 };
+    double e[N], work[4 * N], tau;
+    for (int k = 0; k < N; ++k) {
+        double *col = a + k + N * k; /* a[k.., k] */
+        s[k] = reflector(N - k, col, 1, &tau);
+        for (int j = k + 1; j < N && tau != 0.0; ++j) { /* H a[k.., j] */
+            double *c = a + k + N * j, w = c[0];
+            for (int i = 1; i < N - k; ++i) w += col[i] * c[i];
+            w *= tau, c[0] -= w;
+            for (int i = 1; i < N - k; ++i) c[i] -= w * col[i];
+        }
+        if (k == N - 1) break;
+        double *row = a + k + N * (k + 1); /* a[k, k + 1..] */
+        e[k] = reflector(N - k - 1, row, N, &tau);
+        for (int i = k + 1; i < N && tau != 0.0; ++i) { /* a[i, k + 1..] H */
+            double *r = a + i + N * (k + 1), w = r[0];
+            for (int j = 1; j < N - k - 1; ++j) w += row[N * j] * r[N * j];
+            w *= tau, r[0] -= w;
+            for (int j = 1; j < N - k - 1; ++j) r[N * j] -= w * row[N * j];
+        }
+    }
+    int n = N, info = 0;
+    lasq1(&n, s, e, work, &info);
     return info;
 }
 
@@ -354,7 +395,7 @@ static void null_vector(const double mats[3][144], cplx x, cplx *w) {
 
 /* `model`: the arm as optik_g6r_back takes it (37 numbers), then the 14 x 3 x 3 x 3 coefficients of
  * the left sides (_Left.coef) and A_2^-1 A_1^-1 at the 3 x 3 sample angles (3 x 3 x 4 x 4);
- * `lapack`: dgesdd, dgebal, dgehd2, dlahqr, dgetrf, dgetrs and OpenBLAS's openblas_set_num_threads_local (or NULL:
+ * `lapack`: dgesdd, dgebal, dgehd2, dlahqr, dgetrf, dgetrs, dlasq1 and OpenBLAS's openblas_set_num_threads_local (or NULL:
  * the threaded BLAS of OpenBLAS costs milliseconds on matrices this small); `tp`: n unit-scale targets T' (4 x 4). Per target t:
  * `info` (8): status (0 done, 1 A too badly conditioned for the companion matrix: QZ needed,
  * 2 a LAPACK failure or an exactly singular Jacobian: the numpy path answers), Q of full rank,
@@ -373,6 +414,7 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
     dlahqr_t lahqr = (dlahqr_t)lapack[3];
     dgetrf_t getrf = (dgetrf_t)lapack[4];
     dgetrs_t getrs = (dgetrs_t)lapack[5];
+    dlasq1_t lasq1 = (dlasq1_t)lapack[6];
     const double *arm = model, *coef = model + 37, *grid = model + 37 + 378, *inv6 = arm + 21;
     const double *d = arm, *a = arm + 6;
     double ca[6], sa[6], wt[3][3];
@@ -381,7 +423,7 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
         double g = 2.0 * M_PI * k / 3.0;
         wt[0][k] = 1.0 / 3.0, wt[1][k] = 2.0 / 3.0 * cos(g), wt[2][k] = 2.0 / 3.0 * sin(g);
     }
-    threads_t threads = (threads_t)lapack[6]; /* this thread's OpenBLAS threads: 1 for these sizes */
+    threads_t threads = (threads_t)lapack[7]; /* this thread's OpenBLAS threads: 1 for these sizes */
     int threads_before = threads ? threads(1) : 0;
     for (int t = 0; t < n; ++t) {
         const double *tn = tp + 16 * t;
@@ -444,13 +486,13 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
         for (int p = 0; p < 2 && !failed; ++p) {
             for (int i = 0; i < 144; ++i)
                 tmp[i] = probes[p][0] * mats[0][i] + probes[p][1] * mats[1][i] + probes[p][2] * mats[2][i];
-            failed = singular_values(gesdd, 12, tmp, s12);
+            failed = singular_values(lasq1, tmp, s12);
             ratio = fmax(ratio, s12[11] / s12[0]);
         }
         if (failed) continue;
         out[2] = ratio > 1e-10, out[3] = ratio > 1e-7;
         for (int i = 0; i < 144; ++i) tmp[i] = mats[2][i];
-        if (singular_values(gesdd, 12, tmp, s12)) continue;
+        if (singular_values(lasq1, tmp, s12)) continue;
         if (!(s12[0] / s12[11] < 1e10)) { /* QZ (the numpy path) */
             out[0] = 1.0;
             continue;

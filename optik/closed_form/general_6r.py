@@ -71,8 +71,9 @@ solutions may be missing.
 the real candidates' last polish on the DH model run for each target in one C call
 (``general_6r.c``, ``optik_g6r_solve``, built once per machine in the background,
 `optik.native.CFunction`; its linear algebra is scipy's LAPACK, ``dgesdd``, ``dgetrf``,
-``dgetrs`` and, for the eigenvalues alone, ``dgebal``, ``dgehd2``, ``dlahqr``, run on one
-OpenBLAS thread; each candidate's ``w`` is the null vector of its ``M(x_3)`` by complete
+``dgetrs``, ``dlasq1`` (after our own bidiagonalization, for the singular values of the
+12 x 12 probes and of ``A``) and, for the eigenvalues alone, ``dgebal``, ``dgehd2``, ``dlahqr``,
+run on one OpenBLAS thread; each candidate's ``w`` is the null vector of its ``M(x_3)`` by complete
 pivoting, not the companion matrix's eigenvector); numpy answers until it is built,
 without a compiler (logged), for a badly conditioned ``A`` (QZ) and for an exactly singular
 Jacobian. Both give the same candidates to rounding; the polish on ``m.fk``, the FK check (the
@@ -223,7 +224,7 @@ _POSE_ERRORS = native.CFunction(
 """`_pose_errors` in C."""
 _MAX_CANDIDATES = 24
 """Candidates per target the C solve has room for (at most 16 eigenvalues are candidates)."""
-_LAPACK_ROUTINES = ("dgesdd", "dgebal", "dgehd2", "dlahqr", "dgetrf", "dgetrs")
+_LAPACK_ROUTINES = ("dgesdd", "dgebal", "dgehd2", "dlahqr", "dgetrf", "dgetrs", "dlasq1")
 
 
 # ---------------------------------------------------------------------------- DH kinematics

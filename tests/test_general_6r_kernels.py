@@ -184,10 +184,10 @@ def test_whole_solve_in_c_is_used_and_hands_targets_back(monkeypatch) -> None:
     solve = g6._SOLVE.get()
 
     def hand_back(model, lapack, n, tp, info, *rest):
-        solve(model, lapack, n, tp, info, *rest)
+        total = solve(model, lapack, n, tp, info, *rest)
         flags = np.frombuffer((ctypes.c_double * (8 * n)).from_address(info), dtype=float).reshape(n, 8)
         flags[1::2, 0] = 1.0
-        return 0
+        return total
 
     monkeypatch.setattr(g6._SOLVE, "get", lambda: hand_back)
     for (m, t), r in zip(cases, ref, strict=True):

@@ -400,13 +400,15 @@ static void null_vector(const double mats[3][144], cplx x, cplx *w) {
  * `info` (8): status (0 done, 1 A too badly conditioned for the companion matrix: QZ needed,
  * 2 a LAPACK failure or an exactly singular Jacobian: the numpy path answers), Q of full rank,
  * pencil regular, pencil well posed, finite non-spurious eigenvalues, those far from the real
- * axis, candidates k; `theta` (24 x 6 complex): the polished candidates, `size` (24) their
- * residuals, `retry` (24) whether each was polished from its real part too, `again` (24 x 6) the
- * result of that. With `offset` (the arm's 6 joint offsets, or NULL: not done) the last polish of
- * general_6r._last_polish runs here too: `real` (24 x 6) gets it for each candidate real to 1e-8
- * (IMAG_TOL; the other rows are left as they are) and `again` is replaced by it. Returns 0. */
+ * axis, candidates k. The candidates of the done targets, target after target (a target handed
+ * back leaves none; room for 24 per target): `theta` (6 complex each) the polished candidates,
+ * `size` their residuals, `retry` whether each was polished from its real part too, `again` (6)
+ * the result of that, `owner` the target of each. With `offset` (the arm's 6 joint offsets, or
+ * NULL: not done) the last polish of general_6r._last_polish runs here too: `real` (6) gets it
+ * for each candidate real to 1e-8 (IMAG_TOL; NaN for the others) and `again` is replaced by it.
+ * Returns the number of candidates. */
 int optik_g6r_solve(const double *model, void *const *lapack, int n, const double *tp, double *info, double *theta,
-                    double *size, int *retry, double *again, const double *offset, double *real) {
+                    double *size, int *retry, double *again, const double *offset, double *real, long long *owner) {
     static const double probes[2][3] = {{1.0, 0.5773502692, 0.3333333333}, {1.0, -1.7320508076, 3.0}};
     dgesdd_t gesdd = (dgesdd_t)lapack[0];
     dgebal_t gebal = (dgebal_t)lapack[1];
@@ -424,6 +426,7 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
         wt[0][k] = 1.0 / 3.0, wt[1][k] = 2.0 / 3.0 * cos(g), wt[2][k] = 2.0 / 3.0 * sin(g);
     }
     threads_t threads = (threads_t)lapack[7]; /* this thread's OpenBLAS threads: 1 for these sizes */
+    int total = 0;
     int threads_before = threads ? threads(1) : 0;
     for (int t = 0; t < n; ++t) {
         const double *tn = tp + 16 * t;
@@ -535,9 +538,9 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
             }
         }
         int count = 0, far = 0, k = 0;
-        double *th_out = theta + 2 * 6 * MAX_CANDIDATES * t, *size_out = size + MAX_CANDIDATES * t;
-        double *again_out = again + 6 * MAX_CANDIDATES * t, *real_out = real + 6 * MAX_CANDIDATES * t;
-        int *retry_out = retry + MAX_CANDIDATES * t;
+        double *th_out = theta + 2 * 6 * total, *size_out = size + total;
+        double *again_out = again + 6 * total, *real_out = real + 6 * total;
+        int *retry_out = retry + total;
         for (int j = 0; j < 24 && !failed; ++j) {
             if (!good[j] || spurious[j]) continue;
             ++count;
@@ -575,14 +578,17 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
                 double re[6];
                 for (int i = 0; i < 6; ++i) re[i] = creal(th[i]);
                 failed |= last_polish(d, a, ca, sa, offset, re, tn, real_out + 6 * k);
-            }
+            } else if (offset)
+                for (int i = 0; i < 6; ++i) real_out[6 * k + i] = NAN;
             ++k;
         }
         if (failed) continue;
         out[0] = 0.0, out[4] = count, out[5] = far, out[6] = k;
+        for (int i = 0; i < k; ++i) owner[total + i] = t;
+        total += k;
     }
     if (threads) threads(threads_before);
-    return 0;
+    return total;
 }
 
 /* ---------------------------------------------------------------- the deduplication of the answers

@@ -205,7 +205,7 @@ _SOLVE = native.CFunction(
     _SOURCE,
     "optik_general_6r",
     "optik_g6r_solve",
-    [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 8],
+    [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 9],
 )
 """`_candidates` in C, the whole elimination of many targets in one call (`_candidates_c`)."""
 _DISTINCT = native.CFunction(
@@ -1104,18 +1104,18 @@ def _candidates_c(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candid
         return _candidates(arm, tp, last)
     n, cap = len(tp), _MAX_CANDIDATES
     tp = np.ascontiguousarray(tp)
-    # the float outputs in one buffer (one address read): info (n, 8), theta (n * cap, 6) complex
-    # ((n, cap, 6) for the C code: slot j of target t), size (n * cap), again and real (n * cap, 6)
+    # the float outputs in one buffer (one address read): info (n, 8), then room for `cap`
+    # candidates per target, written one after the other: theta (6 complex each), size, again and
+    # real (6 each)
     slots = n * cap
     ends = list(itertools.accumulate([8 * n, 12 * slots, slots, 6 * slots, 6 * slots]))
     out = np.empty(ends[-1])
     info, size = out[: ends[0]].reshape(n, 8), out[ends[1] : ends[2]]
     theta = out[ends[0] : ends[1]].view(complex).reshape(slots, 6)
     again, real = out[ends[2] : ends[3]].reshape(slots, 6), out[ends[3] :].reshape(slots, 6)
-    real.fill(np.nan)
-    retry = np.zeros(slots, dtype=np.intc)
+    retry, owner = np.empty(slots, dtype=np.intc), np.empty(slots, dtype=np.int64)
     base, (model, offset) = out.ctypes.data, arm._left.addresses
-    fn(
+    total = fn(
         model,
         lapack[1],
         n,
@@ -1127,15 +1127,15 @@ def _candidates_c(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candid
         base + 8 * ends[2],
         offset if last else None,
         base + 8 * ends[3],
+        owner.ctypes.data,
     )
     done = info[:, 0] == 0
-    count = np.where(done, info[:, 6], 0).astype(int)
-    pick = np.flatnonzero(np.arange(cap) < count[:, None])  # the filled slots, target by target
-    owner, retried = pick // cap, np.flatnonzero(retry[pick])
-    theta, again = theta[pick], again[pick[retried]]
-    if last:
-        real = real[pick]
-    else:
+    kept = done[owner[:total]]  # the candidates of the done targets: all (the C code writes no others)
+    pick = slice(total) if kept.all() else np.flatnonzero(kept)
+    owner, size, retry, theta, real = owner[pick], size[pick], retry[pick], theta[pick], real[pick]
+    retried = np.flatnonzero(retry)
+    again = again[:total][pick][retried]
+    if not last:
         real, again = _joint_rows(arm, theta, owner, retried, again, tp, last)
     flags = info[:, 1:3] > 0
     counts = info[:, 4:6].astype(int)
@@ -1146,7 +1146,7 @@ def _candidates_c(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candid
         counts[:, 1],
         owner,
         theta,
-        size[pick],
+        size,
         retried,
         again,
         real,

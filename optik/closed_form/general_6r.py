@@ -55,7 +55,7 @@ converges where it is. A candidate near the real axis (``|Im(phi_3)| <= _REAL_RE
 polish does not end real is polished from its real part as well (on a singular pencil the
 eigenvalues mean nothing, but their real parts often lie next to real solutions). A candidate
 whose angles are real to `IMAG_TOL` is a real candidate: it is polished on the real model (for a
-mechanism on its own FK and Jacobian where still needed), kept only when the final forward
+mechanism on ``m.fk`` / ``m.jacobian`` where still needed), kept only when the final forward
 kinematics matches the target to `FK_TOL` (position relative to the arm's size, orientation in
 radians) and deduplicated (1e-6 rad, angles modulo 2 pi). The count check: a 6R arm has at most
 16 isolated solutions in complex space (16 for a generic arm), so 16 distinct verified ones are
@@ -576,15 +576,11 @@ class _MechanismFK:
     about a microsecond per row instead of the tens of microseconds that each ``m.fk`` call
     spends validating and converting its argument. The same operations as ``m.fk`` (its
     function, evaluated row by row), so the same numbers. Thread-safe: each thread evaluates on
-    its own buffers (made at its first call). ``jacobian`` is the mechanism's own ``q -> J(q)``
-    (``m.jacobian_function()``) for the Newton steps of `_refine`, built here with the FK so that
-    its cost (about 2 ms) is part of an arm's first call, not of whichever later target first
-    needs a step (about one in forty)."""
+    its own buffers (made at its first call)."""
 
     def __init__(self, m: Mechanism) -> None:
         fk = ca.Function("fk_rows", [m.q_sym], [ca.densify(m.frame_expr(m.ee))])
         self.function = fk.map(_FK_ROWS)
-        self.jacobian = m.jacobian_function()
         self._local = threading.local()
 
     def _buffers(self) -> tuple[np.ndarray, np.ndarray, Any]:
@@ -1386,7 +1382,7 @@ def _refine(
     """The last Newton polish on the exact model: the DH model ``g`` (`_last_polish`, unless
     ``dh`` is False: the candidates had it; exact for a `General6R`;
     candidates of the inverse chain come from its own, less accurate, DH description), then for
-    a mechanism a few steps on its own FK and Jacobian (`_MechanismFK`) wherever the FK error is still above
+    a mechanism a few steps on ``m.fk`` and ``m.jacobian`` wherever the FK error is still above
     rounding (the DH description of near-parallel axes loses digits). Returns the polished
     angles (wrapped), their poses by the independent forward kinematics (the mechanism's own,
     `_MechanismFK`, or ``g.fk`` for a `General6R`; the last evaluation of the polish when no
@@ -1406,7 +1402,7 @@ def _refine(
         for k in todo:
             rot = pose[k, :3, :3] @ targets[k, :3, :3].T
             err = np.concatenate([pose[k, :3, 3] - targets[k, :3, 3], 0.5 * _skew(rot)])
-            q[k] = q[k] - np.linalg.lstsq(np.asarray(fk.jacobian(q[k])), err, rcond=None)[0]
+            q[k] = q[k] - np.linalg.lstsq(m.jacobian(q[k]), err, rcond=None)[0]
         q = _wrap(q)
     pose = fk(q).reshape(-1, 4, 4)
     return q, pose, _pose_errors(pose, targets)

@@ -28,7 +28,12 @@ solutions, real + complex = 16) and the distribution of the number of real solut
 largest FK error of a returned solution, and per peer the number of solutions (FK by ``m.fk``),
 the share of the eigenvalue solver's solutions they found and the solutions they found that the
 eigenvalue solver did not (a completeness check of the latter).
-Times: mean / median / p95 per target and the ratio of means to ``optik general_6r``.
+Times: mean / median / p95 per target and the ratio of means to ``optik general_6r``. Each
+arm's first call (which derives its DH description and builds the FK check on the mechanism's
+own FK: a real cost of a user's first target of an arm) is timed as its own row, ``optik
+general_6r (first call of an arm)``, one sample per arm; ``optik general_6r`` is each target
+once after it. A second table times the steady state: each arm's targets ``--repeats`` more
+times, round by round, optik's call and ik-geo's alternating target by target (`Steady`).
 
 Then, on ``--special`` random arms per case, the same round trips on special geometries that no
 decomposable family covers (one or two pairs of consecutive axes intersecting or parallel):
@@ -41,7 +46,7 @@ for a pose with 16 real solutions and prints it: the reference instance of
 decimals and re-checked.
 
 Run: ``optik benchmark general_6r [--arms 200] [--poses 5] [--multistart-arms 20]
-[--seed 0] [--plot docs/measured/general_6r_counts.png]`` (or
+[--seed 0] [--repeats 5] [--plot docs/measured/general_6r_counts.png]`` (or
 ``python -m optik.benchmarks.bench_general_6r``).
 """
 
@@ -154,13 +159,58 @@ def fk_errors(m: Mechanism, qs: Sequence[Sequence[float]], target: np.ndarray) -
     return np.asarray(out, dtype=float)
 
 
-def run(arms: int, poses: int, multistart_arms: int, seed: int, plot: str | None) -> int:
+class Steady:
+    """The steady state of the single-target call: after an arm's targets were solved once, each
+    target ``repeats`` more times, round by round over the arm's targets, each optik call followed
+    by ik-geo's on the same target (when installed), so both see the same machine state; the
+    samples of all arms pooled. Resolves the per-call cost, which a cold single call per target
+    (the main table's ``optik general_6r`` row) blurs by cache and branch-predictor state."""
+
+    def __init__(self, repeats: int) -> None:
+        self.repeats = repeats
+        self.times: dict[str, list[float]] = {"optik general_6r": [], "ik-geo gen_six_dof": []}
+
+    def run(self, m: Mechanism, targets: np.ndarray, robot: tuple[object, np.ndarray] | None) -> None:
+        """The repeats on one arm's ``targets`` (``robot``: ik-geo's, or None)."""
+        args = [ik_geo_target(t, robot[1]) for t in targets] if robot is not None else []
+        for _ in range(self.repeats):
+            for k, target in enumerate(targets):
+                start = time.perf_counter()
+                solve_general_6r(m, target)
+                self.times["optik general_6r"].append(time.perf_counter() - start)
+                if robot is not None:
+                    start = time.perf_counter()
+                    robot[0].get_ik(*args[k])
+                    self.times["ik-geo gen_six_dof"].append(time.perf_counter() - start)
+
+    def table(self, n: int) -> None:
+        """Print the steady-state table (``n`` targets)."""
+        if not self.repeats:
+            return
+        base = float(np.mean(self.times["optik general_6r"]))
+        print(f"\n## Steady state: {n} targets x {self.repeats} repeats, interleaved target by target\n")
+        print("| solver | calls | mean ms | median ms | p95 ms | mean / general_6r |")
+        print("|---|--:|--:|--:|--:|--:|")
+        for name, t in self.times.items():
+            if t:
+                mean, median, p95 = timing_ms(t)
+                print(
+                    f"| {name} | {len(t)} | {mean:.3f} | {median:.3f} | {p95:.3f} | {mean / 1e3 / base:.2f} |"
+                )
+
+
+def run(arms: int, poses: int, multistart_arms: int, seed: int, plot: str | None, repeats: int) -> int:
     rng = np.random.default_rng(seed)
-    tallies = {"optik general_6r": Tally(), "optik general_6r (stacked)": Tally()}
+    tallies = {
+        "optik general_6r": Tally(),
+        "optik general_6r (stacked)": Tally(),
+        "optik general_6r (first call of an arm)": Tally(),
+    }
     if ik_geo is not None:
         tallies["ik-geo gen_six_dof"] = Tally()
     if multistart_arms:
         tallies["optik solve_ik_all (lm)"] = Tally()
+    steady = Steady(repeats)
     counts: Counter[int] = Counter()
     count_ok, max_err, flagged = 0, 0.0, []
     geo_errors: list[float] = []
@@ -168,7 +218,11 @@ def run(arms: int, poses: int, multistart_arms: int, seed: int, plot: str | None
         m = _random_arm(rng)
         qs = rng.uniform(-np.pi, np.pi, (poses, 6))
         targets = m.fk(qs)
-        solve_general_6r(m, targets[0])  # untimed: derives the DH description, caches the arm
+        start = time.perf_counter()  # the first call: derives the DH description, builds the FK check
+        first = solve_general_6r(m, targets[0])
+        tallies["optik general_6r (first call of an arm)"].add(
+            time.perf_counter() - start, list(first.q), qs[0], first.q, 1e-8
+        )
         start = time.perf_counter()
         stacked = solve_general_6r(m, targets)
         per = (time.perf_counter() - start) / poses
@@ -205,6 +259,7 @@ def run(arms: int, poses: int, multistart_arms: int, seed: int, plot: str | None
                 dt = time.perf_counter() - start
                 found = [r.q for r in res if r.success]
                 tallies["optik solve_ik_all (lm)"].add(dt, found, q, ours, 1e-4)
+        steady.run(m, targets, robot)
     n = arms * poses
     base = float(np.mean(tallies["optik general_6r"].times))
     print(f"\n## General 6R: {arms} random arms x {poses} poses ({n} targets), seed {seed}\n")
@@ -240,6 +295,7 @@ def run(arms: int, poses: int, multistart_arms: int, seed: int, plot: str | None
         )
     for line in flagged[:10]:
         print(f"- flagged: {line}")
+    steady.table(n)
     if plot:
         _plot(counts, n, plot)
     return 0
@@ -335,16 +391,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--poses", type=int, default=5, help="random poses per arm")
     ap.add_argument("--multistart-arms", type=int, default=20, help="arms also solved by solve_ik_all")
     ap.add_argument("--seed", type=int, default=0, help="seed of the random draws")
+    ap.add_argument("--repeats", type=int, default=5, help="steady-state repeats per target (0: skip)")
     ap.add_argument("--plot", default=None, help="write the histogram of real-solution counts here")
     ap.add_argument("--special", type=int, default=20, help="arms per special geometry (0: skip)")
     ap.add_argument("--search-16", action="store_true", help="search for a pose with 16 real solutions")
     ap.add_argument("--budget", type=float, default=300.0, help="time budget of --search-16 (s)")
     args = ap.parse_args(argv)
-    if args.arms < 1 or args.poses < 1 or args.multistart_arms < 0:
-        ap.error("--arms and --poses must be >= 1, --multistart-arms >= 0")
+    if args.arms < 1 or args.poses < 1 or args.multistart_arms < 0 or args.repeats < 0:
+        ap.error("--arms and --poses must be >= 1, --multistart-arms and --repeats >= 0")
     if args.search_16:
         return search_16(args.seed, args.budget)
-    code = run(args.arms, args.poses, min(args.multistart_arms, args.arms), args.seed, args.plot)
+    code = run(
+        args.arms, args.poses, min(args.multistart_arms, args.arms), args.seed, args.plot, args.repeats
+    )
     if args.special > 0:
         special(args.special, args.poses, args.seed)
     return code

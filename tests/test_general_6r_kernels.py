@@ -19,7 +19,7 @@ from optik.mechanism import dh_chain
 
 @pytest.fixture(scope="module", autouse=True)
 def compiled_kernels() -> None:
-    for kernel in (g6._POLISH, g6._BACK, g6._SOLVE):
+    for kernel in (g6._POLISH, g6._BACK, g6._SOLVE, g6._DISTINCT, g6._POSE_ERRORS):
         kernel.get()
         assert kernel.library is not None and kernel.library.wait(120) is not None
         assert kernel.get() is not None
@@ -184,10 +184,10 @@ def test_whole_solve_in_c_is_used_and_hands_targets_back(monkeypatch) -> None:
     solve = g6._SOLVE.get()
 
     def hand_back(model, lapack, n, tp, info, *rest):
-        solve(model, lapack, n, tp, info, *rest)
+        total = solve(model, lapack, n, tp, info, *rest)
         flags = np.frombuffer((ctypes.c_double * (8 * n)).from_address(info), dtype=float).reshape(n, 8)
         flags[1::2, 0] = 1.0
-        return 0
+        return total
 
     monkeypatch.setattr(g6._SOLVE, "get", lambda: hand_back)
     for (m, t), r in zip(cases, ref, strict=True):
@@ -229,6 +229,109 @@ def test_last_polish_in_the_c_solve_equals_numpy(seed: int) -> None:
     ref = g6._candidates(arm, tp, last=True)
     assert np.array_equal(ref.owner[np.isfinite(ref.real[:, 0])], raw.owner[at])
     assert np.max(np.abs(g6._wrap(ref.real[np.isfinite(ref.real[:, 0])] - done.real[at]))) < 1e-9
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 40), st.integers(1, 6))
+def test_distinct_in_c_equals_numpy(seed: int, k: int, n: int) -> None:
+    """Random rows (real and complex) of random targets, many of them copies of earlier rows
+    moved by 2 pi in some joints or by less or more than `_SAME`: `_distinct` in C keeps the
+    same rows, target by target in the same order, as its numpy path (and so as `_keep`)."""
+    rng = np.random.default_rng(seed)
+    rows = rng.uniform(-np.pi, np.pi, (k, 6)) + 1j * rng.uniform(-1, 1, (k, 6)) * (
+        rng.uniform(size=(k, 1)) < 0.5
+    )
+    for i in range(1, k):
+        if rng.uniform() < 0.5:
+            j = rng.integers(i)
+            step = rng.choice([0.0, 3e-7, 2e-6]) * rng.choice([-1, 1], 6) + 2 * np.pi * rng.integers(-1, 2, 6)
+            rows[i] = rows[j] + step
+    owner = rng.integers(0, n, k)
+    got = g6._distinct(rows, owner, n)
+    assert g6._DISTINCT.get() is not None
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(g6._DISTINCT, "get", lambda: None)
+        ref = g6._distinct(rows, owner, n)
+    assert len(got) == len(ref) == n
+    for a, b in zip(got, ref, strict=True):
+        assert np.array_equal(a, b)
+    for t, kept in enumerate(got):  # kept rows pairwise apart, every dropped row near a kept one
+        mine = np.flatnonzero(owner == t)
+        assert set(kept) <= set(mine)
+        if len(mine):
+            assert np.all(g6._gap(rows[mine][:, None, :] - rows[kept][None, :, :]).min(axis=1) < g6._SAME)
+        apart = g6._gap(rows[kept][:, None, :] - rows[kept][None, :, :]) + np.eye(len(kept))
+        assert np.all(apart >= g6._SAME)
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 20), st.floats(1e-12, 3.0))
+def test_pose_errors_in_c_equal_numpy(seed: int, k: int, size: float) -> None:
+    """Random poses near random targets (rotations up to angle ``size``, and half turns):
+    `_pose_errors` in C equals its numpy path to rounding, and the angle is the rotation's."""
+    rng = np.random.default_rng(seed)
+    m = _arm(rng)
+    q = rng.uniform(-np.pi, np.pi, (k, 6))
+    target = m.fk(q).reshape(k, 4, 4)
+    axis = rng.normal(size=(k, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    angle = np.where(rng.uniform(size=k) < 0.2, np.pi, rng.uniform(0, size, k))
+    pose = target.copy()
+    for i in range(k):
+        w = np.array(
+            [[0, -axis[i, 2], axis[i, 1]], [axis[i, 2], 0, -axis[i, 0]], [-axis[i, 1], axis[i, 0], 0]]
+        )
+        rot = np.eye(3) + np.sin(angle[i]) * w + (1 - np.cos(angle[i])) * w @ w
+        pose[i, :3, :3] = target[i, :3, :3] @ rot
+        pose[i, :3, 3] += rng.normal(size=3) * size
+    got = g6._pose_errors(pose, target)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(g6._POSE_ERRORS, "get", lambda: None)
+        ref = g6._pose_errors(pose, target)
+    assert got.shape == ref.shape == (k, 2)
+    assert np.allclose(got, ref, rtol=1e-12, atol=1e-15)
+    assert np.allclose(got[:, 1], angle, rtol=1e-9, atol=1e-7)
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(
+    st.integers(0, 2**32 - 1),
+    st.sampled_from([{}, {"a": [0]}, {"alpha": [0]}, {"a": [0, 4]}, {"alpha": [3, 4]}]),
+)
+def test_c_pencil_flags_equal_numpy(seed: int, zero: dict) -> None:
+    """Random arms, generic or with axes 1-2 intersecting or parallel, 1-2 and 5-6 intersecting,
+    4, 5, 6 parallel (all singular pencils): the C solve's flags (Q of full rank, the
+    pencil regular, from the 12 x 12 singular values of its own bidiagonalization and dlasq1)
+    and counts of finite and far eigenvalues equal the numpy pipeline's (numpy's SVD)."""
+    rng = np.random.default_rng(seed)
+    a, alpha, d = rng.uniform(0.1, 1, 6), rng.uniform(-np.pi, np.pi, 6), rng.uniform(-1, 1, 6)
+    a[zero.get("a", [])] = 0.0
+    alpha[zero.get("alpha", [])] = 0.0
+    arm = g6.General6R(a=a, alpha=alpha, d=d)
+    tp = g6._unit_targets(arm, arm.fk(rng.uniform(-np.pi, np.pi, (3, 6))))
+    mine, ref = g6._candidates_c(arm, tp), g6._candidates(arm, tp)
+    assert np.array_equal(mine.rank_ok, ref.rank_ok) and np.array_equal(mine.regular, ref.regular)
+    assert np.all(mine.regular) if not zero else not np.any(mine.regular)  # these special ones are singular
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(st.integers(0, 2**32 - 1))
+def test_c_candidates_from_null_vectors_equal_numpy_eigenvectors(seed: int) -> None:
+    """Random arms, three random poses each: the C solve's candidates, complex ones included
+    (each from the null vector of ``M(x_3)`` at its eigenvalue, a conjugate pair's second as the
+    conjugate of the first's), are the numpy pipeline's (from the companion matrix's
+    eigenvectors) target by target to 1e-9 after the polish, with the same per-target counts."""
+    rng = np.random.default_rng(seed)
+    arm = g6.General6R.from_mechanism(_arm(rng))
+    tp = g6._unit_targets(arm, arm.fk(rng.uniform(-np.pi, np.pi, (3, 6))))
+    mine, ref = g6._candidates_c(arm, tp), g6._candidates(arm, tp)
+    assert np.array_equal(mine.n_good, ref.n_good) and np.array_equal(mine.n_far, ref.n_far)
+    assert np.array_equal(np.bincount(mine.owner, minlength=3), np.bincount(ref.owner, minlength=3))
+    for t in range(3):
+        a, b = mine.theta[mine.owner == t], ref.theta[ref.owner == t]
+        diff = a[:, None, :] - b[None, :, :]
+        gap = np.maximum(np.abs(g6._wrap(diff.real)), np.abs(diff.imag)).max(axis=2)
+        assert len(a) and np.max(np.min(gap, axis=1)) < 1e-9 and np.max(np.min(gap, axis=0)) < 1e-9
 
 
 @settings(max_examples=30, deadline=None, derandomize=True)

@@ -19,9 +19,15 @@
 
 typedef double complex cplx;
 
-/* the DH transform of one joint at a (complex) angle */
+/* the DH transform of one joint at a (complex) angle theta = x + i y: cos theta = cos x cosh y -
+ * i sin x sinh y, sin theta = sin x cosh y + i cos x sinh y, the products glibc's ccos and csin
+ * form (for |y| < 709, where they need no scaling), with one sin, cos, cosh and sinh for both
+ * and none of the latter two for a real angle (cosh 0 = 1, sinh(+-0) = +-0) */
 static void dh(cplx theta, double d, double a, double ca, double sa, cplx m[4][4]) {
-    cplx c = ccos(theta), s = csin(theta);
+    double x = creal(theta), y = cimag(theta), cx = cos(x), sx = sin(x);
+    double ch = y == 0.0 ? 1.0 : cosh(y), sh = y == 0.0 ? y : sinh(y);
+    cplx c = fabs(y) < 709.0 ? CMPLX(cx * ch, -(sx * sh)) : ccos(theta);
+    cplx s = fabs(y) < 709.0 ? CMPLX(sx * ch, cx * sh) : csin(theta);
     m[0][0] = c, m[0][1] = -s * ca, m[0][2] = s * sa, m[0][3] = a * c;
     m[1][0] = s, m[1][1] = c * ca, m[1][2] = -c * sa, m[1][3] = a * s;
     m[2][0] = 0, m[2][1] = sa, m[2][2] = ca, m[2][3] = d;
@@ -240,27 +246,74 @@ int optik_g6r_back(const double *arm, int k, const double *phi, const double *pi
 /* ---------------------------------------------------------------- the whole solve of one target
  * optik_g6r_solve runs steps 1-3 of general_6r (the 14 x 8 matrix Q of the right sides, its SVD,
  * the 12 x 12 coefficients of M(x_3), the singular-pencil probes, the 24 x 24 companion matrix and
- * its eigenvectors), the choice of candidates (finite, not spurious, not far) and, per candidate,
- * the back-substitution, the complex polish and the real retry: what general_6r._candidates does
- * in numpy. The linear algebra is LAPACK's (scipy's, through the function pointers `lapack`:
- * dgesdd, dgeev, dgetrf, dgetrs; one OpenBLAS thread during the call). The right sides are trigonometric of degree one in theta_1 and
+ * its eigenvalues), the choice of candidates (finite, not spurious, not far) and, per candidate,
+ * the null vector w of M(x_3) (the eigenvector's upper half), the back-substitution, the complex
+ * polish and the real retry: what general_6r._candidates does in numpy (which takes w from the
+ * companion matrix's eigenvectors instead). The linear algebra is LAPACK's (scipy's, through the
+ * function pointers `lapack`: dgesdd, dgebal, dgehd2, dlahqr, dgetrf, dgetrs, dlasq1; one OpenBLAS
+ * thread during the call; the 12 x 12 singular values of the probes and of A by our own
+ * bidiagonalization and dlasq1): the eigenvalues alone, by balancing, Hessenberg reduction and the double-shift
+ * QR (what dgeev runs without eigenvectors, minus its workspace and block-size queries), because
+ * the eigenvectors of all 24 cost more than the null vectors of the 16 candidates' 12 x 12 M(x_3). The right sides are trigonometric of degree one in theta_1 and
  * theta_2, so three samples per angle (0, 2 pi / 3, 4 pi / 3) give their coefficients exactly. */
 typedef void (*dgesdd_t)(char *, int *, int *, double *, int *, double *, double *, int *, double *, int *, double *,
                          int *, int *, int *);
-typedef void (*dgeev_t)(char *, char *, int *, double *, int *, double *, double *, double *, int *, double *, int *,
-                        double *, int *, int *);
+typedef void (*dgebal_t)(char *, int *, double *, int *, int *, int *, double *, int *);
+typedef void (*dgehd2_t)(int *, int *, int *, double *, int *, double *, double *, int *);
+typedef void (*dlahqr_t)(int *, int *, int *, int *, int *, double *, int *, double *, double *, int *, int *, double *,
+                         int *, int *);
+typedef void (*dlasq1_t)(int *, double *, double *, double *, int *);
 typedef void (*dgetrf_t)(int *, int *, double *, int *, int *, int *);
 typedef void (*dgetrs_t)(char *, int *, int *, double *, int *, int *, double *, int *, int *);
 
-enum { WORK = 4096, GEEV_WORK = 4 * 24, MAX_CANDIDATES = 24 };
+enum { WORK = 4096, MAX_CANDIDATES = 24 };
 typedef int (*threads_t)(int);
 
-/* singular values of the n x n column-major matrix a (destroyed), largest first; 0 on success */
-static int singular_values(dgesdd_t gesdd, int n, double *a, double *s) {
-    char jobz = 'N';
-    int lwork = WORK, info = 0, iwork[8 * 12], one = 1;
-    double work[WORK], dummy = 0.0;
-    gesdd(&jobz, &n, &n, a, &n, s, &dummy, &one, &dummy, &one, work, &lwork, iwork, &info);
+/* the Householder reflector H = I - tau v v^T with H x = (beta, 0, ..., 0) of x (n entries,
+ * stride inc; x_0 = alpha): beta = -sign(alpha) |x|, tau = (beta - alpha) / beta, v = (1,
+ * x_1.. / (alpha - beta)), v's tail written over x's (LAPACK's dlarfg, without its rescaling of
+ * tiny norms: the entries here are of order one); returns beta */
+static double reflector(int n, double *x, int inc, double *tau) {
+    double alpha = x[0], tail = 0.0;
+    for (int i = 1; i < n; ++i) tail += x[i * inc] * x[i * inc];
+    if (tail == 0.0) {
+        *tau = 0.0;
+        return alpha;
+    }
+    double beta = -copysign(hypot(alpha, sqrt(tail)), alpha), scale = 1.0 / (alpha - beta);
+    *tau = (beta - alpha) / beta;
+    for (int i = 1; i < n; ++i) x[i * inc] *= scale;
+    return beta;
+}
+
+/* singular values of the 12 x 12 column-major matrix a (destroyed), largest first; 0 on
+ * success: the Householder bidiagonalization (LAPACK's dgebd2: a reflector from the left on each
+ * column, from the right on each row), then dlasq1 (dqds) on the bidiagonal: what dgesdd without
+ * vectors does for a matrix this small, without the overhead of its ~50 BLAS calls */
+static int singular_values(dlasq1_t lasq1, double *a, double *s) {
+    enum { N = 12 };
+    double e[N], work[4 * N], tau;
+    for (int k = 0; k < N; ++k) {
+        double *col = a + k + N * k; /* a[k.., k] */
+        s[k] = reflector(N - k, col, 1, &tau);
+        for (int j = k + 1; j < N && tau != 0.0; ++j) { /* H a[k.., j] */
+            double *c = a + k + N * j, w = c[0];
+            for (int i = 1; i < N - k; ++i) w += col[i] * c[i];
+            w *= tau, c[0] -= w;
+            for (int i = 1; i < N - k; ++i) c[i] -= w * col[i];
+        }
+        if (k == N - 1) break;
+        double *row = a + k + N * (k + 1); /* a[k, k + 1..] */
+        e[k] = reflector(N - k - 1, row, N, &tau);
+        for (int i = k + 1; i < N && tau != 0.0; ++i) { /* a[i, k + 1..] H */
+            double *r = a + i + N * (k + 1), w = r[0];
+            for (int j = 1; j < N - k - 1; ++j) w += row[N * j] * r[N * j];
+            w *= tau, r[0] -= w;
+            for (int j = 1; j < N - k - 1; ++j) r[N * j] -= w * row[N * j];
+        }
+    }
+    int n = N, info = 0;
+    lasq1(&n, s, e, work, &info);
     return info;
 }
 
@@ -289,25 +342,81 @@ static void wrist_angles(const cplx *w, int real, cplx *phi) {
     phi[1] = half_angle(lo, hi, 8, real);
 }
 
+/* w with M(x) w = 0 for the 12 x 12 column-major coefficients mats (C, B, A) of M(x) = C + B x + A x^2
+ * at an eigenvalue x: Gaussian elimination with complete pivoting (the near-zero pivot comes
+ * last), then w from the back-substitution with its last entry 1, permuted back, scaled to
+ * largest entry 1 */
+static void null_vector(const double mats[3][144], cplx x, cplx *w) {
+    cplx m[12][12], y[12], x2 = x * x;
+    int col[12];
+    for (int r = 0; r < 12; ++r)
+        for (int c = 0; c < 12; ++c) m[r][c] = mats[0][r + 12 * c] + x * mats[1][r + 12 * c] + x2 * mats[2][r + 12 * c];
+    for (int c = 0; c < 12; ++c) col[c] = c;
+    for (int k = 0; k < 11; ++k) {
+        int pr = k, pc = k;
+        double top = -1.0;
+        for (int r = k; r < 12; ++r)
+            for (int c = k; c < 12; ++c) {
+                double size = fabs(creal(m[r][c])) + fabs(cimag(m[r][c]));
+                if (size > top) top = size, pr = r, pc = c;
+            }
+        if (pr != k)
+            for (int c = 0; c < 12; ++c) {
+                cplx v = m[k][c];
+                m[k][c] = m[pr][c], m[pr][c] = v;
+            }
+        if (pc != k) {
+            for (int r = 0; r < 12; ++r) {
+                cplx v = m[r][k];
+                m[r][k] = m[r][pc], m[r][pc] = v;
+            }
+            int v = col[k];
+            col[k] = col[pc], col[pc] = v;
+        }
+        if (top == 0.0) continue; /* a null column: its entry of y is taken free below */
+        cplx inv = 1.0 / m[k][k];
+        for (int r = k + 1; r < 12; ++r) {
+            cplx f = m[r][k] * inv;
+            for (int c = k + 1; c < 12; ++c) m[r][c] -= f * m[k][c];
+        }
+    }
+    y[11] = 1.0;
+    for (int r = 10; r >= 0; --r) {
+        cplx v = 0;
+        for (int c = r + 1; c < 12; ++c) v -= m[r][c] * y[c];
+        y[r] = m[r][r] != 0 ? v / m[r][r] : 0.0;
+    }
+    int top = 0;
+    for (int r = 1; r < 12; ++r)
+        if (cabs(y[r]) > cabs(y[top])) top = r;
+    cplx scale = y[top];
+    for (int r = 0; r < 12; ++r) w[col[r]] = y[r] / scale;
+}
+
 /* `model`: the arm as optik_g6r_back takes it (37 numbers), then the 14 x 3 x 3 x 3 coefficients of
  * the left sides (_Left.coef) and A_2^-1 A_1^-1 at the 3 x 3 sample angles (3 x 3 x 4 x 4);
- * `lapack`: dgesdd, dgeev, dgetrf, dgetrs and OpenBLAS's openblas_set_num_threads_local (or NULL:
+ * `lapack`: dgesdd, dgebal, dgehd2, dlahqr, dgetrf, dgetrs, dlasq1 and OpenBLAS's openblas_set_num_threads_local (or NULL:
  * the threaded BLAS of OpenBLAS costs milliseconds on matrices this small); `tp`: n unit-scale targets T' (4 x 4). Per target t:
  * `info` (8): status (0 done, 1 A too badly conditioned for the companion matrix: QZ needed,
  * 2 a LAPACK failure or an exactly singular Jacobian: the numpy path answers), Q of full rank,
  * pencil regular, pencil well posed, finite non-spurious eigenvalues, those far from the real
- * axis, candidates k; `theta` (24 x 6 complex): the polished candidates, `size` (24) their
- * residuals, `retry` (24) whether each was polished from its real part too, `again` (24 x 6) the
- * result of that. With `offset` (the arm's 6 joint offsets, or NULL: not done) the last polish of
- * general_6r._last_polish runs here too: `real` (24 x 6) gets it for each candidate real to 1e-8
- * (IMAG_TOL; the other rows are left as they are) and `again` is replaced by it. Returns 0. */
+ * axis, candidates k. The candidates of the done targets, target after target (a target handed
+ * back leaves none; room for 24 per target): `theta` (6 complex each) the polished candidates,
+ * `size` their residuals, `retry` whether each was polished from its real part too, `again` (6)
+ * the result of that, `owner` the target of each. With `offset` (the arm's 6 joint offsets, or
+ * NULL: not done) the last polish of general_6r._last_polish runs here too: `real` (6) gets it
+ * for each candidate real to 1e-8 (IMAG_TOL; NaN for the others) and `again` is replaced by it.
+ * Returns the number of candidates. */
 int optik_g6r_solve(const double *model, void *const *lapack, int n, const double *tp, double *info, double *theta,
-                    double *size, int *retry, double *again, const double *offset, double *real) {
+                    double *size, int *retry, double *again, const double *offset, double *real, long long *owner) {
     static const double probes[2][3] = {{1.0, 0.5773502692, 0.3333333333}, {1.0, -1.7320508076, 3.0}};
     dgesdd_t gesdd = (dgesdd_t)lapack[0];
-    dgeev_t geev = (dgeev_t)lapack[1];
-    dgetrf_t getrf = (dgetrf_t)lapack[2];
-    dgetrs_t getrs = (dgetrs_t)lapack[3];
+    dgebal_t gebal = (dgebal_t)lapack[1];
+    dgehd2_t gehd2 = (dgehd2_t)lapack[2];
+    dlahqr_t lahqr = (dlahqr_t)lapack[3];
+    dgetrf_t getrf = (dgetrf_t)lapack[4];
+    dgetrs_t getrs = (dgetrs_t)lapack[5];
+    dlasq1_t lasq1 = (dlasq1_t)lapack[6];
     const double *arm = model, *coef = model + 37, *grid = model + 37 + 378, *inv6 = arm + 21;
     const double *d = arm, *a = arm + 6;
     double ca[6], sa[6], wt[3][3];
@@ -316,7 +425,8 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
         double g = 2.0 * M_PI * k / 3.0;
         wt[0][k] = 1.0 / 3.0, wt[1][k] = 2.0 / 3.0 * cos(g), wt[2][k] = 2.0 / 3.0 * sin(g);
     }
-    threads_t threads = (threads_t)lapack[4]; /* this thread's OpenBLAS threads: 1 for these sizes */
+    threads_t threads = (threads_t)lapack[7]; /* this thread's OpenBLAS threads: 1 for these sizes */
+    int total = 0;
     int threads_before = threads ? threads(1) : 0;
     for (int t = 0; t < n; ++t) {
         const double *tn = tp + 16 * t;
@@ -379,21 +489,21 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
         for (int p = 0; p < 2 && !failed; ++p) {
             for (int i = 0; i < 144; ++i)
                 tmp[i] = probes[p][0] * mats[0][i] + probes[p][1] * mats[1][i] + probes[p][2] * mats[2][i];
-            failed = singular_values(gesdd, 12, tmp, s12);
+            failed = singular_values(lasq1, tmp, s12);
             ratio = fmax(ratio, s12[11] / s12[0]);
         }
         if (failed) continue;
         out[2] = ratio > 1e-10, out[3] = ratio > 1e-7;
         for (int i = 0; i < 144; ++i) tmp[i] = mats[2][i];
-        if (singular_values(gesdd, 12, tmp, s12)) continue;
+        if (singular_values(lasq1, tmp, s12)) continue;
         if (!(s12[0] / s12[11] < 1e10)) { /* QZ (the numpy path) */
             out[0] = 1.0;
             continue;
         }
-        /* the companion matrix [0 I; -A^-1 C  -A^-1 B] (column-major 24 x 24) and its eigenvectors */
-        double lu[144], x[12 * 24], comp[24 * 24], wr[24], wi[24], vr[24 * 24];
-        int piv[12], n12 = 12, n24 = 24, one = 1;
-        char trans = 'N', no = 'N', yes = 'V';
+        /* the companion matrix [0 I; -A^-1 C  -A^-1 B] (column-major 24 x 24) and its eigenvalues */
+        double lu[144], x[12 * 24], comp[24 * 24], wr[24], wi[24], scale[24], tau[24], unused = 0.0;
+        int piv[12], n12 = 12, n24 = 24, one = 1, lo = 1, hi = 24, no_schur = 0;
+        char trans = 'N', both = 'B';
         for (int i = 0; i < 144; ++i) lu[i] = mats[2][i], x[i] = mats[0][i], x[144 + i] = mats[1][i];
         getrf(&n12, &n12, lu, &n12, piv, &res);
         if (res) continue;
@@ -401,28 +511,36 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
         if (res) continue;
         for (int c = 0; c < 24; ++c)
             for (int r = 0; r < 24; ++r) comp[r + 24 * c] = r < 12 ? (double)(r == c - 12) : -x[(r - 12) + 12 * c];
-        int geev_work = GEEV_WORK; /* the minimum: the unblocked back-transformation, faster at this size */
-        geev(&no, &yes, &n24, comp, &n24, wr, wi, &wr[0], &one, vr, &n24, work, &geev_work, &res);
+        gebal(&both, &n24, comp, &n24, &lo, &hi, scale, &res);
         if (res) continue;
+        gehd2(&n24, &lo, &hi, comp, &n24, tau, work, &res);
+        if (res) continue;
+        lahqr(&no_schur, &no_schur, &n24, &lo, &hi, comp, &n24, wr, wi, &one, &n24, &unused, &one, &res);
+        if (res) continue;
+        for (int i = 0; i < 24; ++i) /* the eigenvalues that balancing isolated (rows outside lo..hi) */
+            if (i < lo - 1 || i >= hi) wr[i] = comp[i + 24 * i], wi[i] = 0.0;
         /* finite, not one of the 4 + 4 nearest +-i (the spurious factor), not far */
-        cplx vals[24];
-        int good[24], spurious[24] = {0};
+        cplx vals[24], vecs[24][12];
+        int good[24], spurious[24] = {0}, have[24] = {0};
         for (int j = 0; j < 24; ++j) {
             vals[j] = wr[j] + I * wi[j];
             good[j] = isfinite(wr[j]) && isfinite(wi[j]) && cabs(vals[j]) < 1e12;
         }
-        for (int sign = 1; sign >= -1; sign -= 2)
+        for (int sign = 1; sign >= -1; sign -= 2) {
+            double dist[24];
+            for (int j = 0; j < 24; ++j) dist[j] = cabs(vals[j] - sign * I);
             for (int rep = 0; rep < 4; ++rep) {
                 int best = -1;
-                double dist = INFINITY;
+                double nearest = INFINITY;
                 for (int j = 0; j < 24; ++j)
-                    if (good[j] && !spurious[j] && cabs(vals[j] - sign * I) < dist) dist = cabs(vals[j] - sign * I), best = j;
+                    if (good[j] && !spurious[j] && dist[j] < nearest) nearest = dist[j], best = j;
                 if (best >= 0) spurious[best] = 1;
             }
+        }
         int count = 0, far = 0, k = 0;
-        double *th_out = theta + 2 * 6 * MAX_CANDIDATES * t, *size_out = size + MAX_CANDIDATES * t;
-        double *again_out = again + 6 * MAX_CANDIDATES * t, *real_out = real + 6 * MAX_CANDIDATES * t;
-        int *retry_out = retry + MAX_CANDIDATES * t;
+        double *th_out = theta + 2 * 6 * total, *size_out = size + total;
+        double *again_out = again + 6 * total, *real_out = real + 6 * total;
+        int *retry_out = retry + total;
         for (int j = 0; j < 24 && !failed; ++j) {
             if (!good[j] || spurious[j]) continue;
             ++count;
@@ -431,17 +549,12 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
                 ++far;
                 continue;
             }
-            /* the eigenvector (a pair's: columns j, j + 1 of vr), its better scaled half */
-            cplx v[12];
-            int first = wi[j] == 0.0 || wi[j] > 0.0 ? j : j - 1, off = cabs(vals[j]) > 1.0 ? 12 : 0;
-            double sgn = wi[j] < 0.0 ? -1.0 : 1.0;
-            for (int r = 0; r < 12; ++r)
-                v[r] = vr[off + r + 24 * first] + (wi[j] == 0.0 ? 0.0 : sgn * I * vr[off + r + 24 * (first + 1)]);
-            int top = 0;
-            for (int r = 1; r < 12; ++r)
-                if (cabs(v[r]) > cabs(v[top])) top = r;
-            cplx scale = v[top];
-            for (int r = 0; r < 12; ++r) v[r] /= scale;
+            cplx *v = vecs[j]; /* a pair's second (conjugate) eigenvalue: the conjugate of the first's */
+            if (j > 0 && wi[j] < 0.0 && have[j - 1] && wi[j - 1] == -wi[j] && wr[j - 1] == wr[j])
+                for (int r = 0; r < 12; ++r) v[r] = conj(vecs[j - 1][r]);
+            else
+                null_vector(mats, vals[j], v);
+            have[j] = 1;
             cplx phi[3], *th = (cplx *)th_out + 6 * k;
             phi[0] = phi3;
             wrist_angles(v, 0, phi + 1);
@@ -465,12 +578,66 @@ int optik_g6r_solve(const double *model, void *const *lapack, int n, const doubl
                 double re[6];
                 for (int i = 0; i < 6; ++i) re[i] = creal(th[i]);
                 failed |= last_polish(d, a, ca, sa, offset, re, tn, real_out + 6 * k);
-            }
+            } else if (offset)
+                for (int i = 0; i < 6; ++i) real_out[6 * k + i] = NAN;
             ++k;
         }
         if (failed) continue;
         out[0] = 0.0, out[4] = count, out[5] = far, out[6] = k;
+        for (int i = 0; i < k; ++i) owner[total + i] = t;
+        total += k;
     }
     if (threads) threads(threads_before);
+    return total;
+}
+
+/* ---------------------------------------------------------------- the deduplication of the answers
+ * general_6r._distinct: `rows` (k x 6 complex, interleaved) of the targets `owner` (k, each in
+ * 0 .. n-1); `order` (k) is scratch. Per target, in the rows' order, a row is kept unless it is
+ * within 1e-6 (general_6r._SAME) of a row kept before it, by general_6r._gap: the largest
+ * |wrap(Re d)| + |Im d| over the joints of the difference d (the same floating operations as
+ * numpy's, so the same decisions). `idx` gets the kept rows' indices target by target, `bounds`
+ * (n + 1) where each target's start in `idx`. Returns 0. */
+int optik_g6r_distinct(const double *rows, const long long *owner, int k, int n, long long *order, long long *idx,
+                       long long *bounds) {
+    for (int t = 0; t <= n; ++t) bounds[t] = 0;
+    for (int i = 0; i < k; ++i) ++bounds[owner[i] + 1];
+    for (int t = 0; t < n; ++t) bounds[t + 1] += bounds[t];
+    for (int i = 0; i < k; ++i) order[bounds[owner[i]]++] = i; /* stable; bounds[t] is now the end of t */
+    long long start = 0, out = 0;
+    for (int t = 0; t < n; ++t) {
+        long long end = bounds[t], first = out;
+        for (long long g = start; g < end; ++g) {
+            const double *r = rows + 12 * order[g];
+            int close = 0;
+            for (long long h = first; h < out && !close; ++h) {
+                const double *s = rows + 12 * idx[h];
+                double gap = 0.0;
+                for (int j = 0; j < 6; ++j) gap = fmax(gap, fabs(wrap(r[2 * j] - s[2 * j])) + fabs(r[2 * j + 1] - s[2 * j + 1]));
+                close = gap < 1e-6;
+            }
+            if (!close) idx[out++] = order[g];
+        }
+        bounds[t] = first, start = end;
+    }
+    bounds[n] = out;
+    return 0;
+}
+
+/* general_6r._pose_errors of k poses t against k targets (4 x 4 each, row-major): per pair the
+ * position error |p - p*| and the geodesic angle atan2(|vee(R - R^T)| / 2, (tr R - 1) / 2) of
+ * R = R*^T R(q), with the sums in _pose_errors's order; out (k x 2). Returns 0. */
+int optik_g6r_pose_errors(const double *t, const double *target, int k, double *out) {
+    for (int n = 0; n < k; ++n) {
+        const double *a = t + 16 * n, *b = target + 16 * n;
+        double d[3], r[3][3];
+        for (int i = 0; i < 3; ++i) d[i] = a[4 * i + 3] - b[4 * i + 3];
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) r[i][j] = b[i] * a[j] + b[4 + i] * a[4 + j] + b[8 + i] * a[8 + j];
+        double x = r[2][1] - r[1][2], y = r[0][2] - r[2][0], z = r[1][0] - r[0][1];
+        double cosine = fmin(fmax((r[0][0] + r[1][1] + r[2][2] - 1.0) / 2.0, -1.0), 1.0);
+        out[2 * n] = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        out[2 * n + 1] = atan2(0.5 * sqrt(x * x + y * y + z * z), cosine);
+    }
     return 0;
 }

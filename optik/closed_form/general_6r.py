@@ -70,8 +70,11 @@ solutions may be missing.
 **In C.** Steps 1-3, the eigenvalues, the candidates' back-substitution and complex polish and
 the real candidates' last polish on the DH model run for each target in one C call
 (``general_6r.c``, ``optik_g6r_solve``, built once per machine in the background,
-`optik.native.CFunction`; its linear algebra is scipy's LAPACK, ``dgesdd``, ``dgeev``,
-``dgetrf``, ``dgetrs``, run on one OpenBLAS thread); numpy answers until it is built,
+`optik.native.CFunction`; its linear algebra is scipy's LAPACK, ``dgesdd``, ``dgetrf``,
+``dgetrs``, ``dlasq1`` (after our own bidiagonalization, for the singular values of the
+12 x 12 probes and of ``A``) and, for the eigenvalues alone, ``dgebal``, ``dgehd2``, ``dlahqr``,
+run on one OpenBLAS thread; each candidate's ``w`` is the null vector of its ``M(x_3)`` by complete
+pivoting, not the companion matrix's eigenvector); numpy answers until it is built,
 without a compiler (logged), for a badly conditioned ``A`` (QZ) and for an exactly singular
 Jacobian. Both give the same candidates to rounding; the polish on ``m.fk``, the FK check (the
 mechanism's own FK expression on all candidates of a batch at once, `_MechanismFK`, reused from
@@ -202,12 +205,26 @@ _SOLVE = native.CFunction(
     _SOURCE,
     "optik_general_6r",
     "optik_g6r_solve",
-    [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 8],
+    [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 9],
 )
 """`_candidates` in C, the whole elimination of many targets in one call (`_candidates_c`)."""
+_DISTINCT = native.CFunction(
+    _SOURCE,
+    "optik_general_6r",
+    "optik_g6r_distinct",
+    [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_int, *[ctypes.c_void_p] * 3],
+)
+"""`_distinct` in C."""
+_POSE_ERRORS = native.CFunction(
+    _SOURCE,
+    "optik_general_6r",
+    "optik_g6r_pose_errors",
+    [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p],
+)
+"""`_pose_errors` in C."""
 _MAX_CANDIDATES = 24
 """Candidates per target the C solve has room for (at most 16 eigenvalues are candidates)."""
-_LAPACK_ROUTINES = ("dgesdd", "dgeev", "dgetrf", "dgetrs")
+_LAPACK_ROUTINES = ("dgesdd", "dgebal", "dgehd2", "dlahqr", "dgetrf", "dgetrs", "dlasq1")
 
 
 # ---------------------------------------------------------------------------- DH kinematics
@@ -498,6 +515,9 @@ class _Left:
         self.model = np.concatenate([self.packed, self.coef.reshape(-1), grid3.reshape(-1)])
         """`packed`, `coef` and ``A2^-1 A1^-1`` on the ``3 x 3`` grid of ``(theta_1, theta_2)``
         (`_GRID3`): the arm as the whole solve in C (``optik_g6r_solve``) takes it."""
+        self.offset = np.ascontiguousarray(arm.offset, dtype=float)
+        self.addresses = (self.model.ctypes.data, self.offset.ctypes.data)
+        """The addresses of `model` and `offset` (for the C solve: read once, not per call)."""
 
     def values(self, phi3: np.ndarray, phi4: np.ndarray, phi5: np.ndarray) -> np.ndarray:
         """The 14 left sides at ``theta_k = phi_k + delta_k``: shape ``phi.shape + (14,)``."""
@@ -776,7 +796,16 @@ def _pose_errors(t: np.ndarray, target: np.ndarray) -> np.ndarray:
     """Position and orientation errors of poses ``t`` against ``target`` (batched, ``(..., 2)``):
     ``|p - p*|`` (m) and the geodesic angle of ``R = R*^T R(q)``,
     ``atan2(|vee(R - R^T)| / 2, (tr R - 1) / 2)`` (rad). The sums are written out in the order
-    of ``np.linalg.norm`` and ``np.trace`` (the same numbers, without their per-call cost)."""
+    of ``np.linalg.norm`` and ``np.trace`` (the same numbers, without their per-call cost). For
+    ``(K, 4, 4)`` stacks of one shape in C (``optik_g6r_pose_errors``: the same operations, but
+    the product ``R*^T R`` in plain sums where numpy's matmul may use BLAS, so equal to
+    rounding) once its library is loaded, else (and for broadcast shapes) in numpy."""
+    fn = _POSE_ERRORS.get()
+    if fn is not None and t.ndim == 3 and t.shape == target.shape:
+        t, target = np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(target, dtype=float)
+        out = np.empty((len(t), 2))
+        fn(t.ctypes.data, target.ctypes.data, len(t), out.ctypes.data)
+        return out
     d = t[..., :3, 3] - target[..., :3, 3]
     dp = np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2])
     r = np.swapaxes(target[..., :3, :3], -1, -2) @ t[..., :3, :3]
@@ -828,9 +857,25 @@ def _dedup(q: np.ndarray) -> np.ndarray:
 
 def _distinct(rows: np.ndarray, owner: np.ndarray, n: int) -> list[np.ndarray]:
     """The indices into ``rows`` of `_dedup` of the rows of each target ``0 .. n-1``
-    (``owner``: each row's target), in their order: a list of ``n`` index arrays. Each row is
-    compared with the earlier rows of its target all at once; only a target with a close pair
-    goes through `_keep`."""
+    (``owner``: each row's target), in their order: a list of ``n`` index arrays. In C
+    (``optik_g6r_distinct``: a stable counting sort by target, then each row against the kept
+    rows of its target, `_gap`'s floating operations, so the same decisions) once its library
+    is loaded, else `_distinct_numpy`."""
+    fn = _DISTINCT.get()
+    if fn is None:
+        return _distinct_numpy(rows, owner, n)
+    rows = np.ascontiguousarray(rows, dtype=complex)
+    owner = np.ascontiguousarray(owner, dtype=np.int64)
+    k = len(owner)
+    scratch, bounds = np.empty(2 * k, dtype=np.int64), np.empty(n + 1, dtype=np.int64)
+    idx = scratch[k:]
+    fn(rows.ctypes.data, owner.ctypes.data, k, n, scratch.ctypes.data, idx.ctypes.data, bounds.ctypes.data)
+    return [idx[i:j] for i, j in itertools.pairwise(bounds.tolist())]
+
+
+def _distinct_numpy(rows: np.ndarray, owner: np.ndarray, n: int) -> list[np.ndarray]:
+    """`_distinct` in numpy: each row is compared with the earlier rows of its target all at
+    once; only a target with a close pair goes through `_keep`."""
     order = np.argsort(owner, kind="stable")
     rows, owner = rows[order], owner[order]
     start = np.searchsorted(owner, np.arange(n + 1))
@@ -1006,11 +1051,11 @@ def _candidates(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candidat
 
 
 @functools.cache
-def _lapack() -> np.ndarray | None:
+def _lapack() -> tuple[np.ndarray, int] | None:
     """The addresses of scipy's LAPACK routines `_LAPACK_ROUTINES` (``scipy.linalg.cython_lapack``,
     the library scipy itself calls) and of ``openblas_set_num_threads_local`` of the library that
-    holds them (0 when it has none: not OpenBLAS, or older than 0.3.27), or None when the routines
-    cannot be read (logged)."""
+    holds them (0 when it has none: not OpenBLAS, or older than 0.3.27), with the address of that
+    array, or None when the routines cannot be read (logged)."""
     try:
         from scipy.linalg import cython_lapack
 
@@ -1023,7 +1068,8 @@ def _lapack() -> np.ndarray | None:
     except Exception as exc:  # any failure: the numpy path answers
         _LOG.warning("general 6R: scipy's LAPACK is not reachable from C (%s); numpy path", exc)
         return None
-    return np.array([*found, _threads_local(found[0])], dtype=np.uintp)
+    table = np.array([*found, _threads_local(found[0])], dtype=np.uintp)
+    return table, table.ctypes.data
 
 
 def _threads_local(address: int) -> int:
@@ -1054,31 +1100,38 @@ def _candidates_c(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candid
         return _candidates(arm, tp, last)
     n, cap = len(tp), _MAX_CANDIDATES
     tp = np.ascontiguousarray(tp)
-    info = np.empty((n, 8))
-    theta = np.empty((n * cap, 6), dtype=complex)  # (n, cap, 6) for the C code: slot j of target t
-    size = np.empty(n * cap)
-    retry = np.zeros(n * cap, dtype=np.intc)
-    again = np.empty((n * cap, 6))
-    real = np.full((n * cap, 6), np.nan)
-    out = (info, theta, size, retry, again)
-    offset = arm.offset.ctypes.data if last else None
-    fn(
-        arm._left.model.ctypes.data,
-        lapack.ctypes.data,
+    # the float outputs in one buffer (one address read): info (n, 8), then room for `cap`
+    # candidates per target, written one after the other: theta (6 complex each), size, again and
+    # real (6 each)
+    slots = n * cap
+    ends = list(itertools.accumulate([8 * n, 12 * slots, slots, 6 * slots, 6 * slots]))
+    out = np.empty(ends[-1])
+    info, size = out[: ends[0]].reshape(n, 8), out[ends[1] : ends[2]]
+    theta = out[ends[0] : ends[1]].view(complex).reshape(slots, 6)
+    again, real = out[ends[2] : ends[3]].reshape(slots, 6), out[ends[3] :].reshape(slots, 6)
+    retry, owner = np.empty(slots, dtype=np.intc), np.empty(slots, dtype=np.int64)
+    base, (model, offset) = out.ctypes.data, arm._left.addresses
+    total = fn(
+        model,
+        lapack[1],
         n,
         tp.ctypes.data,
-        *(v.ctypes.data for v in out),
-        offset,
-        real.ctypes.data,
+        base,
+        base + 8 * ends[0],
+        base + 8 * ends[1],
+        retry.ctypes.data,
+        base + 8 * ends[2],
+        offset if last else None,
+        base + 8 * ends[3],
+        owner.ctypes.data,
     )
     done = info[:, 0] == 0
-    count = np.where(done, info[:, 6], 0).astype(int)
-    pick = np.flatnonzero(np.arange(cap) < count[:, None])  # the filled slots, target by target
-    owner, retried = pick // cap, np.flatnonzero(retry[pick])
-    theta, again = theta[pick], again[pick[retried]]
-    if last:
-        real = real[pick]
-    else:
+    kept = done[owner[:total]]  # the candidates of the done targets: all (the C code writes no others)
+    pick = slice(total) if kept.all() else np.flatnonzero(kept)
+    owner, size, retry, theta, real = owner[pick], size[pick], retry[pick], theta[pick], real[pick]
+    retried = np.flatnonzero(retry)
+    again = again[:total][pick][retried]
+    if not last:
         real, again = _joint_rows(arm, theta, owner, retried, again, tp, last)
     flags = info[:, 1:3] > 0
     counts = info[:, 4:6].astype(int)
@@ -1089,7 +1142,7 @@ def _candidates_c(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candid
         counts[:, 1],
         owner,
         theta,
-        size[pick],
+        size,
         retried,
         again,
         real,

@@ -84,6 +84,25 @@ def test_no_collision_free_answer_says_which_pair_blocks(arm):
         _names_the_blocking_pair(arm, target, qa, w, limit)
 
 
+def test_a_failed_collision_aware_lm_says_why(arm):
+    """The rounds end only at a success or at the time limit, so a failure's status is
+    ``"time_limit"``, or ``"in_collision"`` when the pose is reached, never the status of the last
+    round's kernel (its one constrained start ends as ``"max_restarts"``): a target out of reach,
+    and one inside an obstacle (every round reaches it in collision, then slides)."""
+    w = World()
+    target = arm.fk(arm.random_q(seed=3))[:3, 3]
+    w.add_sphere("ball", 0.1, spatial.translation(*target))
+    cases = {"out of reach": target * 10.0, "inside the ball": target}
+    for name, goal in cases.items():  # which step ends the rounds depends on the clock: many tries
+        for limit in (0.001, 0.002, 0.005, 0.01, 0.02, 0.05):
+            for seed in range(5):
+                res = optik.solve_ik(
+                    arm, optik.Position(goal), world=w, margin=MARGIN, time_limit=limit, seed=seed
+                )
+                assert not res.success, (name, limit, seed)
+                assert res.status in ("time_limit", "in_collision"), (name, limit, seed, res.status)
+
+
 def _names_the_blocking_pair(arm, target, qa, w, limit):
     res = optik.solve_ik(arm, optik.Position(target), q0=qa, world=w, margin=MARGIN, time_limit=limit)
     assert not res.success

@@ -292,8 +292,8 @@ def _solve_lm(
         res = lm_result(request, plain, q, err, iterations, restarts, code, pose)
         res = slide(exact.finish(res, stop=True))  # a rejected answer's search stops early
     exact.complete(res)
-    if not res.success and res.status == "not_converged":
-        res.status = "time_limit"
+    if not res.success and res.status in ("not_converged", "max_restarts"):
+        res.status = "time_limit"  # the rounds end only at a success or at the time limit
     return res
 
 

@@ -234,6 +234,8 @@ class LMCall:
 
     def __init__(self, request: IKRequest) -> None:
         self._prepared: tuple[LMKernel, np.ndarray] | None = None
+        self._entry: Any = None
+        """The kernel's ``optik_lm_call`` once loaded (`optik.solvers.lm_kernel.LMKernel.call_entry`)."""
         self.request = request
         m = request.mechanism
         self._mid = m.mid_q()
@@ -258,14 +260,13 @@ class LMCall:
     def __call__(self, start: float, target: np.ndarray, q0: Any, seed: Any) -> IKResult | None:
         """Solve for ``target`` from ``q0`` (None: mid-limit) with restart seed ``seed``; None
         when this call is left to the general path (see the class)."""
-        prepared = self._prepared
-        if prepared is None:
-            prepared = self._prepared = prepare_kernel(self.request, build=False)
-            if prepared is None:
+        call = self._entry
+        if call is None:
+            k = self.kernel
+            call = self._entry = None if k is None else k.call_entry()
+            if call is None:
                 return None
-        k = prepared[0]
-        call = k.call_entry()
-        if call is None or target.dtype != _F64 or target.shape != (4, 4):
+        if target.dtype != _F64 or target.shape != (4, 4):
             return None
         if q0 is None:
             q0 = self._mid
@@ -280,6 +281,7 @@ class LMCall:
             s = request_seed(seed) & _MASK  # one draw from a Generator, as `solve_lm` makes
         else:
             return None
+        prepared = self._prepared
         one = getattr(self._local, "one", None) or self._buffers(*prepared)
         one.transform[:] = target
         one.q0[:] = q0
@@ -312,7 +314,7 @@ class LMCall:
             start=start,
             setup_time=0.0,
         )
-        return lm_result(request, k, q, (pos, ori, clo), iterations, restarts, code)
+        return lm_result(request, prepared[0], q, (pos, ori, clo), iterations, restarts, code)
 
 
 def prepare_lm(request: IKRequest) -> LMCall | None:

@@ -204,7 +204,18 @@ def _call_key(
     (`optik.solvers.base.registrations`). Hashing it raises TypeError when a value is unhashable
     (no prepared call then): the caller's lookup is the one hash."""
     opts = tuple((k, type(v), v) for k, v in options.items()) if options else ()
-    return (registrations(), method, task, frame, type(time_limit), time_limit, type(tol), tol, opts, collision)
+    return (
+        registrations(),
+        method,
+        task,
+        frame,
+        type(time_limit),
+        time_limit,
+        type(tol),
+        tol,
+        opts,
+        collision,
+    )
 
 
 def _remember(m: Mechanism, key: tuple[Any, ...], info: MethodInfo, request: IKRequest) -> None:

@@ -63,7 +63,6 @@ from optik.solvers import generic_chain
 from optik.solvers.base import (
     IKRequest,
     PreparedCache,
-    is_canonical,
     make_result,
     method_options,
     positive_int,
@@ -215,12 +214,12 @@ class LMCall:
     task and frame, all validated once) solve through one C call, ``optik_lm_call`` of
     ``lm_chunk.c``, which checks the target transform as `optik.checks.as_transform` does and
     ``q0`` for finiteness, runs the solve as `solve_lm` does and says whether the answer is
-    canonical (within the limits, every coordinate in ``(-pi, pi)``; the rotation vectors of a
-    free base or spherical joint are checked here, by `optik.solvers.base.rotation_vectors_canonical`,
-    and an answer the C check calls not canonical by `optik.solvers.base.is_canonical`, whose
-    bands are wider: an angle whose limits span less than a turn, such as the Panda's joint 6
-    up to 3.75, is its own wrap anywhere within them; as `optik.solvers.base.make_result`
-    checks them). A canonical answer that
+    canonical (within the limits and within the bands of `optik.solvers.base.wrap_bands`, which
+    `optik.solvers.lm_kernel.Settings.conf` carries: ``(-pi, pi)`` for an angle whose limits span a
+    turn or more, the whole line for a shorter one, such as the Panda's joint 6 up to 3.75, which is
+    its own wrap anywhere within them; the norms of the rotation vectors of a free base or
+    spherical joint are checked here, by `optik.solvers.base.rotation_vectors_canonical`; as
+    `optik.solvers.base.make_result` checks them). A canonical answer that
     meets the tolerances is the result as it is (what `optik.solvers.base.make_result` makes of
     it); any other answer goes through `lm_result`. It returns None, before solving, for input
     it does not take (a ``q0`` that `optik.Mechanism.check_q` refuses, a seed other than an int
@@ -297,8 +296,6 @@ class LMCall:
         q = one.q.copy()
         if canonical and self._rotation_vectors:
             canonical = rotation_vectors_canonical(self.request.mechanism, q.tolist())
-        elif not canonical:  # the C check takes (-pi, pi) for every coordinate: the bands are wider
-            canonical = is_canonical(self.request.mechanism, q.tolist())
         tp, to, tc = self._tol
         if canonical and pos <= tp and ori <= to and clo <= tc:
             # the fields in order: q, success, the three errors, limits_ok, iterations, solve_time,

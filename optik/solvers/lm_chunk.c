@@ -153,7 +153,8 @@ CASADI_SYMBOL_EXPORT int optik_lm_packed(void *const *args) {
  * the tolerances OPTIK_ORTHO_DIAG / OPTIK_ORTHO_OFF defined from it), then q0 for finiteness;
  * they become the 12 target parameters [vec(R) column-major; p] and the solve runs as
  * optik_lm_chunk's for one target. canonical = 1 when every coordinate of the answer, one by
- * one, lies within [limit_lo, limit_hi] and in (-pi, pi); without spherical or free joints that
+ * one, lies within [limit_lo, limit_hi] and within (band_lo, band_hi) (conf: the open interval
+ * within which a value is its own wrap, optik.solvers.base.wrap_bands); without spherical or free joints that
  * is the answer make_result keeps as it is, with them it is not enough: the norms of their
  * rotation vectors are checked in Python (optik.solvers.base.rotation_vectors_canonical, in
  * LMCall) before the answer is kept.

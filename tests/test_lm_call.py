@@ -71,6 +71,30 @@ def test_prepared_calls_answer_as_the_general_path(monkeypatch: pytest.MonkeyPat
     assert general[-1].q[0] == pytest.approx(3.5 - 2 * math.pi)
 
 
+def test_an_answer_beyond_pi_within_short_limits_is_canonical_in_c(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The Panda's joint 6 (limits about ``[-0.02, 3.75]``, less than a turn) is its own wrap
+    anywhere within its limits: the C call's canonical test (the bands of `Settings.conf`) calls
+    an answer with ``q6 = 3.5`` canonical, so the prepared call returns it without the general
+    result code, equal to the general path's result (the ``wide`` case of the test above checks
+    the other side: 3.5 within limits that span more than a turn is wrapped)."""
+    from optik.solvers import lm
+
+    q = M.mid_q()
+    q[5] = 3.5
+    target = M.fk(q)
+    call = _warm(M, **OPTIONS)
+    want = solve_lm(make_request(M, target, q, None, None, OPTIONS["time_limit"], OPTIONS["tol"], 0, {}))
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the general result code was taken")
+
+    monkeypatch.setattr(lm, "lm_result", refuse)
+    got = optik.solve_ik(M, target, q, method="lm", seed=0, **OPTIONS)
+    _same(got, want)
+    assert got.success and got.q[5] > math.pi
+    assert call._local.one.counts.tolist()[3] == 1  # the C call's own canonical flag
+
+
 def test_list_starts_and_generator_seeds_take_the_prepared_call(monkeypatch: pytest.MonkeyPatch) -> None:
     """A ``q0`` given as a list or tuple and a seed given as a numpy Generator are solved by the
     prepared call too (no request built), with the general path's answer: the start converted

@@ -124,7 +124,10 @@ def solve_ik(
         # a prepared call, if any (a collision-aware one takes the world: read once per call)
         where = (self_collision, type(margin), margin) if collide else None
         key = _call_key(method, task, frame, time_limit, tol, options, where)
-        call = _CALLS.get(m, _NO_CALLS).get(key) if key is not None else None
+        try:
+            call = _CALLS.get(m, _NO_CALLS).get(key)
+        except TypeError:  # an unhashable value: no prepared call
+            key = call = None
         if call is not None:
             res = call(start, target, q0, seed, world) if collide else call(start, target, q0, seed)
             if res is not None:
@@ -193,20 +196,26 @@ def _call_key(
     tol: Any,
     options: dict[str, Any],
     collision: tuple[Any, ...] | None = None,
-) -> tuple[Any, ...] | None:
+) -> tuple[Any, ...]:
     """The key of a call's prepared call: every argument but the target, ``q0``, the seed and
     the world (``collision``: ``(self_collision, type(margin), margin)`` of a collision-aware
     call, None for the others), with the type of each value (``True == 1``, yet an option may
     take one and refuse the other) and the count of method registrations
-    (`optik.solvers.base.registrations`); None when a value is unhashable (no prepared call then)."""
+    (`optik.solvers.base.registrations`). Hashing it raises TypeError when a value is unhashable
+    (no prepared call then): the caller's lookup is the one hash."""
     opts = tuple((k, type(v), v) for k, v in options.items()) if options else ()
-    key = (registrations(), method, task, frame, type(time_limit), time_limit, type(tol), tol, opts)
-    key += (collision,)
-    try:
-        hash(key)
-    except TypeError:
-        return None
-    return key
+    return (
+        registrations(),
+        method,
+        task,
+        frame,
+        type(time_limit),
+        time_limit,
+        type(tol),
+        tol,
+        opts,
+        collision,
+    )
 
 
 def _remember(m: Mechanism, key: tuple[Any, ...], info: MethodInfo, request: IKRequest) -> None:

@@ -219,7 +219,7 @@ def _wrap_angle(a: float) -> float:
 _BANDS: PerMechanism[tuple[list[float], list[float], list[float], list[float]]] = PerMechanism()
 
 
-def _wrap_bands(m: Mechanism) -> tuple[list[float], list[float], list[float], list[float]]:
+def wrap_bands(m: Mechanism) -> tuple[list[float], list[float], list[float], list[float]]:
     """``m``'s limits and, per coordinate, the open interval ``(a, b)`` of the values within the
     limits that [`Mechanism.wrap`][optik.Mechanism.wrap] returns as they are (`is_canonical`),
     as plain float lists (cached per mechanism).
@@ -248,9 +248,9 @@ def _wrap_bands(m: Mechanism) -> tuple[list[float], list[float], list[float], li
 
 def is_canonical(m: Mechanism, q: list[float]) -> bool:
     """Whether ``q`` (a plain float list of ``n_q`` entries) lies within ``m``'s limits and is
-    its own [`Mechanism.wrap`][optik.Mechanism.wrap] (`_wrap_bands`, `rotation_vectors_canonical`):
+    its own [`Mechanism.wrap`][optik.Mechanism.wrap] (`wrap_bands`, `rotation_vectors_canonical`):
     a result may keep it as it is. NaN is not canonical."""
-    lower, upper, a, b = _wrap_bands(m)
+    lower, upper, a, b = wrap_bands(m)
     le, lt = operator.le, operator.lt
     if not (all(map(le, lower, q)) and all(map(le, q, upper))):
         return False

@@ -83,6 +83,7 @@ from optik.solvers.lm_kernel import (
     DRIVER,
     OneTarget,
     cached_kernel,
+    conf_length,
     driver_defines,
     lm_iteration_function,
 )
@@ -278,7 +279,7 @@ class ChainKernel:
         ``[q, target, position, orientation, closure]``."""
         local = self._local
         if not hasattr(local, "one"):
-            local.one = OneTarget(self.n, self.n_target, 12 + 5 * self.n)
+            local.one = OneTarget(self.n, self.n_target, conf_length(self.n))
             local.bufs = [np.zeros(self.n), np.zeros(self.n_target), np.zeros(1), np.zeros(1), np.zeros(1)]
             local.errors = CCall(self.library.get(), _ERRORS, local.bufs[:2], local.bufs[2:])  # type: ignore[union-attr, arg-type]
         return local.one, local.errors, local.bufs

@@ -63,7 +63,6 @@ from optik.solvers import generic_chain
 from optik.solvers.base import (
     IKRequest,
     PreparedCache,
-    is_canonical,
     make_result,
     method_options,
     positive_int,
@@ -215,12 +214,12 @@ class LMCall:
     task and frame, all validated once) solve through one C call, ``optik_lm_call`` of
     ``lm_chunk.c``, which checks the target transform as `optik.checks.as_transform` does and
     ``q0`` for finiteness, runs the solve as `solve_lm` does and says whether the answer is
-    canonical (within the limits, every coordinate in ``(-pi, pi)``; the rotation vectors of a
-    free base or spherical joint are checked here, by `optik.solvers.base.rotation_vectors_canonical`,
-    and an answer the C check calls not canonical by `optik.solvers.base.is_canonical`, whose
-    bands are wider: an angle whose limits span less than a turn, such as the Panda's joint 6
-    up to 3.75, is its own wrap anywhere within them; as `optik.solvers.base.make_result`
-    checks them). A canonical answer that
+    canonical (within the limits and within the bands of `optik.solvers.base.wrap_bands`, which
+    `optik.solvers.lm_kernel.Settings.conf` carries: ``(-pi, pi)`` for an angle whose limits span a
+    turn or more, the whole line for a shorter one, such as the Panda's joint 6 up to 3.75, which is
+    its own wrap anywhere within them; the norms of the rotation vectors of a free base or
+    spherical joint are checked here, by `optik.solvers.base.rotation_vectors_canonical`; as
+    `optik.solvers.base.make_result` checks them). A canonical answer that
     meets the tolerances is the result as it is (what `optik.solvers.base.make_result` makes of
     it); any other answer goes through `lm_result`. It returns None, before solving, for input
     it does not take (a ``q0`` that `optik.Mechanism.check_q` refuses, a seed other than an int
@@ -234,6 +233,8 @@ class LMCall:
 
     def __init__(self, request: IKRequest) -> None:
         self._prepared: tuple[LMKernel, np.ndarray] | None = None
+        self._entry: Any = None
+        """The kernel's ``optik_lm_call`` once loaded (`optik.solvers.lm_kernel.LMKernel.call_entry`)."""
         self.request = request
         m = request.mechanism
         self._mid = m.mid_q()
@@ -258,14 +259,13 @@ class LMCall:
     def __call__(self, start: float, target: np.ndarray, q0: Any, seed: Any) -> IKResult | None:
         """Solve for ``target`` from ``q0`` (None: mid-limit) with restart seed ``seed``; None
         when this call is left to the general path (see the class)."""
-        prepared = self._prepared
-        if prepared is None:
-            prepared = self._prepared = prepare_kernel(self.request, build=False)
-            if prepared is None:
+        call = self._entry
+        if call is None:
+            k = self.kernel
+            call = self._entry = None if k is None else k.call_entry()
+            if call is None:
                 return None
-        k = prepared[0]
-        call = k.call_entry()
-        if call is None or target.dtype != _F64 or target.shape != (4, 4):
+        if target.dtype != _F64 or target.shape != (4, 4):
             return None
         if q0 is None:
             q0 = self._mid
@@ -280,6 +280,7 @@ class LMCall:
             s = request_seed(seed) & _MASK  # one draw from a Generator, as `solve_lm` makes
         else:
             return None
+        prepared = self._prepared
         one = getattr(self._local, "one", None) or self._buffers(*prepared)
         one.transform[:] = target
         one.q0[:] = q0
@@ -295,8 +296,6 @@ class LMCall:
         q = one.q.copy()
         if canonical and self._rotation_vectors:
             canonical = rotation_vectors_canonical(self.request.mechanism, q.tolist())
-        elif not canonical:  # the C check takes (-pi, pi) for every coordinate: the bands are wider
-            canonical = is_canonical(self.request.mechanism, q.tolist())
         tp, to, tc = self._tol
         if canonical and pos <= tp and ori <= to and clo <= tc:
             # the fields in order: q, success, the three errors, limits_ok, iterations, solve_time,
@@ -312,7 +311,7 @@ class LMCall:
             start=start,
             setup_time=0.0,
         )
-        return lm_result(request, k, q, (pos, ori, clo), iterations, restarts, code)
+        return lm_result(request, prepared[0], q, (pos, ori, clo), iterations, restarts, code)
 
 
 def prepare_lm(request: IKRequest) -> LMCall | None:

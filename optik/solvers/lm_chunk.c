@@ -17,7 +17,9 @@
 /* conf: [block, max_iter, max_restarts (< 0: none), time_limit, mu0, stall,
  *        stop_position, stop_orientation, stop_closure, gain, w_p, w_o,
  *        lower[n], upper[n] (sampling bounds of the restarts), q_ref[n],
- *        limit_lo[n], limit_hi[n] (the limits the steps project onto; may be infinite)] */
+ *        limit_lo[n], limit_hi[n] (the limits the steps project onto; may be infinite),
+ *        band_lo[n], band_hi[n] (the open intervals within which an answer is its own wrap;
+ *        may be infinite: optik.solvers.base.wrap_bands)] */
 #define OPTIK_CONF_SCALARS 12
 
 static double optik_now(void) {
@@ -151,7 +153,8 @@ CASADI_SYMBOL_EXPORT int optik_lm_packed(void *const *args) {
  * the tolerances OPTIK_ORTHO_DIAG / OPTIK_ORTHO_OFF defined from it), then q0 for finiteness;
  * they become the 12 target parameters [vec(R) column-major; p] and the solve runs as
  * optik_lm_chunk's for one target. canonical = 1 when every coordinate of the answer, one by
- * one, lies within [limit_lo, limit_hi] and in (-pi, pi); without spherical or free joints that
+ * one, lies within [limit_lo, limit_hi] and within (band_lo, band_hi) (conf: the open interval
+ * within which a value is its own wrap, optik.solvers.base.wrap_bands); without spherical or free joints that
  * is the answer make_result keeps as it is, with them it is not enough: the norms of their
  * rotation vectors are checked in Python (optik.solvers.base.rotation_vectors_canonical, in
  * LMCall) before the answer is kept.
@@ -185,9 +188,10 @@ CASADI_SYMBOL_EXPORT int optik_lm_call(void *const *args) {
   int rc = optik_lm_chunk(1, params, q0, (const unsigned long long *)args[2], conf, q_out,
                           (double *)args[5], &counts[0], &counts[1], &counts[2], (double *)args[7]);
   const double *limit_lo = conf + OPTIK_CONF_SCALARS + 3 * N, *limit_hi = limit_lo + N;
+  const double *band_lo = limit_hi + N, *band_hi = band_lo + N;
   casadi_int canonical = 1;
   for (int j = 0; j < N; ++j)
-    if (!(limit_lo[j] <= q_out[j] && q_out[j] <= limit_hi[j] && -OPTIK_PI < q_out[j] && q_out[j] < OPTIK_PI))
+    if (!(limit_lo[j] <= q_out[j] && q_out[j] <= limit_hi[j] && band_lo[j] < q_out[j] && q_out[j] < band_hi[j]))
       canonical = 0;
   counts[3] = canonical;
   return rc;

@@ -20,7 +20,6 @@ CasADi's evaluator, with the same generator (same answers, slower).
 from __future__ import annotations
 
 import ctypes
-import math
 import threading
 import time
 from dataclasses import dataclass
@@ -36,6 +35,7 @@ from optik.mechanism import Mechanism
 from optik.mechanism.memo import PerMechanism
 from optik.native import NativeFunction, driver_source, library
 from optik.problem import IKProblem, build_ik_problem
+from optik.solvers.base import wrap_bands
 from optik.solvers.evaluation import error_function
 
 DRIVER = Path(__file__).with_name("lm_chunk.c")
@@ -144,6 +144,12 @@ def accept_or_keep(
     ]
 
 
+def conf_length(n_q: int) -> int:
+    """Length of `Settings.conf` for ``n_q`` coordinates: 12 scalars, then per coordinate the
+    sampling bounds, ``q_ref``, the limits and the bands of `optik.solvers.base.wrap_bands`."""
+    return 12 + 7 * n_q
+
+
 def driver_defines(n_q: int, n_target: int, sz_arg: int = 8, sz_res: int = 7) -> str:
     """The C definitions ``lm_chunk.c`` is compiled with (after the generated functions
     `lm_iteration_function` and `optik.solvers.evaluation.error_function`): ``n_q`` coordinates,
@@ -156,7 +162,6 @@ def driver_defines(n_q: int, n_target: int, sz_arg: int = 8, sz_res: int = 7) ->
         f"#define OPTIK_STEP {_STEP}\n#define OPTIK_STEP_WORK {_STEP}_work\n"
         f"#define OPTIK_ERRORS {_ERRORS}\n#define OPTIK_ERRORS_WORK {_ERRORS}_work\n"
         f"#define OPTIK_ORTHO_DIAG {ORTHO_DIAG!r}\n#define OPTIK_ORTHO_OFF {ORTHO_OFF!r}\n"
-        f"#define OPTIK_PI {math.pi!r}\n"
     )
 
 
@@ -229,11 +234,14 @@ class Settings:
 
     def conf(self, m: Mechanism) -> np.ndarray:
         """The driver's ``conf`` vector (layout in ``lm_chunk.c``): the scalars, the sampling
-        bounds, ``q_ref`` and the limits of ``m`` that the steps project onto."""
+        bounds, ``q_ref``, the limits of ``m`` that the steps project onto and the open bands
+        ``(a, b)`` of `optik.solvers.base.wrap_bands`, within which an answer is its own wrap (the
+        canonical test of ``optik_lm_call``)."""
         scalars = [self.block, self.max_iter, self.max_restarts, self.time_limit, self.mu0, self.stall]
         scalars += [*self.stop, self.gain, *self.weights]
         lo, hi = m.sampling_bounds  # restarts are drawn over finite bounds (one turn when unbounded)
-        return np.concatenate([scalars, lo, hi, self.q_ref, m.lower, m.upper]).astype(float)
+        _, _, a, b = wrap_bands(m)
+        return np.concatenate([scalars, lo, hi, self.q_ref, m.lower, m.upper, a, b]).astype(float)
 
 
 @dataclass
@@ -318,8 +326,8 @@ class LMKernel:
         self.step, self.errors = functions
         self.n_target = int(self.step.size1_in(2))
         """Target parameters per target (12 per frame target)."""
-        self.n_conf = 12 + 5 * m.n_q
-        """Length of `Settings.conf`: 12 scalars, sampling bounds, ``q_ref`` and the limits."""
+        self.n_conf = conf_length(m.n_q)
+        """Length of `Settings.conf` (`conf_length`)."""
         driver = driver_source(DRIVER, compile)
         sizes = max(self.step.sz_arg(), self.errors.sz_arg()), max(self.step.sz_res(), self.errors.sz_res())
         self.library = (
@@ -487,7 +495,7 @@ class LMKernel:
         step.inputs[4][:] = conf[12 + 2 * nq : 12 + 3 * nq]
         step.inputs[5][0] = conf[9]
         step.inputs[6][:] = conf[12 + 3 * nq : 12 + 4 * nq]
-        step.inputs[7][:] = conf[12 + 4 * nq :]
+        step.inputs[7][:] = conf[12 + 4 * nq : 12 + 5 * nq]
 
         def check(q: np.ndarray, target: np.ndarray) -> np.ndarray:
             errors.inputs[0][:] = q

@@ -379,3 +379,44 @@ def test_complete_sets_of_random_platforms_have_an_even_real_count(seed):
     if fk.complete:  # a general platform: always, within the default time limit
         _assert_conjugate_closed(b, p, rho, fk)
     assert any(np.allclose(r2, r, atol=1e-8) and np.allclose(t2, t, atol=1e-8) for r2, t2 in fk.poses)
+
+
+def _on_solution_curve(mats, z0, rng, count):
+    """``count`` points of the solution set of ``mats`` near ``z0`` (a curve): Gauss-Newton on
+    the quadrics, one random hyperplane through a perturbed start and the patch ``|z| = 1``."""
+    points = []
+    for _ in range(count):
+        z = z0 + 0.05 * (rng.normal(size=8) + 1j * rng.normal(size=8))
+        a, c = rng.normal(size=8) + 1j * rng.normal(size=8), np.conj(z) / np.vdot(z, z)
+        level = a @ z
+        for _ in range(50):
+            f = np.r_[np.einsum("kij,i,j->k", mats, z, z), a @ z - level, c @ z - 1]
+            jac = np.vstack([2 * np.einsum("kij,j->ki", mats, z), a, c])
+            z = z - np.linalg.lstsq(jac, f, rcond=None)[0]
+        points.append(z)
+    return np.array(points)
+
+
+def test_singular_end_points_on_a_solution_curve_never_count_towards_40():
+    """An architecturally singular platform (planar base on a circle, platform its affine image:
+    det J = 0 at every posture) has a curve of solutions. 45 distinct points of it would pass a
+    count of distinct solutions (the old rule of the total method); the count check counts only
+    nonsingular ones, so they certify nothing."""
+    rng = np.random.default_rng(0)
+    angles = rng.uniform(0, 2 * np.pi, 6)
+    b = np.c_[np.cos(angles), np.sin(angles), np.zeros(6)]
+    p = b @ np.array([[0.5, 0.2, 0.0], [-0.1, 0.6, 0.0], [0.0, 0.0, 0.0]]).T + [0.1, -0.05, 0.0]
+    w = 0.4 * rng.normal(size=3)
+    e = np.r_[np.cos(np.linalg.norm(w) / 2), np.sin(np.linalg.norm(w) / 2) * w / np.linalg.norm(w)]
+    r, t = study.quat_to_rot(e), np.r_[0.2 * rng.normal(size=2), 1.0]
+    assert np.min(np.linalg.svd(stewart_gough.stewart_jacobian(b, p, r, t), compute_uv=False)) < 1e-12
+    rho = _legs(b, p, r, t)
+    mats = study.stewart_quadrics(b, p, rho)
+    z0 = np.r_[e, study.quat_left(np.r_[0.0, t]) @ e / 2].astype(complex)
+    assert stewart_parameter.relative_residual(mats, z0[None])[0] <= 1e-14
+    z = _on_solution_curve(mats, z0, rng, 45)
+    assert np.max(stewart_parameter.relative_residual(mats, z)) <= 1e-12  # solutions, to rounding
+    assert len(stewart_parameter.distinct(mats, z)) == 45  # 45 distinct solutions ...
+    assert not np.any(stewart_gough._nonsingular(mats, z))  # ... none of them nonsingular
+    fk = stewart_poses(b, p, rho, seed=1)
+    assert not fk.complete

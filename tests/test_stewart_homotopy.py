@@ -144,6 +144,7 @@ def test_special_geometries_fall_back_and_stay_complete(kind):
     rho = _legs(b, p, r, t)
     auto = stewart_poses(b, p, rho, seed=1)
     assert auto.complete and auto.method == "parameter+total"
+    assert auto.paths == 40 + 128 * auto.rounds  # many paths stopped: no parameter retry
     assert any(np.allclose(x, r, atol=1e-9) and np.allclose(y, t, atol=1e-9) for x, y in auto.poses)
     assert _max_leg_error(b, p, rho, auto.poses) <= 1e-12
     assert _same_postures(auto.poses, stewart_poses(b, p, rho, method="total", seed=2).poses)
@@ -379,3 +380,99 @@ def test_complete_sets_of_random_platforms_have_an_even_real_count(seed):
     if fk.complete:  # a general platform: always, within the default time limit
         _assert_conjugate_closed(b, p, rho, fk)
     assert any(np.allclose(r2, r, atol=1e-8) and np.allclose(t2, t, atol=1e-8) for r2, t2 in fk.poses)
+
+
+def _on_solution_curve(mats, z0, rng, count):
+    """``count`` points of the solution set of ``mats`` near ``z0`` (a curve): Gauss-Newton on
+    the quadrics, one random hyperplane through a perturbed start and the patch ``|z| = 1``."""
+    points = []
+    for _ in range(count):
+        z = z0 + 0.05 * (rng.normal(size=8) + 1j * rng.normal(size=8))
+        a, c = rng.normal(size=8) + 1j * rng.normal(size=8), np.conj(z) / np.vdot(z, z)
+        level = a @ z
+        for _ in range(50):
+            f = np.r_[np.einsum("kij,i,j->k", mats, z, z), a @ z - level, c @ z - 1]
+            jac = np.vstack([2 * np.einsum("kij,j->ki", mats, z), a, c])
+            z = z - np.linalg.lstsq(jac, f, rcond=None)[0]
+        points.append(z)
+    return np.array(points)
+
+
+def test_singular_end_points_on_a_solution_curve_never_count_towards_40():
+    """An architecturally singular platform (planar base on a circle, platform its affine image:
+    det J = 0 at every posture) has a curve of solutions. 45 distinct points of it would pass a
+    count of distinct solutions (the old rule of the total method); the count check counts only
+    nonsingular ones, so they certify nothing."""
+    rng = np.random.default_rng(0)
+    angles = rng.uniform(0, 2 * np.pi, 6)
+    b = np.c_[np.cos(angles), np.sin(angles), np.zeros(6)]
+    p = b @ np.array([[0.5, 0.2, 0.0], [-0.1, 0.6, 0.0], [0.0, 0.0, 0.0]]).T + [0.1, -0.05, 0.0]
+    w = 0.4 * rng.normal(size=3)
+    e = np.r_[np.cos(np.linalg.norm(w) / 2), np.sin(np.linalg.norm(w) / 2) * w / np.linalg.norm(w)]
+    r, t = study.quat_to_rot(e), np.r_[0.2 * rng.normal(size=2), 1.0]
+    assert np.min(np.linalg.svd(stewart_gough.stewart_jacobian(b, p, r, t), compute_uv=False)) < 1e-12
+    rho = _legs(b, p, r, t)
+    mats = study.stewart_quadrics(b, p, rho)
+    z0 = np.r_[e, study.quat_left(np.r_[0.0, t]) @ e / 2].astype(complex)
+    assert stewart_parameter.relative_residual(mats, z0[None])[0] <= 1e-14
+    z = _on_solution_curve(mats, z0, rng, 45)
+    assert np.max(stewart_parameter.relative_residual(mats, z)) <= 1e-12  # solutions, to rounding
+    assert len(stewart_parameter.distinct(mats, z)) == 45  # 45 distinct solutions ...
+    assert not np.any(stewart_gough._nonsingular(mats, z))  # ... none of them nonsingular
+    fk = stewart_poses(b, p, rho, seed=1)
+    assert not fk.complete
+
+
+def test_a_general_platform_with_one_abandoned_path_completes_without_the_total_method():
+    """Platform 329 of `optik benchmark parallel_fk`'s draws: for its seed one of the 40 paths
+    stalls near the degenerate set and is abandoned, although every path of a general platform
+    ends at a solution. The retry (all 40 paths, fresh gamma and patch) finds the 40th solution,
+    so the 128-path method is not needed."""
+    b = np.array(
+        [
+            [-0.42446340572428154, 0.4855908541446909, -1.073939962767264],
+            [-0.06564455080248946, -0.15261728902872068, 0.27351607353815593],
+            [-0.09519372737428546, 0.620829834643128, 1.110706726409124],
+            [0.8079947978166283, -0.34074294474173994, 0.07092195254457881],
+            [0.2561881454557774, 0.6896862473645787, -0.8770030507700027],
+            [0.027828636858290155, 0.5607888688371415, 2.1137619935794927],
+        ]
+    )
+    p = np.array(
+        [
+            [0.3669044604797777, -0.5358901057075748, 0.590258008513791],
+            [1.105705672468466, -0.8963055334231264, -0.281118341807652],
+            [-0.9633825168245035, 0.13158956612905748, 0.36578459129513663],
+            [0.3880992436168, 0.2194396413398841, -0.4141239779594015],
+            [1.043822973361444, 0.005127770683692344, 0.6496924608898725],
+            [0.940616429330144, 0.19974326510881016, -0.8259196407908993],
+        ]
+    )
+    rho = np.array(
+        [
+            2.127745868008261,
+            0.8358700816009661,
+            1.4305279445743821,
+            1.6280010698403673,
+            1.340291706023462,
+            2.004390033681389,
+        ]
+    )
+    r = np.array(
+        [
+            [0.2164497151864755, 0.4382130211168974, 0.8724212680347124],
+            [0.28734824015946436, 0.8254282427421415, -0.485900406421809],
+            [-0.9330490392647927, 0.35586172062645627, 0.052743967615506815],
+        ]
+    )
+    t = np.array([-0.26653324033037573, -0.09586753123126485, 1.1034061092074747])
+    assert np.max(np.abs(_legs(b, p, r, t) - rho)) <= 1e-14
+    size = max(np.max(np.linalg.norm(b, axis=1)), np.max(np.linalg.norm(p, axis=1)), np.max(rho))
+    bs, ps, rs = b / size, p / size, rho / size
+    first = stewart_parameter.solve(bs, ps, study.leg_constants(bs, ps, rs), np.random.default_rng(329), 5.0)
+    assert list(first.status).count("abandoned") == 1 and first.nonsingular == 39  # the case
+    fk = stewart_poses(b, p, rho, seed=329)
+    assert fk.complete and fk.method == "parameter" and fk.paths == 80 and fk.complex_solutions == 40
+    assert any(np.allclose(x, r, atol=1e-9) and np.allclose(y, t, atol=1e-9) for x, y in fk.poses)
+    assert _max_leg_error(b, p, rho, fk.poses) <= 1e-12
+    assert _same_postures(fk.poses, stewart_poses(b, p, rho, method="total", seed=1).poses)

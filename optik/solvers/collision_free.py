@@ -21,7 +21,10 @@ between the model and the exact check):
   pair the kernel models (the right gripper against the right thigh: capsules -0.21 m apart
   where coal finds -0.05 m), each start of the 754-pair kernel stalls in a few milliseconds
   still colliding, and a slide at every round solved 96/100 at 2.6-2.8 ms mean against 100/100
-  at 0.84-0.89 ms for one slide a call (50 ms limit, same run, load 2.2).
+  at 0.84-0.89 ms for one slide a call (50 ms limit, same run, load 2.2). No slide at all when
+  the kernel has no active row (an empty world, and no self pair kept by
+  `optik.collision.spheres.separable_pairs`, as on TALOS since no sample clears its capsules
+  together).
 * ``nlp``: IPOPT with the inequality constraints ``d_k(q) >= b`` (and the loop closures),
   objective as `optik.IKProblem`'s, multi-start until the time limit. An iteration callback
   (`ClearStop`) stops a start at the first iterate that meets the pose tolerances with every
@@ -264,13 +267,16 @@ def _solve_lm(
 
     def slide(res: IKResult) -> IKResult:
         """From a colliding answer (at round ``plain_rounds`` or the first after it), the
-        constrained kernel (one start, once per call), its answer judged by the pose errors alone (its own closure error
-        holds the model's hinges)."""
+        constrained kernel (one start, once per call; none when no row of it is active: an empty
+        world and no self pair kept), its answer judged by the pose errors alone (its own
+        closure error holds the model's hinges)."""
         nonlocal iterations
         if params or res.status != "in_collision" or rounds < plain_rounds or request.remaining() <= 0:
             return res
         bounds = bound_parameters(exact.geo, self_collision, margin + buffer)
         params.append(np.concatenate([pose, world.slots, bounds]))
+        if not world.parts and not bounds[1:].any():
+            return res
         once = conf.copy()
         once[2], once[3] = 0, request.remaining()
         q, _, it, _, code = constrained.run_one(params[0], res.q, seed, once)

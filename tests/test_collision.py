@@ -301,6 +301,36 @@ def test_sphere_model_bounds_never_exceed_exact_distances(arm, tmp_path):
             assert np.all(bound[clear] <= np.array(exact)[clear] + 1e-6)
 
 
+def test_separable_pairs_keep_none_when_no_sample_clears_them_together():
+    """TALOS (torso and left arm solved): its pairs pass one by one, but its capsules are so much
+    fatter than its meshes that no sampled configuration has them all apart, nor do the exact
+    check's clear configurations: none is kept, so the self rows are left to the exact check,
+    and the collision-aware lm still solves (every success clear by the exact check)."""
+    from optik.catalog.robots import robots_dir
+    from optik.collision.spheres import capsule_gaps, separable_pairs
+
+    try:
+        d = robots_dir() / "talos_data"
+    except optik.OptikError as exc:
+        pytest.skip(str(exc))
+    urdf = d / "robots" / "talos_reduced.urdf"
+    m = optik.Mechanism.from_urdf(urdf, "base_link", "gripper_left_base_link", srdf=d / "srdf" / "talos.srdf")
+    geo = robot_geometry(m)
+    gaps = capsule_gaps(geo) >= 0.012
+    one_by_one = gaps.mean(axis=1) >= 0.05
+    assert one_by_one.sum() > len(geo.self_pairs) // 2 and not gaps[one_by_one].all(axis=0).any()
+    assert not separable_pairs(geo, 0.012).any()
+    rng = np.random.default_rng(0)
+    q = m.random_q(seed=rng)
+    while check(m, q, margin=0.01).in_collision:
+        q = m.random_q(seed=rng)
+    target = m.fk(q, "gripper_left_base_link")
+    res = optik.solve_ik(m, target, self_collision=True, margin=0.01, time_limit=5.0, tol=1e-6, seed=1)
+    assert res.success, res.message
+    assert np.linalg.norm(m.fk(res.q, "gripper_left_base_link")[:3, 3] - target[:3, 3]) <= 1e-6
+    assert not check(m, res.q, margin=0.01).in_collision
+
+
 def test_capsule_gaps_are_the_self_rows_at_the_sampled_configurations():
     """`capsule_gaps` (link poses of all samples at once, then one mapped segment distance) equals
     the kernel's own self rows (`distance_expressions`) evaluated one sampled configuration at a
@@ -323,7 +353,9 @@ def test_capsule_gaps_are_the_self_rows_at_the_sampled_configurations():
         assert np.allclose(np.asarray(f(samples[s])).ravel(), gaps[:, s], rtol=0, atol=1e-12)
     mixed = np.quantile(np.quantile(gaps, 0.95, axis=1), 0.5)  # a bound half the pairs keep
     for bound in (0.0, 0.01, mixed):
-        assert np.array_equal(separable_pairs(geo, bound), (gaps >= bound).mean(axis=1) >= 0.05)
+        kept = (gaps >= bound).mean(axis=1) >= 0.05
+        assert (gaps[kept] >= bound).all(axis=0).any()  # some sample has them all apart
+        assert np.array_equal(separable_pairs(geo, bound), kept)
     assert 0 < separable_pairs(geo, mixed).sum() < len(geo.self_pairs)
     ref = weakref.ref(geo)
     del m, geo, f, rows

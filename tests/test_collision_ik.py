@@ -103,6 +103,34 @@ def test_a_failed_collision_aware_lm_says_why(arm):
                 assert res.status in ("time_limit", "in_collision"), (name, limit, seed, res.status)
 
 
+def test_the_constrained_kernel_starts_once_a_call(arm, monkeypatch):
+    """Both branches blocked, ``plain_rounds=1``: every round's answer collides, and the
+    constrained kernel starts from one of them once (a sphere model that keeps the pose's clear
+    answers out, as TALOS's capsules do, makes each further start a waste of milliseconds); the
+    rounds go on by rejection until the time limit."""
+    from optik.solvers import collision_free
+    from optik.solvers.lm_kernel import LMKernel
+
+    qa, qb = _branches(arm)
+    w = _blocking_world(arm, qa)
+    w.add_sphere("ball2", 0.05, spatial.translation(*arm.fk(qb, "fore")[:3, 3]))
+    target = optik.Position(arm.fk(qa)[:3, 3])
+    optik.solve_ik(arm, target, q0=qa, world=w, margin=MARGIN, plain_rounds=1)  # builds the kernels
+    constrained = {id(k) for key, k in collision_free._CACHE.items() if key[0] == "lm" and key[1] is arm}
+    assert constrained
+    starts = {"constrained": 0, "plain": 0}
+    run_one = LMKernel.run_one
+
+    def counted(self, *args):
+        starts["constrained" if id(self) in constrained else "plain"] += 1
+        return run_one(self, *args)
+
+    monkeypatch.setattr(LMKernel, "run_one", counted)
+    res = optik.solve_ik(arm, target, q0=qa, world=w, margin=MARGIN, time_limit=0.2, plain_rounds=1, seed=3)
+    assert not res.success and check(arm, res.q, w, margin=MARGIN).in_collision
+    assert starts["constrained"] == 1 and starts["plain"] > 3, starts
+
+
 def _names_the_blocking_pair(arm, target, qa, w, limit):
     res = optik.solve_ik(arm, optik.Position(target), q0=qa, world=w, margin=MARGIN, time_limit=limit)
     assert not res.success

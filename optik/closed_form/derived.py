@@ -556,7 +556,7 @@ def derived_rows(m: Mechanism) -> registry.IKSolver | None:
 class GeneralRows:
     """The registry solver ``(m, T) -> rows`` of the general 6R solver
     ([`ik_general_6r`][optik.closed_form.general_6r.ik_general_6r]), marked ``costly``
-    ([`registry.costly`][optik.closed_form.registry.costly]): about 0.5 ms per target, five
+    ([`registry.costly`][optik.closed_form.registry.costly]): about 0.6 ms per target, five
     times ``lm``'s median, so `optik.solve_ik` with ``method=None`` tries ``lm`` first."""
 
     costly = True

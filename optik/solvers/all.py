@@ -94,7 +94,7 @@ def solve_ik_all(
         frame: task frame (default: the end effector).
         time_limit: wall-time budget of the whole search (s): the numerical search checks it
             after every iteration; a closed form has no iteration to stop and runs to completion
-            (the general 6R solver takes about 0.5 ms on a generic arm whatever the limit:
+            (the general 6R solver takes about 0.6 ms on a generic arm whatever the limit:
             ``docs/reliability.md``, "Time limits").
         tol: success tolerances.
         seed: seed or Generator of the starts.

@@ -239,7 +239,7 @@ closed form is costly (`_numerical_first`)."""
 
 def _numerical_first(request: IKRequest) -> IKResult:
     """The default method where the closed form costs far more than a numerical solve (the
-    general 6R solver: an eigenproblem and up to 16 polished candidates, about 0.5 ms per
+    general 6R solver: an eigenproblem and up to 16 polished candidates, about 0.6 ms per
     target on a generic arm, against about 0.1 ms for ``lm``): the next method of
     `DEFAULT_ORDER` with `NUMERICAL_SHARE` of the time limit; the closed form only when that
     fails. Its answer is taken when it finds a branch within the limits, or when it is certified

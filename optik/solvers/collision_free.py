@@ -263,23 +263,24 @@ def _solve_lm(
     res, rounds = first, int(first is not None)
     iterations, restarts = (0, -1) if first is None else (first.iterations, first.restarts)
 
-    params: list[np.ndarray] = []  # the constrained kernel's, made at the one slide of the call
+    slid = False  # the constrained kernel starts once a call
 
     def slide(res: IKResult) -> IKResult:
         """From a colliding answer (at round ``plain_rounds`` or the first after it), the
         constrained kernel (one start, once per call; none when no row of it is active: an empty
         world and no self pair kept), its answer judged by the pose errors alone (its own
         closure error holds the model's hinges)."""
-        nonlocal iterations
-        if params or res.status != "in_collision" or rounds < plain_rounds or request.remaining() <= 0:
+        nonlocal iterations, slid
+        if slid or res.status != "in_collision" or rounds < plain_rounds or request.remaining() <= 0:
             return res
+        slid = True
         bounds = bound_parameters(exact.geo, self_collision, margin + buffer)
-        params.append(np.concatenate([pose, world.slots, bounds]))
         if not world.parts and not bounds[1:].any():
             return res
         once = conf.copy()
         once[2], once[3] = 0, request.remaining()
-        q, _, it, _, code = constrained.run_one(params[0], res.q, seed, once)
+        params = np.concatenate([pose, world.slots, bounds])
+        q, _, it, _, code = constrained.run_one(params, res.q, seed, once)
         iterations += it
         err = plain.final_errors(q, pose)
         res = lm_result(request, plain, q, err, iterations, restarts, code, pose)
@@ -302,7 +303,7 @@ def _solve_lm(
         # ... then, when that answer collides, perhaps the constrained kernel from it
         res = lm_result(request, plain, q, err, iterations, restarts, code, pose)
         res = slide(exact.finish(res, stop=True))  # a rejected answer's search stops early
-    exact.complete(res)
+    res = exact.complete(res)
     if not res.success and res.status in ("not_converged", "max_restarts"):
         res.status = "time_limit"  # the rounds end only at a success or at the time limit
     return res

@@ -348,14 +348,14 @@ def test_two_real_postures_1e4_apart_are_both_found(case):
     b, p, r, t = (np.array(x, dtype=float) for x in CLOSE_PAIRS[case][:4])
     n_real = CLOSE_PAIRS[case][4]
     rho = _legs(b, p, r, t)
-    fk = stewart_poses(b, p, rho, seed=case)
+    fk = stewart_poses(b, p, rho, seed=case, keep_complex=True)
     assert fk.complete and fk.complex_solutions == 40
     assert len(fk.poses) == n_real
     assert any(np.allclose(r2, r, atol=1e-8) and np.allclose(t2, t, atol=1e-8) for r2, t2 in fk.poses)
     gaps = [np.linalg.norm(t1 - t2) for i, (_, t1) in enumerate(fk.poses) for _, t2 in fk.poses[:i]]
     assert 1e-5 < min(gaps) < 1e-3  # the close pair, both kept
     assert _max_leg_error(b, p, rho, fk.poses) <= 1e-9
-    _assert_conjugate_closed(b, p, rho, stewart_poses(b, p, rho, seed=case, keep_complex=True))
+    _assert_conjugate_closed(b, p, rho, fk)
 
 
 def _assert_conjugate_closed(b, p, rho, fk):

@@ -874,20 +874,10 @@ def _distinct(rows: np.ndarray, owner: np.ndarray, n: int) -> list[np.ndarray]:
 
 
 def _distinct_numpy(rows: np.ndarray, owner: np.ndarray, n: int) -> list[np.ndarray]:
-    """`_distinct` in numpy: each row is compared with the earlier rows of its target all at
-    once; only a target with a close pair goes through `_keep`."""
+    """`_distinct` in numpy: the rows grouped by target (a stable sort), then `_keep` per group."""
     order = np.argsort(owner, kind="stable")
-    rows, owner = rows[order], owner[order]
-    start = np.searchsorted(owner, np.arange(n + 1))
-    bounds = start.tolist()
-    groups = [order[i:j] for i, j in itertools.pairwise(bounds)]
-    rank = np.arange(len(owner)) - start[owner]  # of each row in its target's group
-    later = np.repeat(np.arange(len(owner)), rank)  # row i once per earlier row j of its group
-    earlier = later - rank[later] + np.arange(len(later)) - np.repeat(np.cumsum(rank) - rank, rank)
-    close = _gap(rows[later] - rows[earlier]) < _SAME
-    for k in np.unique(owner[later[close]]) if close.any() else ():
-        groups[k] = groups[k][_keep(rows[bounds[k] : bounds[k + 1]])]
-    return groups
+    bounds = np.searchsorted(owner[order], np.arange(n + 1)).tolist()
+    return [order[i:j][_keep(rows[order[i:j]])] for i, j in itertools.pairwise(bounds)]
 
 
 def _unit_targets(arm: General6R, targets: np.ndarray) -> np.ndarray:

@@ -146,8 +146,7 @@ def _within_errors(mats: Quadrics, z: np.ndarray, i: np.ndarray, j: np.ndarray, 
 def distinct(mats: Quadrics, z: np.ndarray) -> np.ndarray:
     """Indices of the rows of ``z`` that are distinct solutions of the quadrics ``mats``
     (`same_points`; the first of each group)."""
-    same = same_points(mats, z)
-    return first_of_groups(same) if np.count_nonzero(same) > len(z) else np.arange(len(z))
+    return first_of_groups(same_points(mats, z))
 
 
 def first_of_groups(same: np.ndarray) -> np.ndarray:

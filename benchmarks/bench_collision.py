@@ -14,12 +14,13 @@ random seed until the time limit (what MoveIt does); each retry takes the longes
 `timeout_ladder` that fits in the time left, its solver built once before the timed calls (a
 TRAC-IK solver's timeout is fixed at construction).
 
-The judge is Pinocchio's own model of the whole URDF (finger joints at 0) and its collision
-geometry (``buildGeomFromUrdf``, meshes as their convex hulls, as coal queries them), its
-self-collision pairs ``addAllCollisionPairs`` minus the SRDF's (``removeCollisionPairs``), every
-geometry against every obstacle, coal distances: every solver's answer is settled into the limits
-the same way (`Judge.accepts`), then a success needs the pose within ``--tol`` (Pinocchio's FK),
-the limits, and every distance ``>= margin - 1e-9``. Calls are interleaved target by target; each
+The judge is `optik.benchmarks.judge.PinocchioJudge`: Pinocchio's own model of the whole URDF
+(finger joints at 0) and its collision geometry (``buildGeomFromUrdf``, meshes as their convex
+hulls, as coal queries them), its self-collision pairs ``addAllCollisionPairs`` minus the SRDF's
+(``removeCollisionPairs``; none is left that no arm joint moves apart), every geometry against
+every obstacle, coal distances: every solver's answer is settled into the limits the same way
+(`PinocchioJudge.accepts`), then a success needs the pose within ``--tol`` (Pinocchio's FK), the
+limits, and every distance ``>= margin - 1e-9``. Calls are interleaved target by target; each
 solver has one untimed warm-up call (optik builds its constrained code then; the C compiler may
 still be running during the run: the kernel then answers through CasADi's evaluator, and the
 table says whether it was compiled).
@@ -40,6 +41,7 @@ import numpy as np
 import optik
 from optik import spatial
 from optik.benchmarks import benchmark_parser
+from optik.benchmarks.judge import PinocchioJudge
 from optik.harness.peers.rules import settle
 from optik.harness.tally import success_table
 
@@ -59,82 +61,6 @@ def scene() -> optik.World:
     w.add_box("box_b", (0.08, 0.15, 0.2), spatial.translation(0.3, -0.45, 0.08))
     w.add_box("box_c", (0.12, 0.12, 0.1), spatial.translation(-0.35, 0.35, 0.03))
     return w
-
-
-class Judge:
-    """Pinocchio + coal on Pinocchio's own model of the whole Panda URDF."""
-
-    def __init__(self, urdf: str, srdf: str, package_dir: str, world: optik.World) -> None:
-        import coal
-        import pinocchio as pin
-
-        self.pin, self.coal = pin, coal
-        self.model = pin.buildModelFromUrdf(urdf)
-        self.geom = pin.buildGeomFromUrdf(
-            self.model, urdf, pin.GeometryType.COLLISION, package_dirs=[package_dir]
-        )
-        self.geom.addAllCollisionPairs()
-        pin.removeCollisionPairs(self.model, self.geom, srdf)
-        self.data, self.gdata = self.model.createData(), self.geom.createData()
-        self.shapes = []
-        for go in self.geom.geometryObjects:
-            g = go.geometry
-            if isinstance(g, coal.BVHModelBase):
-                g.buildConvexHull(True, "Qt")
-                g = g.convex
-            self.shapes.append(g)
-        self.set_world(world)
-        self.tcp = self.model.getFrameId("panda_hand_tcp")
-
-    def set_world(self, world: optik.World) -> None:
-        """Judge against ``world`` (its coal objects, placed here at each object's pose)."""
-        from optik.collision.shapes import coal_objects
-
-        self.obstacles = []
-        for o in world.snapshot():
-            for geom, offset in coal_objects(o.shape):
-                t = o.pose @ offset
-                self.obstacles.append((geom, self.coal.Transform3s(t[:3, :3], t[:3, 3])))
-
-    def accepts(
-        self, q: np.ndarray | None, target: np.ndarray, m: optik.Mechanism, tol: float, margin: float
-    ) -> bool:
-        """Whether an answer, wrapped and clipped into the limits first (`settle`, what `solve_ik` does
-        to optik's own answers), passes `Judge.ok`: the one judge path for every solver."""
-        return self.ok(None if q is None else settle(m, q), target, m, tol, margin)
-
-    def ok(
-        self, q: np.ndarray | None, target: np.ndarray, m: optik.Mechanism, tol: float, margin: float
-    ) -> bool:
-        """Whether ``q`` exactly (no settling) lies within the limits, puts ``panda_hand_tcp`` within
-        ``tol`` of ``target`` (m and rad, by Pinocchio's FK) and keeps every self pair and every
-        geometry-obstacle pair at a coal distance ``>= margin - 1e-9``."""
-        if q is None or np.any(q < m.lower) or np.any(q > m.upper):
-            return False
-        pin, coal = self.pin, self.coal
-        qp = pin.neutral(self.model)
-        qp[:7] = q
-        pin.framesForwardKinematics(self.model, self.data, qp)
-        t = self.data.oMf[self.tcp]
-        if np.linalg.norm(t.translation - target[:3, 3]) > tol:
-            return False
-        if spatial.angle_between(target[:3, :3], t.rotation) > tol:
-            return False
-        pin.updateGeometryPlacements(self.model, self.data, self.geom, self.gdata, qp)
-        tf = [coal.Transform3s(p.rotation, p.translation) for p in self.gdata.oMg]
-        for pair in self.geom.collisionPairs:
-            a, b = pair.first, pair.second
-            d = coal.distance(
-                self.shapes[a], tf[a], self.shapes[b], tf[b], coal.DistanceRequest(), coal.DistanceResult()
-            )
-            if d < margin - 1e-9:
-                return False
-        for k, shape in enumerate(self.shapes):
-            for obstacle, tb in self.obstacles:
-                d = coal.distance(shape, tf[k], obstacle, tb, coal.DistanceRequest(), coal.DistanceResult())
-                if d < margin - 1e-9:
-                    return False
-        return True
 
 
 def optik_solver(m: optik.Mechanism, w: optik.World, margin: float, tol: float) -> Solver:
@@ -232,7 +158,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         urdf, srdf = d / "urdf" / "panda.urdf", d / "srdf" / "panda.srdf"
         m = optik.Mechanism.from_urdf(urdf, "panda_link0", "panda_hand_tcp", srdf=srdf)
         w = scene()
-        judge = Judge(str(urdf), str(srdf), str(d.parents[2]), w)
+        judge = PinocchioJudge(m, urdf, srdf, ["panda_hand_tcp"], d.parents[2], w)
     except (ImportError, optik.OptikError) as exc:
         print(f"needs coal, pinocchio and example-robot-data (extras 'collision', 'peers', 'robots'): {exc}")
         return 0
@@ -254,7 +180,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         targets,
         args.time_limit,
         args.compile_wait,
-        lambda q, target: judge.accepts(q, target, m, args.tol, args.margin),
+        lambda q, target: judge.accepts(q, target, args.tol, args.margin),
     )
     from optik.solvers.collision_free import compiled_kernels
 

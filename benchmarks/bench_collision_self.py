@@ -24,14 +24,14 @@ a uniformly random seed until the time limit (what MoveIt does), each retry with
 timeout of `optik.benchmarks.bench_collision.timeout_ladder` that fits in the time left, every
 solver constructed once before the timed calls.
 
-The judge is Pinocchio's own model of the whole URDF (joints outside the solved ones at zero) and
-its collision geometry (``buildGeomFromUrdf``, meshes as their convex hulls, as coal queries
-them), its pairs ``addAllCollisionPairs`` minus the SRDF's and minus those no solved joint moves
-apart (both geometries moved by the same solved joints, as TALOS's torso and its right arm held
-at zero: a constant distance): a success needs every target frame
-within ``--tol`` (Pinocchio's FK), the limits, and every pair's coal distance ``>= margin -
-1e-9``. Calls are interleaved target by target; each solver has one untimed warm-up call (optik
-builds its constrained code then; the wait for its C build is not timed).
+The judge is `optik.benchmarks.judge.PinocchioJudge`, no world: Pinocchio's own model of the whole
+URDF (joints outside the solved ones at zero) and its collision geometry (``buildGeomFromUrdf``,
+meshes as their convex hulls, as coal queries them), its pairs ``addAllCollisionPairs`` minus the
+SRDF's and minus those no solved joint moves apart (both geometries moved by the same solved
+joints, as TALOS's torso and its right arm held at zero: a constant distance): a success needs
+every target frame within ``--tol`` (Pinocchio's FK), the limits, and every pair's coal distance
+``>= margin - 1e-9``. Calls are interleaved target by target; each solver has one untimed warm-up
+call (optik builds its constrained code then; the wait for its C build is not timed).
 
 Run: ``optik benchmark collision_self [--n 50] [--robots dual_panda,talos] [--time-limit 0.05]
 [--margin 0.01] [--near 0.05] [--tol 1e-6] [--seed 0] [--compile-wait 600]``.
@@ -50,6 +50,7 @@ import optik
 from optik import spatial
 from optik.benchmarks import benchmark_parser
 from optik.benchmarks.bench_collision import timed_in_turn, timeout_ladder
+from optik.benchmarks.judge import PinocchioJudge
 from optik.harness.peers.rules import settle
 from optik.harness.tally import success_table
 
@@ -90,69 +91,6 @@ def workload(name: str) -> Workload:
     urdf, srdf = d / "robots" / "talos_reduced.urdf", d / "srdf" / "talos.srdf"
     m = optik.Mechanism.from_urdf(urdf, "base_link", "gripper_left_base_link", srdf=srdf)
     return Workload(m, urdf, srdf, ("gripper_left_base_link",), (("base_link", "gripper_left_base_link"),))
-
-
-class Judge:
-    """Pinocchio + coal on Pinocchio's own model of the whole URDF and its SRDF."""
-
-    def __init__(self, w: Workload) -> None:
-        import coal
-        import pinocchio as pin
-
-        from optik.mechanism.urdf_visuals import cmeel_share
-
-        self.pin, self.coal = pin, coal
-        self.model = pin.buildModelFromUrdf(str(w.urdf))
-        self.geom = pin.buildGeomFromUrdf(
-            self.model, str(w.urdf), pin.GeometryType.COLLISION, package_dirs=[str(cmeel_share())]
-        )
-        self.geom.addAllCollisionPairs()
-        pin.removeCollisionPairs(self.model, self.geom, str(w.srdf))
-        model = self.model
-        self.index = [model.idx_qs[model.getJointId(name)] for name in w.m.coordinate_names]
-        # pairs no solved joint moves apart (both on one rigid body of the solved mechanism, the
-        # rest of the body held at zero: TALOS's right arm and torso) cannot change: left out
-        solved = {model.getJointId(name) for name in w.m.coordinate_names}
-        moved_by = [frozenset(solved & set(model.supports[g.parentJoint])) for g in self.geom.geometryObjects]
-        for k in reversed(range(len(self.geom.collisionPairs))):
-            pair = self.geom.collisionPairs[k]
-            if moved_by[pair.first] == moved_by[pair.second]:
-                self.geom.removeCollisionPair(pair)
-        self.data, self.gdata = self.model.createData(), self.geom.createData()
-        self.shapes = []
-        for go in self.geom.geometryObjects:
-            g = go.geometry
-            if isinstance(g, coal.BVHModelBase):
-                g.buildConvexHull(True, "Qt")
-                g = g.convex
-            self.shapes.append(g)
-        self.frame_ids = {f: model.getFrameId(f) for f in w.frames}
-
-    def ok(
-        self, q: np.ndarray | None, targets: Targets, m: optik.Mechanism, tol: float, margin: float
-    ) -> bool:
-        """Whether ``q`` places every frame on its target within ``tol``, within the limits, with
-        every checked pair at least ``margin`` apart."""
-        if q is None or np.any(q < m.lower) or np.any(q > m.upper):
-            return False
-        pin, coal = self.pin, self.coal
-        qp = pin.neutral(self.model)
-        qp[self.index] = q
-        pin.framesForwardKinematics(self.model, self.data, qp)
-        for frame, target in targets.items():
-            t = self.data.oMf[self.frame_ids[frame]]
-            if np.linalg.norm(t.translation - target[:3, 3]) > tol:
-                return False
-            if spatial.angle_between(target[:3, :3], t.rotation) > tol:
-                return False
-        pin.updateGeometryPlacements(self.model, self.data, self.geom, self.gdata, qp)
-        tf = [coal.Transform3s(p.rotation, p.translation) for p in self.gdata.oMg]
-        for pair in self.geom.collisionPairs:
-            a, b = pair.first, pair.second
-            req, res = coal.DistanceRequest(), coal.DistanceResult()
-            if coal.distance(self.shapes[a], tf[a], self.shapes[b], tf[b], req, res) < margin - 1e-9:
-                return False
-        return True
 
 
 def optik_solver(w: Workload, margin: float, tol: float) -> Solver:
@@ -217,7 +155,7 @@ def run_robot(name: str, args) -> None:
     """Build, warm up and run one robot's workload, then print its caption and table."""
     try:
         w = workload(name)
-        judge = Judge(w)
+        judge = PinocchioJudge(w.m, w.urdf, w.srdf, w.frames)
     except (ImportError, optik.OptikError) as exc:
         print(f"{name}: needs coal, pinocchio and example-robot-data (extras 'collision', 'robots'): {exc}")
         return
@@ -233,7 +171,7 @@ def run_robot(name: str, args) -> None:
         targets,
         args.time_limit,
         args.compile_wait,
-        lambda q, target: judge.ok(None if q is None else settle(w.m, q), target, w.m, args.tol, args.margin),
+        lambda q, target: judge.accepts(q, target, args.tol, args.margin),
     )
     from optik.solvers.collision_free import compiled_kernels
 

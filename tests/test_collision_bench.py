@@ -18,14 +18,15 @@ TOL = 1e-6
 
 @pytest.fixture(scope="module")
 def panda_judge():
-    from optik.benchmarks.bench_collision import Judge, scene
+    from optik.benchmarks.bench_collision import scene
+    from optik.benchmarks.judge import PinocchioJudge
     from optik.catalog.robots import robots_dir
 
     d = robots_dir() / "panda_description"
     urdf, srdf = d / "urdf" / "panda.urdf", d / "srdf" / "panda.srdf"
     m = optik.Mechanism.from_urdf(urdf, "panda_link0", "panda_hand_tcp", srdf=srdf)
     w = scene()
-    return m, w, Judge(str(urdf), str(srdf), str(d.parents[2]), w)
+    return m, w, PinocchioJudge(m, urdf, srdf, ["panda_hand_tcp"], d.parents[2], w)
 
 
 @pytest.mark.parametrize("joint", [0, 3, 6])
@@ -43,9 +44,9 @@ def test_an_answer_5e9_past_a_limit_is_settled_onto_it_and_accepted(panda_judge,
     target = m.fk(q)
     raw = q.copy()
     raw[joint] += 5e-9 if side == "upper" else -5e-9  # TRAC-IK's float32 limit overshoot
-    assert not judge.ok(raw, target, m, TOL, MARGIN)  # the judge itself is exact: outside is outside
-    assert judge.accepts(raw, target, m, TOL, MARGIN)  # the benchmark's path settles it first
-    assert judge.accepts(q, target, m, TOL, MARGIN) and judge.ok(q, target, m, TOL, MARGIN)
+    assert not judge.ok(raw, target, TOL, MARGIN)  # the judge itself is exact: outside is outside
+    assert judge.accepts(raw, target, TOL, MARGIN)  # the benchmark's path settles it first
+    assert judge.accepts(q, target, TOL, MARGIN) and judge.ok(q, target, TOL, MARGIN)
 
 
 def test_a_real_miss_stays_a_failure_after_settling(panda_judge):
@@ -54,8 +55,8 @@ def test_a_real_miss_stays_a_failure_after_settling(panda_judge):
     target = m.fk(q)
     far = q.copy()
     far[0] = m.upper[0] + 0.3  # past the limit by far more than a rounding: clipped, then misses
-    assert not judge.accepts(far, target, m, TOL, MARGIN)
-    assert not judge.accepts(None, target, m, TOL, MARGIN)
+    assert not judge.accepts(far, target, TOL, MARGIN)
+    assert not judge.accepts(None, target, TOL, MARGIN)
 
 
 def test_optik_answers_take_the_same_path_and_pass_it(panda_judge):
@@ -71,6 +72,6 @@ def test_optik_answers_take_the_same_path_and_pass_it(panda_judge):
         target = m.fk(q)
         answer = solve(target, 1.0, 0)
         if answer is not None:
-            assert judge.ok(answer, target, m, TOL, MARGIN)  # optik's answers are settled already
-            accepted += judge.accepts(answer, target, m, TOL, MARGIN)
+            assert judge.ok(answer, target, TOL, MARGIN)  # optik's answers are settled already
+            accepted += judge.accepts(answer, target, TOL, MARGIN)
     assert accepted >= 5

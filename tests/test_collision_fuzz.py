@@ -1,7 +1,7 @@
 """Fuzz of collision-aware IK over random worlds (slow): the Panda among random boxes, spheres,
 capsules and cylinders, targets by FK of clear configurations; every claimed success of
 ``solve_ik`` (lm and nlp), ``solve_ik_all`` and ``solve_ik_batch`` is judged by Pinocchio's own
-model and coal (`optik.benchmarks.bench_collision.Judge`), and none may fail it."""
+model and coal (`optik.benchmarks.judge.PinocchioJudge`), and none may fail it."""
 
 from __future__ import annotations
 
@@ -38,7 +38,7 @@ def _random_world(rng: np.random.Generator) -> optik.World:
 
 
 def test_no_claimed_success_collides_in_random_worlds():
-    from optik.benchmarks.bench_collision import Judge
+    from optik.benchmarks.judge import PinocchioJudge
     from optik.catalog.robots import robots_dir
 
     d = robots_dir() / "panda_description"
@@ -57,7 +57,7 @@ def test_no_claimed_success_collides_in_random_worlds():
         if not clear:
             continue
         if judge is None:
-            judge = Judge(str(urdf), str(srdf), str(d.parents[2]), w)
+            judge = PinocchioJudge(m, urdf, srdf, ["panda_hand_tcp"], d.parents[2], w)
         judge.set_world(w)
         target = m.fk(clear[0])
         answers = [
@@ -70,6 +70,6 @@ def test_no_claimed_success_collides_in_random_worlds():
         qs += [q for q, ok in zip(batch.q, batch.success, strict=True) if ok]
         for q in qs:
             claimed += 1
-            false += not judge.ok(q, target, m, 1e-6, MARGIN)
+            false += not judge.ok(q, target, 1e-6, MARGIN)
     assert claimed >= WORLDS
     assert false == 0, f"{false} of {claimed} claimed successes collide or miss the target"

@@ -32,6 +32,7 @@ near their own bodies are ``optik benchmark collision_self``.
 
 from __future__ import annotations
 
+import argparse
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -139,6 +140,30 @@ def timed_in_turn(
     return results
 
 
+def judged_in_turn(
+    optik_solve: Callable[[Any, float, int], np.ndarray | None],
+    tracik: Callable[[], Callable[[Any, float, int], np.ndarray | None]],
+    targets: Sequence[Any],
+    judge: PinocchioJudge,
+    args: argparse.Namespace,
+) -> dict[str, tuple[list[float], int]]:
+    """optik and TRAC-IK + coal rejection (``tracik()`` builds it; skipped, said so, when pytracik is
+    missing) through `timed_in_turn` at ``args.time_limit`` and ``args.compile_wait``, every answer
+    judged by ``judge.accepts`` (settled, then within ``args.tol``, clear by ``args.margin``)."""
+    solvers = {"optik lm + collisions": optik_solve}
+    try:
+        solvers["TRAC-IK + coal rejection"] = tracik()
+    except (ImportError, optik.OptikError) as exc:
+        print(f"pytracik is not available ({exc}): TRAC-IK skipped")
+    return timed_in_turn(
+        solvers,
+        targets,
+        args.time_limit,
+        args.compile_wait,
+        lambda q, target: judge.accepts(q, target, args.tol, args.margin),
+    )
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the benchmark and print a markdown table with the ratio to optik; returns 0."""
     ap = benchmark_parser("collision", __doc__)
@@ -168,19 +193,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         q = m.random_q(seed=rng)
         if not optik.collision.check(m, q, w, margin=args.margin).in_collision:
             targets.append(m.fk(q))
-    solvers: dict[str, Solver] = {"optik lm + collisions": optik_solver(m, w, args.margin, args.tol)}
-    try:
-        solvers["TRAC-IK + coal rejection"] = tracik_solver(
-            m, urdf, w, args.margin, args.tol, args.time_limit
-        )
-    except (ImportError, optik.OptikError) as exc:
-        print(f"pytracik is not available ({exc}): TRAC-IK skipped")
-    results = timed_in_turn(
-        solvers,
+    results = judged_in_turn(
+        optik_solver(m, w, args.margin, args.tol),
+        lambda: tracik_solver(m, urdf, w, args.margin, args.tol, args.time_limit),
         targets,
-        args.time_limit,
-        args.compile_wait,
-        lambda q, target: judge.accepts(q, target, args.tol, args.margin),
+        judge,
+        args,
     )
     from optik.solvers.collision_free import compiled_kernels
 

@@ -49,7 +49,7 @@ import numpy as np
 import optik
 from optik import spatial
 from optik.benchmarks import benchmark_parser
-from optik.benchmarks.bench_collision import timed_in_turn, timeout_ladder
+from optik.benchmarks.bench_collision import judged_in_turn, timeout_ladder
 from optik.benchmarks.judge import PinocchioJudge
 from optik.harness.peers.rules import settle
 from optik.harness.tally import success_table
@@ -161,17 +161,12 @@ def run_robot(name: str, args) -> None:
         return
     rng = np.random.default_rng(args.seed)
     targets = near_targets(w, args.n, args.margin, args.near, rng)
-    solvers: dict[str, Solver] = {"optik lm + collisions": optik_solver(w, args.margin, args.tol)}
-    try:
-        solvers["TRAC-IK + coal rejection"] = tracik_solver(w, args.margin, args.tol, args.time_limit)
-    except (ImportError, optik.OptikError) as exc:
-        print(f"pytracik is not available ({exc}): TRAC-IK skipped")
-    results = timed_in_turn(  # every answer settled into the limits, the same for every solver
-        solvers,
+    results = judged_in_turn(  # every answer settled into the limits, the same for every solver
+        optik_solver(w, args.margin, args.tol),
+        lambda: tracik_solver(w, args.margin, args.tol, args.time_limit),
         targets,
-        args.time_limit,
-        args.compile_wait,
-        lambda q, target: judge.accepts(q, target, args.tol, args.margin),
+        judge,
+        args,
     )
     from optik.solvers.collision_free import compiled_kernels
 

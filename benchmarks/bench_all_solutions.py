@@ -72,7 +72,14 @@ import numpy as np  # noqa: E402
 import optik  # noqa: E402
 from optik import plot  # noqa: E402
 from optik.benchmarks import benchmark_parser  # noqa: E402
-from optik.benchmarks.peer_arms import eaik_dh, eaik_robot, ur_arm, valid_solutions  # noqa: E402
+from optik.benchmarks.peer_arms import (  # noqa: E402
+    axis_offsets,
+    eaik_dh,
+    eaik_robot,
+    ik_geo_target,
+    ur_arm,
+    valid_solutions,
+)
 from optik.closed_form.derived import chain_axes, derive, derive_axes  # noqa: E402
 from optik.harness.tally import timing_ms  # noqa: E402
 from optik.mechanism import Mechanism  # noqa: E402
@@ -125,8 +132,7 @@ def _ik_geo_robot(m: Mechanism, family: str) -> tuple[object, np.ndarray] | None
     r = np.array(ax.r, dtype=float)
     for joints in groups:
         r[list(joints)] = _common_point(h, r, joints)
-    p = np.vstack([r[0], np.diff(r, axis=0), ax.home[:3, 3] - r[-1]])
-    return getattr(ik_geo.Robot, name)(h, p), ax.home[:3, :3]
+    return getattr(ik_geo.Robot, name)(h, axis_offsets(r, ax.home)), ax.home[:3, :3]
 
 
 @dataclass
@@ -180,9 +186,7 @@ def run_arm(m: Mechanism, n: int, seed: int) -> Row:
     theirs_targets = targets @ x  # EAIK's tool frame (outside the timing)
     geo = _ik_geo_robot(m, family)
     # ik-geo's targets: the last joint's frame, the rotation transposed for its bindings (untimed)
-    geo_targets = (
-        [(np.ascontiguousarray((t[:3, :3] @ geo[1].T).T), t[:3, 3].copy()) for t in targets] if geo else []
-    )
+    geo_targets = [ik_geo_target(t, geo[1]) for t in targets] if geo else []
     optik.solve_ik_all(m, targets[0])  # builds the cached kernel and FK evaluator (untimed)
     ik = optik.AllSolutions(m)  # built once (untimed)
     ik(targets[0])

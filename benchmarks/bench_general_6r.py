@@ -66,6 +66,7 @@ import numpy as np  # noqa: E402
 
 import optik  # noqa: E402
 from optik.benchmarks import benchmark_parser  # noqa: E402
+from optik.benchmarks.peer_arms import axis_offsets, ik_geo_target  # noqa: E402
 from optik.closed_form.general_6r import General6R, covers, solve_general_6r  # noqa: E402
 from optik.closed_form.structure import axes_of  # noqa: E402
 from optik.harness.tally import timing_ms  # noqa: E402
@@ -137,16 +138,7 @@ def ik_geo_robot(m: Mechanism) -> tuple[object, np.ndarray]:
         The ``ik_geo.Robot`` and ``R_home``.
     """
     axes = axes_of(m)
-    pts = axes.r
-    p = np.vstack([pts[0], np.diff(pts, axis=0), axes.home[:3, 3] - pts[5]])
-    return ik_geo.Robot.gen_six_dof(axes.h, p), axes.home[:3, :3]
-
-
-def ik_geo_target(target: np.ndarray, home: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """ik-geo's ``(R, p)`` arguments for optik's 4x4 tool target: ``R = R_T R_home^T``, passed
-    transposed because the binding reads a 3x3 array column by column (its
-    ``forward_kinematics`` returns the transpose the same way)."""
-    return np.ascontiguousarray((target[:3, :3] @ home.T).T), target[:3, 3].copy()
+    return ik_geo.Robot.gen_six_dof(axes.h, axis_offsets(axes.r, axes.home)), axes.home[:3, :3]
 
 
 def fk_errors(m: Mechanism, qs: Sequence[Sequence[float]], target: np.ndarray) -> np.ndarray:

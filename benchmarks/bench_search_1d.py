@@ -47,6 +47,7 @@ from dataclasses import dataclass, field  # noqa: E402
 import numpy as np  # noqa: E402
 
 from optik.benchmarks import benchmark_parser  # noqa: E402
+from optik.benchmarks.peer_arms import axis_offsets, ik_geo_target  # noqa: E402
 from optik.closed_form.derived import chain_axes, derive  # noqa: E402
 from optik.closed_form.general_6r import covers, solve_general_6r  # noqa: E402
 from optik.closed_form.search_1d import search_of, solve_search_1d  # noqa: E402
@@ -139,13 +140,11 @@ def _ik_geo_two_intersecting(m: Mechanism) -> Callable[[np.ndarray], list[np.nda
     axes = chain_axes(m)
     r = axes.r.copy()
     r[4] = r[5] = intersection(axes, 4, 5)
-    p = np.vstack([r[0], np.diff(r, axis=0), axes.home[:3, 3] - r[5]])
-    robot = ik_geo.Robot.two_intersecting(axes.h, p)
+    robot = ik_geo.Robot.two_intersecting(axes.h, axis_offsets(r, axes.home))
     home = axes.home[:3, :3]
 
     def solve(target: np.ndarray) -> list[np.ndarray]:
-        r06 = target[:3, :3] @ home.T
-        return [np.asarray(s) for s, _ in robot.get_ik(r06.T, target[:3, 3])]  # R transposed
+        return [np.asarray(s) for s, _ in robot.get_ik(*ik_geo_target(target, home))]
 
     return solve
 
@@ -155,8 +154,7 @@ def _eaik(m: Mechanism) -> Callable[[np.ndarray], list[np.ndarray]] | None:
     if eaik is None:
         return None
     ax = chain_axes(m)
-    offsets = np.vstack([ax.r[0], np.diff(ax.r, axis=0), ax.home[:3, 3] - ax.r[-1]])
-    robot = eaik.Robot(ax.h.T, offsets.T, ax.home[:3, :3], [], True)
+    robot = eaik.Robot(ax.h.T, axis_offsets(ax.r, ax.home).T, ax.home[:3, :3], [], True)
     if not robot.has_known_decomposition():
         return None
     return lambda t: list(np.asarray(robot.calculate_IK(t).Q))

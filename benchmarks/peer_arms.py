@@ -3,8 +3,10 @@
 `ur_arm` loads a UR arm from example-robot-data, `eaik_robot` builds EAIK's model of an arm (by
 EAIK's own parser where it has one) with the tool transform between the two, and
 `valid_solutions` keeps the solutions of a peer that pass one independent FK and limit check
-(the check every claimed solution of every solver gets). ``eaik_dh`` and ``eaik_urdf`` are
-EAIK's modules, None where it is not installed.
+(the check every claimed solution of every solver gets). `axis_offsets` and `ik_geo_target` are
+the model and target conventions of the product-of-exponentials peers (ik-geo, EAIK), shared by
+the all-solutions, general 6R and 1-D search benchmarks. ``eaik_dh`` and ``eaik_urdf`` are EAIK's
+modules, None where it is not installed.
 """
 
 from __future__ import annotations
@@ -25,7 +27,17 @@ try:  # an optional peer
 except ImportError:  # pragma: no cover - depends on the environment
     eaik_dh = eaik_urdf = None
 
-__all__ = ["FK_TOL", "eaik_dh", "eaik_robot", "eaik_urdf", "ur_arm", "urdf_path", "valid_solutions"]
+__all__ = [
+    "FK_TOL",
+    "axis_offsets",
+    "eaik_dh",
+    "eaik_robot",
+    "eaik_urdf",
+    "ik_geo_target",
+    "ur_arm",
+    "urdf_path",
+    "valid_solutions",
+]
 
 FK_TOL = 1e-6
 """FK check of a solution: position (m) and orientation (rad) errors at most this."""
@@ -52,6 +64,22 @@ def ur_arm(name: str) -> tuple[Mechanism | None, str]:
     return m, ""
 
 
+def axis_offsets(r: np.ndarray, home: np.ndarray) -> np.ndarray:
+    """The offsets ``p_0 .. p_n`` of ik-geo's and EAIK's product-of-exponentials model of an n-joint
+    chain, from a point ``r_i`` of each joint axis at ``q = 0`` (rows of ``r``) and the tool pose
+    ``home`` (4x4) there: ``p_0 = r_0`` (the base to axis 1), ``p_i = r_i - r_(i-1)`` (axis ``i`` to
+    axis ``i + 1``) and ``p_n = t_home - r_(n-1)`` (the last axis to the tool); shape ``(n + 1, 3)``."""
+    return np.vstack([r[0], np.diff(r, axis=0), home[:3, 3] - r[-1]])
+
+
+def ik_geo_target(target: np.ndarray, home: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """ik-geo's ``(R, p)`` arguments for optik's 4x4 tool target, ``home`` the tool rotation at
+    ``q = 0``: ``R = R_T R_home^T`` (ik-geo's end rotation is the identity at ``q = 0``), passed
+    transposed because the binding reads a 3x3 array column by column (its ``forward_kinematics``
+    returns the transpose the same way)."""
+    return np.ascontiguousarray((target[:3, :3] @ home.T).T), target[:3, 3].copy()
+
+
 def eaik_robot(m: Mechanism) -> tuple[object, np.ndarray, str]:
     """EAIK's robot for the arm, built by EAIK's own parser where it has one (its URDF reader
     for the UR arms, its DH constructor for the PUMA 560), else from optik's joint axes at
@@ -65,7 +93,7 @@ def eaik_robot(m: Mechanism) -> tuple[object, np.ndarray, str]:
         robot, source = eaik_dh.DhRobot(alpha, a, d), "EAIK's DH constructor"
     else:
         ax = chain_axes(m)
-        offsets = np.vstack([ax.r[0], np.diff(ax.r, axis=0), ax.home[:3, 3] - ax.r[-1]])
+        offsets = axis_offsets(ax.r, ax.home)
         robot, source = eaik_dh.EAIK.Robot(ax.h.T, offsets.T, ax.home[:3, :3], [], True), "optik's axes"
     raw = getattr(robot, "_robot", robot)  # the compiled robot: timed without EAIK's Python wrapper
     x = np.linalg.inv(m.fk(np.zeros(6))) @ np.asarray(raw.fwdkin(np.zeros(6)))

@@ -75,3 +75,38 @@ def test_optik_answers_take_the_same_path_and_pass_it(panda_judge):
             assert judge.ok(answer, target, TOL, MARGIN)  # optik's answers are settled already
             accepted += judge.accepts(answer, target, TOL, MARGIN)
     assert accepted >= 5
+
+
+def _srdf_pairs(urdf, srdf, coordinates):
+    """Pinocchio's pairs of the URDF minus the SRDF's, and those of them some solved joint moves apart."""
+    import pinocchio as pin
+
+    from optik.mechanism.urdf_visuals import cmeel_share
+
+    model = pin.buildModelFromUrdf(str(urdf))
+    geom = pin.buildGeomFromUrdf(
+        model, str(urdf), pin.GeometryType.COLLISION, package_dirs=[str(cmeel_share())]
+    )
+    geom.addAllCollisionPairs()
+    pin.removeCollisionPairs(model, geom, str(srdf))
+    solved = {model.getJointId(n) for n in coordinates}
+    moved = [frozenset(solved & set(model.supports[g.parentJoint])) for g in geom.geometryObjects]
+    pairs = {(p.first, p.second) for p in geom.collisionPairs}
+    return pairs, {(a, b) for a, b in pairs if moved[a] != moved[b]}
+
+
+def test_the_judge_checks_every_srdf_pair_but_those_no_solved_joint_moves(panda_judge):
+    """The Panda judge checks every pair the SRDF leaves (none is moved by no arm joint); TALOS's
+    (right arm and legs held at zero) leaves out exactly the pairs that keep a constant distance."""
+    from optik.benchmarks.bench_collision_self import workload
+    from optik.benchmarks.judge import PinocchioJudge
+    from optik.catalog.robots import robots_dir
+
+    m, _, judge = panda_judge
+    d = robots_dir() / "panda_description"
+    pairs, moving = _srdf_pairs(d / "urdf" / "panda.urdf", d / "srdf" / "panda.srdf", m.coordinate_names)
+    assert {(p.first, p.second) for p in judge.geom.collisionPairs} == moving == pairs
+    w = workload("talos")
+    talos = PinocchioJudge(w.m, w.urdf, w.srdf, w.frames)
+    pairs, moving = _srdf_pairs(w.urdf, w.srdf, w.m.coordinate_names)
+    assert {(p.first, p.second) for p in talos.geom.collisionPairs} == moving != pairs

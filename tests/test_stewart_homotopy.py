@@ -424,7 +424,8 @@ def test_singular_end_points_on_a_solution_curve_never_count_towards_40():
 
 
 def test_a_general_platform_with_one_abandoned_path_completes_without_the_total_method():
-    """Platform 329 of `optik benchmark parallel_fk`'s draws: for its seed one of the 40 paths
+    """Platform 329 of `optik benchmark parallel_fk`'s draws: for seed 1218 (the first seed that
+    does it at the tracker's step settings; 329 did under the earlier ones) one of the 40 paths
     stalls near the degenerate set and is abandoned, although every path of a general platform
     ends at a solution. The retry (all 40 paths, fresh gamma and patch) finds the 40th solution,
     so the 128-path method is not needed."""
@@ -469,9 +470,9 @@ def test_a_general_platform_with_one_abandoned_path_completes_without_the_total_
     assert np.max(np.abs(_legs(b, p, r, t) - rho)) <= 1e-14
     size = max(np.max(np.linalg.norm(b, axis=1)), np.max(np.linalg.norm(p, axis=1)), np.max(rho))
     bs, ps, rs = b / size, p / size, rho / size
-    first = stewart_parameter.solve(bs, ps, study.leg_constants(bs, ps, rs), np.random.default_rng(329), 5.0)
+    first = stewart_parameter.solve(bs, ps, study.leg_constants(bs, ps, rs), np.random.default_rng(1218), 5.0)
     assert list(first.status).count("abandoned") == 1 and first.nonsingular == 39  # the case
-    fk = stewart_poses(b, p, rho, seed=329)
+    fk = stewart_poses(b, p, rho, seed=1218)
     assert fk.complete and fk.method == "parameter" and fk.paths == 80 and fk.complex_solutions == 40
     assert any(np.allclose(x, r, atol=1e-9) and np.allclose(y, t, atol=1e-9) for x, y in fk.poses)
     assert _max_leg_error(b, p, rho, fk.poses) <= 1e-12

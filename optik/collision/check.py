@@ -257,6 +257,16 @@ def search(
     known = _fixed_entries(geo, world) if fixed else {}
     for (a, b), e in known.items():  # their exact distance is the tightest bound
         lb[n_self + b * n_parts + a] = e[0]
+    floor = max(margin, 0.0)  # pairs below it are reported, and the nearest always is
+    limit = floor + _SLACK if stop else np.inf  # else max(floor, nearest found) + _SLACK once found
+    # the pairs in increasing order of bound: the least first, then, once a pair's distance sets
+    # the limit (it only decreases), those under it alone (the rest of a full sort is never read)
+    if stop:
+        order, i = _under(lb, limit)
+        if not order:  # clear by the bounds alone, no coal query (3 in 4 clear answers in clutter)
+            return Search(None, [], 0, int(lb.size), False)
+    else:
+        order, i = [int(lb.argmin())] if lb.size else [], 0
     coal = coal_module()
     distance, request, parts, others = coal.distance, signed_request(), geo.parts, world.parts
     tfs = _transforms(geo, coal)
@@ -271,19 +281,11 @@ def search(
             placed.add(k)
         return t
 
-    floor = max(margin, 0.0)  # pairs below it are reported, and the nearest always is
-    limit = floor + _SLACK if stop else np.inf  # else max(floor, nearest found) + _SLACK once found
     best: Entry | None = None
     close: list[Entry] = []
     done: set[int] = set()
     done_world = 0
     refined = False
-    # the pairs in increasing order of bound: the least first, then, once a pair's distance sets
-    # the limit (it only decreases), those under it alone (the rest of a full sort is never read)
-    if stop:
-        order, i = _under(lb, limit)
-    else:
-        order, i = [int(lb.argmin())] if lb.size else [], 0
     while i < len(order):
         k = order[i]
         i += 1

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -63,20 +64,38 @@ class LazyDistanceResult(IKResult):
     collision-aware solve that only decided its answer is clear (`optik.collision.check.search`
     with ``stop``) leaves the full search for the exact nearest pair to a caller that reads it.
 
+    The two fields are settled once, under a lock: threads that read them at once see the same
+    values, and none reads them before they are made. ``dataclasses.replace`` works as on an
+    `IKResult` (the copy's fields are settled; it has no function left to call).
+
     Args:
-        res: the result, every field but those two final (copied, not called again).
+        res: the result, every field but those two final (copied, not called again). ``None``
+            when the fields come as keywords (``dataclasses.replace``).
         nearest: the function of the two fields, called at most once.
+        **fields: every `IKResult` field, when ``res`` is ``None``.
     """
 
-    def __init__(self, res: IKResult, nearest: Callable[[], tuple[float, tuple[str, str] | None]]) -> None:
+    def __init__(
+        self,
+        res: IKResult | None = None,
+        nearest: Callable[[], tuple[float, tuple[str, str] | None]] | None = None,
+        **fields: Any,
+    ) -> None:
+        self._nearest: Callable[[], tuple[float, tuple[str, str] | None]] | None = None
+        if res is None:
+            IKResult.__init__(self, **fields)
+            return
         self.__dict__.update(vars(res))
-        self._nearest: Callable[[], tuple[float, tuple[str, str] | None]] | None = nearest
+        self._nearest = nearest
 
     def _settle(self) -> dict[str, Any]:
         """The instance dict, the two fields computed first if they are not yet."""
-        nearest, self._nearest = self._nearest, None
-        if nearest is not None:
-            self.__dict__["min_distance"], self.__dict__["collision_pair"] = nearest()
+        if self._nearest is not None:
+            with _SETTLE_LOCK:
+                nearest = self._nearest
+                if nearest is not None:  # another thread may have settled them meanwhile
+                    self.__dict__["min_distance"], self.__dict__["collision_pair"] = nearest()
+                    self._nearest = None
         return self.__dict__
 
     def __getstate__(self) -> dict[str, Any]:
@@ -91,6 +110,11 @@ class LazyDistanceResult(IKResult):
 
     min_distance = property(lambda self: self._settle()["min_distance"], _set_distance)  # type: ignore[assignment]
     collision_pair = property(lambda self: self._settle()["collision_pair"], _set_pair)  # type: ignore[assignment]
+
+
+_SETTLE_LOCK = threading.RLock()
+"""Held while a `LazyDistanceResult` computes its two fields (re-entrant: a ``nearest`` that
+reads another result's fields does not wait on itself)."""
 
 
 @dataclass

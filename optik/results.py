@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator, Sequence
+import threading
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, overload
@@ -55,6 +56,65 @@ class IKResult:
     frame_errors: dict[str, tuple[float, float]] = field(default_factory=dict)
     min_distance: float | None = None
     collision_pair: tuple[str, str] | None = None
+
+
+class LazyDistanceResult(IKResult):
+    """An `IKResult` whose ``min_distance`` and ``collision_pair`` are computed on their first
+    read (or before a first write), by ``nearest() -> (min_distance, collision_pair)``: a
+    collision-aware solve that only decided its answer is clear (`optik.collision.check.search`
+    with ``stop``) leaves the full search for the exact nearest pair to a caller that reads it.
+
+    The two fields are settled once, under a lock: threads that read them at once see the same
+    values, and none reads them before they are made. ``dataclasses.replace`` works as on an
+    `IKResult` (the copy's fields are settled; it has no function left to call).
+
+    Args:
+        res: the result, every field but those two final (copied, not called again). ``None``
+            when the fields come as keywords (``dataclasses.replace``).
+        nearest: the function of the two fields, called at most once.
+        **fields: every `IKResult` field, when ``res`` is ``None``.
+    """
+
+    def __init__(
+        self,
+        res: IKResult | None = None,
+        nearest: Callable[[], tuple[float, tuple[str, str] | None]] | None = None,
+        **fields: Any,
+    ) -> None:
+        self._nearest: Callable[[], tuple[float, tuple[str, str] | None]] | None = None
+        if res is None:
+            IKResult.__init__(self, **fields)
+            return
+        self.__dict__.update(vars(res))
+        self._nearest = nearest
+
+    def _settle(self) -> dict[str, Any]:
+        """The instance dict, the two fields computed first if they are not yet."""
+        if self._nearest is not None:
+            with _SETTLE_LOCK:
+                nearest = self._nearest
+                if nearest is not None:  # another thread may have settled them meanwhile
+                    self.__dict__["min_distance"], self.__dict__["collision_pair"] = nearest()
+                    self._nearest = None
+        return self.__dict__
+
+    def __getstate__(self) -> dict[str, Any]:
+        """The state of a copy or pickle: the two fields computed (the function is not kept)."""
+        return {**self._settle(), "_nearest": None}
+
+    def _set_distance(self, value: float | None) -> None:
+        self._settle()["min_distance"] = value
+
+    def _set_pair(self, value: tuple[str, str] | None) -> None:
+        self._settle()["collision_pair"] = value
+
+    min_distance = property(lambda self: self._settle()["min_distance"], _set_distance)  # type: ignore[assignment]
+    collision_pair = property(lambda self: self._settle()["collision_pair"], _set_pair)  # type: ignore[assignment]
+
+
+_SETTLE_LOCK = threading.RLock()
+"""Held while a `LazyDistanceResult` computes its two fields (re-entrant: a ``nearest`` that
+reads another result's fields does not wait on itself)."""
 
 
 @dataclass

@@ -635,3 +635,63 @@ def test_panda_in_clutter_four_threads_give_the_answers_of_one():
         assert np.array_equal(a.q, b.q) and a.min_distance == b.min_distance
         assert a.collision_pair == b.collision_pair
         assert check(m, b.q, w, margin=0.01).in_collision is False
+
+
+def test_a_clear_answer_reads_its_distance_from_the_full_search(arm):
+    """A clear ``lm`` answer (`optik.results.LazyDistanceResult`): its distance and pair are the
+    full check's, the search made once on the first read; a copy, a pickle and a write before
+    any read keep the same values (the write only its own field)."""
+    import copy
+    import pickle
+
+    from optik.results import LazyDistanceResult
+
+    qa, qb = _branches(arm)
+    w = _blocking_world(arm, qa)
+    target = arm.fk(qb)[:3, 3]
+    res = optik.solve_ik(arm, optik.Position(target), q0=qb, world=w, margin=MARGIN, seed=1)
+    assert res.success and type(res) is LazyDistanceResult
+    report = check(arm, res.q, w, margin=MARGIN)
+    calls = []
+    nearest = res._nearest
+    res._nearest = lambda: calls.append(1) or nearest()
+    twin, kept = copy.copy(res), pickle.loads(pickle.dumps(res))
+    assert calls == [1] and res.q is twin.q
+    for r in (res, twin, kept):
+        assert r.min_distance == report.min_distance and r.collision_pair == report.pair
+    assert calls == [1]
+    again = optik.solve_ik(arm, optik.Position(target), q0=qb, world=w, margin=MARGIN, seed=1)
+    again.min_distance = -1.0
+    assert again.min_distance == -1.0 and again.collision_pair == report.pair
+
+
+def test_a_clear_answer_settles_once_across_threads_and_replaces(arm):
+    """Eight threads reading a fresh `LazyDistanceResult` at once see one full search's values
+    (the search runs once); ``dataclasses.replace`` gives a result with the same fields and the
+    change."""
+    import dataclasses
+    import threading
+
+    qa, qb = _branches(arm)
+    w = _blocking_world(arm, qa)
+    target = arm.fk(qb)[:3, 3]
+    res = optik.solve_ik(arm, optik.Position(target), q0=qb, world=w, margin=MARGIN, seed=1)
+    report = check(arm, res.q, w, margin=MARGIN)
+    calls, nearest, start = [], res._nearest, threading.Barrier(8)
+    res._nearest = lambda: calls.append(1) or nearest()
+    seen: list = []
+
+    def read():
+        start.wait()
+        seen.append((res.min_distance, res.collision_pair))
+
+    threads = [threading.Thread(target=read) for _ in range(8)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert calls == [1] and seen == [(report.min_distance, report.pair)] * 8
+    fresh = optik.solve_ik(arm, optik.Position(target), q0=qb, world=w, margin=MARGIN, seed=1)
+    other = dataclasses.replace(fresh, message="changed")
+    assert other.message == "changed" and other.min_distance == report.min_distance
+    assert other.collision_pair == report.pair and np.array_equal(other.q, fresh.q)

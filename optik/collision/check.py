@@ -242,9 +242,13 @@ def search(
     distance is exact (coal's), and so is the set of pairs closer than ``margin`` or touching: a
     pair skipped has a bound above both.
 
-    With ``stop``, the search ends at the first pair closer than ``margin`` or touching (what
-    rejecting an answer needs): ``in_collision`` is then exact, ``close`` holds that pair alone and
-    ``nearest`` is the nearest pair checked so far (exact only when no pair is close).
+    With ``stop``, the search only decides whether some pair is closer than ``margin`` or
+    touches (what accepting or rejecting an answer needs): the limit stays ``max(margin, 0)``
+    (a pair's distance above it no longer lowers it, nor does the search look for the nearest
+    pair beyond it) and the search ends at the first close pair. ``in_collision`` is then exact,
+    ``close`` holds that pair alone and ``nearest`` is the nearest pair checked (None when no
+    bound is under the limit; its distance is the smallest only when it is close). On the Panda's
+    clear answers in clutter (1000 benchmark targets) it checked 0.70 pairs with coal instead of 1.90.
     """
     n_obj, n_parts = len(world.parts), len(geo.parts)
     n_self = len(geo.self_pairs) if self_collision else 0
@@ -253,6 +257,16 @@ def search(
     known = _fixed_entries(geo, world) if fixed else {}
     for (a, b), e in known.items():  # their exact distance is the tightest bound
         lb[n_self + b * n_parts + a] = e[0]
+    floor = max(margin, 0.0)  # pairs below it are reported, and the nearest always is
+    limit = floor + _SLACK if stop else np.inf  # else max(floor, nearest found) + _SLACK once found
+    # the pairs in increasing order of bound: the least first, then, once a pair's distance sets
+    # the limit (it only decreases), those under it alone (the rest of a full sort is never read)
+    if stop:
+        order, i = _under(lb, limit)
+        if not order:  # clear by the bounds alone, no coal query (3 in 4 clear answers in clutter)
+            return Search(None, [], 0, int(lb.size), False)
+    else:
+        order, i = [int(lb.argmin())] if lb.size else [], 0
     coal = coal_module()
     distance, request, parts, others = coal.distance, signed_request(), geo.parts, world.parts
     tfs = _transforms(geo, coal)
@@ -267,16 +281,11 @@ def search(
             placed.add(k)
         return t
 
-    floor = max(margin, 0.0)  # pairs below it are reported, and the nearest always is
-    limit = np.inf  # max(floor, nearest found) + _SLACK once a pair is found
     best: Entry | None = None
     close: list[Entry] = []
     done: set[int] = set()
     done_world = 0
     refined = False
-    # the pairs in increasing order of bound: the least first, then, once a pair's distance sets
-    # the limit (it only decreases), those under it alone (the rest of a full sort is never read)
-    order, i = [int(lb.argmin())] if lb.size else [], 0
     while i < len(order):
         k = order[i]
         i += 1
@@ -305,12 +314,13 @@ def search(
         done_world += on_world
         if best is None or d < best[0]:
             best = entry
-            limit = max(floor, d) + _SLACK
+            if not stop:
+                limit = max(floor, d) + _SLACK
         if d < margin or d <= 0:
             close.append(entry)
             if stop:
                 break
-        if len(done) == 1:
+        if len(done) == 1 and not stop:
             order, i = _under(lb, limit)
         # world pairs left under the limit (counted only when the pairs under it could hold more
         # than REFINE: order holds every pair under the limit of when it was made, a larger one)

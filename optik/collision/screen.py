@@ -201,7 +201,12 @@ _LOCK = threading.Lock()
 
 def screen(geo: RobotGeometry, capacity: int, coarse: bool = False) -> Screen:
     """The `Screen` of ``geo`` for ``capacity`` slots, with the world rows of the bounding spheres
-    when ``coarse`` (built once, under a lock, and cached with the geometry)."""
+    when ``coarse`` (built once, under a lock, and cached with the geometry; a built one is read
+    without the lock: each exact check asks for it, and a dict read is atomic)."""
+    per = _CACHE.get(geo)
+    hit = None if per is None else per.get((capacity, coarse))
+    if hit is not None:
+        return hit
     with _LOCK:
         per = _CACHE.setdefault(geo, {})
         hit = per.get((capacity, coarse))

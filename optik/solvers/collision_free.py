@@ -73,7 +73,7 @@ from optik.collision.world import World, WorldState, state_of
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
 from optik.problem import IKProblem, build_ik_problem, target_parameters
-from optik.results import IKResult
+from optik.results import IKResult, LazyDistanceResult
 from optik.solvers.base import IKRequest, PreparedCache, make_result, positive_int
 from optik.solvers.collision_kernel import bound_parameters, constrained_functions
 from optik.solvers.evaluation import ErrorFn, errors_against
@@ -170,15 +170,25 @@ class _Exact:
 
     def finish(self, res: IKResult, stop: bool = False) -> IKResult:
         """``res`` judged by the exact check as well (see the module docstring), with the distance
-        and the names of the closest pair of its ``q``; with ``stop``, the search of an answer
-        that collides ends at its first close pair (a round's answer, rejected: `complete` makes
-        the distance, the pair and the message exact for the answer returned)."""
+        and the names of the closest pair of its ``q``; with ``stop``, the search only decides
+        (`optik.collision.check.search`): an answer that collides is rejected at its first close
+        pair (`complete` makes the distance, the pair and the message exact for the answer
+        returned), a clear success is a `LazyDistanceResult` whose distance and pair the full
+        search makes when they are first read."""
         found = search(self.geo, res.q, self.world, self.margin, self.self_collision, stop)
+        if stop and res.success and not found.in_collision:
+            q = res.q.copy()  # the q judged, whatever a caller later does to the result's array
+            return LazyDistanceResult(res, lambda: self._nearest(q))
         return self._judged(res, found, res.success, False)
+
+    def _nearest(self, q: np.ndarray) -> tuple[float, tuple[str, str] | None]:
+        """The exact smallest distance at ``q`` and the names of its pair (the full search)."""
+        found = search(self.geo, q, self.world, self.margin, self.self_collision)
+        return np.inf if found.nearest is None else found.nearest[0], found.names(self.geo, self.world)
 
     def complete(self, res: IKResult) -> IKResult:
         """The answer a solve returns, judged by `finish` with ``stop``, judged in full when it
-        failed (a success is clear: its search ran in full)."""
+        failed (a success is clear: its distance and pair are the full search's, made when read)."""
         if res.success:
             return res
         found = search(self.geo, res.q, self.world, self.margin, self.self_collision)

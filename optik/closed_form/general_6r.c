@@ -53,12 +53,23 @@ static void times_dh(cplx x[4][4], cplx theta, double d, double a, double ca, do
     for (int k = 0; k < 4; ++k) out[3][k] = k == 3;
 }
 
+/* out = A itself (times_dh of the identity, whose products by 1 and 0 give A's entries) */
+static void dh(cplx theta, double d, double a, double ca, double sa, cplx out[4][4]) {
+    cplx c, s;
+    cos_sin(theta, &c, &s);
+    out[0][0] = c, out[0][1] = -s * ca, out[0][2] = s * sa, out[0][3] = a * c;
+    out[1][0] = s, out[1][1] = c * ca, out[1][2] = -c * sa, out[1][3] = a * s;
+    out[2][0] = 0, out[2][1] = sa, out[2][2] = ca, out[2][3] = d;
+    for (int k = 0; k < 4; ++k) out[3][k] = k == 3;
+}
+
 /* prefix products pre[0..joints] of the DH transforms at theta */
 static void chain(const double *d, const double *a, const double *ca, const double *sa, const cplx *theta,
                   int joints, cplx pre[7][4][4]) {
     for (int r = 0; r < 4; ++r)
         for (int c = 0; c < 4; ++c) pre[0][r][c] = r == c;
-    for (int i = 0; i < joints; ++i) times_dh(pre[i], theta[i], d[i], a[i], ca[i], sa[i], pre[i + 1]);
+    dh(theta[0], d[0], a[0], ca[0], sa[0], pre[1]);
+    for (int i = 1; i < joints; ++i) times_dh(pre[i], theta[i], d[i], a[i], ca[i], sa[i], pre[i + 1]);
 }
 
 /* the pose residual at pre[6] for the target t (4 x 4 row-major); returns max |r| */
@@ -197,9 +208,7 @@ static void back_one(const double *arm, const double *ca, const double *sa, cons
                      const double *rn, const double *tn, cplx *th) {
     const double *d = arm, *a = arm + 6, *rot = arm + 18, *inv6 = arm + 21;
     cplx t[4][4], u[4][4], lhs[14], x[8];
-    for (int r = 0; r < 4; ++r)
-        for (int c = 0; c < 4; ++c) t[r][c] = r == c;
-    times_dh(t, ph[0] + rot[0], d[2], a[2], ca[2], sa[2], u); /* A_3 A_4 A_5 */
+    dh(ph[0] + rot[0], d[2], a[2], ca[2], sa[2], u); /* A_3 A_4 A_5 */
     times_dh(u, ph[1] + rot[1], d[3], a[3], ca[3], sa[3], t);
     times_dh(t, ph[2] + rot[2], d[4], a[4], ca[4], sa[4], u);
     cplx l[3] = {u[0][2], u[1][2], u[2][2]}, p[3] = {u[0][3], u[1][3], u[2][3]};

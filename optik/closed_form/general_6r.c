@@ -19,30 +19,47 @@
 
 typedef double complex cplx;
 
-/* the DH transform of one joint at a (complex) angle theta = x + i y: cos theta = cos x cosh y -
- * i sin x sinh y, sin theta = sin x cosh y + i cos x sinh y, the products glibc's ccos and csin
- * form (for |y| < 709, where they need no scaling), with one sin, cos, cosh and sinh for both
- * and none of the latter two for a real angle (cosh 0 = 1, sinh(+-0) = +-0) */
-static void dh(cplx theta, double d, double a, double ca, double sa, cplx m[4][4]) {
+/* cos and sin of a (complex) angle theta = x + i y: cos theta = cos x cosh y - i sin x sinh y,
+ * sin theta = sin x cosh y + i cos x sinh y, the products glibc's ccos and csin form (for |y| <
+ * 709, where they need no scaling), with one sin, cos, cosh and sinh for both and none of the
+ * latter two for a real angle (cosh 0 = 1, sinh(+-0) = +-0) */
+static void cos_sin(cplx theta, cplx *c, cplx *s) {
     double x = creal(theta), y = cimag(theta), cx = cos(x), sx = sin(x);
     double ch = y == 0.0 ? 1.0 : cosh(y), sh = y == 0.0 ? y : sinh(y);
-    cplx c = fabs(y) < 709.0 ? CMPLX(cx * ch, -(sx * sh)) : ccos(theta);
-    cplx s = fabs(y) < 709.0 ? CMPLX(sx * ch, cx * sh) : csin(theta);
-    m[0][0] = c, m[0][1] = -s * ca, m[0][2] = s * sa, m[0][3] = a * c;
-    m[1][0] = s, m[1][1] = c * ca, m[1][2] = -c * sa, m[1][3] = a * s;
-    m[2][0] = 0, m[2][1] = sa, m[2][2] = ca, m[2][3] = d;
-    m[3][0] = 0, m[3][1] = 0, m[3][2] = 0, m[3][3] = 1;
+    *c = fabs(y) < 709.0 ? CMPLX(cx * ch, -(sx * sh)) : ccos(theta);
+    *s = fabs(y) < 709.0 ? CMPLX(sx * ch, cx * sh) : csin(theta);
 }
 
-/* out = x y (4 x 4) of homogeneous transforms (last rows 0, 0, 0, 1): the terms of the last row
- * of y (zero, and one in the last column) are left out */
-static void mul4(cplx x[4][4], cplx y[4][4], cplx out[4][4]) {
-    for (int r = 0; r < 3; ++r)
-        for (int k = 0; k < 4; ++k) {
-            cplx v = 0;
-            for (int j = 0; j < 3; ++j) v += x[r][j] * y[j][k];
-            out[r][k] = k == 3 ? v + x[r][3] : v;
-        }
+/* out = x A (rows 0-2; row 3 is 0, 0, 0, 1) of a homogeneous transform x and the DH transform of
+ * one joint at theta, A = Rz(theta) Tz(d) Tx(a) Rx(alpha) =
+ *     [c  -s ca   s sa  a c]
+ *     [s   c ca  -c sa  a s]
+ *     [0   sa     ca    d  ]
+ *     [0   0      0     1  ]
+ * column by column, the terms of A's zeros left out and its real entries (sa, ca, d) taken as
+ * real factors: the sums of the full 4 x 4 product in its order, x_0 A_0k + x_1 A_1k + x_2 A_2k
+ * (+ x_3 for the last column), with the same products */
+static void times_dh(cplx x[4][4], cplx theta, double d, double a, double ca, double sa, cplx out[4][4]) {
+    cplx c, s;
+    cos_sin(theta, &c, &s);
+    cplx m01 = -s * ca, m11 = c * ca, m02 = s * sa, m12 = -c * sa, m03 = a * c, m13 = a * s;
+    for (int r = 0; r < 3; ++r) {
+        cplx x0 = x[r][0], x1 = x[r][1], x2 = x[r][2];
+        out[r][0] = x0 * c + x1 * s;
+        out[r][1] = x0 * m01 + x1 * m11 + x2 * sa;
+        out[r][2] = x0 * m02 + x1 * m12 + x2 * ca;
+        out[r][3] = x0 * m03 + x1 * m13 + x2 * d + x[r][3];
+    }
+    for (int k = 0; k < 4; ++k) out[3][k] = k == 3;
+}
+
+/* out = A itself (times_dh of the identity, whose products by 1 and 0 give A's entries) */
+static void dh(cplx theta, double d, double a, double ca, double sa, cplx out[4][4]) {
+    cplx c, s;
+    cos_sin(theta, &c, &s);
+    out[0][0] = c, out[0][1] = -s * ca, out[0][2] = s * sa, out[0][3] = a * c;
+    out[1][0] = s, out[1][1] = c * ca, out[1][2] = -c * sa, out[1][3] = a * s;
+    out[2][0] = 0, out[2][1] = sa, out[2][2] = ca, out[2][3] = d;
     for (int k = 0; k < 4; ++k) out[3][k] = k == 3;
 }
 
@@ -51,11 +68,8 @@ static void chain(const double *d, const double *a, const double *ca, const doub
                   int joints, cplx pre[7][4][4]) {
     for (int r = 0; r < 4; ++r)
         for (int c = 0; c < 4; ++c) pre[0][r][c] = r == c;
-    for (int i = 0; i < joints; ++i) {
-        cplx m[4][4];
-        dh(theta[i], d[i], a[i], ca[i], sa[i], m);
-        mul4(pre[i], m, pre[i + 1]);
-    }
+    dh(theta[0], d[0], a[0], ca[0], sa[0], pre[1]);
+    for (int i = 1; i < joints; ++i) times_dh(pre[i], theta[i], d[i], a[i], ca[i], sa[i], pre[i + 1]);
 }
 
 /* the pose residual at pre[6] for the target t (4 x 4 row-major); returns max |r| */
@@ -193,13 +207,11 @@ static void fourteen(const cplx *l, const cplx *p, cplx *e) {
 static void back_one(const double *arm, const double *ca, const double *sa, const cplx *ph, const double *pn,
                      const double *rn, const double *tn, cplx *th) {
     const double *d = arm, *a = arm + 6, *rot = arm + 18, *inv6 = arm + 21;
-    cplx t[4][4], m[4][4], u[4][4], lhs[14], x[8];
-    dh(ph[0] + rot[0], d[2], a[2], ca[2], sa[2], t);
-    dh(ph[1] + rot[1], d[3], a[3], ca[3], sa[3], m);
-    mul4(t, m, u);
-    dh(ph[2] + rot[2], d[4], a[4], ca[4], sa[4], m);
-    mul4(u, m, t);
-    cplx l[3] = {t[0][2], t[1][2], t[2][2]}, p[3] = {t[0][3], t[1][3], t[2][3]};
+    cplx t[4][4], u[4][4], lhs[14], x[8];
+    dh(ph[0] + rot[0], d[2], a[2], ca[2], sa[2], u); /* A_3 A_4 A_5 */
+    times_dh(u, ph[1] + rot[1], d[3], a[3], ca[3], sa[3], t);
+    times_dh(t, ph[2] + rot[2], d[4], a[4], ca[4], sa[4], u);
+    cplx l[3] = {u[0][2], u[1][2], u[2][2]}, p[3] = {u[0][3], u[1][3], u[2][3]};
     fourteen(l, p, lhs);
     for (int i = 0; i < 8; ++i) {
         cplx v = 0;

@@ -146,7 +146,7 @@ RUNS: tuple[Run, ...] = (
     Run(
         "first_solve",
         "First solve on a never-compiled robot (fresh processes, fresh cache), against TRAC-IK and Pink",
-        ("--reps", "3"),
+        ("--reps", "9"),
         ("--reps", "1"),
     ),
     Run(

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import os
 import pickle
+import signal
+import threading
 
 import numpy as np
 import pytest
@@ -51,6 +54,25 @@ def test_answers_do_not_depend_on_chunks_or_threads() -> None:
     part = solve_ik_batch(PANDA, targets[20:30], q0[20:30], tol=1e-6, seed=a.seed[20:30], time_limit=T)
     np.testing.assert_array_equal(part.q, a.q[20:30])
     assert part.base_seed is None and a.base_seed == 9
+
+
+def test_ctrl_c_while_the_pool_works_is_a_keyboard_interrupt_every_time() -> None:
+    """SIGINT in the middle of a threaded batch raises ``KeyboardInterrupt`` in the caller (never
+    ``RuntimeError: release unlocked lock`` from an interrupted condition wait), the chunks not
+    started are cancelled, and Python's SIGINT handler is back afterwards."""
+    targets, q0 = _panda_targets(80, 31)
+    targets[:, :3, 3] += 5.0  # out of reach: every target runs to its 10 ms limit, 8 per chunk
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        for _ in range(3):
+            timer = threading.Timer(0.2, os.kill, (os.getpid(), signal.SIGINT))
+            timer.start()
+            with pytest.raises(KeyboardInterrupt):
+                solve_ik_batch(PANDA, targets, q0, workers=2, chunk_size=8, time_limit=0.01)
+            timer.join()
+            assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def test_unreachable_targets_fail_within_their_time_limit(cpu_clock) -> None:

@@ -16,8 +16,11 @@ chunks are Dask tasks (`optik.batch.distributed`).
 
 from __future__ import annotations
 
+import contextlib
+import signal
+import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from typing import Any
 
@@ -180,6 +183,30 @@ def solve_ik_batch(
     )
 
 
+@contextlib.contextmanager
+def _deferred_sigint() -> Iterator[threading.Event]:
+    """Hold Ctrl-C while the calling thread waits on the pool: an event set by SIGINT, which the
+    waiting loop turns into ``KeyboardInterrupt`` between two waits (within 0.5 s).
+
+    A ``KeyboardInterrupt`` raised inside ``concurrent.futures.wait`` can land between a
+    condition's release and re-acquire (CPython's ``threading.Condition.wait``), and the wait
+    then fails with ``RuntimeError: release unlocked lock`` instead of the interrupt. Only the
+    main thread receives signals, and only Python's default handler is replaced (a caller's own
+    handler is left alone); the previous handler is restored on exit.
+    """
+    interrupted = threading.Event()
+    if threading.current_thread() is not threading.main_thread() or (
+        signal.getsignal(signal.SIGINT) is not signal.default_int_handler
+    ):
+        yield interrupted
+        return
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: interrupted.set())
+    try:
+        yield interrupted
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def _run_threads(
     m: Mechanism,
     spec: ChunkSpec,
@@ -207,13 +234,18 @@ def _run_threads(
         return [p for p in parts if p is not None]
     pool = ThreadPoolExecutor(max_workers=workers)
     try:
-        pending = {pool.submit(job, i) for i in range(len(bounds))}
-        while pending:
-            finished, pending = wait(pending, timeout=0.5, return_when=FIRST_COMPLETED)
-            for f in finished:
-                done = f.result()
-                if step:
-                    step(done)
+        with _deferred_sigint() as interrupted:
+            pending = {pool.submit(job, i) for i in range(len(bounds))}
+            while pending:
+                finished, pending = wait(pending, timeout=0.5, return_when=FIRST_COMPLETED)
+                if interrupted.is_set():
+                    raise KeyboardInterrupt
+                for f in finished:
+                    done = f.result()
+                    if step:
+                        step(done)
+            if interrupted.is_set():  # Ctrl-C during the last wait: not dropped
+                raise KeyboardInterrupt
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
     return [p for p in parts if p is not None]

@@ -99,8 +99,6 @@ _C_SOURCE = r"""
 typedef double complex cplx;
 #define NMAX 16
 #define INLINE static inline __attribute__((always_inline))
-/* full unrolling of the fixed-size (8 x 8) LU loops */
-#define UNROLL _Pragma("GCC unroll 8")
 
 typedef struct { const long *ptr; const int *col; const cplx *val; } csr_t; /* rows j * n + r */
 
@@ -294,20 +292,17 @@ static void evaluate(const sys_t *q, const cplx *z, double tau, cplx *jac, cplx 
 INLINE int pivot(int n, cplx *a, int col) {
     int piv = col;
     double best = fabs(creal(a[col * n + col])) + fabs(cimag(a[col * n + col]));
-    UNROLL
     for (int r = col + 1; r < n; r++) {
         double m = fabs(creal(a[r * n + col])) + fabs(cimag(a[r * n + col]));
         if (m > best) { best = m; piv = r; }
     }
     if (!(best > 0.0)) return -1;
-    if (piv != col) {
-        UNROLL
+    if (piv != col)
         for (int j = 0; j < n; j++) {
             cplx x = a[col * n + j];
             a[col * n + j] = a[piv * n + j];
             a[piv * n + j] = x;
         }
-    }
     return piv;
 }
 
@@ -315,20 +310,17 @@ INLINE int pivot(int n, cplx *a, int col) {
    row piv[col] >= col are swapped whole, multipliers included), L's multipliers below the
    diagonal, inv[col] = 1 / U[col][col]; 0 on success, 1 when a column is zero. */
 INLINE int lu_factor(int n, cplx *a, int *piv, cplx *inv) {
-    UNROLL
     for (int col = 0; col < n; col++) {
         const int r0 = pivot(n, a, col);
         if (r0 < 0) return 1;
         piv[col] = r0;
         inv[col] = 1.0 / a[col * n + col];
-        UNROLL
         for (int r = col + 1; r < n; r++) {
             const cplx f = a[r * n + col] * inv[col];
             a[r * n + col] = f;
             /* a_rj -= f a_cj with a complex as one SIMD register (re, im): f a_cj = re(f) a_cj
                + (-im(f), im(f)) (im(a_cj), re(a_cj)) */
             const v2 fr = {creal(f), creal(f)}, fi = {-cimag(f), cimag(f)};
-            UNROLL
             for (int j = col + 1; j < n; j++) {
                 const v2 x = load2(a + col * n + j);
                 store2(a + r * n + j, load2(a + r * n + j) - (fr * x + fi * (v2){x[1], x[0]}));
@@ -342,7 +334,6 @@ INLINE int lu_factor(int n, cplx *a, int *piv, cplx *inv) {
    the swaps in order, then L and U; 0 when the solution is finite. */
 INLINE int lu_solve(int n, const cplx *a, const int *piv, const cplx *inv,
                                                           cplx *b, cplx *c) {
-    UNROLL
     for (int col = 0; col < n; col++) {
         const int r = piv[col];
         if (r != col) {
@@ -350,10 +341,8 @@ INLINE int lu_solve(int n, const cplx *a, const int *piv, const cplx *inv,
             if (c) { x = c[col]; c[col] = c[r]; c[r] = x; }
         }
     }
-    UNROLL
     for (int r = 1; r < n; r++) {
         cplx x = b[r], y = c ? c[r] : 0.0;
-        UNROLL
         for (int j = 0; j < r; j++) {
             x -= a[r * n + j] * b[j];
             if (c) y -= a[r * n + j] * c[j];
@@ -361,10 +350,8 @@ INLINE int lu_solve(int n, const cplx *a, const int *piv, const cplx *inv,
         b[r] = x;
         if (c) c[r] = y;
     }
-    UNROLL
     for (int r = n - 1; r >= 0; r--) {
         cplx x = b[r], y = c ? c[r] : 0.0;
-        UNROLL
         for (int j = r + 1; j < n; j++) {
             x -= a[r * n + j] * b[j];
             if (c) y -= a[r * n + j] * c[j];

@@ -607,12 +607,9 @@ int optik_track_paths(int paths, int k, int n, const long *ptr0, const int *col0
 }
 """
 
-_FLAGS = ("-fcx-limited-range", "-O3")
+_FLAGS = ("-fcx-limited-range",)
 """Plain complex arithmetic (no C99 Annex G inf/nan recovery in products and quotients): the
-values tracked are finite and scaled, and the checks reject any non-finite step. ``-O3`` (after
-`optik.native`'s ``-O2``): inlining and vectorization of the 8 x 8 solves and the leg quadrics,
-with the same IEEE arithmetic (no fast-math; contraction stays off), so the same answers bit for
-bit; 13 % fewer instructions in the tracker than ``-O2``."""
+values tracked are finite and scaled, and the checks reject any non-finite step."""
 
 _LIB: list[ctypes.CDLL | None] = []
 

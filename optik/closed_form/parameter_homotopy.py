@@ -142,6 +142,15 @@ INLINE void store2(cplx *out, v2 x) {
     d[0] = x[0];
     d[1] = x[1];
 }
+#ifdef __AVX__
+/* Two consecutive complex numbers as one vector (re, im, re, im) */
+typedef double v4 __attribute__((vector_size(32)));
+INLINE v4 load4(const cplx *x) { return (v4){creal(x[0]), cimag(x[0]), creal(x[1]), cimag(x[1])}; }
+INLINE void store4(cplx *out, v4 x) {
+    double *d = (double *)out;
+    for (int i = 0; i < 4; i++) d[i] = x[i];
+}
+#endif
 /* lane l of x into out */
 INLINE void c2_store(c2 x, int l, cplx *out) { store2(out, (v2){x.re[l], x.im[l]}); }
 
@@ -337,7 +346,16 @@ INLINE int lu_factor(int n, cplx *a, int *piv, cplx *inv) {
             /* a_rj -= f a_cj with a complex as one SIMD register (re, im): f a_cj = re(f) a_cj
                + (-im(f), im(f)) (im(a_cj), re(a_cj)) */
             const v2 fr = {creal(f), creal(f)}, fi = {-cimag(f), cimag(f)};
-            for (int j = col + 1; j < n; j++) {
+            int j = col + 1;
+#ifdef __AVX__
+            /* two complex entries a register, the same operations on each */
+            const v4 fr4 = {fr[0], fr[1], fr[0], fr[1]}, fi4 = {fi[0], fi[1], fi[0], fi[1]};
+            for (; j + 1 < n; j += 2) {
+                const v4 x = load4(a + col * n + j);
+                store4(a + r * n + j, load4(a + r * n + j) - (fr4 * x + fi4 * (v4){x[1], x[0], x[3], x[2]}));
+            }
+#endif
+            for (; j < n; j++) {
                 const v2 x = load2(a + col * n + j);
                 store2(a + r * n + j, load2(a + r * n + j) - (fr * x + fi * (v2){x[1], x[0]}));
             }

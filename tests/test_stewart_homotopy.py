@@ -243,6 +243,16 @@ def test_avx_and_baseline_builds_track_the_same_points_bit_for_bit(monkeypatch):
     assert np.array_equal(z1, z2, equal_nan=True) and np.array_equal(c1, c2) and np.array_equal(r1, r2)
 
 
+def test_a_compiler_that_rejects_the_avx_flags_gets_the_baseline_build(monkeypatch):
+    monkeypatch.setattr(parameter_homotopy, "has_avx", lambda: True)
+    monkeypatch.setattr(parameter_homotopy, "AVX_FLAGS", ("-mno-such-option-optik",))
+    monkeypatch.setattr(parameter_homotopy, "_LIB", [])
+    assert parameter_homotopy.available()
+    _, legs, start = _leg_line(np.random.default_rng(26))
+    res = parameter_homotopy.track(legs, start.solutions, np.random.default_rng(6))
+    assert np.sum(res.status == "regular") >= 30
+
+
 @pytest.mark.parametrize("seed", [23, 24])
 @pytest.mark.parametrize("by_legs", [False, True])
 def test_tracker_condition_numbers_residuals_and_refinement_equal_numpy(seed: int, by_legs: bool):

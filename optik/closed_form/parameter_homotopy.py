@@ -105,9 +105,9 @@ typedef struct { const long *ptr; const int *col; const cplx *val; } csr_t; /* r
 
 /* LANES complex numbers, real and imaginary parts apart, lane l of each vector belonging to one
    of a group of legs: the leg quadrics are evaluated LANES legs at a time in SIMD registers (four
-   with AVX, compiled in where the processor has it (`_FLAGS`): two groups for the six legs,
-   the last two lanes idle; else two, SSE2 on x86-64: three groups; the compiler lowers the
-   vector types to scalars where there is none). Every lane does the same IEEE operations in
+   with AVX, compiled in where the processor has it (AVX_FLAGS): two groups for the six legs,
+   the last two lanes idle (zero); else two, SSE2 on x86-64: three groups; the compiler lowers
+   the vector types to scalars where there is none). Every lane does the same IEEE operations in
    the same order whatever LANES is, so the answers do not depend on it. */
 #ifdef __AVX__
 #define LANES 4

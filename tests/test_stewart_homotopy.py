@@ -227,6 +227,32 @@ def test_leg_line_evaluation_tracks_the_same_paths_as_the_matrices():
     assert np.max(stewart_parameter.relative_residual(mats[0], by_legs.z)) <= 1e-8
 
 
+@pytest.mark.skipif(not parameter_homotopy.has_avx(), reason="needs a processor with AVX")
+def test_avx_and_baseline_builds_track_the_same_points_bit_for_bit(monkeypatch):
+    """The AVX build evaluates four legs a lane group, the baseline one two: the same operations
+    on every lane, so the same end points, statuses and step counts exactly."""
+    _, legs, start = _leg_line(np.random.default_rng(25))
+    runs = {}
+    for flags in (parameter_homotopy._FLAGS, (*parameter_homotopy._FLAGS, *parameter_homotopy.AVX_FLAGS)):
+        monkeypatch.setattr(parameter_homotopy, "has_avx", lambda f=flags: len(f) > 1)
+        monkeypatch.setattr(parameter_homotopy, "_LIB", [])
+        res = parameter_homotopy.track(legs, start.solutions, np.random.default_rng(5), refine=2)
+        runs[flags] = (res.z, res.status, res.steps, res.condition, res.residual)
+    (z1, st1, n1, c1, r1), (z2, st2, n2, c2, r2) = runs.values()
+    assert n1 == n2 and list(st1) == list(st2) and np.sum(st1 == "regular") >= 30
+    assert np.array_equal(z1, z2, equal_nan=True) and np.array_equal(c1, c2) and np.array_equal(r1, r2)
+
+
+def test_a_compiler_that_rejects_the_avx_flags_gets_the_baseline_build(monkeypatch):
+    monkeypatch.setattr(parameter_homotopy, "has_avx", lambda: True)
+    monkeypatch.setattr(parameter_homotopy, "AVX_FLAGS", ("-mno-such-option-optik",))
+    monkeypatch.setattr(parameter_homotopy, "_LIB", [])
+    assert parameter_homotopy.available()
+    _, legs, start = _leg_line(np.random.default_rng(26))
+    res = parameter_homotopy.track(legs, start.solutions, np.random.default_rng(6))
+    assert np.sum(res.status == "regular") >= 30
+
+
 @pytest.mark.parametrize("seed", [23, 24])
 @pytest.mark.parametrize("by_legs", [False, True])
 def test_tracker_condition_numbers_residuals_and_refinement_equal_numpy(seed: int, by_legs: bool):

@@ -782,7 +782,7 @@ class _Tracker:
         self.steps = 0
         # addresses of the arrays every call passes, read once (ndarray.ctypes.data costs about a
         # microsecond; the arrays live as long as the tracker)
-        self._system = (*(a.ctypes.data for c in self.c for a in c), self.gamma.real, self.gamma.imag)
+        self._arrays = tuple(a.ctypes.data for c in self.c for a in c)
         self._patch = self.patch.ctypes.data
         self._legs = None if self.legs is None else self.legs.ctypes.data
 
@@ -828,7 +828,7 @@ class _Tracker:
             ],
         )
         compiled().optik_track_paths(
-            p, self.k, self.n, *self._system, self._patch,
+            p, self.k, self.n, *self._arrays, self.gamma.real, self.gamma.imag, self._patch,
             complex(ta).real, complex(ta).imag, complex(tb).real, complex(tb).imag,
             opts.ctypes.data, z.ctypes.data, status.ctypes.data, tau.ctypes.data, steps.ctypes.data,
             z_mark.ctypes.data, self._legs,
@@ -846,7 +846,7 @@ class _Tracker:
         z = np.ascontiguousarray(z, dtype=complex).copy()
         cond, resid = np.empty(len(z)), np.empty(len(z))
         compiled().optik_finish_paths(
-            len(z), self.k, self.n, *self._system[:9], 1.0, 0.0,
+            len(z), self.k, self.n, *self._arrays, 1.0, 0.0,
             self._patch, 0.0, 0.0, 0.0, 0.0, self._legs,
             iters, z.ctypes.data, cond.ctypes.data, resid.ctypes.data,
         )  # fmt: skip

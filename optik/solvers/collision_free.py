@@ -64,6 +64,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from optik import native
 from optik.checks import as_float
 from optik.collision.check import Search, search
 from optik.collision.robot import robot_geometry
@@ -76,6 +77,7 @@ from optik.problem import IKProblem, build_ik_problem, target_parameters
 from optik.results import IKResult, LazyDistanceResult
 from optik.solvers.base import IKRequest, PreparedCache, make_result, positive_int
 from optik.solvers.collision_kernel import bound_parameters, constrained_functions
+from optik.solvers.collision_nlp import NLPFunctions, nlp_functions
 from optik.solvers.evaluation import ErrorFn, errors_against
 from optik.solvers.iteration_stop import IterationStop
 from optik.solvers.lm import LMCall, lm_result, lm_settings, prepare_kernel, prepare_lm, request_seed
@@ -417,20 +419,29 @@ class ClearStop(IterationStop):
 class _IpoptPool:
     """IPOPT instances of one constrained problem, one per concurrent solve (nlpsol instances
     are not safe to share between threads), each with its `IterationStop` callback (the
-    deadline of the solve running on it: one IPOPT iteration here takes milliseconds, a start
-    hundreds of them) that also stops at a clear answer within the tolerances (`ClearStop`)."""
+    deadline of the solve running on it) that also stops at a clear answer within the tolerances
+    (`ClearStop`).
 
-    def __init__(self, problem: IKProblem, rows: DistanceRows, slots: ca.SX, max_iter: int) -> None:
-        bound, flags = ca.SX.sym("bound"), ca.SX.sym("self_active", rows.self_rows.shape[0])
-        world = rows.active * (rows.world - bound)  # an empty slot's rows are 0 >= 0
-        own = flags * (rows.self_rows - bound)  # so are those of pairs left to the exact check
-        g = ca.vertcat(problem.mechanism.closure_expr, world, own)
-        p = ca.vertcat(problem.parameters, slots, bound, flags)
-        self.nlp = {"x": problem.q, "p": p, "f": problem.objective, "g": g}
-        n_c = problem.mechanism.n_closure
-        self.lbg = ca.DM(np.zeros(g.shape[0]))
-        self.ubg = ca.DM(np.concatenate([np.zeros(n_c), np.full(g.shape[0] - n_c, np.inf)]))
-        self.problem = problem
+    The NLP's functions are `optik.solvers.collision_nlp`'s (small mapped pieces), compiled into
+    one library by `optik.native.library` in the background: until it is loaded the instances
+    evaluate them in CasADi's virtual machine, then new instances call the compiled code
+    (``casadi.external``) and the idle ones of the evaluator are dropped.
+
+    Args:
+        problem: the pose problem.
+        functions: its collision-aware NLP (`optik.solvers.collision_nlp.nlp_functions`).
+        max_iter: IPOPT's iterations per start.
+        compile: `optik.native.library`'s ``compile`` option.
+    """
+
+    def __init__(
+        self, problem: IKProblem, functions: NLPFunctions, max_iter: int, compile: bool | str
+    ) -> None:
+        self.problem, self.functions = problem, functions
+        n_g, n_c = functions.g.size1_out(0), functions.n_closure
+        self.sizes = (functions.f.size1_in(0), n_g, functions.f.size1_in(1))
+        self.lbg = ca.DM(np.zeros(n_g))
+        self.ubg = ca.DM(np.concatenate([np.zeros(n_c), np.full(n_g - n_c, np.inf)]))
         self.options = {
             "print_time": False,
             "ipopt": {
@@ -441,20 +452,50 @@ class _IpoptPool:
                 "acceptable_iter": 0,
             },
         }
-        self._free: list[Any] = []
+        self.library = native.library(functions.all(), compile)
+        self._compiled: list[ca.Function] | None = None
+        self._free: list[tuple[Any, ClearStop, bool]] = []
         self._lock = threading.Lock()
 
-    def take(self) -> tuple[Any, ClearStop]:
-        """An idle ``(nlpsol, its callback)``, or a new one."""
+    def _loaded(self) -> list[ca.Function] | None:
+        """The compiled functions once the library is ready (None before, and without one)."""
+        if self._compiled is None and self.library is not None and self.library.state == "ready":
+            # finite differences only let nlpsol build its gradient of the Lagrangian (``nlp_grad``,
+            # for multipliers nothing reads, never evaluated): the derivatives IPOPT calls are ours
+            path, fd = str(self.library.path), {"enable_fd": True}
+            self._compiled = [ca.external(f.name(), path, fd) for f in self.functions.all()]
+        return self._compiled
+
+    @property
+    def compiled(self) -> bool:
+        """Whether new instances call the compiled functions."""
+        return self._loaded() is not None
+
+    def take(self) -> tuple[Any, ClearStop, bool]:
+        """An idle ``(nlpsol, its callback, compiled)``, or a new one (compiled once it can be)."""
+        compiled = self._loaded()
         with self._lock:
+            if compiled is not None:  # the evaluator's instances are not taken again
+                self._free = [t for t in self._free if t[2]]
             if self._free:
                 return self._free.pop()
-        x, g, p = (self.nlp[k].shape[0] for k in ("x", "g", "p"))
-        stop = ClearStop(x, g, p, self.problem.mechanism.n_closure)
-        options = {**self.options, "iteration_callback": stop, "error_on_fail": False}
-        return ca.nlpsol("optik_collision_ipopt", "ipopt", self.nlp, options), stop
+        f, g, grad_f, jac_g, hess_lag = compiled or self.functions.all()
+        x, p = ca.MX.sym("x", self.sizes[0]), ca.MX.sym("p", self.sizes[2])
+        nlp = {"x": x, "p": p, "f": f(x, p), "g": g(x, p)}
+        stop = ClearStop(*self.sizes, self.functions.n_closure)
+        options = {
+            **self.options,
+            "iteration_callback": stop,
+            "error_on_fail": False,
+            "calc_lam_p": False,  # multipliers nothing reads
+            "calc_lam_x": False,
+            "grad_f": grad_f,
+            "jac_g": jac_g,
+            "hess_lag": hess_lag,
+        }
+        return ca.nlpsol("optik_collision_ipopt", "ipopt", nlp, options), stop, compiled is not None
 
-    def give(self, solver: tuple[Any, ClearStop]) -> None:
+    def give(self, solver: tuple[Any, ClearStop, bool]) -> None:
         with self._lock:
             self._free.append(solver)
 
@@ -466,23 +507,26 @@ def _solve_nlp(
     opts = dict(request.options)
     max_iter = positive_int(opts.pop("max_iter", 200), "max_iter")
     posture = as_float(opts.pop("posture", 1e-9), "posture", 0.0)
+    compile = opts.pop("compile", "auto")
+    if compile not in (True, False, "auto"):
+        raise InvalidArgumentError("compile", f"expected True, False or 'auto', got {compile!r}")
     if opts:
         raise InvalidArgumentError(
-            next(iter(opts)), "unknown option of the collision-aware nlp (max_iter, posture, buffer)"
+            next(iter(opts)), "unknown option of the collision-aware nlp (max_iter, posture, buffer, compile)"
         )
     setup = time.perf_counter()
     # no world rows for an empty world: its slots' rows are constants, but IPOPT pays for each row
     capacity = world.capacity if world.parts else 0
-    key = ("nlp", m, request.task, request.frame, capacity, self_collision, max_iter)
+    key = ("nlp", m, request.task, request.frame, capacity, self_collision, max_iter, compile)
 
     def build() -> _IpoptPool:
         base = build_ik_problem(m, request.task, request.frame)
-        rows, symbols = collision_rows(request, capacity, self_collision)
-        return _IpoptPool(base, rows, symbols, max_iter)
+        functions = nlp_functions(base, robot_geometry(m), capacity, self_collision)
+        return _IpoptPool(base, functions, max_iter, compile)
 
     pool = _cached(key, build)
     taken = pool.take()
-    solver, stop = taken
+    solver, stop, _ = taken
     bounds = bound_parameters(robot_geometry(m), self_collision, margin + buffer)
     request.exclude_setup(setup)
     task = pool.problem.parameter_values(request.target, posture=posture)

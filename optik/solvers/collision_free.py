@@ -69,7 +69,7 @@ from optik.checks import as_float
 from optik.collision.check import Search, search
 from optik.collision.robot import robot_geometry
 from optik.collision.slots import SLOT_SIZE
-from optik.collision.spheres import DistanceRows, capsule_gaps, distance_expressions
+from optik.collision.spheres import capsule_gaps
 from optik.collision.world import World, WorldState, state_of
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
@@ -86,7 +86,6 @@ from optik.solvers.lm_kernel import LMKernel
 __all__ = [
     "METHODS",
     "CollisionCall",
-    "collision_rows",
     "compiled_kernels",
     "prepare_collision_free",
     "solve_collision_free",
@@ -105,17 +104,6 @@ round, exact check included) and the constrained kernel about 2 ms a start; on 4
 of the clutter and the self-collision benchmark scenes (10 ms limit, CPU time, same run),
 starting it after the first colliding round solved 398 and 395 at 0.20 and 0.40 ms mean, after
 four 399 and 399 at 0.15 and 0.20 ms, after eight 400 (clutter) at 0.13 ms."""
-
-
-def collision_rows(request: IKRequest, capacity: int, self_collision: bool) -> tuple[DistanceRows, ca.SX]:
-    """The distance rows of the request's mechanism against a world of ``capacity`` slots
-    (`optik.collision.slots`; every self-collision pair when ``self_collision``), and the slot
-    symbols."""
-    m = request.mechanism
-    geo = robot_geometry(m)
-    slots = ca.SX.sym("world_slots", capacity * SLOT_SIZE)
-    rows = distance_expressions(geo, [m.frame_expr(link) for link in geo.links], slots, self_collision)
-    return rows, slots
 
 
 _CACHE: dict[tuple[Any, ...], Any] = {}
@@ -396,16 +384,21 @@ class ClearStop(IterationStop):
         self.n_closure = n_closure
         self.errors: ErrorFn | None = None
         self.goal = (0.0, 0.0, 0.0)
+        self.first: float | None = None  # perf_counter of the solve's first callback (None: none yet)
         IterationStop.__init__(self, n_x, n_g, n_p, "optik_collision_stop")
 
     def eval_buffer(self, arg: list[memoryview], res: list[memoryview]) -> int:
         """`IterationStop.eval_buffer` with the constraint values ``g`` (the solver's output 2)."""
+        if self.first is None:
+            self.first = time.perf_counter()
         x = np.frombuffer(arg[0], dtype=float).copy()
         g = np.frombuffer(arg[2], dtype=float)
         np.frombuffer(res[0], dtype=float)[0] = float(self.clear(x, g) or self.check(x))
         return 0
 
     def eval(self, arg: list[Any]) -> list[int]:
+        if self.first is None:
+            self.first = time.perf_counter()
         x = np.array(arg[0].nonzeros())
         return [int(self.clear(x, np.array(arg[2].nonzeros())) or self.check(x))]
 
@@ -542,12 +535,18 @@ def _solve_nlp(
     try:
         while True:
             restarts += 1
+            stop.first, began = None, time.perf_counter()
             sol = solver.call({"x0": ca.DM(q0), "p": params, **limits})
             iterations += int(solver.stats().get("iter_count", 0))
-            status = None if request.remaining() > 0 else "time_limit"
+            # IPOPT's work before its first iterate (set-up, first evaluations and factorization):
+            # a new start given less time than that would end at its starting point, late
+            opening = 0.0 if stop.first is None else stop.first - began
+            over = request.remaining() <= opening
             q = np.asarray(sol["x"]).ravel()
-            res = exact.finish(make_result(request, q, "nlp", iterations, restarts, status))
-            if res.success or request.remaining() <= 0:
+            res = exact.finish(
+                make_result(request, q, "nlp", iterations, restarts, "time_limit" if over else None)
+            )
+            if res.success or over:
                 return res
             q0 = m.random_q(seed=rng)
     finally:

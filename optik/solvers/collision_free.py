@@ -33,6 +33,15 @@ between the model and the exact check):
   the rows: on the dual Panda 1104 of them tripled it, to about 30 ms). The Hessian is the exact
   one: IPOPT's limited-memory approximation and a Gauss-Newton Hessian without the rows'
   curvature took 3 to 5 times more iterations there and solved fewer targets in the time limit.
+  IPOPT's functions (``f``, ``g``, their derivatives, the Hessian) are
+  `optik.solvers.collision_nlp`'s, built from one row function mapped over the pairs and the
+  (sphere, slot) rows, and compiled to C in the background (`optik.native`; CasADi's evaluator
+  until then, and for good without a compiler or with the option ``compile=False``). The time
+  limit: the callback stops a start at its first iterate past the deadline, and no restart
+  begins with less time left than the last start took before its first iterate. Dual Panda, an
+  IPOPT iteration (CPU time, loaded machine): 11.6 ms with the rows as one expression in the
+  evaluator, 3.5 ms now (the Hessian 0.6 ms of it; the rest is IPOPT's linear algebra, see
+  `MUMPS_ORDER`).
 
 The world is read once per call (`optik.World.state`: one version, so a `World.move` during the
 solve changes neither the slots nor the exact check of this call) and handed to the generated
@@ -409,6 +418,16 @@ class ClearStop(IterationStop):
         return all(e <= t for e, t in zip(self.errors(x), self.goal, strict=True))
 
 
+MUMPS_ORDER = 0
+"""MUMPS's fill-reducing ordering of IPOPT's KKT systems here (``mumps_pivot_order``: 0 is AMD,
+IPOPT's default 7 lets MUMPS choose). With the hundreds of inequality rows of these NLPs the
+linear algebra, not the functions, took most of an iteration once those were compiled: Panda
+clutter (564 rows), 100 iterations from mid-limit to a pose out of reach, CPU time per iteration
+2.55-2.57 ms with the default against 1.32-1.36 ms with AMD (1.34-1.35 with AMF, 2.6-3.0 with
+PORD, METIS or QAMD); dual Panda (376 rows) 2.7-3.2 against 2.55-2.7 ms. An ordering changes only
+the rounding of the steps: the reference targets took the same iterations and restarts."""
+
+
 class _IpoptPool:
     """IPOPT instances of one constrained problem, one per concurrent solve (nlpsol instances
     are not safe to share between threads), each with its `IterationStop` callback (the
@@ -443,6 +462,7 @@ class _IpoptPool:
                 "max_iter": max_iter,
                 "tol": 1e-14,
                 "acceptable_iter": 0,
+                "mumps_pivot_order": MUMPS_ORDER,
             },
         }
         self.library = native.library(functions.all(), compile)

@@ -394,20 +394,38 @@ class ClearStop(IterationStop):
         self.errors: ErrorFn | None = None
         self.goal = (0.0, 0.0, 0.0)
         self.first: float | None = None  # perf_counter of the solve's first callback (None: none yet)
+        self.last, self.calls = 0.0, 0  # ... of its latest one, and how many there were
         IterationStop.__init__(self, n_x, n_g, n_p, "optik_collision_stop")
+
+    def seen(self) -> None:
+        """Record a callback (the time IPOPT takes before its first iterate, and per iteration)."""
+        self.last, self.calls = time.perf_counter(), self.calls + 1
+        if self.first is None:
+            self.first = self.last
+
+    def start(self) -> float:
+        """Forget the callbacks of the previous solve; the time now."""
+        self.first, self.calls = None, 0
+        return time.perf_counter()
+
+    def needs(self, began: float) -> float:
+        """Seconds the last solve (begun at ``began``) took to its first iterate and then one
+        iteration (its mean): what a new start needs before it can leave its starting point."""
+        if self.first is None:
+            return 0.0
+        step = (self.last - self.first) / (self.calls - 1) if self.calls > 1 else 0.0
+        return self.first - began + step
 
     def eval_buffer(self, arg: list[memoryview], res: list[memoryview]) -> int:
         """`IterationStop.eval_buffer` with the constraint values ``g`` (the solver's output 2)."""
-        if self.first is None:
-            self.first = time.perf_counter()
+        self.seen()
         x = np.frombuffer(arg[0], dtype=float).copy()
         g = np.frombuffer(arg[2], dtype=float)
         np.frombuffer(res[0], dtype=float)[0] = float(self.clear(x, g) or self.check(x))
         return 0
 
     def eval(self, arg: list[Any]) -> list[int]:
-        if self.first is None:
-            self.first = time.perf_counter()
+        self.seen()
         x = np.array(arg[0].nonzeros())
         return [int(self.clear(x, np.array(arg[2].nonzeros())) or self.check(x))]
 
@@ -555,13 +573,12 @@ def _solve_nlp(
     try:
         while True:
             restarts += 1
-            stop.first, began = None, time.perf_counter()
+            began = stop.start()
             sol = solver.call({"x0": ca.DM(q0), "p": params, **limits})
             iterations += int(solver.stats().get("iter_count", 0))
-            # IPOPT's work before its first iterate (set-up, first evaluations and factorization):
-            # a new start given less time than that would end at its starting point, late
-            opening = 0.0 if stop.first is None else stop.first - began
-            over = request.remaining() <= opening
+            # a new start given less time than IPOPT's work to its first iterate (set-up, first
+            # evaluations and factorization) and one iteration would end at its starting point, late
+            over = request.remaining() <= stop.needs(began)
             q = np.asarray(sol["x"]).ravel()
             res = exact.finish(
                 make_result(request, q, "nlp", iterations, restarts, "time_limit" if over else None)

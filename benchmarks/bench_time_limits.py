@@ -9,8 +9,9 @@ excluded from time limits and reported apart), so the table measures the steady 
 * ``lm`` and ``nlp`` (IPOPT): ``solve_ik`` on the Panda, pose targets 2 m out of reach;
 * ``nlp`` collision (IPOPT with the sphere and capsule constraints): ``solve_ik`` on the dual
   Panda, both hands 2 m out of reach, ``self_collision=True`` (one IPOPT iteration of its 15
-  joints and self rows takes milliseconds; skipped without the Panda meshes of
-  example-robot-data);
+  joints and 376 self rows takes milliseconds; skipped without the Panda meshes of
+  example-robot-data), and on the Panda in the cluttered scene of ``optik benchmark collision``
+  (8 boxes, its self pairs too), the pose 2 m out of reach;
 * ``solve_ik_all`` general 6R: the certified solver on a 6R arm with no decomposable closed
   form (`optik.dh_chain`), a pose out of reach (it has no iteration to cut short: the overrun
   is its whole run past the limit);
@@ -64,7 +65,34 @@ def _collision_case() -> dict[str, tuple[Callable[[float, int], object], tuple[f
             duo, far[i % 16], method="nlp", self_collision=True, margin=0.01, time_limit=lim, seed=i
         )
 
-    return {"nlp collision (dual Panda)": (call, (1e-2, 5e-2))}
+    cases = {"nlp collision (dual Panda)": (call, (1e-2, 5e-2))}
+    return {**cases, **_clutter_case()}
+
+
+def _clutter_case() -> dict[str, tuple[Callable[[float, int], object], tuple[float, ...]]]:
+    """The collision-aware ``nlp`` case of the Panda in the cluttered scene of ``optik benchmark
+    collision`` (its SRDF, self-collision too; none without example-robot-data or coal)."""
+    from optik.benchmarks.bench_collision import scene
+    from optik.catalog.robots import robots_dir
+
+    try:
+        d = robots_dir() / "panda_description"
+        m = optik.Mechanism.from_urdf(
+            d / "urdf" / "panda.urdf", "panda_link0", "panda_hand_tcp", srdf=d / "srdf" / "panda.srdf"
+        )
+    except optik.OptikError:
+        return {}
+    if len(optik.collision.robot_geometry(m).links) <= 1:
+        return {}
+    w = scene()
+    far = [_far(m, s) for s in range(16)]
+
+    def call(lim: float, i: int) -> object:
+        return optik.solve_ik(
+            m, far[i % 16], method="nlp", world=w, self_collision=True, margin=0.01, time_limit=lim, seed=i
+        )
+
+    return {"nlp collision (Panda clutter)": (call, (1e-2, 5e-2))}
 
 
 def cases() -> dict[str, tuple[Callable[[float, int], object], tuple[float, ...]]]:

@@ -464,8 +464,8 @@ def test_nlp_clear_stop_and_no_world_rows_for_an_empty_world(arm):
     pools = [v for k, v in _CACHE.items() if k[0] == "nlp" and k[1] is arm and k[4] == 0]
     assert pools
     for pool in pools:  # g: the closures and one row per self pair; p: the task's, the bound, a flag per pair
-        n_self = pool.nlp["g"].shape[0] - arm.n_closure
-        assert pool.nlp["p"].shape[0] == pool.problem.parameters.shape[0] + 1 + n_self
+        n_self = pool.functions.g.size1_out(0) - arm.n_closure
+        assert pool.functions.g.size1_in(1) == pool.problem.parameters.shape[0] + 1 + n_self
 
 
 def _no_calls(arm):

@@ -42,6 +42,7 @@ __all__ = [
     "capsule_gaps",
     "distance_expressions",
     "fit_capsule",
+    "relative_segment_distance",
     "segment_distance",
     "separable_pairs",
     "sphere_model",
@@ -200,7 +201,14 @@ def segment_distance(p1: ca.SX, q1: ca.SX, p2: ca.SX, q2: ca.SX) -> ca.SX:
     *Real-Time Collision Detection*, 5.1.9; each step can only shorten a distance between two
     points of the segments, and the first gives the minimum whenever ``t`` needs no clamping).
     Degenerate segments (points) and parallel ones are covered by a floor on the divisors."""
-    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    return relative_segment_distance(q1 - p1, q2 - p2, p1 - p2)
+
+
+def relative_segment_distance(d1: ca.SX, d2: ca.SX, r: ca.SX) -> ca.SX:
+    """`segment_distance` of the segments ``p1 + s d1`` and ``p2 + t d2`` (``s, t`` in ``[0, 1]``)
+    from their directions and ``r = p1 - p2``: the distance depends on the four points only
+    through these 9 numbers (it is invariant to a common translation), so its Hessian in them
+    is 9 x 9 instead of 12 x 12 (`optik.solvers.collision_nlp`)."""
     a, e, b = ca.dot(d1, d1), ca.dot(d2, d2), ca.dot(d1, d2)
     c, f = ca.dot(d1, r), ca.dot(d2, r)
     tiny = 1e-12

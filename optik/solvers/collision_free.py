@@ -33,6 +33,15 @@ between the model and the exact check):
   the rows: on the dual Panda 1104 of them tripled it, to about 30 ms). The Hessian is the exact
   one: IPOPT's limited-memory approximation and a Gauss-Newton Hessian without the rows'
   curvature took 3 to 5 times more iterations there and solved fewer targets in the time limit.
+  IPOPT's functions (``f``, ``g``, their derivatives, the Hessian) are
+  `optik.solvers.collision_nlp`'s, built from one row function mapped over the pairs and the
+  (sphere, slot) rows, and compiled to C in the background (`optik.native`; CasADi's evaluator
+  until then, and for good without a compiler or with the option ``compile=False``). The time
+  limit: the callback stops a start at its first iterate past the deadline, and no restart
+  begins with less time left than the last start took before its first iterate. Dual Panda, an
+  IPOPT iteration (CPU time, loaded machine): 11.6 ms with the rows as one expression in the
+  evaluator, 3.5 ms now (the Hessian 0.6 ms of it; the rest is IPOPT's linear algebra, see
+  `MUMPS_ORDER`).
 
 The world is read once per call (`optik.World.state`: one version, so a `World.move` during the
 solve changes neither the slots nor the exact check of this call) and handed to the generated
@@ -64,11 +73,12 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from optik import native
 from optik.checks import as_float
 from optik.collision.check import Search, search
 from optik.collision.robot import robot_geometry
 from optik.collision.slots import SLOT_SIZE
-from optik.collision.spheres import DistanceRows, capsule_gaps, distance_expressions
+from optik.collision.spheres import capsule_gaps
 from optik.collision.world import World, WorldState, state_of
 from optik.errors import InvalidArgumentError, SolverUnavailableError
 from optik.mechanism import Mechanism
@@ -76,6 +86,7 @@ from optik.problem import IKProblem, build_ik_problem, target_parameters
 from optik.results import IKResult, LazyDistanceResult
 from optik.solvers.base import IKRequest, PreparedCache, make_result, positive_int
 from optik.solvers.collision_kernel import bound_parameters, constrained_functions
+from optik.solvers.collision_nlp import NLPFunctions, nlp_functions
 from optik.solvers.evaluation import ErrorFn, errors_against
 from optik.solvers.iteration_stop import IterationStop
 from optik.solvers.lm import LMCall, lm_result, lm_settings, prepare_kernel, prepare_lm, request_seed
@@ -84,7 +95,6 @@ from optik.solvers.lm_kernel import LMKernel
 __all__ = [
     "METHODS",
     "CollisionCall",
-    "collision_rows",
     "compiled_kernels",
     "prepare_collision_free",
     "solve_collision_free",
@@ -103,17 +113,6 @@ round, exact check included) and the constrained kernel about 2 ms a start; on 4
 of the clutter and the self-collision benchmark scenes (10 ms limit, CPU time, same run),
 starting it after the first colliding round solved 398 and 395 at 0.20 and 0.40 ms mean, after
 four 399 and 399 at 0.15 and 0.20 ms, after eight 400 (clutter) at 0.13 ms."""
-
-
-def collision_rows(request: IKRequest, capacity: int, self_collision: bool) -> tuple[DistanceRows, ca.SX]:
-    """The distance rows of the request's mechanism against a world of ``capacity`` slots
-    (`optik.collision.slots`; every self-collision pair when ``self_collision``), and the slot
-    symbols."""
-    m = request.mechanism
-    geo = robot_geometry(m)
-    slots = ca.SX.sym("world_slots", capacity * SLOT_SIZE)
-    rows = distance_expressions(geo, [m.frame_expr(link) for link in geo.links], slots, self_collision)
-    return rows, slots
 
 
 _CACHE: dict[tuple[Any, ...], Any] = {}
@@ -394,16 +393,39 @@ class ClearStop(IterationStop):
         self.n_closure = n_closure
         self.errors: ErrorFn | None = None
         self.goal = (0.0, 0.0, 0.0)
+        self.first: float | None = None  # perf_counter of the solve's first callback (None: none yet)
+        self.last, self.calls = 0.0, 0  # ... of its latest one, and how many there were
         IterationStop.__init__(self, n_x, n_g, n_p, "optik_collision_stop")
+
+    def seen(self) -> None:
+        """Record a callback (the time IPOPT takes before its first iterate, and per iteration)."""
+        self.last, self.calls = time.perf_counter(), self.calls + 1
+        if self.first is None:
+            self.first = self.last
+
+    def start(self) -> float:
+        """Forget the callbacks of the previous solve; the time now."""
+        self.first, self.calls = None, 0
+        return time.perf_counter()
+
+    def needs(self, began: float) -> float:
+        """Seconds the last solve (begun at ``began``) took to its first iterate and then one
+        iteration (its mean): what a new start needs before it can leave its starting point."""
+        if self.first is None:
+            return 0.0
+        step = (self.last - self.first) / (self.calls - 1) if self.calls > 1 else 0.0
+        return self.first - began + step
 
     def eval_buffer(self, arg: list[memoryview], res: list[memoryview]) -> int:
         """`IterationStop.eval_buffer` with the constraint values ``g`` (the solver's output 2)."""
+        self.seen()
         x = np.frombuffer(arg[0], dtype=float).copy()
         g = np.frombuffer(arg[2], dtype=float)
         np.frombuffer(res[0], dtype=float)[0] = float(self.clear(x, g) or self.check(x))
         return 0
 
     def eval(self, arg: list[Any]) -> list[int]:
+        self.seen()
         x = np.array(arg[0].nonzeros())
         return [int(self.clear(x, np.array(arg[2].nonzeros())) or self.check(x))]
 
@@ -414,23 +436,42 @@ class ClearStop(IterationStop):
         return all(e <= t for e, t in zip(self.errors(x), self.goal, strict=True))
 
 
+MUMPS_ORDER = 0
+"""MUMPS's fill-reducing ordering of IPOPT's KKT systems here (``mumps_pivot_order``: 0 is AMD,
+IPOPT's default 7 lets MUMPS choose). With the hundreds of inequality rows of these NLPs the
+linear algebra, not the functions, took most of an iteration once those were compiled: Panda
+clutter (564 rows), 100 iterations from mid-limit to a pose out of reach, CPU time per iteration
+2.55-2.57 ms with the default against 1.32-1.36 ms with AMD (1.34-1.35 with AMF, 2.6-3.0 with
+PORD, METIS or QAMD); dual Panda (376 rows) 2.7-3.2 against 2.55-2.7 ms. An ordering changes only
+the rounding of the steps: the reference targets took the same iterations and restarts."""
+
+
 class _IpoptPool:
     """IPOPT instances of one constrained problem, one per concurrent solve (nlpsol instances
     are not safe to share between threads), each with its `IterationStop` callback (the
-    deadline of the solve running on it: one IPOPT iteration here takes milliseconds, a start
-    hundreds of them) that also stops at a clear answer within the tolerances (`ClearStop`)."""
+    deadline of the solve running on it) that also stops at a clear answer within the tolerances
+    (`ClearStop`).
 
-    def __init__(self, problem: IKProblem, rows: DistanceRows, slots: ca.SX, max_iter: int) -> None:
-        bound, flags = ca.SX.sym("bound"), ca.SX.sym("self_active", rows.self_rows.shape[0])
-        world = rows.active * (rows.world - bound)  # an empty slot's rows are 0 >= 0
-        own = flags * (rows.self_rows - bound)  # so are those of pairs left to the exact check
-        g = ca.vertcat(problem.mechanism.closure_expr, world, own)
-        p = ca.vertcat(problem.parameters, slots, bound, flags)
-        self.nlp = {"x": problem.q, "p": p, "f": problem.objective, "g": g}
-        n_c = problem.mechanism.n_closure
-        self.lbg = ca.DM(np.zeros(g.shape[0]))
-        self.ubg = ca.DM(np.concatenate([np.zeros(n_c), np.full(g.shape[0] - n_c, np.inf)]))
-        self.problem = problem
+    The NLP's functions are `optik.solvers.collision_nlp`'s (small mapped pieces), compiled into
+    one library by `optik.native.library` in the background: until it is loaded the instances
+    evaluate them in CasADi's virtual machine, then new instances call the compiled code
+    (``casadi.external``) and the idle ones of the evaluator are dropped.
+
+    Args:
+        problem: the pose problem.
+        functions: its collision-aware NLP (`optik.solvers.collision_nlp.nlp_functions`).
+        max_iter: IPOPT's iterations per start.
+        compile: `optik.native.library`'s ``compile`` option.
+    """
+
+    def __init__(
+        self, problem: IKProblem, functions: NLPFunctions, max_iter: int, compile: bool | str
+    ) -> None:
+        self.problem, self.functions = problem, functions
+        n_g, n_c = functions.g.size1_out(0), functions.n_closure
+        self.sizes = (functions.f.size1_in(0), n_g, functions.f.size1_in(1))
+        self.lbg = ca.DM(np.zeros(n_g))
+        self.ubg = ca.DM(np.concatenate([np.zeros(n_c), np.full(n_g - n_c, np.inf)]))
         self.options = {
             "print_time": False,
             "ipopt": {
@@ -439,22 +480,53 @@ class _IpoptPool:
                 "max_iter": max_iter,
                 "tol": 1e-14,
                 "acceptable_iter": 0,
+                "mumps_pivot_order": MUMPS_ORDER,
             },
         }
-        self._free: list[Any] = []
+        self.library = native.library(functions.all(), compile)
+        self._compiled: list[ca.Function] | None = None
+        self._free: list[tuple[Any, ClearStop, bool]] = []
         self._lock = threading.Lock()
 
-    def take(self) -> tuple[Any, ClearStop]:
-        """An idle ``(nlpsol, its callback)``, or a new one."""
+    def _loaded(self) -> list[ca.Function] | None:
+        """The compiled functions once the library is ready (None before, and without one)."""
+        if self._compiled is None and self.library is not None and self.library.state == "ready":
+            # finite differences only let nlpsol build its gradient of the Lagrangian (``nlp_grad``,
+            # for multipliers nothing reads, never evaluated): the derivatives IPOPT calls are ours
+            path, fd = str(self.library.path), {"enable_fd": True}
+            self._compiled = [ca.external(f.name(), path, fd) for f in self.functions.all()]
+        return self._compiled
+
+    @property
+    def compiled(self) -> bool:
+        """Whether new instances call the compiled functions."""
+        return self._loaded() is not None
+
+    def take(self) -> tuple[Any, ClearStop, bool]:
+        """An idle ``(nlpsol, its callback, compiled)``, or a new one (compiled once it can be)."""
+        compiled = self._loaded()
         with self._lock:
+            if compiled is not None:  # the evaluator's instances are not taken again
+                self._free = [t for t in self._free if t[2]]
             if self._free:
                 return self._free.pop()
-        x, g, p = (self.nlp[k].shape[0] for k in ("x", "g", "p"))
-        stop = ClearStop(x, g, p, self.problem.mechanism.n_closure)
-        options = {**self.options, "iteration_callback": stop, "error_on_fail": False}
-        return ca.nlpsol("optik_collision_ipopt", "ipopt", self.nlp, options), stop
+        f, g, grad_f, jac_g, hess_lag = compiled or self.functions.all()
+        x, p = ca.MX.sym("x", self.sizes[0]), ca.MX.sym("p", self.sizes[2])
+        nlp = {"x": x, "p": p, "f": f(x, p), "g": g(x, p)}
+        stop = ClearStop(*self.sizes, self.functions.n_closure)
+        options = {
+            **self.options,
+            "iteration_callback": stop,
+            "error_on_fail": False,
+            "calc_lam_p": False,  # multipliers nothing reads
+            "calc_lam_x": False,
+            "grad_f": grad_f,
+            "jac_g": jac_g,
+            "hess_lag": hess_lag,
+        }
+        return ca.nlpsol("optik_collision_ipopt", "ipopt", nlp, options), stop, compiled is not None
 
-    def give(self, solver: tuple[Any, ClearStop]) -> None:
+    def give(self, solver: tuple[Any, ClearStop, bool]) -> None:
         with self._lock:
             self._free.append(solver)
 
@@ -466,23 +538,26 @@ def _solve_nlp(
     opts = dict(request.options)
     max_iter = positive_int(opts.pop("max_iter", 200), "max_iter")
     posture = as_float(opts.pop("posture", 1e-9), "posture", 0.0)
+    compile = opts.pop("compile", "auto")
+    if compile not in (True, False, "auto"):
+        raise InvalidArgumentError("compile", f"expected True, False or 'auto', got {compile!r}")
     if opts:
         raise InvalidArgumentError(
-            next(iter(opts)), "unknown option of the collision-aware nlp (max_iter, posture, buffer)"
+            next(iter(opts)), "unknown option of the collision-aware nlp (max_iter, posture, buffer, compile)"
         )
     setup = time.perf_counter()
     # no world rows for an empty world: its slots' rows are constants, but IPOPT pays for each row
     capacity = world.capacity if world.parts else 0
-    key = ("nlp", m, request.task, request.frame, capacity, self_collision, max_iter)
+    key = ("nlp", m, request.task, request.frame, capacity, self_collision, max_iter, compile)
 
     def build() -> _IpoptPool:
         base = build_ik_problem(m, request.task, request.frame)
-        rows, symbols = collision_rows(request, capacity, self_collision)
-        return _IpoptPool(base, rows, symbols, max_iter)
+        functions = nlp_functions(base, robot_geometry(m), capacity, self_collision)
+        return _IpoptPool(base, functions, max_iter, compile)
 
     pool = _cached(key, build)
     taken = pool.take()
-    solver, stop = taken
+    solver, stop, _ = taken
     bounds = bound_parameters(robot_geometry(m), self_collision, margin + buffer)
     request.exclude_setup(setup)
     task = pool.problem.parameter_values(request.target, posture=posture)
@@ -498,12 +573,17 @@ def _solve_nlp(
     try:
         while True:
             restarts += 1
+            began = stop.start()
             sol = solver.call({"x0": ca.DM(q0), "p": params, **limits})
             iterations += int(solver.stats().get("iter_count", 0))
-            status = None if request.remaining() > 0 else "time_limit"
+            # a new start given less time than IPOPT's work to its first iterate (set-up, first
+            # evaluations and factorization) and one iteration would end at its starting point, late
+            over = request.remaining() <= stop.needs(began)
             q = np.asarray(sol["x"]).ravel()
-            res = exact.finish(make_result(request, q, "nlp", iterations, restarts, status))
-            if res.success or request.remaining() <= 0:
+            res = exact.finish(
+                make_result(request, q, "nlp", iterations, restarts, "time_limit" if over else None)
+            )
+            if res.success or over:
                 return res
             q0 = m.random_q(seed=rng)
     finally:

@@ -92,7 +92,7 @@ import logging
 import math
 import threading
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 from typing import Any
@@ -1339,6 +1339,12 @@ def _compiled() -> bool:
     return _SOLVE.get() is not None and _lapack() is not None
 
 
+def _flagged(base: General6RSolutions, q: np.ndarray, fk_error: float, reason: str) -> General6RSolutions:
+    """``base``'s counts with another set of verified rows ``q``, flagged (count check not
+    passed): the answer of a union of two pipelines or of an added perturbed arm's rows."""
+    return replace(base, q=q, fk_error=fk_error, count_ok=False, reason=reason, errors=None)
+
+
 def _union(first: General6RSolutions, second: General6RSolutions) -> General6RSolutions:
     """Both verified sets of one target (each row passed the FK check), deduplicated, flagged:
     near special geometry the compiled and the numpy eliminations (the same algebra, other
@@ -1348,16 +1354,7 @@ def _union(first: General6RSolutions, second: General6RSolutions) -> General6RSo
         f"{first.reason}; {len(merged) - len(first.q)} more from the numpy pipeline "
         f"({second.reason.removeprefix('count check failed: ')})"
     )
-    return General6RSolutions(
-        merged,
-        first.n_finite,
-        first.n_real_candidates,
-        first.n_complex,
-        first.n_rejected,
-        max(first.fk_error, second.fk_error),
-        False,
-        reason,
-    )
+    return _flagged(first, merged, max(first.fk_error, second.fk_error), reason)
 
 
 def _add(sols: General6RSolutions, q: np.ndarray, err: np.ndarray) -> General6RSolutions:
@@ -1368,16 +1365,7 @@ def _add(sols: General6RSolutions, q: np.ndarray, err: np.ndarray) -> General6RS
     added = len(merged) - len(sols.q)
     fk_error = max(sols.fk_error, float(np.max(err[err <= FK_TOL], initial=0.0)))
     reason = f"{sols.reason}; {added} more from a generic arm {PERTURBATION:g} away (not certified)"
-    return General6RSolutions(
-        merged,
-        sols.n_finite,
-        sols.n_real_candidates,
-        sols.n_complex,
-        sols.n_rejected,
-        fk_error,
-        False,
-        reason,
-    )
+    return _flagged(sols, merged, fk_error, reason)
 
 
 def _refine(
@@ -1420,13 +1408,9 @@ def _merge(
     q = rev.q[:, ::-1] if rev.count_ok else _dedup(np.vstack([fwd.q, rev.q[:, ::-1]]))
     err = float(np.max(_fk_errors(fk(q), target, scale), initial=0.0)) if len(q) else 0.0
     if rev.count_ok:
-        return General6RSolutions(
-            q, rev.n_finite, rev.n_real_candidates, rev.n_complex, rev.n_rejected, err, True, rev.reason
-        )
+        return replace(rev, q=q, fk_error=err, errors=None)
     reason = f"{fwd.reason}; from the other end: {rev.reason.removeprefix('count check failed: ')}"
-    return General6RSolutions(
-        q, fwd.n_finite, fwd.n_real_candidates, fwd.n_complex, fwd.n_rejected, err, False, reason
-    )
+    return _flagged(fwd, q, err, reason)
 
 
 def covers(arm: Mechanism | General6R) -> bool:

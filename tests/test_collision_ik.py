@@ -695,3 +695,29 @@ def test_a_clear_answer_settles_once_across_threads_and_replaces(arm):
     other = dataclasses.replace(fresh, message="changed")
     assert other.message == "changed" and other.min_distance == report.min_distance
     assert other.collision_pair == report.pair and np.array_equal(other.q, fresh.q)
+
+
+def test_solve_time_covers_the_exact_check(arm):
+    """``solve_time`` is the wall time of the whole call, the exact check of the answer included:
+    with a cloud of 2000 points around the arm (2 m away: clear, but each point a slot the
+    screening bounds of the check evaluate) the check takes most of a call, on the prepared call
+    (an int seed) and on the general path (a Generator seed, which the prepared call leaves to it)."""
+    import time
+
+    w = World()
+    d = np.random.default_rng(0).normal(size=(2000, 3))
+    w.add_points("cloud", 2.0 * d / np.linalg.norm(d, axis=1, keepdims=True), 0.01)
+    target = spatial.translation(*arm.fk(np.array([0.3, 1.2]))[:3, 3])
+    kw = dict(task="position", world=w, margin=MARGIN, time_limit=5.0)
+    _no_calls(arm)
+    assert optik.solve_ik(arm, target, seed=0, **kw).success  # builds what the calls below read
+    for seed in (lambda i: i, np.random.default_rng):
+        ratios = []
+        for i in range(5):
+            t0 = time.perf_counter()
+            res = optik.solve_ik(arm, target, seed=seed(i), **kw)
+            wall = time.perf_counter() - t0
+            assert res.success and res.solve_time <= wall
+            ratios.append(res.solve_time / wall)
+        assert max(ratios) >= 0.9, ratios
+    _prepared_call(arm)  # the int seeds went through it

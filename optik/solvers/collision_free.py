@@ -51,7 +51,10 @@ when it is not clear. The answers are the general path's.
 answer, after the tolerances: a start whose answer the check finds closer than the margin is
 rejected and the search goes on from a new random start until the time limit. The result
 carries ``min_distance`` and ``collision_pair`` (the closest pair at ``q``); a failure says
-which pair blocked when the pose was reached but the answer collides.
+which pair blocked when the pose was reached but the answer collides. Its ``solve_time`` is set
+last, after the exact check of the answer returned (on every path: the prepared call, ``lm``'s
+rounds, ``nlp``), so it is the wall time of the whole call; the full search that a clear answer's
+``min_distance`` makes when first read (`optik.results.LazyDistanceResult`) is the reader's.
 """
 
 from __future__ import annotations
@@ -316,6 +319,7 @@ def _solve_lm(
     res = exact.complete(res)
     if not res.success and res.status in ("not_converged", "max_restarts"):
         res.status = "time_limit"  # the rounds end only at a success or at the time limit
+    res.solve_time = request.elapsed()  # the exact checks included
     return res
 
 
@@ -326,7 +330,8 @@ class CollisionCall:
 
     The first round is ``lm``'s own prepared call (`optik.solvers.lm.LMCall`: one C call, the
     unconstrained kernel from ``q0`` with the seed), whose answer the exact check judges against
-    the world read once here (`optik.World.state`); a clear answer is the result, any other goes
+    the world read once here (`optik.World.state`); a clear answer is the result (its
+    ``solve_time`` from ``start`` to the end of that check), any other goes
     on through the rounds of `_solve_lm` from it (same answers as the general path: the same
     kernel, seed and rounds). It returns None before solving, for the general path to take the
     call, when ``lm``'s call does (input it does not take, code not built) and for a seed that
@@ -367,6 +372,7 @@ class CollisionCall:
         m = self.request.mechanism
         res = _Exact(m, state, self_collision, margin).finish(res, stop=True)
         if res.success:
+            res.solve_time = time.perf_counter() - start  # the exact check included
             return res
         request = dataclasses.replace(
             self.request,
@@ -504,6 +510,7 @@ def _solve_nlp(
             q = np.asarray(sol["x"]).ravel()
             res = exact.finish(make_result(request, q, "nlp", iterations, restarts, status))
             if res.success or request.remaining() <= 0:
+                res.solve_time = request.elapsed()  # the exact check included
                 return res
             q0 = m.random_q(seed=rng)
     finally:

@@ -721,3 +721,43 @@ def test_solve_time_covers_the_exact_check(arm):
             ratios.append(res.solve_time / wall)
         assert max(ratios) >= 0.9, ratios
     _prepared_call(arm)  # the int seeds went through it
+
+
+def test_panda_in_clutter_prepared_calls_decide_clear_answers_in_the_lm_call():
+    """With the coarse screen compiled, the prepared call tests its answer in the LM call
+    (`optik.collision.check.ClearTest`): most clear answers need no search, and the answers are
+    the general path's (an ``np.int64`` seed takes it), every success clear by the exact check."""
+    from optik import native
+    from optik.benchmarks.bench_collision import scene
+    from optik.catalog.robots import robots_dir
+
+    try:
+        d = robots_dir() / "panda_description"
+    except optik.MissingExtraError:
+        pytest.skip("example-robot-data (extra 'robots') is not installed")
+    m = optik.Mechanism.from_urdf(
+        d / "urdf" / "panda.urdf", "panda_link0", "panda_hand_tcp", srdf=d / "srdf" / "panda.srdf"
+    )
+    w = scene()
+    rng = np.random.default_rng(12)
+    targets = []
+    while len(targets) < 40:
+        q = m.random_q(seed=rng)
+        if not check(m, q, w, margin=0.01).in_collision:
+            targets.append(m.fk(q))
+    kw = dict(world=w, margin=0.01, time_limit=5.0)
+    _no_calls(m)
+    optik.solve_ik(m, targets[0], seed=0, **kw)
+    native.wait(600)
+    call = _prepared_call(m)
+    verdicts = []
+    for i, target in enumerate(targets):
+        prepared = optik.solve_ik(m, target, seed=i, **kw)
+        judges = getattr(call._local, "judges", None)
+        if judges is None or judges[1] is None:
+            pytest.skip("no compiled screen (no C compiler)")
+        verdicts.append(int(judges[1].verdict[0]))
+        general = optik.solve_ik(m, target, seed=np.int64(i), **kw)
+        _same(prepared, general)
+        assert prepared.success and not check(m, prepared.q, w, margin=0.01).in_collision
+    assert verdicts.count(1) > len(targets) / 2 and 0 in verdicts

@@ -68,8 +68,9 @@ import casadi as ca
 import numpy as np
 
 from optik.checks import as_float
-from optik.collision.check import Search, search
+from optik.collision.check import ClearTest, Search, search
 from optik.collision.robot import robot_geometry
+from optik.collision.screen import screen
 from optik.collision.slots import SLOT_SIZE
 from optik.collision.spheres import DistanceRows, capsule_gaps, distance_expressions
 from optik.collision.world import World, WorldState, state_of
@@ -171,18 +172,24 @@ class _Exact:
         self.geo, self.world = robot_geometry(m), world
         self.self_collision, self.margin = self_collision, margin
 
-    def finish(self, res: IKResult, stop: bool = False) -> IKResult:
+    def finish(self, res: IKResult, stop: bool = False, outputs: list[np.ndarray] | None = None) -> IKResult:
         """``res`` judged by the exact check as well (see the module docstring), with the distance
         and the names of the closest pair of its ``q``; with ``stop``, the search only decides
         (`optik.collision.check.search`): an answer that collides is rejected at its first close
         pair (`complete` makes the distance, the pair and the message exact for the answer
         returned), a clear success is a `LazyDistanceResult` whose distance and pair the full
-        search makes when they are first read."""
-        found = search(self.geo, res.q, self.world, self.margin, self.self_collision, stop)
+        search makes when they are first read. ``outputs``: the coarse screen's at ``res.q``, made
+        already (`optik.collision.check.search`)."""
+        found = search(self.geo, res.q, self.world, self.margin, self.self_collision, stop, outputs)
         if stop and res.success and not found.in_collision:
-            q = res.q.copy()  # the q judged, whatever a caller later does to the result's array
-            return LazyDistanceResult(res, lambda: self._nearest(q))
+            return self.clear(res)
         return self._judged(res, found, res.success, False)
+
+    def clear(self, res: IKResult) -> LazyDistanceResult:
+        """A success ``res`` the search with ``stop`` finds clear, as `finish` returns it: its
+        distance and pair made by the full search when first read."""
+        q = res.q.copy()  # the q judged, whatever a caller later does to the result's array
+        return LazyDistanceResult(res, lambda: self._nearest(q))
 
     def _nearest(self, q: np.ndarray) -> tuple[float, tuple[str, str] | None]:
         """The exact smallest distance at ``q`` and the names of its pair (the full search)."""
@@ -338,6 +345,12 @@ class CollisionCall:
     is not None or an int in ``[0, 2^63)`` (a Generator's draw would be taken twice), a world that
     is not an `optik.World` or None (the general path names it).
 
+    The exact check's first decision runs in that same C call once the coarse screen is
+    compiled (`optik.collision.check.ClearTest`, one per thread and world version): an answer
+    kept as it is whose screening bounds are all above the margin is clear with no Python
+    search (3 in 4 of the Panda's clutter answers); any other answer is judged by the search,
+    as before. Same answers either way: the test is the search's own first step.
+
     Args:
         request: the first, validated request (its collision options ``buffer`` and
             ``plain_rounds`` split off: `_split_options`).
@@ -356,6 +369,20 @@ class CollisionCall:
     ) -> None:
         self.request, self.plain = request, plain
         self.settings = (self_collision, margin, buffer, plain_rounds)
+        self._local = threading.local()  # this thread's (_Exact, ClearTest or None) of a world version
+
+    def _judges(self, state: WorldState) -> tuple[_Exact, ClearTest | None]:
+        """This thread's exact check of ``state`` and its `ClearTest` (None until the coarse
+        screen is compiled), made again for another world version."""
+        got = getattr(self._local, "judges", None)
+        if got is not None and got[0].world is state and got[1] is not None:
+            return got
+        self_collision, margin, _, _ = self.settings
+        exact = _Exact(self.request.mechanism, state, self_collision, margin)
+        clear = screen(exact.geo, state.capacity, coarse=True).clear_function()
+        test = None if clear is None else ClearTest(exact.geo, state, margin, self_collision, clear)
+        got = self._local.judges = (exact, test)
+        return got
 
     def __call__(self, start: float, target: np.ndarray, q0: Any, seed: Any, world: Any) -> IKResult | None:
         """Solve for ``target`` from ``q0`` (None: mid-limit) with seed ``seed`` clear of ``world``;
@@ -364,16 +391,25 @@ class CollisionCall:
             return None
         if world is not None and not isinstance(world, World):
             return None
-        res = self.plain(start, target, q0, seed)
+        state = state_of(world)
+        exact, test = self._judges(state)
+        if test is None:
+            res = self.plain(start, target, q0, seed)
+        else:
+            test.verdict[0] = -1
+            res = self.plain(start, target, q0, seed, test.address)
         if res is None:
             return None
-        self_collision, margin, buffer, plain_rounds = self.settings
-        state = state_of(world)
-        m = self.request.mechanism
-        res = _Exact(m, state, self_collision, margin).finish(res, stop=True)
+        verdict = -1 if test is None else test.verdict[0]
+        if verdict == 1:  # a success the bounds alone find clear
+            res = exact.clear(res)
+        else:  # the search decides (from the test's screen outputs at res.q when it ran)
+            res = exact.finish(res, stop=True, outputs=None if verdict == -1 else test.outputs)
         if res.success:
             res.solve_time = time.perf_counter() - start  # the exact check included
             return res
+        self_collision, margin, buffer, plain_rounds = self.settings
+        m = self.request.mechanism
         request = dataclasses.replace(
             self.request,
             target=target,

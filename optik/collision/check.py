@@ -12,7 +12,9 @@ be the closest, closer than the margin, or touching. The witness points are read
 for the pairs reported. A part no joint moves (`RobotGeometry.fixed_parts`: the Panda's base
 link) is as far from each object at every ``q``: its coal entries are kept per world version once
 found, their distance taken as their bound (the Panda's base on its table was the least coarse
-bound, so coal's first query, at nearly every configuration).
+bound, so coal's first query, at nearly every configuration). `ClearTest` is the search's first
+decision with ``stop`` (no bound under the margin: clear, no coal query) as a C check that a
+compiled solve runs on its answer in its own C call (`optik.solvers.collision_free.CollisionCall`).
 
 ``in_collision`` is True when some pair is closer than ``margin`` or touches (distance
 ``<= 0``): at ``margin=0`` it means contact or penetration; with a margin, a clearance below

@@ -23,7 +23,9 @@ class IKResult:
         closure_error: max-norm of the loop-closure residual (0 for open chains).
         limits_ok: ``lower <= q <= upper`` holds exactly.
         iterations: solver iterations (summed over restarts).
-        solve_time: wall time of the call (s), failures included.
+        solve_time: wall time of the call (s), failures included; for a collision-aware solve
+            the exact check of the answer included (not the full search for the nearest pair
+            that a clear answer's ``min_distance`` makes when first read).
         method: the method that produced ``q`` (``"lm"``, ``"nlp"``, ``"closed_form"``, ...).
         status: short machine-readable status (``"solved"``, ``"unreachable"``, ``"time_limit"``,
             ``"outside_limits"``, ``"not_found"``: a closed form not certified complete found no

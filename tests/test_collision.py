@@ -703,3 +703,41 @@ def test_self_pairs_left_do_not_refine_the_world_bounds():
     ds = [signed_distance(geo.parts[i], poses[i], geo.parts[j], poses[j])[0] for i, j in geo.self_pairs]
     ds += [signed_distance(p, poses[i], o, o.offset)[0] for i, p in enumerate(geo.parts) for o in w.parts()]
     assert found.nearest[0] == pytest.approx(min(ds), abs=1e-9) and not found.close
+
+
+@pytest.mark.parametrize(("margin", "self_collision"), [(0.0, True), (0.02, True), (0.02, False)])
+def test_the_clear_test_is_the_stopped_searchs_first_decision(tmp_path, margin, self_collision):
+    """`check.ClearTest` (the C test a collision-aware solve runs in its LM call): clear exactly
+    where ``search(..., stop=True)`` finds no bound under the limit and makes no coal query, at
+    clear and colliding configurations of the Panda among every kind of obstacle, its base's
+    known distances included; its screen outputs are the screen's own, which the search reads."""
+    import ctypes
+
+    from optik import native
+    from optik.collision.check import ClearTest, search
+    from optik.collision.screen import screen
+
+    m, _ = _panda()
+    w = _cluttered_world(tmp_path)
+    geo, state = robot_geometry(m), w.state()
+    coarse = screen(geo, state.capacity, coarse=True)
+    native.wait(600)
+    clear = coarse.clear_function()
+    if clear is None:
+        pytest.skip("no compiled screen (no C compiler)")
+    test = ClearTest(geo, state, margin, self_collision, clear)
+    run = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p)(clear[0])
+    n_self = len(geo.self_pairs) if self_collision else 0
+    verdicts = []
+    for q in m.random_q(200, seed=31):
+        test.verdict[0] = -1
+        assert run(test.address + ctypes.sizeof(ctypes.c_void_p), q.ctypes.data) == 0
+        verdicts.append(int(test.verdict[0]))
+        mine = coarse.pair_bounds(q, state.slots, len(state.parts), n_self, test.outputs)
+        mine = mine[0].copy(), mine[1].copy()
+        own = coarse.pair_bounds(q, state.slots, len(state.parts), n_self)
+        assert np.array_equal(mine[0], own[0]) and np.array_equal(mine[1], own[1])
+        found = search(geo, q, state, margin, self_collision, stop=True)
+        assert (verdicts[-1] == 1) == (found.checked == 0 and not found.in_collision)
+    assert set(verdicts) == {0, 1}
+    assert test.use.any()  # the base link's entries against the table were read

@@ -695,3 +695,69 @@ def test_a_clear_answer_settles_once_across_threads_and_replaces(arm):
     other = dataclasses.replace(fresh, message="changed")
     assert other.message == "changed" and other.min_distance == report.min_distance
     assert other.collision_pair == report.pair and np.array_equal(other.q, fresh.q)
+
+
+def test_solve_time_covers_the_exact_check(arm):
+    """``solve_time`` is the wall time of the whole call, the exact check of the answer included:
+    with a cloud of 2000 points around the arm (2 m away: clear, but each point a slot the
+    screening bounds of the check evaluate) the check takes most of a call, on the prepared call
+    (an int seed) and on the general path (a Generator seed, which the prepared call leaves to it)."""
+    import time
+
+    w = World()
+    d = np.random.default_rng(0).normal(size=(2000, 3))
+    w.add_points("cloud", 2.0 * d / np.linalg.norm(d, axis=1, keepdims=True), 0.01)
+    target = spatial.translation(*arm.fk(np.array([0.3, 1.2]))[:3, 3])
+    kw = dict(task="position", world=w, margin=MARGIN, time_limit=5.0)
+    _no_calls(arm)
+    assert optik.solve_ik(arm, target, seed=0, **kw).success  # builds what the calls below read
+    for seed in (lambda i: i, np.random.default_rng):
+        ratios = []
+        for i in range(5):
+            t0 = time.perf_counter()
+            res = optik.solve_ik(arm, target, seed=seed(i), **kw)
+            wall = time.perf_counter() - t0
+            assert res.success and res.solve_time <= wall
+            ratios.append(res.solve_time / wall)
+        assert max(ratios) >= 0.9, ratios
+    _prepared_call(arm)  # the int seeds went through it
+
+
+def test_panda_in_clutter_prepared_calls_decide_clear_answers_in_the_lm_call():
+    """With the coarse screen compiled, the prepared call tests its answer in the LM call
+    (`optik.collision.check.ClearTest`): most clear answers need no search, and the answers are
+    the general path's (an ``np.int64`` seed takes it), every success clear by the exact check."""
+    from optik import native
+    from optik.benchmarks.bench_collision import scene
+    from optik.catalog.robots import robots_dir
+
+    try:
+        d = robots_dir() / "panda_description"
+    except optik.MissingExtraError:
+        pytest.skip("example-robot-data (extra 'robots') is not installed")
+    m = optik.Mechanism.from_urdf(
+        d / "urdf" / "panda.urdf", "panda_link0", "panda_hand_tcp", srdf=d / "srdf" / "panda.srdf"
+    )
+    w = scene()
+    rng = np.random.default_rng(12)
+    targets = []
+    while len(targets) < 40:
+        q = m.random_q(seed=rng)
+        if not check(m, q, w, margin=0.01).in_collision:
+            targets.append(m.fk(q))
+    kw = dict(world=w, margin=0.01, time_limit=5.0)
+    _no_calls(m)
+    optik.solve_ik(m, targets[0], seed=0, **kw)
+    native.wait(600)
+    call = _prepared_call(m)
+    verdicts = []
+    for i, target in enumerate(targets):
+        prepared = optik.solve_ik(m, target, seed=i, **kw)
+        judges = getattr(call._local, "judges", None)
+        if judges is None or judges[1] is None:
+            pytest.skip("no compiled screen (no C compiler)")
+        verdicts.append(int(judges[1].verdict[0]))
+        general = optik.solve_ik(m, target, seed=np.int64(i), **kw)
+        _same(prepared, general)
+        assert prepared.success and not check(m, prepared.q, w, margin=0.01).in_collision
+    assert verdicts.count(1) > len(targets) / 2 and 0 in verdicts

@@ -12,7 +12,9 @@ be the closest, closer than the margin, or touching. The witness points are read
 for the pairs reported. A part no joint moves (`RobotGeometry.fixed_parts`: the Panda's base
 link) is as far from each object at every ``q``: its coal entries are kept per world version once
 found, their distance taken as their bound (the Panda's base on its table was the least coarse
-bound, so coal's first query, at nearly every configuration).
+bound, so coal's first query, at nearly every configuration). `ClearTest` is the search's first
+decision with ``stop`` (no bound under the margin: clear, no coal query) as a C check that a
+compiled solve runs on its answer in its own C call (`optik.solvers.collision_free.CollisionCall`).
 
 ``in_collision`` is True when some pair is closer than ``margin`` or touches (distance
 ``<= 0``): at ``margin=0`` it means contact or penetration; with a margin, a clearance below
@@ -22,6 +24,7 @@ it. `CollisionReport.min_distance` is the smallest signed distance over the pair
 
 from __future__ import annotations
 
+import ctypes
 import threading
 import weakref
 from dataclasses import dataclass
@@ -39,6 +42,7 @@ from optik.collision.world import World, WorldState, state_of
 from optik.mechanism import Mechanism
 
 __all__ = [
+    "ClearTest",
     "CollisionBatch",
     "CollisionPair",
     "CollisionReport",
@@ -207,11 +211,17 @@ def _fixed_entries(geo: RobotGeometry, world: WorldState) -> _Known:
     return {} if got is None else got
 
 
+_FIXED_VERSION = 0
+"""Incremented at each change of `_FIXED` (a `ClearTest` reads its entries again after one)."""
+
+
 def _keep_fixed(geo: RobotGeometry, world: WorldState, entry: Entry) -> None:
     """Add a fixed part's entry to `_FIXED`."""
+    global _FIXED_VERSION
     with _FIXED_LOCK:
         per = _FIXED.setdefault(geo, weakref.WeakKeyDictionary())
         per[world] = {**per.get(world, {}), (entry[1], entry[2]): entry}
+        _FIXED_VERSION += 1
 
 
 def _under(lb: np.ndarray, limit: float) -> tuple[list[int], int]:
@@ -230,6 +240,7 @@ def search(
     margin: float,
     self_collision: bool,
     stop: bool = False,
+    outputs: list[np.ndarray] | None = None,
 ) -> Search:
     """The search of the module docstring at checked coordinates ``q`` against one version of a
     world (`World.state`): each pair's screening bound, then coal on the pairs in increasing order
@@ -249,10 +260,13 @@ def search(
     ``close`` holds that pair alone and ``nearest`` is the nearest pair checked (None when no
     bound is under the limit; its distance is the smallest only when it is close). On the Panda's
     clear answers in clutter (1000 benchmark targets) it checked 0.70 pairs with coal instead of 1.90.
+
+    ``outputs``: the coarse screen's outputs at ``q`` made already (`ClearTest.outputs` after a
+    test of ``q`` against this world), read instead of a new screen call.
     """
     n_obj, n_parts = len(world.parts), len(geo.parts)
     n_self = len(geo.self_pairs) if self_collision else 0
-    poses, lb = screen(geo, world.capacity, coarse=True).pair_bounds(q, world.slots, n_obj, n_self)
+    poses, lb = screen(geo, world.capacity, coarse=True).pair_bounds(q, world.slots, n_obj, n_self, outputs)
     fixed = geo.fixed_parts if n_obj else frozenset()
     known = _fixed_entries(geo, world) if fixed else {}
     for (a, b), e in known.items():  # their exact distance is the tightest bound
@@ -335,6 +349,73 @@ def search(
             np.maximum(lb[n_self:], fine.T.ravel(), out=lb[n_self:])
             order, i = _under(lb, limit)
     return Search(best, close, len(done), int(lb.size), refined)
+
+
+_P = ctypes.c_void_p
+
+
+class ClearTest:
+    """`search` with ``stop`` up to its first decision, as a C check (``optik_screen_clear`` of
+    `optik.collision.screen`): whether no screening bound is under the limit ``max(margin, 0)``
+    (plus `_SLACK`), the answer that makes the search return clear with no coal query. For one
+    thread, geometry, world version, margin and ``self_collision``.
+
+    The bounds are the search's: the coarse screen call at ``q``, its first ``n_self``
+    self-pair rows and its world rows of the world's objects, each fixed part's row against an
+    object replaced by its known exact distance (`_FIXED`, read again whenever it has changed).
+    `address` is the check's block for ``optik_lm_call_checked`` of
+    ``optik/solvers/lm_chunk.c`` (`optik.solvers.lm.LMCall` runs it on its answer in the same C
+    call); after a call `verdict` is 1 (clear: `search` would find no pair), 0 (some bound under
+    the limit: the search decides) or, when the check did not run, what it was before.
+
+    Args:
+        geo: the robot geometry.
+        world: one version of the world.
+        margin: the clearance (m).
+        self_collision: the self-collision pairs are checked.
+        clear: `optik.collision.screen.Screen.clear_function` of the coarse screen of ``geo``
+            and the world's capacity.
+    """
+
+    def __init__(
+        self,
+        geo: RobotGeometry,
+        world: WorldState,
+        margin: float,
+        self_collision: bool,
+        clear: tuple[int, int, int],
+    ) -> None:
+        self.geo, self.world = geo, world
+        n_obj, n_parts = len(world.parts), len(geo.parts)
+        n_self = len(geo.self_pairs) if self_collision else 0
+        self.n_rows = n_obj * n_parts
+        self.known, self.use = np.zeros(self.n_rows), np.zeros(self.n_rows)
+        self.limit = np.array([max(margin, 0.0) + _SLACK])
+        self.verdict = np.zeros(1, dtype=np.int64)
+        fn, n_iw, n_w = clear
+        outs = [np.zeros(12 * n_parts), np.zeros(world.capacity * n_parts), np.zeros(len(geo.self_pairs))]
+        work = [np.zeros(n_iw, dtype=np.int64), np.zeros(n_w)]
+        self.outputs = outs
+        """The screen's outputs (poses, world, self) at the last ``q`` tested (`search` reads them)."""
+        self._work = work  # the memory the block points at, kept alive
+        bufs = [world.slots, self.known, self.use, self.limit, *outs, *work, self.verdict]
+        addresses = [b.ctypes.data for b in bufs]
+        self.block = (_P * 13)(fn, addresses[0], n_self, self.n_rows, *addresses[1:])
+        self._address = ctypes.addressof(self.block)
+        self._version = -1
+
+    @property
+    def address(self) -> int:
+        """The block's address, the known entries of the fixed parts read again when `_FIXED`
+        has changed since the last read."""
+        if self._version != _FIXED_VERSION:
+            self._version = _FIXED_VERSION
+            n_parts = len(self.geo.parts)
+            self.use[:] = 0.0
+            if self.n_rows and self.geo.fixed_parts:
+                for (a, b), e in _fixed_entries(self.geo, self.world).items():
+                    self.known[b * n_parts + a], self.use[b * n_parts + a] = e[0], 1.0
+        return self._address
 
 
 def report_at(

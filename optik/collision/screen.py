@@ -20,11 +20,14 @@ the bound is above ``max(margin, 0, smallest distance found)``.
 ``(q, slots) -> (part poses, sphere-slot bounds, self-pair bounds)``, the sphere-slot rows mapped
 over slots and spheres (a loop in the generated C); `screen` compiles it with `optik.native` in the
 background (CasADi's evaluator answers meanwhile, with the same numbers) and keeps one evaluator
-per thread.
+per thread. The library holds `CLEAR_SOURCE` too, ``optik_screen_clear``: the function and the
+test whether any bound is at most a limit, in one C call that another C function can make
+(`Screen.clear_function`, `optik.collision.check.ClearTest`).
 """
 
 from __future__ import annotations
 
+import ctypes
 import threading
 import weakref
 from typing import NamedTuple
@@ -37,7 +40,34 @@ from optik.collision.slots import SLOT_SIZE, slot_distance
 from optik.collision.spheres import segment_distance, sphere_model
 from optik.native import NativeFunction, library
 
-__all__ = ["Screen", "screen", "screen_function"]
+__all__ = ["CLEAR_SOURCE", "Screen", "screen", "screen_function"]
+
+CLEAR_SOURCE = """
+/* optik_screen_clear(args, q): the screen function at q and whether some bound is at most the
+ * limit, with a check's signature (optik_check_fn of optik/solvers/lm_chunk.c). args: [slots,
+ * n_self, n_rows (integers), known, use (n_rows doubles each), &limit, poses, world, self (the
+ * outputs), iw, w (work), verdict (one int64)]. The bounds tested: self[0..n_self) and world
+ * row r < n_rows, known[r] in its place where use[r] != 0; verdict = 1 when none is <= limit
+ * (NaN is not), 0 when one is. Returns nonzero when the evaluation failed. */
+CASADI_SYMBOL_EXPORT int optik_screen_clear(void *const *args, const double *q) {
+  const double *arg[OPTIK_SCREEN_SZ_ARG] = {q, (const double *)args[0]};
+  double *res[OPTIK_SCREEN_SZ_RES] = {(double *)args[6], (double *)args[7], (double *)args[8]};
+  if (optik_collision_screen(arg, res, (casadi_int *)args[9], (double *)args[10], 0)) return 1;
+  const casadi_int n_self = (casadi_int)args[1], n_rows = (casadi_int)args[2];
+  const double *known = (const double *)args[3], *use = (const double *)args[4];
+  const double limit = *(const double *)args[5], *world = res[1], *own = res[2];
+  casadi_int *verdict = (casadi_int *)args[11];
+  *verdict = 0;
+  for (casadi_int i = 0; i < n_self; ++i)
+    if (own[i] <= limit) return 0;
+  for (casadi_int r = 0; r < n_rows; ++r)
+    if ((use[r] != 0.0 ? known[r] : world[r]) <= limit) return 0;
+  *verdict = 1;
+  return 0;
+}
+"""
+"""The C test of `Screen.clear_function`, compiled with the screen function (after
+``#define``s of its argument and result array lengths)."""
 
 
 def screen_function(
@@ -133,8 +163,9 @@ class Screen:
     """
 
     def __init__(self, geo: RobotGeometry, capacity: int, coarse: bool = False) -> None:
-        self.function = screen_function(geo, capacity, coarse=coarse)
-        self.library = library([self.function], "auto")
+        self.function = f = screen_function(geo, capacity, coarse=coarse)
+        sizes = f"#define OPTIK_SCREEN_SZ_ARG {f.sz_arg()}\n#define OPTIK_SCREEN_SZ_RES {f.sz_res()}\n"
+        self.library = library([f], "auto", sizes + CLEAR_SOURCE)
         self.capacity = capacity
         self.n_parts = len(geo.parts)
         part = _spheres(geo, coarse).part
@@ -152,14 +183,20 @@ class Screen:
         return self.reduce(self._evaluate(q, slots), n_objects)
 
     def pair_bounds(
-        self, q: np.ndarray, slots: np.ndarray, n_objects: int, n_self: int
+        self,
+        q: np.ndarray,
+        slots: np.ndarray,
+        n_objects: int,
+        n_self: int,
+        outputs: list[np.ndarray] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """`bounds` as the exact check reads them: ``(poses, lb)``, ``lb`` the bounds of the first
         ``n_self`` self-collision pairs, then part ``a`` against object ``o`` at ``n_self + o P +
         a`` (object-major: the evaluator's order where each part has one sphere, one copy).
-        ``poses`` ``(P, 12)`` is a view of this thread's evaluator buffer: valid until its next
-        call on this thread."""
-        poses, world, own = self._evaluate(q, slots)
+        ``poses`` ``(P, 12)`` is a view of this thread's evaluator buffer (of ``outputs``): valid
+        until its next call on this thread. ``outputs``: this function's outputs at ``q`` and
+        ``slots`` made already (`optik.collision.check.ClearTest`'s), read instead of a new call."""
+        poses, world, own = self._evaluate(q, slots) if outputs is None else outputs
         if self._one_each:
             rows = world[: n_objects * self.n_parts]
         else:
@@ -174,6 +211,21 @@ class Screen:
         fn.inputs[0][:] = q
         fn.inputs[1][:] = slots
         return fn()
+
+    def clear_function(self) -> tuple[int, int, int] | None:
+        """``(address of optik_screen_clear, iw length, w length)`` (`CLEAR_SOURCE`, its work
+        lengths from the generated ``optik_collision_screen_work``) once the library is loaded,
+        else None (never waited for)."""
+        lib = self.library
+        if lib is None or lib.state != "ready":
+            return None
+        cdll = lib.get()
+        if cdll is None:
+            return None
+        sizes = [ctypes.c_longlong() for _ in range(4)]
+        cdll.optik_collision_screen_work(*[ctypes.byref(v) for v in sizes])
+        address = ctypes.cast(cdll.optik_screen_clear, ctypes.c_void_p).value
+        return int(address), max(int(sizes[2].value), 1), max(int(sizes[3].value), 1)
 
     def evaluator(self) -> NativeFunction:
         """A new evaluator of `function` (for one thread): inputs ``q`` and the slot values."""

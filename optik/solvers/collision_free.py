@@ -53,14 +53,19 @@ build of a key is made once, under a lock (a second thread waits for it).
 
 Later calls of `optik.solve_ik` with a 4x4 target and the options of a first call (``lm``) go
 through its `CollisionCall`: the first round is ``lm``'s own prepared C call, its answer judged
-by the exact check (`optik.collision.check.search`, no report objects); the rounds go on from it
+by the exact check (`optik.collision.check.search`, no report objects), whose first decision (no
+screening bound under the margin: clear without a coal query, 3 in 4 of the Panda's answers in
+clutter) runs in that same C call (`optik.collision.check.ClearTest`); the rounds go on from it
 when it is not clear. The answers are the general path's.
 
 **Success** is decided by the exact check (`optik.collision.check` at ``margin``) of the final
 answer, after the tolerances: a start whose answer the check finds closer than the margin is
 rejected and the search goes on from a new random start until the time limit. The result
 carries ``min_distance`` and ``collision_pair`` (the closest pair at ``q``); a failure says
-which pair blocked when the pose was reached but the answer collides.
+which pair blocked when the pose was reached but the answer collides. Its ``solve_time`` is set
+last, after the exact check of the answer returned (on every path: the prepared call, ``lm``'s
+rounds, ``nlp``), so it is the wall time of the whole call; the full search that a clear answer's
+``min_distance`` makes when first read (`optik.results.LazyDistanceResult`) is the reader's.
 """
 
 from __future__ import annotations
@@ -75,8 +80,9 @@ import numpy as np
 
 from optik import native
 from optik.checks import as_float
-from optik.collision.check import Search, search
+from optik.collision.check import ClearTest, Search, search
 from optik.collision.robot import robot_geometry
+from optik.collision.screen import screen
 from optik.collision.slots import SLOT_SIZE
 from optik.collision.spheres import capsule_gaps
 from optik.collision.world import World, WorldState, state_of
@@ -167,18 +173,24 @@ class _Exact:
         self.geo, self.world = robot_geometry(m), world
         self.self_collision, self.margin = self_collision, margin
 
-    def finish(self, res: IKResult, stop: bool = False) -> IKResult:
+    def finish(self, res: IKResult, stop: bool = False, outputs: list[np.ndarray] | None = None) -> IKResult:
         """``res`` judged by the exact check as well (see the module docstring), with the distance
         and the names of the closest pair of its ``q``; with ``stop``, the search only decides
         (`optik.collision.check.search`): an answer that collides is rejected at its first close
         pair (`complete` makes the distance, the pair and the message exact for the answer
         returned), a clear success is a `LazyDistanceResult` whose distance and pair the full
-        search makes when they are first read."""
-        found = search(self.geo, res.q, self.world, self.margin, self.self_collision, stop)
+        search makes when they are first read. ``outputs``: the coarse screen's at ``res.q``, made
+        already (`optik.collision.check.search`)."""
+        found = search(self.geo, res.q, self.world, self.margin, self.self_collision, stop, outputs)
         if stop and res.success and not found.in_collision:
-            q = res.q.copy()  # the q judged, whatever a caller later does to the result's array
-            return LazyDistanceResult(res, lambda: self._nearest(q))
+            return self.clear(res)
         return self._judged(res, found, res.success, False)
+
+    def clear(self, res: IKResult) -> LazyDistanceResult:
+        """A success ``res`` the search with ``stop`` finds clear, as `finish` returns it: its
+        distance and pair made by the full search when first read."""
+        q = res.q.copy()  # the q judged, whatever a caller later does to the result's array
+        return LazyDistanceResult(res, lambda: self._nearest(q))
 
     def _nearest(self, q: np.ndarray) -> tuple[float, tuple[str, str] | None]:
         """The exact smallest distance at ``q`` and the names of its pair (the full search)."""
@@ -315,6 +327,7 @@ def _solve_lm(
     res = exact.complete(res)
     if not res.success and res.status in ("not_converged", "max_restarts"):
         res.status = "time_limit"  # the rounds end only at a success or at the time limit
+    res.solve_time = request.elapsed()  # the exact checks included
     return res
 
 
@@ -325,12 +338,19 @@ class CollisionCall:
 
     The first round is ``lm``'s own prepared call (`optik.solvers.lm.LMCall`: one C call, the
     unconstrained kernel from ``q0`` with the seed), whose answer the exact check judges against
-    the world read once here (`optik.World.state`); a clear answer is the result, any other goes
+    the world read once here (`optik.World.state`); a clear answer is the result (its
+    ``solve_time`` from ``start`` to the end of that check), any other goes
     on through the rounds of `_solve_lm` from it (same answers as the general path: the same
     kernel, seed and rounds). It returns None before solving, for the general path to take the
     call, when ``lm``'s call does (input it does not take, code not built) and for a seed that
     is not None or an int in ``[0, 2^63)`` (a Generator's draw would be taken twice), a world that
     is not an `optik.World` or None (the general path names it).
+
+    The exact check's first decision runs in that same C call once the coarse screen is
+    compiled (`optik.collision.check.ClearTest`, one per thread and world version): an answer
+    kept as it is whose screening bounds are all above the margin is clear with no Python
+    search (3 in 4 of the Panda's clutter answers); any other answer is judged by the search,
+    as before. Same answers either way: the test is the search's own first step.
 
     Args:
         request: the first, validated request (its collision options ``buffer`` and
@@ -350,6 +370,20 @@ class CollisionCall:
     ) -> None:
         self.request, self.plain = request, plain
         self.settings = (self_collision, margin, buffer, plain_rounds)
+        self._local = threading.local()  # this thread's (_Exact, ClearTest or None) of a world version
+
+    def _judges(self, state: WorldState) -> tuple[_Exact, ClearTest | None]:
+        """This thread's exact check of ``state`` and its `ClearTest` (None until the coarse
+        screen is compiled), made again for another world version."""
+        got = getattr(self._local, "judges", None)
+        if got is not None and got[0].world is state and got[1] is not None:
+            return got
+        self_collision, margin, _, _ = self.settings
+        exact = _Exact(self.request.mechanism, state, self_collision, margin)
+        clear = screen(exact.geo, state.capacity, coarse=True).clear_function()
+        test = None if clear is None else ClearTest(exact.geo, state, margin, self_collision, clear)
+        got = self._local.judges = (exact, test)
+        return got
 
     def __call__(self, start: float, target: np.ndarray, q0: Any, seed: Any, world: Any) -> IKResult | None:
         """Solve for ``target`` from ``q0`` (None: mid-limit) with seed ``seed`` clear of ``world``;
@@ -358,15 +392,25 @@ class CollisionCall:
             return None
         if world is not None and not isinstance(world, World):
             return None
-        res = self.plain(start, target, q0, seed)
+        state = state_of(world)
+        exact, test = self._judges(state)
+        if test is None:
+            res = self.plain(start, target, q0, seed)
+        else:
+            test.verdict[0] = -1
+            res = self.plain(start, target, q0, seed, test.address)
         if res is None:
             return None
-        self_collision, margin, buffer, plain_rounds = self.settings
-        state = state_of(world)
-        m = self.request.mechanism
-        res = _Exact(m, state, self_collision, margin).finish(res, stop=True)
+        verdict = -1 if test is None else test.verdict[0]
+        if verdict == 1:  # a success the bounds alone find clear
+            res = exact.clear(res)
+        else:  # the search decides (from the test's screen outputs at res.q when it ran)
+            res = exact.finish(res, stop=True, outputs=None if verdict == -1 else test.outputs)
         if res.success:
+            res.solve_time = time.perf_counter() - start  # the exact check included
             return res
+        self_collision, margin, buffer, plain_rounds = self.settings
+        m = self.request.mechanism
         request = dataclasses.replace(
             self.request,
             target=target,
@@ -584,6 +628,7 @@ def _solve_nlp(
                 make_result(request, q, "nlp", iterations, restarts, "time_limit" if over else None)
             )
             if res.success or over:
+                res.solve_time = request.elapsed()  # the exact check included
                 return res
             q0 = m.random_q(seed=rng)
     finally:

@@ -229,12 +229,20 @@ class LMCall:
     or in the background by `optik.solvers.generic_chain`, and found here). A ``q0`` other than
     a float64 vector is converted by `optik.Mechanism.check_q` as the general path converts it.
     Thread-safe: buffers per thread.
+
+    A caller may hand a check of the answer to the same C call (``check``: the address of its
+    block, see ``optik_lm_call_checked`` in ``lm_chunk.c``): it runs on an answer that meets the
+    tolerances and is canonical, the answer this call returns as it is, and writes its verdict
+    where its block says (`optik.collision.check.ClearTest`). It is not run for a mechanism with
+    rotation vectors (their norms are checked here, after the C call).
     """
 
     def __init__(self, request: IKRequest) -> None:
         self._prepared: tuple[LMKernel, np.ndarray] | None = None
         self._entry: Any = None
         """The kernel's ``optik_lm_call`` once loaded (`optik.solvers.lm_kernel.LMKernel.call_entry`)."""
+        self._checked: Any = None
+        """Its ``optik_lm_call_checked`` (`optik.solvers.lm_kernel.LMKernel.checked_entry`)."""
         self.request = request
         m = request.mechanism
         self._mid = m.mid_q()
@@ -254,11 +262,15 @@ class LMCall:
     def _buffers(self, k: LMKernel, conf: np.ndarray) -> OneTarget:
         one = self._local.one = OneTarget(len(self._mid), k.n_target, len(conf))
         one.conf[:] = conf
+        one.tol[:] = self._tol
         return one
 
-    def __call__(self, start: float, target: np.ndarray, q0: Any, seed: Any) -> IKResult | None:
-        """Solve for ``target`` from ``q0`` (None: mid-limit) with restart seed ``seed``; None
-        when this call is left to the general path (see the class)."""
+    def __call__(
+        self, start: float, target: np.ndarray, q0: Any, seed: Any, check: int | None = None
+    ) -> IKResult | None:
+        """Solve for ``target`` from ``q0`` (None: mid-limit) with restart seed ``seed``, and run
+        the check at address ``check`` on an answer kept as it is (see the class); None when this
+        call is left to the general path (see the class)."""
         call = self._entry
         if call is None:
             k = self.kernel
@@ -286,7 +298,14 @@ class LMCall:
         one.q0[:] = q0
         one.seed[0] = s
         one.conf[3] = max(self.request.time_limit - (time.perf_counter() - start), 0.0)
-        rc = call(one.call_args)
+        if check is None or self._rotation_vectors:
+            rc = call(one.call_args)
+        else:
+            checked = self._checked
+            if checked is None:
+                checked = self._checked = prepared[0].checked_entry()
+            one.checked_args[9] = check
+            rc = checked(one.checked_args)
         if rc != 0:
             if rc in (2, 3):  # the target or q0 failed the check: the general path names it
                 return None

@@ -196,3 +196,26 @@ CASADI_SYMBOL_EXPORT int optik_lm_call(void *const *args) {
   counts[3] = canonical;
   return rc;
 }
+
+/* A check of an answer that optik_lm_call_checked runs in the same call: check(block + 1, q),
+ * block[0] the function itself and the entries after it its arguments; nonzero: it failed. */
+typedef int (*optik_check_fn)(void *const *args, const double *q);
+
+/* optik_lm_call, then, when the answer is one LMCall keeps as it is (canonical and within the
+ * tolerances: the errors at most tol[0..2], NaN failing), the check of that answer: one C call
+ * for the solve and its test (optik.solvers.collision_free.CollisionCall: the screening bounds of
+ * the exact collision check, optik.collision.screen). args: optik_lm_call's 8, then the
+ * tolerances (3 doubles) and the check's block (see optik_check_fn). The check writes its own
+ * verdict; it is not run for any other answer. Returns optik_lm_call's code, or -1 when the
+ * check failed. */
+CASADI_SYMBOL_EXPORT int optik_lm_call_checked(void *const *args) {
+  int rc = optik_lm_call(args);
+  if (rc != 0) return rc;
+  const double *err = (const double *)args[5], *tol = (const double *)args[8];
+  const casadi_int *counts = (const casadi_int *)args[6];
+  if (counts[3] && err[0] <= tol[0] && err[1] <= tol[1] && err[2] <= tol[2]) {
+    void *const *block = (void *const *)args[9];
+    if (((optik_check_fn)block[0])(block + 1, (const double *)args[4])) return -1;
+  }
+  return rc;
+}

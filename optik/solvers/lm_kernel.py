@@ -270,8 +270,9 @@ _P = ctypes.c_void_p
 
 class OneTarget:
     """One thread's buffers of a one-target run, and the packed argument arrays of the driver's
-    ``optik_lm_packed`` and ``optik_lm_call`` pointing at them (the addresses are taken once: reading
-    ``ndarray.ctypes.data`` costs microseconds per array, more than a whole solve's iterations)."""
+    ``optik_lm_packed``, ``optik_lm_call`` and ``optik_lm_call_checked`` pointing at them (the
+    addresses are taken once: reading ``ndarray.ctypes.data`` costs microseconds per array, more
+    than a whole solve's iterations)."""
 
     def __init__(self, nq: int, nt: int, n_conf: int) -> None:
         self.target, self.q0, self.conf = np.zeros(nt), np.zeros(nq), np.zeros(n_conf)
@@ -285,6 +286,10 @@ class OneTarget:
         bufs = (self.transform, self.q0, self.seed, self.conf, self.q, self.errors, self.counts, self.time)
         self.call_args = (_P * 8)(*[b.ctypes.data for b in bufs])
         """The argument array of ``optik_lm_call`` (a 4x4 transform in place of the parameters)."""
+        self.tol = np.zeros(3)
+        self.checked_args = (_P * 10)(*self.call_args, self.tol.ctypes.data, None)
+        """The argument array of ``optik_lm_call_checked``: ``call_args``, the tolerances `tol`
+        and, set per call, the address of the check's block (``lm_chunk.c``)."""
 
 
 class LMKernel:
@@ -340,6 +345,7 @@ class LMKernel:
         self._fn: Any = None
         self._packed: Any = None
         self._call: Any = None
+        self._checked: Any = None
         self._local = threading.local()  # per-thread error evaluators and one-target buffers
 
     def final_errors(self, q: np.ndarray, target: np.ndarray) -> tuple[float, float, float]:
@@ -378,6 +384,16 @@ class LMKernel:
             call = self.library.get().optik_lm_call  # type: ignore[union-attr]
             call.argtypes, call.restype = [_P], ctypes.c_int
             self._call = call
+        return call
+
+    def checked_entry(self) -> Any:
+        """The driver's ``optik_lm_call_checked`` (`call_entry` and a check of its answer in the
+        same call) once the library is loaded, else None."""
+        call = self._checked
+        if call is None and self.call_entry() is not None:
+            call = self.library.get().optik_lm_call_checked  # type: ignore[union-attr]
+            call.argtypes, call.restype = [_P], ctypes.c_int
+            self._checked = call
         return call
 
     def run_one(

@@ -172,6 +172,12 @@ class _Exact:
     def __init__(self, m: Mechanism, world: WorldState, self_collision: bool, margin: float) -> None:
         self.geo, self.world = robot_geometry(m), world
         self.self_collision, self.margin = self_collision, margin
+        # the screens the search may ask for, built here on first use (tens of ms: the solvers
+        # make their _Exact within the setup they exclude from the time limit), not inside a timed
+        # check (the finer one is asked for only when many world pairs stay close)
+        screen(self.geo, world.capacity, coarse=True)
+        if world.parts:
+            screen(self.geo, world.capacity)
 
     def finish(self, res: IKResult, stop: bool = False, outputs: list[np.ndarray] | None = None) -> IKResult:
         """``res`` judged by the exact check as well (see the module docstring), with the distance
@@ -275,10 +281,10 @@ def _solve_lm(
     m = request.mechanism
     setup = time.perf_counter()
     plain, constrained, base = _kernels(request, world.capacity, self_collision)
+    exact = _Exact(m, world, self_collision, margin)
     request.exclude_setup(setup)
     conf = base.copy()
     pose = target_parameters(request.target)
-    exact = _Exact(m, world, self_collision, margin)
     seed = request_seed(request.seed) & _SEEDS
     rng: np.random.Generator | None = None  # the random starts of rounds 2, 3, ...
     res, rounds = first, int(first is not None)
@@ -603,11 +609,11 @@ def _solve_nlp(
     taken = pool.take()
     solver, stop, _ = taken
     bounds = bound_parameters(robot_geometry(m), self_collision, margin + buffer)
+    exact = _Exact(m, world, self_collision, margin)
     request.exclude_setup(setup)
     task = pool.problem.parameter_values(request.target, posture=posture)
     params = ca.DM(np.concatenate([task, world.slots[: capacity * SLOT_SIZE], bounds]))
     limits = {"lbx": ca.DM(m.lower), "ubx": ca.DM(m.upper), "lbg": pool.lbg, "ubg": pool.ubg}
-    exact = _Exact(m, world, self_collision, margin)
 
     rng = request.rng
     q0, iterations, restarts = request.q0, 0, -1

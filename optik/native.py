@@ -473,7 +473,10 @@ class Library:
         self.error = str(exc)
         if not _EXITING.is_set():  # logged before the waiters wake, so they find the record
             _LOG.warning(
-                "optik: no compiled code for %s, CasADi's evaluator is used: %s", self.path.name, exc
+                "optik: no compiled code for %s, its caller falls back (CasADi's evaluator for generated "
+                "code; another build or numpy for hand-written C): %s",
+                self.path.name,
+                exc,
             )
         self._done.set()
 

@@ -601,12 +601,10 @@ def test_the_solves_exact_check_is_the_full_report(arm):
     assert near >= 10
 
 
-def test_panda_in_clutter_four_threads_give_the_answers_of_one():
-    """The clutter benchmark's scene and targets (the Panda's base against the table kept per
-    world version, `optik.collision.check`): 4 threads at once, starting on a world version no
-    solve has read, give the answers of one thread, each clear by the exact check."""
-    from concurrent.futures import ThreadPoolExecutor
-
+def _panda_in_clutter(count: int, seed: int) -> tuple[optik.Mechanism, World, list[np.ndarray]]:
+    """The Panda (with its SRDF) in the scene of ``optik benchmark collision`` and ``count``
+    targets, each the FK of a random configuration clear at a 1 cm margin (skips without
+    example-robot-data)."""
     from optik.benchmarks.bench_collision import scene
     from optik.catalog.robots import robots_dir
 
@@ -617,12 +615,22 @@ def test_panda_in_clutter_four_threads_give_the_answers_of_one():
     urdf, srdf = d / "urdf" / "panda.urdf", d / "srdf" / "panda.srdf"
     m = optik.Mechanism.from_urdf(urdf, "panda_link0", "panda_hand_tcp", srdf=srdf)
     w = scene()
-    rng = np.random.default_rng(4)
+    rng = np.random.default_rng(seed)
     targets = []
-    while len(targets) < 24:
+    while len(targets) < count:
         q = m.random_q(seed=rng)
         if not check(m, q, w, margin=0.01).in_collision:
             targets.append(m.fk(q))
+    return m, w, targets
+
+
+def test_panda_in_clutter_four_threads_give_the_answers_of_one():
+    """The clutter benchmark's scene and targets (the Panda's base against the table kept per
+    world version, `optik.collision.check`): 4 threads at once, starting on a world version no
+    solve has read, give the answers of one thread, each clear by the exact check."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    m, w, targets = _panda_in_clutter(24, 4)
 
     def solve(i):
         return optik.solve_ik(m, targets[i], world=w, margin=0.01, time_limit=10.0, seed=i)
@@ -729,23 +737,8 @@ def test_panda_in_clutter_prepared_calls_decide_clear_answers_in_the_lm_call():
     (`optik.collision.check.ClearTest`): most clear answers need no search, and the answers are
     the general path's (an ``np.int64`` seed takes it), every success clear by the exact check."""
     from optik import native
-    from optik.benchmarks.bench_collision import scene
-    from optik.catalog.robots import robots_dir
 
-    try:
-        d = robots_dir() / "panda_description"
-    except optik.MissingExtraError:
-        pytest.skip("example-robot-data (extra 'robots') is not installed")
-    m = optik.Mechanism.from_urdf(
-        d / "urdf" / "panda.urdf", "panda_link0", "panda_hand_tcp", srdf=d / "srdf" / "panda.srdf"
-    )
-    w = scene()
-    rng = np.random.default_rng(12)
-    targets = []
-    while len(targets) < 40:
-        q = m.random_q(seed=rng)
-        if not check(m, q, w, margin=0.01).in_collision:
-            targets.append(m.fk(q))
+    m, w, targets = _panda_in_clutter(40, 12)
     kw = dict(world=w, margin=0.01, time_limit=5.0)
     _no_calls(m)
     optik.solve_ik(m, targets[0], seed=0, **kw)

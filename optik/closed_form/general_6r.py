@@ -1129,12 +1129,15 @@ def _candidates_c(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candid
         base + 8 * ends[3],
         _address(owner),
     )
-    done = info[:, 0] == 0
-    kept = done[owner[:total]]  # the candidates of the done targets: all (the C code writes no others)
-    pick = slice(total) if kept.all() else np.flatnonzero(kept)
-    owner, size, retry, theta, real = owner[pick], size[pick], retry[pick], theta[pick], real[pick]
-    retried = np.flatnonzero(retry)
-    again = again[:total][pick][retried]
+    owner, size, retry, theta, real = owner[:total], size[:total], retry[:total], theta[:total], real[:total]
+    again = again[:total]
+    handed_back = bool(info[:, 0].any())  # the usual case, none: no mask to build
+    if handed_back:  # keep the candidates of the done targets (the C code writes no others)
+        done = info[:, 0] == 0
+        pick = np.flatnonzero(done[owner])
+        owner, size, retry, theta, real, again = (x[pick] for x in (owner, size, retry, theta, real, again))
+    retried = retry.nonzero()[0]
+    again = again[retried]
     if not last:
         real, again = _joint_rows(arm, theta, owner, retried, again, tp, last)
     flags = info[:, 1:3] > 0
@@ -1151,7 +1154,7 @@ def _candidates_c(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candid
         again,
         real,
     )
-    rest = np.flatnonzero(~done)
+    rest = np.flatnonzero(~done) if handed_back else ()
     if len(rest):
         cand = _join(cand, rest, _candidates(arm, tp[rest], last))
     return cand

@@ -593,13 +593,14 @@ class _MechanismFK:
     its own buffers (made at its first call)."""
 
     def __init__(self, m: Mechanism) -> None:
-        fk = ca.Function("fk_rows", [m.q_sym], [ca.densify(m.frame_expr(m.ee))])
+        # the pose transposed: CasADi's column-major result is then the row-major 4x4
+        fk = ca.Function("fk_rows", [m.q_sym], [ca.densify(m.frame_expr(m.ee).T)])
         self.function = fk.map(_FK_ROWS)
         self._local = threading.local()
 
     def _buffers(self) -> tuple[np.ndarray, np.ndarray, Any]:
-        """This thread's ``(q, pose, call)``: the input rows, the poses column-major (each 4x4
-        transposed), and the evaluation on them."""
+        """This thread's ``(q, pose, call)``: the input rows, the poses (row-major) and the
+        evaluation on them."""
         mine = getattr(self._local, "buffers", None)
         if mine is None:
             q, pose = np.zeros((_FK_ROWS, 6)), np.zeros((_FK_ROWS, 4, 4))
@@ -616,7 +617,7 @@ class _MechanismFK:
             rows = q[start : start + _FK_ROWS]
             q_in[: len(rows)] = rows
             call()
-            out[start : start + len(rows)] = np.swapaxes(pose[: len(rows)], 1, 2)
+            out[start : start + len(rows)] = pose[: len(rows)]
         return out
 
 
@@ -881,10 +882,11 @@ def _distinct(rows: np.ndarray, owner: np.ndarray, n: int) -> list[np.ndarray]:
     rows = np.ascontiguousarray(rows, dtype=complex)
     owner = np.ascontiguousarray(owner, dtype=np.int64)
     k = len(owner)
-    scratch, bounds = np.empty(2 * k, dtype=np.int64), np.empty(n + 1, dtype=np.int64)
-    idx = scratch[k:]
-    fn(_address(rows), _address(owner), k, n, _address(scratch), _address(idx), _address(bounds))
-    return [idx[i:j] for i, j in itertools.pairwise(bounds.tolist())]
+    # one buffer (one address read): the sort's scratch (k), the indices (k), the bounds (n + 1)
+    out = np.empty(2 * k + n + 1, dtype=np.int64)
+    base, idx = _address(out), out[k : 2 * k]
+    fn(_address(rows), _address(owner), k, n, base, base + 8 * k, base + 16 * k)
+    return [idx[i:j] for i, j in itertools.pairwise(out[2 * k :].tolist())]
 
 
 def _distinct_numpy(rows: np.ndarray, owner: np.ndarray, n: int) -> list[np.ndarray]:

@@ -580,54 +580,65 @@ class General6RSolutions:
 _ARMS: PerMechanism[General6R] = PerMechanism()
 
 _FK_ROWS = 8
-"""Rows per evaluation of `_MechanismFK` (a batch is evaluated in chunks of this many rows)."""
+"""Rows per evaluation of `_mechanism_fk` (a batch is evaluated in chunks of this many rows)."""
 
 
 class _MechanismFK:
-    """``q (K, 6) -> m.fk(q) (K, 4, 4)`` on the validated rows of the internal path: the
-    mechanism's own FK expression (``m.frame_expr(m.ee)``, densified) mapped over `_FK_ROWS`
-    rows and evaluated by CasADi on preallocated buffers (``Function.buffer``), chunk by chunk:
-    about a microsecond per row instead of the tens of microseconds that each ``m.fk`` call
-    spends validating and converting its argument. The same operations as ``m.fk`` (its
-    function, evaluated row by row), so the same numbers. Thread-safe: each thread evaluates on
-    its own buffers (made at its first call)."""
+    """``q (K, 6) -> f(q) (K, r, c)`` on the validated rows of the internal path, for an
+    ``r x c`` expression ``f`` of a mechanism's joints (its FK, `_mechanism_fk`, or its
+    Jacobian, `_mechanism_jacobian`): ``f`` transposed and densified (CasADi's column-major
+    result is then the row-major matrix), mapped over ``rows`` rows and evaluated by CasADi on
+    preallocated buffers (``Function.buffer``), chunk by chunk: about a microsecond per row
+    instead of the tens of microseconds that each ``m.fk`` or ``m.jacobian`` call spends
+    validating and converting its argument. The same expression as ``m.fk`` / ``m.jacobian``
+    (their function's, evaluated row by row), so the same numbers. Thread-safe: each thread
+    evaluates on its own buffers (made at its first call)."""
 
-    def __init__(self, m: Mechanism) -> None:
-        # the pose transposed: CasADi's column-major result is then the row-major 4x4
-        fk = ca.Function("fk_rows", [m.q_sym], [ca.densify(m.frame_expr(m.ee).T)])
-        self.function = fk.map(_FK_ROWS)
+    def __init__(self, expr: ca.SX, q_sym: ca.SX, rows: int) -> None:
+        self.shape, self.rows = expr.shape, rows
+        self.function = ca.Function("rows", [q_sym], [ca.densify(expr.T)]).map(rows)
         self._local = threading.local()
 
     def _buffers(self) -> tuple[np.ndarray, np.ndarray, Any]:
-        """This thread's ``(q, pose, call)``: the input rows, the poses (row-major) and the
+        """This thread's ``(q, out, call)``: the input rows, the values (row-major) and the
         evaluation on them."""
         mine = getattr(self._local, "buffers", None)
         if mine is None:
-            q, pose = np.zeros((_FK_ROWS, 6)), np.zeros((_FK_ROWS, 4, 4))
+            q, out = np.zeros((self.rows, 6)), np.zeros((self.rows, *self.shape))
             buffer, call = self.function.buffer()
             buffer.set_arg(0, memoryview(q))
-            buffer.set_res(0, memoryview(pose))
-            mine = self._local.buffers = (q, pose, call, buffer)  # the buffer lives with them
+            buffer.set_res(0, memoryview(out))
+            mine = self._local.buffers = (q, out, call, buffer)  # the buffer lives with them
         return mine[0], mine[1], mine[2]
 
     def __call__(self, q: np.ndarray) -> np.ndarray:
-        q_in, pose, call = self._buffers()
-        out = np.empty((len(q), 4, 4))
-        for start in range(0, len(q), _FK_ROWS):
-            rows = q[start : start + _FK_ROWS]
+        q_in, values, call = self._buffers()
+        out = np.empty((len(q), *self.shape))
+        for start in range(0, len(q), self.rows):
+            rows = q[start : start + self.rows]
             q_in[: len(rows)] = rows
             call()
-            out[start : start + len(rows)] = pose[: len(rows)]
+            out[start : start + len(rows)] = values[: len(rows)]
         return out
 
 
 _FKS: PerMechanism[_MechanismFK] = PerMechanism()
+_JACOBIANS: PerMechanism[_MechanismFK] = PerMechanism()
 
 
 def _mechanism_fk(m: Mechanism) -> _MechanismFK:
-    """The `_MechanismFK` of ``m`` (made once per mechanism)."""
+    """``q (K, 6) -> m.fk(q) (K, 4, 4)``: the `_MechanismFK` of ``m``'s end-effector pose
+    (`_FK_ROWS` rows a chunk; made once per mechanism)."""
     fk = _FKS.get(m)
-    return fk if fk is not None else _FKS.setdefault(m, _MechanismFK(m))
+    return fk if fk is not None else _FKS.setdefault(m, _MechanismFK(m.frame_expr(m.ee), m.q_sym, _FK_ROWS))
+
+
+def _mechanism_jacobian(m: Mechanism) -> _MechanismFK:
+    """``q (K, 6) -> m.jacobian(q) (K, 6, 6)``: the `_MechanismFK` of ``m``'s geometric Jacobian
+    (one row a chunk: the polish of `_refine` takes a row at a time; made at the first need,
+    once per mechanism)."""
+    jac = _JACOBIANS.get(m)
+    return jac if jac is not None else _JACOBIANS.setdefault(m, _MechanismFK(m.jacobian_expr(), m.q_sym, 1))
 
 
 def _arm(arm: Mechanism | General6R) -> General6R:
@@ -1399,7 +1410,7 @@ def _refine(
         for k in todo:
             rot = pose[k, :3, :3] @ targets[k, :3, :3].T
             err = np.concatenate([pose[k, :3, 3] - targets[k, :3, 3], 0.5 * _skew(rot)])
-            q[k] = q[k] - np.linalg.lstsq(m.jacobian(q[k]), err, rcond=None)[0]
+            q[k] = q[k] - np.linalg.lstsq(_mechanism_jacobian(m)(q[k][None])[0], err, rcond=None)[0]
         q = _wrap(q)
     pose = fk(q).reshape(-1, 4, 4)
     return q, pose, _pose_errors(pose, targets)

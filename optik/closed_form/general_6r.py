@@ -1144,7 +1144,7 @@ def _candidates_c(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candid
     )
     owner, size, retry, theta, real = owner[:total], size[:total], retry[:total], theta[:total], real[:total]
     again = again[:total]
-    handed_back = bool(info[:, 0].any())  # the usual case, none: no mask to build
+    handed_back = np.count_nonzero(info[:, 0]) > 0  # the usual case, none: no mask to build
     if handed_back:  # keep the candidates of the done targets (the C code writes no others)
         done = info[:, 0] == 0
         pick = np.flatnonzero(done[owner])
@@ -1212,7 +1212,7 @@ def _solve(
     # retried one that passes the FK check is a real solution, not a complex one
     real = np.maximum.reduce(np.abs(theta.imag), axis=1, initial=0.0) <= IMAG_TOL
     retry = cand.retry
-    at = np.flatnonzero(real)
+    at = real.nonzero()[0]
     owner = np.concatenate([idx_n[at], idx_n[retry]])
     q, errors = check(np.concatenate([cand.real[at], cand.again]), owner)
     fk_err = _fk_error(errors, arm.scale)
@@ -1404,7 +1404,7 @@ def _refine(
     for _ in range(3 if m is not None else 0):
         pose = fk(q)
         errors = _pose_errors(pose, targets)
-        todo = np.flatnonzero(_fk_error(errors, g.scale) > _EXACT)
+        todo = (_fk_error(errors, g.scale) > _EXACT).nonzero()[0]
         if not len(todo):
             return q, pose, errors
         for k in todo:

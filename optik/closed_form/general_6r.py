@@ -1132,9 +1132,6 @@ def _candidates_c(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candid
     slots = n * cap
     ends = list(itertools.accumulate([8 * n, 12 * slots, slots, 6 * slots, 6 * slots]))
     out = np.empty(ends[-1])
-    info, size = out[: ends[0]].reshape(n, 8), out[ends[1] : ends[2]]
-    theta = out[ends[0] : ends[1]].view(complex).reshape(slots, 6)
-    again, real = out[ends[2] : ends[3]].reshape(slots, 6), out[ends[3] :].reshape(slots, 6)
     retry, owner = np.empty(slots, dtype=np.intc), np.empty(slots, dtype=np.int64)
     base, (model, offset) = _address(out), arm._left.addresses
     total = fn(
@@ -1151,8 +1148,12 @@ def _candidates_c(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candid
         base + 8 * ends[3],
         _address(owner),
     )
-    owner, size, retry, theta, real = owner[:total], size[:total], retry[:total], theta[:total], real[:total]
-    again = again[:total]
+    # the views of what was written: `total` candidates of each kind
+    info, size = out[: ends[0]].reshape(n, 8), out[ends[1] : ends[1] + total]
+    theta = out[ends[0] : ends[0] + 12 * total].view(complex).reshape(total, 6)
+    again = out[ends[2] : ends[2] + 6 * total].reshape(total, 6)
+    real = out[ends[3] : ends[3] + 6 * total].reshape(total, 6)
+    owner, retry = owner[:total], retry[:total]
     handed_back = np.count_nonzero(info[:, 0]) > 0  # the usual case, none: no mask to build
     if handed_back:  # keep the candidates of the done targets (the C code writes no others)
         done = info[:, 0] == 0

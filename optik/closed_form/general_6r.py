@@ -1231,9 +1231,9 @@ def _solve(
     decided[retry[ok[len(at) :]]] = True
     # the distinct real solutions (rows 2k) and complex ones (rows 2k + 1) of each target k in one go
     complex_ = converged & ~decided
-    q_ok = q[ok]
+    q_ok, owner_ok = q[ok], owner[ok]
     rows = np.concatenate([q_ok, theta[complex_]])
-    groups = _distinct(rows, np.concatenate([2 * owner[ok], 2 * idx_n[complex_] + 1]), 2 * n)
+    groups = _distinct(rows, np.concatenate([2 * owner_ok, 2 * idx_n[complex_] + 1]), 2 * n)
     sols = [q_ok[x] for x in groups[0::2]]  # real rows come first: indices into q_ok
     errors_ok = errors[ok]
     n_complex = np.array([len(x) for x in groups[1::2]], dtype=int) + cand.n_far
@@ -1243,7 +1243,7 @@ def _solve(
     )
     n_real = np.bincount(idx_n[decided], minlength=n)
     err = np.zeros(n)
-    np.maximum.at(err, owner[ok], fk_err[ok])
+    np.maximum.at(err, owner_ok, fk_err[ok])
     out = []
     for k in range(n):
         n_sols, n_finite = len(sols[k]), int(cand.n_good[k])

@@ -338,8 +338,9 @@ def test_c_candidates_from_null_vectors_equal_numpy_eigenvectors(seed: int) -> N
 @given(st.integers(0, 2**32 - 1), st.integers(0, 3 * g6._FK_ROWS + 3))
 def test_batched_fk_check_equals_m_fk_row_by_row(seed: int, n: int) -> None:
     """The FK check's evaluation of the mechanism (`_MechanismFK`, chunks of `_FK_ROWS` rows)
-    gives exactly ``m.fk`` of each row, for any number of rows (none, a partial chunk, several)
-    and rows that are views (reversed columns, as for the inverse chain's candidates)."""
+    gives exactly ``m.fk`` of each row (and the Jacobian's, `_mechanism_jacobian`, exactly
+    ``m.jacobian``), for any number of rows (none, a partial chunk, several) and rows that are
+    views (reversed columns, as for the inverse chain's candidates)."""
     rng = np.random.default_rng(seed)
     m = _arm(rng)
     q = rng.uniform(-np.pi, np.pi, (n, 6))
@@ -351,6 +352,12 @@ def test_batched_fk_check_equals_m_fk_row_by_row(seed: int, n: int) -> None:
         assert np.array_equal(pose, m.fk(row))
     flipped = q[:, ::-1]
     assert np.array_equal(fk(flipped), m.fk(flipped).reshape(n, 4, 4))
+    jac = g6._mechanism_jacobian(m)  # the polish's Jacobian (one row a chunk)
+    assert g6._mechanism_jacobian(m) is jac
+    got = jac(flipped)
+    assert got.shape == (n, 6, 6)
+    for row, j in zip(flipped, got, strict=True):
+        assert np.array_equal(j, m.jacobian(row))
 
 
 def test_batched_fk_check_in_four_threads_equals_one() -> None:

@@ -580,53 +580,74 @@ class General6RSolutions:
 _ARMS: PerMechanism[General6R] = PerMechanism()
 
 _FK_ROWS = 8
-"""Rows per evaluation of `_MechanismFK` (a batch is evaluated in chunks of this many rows)."""
+"""Rows per evaluation of `_mechanism_fk` (a batch is evaluated in chunks of this many rows)."""
 
 
 class _MechanismFK:
-    """``q (K, 6) -> m.fk(q) (K, 4, 4)`` on the validated rows of the internal path: the
-    mechanism's own FK expression (``m.frame_expr(m.ee)``, densified) mapped over `_FK_ROWS`
-    rows and evaluated by CasADi on preallocated buffers (``Function.buffer``), chunk by chunk:
-    about a microsecond per row instead of the tens of microseconds that each ``m.fk`` call
-    spends validating and converting its argument. The same operations as ``m.fk`` (its
-    function, evaluated row by row), so the same numbers. Thread-safe: each thread evaluates on
-    its own buffers (made at its first call)."""
+    """``q (K, 6) -> f(q) (K, r, c)`` on the validated rows of the internal path, for an
+    ``r x c`` expression ``f`` of a mechanism's joints (its FK, `_mechanism_fk`, or its
+    Jacobian, `_mechanism_jacobian`): ``f`` transposed and densified (CasADi's column-major
+    result is then the row-major matrix), mapped over ``rows, rows / 2, ..., 1`` rows (``rows``
+    a power of two) and evaluated by CasADi on preallocated buffers (``Function.buffer``): the
+    batch in chunks of ``rows``, the remainder by its binary digits (5 rows: 4 + 1), so that no
+    unused row is evaluated (about a microsecond each); instead of the tens of microseconds that
+    each ``m.fk`` or ``m.jacobian`` call spends validating and converting its argument. The same
+    expression as ``m.fk`` / ``m.jacobian`` (their function's, evaluated row by row), so the
+    same numbers. Thread-safe: each thread evaluates on its own buffers (made at its first
+    call)."""
 
-    def __init__(self, m: Mechanism) -> None:
-        fk = ca.Function("fk_rows", [m.q_sym], [ca.densify(m.frame_expr(m.ee))])
-        self.function = fk.map(_FK_ROWS)
+    def __init__(self, expr: ca.SX, q_sym: ca.SX, rows: int) -> None:
+        self.shape = expr.shape
+        one = ca.Function("rows", [q_sym], [ca.densify(expr.T)])
+        self.functions = [one.map(rows >> i) if rows >> i > 1 else one for i in range(rows.bit_length())]
         self._local = threading.local()
 
-    def _buffers(self) -> tuple[np.ndarray, np.ndarray, Any]:
-        """This thread's ``(q, pose, call)``: the input rows, the poses column-major (each 4x4
-        transposed), and the evaluation on them."""
+    def _buffers(self) -> list[tuple[np.ndarray, np.ndarray, Any, Any]]:
+        """This thread's ``(q, out, call, buffer)`` of each chunk size, largest first: the input
+        rows, the values (row-major), the evaluation on them and the buffer that they live with."""
         mine = getattr(self._local, "buffers", None)
         if mine is None:
-            q, pose = np.zeros((_FK_ROWS, 6)), np.zeros((_FK_ROWS, 4, 4))
-            buffer, call = self.function.buffer()
-            buffer.set_arg(0, memoryview(q))
-            buffer.set_res(0, memoryview(pose))
-            mine = self._local.buffers = (q, pose, call, buffer)  # the buffer lives with them
-        return mine[0], mine[1], mine[2]
+            mine = []
+            for f in self.functions:
+                q = np.zeros((f.size2_in(0), 6))  # k rows (the mapped input is 6 x k)
+                out = np.zeros((len(q), *self.shape))
+                buffer, call = f.buffer()
+                buffer.set_arg(0, memoryview(q))
+                buffer.set_res(0, memoryview(out))
+                mine.append((q, out, call, buffer))
+            self._local.buffers = mine
+        return mine
 
     def __call__(self, q: np.ndarray) -> np.ndarray:
-        q_in, pose, call = self._buffers()
-        out = np.empty((len(q), 4, 4))
-        for start in range(0, len(q), _FK_ROWS):
-            rows = q[start : start + _FK_ROWS]
-            q_in[: len(rows)] = rows
-            call()
-            out[start : start + len(rows)] = np.swapaxes(pose[: len(rows)], 1, 2)
+        out = np.empty((len(q), *self.shape))
+        start = 0
+        for q_in, values, call, _ in self._buffers():
+            k = len(q_in)
+            while len(q) - start >= k:  # repeats for the largest size only
+                q_in[:] = q[start : start + k]
+                call()
+                out[start : start + k] = values
+                start += k
         return out
 
 
 _FKS: PerMechanism[_MechanismFK] = PerMechanism()
+_JACOBIANS: PerMechanism[_MechanismFK] = PerMechanism()
 
 
 def _mechanism_fk(m: Mechanism) -> _MechanismFK:
-    """The `_MechanismFK` of ``m`` (made once per mechanism)."""
+    """``q (K, 6) -> m.fk(q) (K, 4, 4)``: the `_MechanismFK` of ``m``'s end-effector pose
+    (`_FK_ROWS` rows a chunk; made once per mechanism)."""
     fk = _FKS.get(m)
-    return fk if fk is not None else _FKS.setdefault(m, _MechanismFK(m))
+    return fk if fk is not None else _FKS.setdefault(m, _MechanismFK(m.frame_expr(m.ee), m.q_sym, _FK_ROWS))
+
+
+def _mechanism_jacobian(m: Mechanism) -> _MechanismFK:
+    """``q (K, 6) -> m.jacobian(q) (K, 6, 6)``: the `_MechanismFK` of ``m``'s geometric Jacobian
+    (one row a chunk: the polish of `_refine` takes a row at a time; made at the first need,
+    once per mechanism)."""
+    jac = _JACOBIANS.get(m)
+    return jac if jac is not None else _JACOBIANS.setdefault(m, _MechanismFK(m.jacobian_expr(), m.q_sym, 1))
 
 
 def _arm(arm: Mechanism | General6R) -> General6R:
@@ -881,10 +902,11 @@ def _distinct(rows: np.ndarray, owner: np.ndarray, n: int) -> list[np.ndarray]:
     rows = np.ascontiguousarray(rows, dtype=complex)
     owner = np.ascontiguousarray(owner, dtype=np.int64)
     k = len(owner)
-    scratch, bounds = np.empty(2 * k, dtype=np.int64), np.empty(n + 1, dtype=np.int64)
-    idx = scratch[k:]
-    fn(_address(rows), _address(owner), k, n, _address(scratch), _address(idx), _address(bounds))
-    return [idx[i:j] for i, j in itertools.pairwise(bounds.tolist())]
+    # one buffer (one address read): the sort's scratch (k), the indices (k), the bounds (n + 1)
+    out = np.empty(2 * k + n + 1, dtype=np.int64)
+    base, idx = _address(out), out[k : 2 * k]
+    fn(_address(rows), _address(owner), k, n, base, base + 8 * k, base + 16 * k)
+    return [idx[i:j] for i, j in itertools.pairwise(out[2 * k :].tolist())]
 
 
 def _distinct_numpy(rows: np.ndarray, owner: np.ndarray, n: int) -> list[np.ndarray]:
@@ -1110,9 +1132,6 @@ def _candidates_c(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candid
     slots = n * cap
     ends = list(itertools.accumulate([8 * n, 12 * slots, slots, 6 * slots, 6 * slots]))
     out = np.empty(ends[-1])
-    info, size = out[: ends[0]].reshape(n, 8), out[ends[1] : ends[2]]
-    theta = out[ends[0] : ends[1]].view(complex).reshape(slots, 6)
-    again, real = out[ends[2] : ends[3]].reshape(slots, 6), out[ends[3] :].reshape(slots, 6)
     retry, owner = np.empty(slots, dtype=np.intc), np.empty(slots, dtype=np.int64)
     base, (model, offset) = _address(out), arm._left.addresses
     total = fn(
@@ -1129,12 +1148,19 @@ def _candidates_c(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candid
         base + 8 * ends[3],
         _address(owner),
     )
-    done = info[:, 0] == 0
-    kept = done[owner[:total]]  # the candidates of the done targets: all (the C code writes no others)
-    pick = slice(total) if kept.all() else np.flatnonzero(kept)
-    owner, size, retry, theta, real = owner[pick], size[pick], retry[pick], theta[pick], real[pick]
-    retried = np.flatnonzero(retry)
-    again = again[:total][pick][retried]
+    # the views of what was written: `total` candidates of each kind
+    info, size = out[: ends[0]].reshape(n, 8), out[ends[1] : ends[1] + total]
+    theta = out[ends[0] : ends[0] + 12 * total].view(complex).reshape(total, 6)
+    again = out[ends[2] : ends[2] + 6 * total].reshape(total, 6)
+    real = out[ends[3] : ends[3] + 6 * total].reshape(total, 6)
+    owner, retry = owner[:total], retry[:total]
+    handed_back = np.count_nonzero(info[:, 0]) > 0  # the usual case, none: no mask to build
+    if handed_back:  # keep the candidates of the done targets (the C code writes no others)
+        done = info[:, 0] == 0
+        pick = np.flatnonzero(done[owner])
+        owner, size, retry, theta, real, again = (x[pick] for x in (owner, size, retry, theta, real, again))
+    retried = retry.nonzero()[0]
+    again = again[retried]
     if not last:
         real, again = _joint_rows(arm, theta, owner, retried, again, tp, last)
     flags = info[:, 1:3] > 0
@@ -1151,7 +1177,7 @@ def _candidates_c(arm: General6R, tp: np.ndarray, last: bool = False) -> _Candid
         again,
         real,
     )
-    rest = np.flatnonzero(~done)
+    rest = np.flatnonzero(~done) if handed_back else ()
     if len(rest):
         cand = _join(cand, rest, _candidates(arm, tp[rest], last))
     return cand
@@ -1196,7 +1222,7 @@ def _solve(
     # retried one that passes the FK check is a real solution, not a complex one
     real = np.maximum.reduce(np.abs(theta.imag), axis=1, initial=0.0) <= IMAG_TOL
     retry = cand.retry
-    at = np.flatnonzero(real)
+    at = real.nonzero()[0]
     owner = np.concatenate([idx_n[at], idx_n[retry]])
     q, errors = check(np.concatenate([cand.real[at], cand.again]), owner)
     fk_err = _fk_error(errors, arm.scale)
@@ -1205,9 +1231,9 @@ def _solve(
     decided[retry[ok[len(at) :]]] = True
     # the distinct real solutions (rows 2k) and complex ones (rows 2k + 1) of each target k in one go
     complex_ = converged & ~decided
-    q_ok = q[ok]
+    q_ok, owner_ok = q[ok], owner[ok]
     rows = np.concatenate([q_ok, theta[complex_]])
-    groups = _distinct(rows, np.concatenate([2 * owner[ok], 2 * idx_n[complex_] + 1]), 2 * n)
+    groups = _distinct(rows, np.concatenate([2 * owner_ok, 2 * idx_n[complex_] + 1]), 2 * n)
     sols = [q_ok[x] for x in groups[0::2]]  # real rows come first: indices into q_ok
     errors_ok = errors[ok]
     n_complex = np.array([len(x) for x in groups[1::2]], dtype=int) + cand.n_far
@@ -1217,7 +1243,7 @@ def _solve(
     )
     n_real = np.bincount(idx_n[decided], minlength=n)
     err = np.zeros(n)
-    np.maximum.at(err, owner[ok], fk_err[ok])
+    np.maximum.at(err, owner_ok, fk_err[ok])
     out = []
     for k in range(n):
         n_sols, n_finite = len(sols[k]), int(cand.n_good[k])
@@ -1388,13 +1414,13 @@ def _refine(
     for _ in range(3 if m is not None else 0):
         pose = fk(q)
         errors = _pose_errors(pose, targets)
-        todo = np.flatnonzero(_fk_error(errors, g.scale) > _EXACT)
+        todo = (_fk_error(errors, g.scale) > _EXACT).nonzero()[0]
         if not len(todo):
             return q, pose, errors
         for k in todo:
             rot = pose[k, :3, :3] @ targets[k, :3, :3].T
             err = np.concatenate([pose[k, :3, 3] - targets[k, :3, 3], 0.5 * _skew(rot)])
-            q[k] = q[k] - np.linalg.lstsq(m.jacobian(q[k]), err, rcond=None)[0]
+            q[k] = q[k] - np.linalg.lstsq(_mechanism_jacobian(m)(q[k][None])[0], err, rcond=None)[0]
         q = _wrap(q)
     pose = fk(q).reshape(-1, 4, 4)
     return q, pose, _pose_errors(pose, targets)

@@ -643,17 +643,27 @@ def driver_source(path: Path, compile: bool | str = "auto") -> str | None:
         return None
 
 
+def check_compile(compile: Any) -> bool | str:
+    """``compile`` itself when it is a ``compile`` option of this module (True, False or
+    ``"auto"``): a caller that keys a cache by it checks it before building anything.
+
+    Raises:
+        InvalidArgumentError: any other value.
+    """
+    if compile not in (True, False, "auto"):
+        raise InvalidArgumentError("compile", f"expected True, False or 'auto', got {compile!r}")
+    return compile
+
+
 def _compiler_for(compile: bool | str) -> str | None:
     """The `compiler` to build with under a validated ``compile`` option, None for no compiled
     code (``compile=False``, or no compiler with ``"auto"``).
 
     Raises:
-        InvalidArgumentError: ``compile`` is not True, False or ``"auto"``.
+        InvalidArgumentError: ``compile`` is not True, False or ``"auto"`` (`check_compile`).
         SolverUnavailableError: ``compile=True`` without a compiler.
     """
-    if compile not in (True, False, "auto"):
-        raise InvalidArgumentError("compile", f"expected True, False or 'auto', got {compile!r}")
-    if compile is False:
+    if check_compile(compile) is False:
         return None
     cc = compiler()
     if cc is None and compile is True:

@@ -94,6 +94,8 @@ def test_compiled_code_answers_as_the_evaluator(arm):
         assert np.array_equal(a.q, b.q) and a.iterations == b.iterations and a.success == b.success
     pools = {k[-1]: v for k, v in _CACHE.items() if k[0] == "nlp" and k[1] is arm and k[4]}
     assert pools[True].compiled and not pools[False].compiled
+    with pytest.raises(optik.InvalidArgumentError, match="^compile: expected True, False or 'auto'"):
+        optik.solve_ik(arm, optik.Position(targets[0]), compile="yes", **kw)
 
 
 def test_no_iteration_after_the_deadline_and_answers_judged_exactly(monkeypatch):

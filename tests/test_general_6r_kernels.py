@@ -337,7 +337,7 @@ def test_c_candidates_from_null_vectors_equal_numpy_eigenvectors(seed: int) -> N
 @settings(max_examples=30, deadline=None, derandomize=True)
 @given(st.integers(0, 2**32 - 1), st.integers(0, 3 * g6._FK_ROWS + 3))
 def test_batched_fk_check_equals_m_fk_row_by_row(seed: int, n: int) -> None:
-    """The FK check's evaluation of the mechanism (`_MechanismFK`, chunks of `_FK_ROWS` rows)
+    """The FK check's evaluation of the mechanism (`_MechanismRows`, chunks of `_FK_ROWS` rows)
     gives exactly ``m.fk`` of each row (and the Jacobian's, `_mechanism_jacobian`, exactly
     ``m.jacobian``), for any number of rows (none, a partial chunk, several) and rows that are
     views (reversed columns, as for the inverse chain's candidates)."""
@@ -361,7 +361,7 @@ def test_batched_fk_check_equals_m_fk_row_by_row(seed: int, n: int) -> None:
 
 
 def test_batched_fk_check_in_four_threads_equals_one() -> None:
-    """Four threads evaluating one mechanism's `_MechanismFK` at once (each on its own buffers)
+    """Four threads evaluating one mechanism's `_MechanismRows` at once (each on its own buffers)
     get the single thread's poses, call for call."""
     rng = np.random.default_rng(3)
     m = _arm(rng)

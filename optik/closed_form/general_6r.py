@@ -77,7 +77,7 @@ run on one OpenBLAS thread; each candidate's ``w`` is the null vector of its ``M
 pivoting, not the companion matrix's eigenvector); numpy answers until it is built,
 without a compiler (logged), for a badly conditioned ``A`` (QZ) and for an exactly singular
 Jacobian. Both give the same candidates to rounding; the polish on ``m.fk``, the FK check (the
-mechanism's own FK expression on all candidates of a batch at once, `_MechanismFK`, reused from
+mechanism's own FK expression on all candidates of a batch at once, `_MechanismRows`, reused from
 that polish) and the count check are common, the count
 check for all targets of a batch at once (counts by ``np.bincount`` over the candidates' targets,
 `_distinct` for the deduplication).
@@ -583,7 +583,7 @@ _FK_ROWS = 8
 """Rows per evaluation of `_mechanism_fk` (a batch is evaluated in chunks of this many rows)."""
 
 
-class _MechanismFK:
+class _MechanismRows:
     """``q (K, 6) -> f(q) (K, r, c)`` on the validated rows of the internal path, for an
     ``r x c`` expression ``f`` of a mechanism's joints (its FK, `_mechanism_fk`, or its
     Jacobian, `_mechanism_jacobian`): ``f`` transposed and densified (CasADi's column-major
@@ -631,23 +631,23 @@ class _MechanismFK:
         return out
 
 
-_FKS: PerMechanism[_MechanismFK] = PerMechanism()
-_JACOBIANS: PerMechanism[_MechanismFK] = PerMechanism()
+_FKS: PerMechanism[_MechanismRows] = PerMechanism()
+_JACOBIANS: PerMechanism[_MechanismRows] = PerMechanism()
 
 
-def _mechanism_fk(m: Mechanism) -> _MechanismFK:
-    """``q (K, 6) -> m.fk(q) (K, 4, 4)``: the `_MechanismFK` of ``m``'s end-effector pose
+def _mechanism_fk(m: Mechanism) -> _MechanismRows:
+    """``q (K, 6) -> m.fk(q) (K, 4, 4)``: the `_MechanismRows` of ``m``'s end-effector pose
     (`_FK_ROWS` rows a chunk; made once per mechanism)."""
     fk = _FKS.get(m)
-    return fk if fk is not None else _FKS.setdefault(m, _MechanismFK(m.frame_expr(m.ee), m.q_sym, _FK_ROWS))
+    return fk if fk is not None else _FKS.setdefault(m, _MechanismRows(m.frame_expr(m.ee), m.q_sym, _FK_ROWS))
 
 
-def _mechanism_jacobian(m: Mechanism) -> _MechanismFK:
-    """``q (K, 6) -> m.jacobian(q) (K, 6, 6)``: the `_MechanismFK` of ``m``'s geometric Jacobian
+def _mechanism_jacobian(m: Mechanism) -> _MechanismRows:
+    """``q (K, 6) -> m.jacobian(q) (K, 6, 6)``: the `_MechanismRows` of ``m``'s geometric Jacobian
     (one row a chunk: the polish of `_refine` takes a row at a time; made at the first need,
     once per mechanism)."""
     jac = _JACOBIANS.get(m)
-    return jac if jac is not None else _JACOBIANS.setdefault(m, _MechanismFK(m.jacobian_expr(), m.q_sym, 1))
+    return jac if jac is not None else _JACOBIANS.setdefault(m, _MechanismRows(m.jacobian_expr(), m.q_sym, 1))
 
 
 def _arm(arm: Mechanism | General6R) -> General6R:
@@ -1403,7 +1403,7 @@ def _refine(
     a mechanism a few steps on ``m.fk`` and ``m.jacobian`` wherever the FK error is still above
     rounding (the DH description of near-parallel axes loses digits). Returns the polished
     angles (wrapped), their poses by the independent forward kinematics (the mechanism's own,
-    `_MechanismFK`, or ``g.fk`` for a `General6R`; the last evaluation of the polish when no
+    `_MechanismRows`, or ``g.fk`` for a `General6R`; the last evaluation of the polish when no
     step was left to take, the usual case) and their position and orientation errors
     (`_pose_errors`), which the FK check reads."""
     if not len(q):

@@ -588,9 +588,7 @@ def _solve_nlp(
     opts = dict(request.options)
     max_iter = positive_int(opts.pop("max_iter", 200), "max_iter")
     posture = as_float(opts.pop("posture", 1e-9), "posture", 0.0)
-    compile = opts.pop("compile", "auto")
-    if compile not in (True, False, "auto"):
-        raise InvalidArgumentError("compile", f"expected True, False or 'auto', got {compile!r}")
+    compile = native.check_compile(opts.pop("compile", "auto"))
     if opts:
         raise InvalidArgumentError(
             next(iter(opts)), "unknown option of the collision-aware nlp (max_iter, posture, buffer, compile)"
